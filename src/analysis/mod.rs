@@ -1,0 +1,3 @@
+//! Analysis drivers: stages of a simulation on a model.
+
+pub mod statics;

@@ -1,0 +1,197 @@
+//! The static problem: equilibrium of Π(u, Φ) = ∫Ψ dV under prescribed displacements and electrode
+//! potentials, ramped from their values at the start of the stage to the model's targets.
+
+use crate::assembly::{Assembler, CsrMatrix};
+use crate::dofs::{apply_dirichlet, constrained_flags, DofMap, FIELDS, PHI};
+use crate::element::{cell_energy_split, cell_residual_tangent};
+use crate::model::Model;
+use crate::solve::linear::{FaerLdlt, LinearSolver};
+use crate::solve::newton::{NewtonSettings, NonlinearSystem};
+use crate::solve::stepping::{ramp, AcceptedStep, LoadedSystem, RampFailure, RampReport, StepControl};
+
+/// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
+const RESIDUAL_FLOOR: f64 = 1e-11;
+
+/// The discrete static problem of a model.
+pub struct StaticProblem<'m> {
+    pub model: &'m Model,
+    pub dofs: DofMap,
+    assembler: Assembler,
+    /// Physical state, `FIELDS` values per node: u (m), Φ (V).
+    pub state: Vec<f64>,
+    /// Prescribed values at load factor 0.
+    start: Vec<f64>,
+    cell_energy: Vec<f64>,
+    floor: f64,
+}
+
+impl<'m> StaticProblem<'m> {
+    /// Sets up the problem starting from `state` (zero when `None`).
+    pub fn new(model: &'m Model, state: Option<Vec<f64>>) -> Self {
+        let n_nodes = model.mesh.n_nodes();
+        let flags = constrained_flags(n_nodes, &model.dirichlet);
+        let dofs = DofMap::new(n_nodes, &flags, model.potential_scale());
+        let assembler = Assembler::new(&model.mesh, &dofs);
+        let state = state.unwrap_or_else(|| vec![0.0; n_nodes * FIELDS]);
+        let mu = model.materials.iter().map(|m| m.shear_modulus()).fold(0.0, f64::max);
+        let h = model.cell_size();
+        StaticProblem {
+            model,
+            dofs,
+            assembler,
+            start: state.clone(),
+            state,
+            cell_energy: Vec::new(),
+            floor: RESIDUAL_FLOOR * mu * h * h,
+        }
+    }
+
+    /// The assembler (for benchmarks).
+    pub fn assembler(&self) -> &Assembler {
+        &self.assembler
+    }
+
+    /// Total stored energy split `(mechanical, electric)` (J) at the current state.
+    pub fn energies(&self) -> Result<(f64, f64), String> {
+        let m = self.model;
+        let mut x = vec![[0.0; 3]; m.mesh.kind.nodes_per_cell()];
+        let mut local = vec![0.0; x.len() * FIELDS];
+        let (mut mech, mut elec) = (0.0, 0.0);
+        for c in 0..m.mesh.n_cells() {
+            m.mesh.cell_coords_into(c, &mut x);
+            for (a, &node) in m.mesh.cell(c).iter().enumerate() {
+                local[a * FIELDS..(a + 1) * FIELDS]
+                    .copy_from_slice(&self.state[node * FIELDS..(node + 1) * FIELDS]);
+            }
+            let g = m.reference.geometry(&x).map_err(|e| format!("cell {c}: {e:?}"))?;
+            let (a, b) = cell_energy_split(&g, m.materials[m.cell_material[c]].as_ref(), &local)
+                .map_err(|e| format!("cell {c}: {:?}", e.error))?;
+            mech += a;
+            elec += b;
+        }
+        Ok((mech, elec))
+    }
+
+    /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ: the charge entering a node),
+    /// including constrained dofs; zero at free dofs of an equilibrium.
+    pub fn nodal_reactions(&self) -> Result<Vec<f64>, String> {
+        let m = self.model;
+        let mut out = vec![0.0; self.state.len()];
+        let mut x = vec![[0.0; 3]; m.mesh.kind.nodes_per_cell()];
+        let nl = x.len() * FIELDS;
+        let mut local = vec![0.0; nl];
+        let mut r = vec![0.0; nl];
+        for c in 0..m.mesh.n_cells() {
+            m.mesh.cell_coords_into(c, &mut x);
+            let cell = m.mesh.cell(c);
+            for (a, &node) in cell.iter().enumerate() {
+                local[a * FIELDS..(a + 1) * FIELDS]
+                    .copy_from_slice(&self.state[node * FIELDS..(node + 1) * FIELDS]);
+            }
+            let g = m.reference.geometry(&x).map_err(|e| format!("cell {c}: {e:?}"))?;
+            cell_residual_tangent(&g, m.materials[m.cell_material[c]].as_ref(), &local, &mut r, None)
+                .map_err(|e| format!("cell {c}: {:?}", e.error))?;
+            for (a, &node) in cell.iter().enumerate() {
+                for f in 0..FIELDS {
+                    out[node * FIELDS + f] += r[a * FIELDS + f];
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+impl NonlinearSystem for StaticProblem<'_> {
+    fn n(&self) -> usize {
+        self.dofs.n_free
+    }
+
+    fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
+        let m = self.model;
+        let npc = m.mesh.kind.nodes_per_cell();
+        let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
+            let mut x = [[0.0; 3]; crate::fem::MAX_NODES];
+            m.mesh.cell_coords_into(c, &mut x[..npc]);
+            let g = m
+                .reference
+                .geometry(&x[..npc])
+                .map_err(|e| format!("degenerate cell (Jacobian {:e})", e.det))?;
+            cell_residual_tangent(&g, m.materials[m.cell_material[c]].as_ref(), local, rl, kl)
+                .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
+        };
+        self.assembler
+            .assemble(&m.mesh, &self.dofs, &self.state, kernel, r, k, &mut self.cell_energy)
+            .map(|_| ())
+            .map_err(|f| format!("cell {}: {}", f.cell, f.error))
+    }
+
+    fn increment(&mut self, dx: &[f64], alpha: f64) {
+        self.dofs.add_scaled(&mut self.state, dx, alpha);
+    }
+
+    fn snapshot(&self) -> Vec<f64> {
+        self.state.clone()
+    }
+
+    fn restore(&mut self, s: &[f64]) {
+        self.state.copy_from_slice(s);
+    }
+
+    fn new_matrix(&self) -> CsrMatrix {
+        self.assembler.new_matrix()
+    }
+
+    fn expected_negative_pivots(&self) -> usize {
+        self.dofs.n_free_phi
+    }
+
+    fn residual_floor(&self) -> f64 {
+        self.floor
+    }
+
+    fn groups(&self) -> Vec<u8> {
+        self.dofs
+            .field_of_equation()
+            .into_iter()
+            .map(|f| u8::from(f == PHI))
+            .collect()
+    }
+}
+
+impl LoadedSystem for StaticProblem<'_> {
+    fn set_load(&mut self, s: f64) {
+        let targets = &self.model.dirichlet;
+        let mut end = self.state.clone();
+        apply_dirichlet(&mut end, targets);
+        for c in targets {
+            for &n in &c.nodes {
+                let d = DofMap::dof(n, c.field.index());
+                self.state[d] = self.start[d] + s * (end[d] - self.start[d]);
+            }
+        }
+    }
+}
+
+/// Outcome of a static ramp.
+#[derive(Debug)]
+pub struct StaticOutcome {
+    pub state: Vec<f64>,
+    pub result: Result<RampReport, RampFailure>,
+}
+
+/// Ramps the model's Dirichlet values from `initial` (zero state when `None`) in `steps` steps.
+/// `on_step` sees the problem after every accepted step.
+pub fn solve_static(
+    model: &Model,
+    initial: Option<Vec<f64>>,
+    control: &StepControl,
+    newton: &NewtonSettings,
+    mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
+) -> StaticOutcome {
+    let mut problem = StaticProblem::new(model, initial);
+    let mut solver = FaerLdlt::new();
+    let result = ramp(&mut problem, &mut solver as &mut dyn LinearSolver, newton, control, |p, s| {
+        on_step(p, s)
+    });
+    StaticOutcome { state: problem.state, result }
+}

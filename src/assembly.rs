@@ -1,0 +1,237 @@
+//! Assembly of the global residual and tangent from cell contributions.
+//!
+//! Knows the mesh topology and the dof map, nothing of physics: a cell kernel (a closure) turns a
+//! cell's local values into a local residual and tangent. The CSR pattern over the free dofs is built
+//! once. Cells are coloured so that no two cells of one colour share a node; the cells of one colour
+//! are assembled in parallel and write into disjoint entries, colours one after the other. Every
+//! matrix and vector entry therefore receives its contributions in the same order whatever the
+//! number of threads: results are bitwise reproducible.
+
+use crate::dofs::{DofMap, CONSTRAINED, FIELDS};
+use crate::element::{LocalMatrix, MAX_LOCAL};
+use crate::mesh::Mesh;
+use rayon::prelude::*;
+
+/// A square sparse matrix in compressed sparse row form (full storage, sorted columns).
+#[derive(Debug, Clone)]
+pub struct CsrMatrix {
+    pub n: usize,
+    pub row_ptr: Vec<usize>,
+    pub col_idx: Vec<usize>,
+    pub values: Vec<f64>,
+}
+
+impl CsrMatrix {
+    /// Position of entry (i, j) in `values`, if it is in the pattern.
+    pub fn position(&self, i: usize, j: usize) -> Option<usize> {
+        let cols = &self.col_idx[self.row_ptr[i]..self.row_ptr[i + 1]];
+        cols.binary_search(&j).ok().map(|p| self.row_ptr[i] + p)
+    }
+
+    /// y = A x.
+    pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
+        for (i, yi) in y.iter_mut().enumerate().take(self.n) {
+            let mut s = 0.0;
+            for p in self.row_ptr[i]..self.row_ptr[i + 1] {
+                s += self.values[p] * x[self.col_idx[p]];
+            }
+            *yi = s;
+        }
+    }
+
+    /// Number of stored entries.
+    pub fn nnz(&self) -> usize {
+        self.col_idx.len()
+    }
+}
+
+/// A cell kernel failed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellFailure<E> {
+    pub cell: usize,
+    pub error: E,
+}
+
+/// Assembles cell contributions into global systems over the free dofs.
+#[derive(Debug, Clone)]
+pub struct Assembler {
+    colours: Vec<Vec<usize>>,
+    pattern: CsrMatrix,
+    nodes_per_cell: usize,
+}
+
+/// A pointer that may be shared between threads because the colouring guarantees that concurrent
+/// writes go to disjoint entries.
+#[derive(Clone, Copy)]
+struct SharedMut(*mut f64);
+unsafe impl Send for SharedMut {}
+unsafe impl Sync for SharedMut {}
+impl SharedMut {
+    /// # Safety
+    /// `i` is in bounds and no other thread touches entry `i` concurrently.
+    unsafe fn add(self, i: usize, v: f64) {
+        *self.0.add(i) += v;
+    }
+}
+
+impl Assembler {
+    /// Builds the colouring and the CSR pattern of the free dofs of `mesh` under `dofs`.
+    pub fn new(mesh: &Mesh, dofs: &DofMap) -> Self {
+        let npc = mesh.kind.nodes_per_cell();
+        // node adjacency through cells
+        let mut node_cells: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
+        for c in 0..mesh.n_cells() {
+            for &n in mesh.cell(c) {
+                node_cells[n].push(c);
+            }
+        }
+        let mut row_ptr = Vec::with_capacity(dofs.n_free + 1);
+        let mut col_idx = Vec::new();
+        row_ptr.push(0);
+        // equations are numbered node-major, so rows come node by node in increasing order
+        let mut row_of_eq = vec![usize::MAX; dofs.n_free];
+        let mut cols: Vec<usize> = Vec::new();
+        let mut neighbours: Vec<usize> = Vec::new();
+        let mut order: Vec<(usize, usize)> = Vec::new(); // (eq, node*FIELDS+field)
+        for node in 0..mesh.n_nodes() {
+            for f in 0..FIELDS {
+                let e = dofs.eq[node * FIELDS + f];
+                if e != CONSTRAINED {
+                    order.push((e, node * FIELDS + f));
+                }
+            }
+        }
+        order.sort_unstable();
+        let mut last_node = usize::MAX;
+        for &(e, d) in &order {
+            let node = d / FIELDS;
+            if node != last_node {
+                neighbours.clear();
+                for &c in &node_cells[node] {
+                    neighbours.extend_from_slice(mesh.cell(c));
+                }
+                neighbours.sort_unstable();
+                neighbours.dedup();
+                cols.clear();
+                for &m in &neighbours {
+                    for g in 0..FIELDS {
+                        let ce = dofs.eq[m * FIELDS + g];
+                        if ce != CONSTRAINED {
+                            cols.push(ce);
+                        }
+                    }
+                }
+                cols.sort_unstable();
+                last_node = node;
+            }
+            row_of_eq[e] = row_ptr.len() - 1;
+            col_idx.extend_from_slice(&cols);
+            row_ptr.push(col_idx.len());
+        }
+        debug_assert!(row_of_eq.iter().enumerate().all(|(e, &r)| e == r));
+        let nnz = col_idx.len();
+        Assembler {
+            colours: mesh.cell_colours(),
+            pattern: CsrMatrix {
+                n: dofs.n_free,
+                row_ptr,
+                col_idx,
+                values: vec![0.0; nnz],
+            },
+            nodes_per_cell: npc,
+        }
+    }
+
+    /// A zeroed matrix with the assembler's pattern.
+    pub fn new_matrix(&self) -> CsrMatrix {
+        self.pattern.clone()
+    }
+
+    /// Number of colours (for reports).
+    pub fn n_colours(&self) -> usize {
+        self.colours.len()
+    }
+
+    /// Assembles the scaled residual r̂ (length `n_free`) and, when `k` is given, the scaled tangent.
+    /// `state` holds the physical values of all dofs (`FIELDS` per node). The kernel receives the
+    /// cell index and its local values and fills the local residual (and tangent); it returns the
+    /// cell's energy. Returns the per-cell energies' sum, added in cell order.
+    pub fn assemble<E, K>(
+        &self,
+        mesh: &Mesh,
+        dofs: &DofMap,
+        state: &[f64],
+        kernel: K,
+        r: &mut [f64],
+        mut k: Option<&mut CsrMatrix>,
+        cell_energy: &mut Vec<f64>,
+    ) -> Result<f64, CellFailure<E>>
+    where
+        E: Send,
+        K: Fn(usize, &[f64], &mut [f64], Option<&mut [f64]>) -> Result<f64, E> + Sync,
+    {
+        let npc = self.nodes_per_cell;
+        let nl = npc * FIELDS;
+        r.iter_mut().for_each(|v| *v = 0.0);
+        cell_energy.clear();
+        cell_energy.resize(mesh.n_cells(), 0.0);
+        let want_k = k.is_some();
+        if let Some(k) = k.as_deref_mut() {
+            k.values.iter_mut().for_each(|v| *v = 0.0);
+        }
+        let r_ptr = SharedMut(r.as_mut_ptr());
+        let k_ptr = k.as_deref_mut().map(|k| SharedMut(k.values.as_mut_ptr()));
+        let e_ptr = SharedMut(cell_energy.as_mut_ptr());
+        let pattern = k.as_deref().map(|k| (&k.row_ptr, &k.col_idx));
+        for colour in &self.colours {
+            colour.par_iter().try_for_each_init(
+                || (vec![0.0; MAX_LOCAL], Box::new([0.0; MAX_LOCAL * MAX_LOCAL]) as Box<LocalMatrix>, [0usize; MAX_LOCAL], [0.0; MAX_LOCAL]),
+                |(rl, kl, eqs, scale), &c| {
+                    let cell = mesh.cell(c);
+                    let mut local = [0.0; MAX_LOCAL];
+                    for (a, &node) in cell.iter().enumerate() {
+                        for f in 0..FIELDS {
+                            let d = node * FIELDS + f;
+                            local[a * FIELDS + f] = state[d];
+                            eqs[a * FIELDS + f] = dofs.eq[d];
+                            scale[a * FIELDS + f] = dofs.scale[f];
+                        }
+                    }
+                    let kl_opt = if want_k { Some(&mut kl[..nl * nl]) } else { None };
+                    let energy = kernel(c, &local[..nl], &mut rl[..nl], kl_opt)
+                        .map_err(|error| CellFailure { cell: c, error })?;
+                    // SAFETY: cells of one colour share no node, hence no dof: disjoint entries.
+                    unsafe {
+                        e_ptr.add(c, energy);
+                        for i in 0..nl {
+                            if eqs[i] != CONSTRAINED {
+                                r_ptr.add(eqs[i], scale[i] * rl[i]);
+                            }
+                        }
+                    }
+                    if let (Some(kp), Some((row_ptr, col_idx))) = (k_ptr, pattern) {
+                        for i in 0..nl {
+                            let ei = eqs[i];
+                            if ei == CONSTRAINED {
+                                continue;
+                            }
+                            let cols = &col_idx[row_ptr[ei]..row_ptr[ei + 1]];
+                            for j in 0..nl {
+                                let ej = eqs[j];
+                                if ej == CONSTRAINED {
+                                    continue;
+                                }
+                                let p = row_ptr[ei]
+                                    + cols.binary_search(&ej).expect("pattern holds every cell coupling");
+                                // SAFETY: as above, row ei belongs to a node of this cell only.
+                                unsafe { kp.add(p, scale[i] * scale[j] * kl[i * nl + j]) };
+                            }
+                        }
+                    }
+                    Ok(())
+                },
+            )?;
+        }
+        Ok(cell_energy.iter().sum())
+    }
+}

@@ -1,0 +1,170 @@
+//! The electro-elastic element kernel: turns a material and a cell's shape-function gradients into
+//! the local residual and tangent of Π = ∫ Ψ(F, E₀) dV with E₀ = −∇₀Φ.
+//!
+//! Local dofs are node-major (ux, uy, uz, Φ). Residual rows:
+//! r_{a,i} = ∫ P_iJ ∂N_a/∂X_J dV and r_{a,Φ} = ∂Π/∂Φ_a = ∫ D₀_J ∂N_a/∂X_J dV.
+//! The tangent is their exact derivative, symmetric, with a negative-definite Φ–Φ block.
+
+use crate::dofs::FIELDS;
+use crate::fem::{kinematics, CellGeometry, MAX_NODES};
+use crate::material::{Material, MaterialError};
+
+/// Largest number of local dofs.
+pub const MAX_LOCAL: usize = MAX_NODES * FIELDS;
+
+/// Local tangent storage (row-major, `n_local × n_local`).
+pub type LocalMatrix = [f64; MAX_LOCAL * MAX_LOCAL];
+
+/// Failure at a quadrature point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointFailure {
+    pub qp: usize,
+    pub error: MaterialError,
+}
+
+/// Splits the local values (node-major, 4 per node) into displacements and potentials.
+fn split_local(n: usize, local: &[f64]) -> ([[f64; 3]; MAX_NODES], [f64; MAX_NODES]) {
+    let mut u = [[0.0; 3]; MAX_NODES];
+    let mut phi = [0.0; MAX_NODES];
+    for a in 0..n {
+        u[a] = [local[a * 4], local[a * 4 + 1], local[a * 4 + 2]];
+        phi[a] = local[a * 4 + 3];
+    }
+    (u, phi)
+}
+
+/// Energy ∫Ψ dV of the cell (J).
+pub fn cell_energy(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    local: &[f64],
+) -> Result<f64, PointFailure> {
+    let n = geom.n_nodes;
+    let (u, phi) = split_local(n, local);
+    let mut e = 0.0;
+    for q in 0..geom.n_qp {
+        let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
+        e += geom.weights[q] * mat.energy(&f, &e0).map_err(|error| PointFailure { qp: q, error })?;
+    }
+    Ok(e)
+}
+
+/// Mechanical and electric parts of the cell energy, `(∫W dV, ∫w_e dV)` (J), as the material splits it.
+pub fn cell_energy_split(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    local: &[f64],
+) -> Result<(f64, f64), PointFailure> {
+    let n = geom.n_nodes;
+    let (u, phi) = split_local(n, local);
+    let (mut m, mut el) = (0.0, 0.0);
+    for q in 0..geom.n_qp {
+        let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
+        let (a, b) = mat
+            .energy_split(&f, &e0)
+            .map_err(|error| PointFailure { qp: q, error })?;
+        m += geom.weights[q] * a;
+        el += geom.weights[q] * b;
+    }
+    Ok((m, el))
+}
+
+/// Local residual (and tangent when `k` is given) of the cell. Returns the cell energy (J).
+/// `r` has `4·n_nodes` entries; `k` is row-major with leading dimension `4·n_nodes`.
+pub fn cell_residual_tangent(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    local: &[f64],
+    r: &mut [f64],
+    mut k: Option<&mut [f64]>,
+) -> Result<f64, PointFailure> {
+    let n = geom.n_nodes;
+    let nl = n * FIELDS;
+    let (u, phi) = split_local(n, local);
+    r[..nl].iter_mut().for_each(|v| *v = 0.0);
+    if let Some(k) = k.as_deref_mut() {
+        k[..nl * nl].iter_mut().for_each(|v| *v = 0.0);
+    }
+    let mut energy = 0.0;
+    for q in 0..geom.n_qp {
+        let g = &geom.grad[q];
+        let w = geom.weights[q];
+        let (f, e0) = kinematics(&g[..n], &u[..n], &phi[..n]);
+        let fail = |error| PointFailure { qp: q, error };
+        match k.as_deref_mut() {
+            None => {
+                let s = mat.stress(&f, &e0).map_err(fail)?;
+                energy += w * s.energy;
+                add_residual(g, n, w, &s.p, &s.d0, r);
+            }
+            Some(k) => {
+                let t = mat.tangent(&f, &e0).map_err(fail)?;
+                energy += w * t.energy;
+                add_residual(g, n, w, &t.p, &t.d0, r);
+                // ga[a][i][kL] = Σ_J ∂N_a/∂X_J A_{iJ,kL}; gb[a][i][K] = Σ_J ∂N_a/∂X_J B_{iJ,K}
+                let mut ga = [[[0.0; 9]; 3]; MAX_NODES];
+                let mut gb = [[[0.0; 3]; 3]; MAX_NODES];
+                let mut gg = [[0.0; 3]; MAX_NODES];
+                for a in 0..n {
+                    for i in 0..3 {
+                        for jj in 0..3 {
+                            let gaj = g[a][jj];
+                            let row = i * 3 + jj;
+                            for c in 0..9 {
+                                ga[a][i][c] += gaj * t.a[(row, c)];
+                            }
+                            for c in 0..3 {
+                                gb[a][i][c] += gaj * t.b[(row, c)];
+                            }
+                        }
+                    }
+                    for c in 0..3 {
+                        gg[a][c] = g[a][0] * t.g[(0, c)] + g[a][1] * t.g[(1, c)] + g[a][2] * t.g[(2, c)];
+                    }
+                }
+                for a in 0..n {
+                    for b in 0..n {
+                        let gbv = g[b];
+                        for i in 0..3 {
+                            let row = (a * 4 + i) * nl + b * 4;
+                            for kk in 0..3 {
+                                let c = &ga[a][i][kk * 3..kk * 3 + 3];
+                                k[row + kk] +=
+                                    w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
+                            }
+                            // ∂r_{a,i}/∂Φ_b = Σ ∂N_a/∂X_J B_{iJ,K} (−∂N_b/∂X_K)
+                            let c = &gb[a][i];
+                            k[row + 3] -= w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
+                        }
+                        let row = (a * 4 + 3) * nl + b * 4;
+                        // ∂r_{a,Φ}/∂u_{b,k} = −Σ ∂N_a/∂X_J B_{kL,J} ∂N_b/∂X_L (symmetric partner)
+                        for kk in 0..3 {
+                            let c = &gb[b][kk];
+                            k[row + kk] -= w * (c[0] * g[a][0] + c[1] * g[a][1] + c[2] * g[a][2]);
+                        }
+                        // ∂r_{a,Φ}/∂Φ_b = Σ ∂N_a/∂X_J G_JK ∂N_b/∂X_K
+                        k[row + 3] += w * (gg[a][0] * gbv[0] + gg[a][1] * gbv[1] + gg[a][2] * gbv[2]);
+                    }
+                }
+            }
+        }
+    }
+    Ok(energy)
+}
+
+fn add_residual(
+    g: &[[f64; 3]; MAX_NODES],
+    n: usize,
+    w: f64,
+    p: &crate::material::Mat3,
+    d0: &crate::material::Vec3,
+    r: &mut [f64],
+) {
+    for a in 0..n {
+        let ga = g[a];
+        for i in 0..3 {
+            r[a * 4 + i] += w * (p[(i, 0)] * ga[0] + p[(i, 1)] * ga[1] + p[(i, 2)] * ga[2]);
+        }
+        r[a * 4 + 3] += w * (d0[0] * ga[0] + d0[1] * ga[1] + d0[2] * ga[2]);
+    }
+}

@@ -1,0 +1,17 @@
+//! deasim: a finite-strain electro-mechanical finite element simulator for dielectric elastomer
+//! actuators. Unknowns are the displacement u and the electric potential Φ at every node; the
+//! equations are the stationarity conditions of one energy Π(u, Φ) = ∫Ψ(F, E₀) dV − W_ext.
+//!
+//! See `docs/architecture.md` for the data flow and the module responsibilities.
+
+pub mod analysis;
+pub mod analytic;
+pub mod assembly;
+pub mod dofs;
+pub mod element;
+pub mod examples;
+pub mod fem;
+pub mod material;
+pub mod mesh;
+pub mod model;
+pub mod solve;

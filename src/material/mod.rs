@@ -1,0 +1,109 @@
+//! Constitutive models for electro-active (dielectric elastomer) materials.
+//!
+//! Every model is described by an energy per unit reference volume Ψ(F, E0),
+//! where F is the deformation gradient and E0 = −∇₀Φ the referential electric
+//! field. The element kernels only see the [`Material`] trait, which provides
+//!
+//! * `P  = ∂Ψ/∂F` (first Piola–Kirchhoff stress),
+//! * `D0 = −∂Ψ/∂E0` (referential electric displacement),
+//! * `A  = ∂²Ψ/∂F∂F` as a 9×9 matrix, row/column index `i*3+J` for `F_iJ`,
+//! * `B  = ∂²Ψ/∂F∂E0 = ∂P/∂E0` as a 9×3 matrix, entry `(i*3+J, K)`,
+//! * `G  = ∂²Ψ/∂E0∂E0 = −∂D0/∂E0` (negative definite for a dielectric).
+//!
+//! Models that are naturally written in terms of C = FᵀF implement
+//! [`isotropic::CMaterial`] and use the generic conversion functions in
+//! [`isotropic`] to obtain the F-form quantities.
+
+pub mod isotropic;
+pub mod neo_hooke;
+
+#[cfg(test)]
+mod fd_tests;
+
+pub use neo_hooke::ElectroNeoHooke;
+
+/// 3×3 matrix (deformation gradient, stresses, …).
+pub type Mat3 = nalgebra::Matrix3<f64>;
+/// 3-vector (electric field, displacement, …).
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// 9×9 matrix: the mechanical tangent `∂P/∂F` in row-major flattening of F.
+pub type Mat9 = nalgebra::SMatrix<f64, 9, 9>;
+/// 9×3 matrix: the coupling tangent `∂P/∂E0`.
+pub type Mat93 = nalgebra::SMatrix<f64, 9, 3>;
+
+/// Vacuum permittivity ε₀ in F/m.
+pub const EPSILON_0: f64 = 8.8541878128e-12;
+
+/// Error evaluating a material at a point (e.g. J <= 0).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MaterialError {
+    /// The volume ratio J = det F is not positive (or not finite).
+    #[error("non-positive volume ratio J = {0:e}")]
+    NonPositiveJ(f64),
+    /// Any other input outside the model's domain.
+    #[error("{0}")]
+    OutOfDomain(String),
+}
+
+/// First derivatives at a point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stress {
+    /// Energy per reference volume Ψ (J/m³).
+    pub energy: f64,
+    /// First Piola–Kirchhoff stress P = ∂Ψ/∂F (Pa).
+    pub p: Mat3,
+    /// Referential electric displacement D0 = −∂Ψ/∂E0 (C/m²).
+    pub d0: Vec3,
+}
+
+/// First and second derivatives at a point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tangent {
+    /// Energy per reference volume Ψ (J/m³).
+    pub energy: f64,
+    /// First Piola–Kirchhoff stress P = ∂Ψ/∂F (Pa).
+    pub p: Mat3,
+    /// Referential electric displacement D0 = −∂Ψ/∂E0 (C/m²).
+    pub d0: Vec3,
+    /// A = ∂²Ψ/∂F∂F, entry `(i*3+J, k*3+L)` = ∂P_iJ/∂F_kL.
+    pub a: Mat9,
+    /// B = ∂P/∂E0, entry `(i*3+J, K)` = ∂P_iJ/∂E0_K.
+    pub b: Mat93,
+    /// G = ∂²Ψ/∂E0∂E0 = −∂D0/∂E0.
+    pub g: Mat3,
+}
+
+/// An electro-elastic material described by an energy Ψ(F, E0) per unit
+/// reference volume.
+pub trait Material: Send + Sync + std::fmt::Debug {
+    /// Energy per reference volume Ψ(F, E0).
+    fn energy(&self, f: &Mat3, e0: &Vec3) -> Result<f64, MaterialError>;
+    /// Energy and first derivatives.
+    fn stress(&self, f: &Mat3, e0: &Vec3) -> Result<Stress, MaterialError>;
+    /// Energy, first and second derivatives.
+    fn tangent(&self, f: &Mat3, e0: &Vec3) -> Result<Tangent, MaterialError>;
+    /// Small-strain shear modulus (Pa), used to scale the potential unknowns.
+    fn shear_modulus(&self) -> f64;
+    /// Small-strain bulk modulus (Pa).
+    fn bulk_modulus(&self) -> f64;
+    /// Small-strain permittivity (F/m), ε − 2c₁ − 2c₂ for the Vu form.
+    fn permittivity(&self) -> f64;
+    /// Split of the energy for bookkeeping: `(mechanical, electric)` where
+    /// `mechanical` is the purely hyperelastic part (no E0 dependence) and
+    /// `electric = −(all E0-dependent terms)`, so that Ψ = mechanical − electric.
+    fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError>;
+}
+
+/// Cauchy stress σ = P Fᵀ / J from the first Piola stress.
+///
+/// No check on J is made here; callers obtain `p` from a successful material
+/// evaluation, which already guarantees J > 0.
+pub fn cauchy_stress(p: &Mat3, f: &Mat3) -> Mat3 {
+    let j = f.determinant();
+    p * f.transpose() / j
+}
+
+/// Spatial electric field e = F⁻ᵀ E0, or `None` if F is singular.
+pub fn spatial_field(f: &Mat3, e0: &Vec3) -> Option<Vec3> {
+    f.try_inverse().map(|fi| fi.transpose() * e0)
+}

@@ -1,0 +1,414 @@
+//! Compressible neo-Hookean solid with a (possibly deformation-dependent)
+//! linear dielectric response.
+//!
+//! ```text
+//! Ω(C, E0) = μ/2 (tr C − 3) − μ ln J + Λ/2 (ln J)²
+//!          + c₁ E0·E0 + c₂ E0·(C E0) − ε/2 J E0·(C⁻¹E0)
+//! ```
+//!
+//! With c₁ = c₂ = 0 this is the ideal dielectric elastomer (ε = ε_r ε₀); the
+//! "Vu" form uses ε = ε₀ and electrostrictive coefficients c₁, c₂.
+//!
+//! Derivatives (g = C⁻¹E0, a = E0·g, H_IJKL = ½(C⁻¹_IK C⁻¹_JL + C⁻¹_IL C⁻¹_JK)):
+//!
+//! ```text
+//! S   = μ(I − C⁻¹) + Λ ln J C⁻¹ + 2c₂ E0⊗E0 + εJ (g⊗g − ½ a C⁻¹)
+//! D0  = −2c₁E0 − 2c₂ C E0 + εJ g
+//! 𝕃   = [2(μ − Λ ln J) + εJ a] H + (Λ − ½ εJ a) C⁻¹⊗C⁻¹
+//!       + εJ [ (g⊗g)⊗C⁻¹ + C⁻¹⊗(g⊗g)
+//!              − (C⁻¹_IK g_J g_L + C⁻¹_IL g_J g_K + C⁻¹_JK g_I g_L + C⁻¹_JL g_I g_K) ]
+//! ∂S_IJ/∂E0_K = 2c₂(δ_IK E0_J + E0_I δ_JK) + εJ (C⁻¹_IK g_J + g_I C⁻¹_JK − g_K C⁻¹_IJ)
+//! ∂D0/∂E0     = −2c₁ I − 2c₂ C + εJ C⁻¹
+//! ```
+//!
+//! The Cauchy stress is
+//! σ = (μ/J)(b − I) + (Λ ln J/J) I + ε(e⊗e − ½|e|² I) + (2c₂/J)(b e)⊗(b e),
+//! with e = F⁻ᵀE0 and b = FFᵀ.
+
+use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial, Tensor3, Tensor4};
+use super::{Mat3, Material, MaterialError, Stress, Tangent, Vec3, EPSILON_0};
+
+/// Electro-elastic compressible neo-Hooke model (SI units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElectroNeoHooke {
+    /// Shear modulus μ (Pa).
+    pub mu: f64,
+    /// Lamé constant Λ (Pa).
+    pub lambda: f64,
+    /// Permittivity ε (F/m).
+    pub eps: f64,
+    /// Electrostrictive coefficient c₁ (N/V²).
+    pub c1: f64,
+    /// Electrostrictive coefficient c₂ (N/V²).
+    pub c2: f64,
+}
+
+impl ElectroNeoHooke {
+    /// Ideal dielectric elastomer: ε = ε_r ε₀, c₁ = c₂ = 0.
+    pub fn new(mu: f64, lambda: f64, eps_r: f64) -> Self {
+        Self {
+            mu,
+            lambda,
+            eps: eps_r * EPSILON_0,
+            c1: 0.0,
+            c2: 0.0,
+        }
+    }
+
+    /// Same model with the electrostrictive coefficients set to (c₁, c₂).
+    pub fn with_coupling(self, c1: f64, c2: f64) -> Self {
+        Self { c1, c2, ..self }
+    }
+
+    /// Vu et al. form: ε = ε₀ and electrostrictive coefficients c₁, c₂.
+    pub fn vu(mu: f64, lambda: f64, c1: f64, c2: f64) -> Self {
+        Self {
+            mu,
+            lambda,
+            eps: EPSILON_0,
+            c1,
+            c2,
+        }
+    }
+
+    /// (mechanical, E0-dependent part) of Ω, with Ω = mech + elec_terms.
+    fn parts(&self, k: &CKinematics, e0: &Vec3) -> (f64, f64) {
+        let ln_j = k.j.ln();
+        let mech =
+            0.5 * self.mu * (k.c.trace() - 3.0) - self.mu * ln_j + 0.5 * self.lambda * ln_j * ln_j;
+        let ee = e0.dot(e0);
+        let ece = e0.dot(&(k.c * e0));
+        let a = e0.dot(&(k.c_inv * e0));
+        let elec = self.c1 * ee + self.c2 * ece - 0.5 * self.eps * k.j * a;
+        (mech, elec)
+    }
+
+    /// Closed-form Cauchy stress
+    /// σ = (μ/J)(b − I) + (Λ ln J/J) I + ε(e⊗e − ½|e|² I) + (2c₂/J)(b e)⊗(b e),
+    /// with e = F⁻ᵀE0 and b = FFᵀ. Evaluated independently of S, for checks.
+    pub fn cauchy_closed_form(&self, f: &Mat3, e0: &Vec3) -> Result<Mat3, MaterialError> {
+        let j = f.determinant();
+        if !(j.is_finite() && j > 0.0) {
+            return Err(MaterialError::NonPositiveJ(j));
+        }
+        let f_inv = f.try_inverse().ok_or(MaterialError::NonPositiveJ(j))?;
+        let e = f_inv.transpose() * e0;
+        let b = f * f.transpose();
+        let id = Mat3::identity();
+        let be = b * e;
+        Ok((b - id) * (self.mu / j)
+            + id * (self.lambda * j.ln() / j)
+            + (e * e.transpose() - id * (0.5 * e.dot(&e))) * self.eps
+            + be * be.transpose() * (2.0 * self.c2 / j))
+    }
+
+    fn s_and_d0(&self, k: &CKinematics, e0: &Vec3) -> (Mat3, Vec3) {
+        let ci = &k.c_inv;
+        let ln_j = k.j.ln();
+        let g = ci * e0;
+        let a = e0.dot(&g);
+        let ej = self.eps * k.j;
+        let id = Mat3::identity();
+        let s = (id - ci) * self.mu
+            + ci * (self.lambda * ln_j)
+            + e0 * e0.transpose() * (2.0 * self.c2)
+            + (g * g.transpose() - ci * (0.5 * a)) * ej;
+        let d0 = e0 * (-2.0 * self.c1) - (k.c * e0) * (2.0 * self.c2) + g * ej;
+        (s, d0)
+    }
+}
+
+impl CMaterial for ElectroNeoHooke {
+    fn c_energy(&self, k: &CKinematics, e0: &Vec3) -> Result<f64, MaterialError> {
+        let (mech, elec) = self.parts(k, e0);
+        Ok(mech + elec)
+    }
+
+    fn c_first(&self, k: &CKinematics, e0: &Vec3) -> Result<CFirst, MaterialError> {
+        let energy = self.c_energy(k, e0)?;
+        let (s, d0) = self.s_and_d0(k, e0);
+        Ok(CFirst { energy, s, d0 })
+    }
+
+    fn c_second(&self, k: &CKinematics, e0: &Vec3) -> Result<CDerivs, MaterialError> {
+        let energy = self.c_energy(k, e0)?;
+        let (s, d0) = self.s_and_d0(k, e0);
+        let ci = &k.c_inv;
+        let ln_j = k.j.ln();
+        let g = ci * e0;
+        let a = e0.dot(&g);
+        let ej = self.eps * k.j;
+
+        // 𝕃_IJKL = h_coef · H_IJKL + Λ Ci_IJ Ci_KL
+        //        + εJ [ Ci_KL g_I g_J + Ci_IJ g_K g_L − ½ a Ci_IJ Ci_KL
+        //               − (Ci_IK g_J g_L + Ci_IL g_J g_K + Ci_JK g_I g_L + Ci_JL g_I g_K) ]
+        // with H_IJKL = ½(Ci_IK Ci_JL + Ci_IL Ci_JK), h_coef = 2(μ − Λ ln J) + εJ a.
+        let h_coef = 2.0 * (self.mu - self.lambda * ln_j) + ej * a;
+        let cc_coef = self.lambda - 0.5 * ej * a;
+        let mut ll: Tensor4 = [[[[0.0; 3]; 3]; 3]; 3];
+        for (i, lli) in ll.iter_mut().enumerate() {
+            for (j, llij) in lli.iter_mut().enumerate() {
+                let cij = ci[(i, j)];
+                let gij = g[i] * g[j];
+                for (kk, llijk) in llij.iter_mut().enumerate() {
+                    for (l, v) in llijk.iter_mut().enumerate() {
+                        let ckl = ci[(kk, l)];
+                        let h = 0.5 * (ci[(i, kk)] * ci[(j, l)] + ci[(i, l)] * ci[(j, kk)]);
+                        let cross = ci[(i, kk)] * g[j] * g[l]
+                            + ci[(i, l)] * g[j] * g[kk]
+                            + ci[(j, kk)] * g[i] * g[l]
+                            + ci[(j, l)] * g[i] * g[kk];
+                        *v = h_coef * h
+                            + cc_coef * cij * ckl
+                            + ej * (ckl * gij + cij * g[kk] * g[l] - cross);
+                    }
+                }
+            }
+        }
+
+        // ∂S_IJ/∂E0_K = 2c₂(δ_IK E_J + E_I δ_JK) + εJ(Ci_IK g_J + g_I Ci_JK − g_K Ci_IJ)
+        let mut se: Tensor3 = [[[0.0; 3]; 3]; 3];
+        for (i, sei) in se.iter_mut().enumerate() {
+            for (j, seij) in sei.iter_mut().enumerate() {
+                for (kk, v) in seij.iter_mut().enumerate() {
+                    let mut w = ej * (ci[(i, kk)] * g[j] + g[i] * ci[(j, kk)] - g[kk] * ci[(i, j)]);
+                    if i == kk {
+                        w += 2.0 * self.c2 * e0[j];
+                    }
+                    if j == kk {
+                        w += 2.0 * self.c2 * e0[i];
+                    }
+                    *v = w;
+                }
+            }
+        }
+
+        // ∂D0/∂E0 = −2c₁ I − 2c₂ C + εJ C⁻¹
+        let dd = Mat3::identity() * (-2.0 * self.c1) - k.c * (2.0 * self.c2) + ci * ej;
+
+        Ok(CDerivs {
+            energy,
+            s,
+            d0,
+            ll,
+            se,
+            dd,
+        })
+    }
+}
+
+impl Material for ElectroNeoHooke {
+    fn energy(&self, f: &Mat3, e0: &Vec3) -> Result<f64, MaterialError> {
+        isotropic::energy_from_c(self, f, e0)
+    }
+
+    fn stress(&self, f: &Mat3, e0: &Vec3) -> Result<Stress, MaterialError> {
+        isotropic::stress_from_c(self, f, e0)
+    }
+
+    fn tangent(&self, f: &Mat3, e0: &Vec3) -> Result<Tangent, MaterialError> {
+        isotropic::tangent_from_c(self, f, e0)
+    }
+
+    fn shear_modulus(&self) -> f64 {
+        self.mu
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        self.lambda + 2.0 * self.mu / 3.0
+    }
+
+    fn permittivity(&self) -> f64 {
+        self.eps - 2.0 * self.c1 - 2.0 * self.c2
+    }
+
+    fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
+        // Validate exactly like the energy evaluation does.
+        isotropic::energy_from_c(self, f, e0)?;
+        let k = CKinematics::from_f(f)?;
+        let (mech, elec) = self.parts(&k, e0);
+        Ok((mech, -elec))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model() -> ElectroNeoHooke {
+        ElectroNeoHooke::new(1e5, 1e7, 4.7).with_coupling(5e-12, 2e-12)
+    }
+
+    fn sample_f() -> Mat3 {
+        Mat3::new(1.15, 0.12, -0.08, -0.05, 0.93, 0.2, 0.1, -0.17, 1.07)
+    }
+
+    fn field_scale(m: &ElectroNeoHooke) -> f64 {
+        (m.mu / m.eps).sqrt() * 0.3
+    }
+
+    #[test]
+    fn constructors() {
+        let m = ElectroNeoHooke::new(1e5, 4e5, 4.7);
+        assert_eq!(m.eps, 4.7 * EPSILON_0);
+        assert_eq!((m.c1, m.c2), (0.0, 0.0));
+        let m2 = m.with_coupling(1e-12, 2e-12);
+        assert_eq!((m2.mu, m2.lambda, m2.eps), (m.mu, m.lambda, m.eps));
+        assert_eq!((m2.c1, m2.c2), (1e-12, 2e-12));
+        let v = ElectroNeoHooke::vu(1e5, 4e5, -1e-11, -3e-12);
+        assert_eq!(v.eps, EPSILON_0);
+        assert_eq!((v.c1, v.c2), (-1e-11, -3e-12));
+    }
+
+    #[test]
+    fn moduli() {
+        let m = model();
+        assert_eq!(m.shear_modulus(), 1e5);
+        assert!((m.bulk_modulus() - (1e7 + 2e5 / 3.0)).abs() < 1e-6);
+        assert!((m.permittivity() - (4.7 * EPSILON_0 - 1e-11 - 4e-12)).abs() < 1e-24);
+    }
+
+    #[test]
+    fn zero_state() {
+        for m in [model(), ElectroNeoHooke::new(1e5, 4e5, 4.7)] {
+            let f = Mat3::identity();
+            let e0 = Vec3::zeros();
+            let t = m.tangent(&f, &e0).unwrap();
+            assert_eq!(m.energy(&f, &e0).unwrap(), 0.0);
+            assert_eq!(t.energy, 0.0);
+            assert!(t.p.amax() < 1e-9, "P = {}", t.p);
+            assert_eq!(t.d0, Vec3::zeros());
+            assert_eq!(t.b, crate::material::Mat93::zeros());
+            let s = m.stress(&f, &e0).unwrap();
+            assert!(s.p.amax() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn small_strain_tangent_is_linear_elastic() {
+        for (mu, lambda) in [(1e5, 1e7), (1e5, 4e5)] {
+            let m = ElectroNeoHooke::new(mu, lambda, 4.7).with_coupling(5e-12, 2e-12);
+            let t = m.tangent(&Mat3::identity(), &Vec3::zeros()).unwrap();
+            let d = |a: usize, b: usize| if a == b { 1.0 } else { 0.0 };
+            for i in 0..3 {
+                for jj in 0..3 {
+                    for k in 0..3 {
+                        for l in 0..3 {
+                            let expect = lambda * d(i, jj) * d(k, l)
+                                + mu * (d(i, k) * d(jj, l) + d(i, l) * d(jj, k));
+                            let got = t.a[(i * 3 + jj, k * 3 + l)];
+                            assert!(
+                                (got - expect).abs() < 1e-9 * lambda.max(mu),
+                                "A[{i}{jj}{k}{l}] = {got}, expected {expect}"
+                            );
+                        }
+                    }
+                }
+            }
+            // Small-field permittivity: G = −(ε − 2c₁ − 2c₂) I at F = I.
+            let g_expect = -Mat3::identity() * m.permittivity();
+            assert!((t.g - g_expect).amax() < 1e-12 * m.eps);
+        }
+    }
+
+    #[test]
+    fn cauchy_matches_closed_form() {
+        let base = model();
+        let scale = field_scale(&base);
+        let e0 = Vec3::new(0.3, -0.7, 0.9) * scale;
+        for m in [
+            base,
+            ElectroNeoHooke::new(1e5, 4e5, 4.7).with_coupling(5e-12, 2e-12),
+            ElectroNeoHooke::vu(1e5, 4e5, -1.2e-11, -4e-12),
+        ] {
+            let f = sample_f();
+            let s = m.stress(&f, &e0).unwrap();
+            let sigma = crate::material::cauchy_stress(&s.p, &f);
+            let closed = m.cauchy_closed_form(&f, &e0).unwrap();
+            let err = (sigma - closed).amax();
+            assert!(err < 1e-10 * closed.amax(), "err {err}, σ = {closed}");
+            // σ must be symmetric.
+            assert!((sigma - sigma.transpose()).amax() < 1e-10 * closed.amax());
+            // The c2 term must be significant in the check (it is not a no-op).
+            let be = f * e0;
+            let c2_term = be * be.transpose() * (2.0 * m.c2 / f.determinant());
+            assert!(c2_term.amax() > 1e-4 * closed.amax());
+        }
+    }
+
+    #[test]
+    fn non_positive_j_is_an_error() {
+        let m = model();
+        let e0 = Vec3::new(1.0, 2.0, 3.0);
+        let mut f = Mat3::identity();
+        f[(0, 0)] = -1.0;
+        assert!(matches!(m.energy(&f, &e0), Err(MaterialError::NonPositiveJ(j)) if j < 0.0));
+        assert!(matches!(
+            m.stress(&f, &e0),
+            Err(MaterialError::NonPositiveJ(_))
+        ));
+        assert!(matches!(
+            m.tangent(&f, &e0),
+            Err(MaterialError::NonPositiveJ(_))
+        ));
+        assert!(matches!(
+            m.energy_split(&f, &e0),
+            Err(MaterialError::NonPositiveJ(_))
+        ));
+        assert!(matches!(
+            m.cauchy_closed_form(&f, &e0),
+            Err(MaterialError::NonPositiveJ(_))
+        ));
+        // Singular F (J = 0).
+        let mut z = Mat3::identity();
+        z[(1, 1)] = 0.0;
+        assert!(matches!(m.tangent(&z, &e0), Err(MaterialError::NonPositiveJ(j)) if j == 0.0));
+        // Error message formatting.
+        let msg = MaterialError::NonPositiveJ(-0.5).to_string();
+        assert!(msg.contains("-5e-1"), "{msg}");
+    }
+
+    #[test]
+    fn energy_split_sums_to_energy() {
+        let m = model();
+        let f = sample_f();
+        let e0 = Vec3::new(0.5, 0.2, -0.6) * field_scale(&m);
+        let (mech, elec) = m.energy_split(&f, &e0).unwrap();
+        let psi = m.energy(&f, &e0).unwrap();
+        assert!((mech - elec - psi).abs() < 1e-12 * psi.abs().max(mech.abs()));
+        // Mechanical part does not depend on E0.
+        let (mech0, elec0) = m.energy_split(&f, &Vec3::zeros()).unwrap();
+        assert_eq!(mech0, mech);
+        assert_eq!(elec0, 0.0);
+        // For the ideal dielectric the electric energy is positive.
+        let ideal = ElectroNeoHooke::new(1e5, 1e7, 4.7);
+        let (_, el) = ideal.energy_split(&f, &e0).unwrap();
+        let k = CKinematics::from_f(&f).unwrap();
+        let expect = 0.5 * ideal.eps * k.j * e0.dot(&(k.c_inv * e0));
+        assert!(el > 0.0);
+        assert!((el - expect).abs() < 1e-12 * expect);
+    }
+
+    #[test]
+    fn second_derivatives_have_symmetries() {
+        let m = model();
+        let e0 = Vec3::new(0.3, -0.7, 0.9) * field_scale(&m);
+        let k = CKinematics::from_f(&sample_f()).unwrap();
+        let cd = m.c_second(&k, &e0).unwrap();
+        for i in 0..3 {
+            for j in 0..3 {
+                for kk in 0..3 {
+                    assert_eq!(cd.se[i][j][kk], cd.se[j][i][kk]);
+                    for l in 0..3 {
+                        let v = cd.ll[i][j][kk][l];
+                        let tol = 1e-12 * v.abs().max(1.0);
+                        assert!((v - cd.ll[j][i][kk][l]).abs() < tol);
+                        assert!((v - cd.ll[i][j][l][kk]).abs() < tol);
+                        assert!((v - cd.ll[kk][l][i][j]).abs() < tol);
+                    }
+                }
+            }
+        }
+        assert!((cd.dd - cd.dd.transpose()).amax() < 1e-12 * cd.dd.amax());
+    }
+}

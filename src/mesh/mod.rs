@@ -1,0 +1,186 @@
+//! Meshes: nodes, cells of one element kind, and named node, face and cell sets.
+//!
+//! Coordinates are in metres (reference configuration). Generators live in submodules.
+
+pub mod generate;
+
+use std::collections::BTreeMap;
+
+/// The element kinds deasim knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ElementKind {
+    /// Trilinear hexahedron, VTK node order.
+    Hex8,
+    /// Linear tetrahedron.
+    Tet4,
+}
+
+impl ElementKind {
+    /// Nodes per cell.
+    pub fn nodes_per_cell(self) -> usize {
+        match self {
+            ElementKind::Hex8 => 8,
+            ElementKind::Tet4 => 4,
+        }
+    }
+
+    /// Local node lists of the faces, ordered so that the normal points outwards
+    /// (counter-clockwise seen from outside).
+    pub fn faces(self) -> &'static [&'static [usize]] {
+        match self {
+            ElementKind::Hex8 => &[
+                &[0, 3, 2, 1],
+                &[4, 5, 6, 7],
+                &[0, 1, 5, 4],
+                &[1, 2, 6, 5],
+                &[2, 3, 7, 6],
+                &[3, 0, 4, 7],
+            ],
+            ElementKind::Tet4 => &[&[0, 2, 1], &[0, 1, 3], &[1, 2, 3], &[0, 3, 2]],
+        }
+    }
+
+    /// Name for messages and files.
+    pub fn name(self) -> &'static str {
+        match self {
+            ElementKind::Hex8 => "hex8",
+            ElementKind::Tet4 => "tet4",
+        }
+    }
+}
+
+/// A face of a cell: the cell index and the local face number of [`ElementKind::faces`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub struct FaceRef {
+    pub cell: usize,
+    pub face: usize,
+}
+
+/// A mesh of cells of one kind with named sets.
+#[derive(Debug, Clone)]
+pub struct Mesh {
+    pub kind: ElementKind,
+    /// Reference coordinates (m).
+    pub nodes: Vec<[f64; 3]>,
+    /// Connectivity, `nodes_per_cell` indices per cell, flattened.
+    pub connectivity: Vec<usize>,
+    /// Named node sets (sorted, unique).
+    pub node_sets: BTreeMap<String, Vec<usize>>,
+    /// Named face sets.
+    pub face_sets: BTreeMap<String, Vec<FaceRef>>,
+    /// Named cell sets (sorted, unique).
+    pub cell_sets: BTreeMap<String, Vec<usize>>,
+}
+
+impl Mesh {
+    /// Number of cells.
+    pub fn n_cells(&self) -> usize {
+        self.connectivity.len() / self.kind.nodes_per_cell()
+    }
+
+    /// Number of nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Node indices of cell `c`.
+    pub fn cell(&self, c: usize) -> &[usize] {
+        let n = self.kind.nodes_per_cell();
+        &self.connectivity[c * n..(c + 1) * n]
+    }
+
+    /// Reference coordinates of the nodes of cell `c`, written into `out`.
+    pub fn cell_coords_into(&self, c: usize, out: &mut [[f64; 3]]) {
+        for (o, &n) in out.iter_mut().zip(self.cell(c)) {
+            *o = self.nodes[n];
+        }
+    }
+
+    /// The nodes of a face set (sorted, unique).
+    pub fn face_set_nodes(&self, name: &str) -> Option<Vec<usize>> {
+        let faces = self.face_sets.get(name)?;
+        let mut nodes: Vec<usize> = faces
+            .iter()
+            .flat_map(|f| {
+                let cell = self.cell(f.cell);
+                self.kind.faces()[f.face].iter().map(move |&l| cell[l])
+            })
+            .collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        Some(nodes)
+    }
+
+    /// Nodes of a named set: a node set, or else the nodes of a face set, or else of a cell set.
+    pub fn set_nodes(&self, name: &str) -> Option<Vec<usize>> {
+        if let Some(n) = self.node_sets.get(name) {
+            return Some(n.clone());
+        }
+        if let Some(n) = self.face_set_nodes(name) {
+            return Some(n);
+        }
+        let cells = self.cell_sets.get(name)?;
+        let mut nodes: Vec<usize> = cells.iter().flat_map(|&c| self.cell(c).to_vec()).collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        Some(nodes)
+    }
+
+    /// Names of every set, for messages.
+    pub fn set_names(&self) -> Vec<String> {
+        let mut v: Vec<String> = self
+            .node_sets
+            .keys()
+            .chain(self.face_sets.keys())
+            .chain(self.cell_sets.keys())
+            .cloned()
+            .collect();
+        v.sort();
+        v.dedup();
+        v
+    }
+
+    /// Node index nearest to a point (ties: the lowest index).
+    pub fn nearest_node(&self, p: [f64; 3]) -> usize {
+        let mut best = (f64::INFINITY, 0);
+        for (i, x) in self.nodes.iter().enumerate() {
+            let d = (x[0] - p[0]).powi(2) + (x[1] - p[1]).powi(2) + (x[2] - p[2]).powi(2);
+            if d < best.0 {
+                best = (d, i);
+            }
+        }
+        best.1
+    }
+
+    /// Greedy colouring of the cells so that no two cells of one colour share a node.
+    /// Deterministic: cells are visited in index order and take the lowest free colour.
+    pub fn cell_colours(&self) -> Vec<Vec<usize>> {
+        let mut node_cells: Vec<Vec<usize>> = vec![Vec::new(); self.n_nodes()];
+        for c in 0..self.n_cells() {
+            for &n in self.cell(c) {
+                node_cells[n].push(c);
+            }
+        }
+        let mut colour = vec![usize::MAX; self.n_cells()];
+        let mut colours: Vec<Vec<usize>> = Vec::new();
+        let mut used: Vec<bool> = Vec::new();
+        for c in 0..self.n_cells() {
+            used.iter_mut().for_each(|u| *u = false);
+            for &n in self.cell(c) {
+                for &o in &node_cells[n] {
+                    if colour[o] != usize::MAX {
+                        used[colour[o]] = true;
+                    }
+                }
+            }
+            let k = used.iter().position(|u| !u).unwrap_or(used.len());
+            if k == colours.len() {
+                colours.push(Vec::new());
+                used.push(false);
+            }
+            colour[c] = k;
+            colours[k].push(c);
+        }
+        colours
+    }
+}

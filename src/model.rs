@@ -1,0 +1,104 @@
+//! A model: mesh, materials of the cells and Dirichlet conditions (supports and electrodes).
+
+use crate::dofs::Dirichlet;
+use crate::fem::ReferenceElement;
+use crate::material::Material;
+use crate::mesh::Mesh;
+use std::sync::Arc;
+
+/// Everything that defines the boundary value problem except the loading path.
+#[derive(Debug, Clone)]
+pub struct Model {
+    pub mesh: Mesh,
+    pub reference: ReferenceElement,
+    /// The distinct materials.
+    pub materials: Vec<Arc<dyn Material>>,
+    /// Material index of each cell.
+    pub cell_material: Vec<usize>,
+    /// Prescribed displacements (m) and potentials (V) at the end of the current stage.
+    pub dirichlet: Vec<Dirichlet>,
+}
+
+/// Problems found while building a model.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    #[error("cell {cell} is degenerate or inverted (Jacobian {det:e} at quadrature point {qp})")]
+    DegenerateCell { cell: usize, qp: usize, det: f64 },
+    #[error("unknown set '{name}' (known sets: {known})")]
+    UnknownSet { name: String, known: String },
+    #[error("{0}")]
+    Invalid(String),
+}
+
+impl Model {
+    /// A model of one material on every cell, without conditions.
+    pub fn new(mesh: Mesh, material: Arc<dyn Material>) -> Result<Self, ModelError> {
+        let n = mesh.n_cells();
+        let model = Model {
+            reference: ReferenceElement::new(mesh.kind),
+            mesh,
+            materials: vec![material],
+            cell_material: vec![0; n],
+            dirichlet: Vec::new(),
+        };
+        model.check_cells()?;
+        Ok(model)
+    }
+
+    /// Fails on the first cell with a non-positive Jacobian.
+    pub fn check_cells(&self) -> Result<(), ModelError> {
+        let mut x = vec![[0.0; 3]; self.mesh.kind.nodes_per_cell()];
+        for c in 0..self.mesh.n_cells() {
+            self.mesh.cell_coords_into(c, &mut x);
+            self.reference
+                .geometry(&x)
+                .map_err(|e| ModelError::DegenerateCell { cell: c, qp: e.qp, det: e.det })?;
+        }
+        Ok(())
+    }
+
+    /// Nodes of a named set, or an error naming the known sets.
+    pub fn set_nodes(&self, name: &str) -> Result<Vec<usize>, ModelError> {
+        self.mesh.set_nodes(name).ok_or_else(|| ModelError::UnknownSet {
+            name: name.to_string(),
+            known: self.mesh.set_names().join(", "),
+        })
+    }
+
+    /// Adds a Dirichlet condition on a named set.
+    pub fn fix(
+        &mut self,
+        set: &str,
+        field: crate::dofs::Field,
+        value: f64,
+    ) -> Result<(), ModelError> {
+        let nodes = self.set_nodes(set)?;
+        self.dirichlet.push(Dirichlet { nodes, field, value });
+        Ok(())
+    }
+
+    /// Potential scale √(μ/ε) (V/m) from the stiffest and most permittive materials, so that the
+    /// potential block of the tangent has the size of the displacement block.
+    pub fn potential_scale(&self) -> f64 {
+        let mu = self.materials.iter().map(|m| m.shear_modulus()).fold(0.0, f64::max);
+        let eps = self.materials.iter().map(|m| m.permittivity()).fold(0.0, f64::max);
+        if mu > 0.0 && eps > 0.0 {
+            (mu / eps).sqrt()
+        } else {
+            1.0
+        }
+    }
+
+    /// Mean cell size (m): the cube root of the mean cell volume.
+    pub fn cell_size(&self) -> f64 {
+        let mut x = vec![[0.0; 3]; self.mesh.kind.nodes_per_cell()];
+        let mut v = 0.0;
+        for c in 0..self.mesh.n_cells() {
+            self.mesh.cell_coords_into(c, &mut x);
+            if let Ok(g) = self.reference.geometry(&x) {
+                v += g.weights[..g.n_qp].iter().sum::<f64>();
+            }
+        }
+        (v / self.mesh.n_cells().max(1) as f64).cbrt()
+    }
+}

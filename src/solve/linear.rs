@@ -1,0 +1,267 @@
+//! Linear solvers for the symmetric (indefinite) Newton systems.
+//!
+//! The coupled tangent is a saddle point: positive definite in u at a stable state, negative
+//! definite in Φ. Such a quasi-definite matrix has an LDLᵀ factorisation without pivoting for every
+//! symmetric ordering, and the signs of D give its inertia (Sylvester's law): a stable equilibrium
+//! has exactly as many negative pivots as free potential dofs. One more negative pivot means the
+//! mechanical part has lost stability (a limit point such as pull-in was passed).
+
+use crate::assembly::CsrMatrix;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::ldlt::factor::{LdltParams, LdltRegularization};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, SymbolicCholesky,
+    SymbolicCholeskyRaw, SymmetricOrdering,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side, Spec};
+
+/// Counts of positive, negative and zero pivots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Inertia {
+    pub positive: usize,
+    pub negative: usize,
+    pub zero: usize,
+}
+
+/// Why a linear solve failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LinearSolverError {
+    #[error("singular matrix (zero pivot at {0})")]
+    Singular(usize),
+    #[error("symbolic analysis failed: {0}")]
+    Symbolic(String),
+    #[error("solve called before a successful factorisation")]
+    NotFactored,
+}
+
+/// A direct solver: factor once, solve many right-hand sides.
+pub trait LinearSolver: Send {
+    /// Factors `a` (symmetric, full storage). The pattern must stay the same between calls.
+    fn factor(&mut self, a: &CsrMatrix) -> Result<Inertia, LinearSolverError>;
+    /// Overwrites `b` with the solution of A x = b.
+    fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError>;
+    /// Short name for reports.
+    fn name(&self) -> &'static str;
+}
+
+/// Sparse supernodal LDLᵀ (faer) with an AMD ordering; the symbolic analysis is computed at the
+/// first factorisation and reused for every later one.
+pub struct FaerLdlt {
+    symbolic: Option<SymbolicCholesky<usize>>,
+    l_values: Vec<f64>,
+    factored: bool,
+    par: Par,
+    mem: Option<MemBuffer>,
+}
+
+impl std::fmt::Debug for FaerLdlt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FaerLdlt")
+            .field("factored", &self.factored)
+            .field("l_nnz", &self.l_values.len())
+            .finish()
+    }
+}
+
+impl Default for FaerLdlt {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FaerLdlt {
+    /// Uses the threads of the current rayon pool.
+    pub fn new() -> Self {
+        let threads = rayon::current_num_threads();
+        FaerLdlt {
+            symbolic: None,
+            l_values: Vec::new(),
+            factored: false,
+            par: if threads > 1 { Par::rayon(threads) } else { Par::Seq },
+            mem: None,
+        }
+    }
+
+    /// Number of stored entries of the factor L (after the first factorisation).
+    pub fn factor_nnz(&self) -> usize {
+        self.l_values.len()
+    }
+
+    fn matrix(a: &CsrMatrix) -> SparseColMatRef<'_, usize, f64> {
+        // A symmetric matrix in CSR is the same matrix in CSC.
+        let sym = SymbolicSparseColMatRef::new_checked(a.n, a.n, &a.row_ptr, None, &a.col_idx);
+        SparseColMatRef::new(sym, &a.values)
+    }
+
+    /// The pivots D of the last factorisation.
+    fn pivots(&self) -> Vec<f64> {
+        let Some(symbolic) = &self.symbolic else {
+            return Vec::new();
+        };
+        let mut d = Vec::with_capacity(symbolic.nrows());
+        match symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                let cp = s.col_ptr();
+                for j in 0..s.nrows() {
+                    d.push(self.l_values[cp[j]]);
+                }
+            }
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let cp = s.col_ptr_for_val();
+                let begin = s.supernode_begin();
+                let end = s.supernode_end();
+                let nnz = s.nnz_per_super();
+                for sn in 0..s.n_supernodes() {
+                    let ncols = end[sn] - begin[sn];
+                    let nrows = nnz[sn] + ncols;
+                    let base = cp[sn];
+                    for j in 0..ncols {
+                        d.push(self.l_values[base + j * nrows + j]);
+                    }
+                }
+            }
+        }
+        d
+    }
+}
+
+impl LinearSolver for FaerLdlt {
+    fn factor(&mut self, a: &CsrMatrix) -> Result<Inertia, LinearSolverError> {
+        self.factored = false;
+        let mat = Self::matrix(a);
+        if self.symbolic.is_none() {
+            let symbolic = factorize_symbolic_cholesky(
+                mat.symbolic(),
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                CholeskySymbolicParams::default(),
+            )
+            .map_err(|e| LinearSolverError::Symbolic(format!("{e:?}")))?;
+            self.l_values = vec![0.0; symbolic.len_val()];
+            let req = symbolic
+                .factorize_numeric_ldlt_scratch::<f64>(self.par, Spec::<LdltParams, f64>::default())
+                .or(symbolic.solve_in_place_scratch::<f64>(1, self.par));
+            self.mem = Some(MemBuffer::new(req));
+            self.symbolic = Some(symbolic);
+        }
+        let symbolic = self.symbolic.as_ref().expect("set above");
+        let mem = self.mem.as_mut().expect("set above");
+        let stack = MemStack::new(mem);
+        symbolic
+            .factorize_numeric_ldlt(
+                &mut self.l_values,
+                mat,
+                Side::Lower,
+                LdltRegularization::default(),
+                self.par,
+                stack,
+                Spec::<LdltParams, f64>::default(),
+            )
+            .map_err(|e| match e {
+                faer::linalg::cholesky::ldlt::factor::LdltError::ZeroPivot { index } => {
+                    LinearSolverError::Singular(index)
+                }
+            })?;
+        let mut inertia = Inertia::default();
+        let d = self.pivots();
+        let dmax = d.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for v in d {
+            if !v.is_finite() || v.abs() <= 1e-14 * dmax {
+                inertia.zero += 1;
+            } else if v > 0.0 {
+                inertia.positive += 1;
+            } else {
+                inertia.negative += 1;
+            }
+        }
+        if inertia.zero > 0 {
+            return Err(LinearSolverError::Singular(0));
+        }
+        self.factored = true;
+        Ok(inertia)
+    }
+
+    fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
+        if !self.factored {
+            return Err(LinearSolverError::NotFactored);
+        }
+        let symbolic = self.symbolic.as_ref().expect("factored");
+        let mem = self.mem.as_mut().expect("factored");
+        let stack = MemStack::new(mem);
+        let n = b.len();
+        let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
+        LdltRef::new(symbolic, &self.l_values).solve_in_place_with_conj(
+            Conj::No,
+            rhs,
+            self.par,
+            stack,
+        );
+        Ok(())
+    }
+
+    fn name(&self) -> &'static str {
+        "faer sparse LDLT (AMD)"
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small saddle-point matrix [[K, B], [Bᵀ, −C]] in CSR.
+    fn saddle(n: usize, shift: f64) -> CsrMatrix {
+        // 1-D Laplacian blocks coupled diagonally
+        let m = 2 * n;
+        let mut dense = vec![0.0; m * m];
+        for i in 0..n {
+            dense[i * m + i] = 2.0 - shift;
+            dense[(n + i) * m + n + i] = -2.0;
+            if i + 1 < n {
+                dense[i * m + i + 1] = -1.0;
+                dense[(i + 1) * m + i] = -1.0;
+                dense[(n + i) * m + n + i + 1] = 1.0;
+                dense[(n + i + 1) * m + n + i] = 1.0;
+            }
+            dense[i * m + n + i] = 0.3;
+            dense[(n + i) * m + i] = 0.3;
+        }
+        let mut a = CsrMatrix {
+            n: m,
+            row_ptr: vec![0],
+            col_idx: vec![],
+            values: vec![],
+        };
+        for i in 0..m {
+            for j in 0..m {
+                if dense[i * m + j] != 0.0 {
+                    a.col_idx.push(j);
+                    a.values.push(dense[i * m + j]);
+                }
+            }
+            a.row_ptr.push(a.col_idx.len());
+        }
+        a
+    }
+
+    #[test]
+    fn solves_saddle_system_and_counts_inertia() {
+        let n = 40;
+        let a = saddle(n, 0.0);
+        let mut s = FaerLdlt::new();
+        let inertia = s.factor(&a).unwrap();
+        assert_eq!(inertia.negative, n);
+        assert_eq!(inertia.positive, n);
+        let x: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.37).sin()).collect();
+        let mut b = vec![0.0; 2 * n];
+        a.mul_vec(&x, &mut b);
+        s.solve_in_place(&mut b).unwrap();
+        for (u, v) in b.iter().zip(&x) {
+            assert!((u - v).abs() < 1e-10);
+        }
+        // refactor with the same pattern but a shifted (indefinite) K block: one more negative pivot
+        let shifted = saddle(n, 1.0);
+        let inertia = s.factor(&shifted).unwrap();
+        assert!(inertia.negative > n, "{inertia:?}");
+    }
+}

@@ -1,0 +1,212 @@
+//! Newton–Raphson with a backtracking line search on the residual norm.
+//!
+//! Works on any [`NonlinearSystem`]: the system owns its state and evaluates the scaled residual
+//! and tangent over its free unknowns; Newton only sees vectors and a sparse matrix.
+
+use super::linear::{Inertia, LinearSolver, LinearSolverError};
+use crate::assembly::CsrMatrix;
+
+/// A nonlinear system R(x) = 0 with a symmetric tangent.
+pub trait NonlinearSystem {
+    /// Number of unknowns.
+    fn n(&self) -> usize;
+    /// Residual at the current state, and the tangent when `k` is given.
+    fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String>;
+    /// x ← x + α·dx.
+    fn increment(&mut self, dx: &[f64], alpha: f64);
+    /// A copy of the state, to come back to.
+    fn snapshot(&self) -> Vec<f64>;
+    /// Returns to a snapshot.
+    fn restore(&mut self, s: &[f64]);
+    /// A zeroed tangent with the system's pattern.
+    fn new_matrix(&self) -> CsrMatrix;
+    /// Negative pivots of a stable state (the count of free potential unknowns).
+    fn expected_negative_pivots(&self) -> usize;
+    /// Absolute residual norm below which the state is converged whatever the first residual.
+    fn residual_floor(&self) -> f64;
+    /// For each unknown, its field group (0: displacement, 1: potential), for the printed table.
+    fn groups(&self) -> Vec<u8>;
+}
+
+/// Newton settings.
+#[derive(Debug, Clone)]
+pub struct NewtonSettings {
+    /// Largest number of iterations.
+    pub max_iterations: usize,
+    /// Converged when ‖r‖ ≤ rtol·‖r₀‖ (or below the system's floor).
+    pub rtol: f64,
+    /// Largest number of halvings of the step in the line search.
+    pub max_backtracks: usize,
+    /// Factor the tangent at the converged state and check its inertia.
+    pub check_stability: bool,
+    /// Print a convergence table per iteration on stderr.
+    pub verbose: bool,
+}
+
+impl Default for NewtonSettings {
+    fn default() -> Self {
+        NewtonSettings {
+            max_iterations: 25,
+            rtol: 1e-10,
+            max_backtracks: 6,
+            check_stability: true,
+            verbose: false,
+        }
+    }
+}
+
+/// A converged solve.
+#[derive(Debug, Clone)]
+pub struct NewtonReport {
+    pub iterations: usize,
+    /// Residual norms, first to last.
+    pub residuals: Vec<f64>,
+    /// Inertia of the tangent at the converged state (when checked).
+    pub inertia: Option<Inertia>,
+    /// False when the converged state has more negative pivots than potential unknowns.
+    pub stable: bool,
+}
+
+/// Why Newton stopped without convergence.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NewtonError {
+    #[error("Newton did not converge in {iterations} iterations (residual {residual:e}, first {first:e})")]
+    MaxIterations { iterations: usize, residual: f64, first: f64 },
+    #[error("Newton diverged at iteration {iteration} (residual {residual:e})")]
+    Diverged { iteration: usize, residual: f64 },
+    #[error("singular tangent at iteration {iteration}")]
+    Singular { iteration: usize },
+    #[error("evaluation failed at iteration {iteration}: {message}")]
+    Evaluation { iteration: usize, message: String },
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+fn group_norms(v: &[f64], groups: &[u8]) -> [f64; 2] {
+    let mut s = [0.0; 2];
+    for (x, &g) in v.iter().zip(groups) {
+        s[g as usize] += x * x;
+    }
+    [s[0].sqrt(), s[1].sqrt()]
+}
+
+/// Solves the system from its current state. On failure the state is left where Newton stopped;
+/// callers restore a snapshot.
+pub fn newton<S: NonlinearSystem + ?Sized>(
+    system: &mut S,
+    solver: &mut dyn LinearSolver,
+    k: &mut CsrMatrix,
+    settings: &NewtonSettings,
+) -> Result<NewtonReport, NewtonError> {
+    let n = system.n();
+    let mut r = vec![0.0; n];
+    let mut dx = vec![0.0; n];
+    let mut trial = vec![0.0; n];
+    let groups = if settings.verbose { system.groups() } else { Vec::new() };
+    let floor = system.residual_floor();
+    system
+        .evaluate(&mut r, Some(k))
+        .map_err(|message| NewtonError::Evaluation { iteration: 0, message })?;
+    let r0 = norm(&r);
+    if !r0.is_finite() {
+        return Err(NewtonError::Diverged { iteration: 0, residual: r0 });
+    }
+    let tol = (settings.rtol * r0).max(floor);
+    let mut residuals = vec![r0];
+    let mut rn = r0;
+    if settings.verbose {
+        eprintln!("    it   |r|         |r|/|r0|    |r_u|       |r_phi|     |dx_u|      |dx_phi|  alpha");
+        let g = group_norms(&r, &groups);
+        eprintln!("    {:>2}   {:.3e}   {:.3e}   {:.3e}   {:.3e}", 0, r0, 1.0, g[0], g[1]);
+    }
+    let mut iteration = 0;
+    while rn > tol {
+        if iteration >= settings.max_iterations {
+            return Err(NewtonError::MaxIterations { iterations: iteration, residual: rn, first: r0 });
+        }
+        iteration += 1;
+        solver.factor(k).map_err(|e| match e {
+            LinearSolverError::Singular(_) => NewtonError::Singular { iteration },
+            other => NewtonError::Evaluation { iteration, message: other.to_string() },
+        })?;
+        dx.iter_mut().zip(&r).for_each(|(d, v)| *d = -v);
+        solver
+            .solve_in_place(&mut dx)
+            .map_err(|e| NewtonError::Evaluation { iteration, message: e.to_string() })?;
+        if dx.iter().any(|v| !v.is_finite()) {
+            return Err(NewtonError::Singular { iteration });
+        }
+        // Backtracking: accept the first step that lowers the residual norm; if none does, take the
+        // full step when it can be evaluated (plain Newton), else fail.
+        let start = system.snapshot();
+        let mut alpha = 1.0;
+        let mut accepted = false;
+        let mut full_step_ok = false;
+        for _ in 0..=settings.max_backtracks {
+            system.increment(&dx, alpha);
+            match system.evaluate(&mut trial, None) {
+                Ok(()) => {
+                    let tn = norm(&trial);
+                    if alpha == 1.0 && tn.is_finite() {
+                        full_step_ok = true;
+                    }
+                    if tn.is_finite() && tn <= (1.0 - 1e-4 * alpha) * rn {
+                        accepted = true;
+                        break;
+                    }
+                }
+                Err(_) => {}
+            }
+            system.restore(&start);
+            alpha *= 0.5;
+        }
+        if !accepted {
+            if !full_step_ok {
+                return Err(NewtonError::Evaluation {
+                    iteration,
+                    message: "no step along the Newton direction gives an admissible state".into(),
+                });
+            }
+            alpha = 1.0;
+            system.increment(&dx, alpha);
+        }
+        system
+            .evaluate(&mut r, Some(k))
+            .map_err(|message| NewtonError::Evaluation { iteration, message })?;
+        rn = norm(&r);
+        residuals.push(rn);
+        if settings.verbose {
+            let g = group_norms(&r, &groups);
+            let d = group_norms(&dx, &groups);
+            eprintln!(
+                "    {:>2}   {:.3e}   {:.3e}   {:.3e}   {:.3e}   {:.3e}   {:.3e}  {}",
+                iteration,
+                rn,
+                rn / r0.max(f64::MIN_POSITIVE),
+                g[0],
+                g[1],
+                alpha * d[0],
+                alpha * d[1],
+                alpha
+            );
+        }
+        if !rn.is_finite() || rn > 1e8 * r0.max(floor) {
+            return Err(NewtonError::Diverged { iteration, residual: rn });
+        }
+    }
+    let mut inertia = None;
+    let mut stable = true;
+    if settings.check_stability && n > 0 {
+        match solver.factor(k) {
+            Ok(i) => {
+                stable = i.negative <= system.expected_negative_pivots();
+                inertia = Some(i);
+            }
+            Err(LinearSolverError::Singular(_)) => stable = false,
+            Err(e) => return Err(NewtonError::Evaluation { iteration, message: e.to_string() }),
+        }
+    }
+    Ok(NewtonReport { iterations: iteration, residuals, inertia, stable })
+}

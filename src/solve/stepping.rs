@@ -1,0 +1,148 @@
+//! Load stepping with automatic cut-back and regrowth.
+//!
+//! A load factor s runs from 0 to 1 in `steps` nominal steps. A step whose Newton solve fails, or
+//! whose converged state is unstable (more negative pivots than potential unknowns: a limit point was
+//! passed), is undone and retried with half the increment; after an easy step the increment grows
+//! back, never past the next nominal point. When the increment falls below `min_fraction` of a
+//! nominal step the ramp stops and reports the last converged load factor: under load (voltage)
+//! control this is how a limit point such as electromechanical pull-in shows itself.
+
+use super::linear::LinearSolver;
+use super::newton::{newton, NewtonError, NewtonReport, NewtonSettings, NonlinearSystem};
+use crate::assembly::CsrMatrix;
+
+/// A nonlinear system driven by a load factor s ∈ [0, 1].
+pub trait LoadedSystem: NonlinearSystem {
+    /// Sets the prescribed values and loads for load factor `s`.
+    fn set_load(&mut self, s: f64);
+}
+
+/// Step control.
+#[derive(Debug, Clone)]
+pub struct StepControl {
+    /// Nominal number of steps.
+    pub steps: usize,
+    /// Smallest increment, as a fraction of a nominal step.
+    pub min_fraction: f64,
+    /// Iterations at or below which the increment grows back (doubles).
+    pub easy_iterations: usize,
+}
+
+impl Default for StepControl {
+    fn default() -> Self {
+        StepControl { steps: 10, min_fraction: 1.0 / 4096.0, easy_iterations: 6 }
+    }
+}
+
+/// An accepted (sub)step.
+#[derive(Debug, Clone)]
+pub struct AcceptedStep {
+    /// Load factor reached.
+    pub load: f64,
+    /// True when `load` is one of the nominal points k/steps.
+    pub nominal: bool,
+    pub newton: NewtonReport,
+}
+
+/// The ramp stopped before reaching s = 1.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("no converged stable state beyond load factor {last_converged} (tried {attempted}; last failure: {reason})")]
+pub struct RampFailure {
+    /// Last load factor with a converged, stable state (the system is left there).
+    pub last_converged: f64,
+    /// The smallest failed load factor above it.
+    pub attempted: f64,
+    /// The last failure.
+    pub reason: String,
+    /// True when failures persisted down to the minimum increment, or the converged states
+    /// became unstable: a limit point of the load path.
+    pub limit_point: bool,
+    /// Total Newton iterations spent, failed attempts included.
+    pub newton_iterations: usize,
+}
+
+/// Summary of a completed ramp.
+#[derive(Debug, Clone, Default)]
+pub struct RampReport {
+    pub accepted_steps: usize,
+    pub cutbacks: usize,
+    pub newton_iterations: usize,
+}
+
+/// Ramps the load from 0 to 1. `on_step` is called after every accepted (sub)step.
+pub fn ramp<S: LoadedSystem + ?Sized>(
+    system: &mut S,
+    solver: &mut dyn LinearSolver,
+    settings: &NewtonSettings,
+    control: &StepControl,
+    mut on_step: impl FnMut(&mut S, &AcceptedStep),
+) -> Result<RampReport, RampFailure> {
+    let nominal = 1.0 / control.steps.max(1) as f64;
+    let min_inc = nominal * control.min_fraction;
+    let mut k: CsrMatrix = system.new_matrix();
+    let mut report = RampReport::default();
+    let mut s = 0.0f64;
+    let mut inc = nominal;
+    let mut next_nominal = 1usize;
+    let mut last_reason = String::new();
+    while next_nominal <= control.steps.max(1) {
+        let target_nominal = next_nominal as f64 * nominal;
+        let target = (s + inc).min(target_nominal);
+        let hits_nominal = (target - target_nominal).abs() <= 1e-12;
+        let target = if hits_nominal { target_nominal } else { target };
+        let saved = system.snapshot();
+        system.set_load(target);
+        let outcome = newton(system, solver, &mut k, settings);
+        let failure = match outcome {
+            Ok(rep) if rep.stable => {
+                report.newton_iterations += rep.iterations;
+                report.accepted_steps += 1;
+                let easy = rep.iterations <= control.easy_iterations;
+                s = target;
+                let step = AcceptedStep { load: s, nominal: hits_nominal, newton: rep };
+                on_step(system, &step);
+                if hits_nominal {
+                    next_nominal += 1;
+                }
+                if easy {
+                    inc = (inc * 2.0).min(nominal);
+                }
+                continue;
+            }
+            Ok(rep) => {
+                report.newton_iterations += rep.iterations;
+                format!(
+                    "converged state is unstable (tangent has {} negative pivots, {} expected)",
+                    rep.inertia.map(|i| i.negative).unwrap_or(0),
+                    system.expected_negative_pivots()
+                )
+            }
+            Err(e) => {
+                report.newton_iterations += match &e {
+                    NewtonError::MaxIterations { iterations, .. } => *iterations,
+                    NewtonError::Diverged { iteration, .. }
+                    | NewtonError::Singular { iteration }
+                    | NewtonError::Evaluation { iteration, .. } => *iteration,
+                };
+                e.to_string()
+            }
+        };
+        // undo and cut back
+        system.restore(&saved);
+        system.set_load(s);
+        report.cutbacks += 1;
+        last_reason = failure;
+        inc = (target - s) * 0.5;
+        if inc < min_inc {
+            return Err(RampFailure {
+                last_converged: s,
+                attempted: target,
+                reason: last_reason,
+                limit_point: true,
+                newton_iterations: report.newton_iterations,
+            });
+        }
+    }
+    let _ = last_reason;
+    Ok(report)
+}
