@@ -88,7 +88,13 @@ impl Film {
             }
         }
         let t = 0.5 * (a + b);
-        (self.field_sq_of_t(t).sqrt(), FilmState { lambda: self.lambda_of_t(t), t })
+        (
+            self.field_sq_of_t(t).sqrt(),
+            FilmState {
+                lambda: self.lambda_of_t(t),
+                t,
+            },
+        )
     }
 
     /// The stable (pre-pull-in) state at field `e0` (V/m), or `None` beyond pull-in.
@@ -113,12 +119,18 @@ impl Film {
                 }
             }
             let t = 0.5 * (lo + hi);
-            let mut s = FilmState { lambda: self.lambda_of_t(t), t };
+            let mut s = FilmState {
+                lambda: self.lambda_of_t(t),
+                t,
+            };
             self.polish(e0, &mut s);
             return Some(s);
         }
         // general case: Newton on both equations with continuation in the field
-        let mut s = FilmState { lambda: 1.0, t: 1.0 };
+        let mut s = FilmState {
+            lambda: 1.0,
+            t: 1.0,
+        };
         let n = 50;
         for k in 1..=n {
             let e = e0 * k as f64 / n as f64;
@@ -134,8 +146,20 @@ impl Film {
         for _ in 0..60 {
             let r = self.residuals(e0, *s);
             let h = 1e-7;
-            let rl = self.residuals(e0, FilmState { lambda: s.lambda + h, t: s.t });
-            let rt = self.residuals(e0, FilmState { lambda: s.lambda, t: s.t + h });
+            let rl = self.residuals(
+                e0,
+                FilmState {
+                    lambda: s.lambda + h,
+                    t: s.t,
+                },
+            );
+            let rt = self.residuals(
+                e0,
+                FilmState {
+                    lambda: s.lambda,
+                    t: s.t + h,
+                },
+            );
             let j = [
                 [(rl[0] - r[0]) / h, (rt[0] - r[0]) / h],
                 [(rl[1] - r[1]) / h, (rt[1] - r[1]) / h],
@@ -230,9 +254,18 @@ mod tests {
             (10.0, 0.0, 0.10, 1.0, 1.028844, 0.939202),
         ];
         for (lambda, eps, c2, e0, l, t) in cases {
-            let film = Film { mu: 1.0, lambda, eps, c2 };
+            let film = Film {
+                mu: 1.0,
+                lambda,
+                eps,
+                c2,
+            };
             let s = film.state(e0).expect("below pull-in");
-            assert!((s.lambda - l).abs() < 1e-6, "{lambda} {e0}: λ {} vs {l}", s.lambda);
+            assert!(
+                (s.lambda - l).abs() < 1e-6,
+                "{lambda} {e0}: λ {} vs {l}",
+                s.lambda
+            );
             assert!((s.t - t).abs() < 1e-6, "{lambda} {e0}: t {} vs {t}", s.t);
         }
     }

@@ -156,6 +156,7 @@ impl Assembler {
     /// `state` holds the physical values of all dofs (`FIELDS` per node). The kernel receives the
     /// cell index and its local values and fills the local residual (and tangent); it returns the
     /// cell's energy. Returns the per-cell energies' sum, added in cell order.
+    #[allow(clippy::too_many_arguments)]
     pub fn assemble<E, K>(
         &self,
         mesh: &Mesh,
@@ -185,7 +186,14 @@ impl Assembler {
         let pattern = k.as_deref().map(|k| (&k.row_ptr, &k.col_idx));
         for colour in &self.colours {
             colour.par_iter().try_for_each_init(
-                || (vec![0.0; MAX_LOCAL], Box::new([0.0; MAX_LOCAL * MAX_LOCAL]) as Box<LocalMatrix>, [0usize; MAX_LOCAL], [0.0; MAX_LOCAL]),
+                || {
+                    (
+                        vec![0.0; MAX_LOCAL],
+                        Box::new([0.0; MAX_LOCAL * MAX_LOCAL]) as Box<LocalMatrix>,
+                        [0usize; MAX_LOCAL],
+                        [0.0; MAX_LOCAL],
+                    )
+                },
                 |(rl, kl, eqs, scale), &c| {
                     let cell = mesh.cell(c);
                     let mut local = [0.0; MAX_LOCAL];
@@ -197,7 +205,11 @@ impl Assembler {
                             scale[a * FIELDS + f] = dofs.scale[f];
                         }
                     }
-                    let kl_opt = if want_k { Some(&mut kl[..nl * nl]) } else { None };
+                    let kl_opt = if want_k {
+                        Some(&mut kl[..nl * nl])
+                    } else {
+                        None
+                    };
                     let energy = kernel(c, &local[..nl], &mut rl[..nl], kl_opt)
                         .map_err(|error| CellFailure { cell: c, error })?;
                     // SAFETY: cells of one colour share no node, hence no dof: disjoint entries.
@@ -222,7 +234,9 @@ impl Assembler {
                                     continue;
                                 }
                                 let p = row_ptr[ei]
-                                    + cols.binary_search(&ej).expect("pattern holds every cell coupling");
+                                    + cols
+                                        .binary_search(&ej)
+                                        .expect("pattern holds every cell coupling");
                                 // SAFETY: as above, row ei belongs to a node of this cell only.
                                 unsafe { kp.add(p, scale[i] * scale[j] * kl[i * nl + j]) };
                             }

@@ -44,7 +44,10 @@ pub fn cell_energy(
     let mut e = 0.0;
     for q in 0..geom.n_qp {
         let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
-        e += geom.weights[q] * mat.energy(&f, &e0).map_err(|error| PointFailure { qp: q, error })?;
+        e += geom.weights[q]
+            * mat
+                .energy(&f, &e0)
+                .map_err(|error| PointFailure { qp: q, error })?;
     }
     Ok(e)
 }
@@ -119,7 +122,8 @@ pub fn cell_residual_tangent(
                         }
                     }
                     for c in 0..3 {
-                        gg[a][c] = g[a][0] * t.g[(0, c)] + g[a][1] * t.g[(1, c)] + g[a][2] * t.g[(2, c)];
+                        gg[a][c] =
+                            g[a][0] * t.g[(0, c)] + g[a][1] * t.g[(1, c)] + g[a][2] * t.g[(2, c)];
                     }
                 }
                 for a in 0..n {
@@ -129,8 +133,7 @@ pub fn cell_residual_tangent(
                             let row = (a * 4 + i) * nl + b * 4;
                             for kk in 0..3 {
                                 let c = &ga[a][i][kk * 3..kk * 3 + 3];
-                                k[row + kk] +=
-                                    w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
+                                k[row + kk] += w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
                             }
                             // ∂r_{a,i}/∂Φ_b = Σ ∂N_a/∂X_J B_{iJ,K} (−∂N_b/∂X_K)
                             let c = &gb[a][i];
@@ -143,7 +146,8 @@ pub fn cell_residual_tangent(
                             k[row + kk] -= w * (c[0] * g[a][0] + c[1] * g[a][1] + c[2] * g[a][2]);
                         }
                         // ∂r_{a,Φ}/∂Φ_b = Σ ∂N_a/∂X_J G_JK ∂N_b/∂X_K
-                        k[row + 3] += w * (gg[a][0] * gbv[0] + gg[a][1] * gbv[1] + gg[a][2] * gbv[2]);
+                        k[row + 3] +=
+                            w * (gg[a][0] * gbv[0] + gg[a][1] * gbv[1] + gg[a][2] * gbv[2]);
                     }
                 }
             }

@@ -52,17 +52,23 @@ impl Model {
             self.mesh.cell_coords_into(c, &mut x);
             self.reference
                 .geometry(&x)
-                .map_err(|e| ModelError::DegenerateCell { cell: c, qp: e.qp, det: e.det })?;
+                .map_err(|e| ModelError::DegenerateCell {
+                    cell: c,
+                    qp: e.qp,
+                    det: e.det,
+                })?;
         }
         Ok(())
     }
 
     /// Nodes of a named set, or an error naming the known sets.
     pub fn set_nodes(&self, name: &str) -> Result<Vec<usize>, ModelError> {
-        self.mesh.set_nodes(name).ok_or_else(|| ModelError::UnknownSet {
-            name: name.to_string(),
-            known: self.mesh.set_names().join(", "),
-        })
+        self.mesh
+            .set_nodes(name)
+            .ok_or_else(|| ModelError::UnknownSet {
+                name: name.to_string(),
+                known: self.mesh.set_names().join(", "),
+            })
     }
 
     /// Adds a Dirichlet condition on a named set.
@@ -73,15 +79,27 @@ impl Model {
         value: f64,
     ) -> Result<(), ModelError> {
         let nodes = self.set_nodes(set)?;
-        self.dirichlet.push(Dirichlet { nodes, field, value });
+        self.dirichlet.push(Dirichlet {
+            nodes,
+            field,
+            value,
+        });
         Ok(())
     }
 
     /// Potential scale √(μ/ε) (V/m) from the stiffest and most permittive materials, so that the
     /// potential block of the tangent has the size of the displacement block.
     pub fn potential_scale(&self) -> f64 {
-        let mu = self.materials.iter().map(|m| m.shear_modulus()).fold(0.0, f64::max);
-        let eps = self.materials.iter().map(|m| m.permittivity()).fold(0.0, f64::max);
+        let mu = self
+            .materials
+            .iter()
+            .map(|m| m.shear_modulus())
+            .fold(0.0, f64::max);
+        let eps = self
+            .materials
+            .iter()
+            .map(|m| m.permittivity())
+            .fold(0.0, f64::max);
         if mu > 0.0 && eps > 0.0 {
             (mu / eps).sqrt()
         } else {

@@ -15,7 +15,12 @@ use deasim::solve::newton::NewtonSettings;
 use deasim::solve::stepping::StepControl;
 
 fn closed_form() -> Film {
-    Film { mu: FILM_MU, lambda: FILM_LAMBDA, eps: FILM_EPS_R * EPSILON_0, c2: 0.0 }
+    Film {
+        mu: FILM_MU,
+        lambda: FILM_LAMBDA,
+        eps: FILM_EPS_R * EPSILON_0,
+        c2: 0.0,
+    }
 }
 
 /// Largest deviation of the computed stretches from the closed form over all load steps.
@@ -25,12 +30,18 @@ fn film_ramp_error(kind: ElementKind, threads: usize) -> (f64, usize) {
     let reference = closed_form();
     let mut worst: f64 = 0.0;
     let mut steps = 0;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
     let outcome = pool.install(|| {
         solve_static(
             &model,
             None,
-            &StepControl { steps: 15, ..Default::default() },
+            &StepControl {
+                steps: 15,
+                ..Default::default()
+            },
             &NewtonSettings::default(),
             |p, step| {
                 let v = voltage * step.load;
@@ -47,7 +58,10 @@ fn film_ramp_error(kind: ElementKind, threads: usize) -> (f64, usize) {
                     }
                     let phi = p.state[n * 4 + 3];
                     let expect_phi = v * x[2] / FILM_SIZE[2];
-                    assert!((phi - expect_phi).abs() <= 1e-9 * voltage, "potential at node {n}");
+                    assert!(
+                        (phi - expect_phi).abs() <= 1e-9 * voltage,
+                        "potential at node {n}"
+                    );
                 }
                 steps += 1;
             },
@@ -64,7 +78,10 @@ fn film_matches_closed_form_hex8_and_tet4_on_1_and_2_threads() {
             let (err, steps) = film_ramp_error(kind, threads);
             eprintln!("{kind:?}, {threads} threads: {steps} steps, max |Δλ| = {err:.3e}");
             assert!(steps >= 15, "{kind:?}: {steps} accepted steps");
-            assert!(err < 1e-8, "{kind:?}, {threads} threads: max |Δλ| = {err:e}");
+            assert!(
+                err < 1e-8,
+                "{kind:?}, {threads} threads: max |Δλ| = {err:e}"
+            );
         }
     }
 }
@@ -77,14 +94,26 @@ fn ramp_to_40kv_stops_at_pull_in() {
     let outcome = solve_static(
         &model,
         None,
-        &StepControl { steps: 20, ..Default::default() },
+        &StepControl {
+            steps: 20,
+            ..Default::default()
+        },
         &NewtonSettings::default(),
         |_, _| {},
     );
     let failure = outcome.result.expect_err("40 kV is beyond pull-in");
     assert!(failure.limit_point, "{failure:?}");
     let v_last = failure.last_converged * 40e3;
-    eprintln!("pull-in: last converged {v_last:.2} V, closed form {v_crit:.2} V; {}", failure.reason);
-    assert!(v_last <= v_crit, "last converged {v_last} V above critical {v_crit} V");
-    assert!(v_last >= 0.995 * v_crit, "last converged {v_last} V, critical {v_crit} V");
+    eprintln!(
+        "pull-in: last converged {v_last:.2} V, closed form {v_crit:.2} V; {}",
+        failure.reason
+    );
+    assert!(
+        v_last <= v_crit,
+        "last converged {v_last} V above critical {v_crit} V"
+    );
+    assert!(
+        v_last >= 0.995 * v_crit,
+        "last converged {v_last} V, critical {v_crit} V"
+    );
 }

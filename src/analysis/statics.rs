@@ -7,7 +7,9 @@ use crate::element::{cell_energy_split, cell_residual_tangent};
 use crate::model::Model;
 use crate::solve::linear::{FaerLdlt, LinearSolver};
 use crate::solve::newton::{NewtonSettings, NonlinearSystem};
-use crate::solve::stepping::{ramp, AcceptedStep, LoadedSystem, RampFailure, RampReport, StepControl};
+use crate::solve::stepping::{
+    ramp, AcceptedStep, LoadedSystem, RampFailure, RampReport, StepControl,
+};
 
 /// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
 const RESIDUAL_FLOOR: f64 = 1e-11;
@@ -33,7 +35,11 @@ impl<'m> StaticProblem<'m> {
         let dofs = DofMap::new(n_nodes, &flags, model.potential_scale());
         let assembler = Assembler::new(&model.mesh, &dofs);
         let state = state.unwrap_or_else(|| vec![0.0; n_nodes * FIELDS]);
-        let mu = model.materials.iter().map(|m| m.shear_modulus()).fold(0.0, f64::max);
+        let mu = model
+            .materials
+            .iter()
+            .map(|m| m.shear_modulus())
+            .fold(0.0, f64::max);
         let h = model.cell_size();
         StaticProblem {
             model,
@@ -63,7 +69,10 @@ impl<'m> StaticProblem<'m> {
                 local[a * FIELDS..(a + 1) * FIELDS]
                     .copy_from_slice(&self.state[node * FIELDS..(node + 1) * FIELDS]);
             }
-            let g = m.reference.geometry(&x).map_err(|e| format!("cell {c}: {e:?}"))?;
+            let g = m
+                .reference
+                .geometry(&x)
+                .map_err(|e| format!("cell {c}: {e:?}"))?;
             let (a, b) = cell_energy_split(&g, m.materials[m.cell_material[c]].as_ref(), &local)
                 .map_err(|e| format!("cell {c}: {:?}", e.error))?;
             mech += a;
@@ -88,9 +97,18 @@ impl<'m> StaticProblem<'m> {
                 local[a * FIELDS..(a + 1) * FIELDS]
                     .copy_from_slice(&self.state[node * FIELDS..(node + 1) * FIELDS]);
             }
-            let g = m.reference.geometry(&x).map_err(|e| format!("cell {c}: {e:?}"))?;
-            cell_residual_tangent(&g, m.materials[m.cell_material[c]].as_ref(), &local, &mut r, None)
-                .map_err(|e| format!("cell {c}: {:?}", e.error))?;
+            let g = m
+                .reference
+                .geometry(&x)
+                .map_err(|e| format!("cell {c}: {e:?}"))?;
+            cell_residual_tangent(
+                &g,
+                m.materials[m.cell_material[c]].as_ref(),
+                &local,
+                &mut r,
+                None,
+            )
+            .map_err(|e| format!("cell {c}: {:?}", e.error))?;
             for (a, &node) in cell.iter().enumerate() {
                 for f in 0..FIELDS {
                     out[node * FIELDS + f] += r[a * FIELDS + f];
@@ -120,7 +138,15 @@ impl NonlinearSystem for StaticProblem<'_> {
                 .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
         };
         self.assembler
-            .assemble(&m.mesh, &self.dofs, &self.state, kernel, r, k, &mut self.cell_energy)
+            .assemble(
+                &m.mesh,
+                &self.dofs,
+                &self.state,
+                kernel,
+                r,
+                k,
+                &mut self.cell_energy,
+            )
             .map(|_| ())
             .map_err(|f| format!("cell {}: {}", f.cell, f.error))
     }
@@ -190,8 +216,15 @@ pub fn solve_static(
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, initial);
     let mut solver = FaerLdlt::new();
-    let result = ramp(&mut problem, &mut solver as &mut dyn LinearSolver, newton, control, |p, s| {
-        on_step(p, s)
-    });
-    StaticOutcome { state: problem.state, result }
+    let result = ramp(
+        &mut problem,
+        &mut solver as &mut dyn LinearSolver,
+        newton,
+        control,
+        |p, s| on_step(p, s),
+    );
+    StaticOutcome {
+        state: problem.state,
+        result,
+    }
 }

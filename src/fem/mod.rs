@@ -116,7 +116,7 @@ impl ReferenceElement {
                 }
             }
             let det = jac.determinant();
-            if !(det > 0.0) || !det.is_finite() {
+            if det.is_nan() || det <= 0.0 || !det.is_finite() {
                 return Err(DegenerateCell { qp: q, det });
             }
             let inv = jac.try_inverse().ok_or(DegenerateCell { qp: q, det })?;

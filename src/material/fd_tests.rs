@@ -87,10 +87,6 @@ fn rel_err(got: f64, reference: f64) -> f64 {
     got / reference.max(f64::MIN_POSITIVE)
 }
 
-fn flat(m: &Mat3, i: usize, j: usize) -> f64 {
-    m[(i, j)]
-}
-
 /// Finite-difference step for F entries (entries are O(1)).
 const H_F: f64 = 1e-6;
 /// Relative finite-difference step for E0. P is dominated by the Λ term
@@ -143,7 +139,7 @@ fn fd_wrt_f(m: &dyn Material, f: &Mat3, e0: &Vec3) -> (Mat9, Mat93) {
             let dd = (sp.d0 - sm.d0) / (2.0 * H_F);
             for i in 0..3 {
                 for j in 0..3 {
-                    a[(i * 3 + j, k * 3 + l)] = flat(&dp, i, j);
+                    a[(i * 3 + j, k * 3 + l)] = dp[(i, j)];
                 }
             }
             // B_kL,M = ∂P_kL/∂E0_M = ∂²Ψ/∂F_kL∂E0_M = −∂D0_M/∂F_kL

@@ -9,6 +9,7 @@
 use crate::assembly::CsrMatrix;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::ldlt::factor::{LdltParams, LdltRegularization};
+use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, SymbolicCholesky,
     SymbolicCholeskyRaw, SymmetricOrdering,
@@ -45,9 +46,19 @@ pub trait LinearSolver: Send {
     fn name(&self) -> &'static str;
 }
 
-/// Sparse supernodal LDLᵀ (faer) with an AMD ordering; the symbolic analysis is computed at the
-/// first factorisation and reused for every later one.
+/// Fill-reducing ordering of [`FaerLdlt`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ordering {
+    /// METIS nested dissection (default; falls back to AMD if METIS fails).
+    NestedDissection,
+    /// faer's approximate minimum degree.
+    Amd,
+}
+
+/// Sparse supernodal LDLᵀ (faer) with a nested-dissection (METIS) or AMD ordering; the symbolic
+/// analysis is computed at the first factorisation and reused for every later one.
 pub struct FaerLdlt {
+    ordering: Ordering,
     symbolic: Option<SymbolicCholesky<usize>>,
     l_values: Vec<f64>,
     factored: bool,
@@ -71,14 +82,24 @@ impl Default for FaerLdlt {
 }
 
 impl FaerLdlt {
-    /// Uses the threads of the current rayon pool.
+    /// Nested dissection, using the threads of the current rayon pool.
     pub fn new() -> Self {
+        Self::with_ordering(Ordering::NestedDissection)
+    }
+
+    /// A solver with the given ordering.
+    pub fn with_ordering(ordering: Ordering) -> Self {
         let threads = rayon::current_num_threads();
         FaerLdlt {
+            ordering,
             symbolic: None,
             l_values: Vec::new(),
             factored: false,
-            par: if threads > 1 { Par::rayon(threads) } else { Par::Seq },
+            par: if threads > 1 {
+                Par::rayon(threads)
+            } else {
+                Par::Seq
+            },
             mem: None,
         }
     }
@@ -131,10 +152,29 @@ impl LinearSolver for FaerLdlt {
         self.factored = false;
         let mat = Self::matrix(a);
         if self.symbolic.is_none() {
+            let nd = match self.ordering {
+                Ordering::NestedDissection => {
+                    super::ordering::nested_dissection(a.n, &a.row_ptr, &a.col_idx)
+                }
+                Ordering::Amd => None,
+            };
+            let inverse = nd.as_ref().map(|p| {
+                let mut inv = vec![0usize; p.len()];
+                for (new, &old) in p.iter().enumerate() {
+                    inv[old] = new;
+                }
+                inv
+            });
+            let ord = match (&nd, &inverse) {
+                (Some(fwd), Some(inv)) => {
+                    SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, a.n))
+                }
+                _ => SymmetricOrdering::Amd,
+            };
             let symbolic = factorize_symbolic_cholesky(
                 mat.symbolic(),
                 Side::Lower,
-                SymmetricOrdering::Amd,
+                ord,
                 CholeskySymbolicParams::default(),
             )
             .map_err(|e| LinearSolverError::Symbolic(format!("{e:?}")))?;
@@ -201,7 +241,10 @@ impl LinearSolver for FaerLdlt {
     }
 
     fn name(&self) -> &'static str {
-        "faer sparse LDLT (AMD)"
+        match self.ordering {
+            Ordering::NestedDissection => "faer sparse LDLT (METIS nested dissection)",
+            Ordering::Amd => "faer sparse LDLT (AMD)",
+        }
     }
 }
 

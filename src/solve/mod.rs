@@ -3,4 +3,5 @@
 
 pub mod linear;
 pub mod newton;
+pub mod ordering;
 pub mod stepping;

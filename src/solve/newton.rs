@@ -71,7 +71,11 @@ pub struct NewtonReport {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum NewtonError {
     #[error("Newton did not converge in {iterations} iterations (residual {residual:e}, first {first:e})")]
-    MaxIterations { iterations: usize, residual: f64, first: f64 },
+    MaxIterations {
+        iterations: usize,
+        residual: f64,
+        first: f64,
+    },
     #[error("Newton diverged at iteration {iteration} (residual {residual:e})")]
     Diverged { iteration: usize, residual: f64 },
     #[error("singular tangent at iteration {iteration}")]
@@ -104,37 +108,62 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
     let mut r = vec![0.0; n];
     let mut dx = vec![0.0; n];
     let mut trial = vec![0.0; n];
-    let groups = if settings.verbose { system.groups() } else { Vec::new() };
+    let groups = if settings.verbose {
+        system.groups()
+    } else {
+        Vec::new()
+    };
     let floor = system.residual_floor();
     system
         .evaluate(&mut r, Some(k))
-        .map_err(|message| NewtonError::Evaluation { iteration: 0, message })?;
+        .map_err(|message| NewtonError::Evaluation {
+            iteration: 0,
+            message,
+        })?;
     let r0 = norm(&r);
     if !r0.is_finite() {
-        return Err(NewtonError::Diverged { iteration: 0, residual: r0 });
+        return Err(NewtonError::Diverged {
+            iteration: 0,
+            residual: r0,
+        });
     }
     let tol = (settings.rtol * r0).max(floor);
     let mut residuals = vec![r0];
     let mut rn = r0;
     if settings.verbose {
-        eprintln!("    it   |r|         |r|/|r0|    |r_u|       |r_phi|     |dx_u|      |dx_phi|  alpha");
+        eprintln!(
+            "    it   |r|         |r|/|r0|    |r_u|       |r_phi|     |dx_u|      |dx_phi|  alpha"
+        );
         let g = group_norms(&r, &groups);
-        eprintln!("    {:>2}   {:.3e}   {:.3e}   {:.3e}   {:.3e}", 0, r0, 1.0, g[0], g[1]);
+        eprintln!(
+            "    {:>2}   {:.3e}   {:.3e}   {:.3e}   {:.3e}",
+            0, r0, 1.0, g[0], g[1]
+        );
     }
     let mut iteration = 0;
     while rn > tol {
         if iteration >= settings.max_iterations {
-            return Err(NewtonError::MaxIterations { iterations: iteration, residual: rn, first: r0 });
+            return Err(NewtonError::MaxIterations {
+                iterations: iteration,
+                residual: rn,
+                first: r0,
+            });
         }
         iteration += 1;
         solver.factor(k).map_err(|e| match e {
             LinearSolverError::Singular(_) => NewtonError::Singular { iteration },
-            other => NewtonError::Evaluation { iteration, message: other.to_string() },
+            other => NewtonError::Evaluation {
+                iteration,
+                message: other.to_string(),
+            },
         })?;
         dx.iter_mut().zip(&r).for_each(|(d, v)| *d = -v);
         solver
             .solve_in_place(&mut dx)
-            .map_err(|e| NewtonError::Evaluation { iteration, message: e.to_string() })?;
+            .map_err(|e| NewtonError::Evaluation {
+                iteration,
+                message: e.to_string(),
+            })?;
         if dx.iter().any(|v| !v.is_finite()) {
             return Err(NewtonError::Singular { iteration });
         }
@@ -146,18 +175,15 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         let mut full_step_ok = false;
         for _ in 0..=settings.max_backtracks {
             system.increment(&dx, alpha);
-            match system.evaluate(&mut trial, None) {
-                Ok(()) => {
-                    let tn = norm(&trial);
-                    if alpha == 1.0 && tn.is_finite() {
-                        full_step_ok = true;
-                    }
-                    if tn.is_finite() && tn <= (1.0 - 1e-4 * alpha) * rn {
-                        accepted = true;
-                        break;
-                    }
+            if system.evaluate(&mut trial, None).is_ok() {
+                let tn = norm(&trial);
+                if alpha == 1.0 && tn.is_finite() {
+                    full_step_ok = true;
                 }
-                Err(_) => {}
+                if tn.is_finite() && tn <= (1.0 - 1e-4 * alpha) * rn {
+                    accepted = true;
+                    break;
+                }
             }
             system.restore(&start);
             alpha *= 0.5;
@@ -193,7 +219,10 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
             );
         }
         if !rn.is_finite() || rn > 1e8 * r0.max(floor) {
-            return Err(NewtonError::Diverged { iteration, residual: rn });
+            return Err(NewtonError::Diverged {
+                iteration,
+                residual: rn,
+            });
         }
     }
     let mut inertia = None;
@@ -205,8 +234,18 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                 inertia = Some(i);
             }
             Err(LinearSolverError::Singular(_)) => stable = false,
-            Err(e) => return Err(NewtonError::Evaluation { iteration, message: e.to_string() }),
+            Err(e) => {
+                return Err(NewtonError::Evaluation {
+                    iteration,
+                    message: e.to_string(),
+                })
+            }
         }
     }
-    Ok(NewtonReport { iterations: iteration, residuals, inertia, stable })
+    Ok(NewtonReport {
+        iterations: iteration,
+        residuals,
+        inertia,
+        stable,
+    })
 }

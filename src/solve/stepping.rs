@@ -30,7 +30,11 @@ pub struct StepControl {
 
 impl Default for StepControl {
     fn default() -> Self {
-        StepControl { steps: 10, min_fraction: 1.0 / 4096.0, easy_iterations: 6 }
+        StepControl {
+            steps: 10,
+            min_fraction: 1.0 / 4096.0,
+            easy_iterations: 6,
+        }
     }
 }
 
@@ -85,21 +89,34 @@ pub fn ramp<S: LoadedSystem + ?Sized>(
     let mut inc = nominal;
     let mut next_nominal = 1usize;
     let mut last_reason = String::new();
+    // the solver holds a factorisation of the tangent at (or next to) the current state
+    let mut predictor_work = vec![0.0; system.n()];
+    let mut have_factor =
+        system.evaluate(&mut predictor_work, Some(&mut k)).is_ok() && solver.factor(&k).is_ok();
     while next_nominal <= control.steps.max(1) {
         let target_nominal = next_nominal as f64 * nominal;
         let target = (s + inc).min(target_nominal);
         let hits_nominal = (target - target_nominal).abs() <= 1e-12;
         let target = if hits_nominal { target_nominal } else { target };
         let saved = system.snapshot();
-        system.set_load(target);
+        if have_factor {
+            predict(system, solver, s, target, &mut predictor_work);
+        } else {
+            system.set_load(target);
+        }
         let outcome = newton(system, solver, &mut k, settings);
         let failure = match outcome {
             Ok(rep) if rep.stable => {
+                have_factor = rep.iterations > 0 || rep.inertia.is_some();
                 report.newton_iterations += rep.iterations;
                 report.accepted_steps += 1;
                 let easy = rep.iterations <= control.easy_iterations;
                 s = target;
-                let step = AcceptedStep { load: s, nominal: hits_nominal, newton: rep };
+                let step = AcceptedStep {
+                    load: s,
+                    nominal: hits_nominal,
+                    newton: rep,
+                };
                 on_step(system, &step);
                 if hits_nominal {
                     next_nominal += 1;
@@ -127,7 +144,8 @@ pub fn ramp<S: LoadedSystem + ?Sized>(
                 e.to_string()
             }
         };
-        // undo and cut back
+        // undo and cut back; the factorisation in the solver belongs to a rejected state
+        have_factor = false;
         system.restore(&saved);
         system.set_load(s);
         report.cutbacks += 1;
@@ -145,4 +163,48 @@ pub fn ramp<S: LoadedSystem + ?Sized>(
     }
     let _ = last_reason;
     Ok(report)
+}
+
+/// Tangent predictor: moves the free unknowns along the solution path to first order,
+/// Δx_f = −K⁻¹ K_fd Δx_d, with the factorised tangent of the converged state at load `from`.
+/// K_fd Δx_d is the directional derivative of the residual along the change of the prescribed
+/// values, taken by a one-sided difference (the residual vanishes at the converged state).
+fn predict<S: LoadedSystem + ?Sized>(
+    system: &mut S,
+    solver: &mut dyn LinearSolver,
+    from: f64,
+    to: f64,
+    work: &mut [f64],
+) {
+    const H: f64 = 1e-4;
+    let start = system.snapshot();
+    system.set_load(from + H * (to - from));
+    let ok = system.evaluate(work, None).is_ok();
+    system.restore(&start);
+    system.set_load(to);
+    if !ok {
+        return;
+    }
+    let mut r0 = vec![0.0; work.len()];
+    let base_ok = {
+        let s2 = system.snapshot();
+        system.restore(&start);
+        let r = system.evaluate(&mut r0, None).is_ok();
+        system.restore(&s2);
+        r
+    };
+    if !base_ok {
+        return;
+    }
+    for (w, b) in work.iter_mut().zip(&r0) {
+        *w = -(*w - b) / H;
+    }
+    if solver.solve_in_place(work).is_ok() && work.iter().all(|v| v.is_finite()) {
+        let before = system.snapshot();
+        system.increment(work, 1.0);
+        if system.evaluate(&mut r0, None).is_err() {
+            // the predicted state is not admissible (e.g. J <= 0): start from the plain one
+            system.restore(&before);
+        }
+    }
 }

@@ -1,0 +1,572 @@
+//! Line plots (PNG or SVG) with plotters and a bundled DejaVu Sans font, so that text renders
+//! identically on every machine without depending on system fonts.
+//!
+//! Output is atomic: SVG is rendered into a string and written with [`write_atomic`]; PNG is
+//! rendered into a temporary sibling file (with a `.png` extension, which the encoder needs)
+//! and renamed over the target.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+
+use super::atomic::{persist_temp, temp_sibling_path, write_atomic};
+
+/// DejaVu Sans (see `assets/DejaVuSans-LICENSE.txt`).
+static FONT_BYTES: &[u8] = include_bytes!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/assets/DejaVuSans.ttf"
+));
+
+/// Image size in pixels.
+const WIDTH: u32 = 800;
+const HEIGHT: u32 = 500;
+
+/// Line colours, cycled when there are more series.
+const COLORS: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
+];
+
+/// One curve: points `(x[i], y[i])`, joined in order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    pub label: String,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+}
+
+/// What to draw: title, axis labels (include units, e.g. "voltage [V]") and the curves.
+#[derive(Debug, Clone, Copy)]
+pub struct PlotSpec<'a> {
+    pub title: &'a str,
+    pub x_label: &'a str,
+    pub y_label: &'a str,
+    pub series: &'a [Series],
+}
+
+/// Errors of [`line_plot`]. Every message starts with the output path.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    #[error("{}: unsupported plot format (the file name must end in .png or .svg)", .path.display())]
+    UnsupportedFormat { path: PathBuf },
+    #[error("{}: nothing to plot: {reason}", .path.display())]
+    NoData { path: PathBuf, reason: String },
+    #[error("{}: series '{label}' has {x_len} x values but {y_len} y values", .path.display())]
+    LengthMismatch {
+        path: PathBuf,
+        label: String,
+        x_len: usize,
+        y_len: usize,
+    },
+    #[error("{}: data range too large to plot: {reason}", .path.display())]
+    Range { path: PathBuf, reason: String },
+    #[error("{}: cannot load the bundled font: {reason}", .path.display())]
+    Font { path: PathBuf, reason: String },
+    #[error("{}: drawing failed: {reason}", .path.display())]
+    Drawing { path: PathBuf, reason: String },
+    #[error("{}: I/O error: {source}", .path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+#[derive(Clone, Copy)]
+enum Format {
+    Png,
+    Svg,
+}
+
+/// Draws the series of `spec` as lines into `path` (800×500 px, white background, axis labels,
+/// a legend when there is more than one series). The format follows the extension: `.png` or
+/// `.svg` (case-insensitive); anything else is an error.
+///
+/// Non-finite points are skipped. Every series must have `x.len() == y.len() > 0`, and at least
+/// one finite point must remain. A constant series or a single point gets a padded range;
+/// a series reduced to a single point is drawn as a marker.
+pub fn line_plot(path: &Path, spec: &PlotSpec) -> Result<(), PlotError> {
+    let format = match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("png") => Format::Png,
+        Some("svg") => Format::Svg,
+        _ => {
+            return Err(PlotError::UnsupportedFormat {
+                path: path.to_path_buf(),
+            })
+        }
+    };
+    let curves = prepare(path, spec)?;
+    let (x_range, y_range) = ranges(path, &curves)?;
+    ensure_font().map_err(|reason| PlotError::Font {
+        path: path.to_path_buf(),
+        reason,
+    })?;
+    let drawing_err = |reason: String| PlotError::Drawing {
+        path: path.to_path_buf(),
+        reason,
+    };
+
+    match format {
+        Format::Svg => {
+            let mut svg = String::new();
+            {
+                let root = SVGBackend::with_string(&mut svg, (WIDTH, HEIGHT)).into_drawing_area();
+                draw(root, spec, &curves, x_range, y_range).map_err(drawing_err)?;
+            }
+            write_atomic(path, svg.as_bytes()).map_err(|source| PlotError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
+        }
+        Format::Png => {
+            let tmp = temp_sibling_path(path, Some("png")).map_err(|source| PlotError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            let drawn = {
+                let root = BitMapBackend::new(&tmp, (WIDTH, HEIGHT)).into_drawing_area();
+                draw(root, spec, &curves, x_range, y_range)
+                // The backend is dropped here; on failure its drop may still save a file.
+            };
+            if let Err(reason) = drawn {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(drawing_err(reason));
+            }
+            persist_temp(&tmp, path).map_err(|source| PlotError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
+        }
+    }
+}
+
+/// A series reduced to its finite points.
+struct Curve<'s> {
+    label: &'s str,
+    points: Vec<(f64, f64)>,
+}
+
+fn prepare<'s>(path: &Path, spec: &PlotSpec<'s>) -> Result<Vec<Curve<'s>>, PlotError> {
+    if spec.series.is_empty() {
+        return Err(PlotError::NoData {
+            path: path.to_path_buf(),
+            reason: "no series".to_string(),
+        });
+    }
+    let mut curves = Vec::with_capacity(spec.series.len());
+    for s in spec.series {
+        if s.x.len() != s.y.len() {
+            return Err(PlotError::LengthMismatch {
+                path: path.to_path_buf(),
+                label: s.label.clone(),
+                x_len: s.x.len(),
+                y_len: s.y.len(),
+            });
+        }
+        if s.x.is_empty() {
+            return Err(PlotError::NoData {
+                path: path.to_path_buf(),
+                reason: format!("series '{}' is empty", s.label),
+            });
+        }
+        let points =
+            s.x.iter()
+                .zip(&s.y)
+                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .map(|(&x, &y)| (x, y))
+                .collect();
+        curves.push(Curve {
+            label: &s.label,
+            points,
+        });
+    }
+    if curves.iter().all(|c| c.points.is_empty()) {
+        return Err(PlotError::NoData {
+            path: path.to_path_buf(),
+            reason: "no finite points".to_string(),
+        });
+    }
+    Ok(curves)
+}
+
+type Range = (f64, f64);
+
+fn ranges(path: &Path, curves: &[Curve]) -> Result<(Range, Range), PlotError> {
+    let bounds = |pick: fn(&(f64, f64)) -> f64| {
+        curves
+            .iter()
+            .flat_map(|c| c.points.iter().map(pick))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            })
+    };
+    let err = |axis: &str, (lo, hi): Range| PlotError::Range {
+        path: path.to_path_buf(),
+        reason: format!("{axis} from {lo:e} to {hi:e}"),
+    };
+    let x = bounds(|p| p.0);
+    let y = bounds(|p| p.1);
+    let xr = padded(x).ok_or_else(|| err("x", x))?;
+    let yr = padded(y).ok_or_else(|| err("y", y))?;
+    Ok((xr, yr))
+}
+
+/// Widens `[lo, hi]` by 5 % on each side; a degenerate range gets ±10 % of its value (±1 at 0).
+/// Returns `None` if the result is not finite.
+fn padded((lo, hi): Range) -> Option<Range> {
+    let span = hi - lo;
+    let pad = if span > 0.0 {
+        0.05 * span
+    } else if lo != 0.0 {
+        0.1 * lo.abs()
+    } else {
+        1.0
+    };
+    let (a, b) = (lo - pad, hi + pad);
+    (a.is_finite() && b.is_finite() && b - a > 0.0 && (b - a).is_finite()).then_some((a, b))
+}
+
+/// Tick label: up to 10 significant digits, trailing zeros removed; exponent form outside
+/// [1e-3, 1e5) so SI values like 2.5e-6 m stay short.
+fn tick_label(v: &f64) -> String {
+    let v = *v;
+    if v == 0.0 {
+        return "0".to_string();
+    }
+    let a = v.abs();
+    if (1e-3..1e5).contains(&a) {
+        let digits = (9 - a.log10().floor() as i32).clamp(0, 12) as usize;
+        let s = format!("{v:.digits$}");
+        let s = if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        };
+        if s == "-0" {
+            "0".to_string()
+        } else {
+            s
+        }
+    } else {
+        let s = format!("{v:.9e}");
+        match s.split_once('e') {
+            Some((mantissa, exp)) => {
+                let m = mantissa.trim_end_matches('0').trim_end_matches('.');
+                format!("{m}e{exp}")
+            }
+            None => s,
+        }
+    }
+}
+
+fn ensure_font() -> Result<(), String> {
+    static REGISTERED: OnceLock<Result<(), String>> = OnceLock::new();
+    REGISTERED
+        .get_or_init(|| {
+            register_font("sans-serif", FontStyle::Normal, FONT_BYTES)
+                .map_err(|_| "DejaVuSans.ttf is not a valid font".to_string())
+        })
+        .clone()
+}
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    spec: &PlotSpec,
+    curves: &[Curve],
+    (x0, x1): Range,
+    (y0, y1): Range,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(spec.title, ("sans-serif", 24))
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(85)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc(spec.x_label)
+        .y_desc(spec.y_label)
+        .axis_desc_style(("sans-serif", 18))
+        .label_style(("sans-serif", 14))
+        .x_label_formatter(&tick_label)
+        .y_label_formatter(&tick_label)
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(e)?;
+
+    for (i, curve) in curves.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        let single = curve.points.len() == 1;
+        let style = if single {
+            color.filled().stroke_width(2)
+        } else {
+            color.stroke_width(2)
+        };
+        let marker = if single { 4 } else { 0 };
+        let series = LineSeries::new(curve.points.iter().copied(), style).point_size(marker);
+        chart
+            .draw_series(series)
+            .map_err(e)?
+            .label(curve.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+    }
+    if curves.len() > 1 {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font(("sans-serif", 14))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(e)?;
+    }
+    root.present().map_err(e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::fs;
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+    fn scratch_dir(tag: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!(
+            "deasim-plot-{}-{}-{}",
+            tag,
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).expect("create scratch dir");
+        dir
+    }
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = fs::read_dir(dir)
+            .expect("read dir")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    fn two_series() -> Vec<Series> {
+        let v: Vec<f64> = (0..=50).map(|i| i as f64 * 100.0).collect();
+        let stretch: Vec<f64> = v.iter().map(|v| 1.0 + 2e-9 * v * v / 5000.0).collect();
+        let analytic: Vec<f64> = v.iter().map(|v| 1.0 + 1.9e-9 * v * v / 5000.0).collect();
+        vec![
+            Series {
+                label: "FEM".to_string(),
+                x: v.clone(),
+                y: stretch,
+            },
+            Series {
+                label: "analytic".to_string(),
+                x: v,
+                y: analytic,
+            },
+        ]
+    }
+
+    const PNG_SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', 0x0D, 0x0A, 0x1A, 0x0A];
+
+    #[test]
+    fn png_and_svg_with_two_series() {
+        let dir = scratch_dir("two");
+        let series = two_series();
+        let spec = PlotSpec {
+            title: "Stretch versus voltage",
+            x_label: "voltage [V]",
+            y_label: "stretch λ [-]",
+            series: &series,
+        };
+        let png = dir.join("stretch.png");
+        line_plot(&png, &spec).expect("png");
+        let bytes = fs::read(&png).expect("read png");
+        assert!(bytes.len() > 1000);
+        assert_eq!(bytes[..8], PNG_SIGNATURE);
+        // Width and height from the IHDR chunk.
+        assert_eq!(bytes[16..20], WIDTH.to_be_bytes());
+        assert_eq!(bytes[20..24], HEIGHT.to_be_bytes());
+
+        let svg_path = dir.join("stretch.SVG");
+        line_plot(&svg_path, &spec).expect("svg");
+        let svg = fs::read_to_string(&svg_path).expect("read svg");
+        assert!(svg.starts_with("<svg"), "{}", &svg[..svg.len().min(100)]);
+        for text in [
+            "Stretch versus voltage",
+            "voltage [V]",
+            "stretch λ [-]",
+            "FEM",
+            "analytic",
+        ] {
+            assert!(svg.contains(text), "SVG lacks '{text}'");
+        }
+        assert_eq!(
+            entries(&dir),
+            vec!["stretch.SVG".to_string(), "stretch.png".to_string()]
+        );
+        fs::remove_dir_all(&dir).expect("cleanup");
+    }
+
+    #[test]
+    fn writes_check_image_for_visual_inspection() {
+        let series = two_series();
+        let spec = PlotSpec {
+            title: "Stretch versus voltage",
+            x_label: "voltage [V]",
+            y_label: "stretch λ [-]",
+            series: &series,
+        };
+        let path = std::env::temp_dir().join("deasim_plot_check.png");
+        line_plot(&path, &spec).expect("png");
+        assert_eq!(fs::read(&path).expect("read")[..8], PNG_SIGNATURE);
+    }
+
+    #[test]
+    fn constant_single_point_and_non_finite_series_work() {
+        let dir = scratch_dir("degenerate");
+        let constant = vec![Series {
+            label: "flat".to_string(),
+            x: vec![0.0, 1.0, 2.0],
+            y: vec![3.5; 3],
+        }];
+        let single = vec![Series {
+            label: "one".to_string(),
+            x: vec![0.0],
+            y: vec![0.0],
+        }];
+        let gaps = vec![
+            Series {
+                label: "gaps".to_string(),
+                x: vec![0.0, 1.0, f64::NAN, 3.0, 4.0],
+                y: vec![1e-7, f64::INFINITY, 2.0, 3e-7, 2e-7],
+            },
+            Series {
+                label: "all bad".to_string(),
+                x: vec![f64::NAN],
+                y: vec![1.0],
+            },
+        ];
+        let tiny_span = vec![Series {
+            label: "tiny".to_string(),
+            x: vec![1.0, 1.0 + f64::EPSILON],
+            y: vec![1e300, 1e300 * (1.0 + f64::EPSILON)],
+        }];
+        for (name, series) in [
+            ("constant", &constant),
+            ("single", &single),
+            ("gaps", &gaps),
+            ("tiny", &tiny_span),
+        ] {
+            let spec = PlotSpec {
+                title: name,
+                x_label: "x [m]",
+                y_label: "y [Pa]",
+                series,
+            };
+            for ext in ["png", "svg"] {
+                let path = dir.join(format!("{name}.{ext}"));
+                line_plot(&path, &spec).unwrap_or_else(|e| panic!("{name}.{ext}: {e}"));
+                assert!(fs::metadata(&path).expect("exists").len() > 0);
+            }
+        }
+        fs::remove_dir_all(&dir).expect("cleanup");
+    }
+
+    #[test]
+    fn bad_input_is_an_error_and_writes_nothing() {
+        let dir = scratch_dir("bad");
+        let ok = two_series();
+        let empty = vec![Series {
+            label: "empty".to_string(),
+            x: vec![],
+            y: vec![],
+        }];
+        let mismatch = vec![Series {
+            label: "mismatch".to_string(),
+            x: vec![0.0, 1.0],
+            y: vec![0.0],
+        }];
+        let all_nan = vec![Series {
+            label: "nan".to_string(),
+            x: vec![f64::NAN, 1.0],
+            y: vec![0.0, f64::NAN],
+        }];
+        let huge = vec![Series {
+            label: "huge".to_string(),
+            x: vec![-f64::MAX, f64::MAX],
+            y: vec![0.0, 1.0],
+        }];
+        let spec = |series| PlotSpec {
+            title: "t",
+            x_label: "x",
+            y_label: "y",
+            series,
+        };
+        let png = dir.join("out.png");
+        let check = |res: Result<(), PlotError>, what: &str| {
+            let err = res.expect_err(what);
+            let msg = err.to_string();
+            assert!(msg.starts_with(&dir.display().to_string()), "{what}: {msg}");
+        };
+        check(line_plot(&png, &spec(&[])), "no series");
+        check(line_plot(&png, &spec(&empty)), "empty series");
+        check(line_plot(&png, &spec(&mismatch)), "length mismatch");
+        check(line_plot(&png, &spec(&all_nan)), "all non-finite");
+        check(line_plot(&png, &spec(&huge)), "huge range");
+        assert!(matches!(
+            line_plot(&png, &spec(&empty)),
+            Err(PlotError::NoData { .. })
+        ));
+        check(line_plot(&dir.join("out.pdf"), &spec(&ok)), "pdf");
+        check(line_plot(&dir.join("out"), &spec(&ok)), "no extension");
+        assert!(matches!(
+            line_plot(&dir.join("out.jpg"), &spec(&ok)),
+            Err(PlotError::UnsupportedFormat { .. })
+        ));
+        let missing = dir.join("no-such-dir").join("out.png");
+        assert!(line_plot(&missing, &spec(&ok)).is_err());
+        let missing = dir.join("no-such-dir").join("out.svg");
+        assert!(matches!(
+            line_plot(&missing, &spec(&ok)),
+            Err(PlotError::Io { .. })
+        ));
+        assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
+        fs::remove_dir_all(&dir).expect("cleanup");
+    }
+
+    #[test]
+    fn tick_labels_are_short() {
+        assert_eq!(tick_label(&0.0), "0");
+        assert_eq!(tick_label(&-0.0), "0");
+        assert_eq!(tick_label(&0.30000000000000004), "0.3");
+        assert_eq!(tick_label(&1500.0), "1500");
+        assert_eq!(tick_label(&-2.5), "-2.5");
+        assert_eq!(tick_label(&2.5e-6), "2.5e-6");
+        assert_eq!(tick_label(&1.0e6), "1e6");
+        assert_eq!(tick_label(&1.000_000_1), "1.0000001");
+    }
+}

@@ -1,0 +1,526 @@
+//! The scenario file: TOML schema, parsing with positioned errors, and `--set` overrides.
+//!
+//! Parsing happens in two steps. The text is read into a TOML table (syntax errors carry line and
+//! column); `--set path=value` overrides are applied to that table; the table is then deserialised
+//! into [`Scenario`] with unknown keys rejected (the closest valid key is suggested). Semantic checks
+//! (ranges, units, names of sets and materials) live in [`crate::io::build`].
+//! Every key, its unit and default is documented in `docs/scenario.md`.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// A problem with the input, located as precisely as the input allows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputError {
+    /// The scenario file (or `<embedded NAME>`, `--set`).
+    pub file: String,
+    /// 1-based line and column, where known.
+    pub position: Option<(usize, usize)>,
+    /// Dotted key path, where known.
+    pub key: Option<String>,
+    /// What is wrong and what was expected.
+    pub message: String,
+}
+
+impl fmt::Display for InputError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some((l, c)) = self.position {
+            write!(f, ":{l}:{c}")?;
+        }
+        if let Some(k) = &self.key {
+            write!(f, ": key `{k}`")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for InputError {}
+
+impl InputError {
+    /// An error about a key, without a position.
+    pub fn at_key(file: &str, key: impl Into<String>, message: impl Into<String>) -> Self {
+        InputError { file: file.to_string(), position: None, key: Some(key.into()), message: message.into() }
+    }
+}
+
+/// A whole scenario.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Name of the scenario; names the default output directory.
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub mesh: MeshSpec,
+    /// Materials by name.
+    pub materials: BTreeMap<String, MaterialSpec>,
+    /// Cell set → material name. May be omitted when there is one material: it fills the body.
+    #[serde(default)]
+    pub regions: BTreeMap<String, String>,
+    /// Displacement conditions.
+    #[serde(default)]
+    pub constraints: Vec<ConstraintSpec>,
+    /// Electrodes by name.
+    #[serde(default)]
+    pub electrodes: BTreeMap<String, ElectrodeSpec>,
+    /// The analysis stages, run in order.
+    pub stages: Vec<StageSpec>,
+    /// Recorded quantities by name.
+    #[serde(default)]
+    pub probes: BTreeMap<String, ProbeSpec>,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+/// The mesh: a generator with its parameters, or a file.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// `box`.
+    #[serde(default)]
+    pub generator: Option<String>,
+    /// A Gmsh `.msh` file relative to the scenario (not supported yet).
+    #[serde(default)]
+    pub file: Option<String>,
+    /// Edge lengths of the box (m).
+    #[serde(default)]
+    pub size: Option<[f64; 3]>,
+    /// Cells along x, y, z.
+    #[serde(default)]
+    pub divisions: Option<[u64; 3]>,
+    /// `hex8` (default) or `tet4`.
+    #[serde(default = "default_element")]
+    pub element: String,
+}
+
+fn default_element() -> String {
+    "hex8".into()
+}
+
+/// A material: the model and its parameters in SI units.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// `neo-hooke`.
+    pub model: String,
+    /// Shear modulus μ (Pa).
+    pub mu: Option<f64>,
+    /// Lamé constant Λ (Pa).
+    pub lambda: Option<f64>,
+    /// Relative permittivity εᵣ (–).
+    pub permittivity: Option<f64>,
+    /// Vu coupling coefficient c₁ (N/V², i.e. F/m).
+    pub c1: Option<f64>,
+    /// Vu coupling coefficient c₂ (N/V²).
+    pub c2: Option<f64>,
+    /// Mass density (kg/m³).
+    pub density: Option<f64>,
+    /// Kelvin–Voigt viscosity η (Pa·s).
+    pub viscosity: Option<f64>,
+}
+
+/// Fixed displacement components on a set.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ConstraintSpec {
+    /// The node, face or cell set.
+    pub set: String,
+    /// Components to prescribe: any of `x`, `y`, `z`.
+    pub fix: Vec<String>,
+    /// Prescribed displacement of those components (m); 0 by default.
+    #[serde(default)]
+    pub value: f64,
+}
+
+/// An electrode: a set and its voltage.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ElectrodeSpec {
+    pub set: String,
+    /// Volts: a number (constant) or a waveform table. 0 = grounded.
+    #[serde(default)]
+    pub voltage: VoltageSpec,
+}
+
+/// A voltage: constant or a waveform.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum VoltageSpec {
+    Constant(f64),
+    Waveform(WaveformSpec),
+}
+
+impl Default for VoltageSpec {
+    fn default() -> Self {
+        VoltageSpec::Constant(0.0)
+    }
+}
+
+/// A waveform table.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct WaveformSpec {
+    /// `constant`, `ramp`, `step`, `square`, `triangle`, `sine`, `fourier`, `table`.
+    pub waveform: String,
+    /// Peak value (V) above the offset.
+    #[serde(default)]
+    pub amplitude: f64,
+    /// Hz.
+    #[serde(default)]
+    pub frequency: Option<f64>,
+    /// V.
+    #[serde(default)]
+    pub offset: f64,
+    /// Degrees.
+    #[serde(default)]
+    pub phase: f64,
+    /// Fraction of the period a square wave is high.
+    #[serde(default)]
+    pub duty: Option<f64>,
+    /// `unipolar` (0..amplitude, default) or `bipolar` (−amplitude..amplitude).
+    #[serde(default)]
+    pub polarity: Option<String>,
+    /// Odd harmonics kept by `fourier`.
+    #[serde(default)]
+    pub terms: Option<u64>,
+    /// `square` or `triangle`: the signal a `fourier` series approximates.
+    #[serde(default)]
+    pub base: Option<String>,
+    /// Time of a `step` (s).
+    #[serde(default)]
+    pub at: Option<f64>,
+    /// Rise time of `ramp` and `step` (s).
+    #[serde(default)]
+    pub rise_time: Option<f64>,
+    /// CSV file `time,value` of a `table`, relative to the scenario.
+    #[serde(default)]
+    pub file: Option<String>,
+}
+
+/// One analysis stage.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StageSpec {
+    /// Name in the history and summary; `stage<i>` by default.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// `static` or `dynamic`.
+    pub kind: String,
+    /// Load steps of a static stage.
+    #[serde(default)]
+    pub steps: Option<u64>,
+    /// Duration (s): of the simulated time of a dynamic stage; the pseudo-time of a static one
+    /// (default 1).
+    #[serde(default)]
+    pub duration: Option<f64>,
+    /// Time step of a dynamic stage (s).
+    #[serde(default)]
+    pub dt: Option<f64>,
+    /// Time integrator of a dynamic stage.
+    #[serde(default)]
+    pub integrator: Option<String>,
+}
+
+/// A recorded quantity.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeSpec {
+    /// `mean`, `max`, `min` (of a nodal quantity over a set), `point` (at the node nearest to
+    /// `at`), `charge`, `capacitance` (of an electrode), `reaction` (force on a set), `energy`.
+    pub kind: String,
+    /// Nodal quantity: `ux`, `uy`, `uz`, `u` (magnitude), `phi`; energy: `stored`, `electric`,
+    /// `kinetic`; reaction: component `x`, `y`, `z`.
+    #[serde(default)]
+    pub quantity: Option<String>,
+    #[serde(default)]
+    pub set: Option<String>,
+    /// Point (m) of a `point` probe.
+    #[serde(default)]
+    pub at: Option<[f64; 3]>,
+    #[serde(default)]
+    pub electrode: Option<String>,
+    /// The recorded value is offset + scale · quantity (to report a stretch, a unit change, ...).
+    #[serde(default)]
+    pub scale: Option<f64>,
+    #[serde(default)]
+    pub offset: Option<f64>,
+}
+
+/// What to write.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Write fields every N accepted steps (0: only the last state).
+    #[serde(default = "one")]
+    pub fields_every: u64,
+    /// Draw plots of every probe against time.
+    #[serde(default = "yes")]
+    pub plots: bool,
+    /// `png` or `svg`.
+    #[serde(default = "png")]
+    pub plot_format: String,
+}
+
+fn one() -> u64 {
+    1
+}
+fn yes() -> bool {
+    true
+}
+fn png() -> String {
+    "png".into()
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec { fields_every: 1, plots: true, plot_format: png() }
+    }
+}
+
+/// 1-based line and column of a byte offset.
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map(|s| s.chars().count()).unwrap_or(0) + 1;
+    (line, col)
+}
+
+/// Levenshtein distance, for suggestions.
+fn distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, cb) in b.iter().enumerate() {
+            cur[j + 1] = (prev[j] + usize::from(ca != *cb)).min(prev[j + 1] + 1).min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}
+
+/// The closest candidate to `word`, when it is close enough to be a plausible typo.
+pub fn closest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    candidates
+        .into_iter()
+        .map(|c| (distance(word, c), c))
+        .filter(|(d, c)| *d <= (c.len().max(word.len()) / 2).max(2))
+        .min()
+        .map(|(_, c)| c)
+}
+
+/// Adds "did you mean" to serde's "unknown field `x`, expected one of `a`, `b`" messages.
+fn with_suggestion(message: &str) -> String {
+    let msg = message.trim().to_string();
+    let Some(rest) = msg.strip_prefix("unknown field `") else { return msg };
+    let Some((field, tail)) = rest.split_once('`') else { return msg };
+    let candidates: Vec<&str> = tail.split('`').skip(1).step_by(2).collect();
+    match closest(field, candidates.iter().copied()) {
+        Some(c) => format!("{msg}; did you mean `{c}`?"),
+        None => msg,
+    }
+}
+
+/// Largest accepted scenario file (bytes).
+pub const MAX_SCENARIO_BYTES: usize = 4 << 20;
+
+/// Parses and deserialises a scenario from its text, applying `--set` overrides first.
+/// `file` names the source in messages.
+pub fn parse(text: &str, file: &str, overrides: &[String]) -> Result<Scenario, InputError> {
+    let err = |position, key: Option<String>, message: String| InputError {
+        file: file.to_string(),
+        position,
+        key,
+        message,
+    };
+    if text.len() > MAX_SCENARIO_BYTES {
+        return Err(err(None, None, format!("file too large ({} bytes, at most {MAX_SCENARIO_BYTES})", text.len())));
+    }
+    if text.trim().is_empty() {
+        return Err(err(None, None, "empty scenario: expected TOML with at least `name`, `mesh`, `materials` and `stages`".into()));
+    }
+    let mut table: toml::Table = toml::from_str(text).map_err(|e| {
+        let pos = e.span().map(|s| line_col(text, s.start));
+        err(pos, None, format!("invalid TOML: {}", e.message().trim()))
+    })?;
+    for o in overrides {
+        apply_override(&mut table, o).map_err(|(key, message)| InputError {
+            file: "--set".into(),
+            position: None,
+            key: Some(key),
+            message,
+        })?;
+    }
+    if overrides.is_empty() {
+        // deserialise from the text so that errors carry positions
+        let de = toml::Deserializer::parse(text).map_err(|e| err(None, None, e.message().to_string()))?;
+        serde_path_to_error::deserialize::<_, Scenario>(de).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner();
+            let pos = inner.span().map(|s| line_col(text, s.start));
+            err(pos, (key != "." && !key.is_empty()).then_some(key), with_suggestion(inner.message()))
+        })
+    } else {
+        let value = toml::Value::Table(table);
+        serde_path_to_error::deserialize::<_, Scenario>(value).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner();
+            err(None, (key != "." && !key.is_empty()).then_some(key), with_suggestion(inner.message()))
+        })
+    }
+}
+
+/// Parses the value of a `--set` (TOML syntax: numbers, strings, arrays, booleans; a bare word is a
+/// string).
+fn parse_value(raw: &str) -> Result<toml::Value, String> {
+    let doc = format!("v = {raw}");
+    match toml::from_str::<toml::Table>(&doc) {
+        Ok(mut t) => t.remove("v").ok_or_else(|| "no value".to_string()),
+        Err(_) if !raw.is_empty() && raw.chars().all(|c| c.is_alphanumeric() || "-_.".contains(c)) => {
+            Ok(toml::Value::String(raw.to_string()))
+        }
+        Err(e) => Err(format!("cannot read the value `{raw}`: {}", e.message().trim())),
+    }
+}
+
+/// Applies `path=value` to the table: tables by key, arrays by index. Missing tables are created
+/// (an unknown key then fails validation with a suggestion); indexing past an array's end fails.
+pub fn apply_override(table: &mut toml::Table, spec: &str) -> Result<(), (String, String)> {
+    let Some((path, raw)) = spec.split_once('=') else {
+        return Err((spec.to_string(), "expected KEY=VALUE".into()));
+    };
+    let path = path.trim();
+    let value = parse_value(raw.trim()).map_err(|m| (path.to_string(), m))?;
+    let parts: Vec<&str> = path.split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err((path.to_string(), "empty key in the dotted path".into()));
+    }
+    set_in_table(table, &parts, 0, value)
+}
+
+fn set_in_table(
+    t: &mut toml::Table,
+    parts: &[&str],
+    i: usize,
+    value: toml::Value,
+) -> Result<(), (String, String)> {
+    let part = parts[i];
+    if i + 1 == parts.len() {
+        t.insert(part.to_string(), value);
+        return Ok(());
+    }
+    let next = t
+        .entry(part.to_string())
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    set_in_value(next, parts, i + 1, value)
+}
+
+fn set_in_value(
+    cur: &mut toml::Value,
+    parts: &[&str],
+    i: usize,
+    value: toml::Value,
+) -> Result<(), (String, String)> {
+    let part = parts[i];
+    let so_far = parts[..=i].join(".");
+    let parent = parts[..i].join(".");
+    match cur {
+        toml::Value::Table(t) => set_in_table(t, parts, i, value),
+        toml::Value::Array(a) => {
+            let idx: usize = part.parse().map_err(|_| {
+                (so_far.clone(), format!("`{parent}` is an array: expected an index, got `{part}`"))
+            })?;
+            let len = a.len();
+            let slot = a.get_mut(idx).ok_or_else(|| {
+                (so_far.clone(), format!("index {idx} is past the end (the array has {len} entries)"))
+            })?;
+            if i + 1 == parts.len() {
+                *slot = value;
+                Ok(())
+            } else {
+                set_in_value(slot, parts, i + 1, value)
+            }
+        }
+        other => Err((
+            so_far,
+            format!("`{parent}` is a {}, not a table: it has no key `{part}`", other.type_str()),
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = r#"
+name = "t"
+[mesh]
+generator = "box"
+size = [1.0, 1.0, 1.0]
+divisions = [1, 1, 1]
+[materials.m]
+model = "neo-hooke"
+mu = 1.0
+[[stages]]
+kind = "static"
+steps = 2
+"#;
+
+    #[test]
+    fn minimal_parses() {
+        let s = parse(MINIMAL, "t.toml", &[]).unwrap();
+        assert_eq!(s.stages[0].steps, Some(2));
+        assert_eq!(s.mesh.element, "hex8");
+    }
+
+    #[test]
+    fn unknown_key_is_positioned_and_suggested() {
+        let text = MINIMAL.replace("mu = 1.0", "muu = 1.0");
+        let e = parse(&text, "t.toml", &[]).unwrap_err();
+        assert_eq!(e.position.map(|p| p.0), Some(10), "{e}");
+        assert!(e.to_string().contains("did you mean `mu`"), "{e}");
+        assert!(e.key.as_deref().unwrap_or("").contains("materials.m"), "{e}");
+    }
+
+    #[test]
+    fn wrong_type_names_key_and_type() {
+        let text = MINIMAL.replace("steps = 2", "steps = \"two\"");
+        let e = parse(&text, "t.toml", &[]).unwrap_err();
+        assert!(e.to_string().contains("stages[0].steps") || e.to_string().contains("stages.0.steps"), "{e}");
+        assert!(e.message.contains("integer") || e.message.contains("u64"), "{e}");
+    }
+
+    #[test]
+    fn overrides_change_tables_and_arrays() {
+        let s = parse(MINIMAL, "t.toml", &["stages.0.steps=7".into(), "mesh.divisions=[2,3,4]".into(), "materials.m.viscosity=100".into()]).unwrap();
+        assert_eq!(s.stages[0].steps, Some(7));
+        assert_eq!(s.mesh.divisions, Some([2, 3, 4]));
+        assert_eq!(s.materials["m"].viscosity, Some(100.0));
+        let e = parse(MINIMAL, "t.toml", &["materials.m.muu=3".into()]).unwrap_err();
+        assert!(e.to_string().contains("did you mean `mu`"), "{e}");
+        let e = parse(MINIMAL, "t.toml", &["stages.3.steps=1".into()]).unwrap_err();
+        assert!(e.message.contains("past the end"), "{e}");
+        let e = parse(MINIMAL, "t.toml", &["name.x=1".into()]).unwrap_err();
+        assert!(e.message.contains("not a table"), "{e}");
+        let e = parse(MINIMAL, "t.toml", &["nokey".into()]).unwrap_err();
+        assert!(e.message.contains("KEY=VALUE"), "{e}");
+    }
+
+    #[test]
+    fn syntax_errors_and_empty_files() {
+        let e = parse("name = \n", "x.toml", &[]).unwrap_err();
+        assert!(e.position.is_some() && e.message.contains("invalid TOML"), "{e}");
+        let e = parse("", "x.toml", &[]).unwrap_err();
+        assert!(e.message.contains("empty"), "{e}");
+        let e = parse("\u{0}\u{1}\u{2}binary", "x.toml", &[]).unwrap_err();
+        assert!(e.message.contains("invalid TOML"), "{e}");
+    }
+
+    #[test]
+    fn suggestions() {
+        assert_eq!(closest("divsions", ["divisions", "size"]), Some("divisions"));
+        assert_eq!(closest("zzzzzz", ["divisions", "size"]), None);
+    }
+}

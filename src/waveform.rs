@@ -1,0 +1,268 @@
+//! Signals of time: electrode voltages and load factors.
+//!
+//! All waveforms are `offset + amplitude · shape(t)`; periodic shapes use `frequency` (Hz) and a
+//! phase angle in degrees, as on a function generator. Unipolar shapes run between 0 and 1 (what
+//! the experiment's DC–DC converter produces), bipolar ones between −1 and 1.
+
+use std::f64::consts::PI;
+
+/// The shape of a signal.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape {
+    /// 1 at all times.
+    Constant,
+    /// Linear rise from 0 at t = 0 to 1 at t = `rise_time`, then 1.
+    Ramp { rise_time: f64 },
+    /// 0 before `at`, then 1 (with a linear rise over `rise_time` when it is positive).
+    Step { at: f64, rise_time: f64 },
+    /// Square wave: high for the fraction `duty` of each period.
+    Square {
+        frequency: f64,
+        duty: f64,
+        bipolar: bool,
+    },
+    /// Symmetric triangle wave, starting at its low value.
+    Triangle { frequency: f64, bipolar: bool },
+    /// Sine; unipolar is (1 − cos ωt)/2, starting at 0 like the other unipolar shapes.
+    Sine { frequency: f64, bipolar: bool },
+    /// Truncated Fourier series (first `terms` odd harmonics) of a unipolar or bipolar square
+    /// or triangle wave: the band-limited signal of a real generator (PHYSICS.md §5).
+    Fourier {
+        base: FourierBase,
+        frequency: f64,
+        terms: usize,
+        bipolar: bool,
+    },
+    /// Piecewise-linear interpolation of (time, value) points, held constant outside.
+    Table { points: Vec<(f64, f64)> },
+}
+
+/// The signal a Fourier series approximates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FourierBase {
+    Square,
+    Triangle,
+}
+
+/// A signal offset + amplitude · shape(t + phase/(360 f)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Waveform {
+    pub shape: Shape,
+    pub amplitude: f64,
+    pub offset: f64,
+    /// Phase angle (degrees) of periodic shapes.
+    pub phase_deg: f64,
+}
+
+impl Waveform {
+    /// A constant value.
+    pub fn constant(value: f64) -> Self {
+        Waveform {
+            shape: Shape::Constant,
+            amplitude: value,
+            offset: 0.0,
+            phase_deg: 0.0,
+        }
+    }
+
+    /// Value at time `t` (s).
+    pub fn value(&self, t: f64) -> f64 {
+        self.offset + self.amplitude * self.shape_value(t)
+    }
+
+    fn periodic_time(&self, t: f64, frequency: f64) -> f64 {
+        // fraction of the period in [0, 1)
+        let x = t * frequency + self.phase_deg / 360.0;
+        x - x.floor()
+    }
+
+    fn shape_value(&self, t: f64) -> f64 {
+        let bip = |u: f64, bipolar: bool| if bipolar { 2.0 * u - 1.0 } else { u };
+        match &self.shape {
+            Shape::Constant => 1.0,
+            Shape::Ramp { rise_time } => {
+                if *rise_time <= 0.0 {
+                    1.0
+                } else {
+                    (t / rise_time).clamp(0.0, 1.0)
+                }
+            }
+            Shape::Step { at, rise_time } => {
+                if t < *at {
+                    0.0
+                } else if *rise_time > 0.0 {
+                    ((t - at) / rise_time).min(1.0)
+                } else {
+                    1.0
+                }
+            }
+            Shape::Square {
+                frequency,
+                duty,
+                bipolar,
+            } => {
+                let x = self.periodic_time(t, *frequency);
+                bip(if x < *duty { 1.0 } else { 0.0 }, *bipolar)
+            }
+            Shape::Triangle { frequency, bipolar } => {
+                let x = self.periodic_time(t, *frequency);
+                bip(if x < 0.5 { 2.0 * x } else { 2.0 - 2.0 * x }, *bipolar)
+            }
+            Shape::Sine { frequency, bipolar } => {
+                let x = self.periodic_time(t, *frequency);
+                if *bipolar {
+                    (2.0 * PI * x).sin()
+                } else {
+                    0.5 * (1.0 - (2.0 * PI * x).cos())
+                }
+            }
+            Shape::Fourier {
+                base,
+                frequency,
+                terms,
+                bipolar,
+            } => {
+                let x = self.periodic_time(t, *frequency);
+                let w = 2.0 * PI * x;
+                // unipolar 0..1 series (PHYSICS.md §5), bipolar = 2·unipolar − 1
+                let mut u = 0.5;
+                for k in 0..*terms {
+                    let n = (2 * k + 1) as f64;
+                    u += match base {
+                        FourierBase::Square => 2.0 / (n * PI) * (n * w).sin(),
+                        FourierBase::Triangle => -4.0 / (n * n * PI * PI) * (n * w).cos(),
+                    };
+                }
+                bip(u, *bipolar)
+            }
+            Shape::Table { points } => table_value(points, t),
+        }
+    }
+}
+
+fn table_value(points: &[(f64, f64)], t: f64) -> f64 {
+    match points {
+        [] => 0.0,
+        [only] => only.1,
+        _ => {
+            if t <= points[0].0 {
+                return points[0].1;
+            }
+            let last = points[points.len() - 1];
+            if t >= last.0 {
+                return last.1;
+            }
+            let i = points.partition_point(|p| p.0 <= t);
+            let (a, b) = (points[i - 1], points[i]);
+            a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wave(shape: Shape) -> Waveform {
+        Waveform {
+            shape,
+            amplitude: 3000.0,
+            offset: 0.0,
+            phase_deg: 0.0,
+        }
+    }
+
+    #[test]
+    fn shapes_take_their_defining_values() {
+        let sq = wave(Shape::Square {
+            frequency: 2.0,
+            duty: 0.5,
+            bipolar: false,
+        });
+        assert_eq!(sq.value(0.1), 3000.0);
+        assert_eq!(sq.value(0.3), 0.0);
+        assert_eq!(sq.value(0.6), 3000.0);
+        let sqb = wave(Shape::Square {
+            frequency: 2.0,
+            duty: 0.5,
+            bipolar: true,
+        });
+        assert_eq!(sqb.value(0.3), -3000.0);
+        let tri = wave(Shape::Triangle {
+            frequency: 1.0,
+            bipolar: false,
+        });
+        assert!((tri.value(0.25) - 1500.0).abs() < 1e-9);
+        assert!((tri.value(0.5) - 3000.0).abs() < 1e-9);
+        assert!((tri.value(0.75) - 1500.0).abs() < 1e-9);
+        let sine = wave(Shape::Sine {
+            frequency: 1.0,
+            bipolar: false,
+        });
+        assert!(sine.value(0.0).abs() < 1e-9);
+        assert!((sine.value(0.5) - 3000.0).abs() < 1e-9);
+        let ramp = wave(Shape::Ramp { rise_time: 2.0 });
+        assert_eq!(ramp.value(1.0), 1500.0);
+        assert_eq!(ramp.value(5.0), 3000.0);
+        let step = wave(Shape::Step {
+            at: 1.0,
+            rise_time: 0.0,
+        });
+        assert_eq!(step.value(0.999), 0.0);
+        assert_eq!(step.value(1.0), 3000.0);
+        let table = wave(Shape::Table {
+            points: vec![(0.0, 0.0), (1.0, 1.0), (3.0, 0.0)],
+        });
+        assert_eq!(table.value(2.0), 1500.0);
+        assert_eq!(table.value(-1.0), 0.0);
+        assert_eq!(table.value(9.0), 0.0);
+        let mut shifted = wave(Shape::Square {
+            frequency: 1.0,
+            duty: 0.5,
+            bipolar: false,
+        });
+        shifted.phase_deg = 180.0;
+        assert_eq!(shifted.value(0.1), 0.0);
+    }
+
+    /// The truncated Fourier series converges to the exact unipolar wave (away from the jumps for
+    /// the square wave): mean error falls as more terms are kept.
+    #[test]
+    fn fourier_series_converge_to_the_exact_waves() {
+        for (base, exact) in [
+            (
+                FourierBase::Square,
+                Shape::Square {
+                    frequency: 1.0,
+                    duty: 0.5,
+                    bipolar: false,
+                },
+            ),
+            (
+                FourierBase::Triangle,
+                Shape::Triangle {
+                    frequency: 1.0,
+                    bipolar: false,
+                },
+            ),
+        ] {
+            let ex = wave(exact);
+            let err = |terms: usize| {
+                let f = wave(Shape::Fourier {
+                    base,
+                    frequency: 1.0,
+                    terms,
+                    bipolar: false,
+                });
+                (0..1000)
+                    .map(|i| (i as f64 + 0.5) / 1000.0)
+                    .filter(|t| (t - 0.5).abs() > 0.05 && *t > 0.05 && *t < 0.95)
+                    .map(|t| (f.value(t) - ex.value(t)).abs())
+                    .fold(0.0, f64::max)
+            };
+            let (e3, e30) = (err(3), err(30));
+            assert!(e30 < e3 / 3.0, "{base:?}: {e3} {e30}");
+            assert!(e30 < 0.02 * 3000.0, "{base:?}: {e30}");
+        }
+    }
+}
