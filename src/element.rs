@@ -172,3 +172,48 @@ fn add_residual(
         r[a * 4 + 3] += w * (d0[0] * ga[0] + d0[1] * ga[1] + d0[2] * ga[2]);
     }
 }
+
+/// Cell averages of the spatial electric field e = F⁻ᵀE₀ (V/m), the Cauchy stress (Pa, row-major)
+/// and J, and the largest |e| at a quadrature point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellFields {
+    pub e: [f64; 3],
+    pub sigma: [f64; 9],
+    pub j: f64,
+    pub e_max: f64,
+}
+
+/// Field values of a cell for output.
+pub fn cell_fields(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    local: &[f64],
+) -> Result<CellFields, PointFailure> {
+    let n = geom.n_nodes;
+    let (u, phi) = split_local(n, local);
+    let mut out = CellFields {
+        e: [0.0; 3],
+        sigma: [0.0; 9],
+        j: 0.0,
+        e_max: 0.0,
+    };
+    let vol: f64 = geom.weights[..geom.n_qp].iter().sum();
+    for q in 0..geom.n_qp {
+        let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
+        let s = mat
+            .stress(&f, &e0)
+            .map_err(|error| PointFailure { qp: q, error })?;
+        let w = geom.weights[q] / vol;
+        let sigma = crate::material::cauchy_stress(&s.p, &f);
+        let e = crate::material::spatial_field(&f, &e0).unwrap_or_default();
+        for i in 0..3 {
+            out.e[i] += w * e[i];
+            for k in 0..3 {
+                out.sigma[i * 3 + k] += w * sigma[(i, k)];
+            }
+        }
+        out.j += w * f.determinant();
+        out.e_max = out.e_max.max(e.norm());
+    }
+    Ok(out)
+}

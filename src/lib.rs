@@ -6,7 +6,9 @@
 
 pub mod analysis;
 pub mod analytic;
+pub mod app;
 pub mod assembly;
+pub mod bench;
 pub mod dofs;
 pub mod element;
 pub mod examples;
@@ -16,4 +18,5 @@ pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod solve;
+pub mod validate;
 pub mod waveform;

@@ -1,9 +1,71 @@
-//! The `deasim` command line (argument parsing only).
+//! The `deasim` command line: argument parsing only; the commands live in `deasim::app`.
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "deasim",
+    version,
+    about = "Finite-strain electro-mechanical simulation of dielectric elastomer actuators"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a scenario (the embedded default when no file is given).
+    Run {
+        /// Scenario file (TOML).
+        scenario: Option<PathBuf>,
+        /// Output directory (default ./deasim-out/<scenario name>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a value by its dotted path, e.g. --set stages.0.steps=20 (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
+    /// Validate a scenario without solving.
+    Check {
+        scenario: PathBuf,
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
+    /// List the embedded examples, or print one as TOML.
+    Example { name: Option<String> },
+    /// Run the verification cases and print a table.
+    Validate,
+    /// Run the benchmark scenarios and print timings and memory.
+    Bench {
+        /// Also run the ~400k-dof mesh (minutes, several GB).
+        #[arg(long)]
+        large: bool,
+    },
+}
 
 fn main() {
-    eprintln!(
-        "deasim {}: the command line arrives with the scenario issue",
-        env!("CARGO_PKG_VERSION")
-    );
-    std::process::exit(2);
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() {
+                deasim::app::EXIT_BAD_INPUT
+            } else {
+                0
+            };
+            let _ = e.print();
+            std::process::exit(code);
+        }
+    };
+    let code = match cli.command {
+        Command::Run { scenario, out, set } => {
+            deasim::app::cmd_run(scenario.as_deref(), out.as_deref(), &set)
+        }
+        Command::Check { scenario, set } => deasim::app::cmd_check(&scenario, &set),
+        Command::Example { name } => deasim::app::cmd_example(name.as_deref()),
+        Command::Validate => deasim::validate::cmd_validate(),
+        Command::Bench { large } => deasim::bench::cmd_bench(large),
+    };
+    std::process::exit(code);
 }

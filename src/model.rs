@@ -1,7 +1,8 @@
 //! A model: mesh, materials of the cells and Dirichlet conditions (supports and electrodes).
 
 use crate::dofs::Dirichlet;
-use crate::fem::ReferenceElement;
+use crate::dofs::FIELDS;
+use crate::fem::{CellGeometry, ReferenceElement};
 use crate::material::Material;
 use crate::mesh::Mesh;
 use std::sync::Arc;
@@ -105,6 +106,39 @@ impl Model {
         } else {
             1.0
         }
+    }
+
+    /// Calls `f(cell, geometry, material, local values)` for every cell, in order, with the cell's
+    /// local values (4 per node) gathered from the full physical `state`.
+    pub fn for_each_cell<E>(
+        &self,
+        state: &[f64],
+        mut f: impl FnMut(usize, &CellGeometry, &dyn Material, &[f64]) -> Result<(), E>,
+    ) -> Result<(), E>
+    where
+        E: From<String>,
+    {
+        let npc = self.mesh.kind.nodes_per_cell();
+        let mut x = vec![[0.0; 3]; npc];
+        let mut local = vec![0.0; npc * FIELDS];
+        for c in 0..self.mesh.n_cells() {
+            self.mesh.cell_coords_into(c, &mut x);
+            for (a, &node) in self.mesh.cell(c).iter().enumerate() {
+                local[a * FIELDS..(a + 1) * FIELDS]
+                    .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
+            }
+            let g = self
+                .reference
+                .geometry(&x)
+                .map_err(|e| E::from(format!("cell {c} is degenerate (Jacobian {:e})", e.det)))?;
+            f(
+                c,
+                &g,
+                self.materials[self.cell_material[c]].as_ref(),
+                &local,
+            )?;
+        }
+        Ok(())
     }
 
     /// Mean cell size (m): the cube root of the mean cell volume.

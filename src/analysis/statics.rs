@@ -3,7 +3,7 @@
 
 use crate::assembly::{Assembler, CsrMatrix};
 use crate::dofs::{apply_dirichlet, constrained_flags, DofMap, FIELDS, PHI};
-use crate::element::{cell_energy_split, cell_residual_tangent};
+use crate::element::{cell_energy_split, cell_residual_tangent, CellFields};
 use crate::model::Model;
 use crate::solve::linear::{FaerLdlt, LinearSolver};
 use crate::solve::newton::{NewtonSettings, NonlinearSystem};
@@ -59,64 +59,57 @@ impl<'m> StaticProblem<'m> {
 
     /// Total stored energy split `(mechanical, electric)` (J) at the current state.
     pub fn energies(&self) -> Result<(f64, f64), String> {
-        let m = self.model;
-        let mut x = vec![[0.0; 3]; m.mesh.kind.nodes_per_cell()];
-        let mut local = vec![0.0; x.len() * FIELDS];
-        let (mut mech, mut elec) = (0.0, 0.0);
-        for c in 0..m.mesh.n_cells() {
-            m.mesh.cell_coords_into(c, &mut x);
-            for (a, &node) in m.mesh.cell(c).iter().enumerate() {
-                local[a * FIELDS..(a + 1) * FIELDS]
-                    .copy_from_slice(&self.state[node * FIELDS..(node + 1) * FIELDS]);
-            }
-            let g = m
-                .reference
-                .geometry(&x)
-                .map_err(|e| format!("cell {c}: {e:?}"))?;
-            let (a, b) = cell_energy_split(&g, m.materials[m.cell_material[c]].as_ref(), &local)
-                .map_err(|e| format!("cell {c}: {:?}", e.error))?;
-            mech += a;
-            elec += b;
-        }
-        Ok((mech, elec))
+        energies(self.model, &self.state)
     }
 
-    /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ: the charge entering a node),
-    /// including constrained dofs; zero at free dofs of an equilibrium.
+    /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ); zero at the free dofs of
+    /// an equilibrium.
     pub fn nodal_reactions(&self) -> Result<Vec<f64>, String> {
-        let m = self.model;
-        let mut out = vec![0.0; self.state.len()];
-        let mut x = vec![[0.0; 3]; m.mesh.kind.nodes_per_cell()];
-        let nl = x.len() * FIELDS;
-        let mut local = vec![0.0; nl];
-        let mut r = vec![0.0; nl];
-        for c in 0..m.mesh.n_cells() {
-            m.mesh.cell_coords_into(c, &mut x);
-            let cell = m.mesh.cell(c);
-            for (a, &node) in cell.iter().enumerate() {
-                local[a * FIELDS..(a + 1) * FIELDS]
-                    .copy_from_slice(&self.state[node * FIELDS..(node + 1) * FIELDS]);
-            }
-            let g = m
-                .reference
-                .geometry(&x)
-                .map_err(|e| format!("cell {c}: {e:?}"))?;
-            cell_residual_tangent(
-                &g,
-                m.materials[m.cell_material[c]].as_ref(),
-                &local,
-                &mut r,
-                None,
-            )
-            .map_err(|e| format!("cell {c}: {:?}", e.error))?;
-            for (a, &node) in cell.iter().enumerate() {
-                for f in 0..FIELDS {
-                    out[node * FIELDS + f] += r[a * FIELDS + f];
-                }
+        nodal_reactions(self.model, &self.state)
+    }
+}
+
+/// Mechanical strain energy and electric field energy (J) of a state.
+pub fn energies(model: &Model, state: &[f64]) -> Result<(f64, f64), String> {
+    let (mut mech, mut elec) = (0.0, 0.0);
+    model.for_each_cell(state, |c, g, mat, local| {
+        let (a, b) =
+            cell_energy_split(g, mat, local).map_err(|e| format!("cell {c}: {}", e.error))?;
+        mech += a;
+        elec += b;
+        Ok::<(), String>(())
+    })?;
+    Ok((mech, elec))
+}
+
+/// ∂Π/∂x for every dof of a state (N for u, C for Φ).
+pub fn nodal_reactions(model: &Model, state: &[f64]) -> Result<Vec<f64>, String> {
+    let mut out = vec![0.0; state.len()];
+    let mut r = vec![0.0; crate::element::MAX_LOCAL];
+    model.for_each_cell(state, |c, g, mat, local| {
+        cell_residual_tangent(g, mat, local, &mut r, None)
+            .map_err(|e| format!("cell {c}: {}", e.error))?;
+        for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+            for f in 0..FIELDS {
+                out[node * FIELDS + f] += r[a * FIELDS + f];
             }
         }
-        Ok(out)
-    }
+        Ok::<(), String>(())
+    })?;
+    Ok(out)
+}
+
+/// Per-cell output fields of a state.
+pub fn cell_fields(model: &Model, state: &[f64]) -> Result<Vec<CellFields>, String> {
+    let mut out = Vec::with_capacity(model.mesh.n_cells());
+    model.for_each_cell(state, |c, g, mat, local| {
+        out.push(
+            crate::element::cell_fields(g, mat, local)
+                .map_err(|e| format!("cell {c}: {}", e.error))?,
+        );
+        Ok::<(), String>(())
+    })?;
+    Ok(out)
 }
 
 impl NonlinearSystem for StaticProblem<'_> {

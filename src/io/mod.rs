@@ -1,5 +1,9 @@
 //! Input and output: scenario files, ParaView files, CSV/JSON histories, plots.
 
 pub mod atomic;
+pub mod build;
+pub mod examples;
+pub mod output;
 pub mod plot;
+pub mod scenario;
 pub mod vtu;

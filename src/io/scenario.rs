@@ -41,7 +41,12 @@ impl std::error::Error for InputError {}
 impl InputError {
     /// An error about a key, without a position.
     pub fn at_key(file: &str, key: impl Into<String>, message: impl Into<String>) -> Self {
-        InputError { file: file.to_string(), position: None, key: Some(key.into()), message: message.into() }
+        InputError {
+            file: file.to_string(),
+            position: None,
+            key: Some(key.into()),
+            message: message.into(),
+        }
     }
 }
 
@@ -275,7 +280,11 @@ fn png() -> String {
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { fields_every: 1, plots: true, plot_format: png() }
+        OutputSpec {
+            fields_every: 1,
+            plots: true,
+            plot_format: png(),
+        }
     }
 }
 
@@ -283,7 +292,12 @@ impl Default for OutputSpec {
 fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
     let line = before.matches('\n').count() + 1;
-    let col = before.rsplit('\n').next().map(|s| s.chars().count()).unwrap_or(0) + 1;
+    let col = before
+        .rsplit('\n')
+        .next()
+        .map(|s| s.chars().count())
+        .unwrap_or(0)
+        + 1;
     (line, col)
 }
 
@@ -294,7 +308,9 @@ fn distance(a: &str, b: &str) -> usize {
     for (i, ca) in a.chars().enumerate() {
         let mut cur = vec![i + 1; b.len() + 1];
         for (j, cb) in b.iter().enumerate() {
-            cur[j + 1] = (prev[j] + usize::from(ca != *cb)).min(prev[j + 1] + 1).min(cur[j] + 1);
+            cur[j + 1] = (prev[j] + usize::from(ca != *cb))
+                .min(prev[j + 1] + 1)
+                .min(cur[j] + 1);
         }
         prev = cur;
     }
@@ -314,8 +330,12 @@ pub fn closest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) ->
 /// Adds "did you mean" to serde's "unknown field `x`, expected one of `a`, `b`" messages.
 fn with_suggestion(message: &str) -> String {
     let msg = message.trim().to_string();
-    let Some(rest) = msg.strip_prefix("unknown field `") else { return msg };
-    let Some((field, tail)) = rest.split_once('`') else { return msg };
+    let Some(rest) = msg.strip_prefix("unknown field `") else {
+        return msg;
+    };
+    let Some((field, tail)) = rest.split_once('`') else {
+        return msg;
+    };
     let candidates: Vec<&str> = tail.split('`').skip(1).step_by(2).collect();
     match closest(field, candidates.iter().copied()) {
         Some(c) => format!("{msg}; did you mean `{c}`?"),
@@ -336,10 +356,22 @@ pub fn parse(text: &str, file: &str, overrides: &[String]) -> Result<Scenario, I
         message,
     };
     if text.len() > MAX_SCENARIO_BYTES {
-        return Err(err(None, None, format!("file too large ({} bytes, at most {MAX_SCENARIO_BYTES})", text.len())));
+        return Err(err(
+            None,
+            None,
+            format!(
+                "file too large ({} bytes, at most {MAX_SCENARIO_BYTES})",
+                text.len()
+            ),
+        ));
     }
     if text.trim().is_empty() {
-        return Err(err(None, None, "empty scenario: expected TOML with at least `name`, `mesh`, `materials` and `stages`".into()));
+        return Err(err(
+            None,
+            None,
+            "empty scenario: expected TOML with at least `name`, `mesh`, `materials` and `stages`"
+                .into(),
+        ));
     }
     let mut table: toml::Table = toml::from_str(text).map_err(|e| {
         let pos = e.span().map(|s| line_col(text, s.start));
@@ -355,19 +387,28 @@ pub fn parse(text: &str, file: &str, overrides: &[String]) -> Result<Scenario, I
     }
     if overrides.is_empty() {
         // deserialise from the text so that errors carry positions
-        let de = toml::Deserializer::parse(text).map_err(|e| err(None, None, e.message().to_string()))?;
+        let de = toml::Deserializer::parse(text)
+            .map_err(|e| err(None, None, e.message().to_string()))?;
         serde_path_to_error::deserialize::<_, Scenario>(de).map_err(|e| {
             let key = e.path().to_string();
             let inner = e.into_inner();
             let pos = inner.span().map(|s| line_col(text, s.start));
-            err(pos, (key != "." && !key.is_empty()).then_some(key), with_suggestion(inner.message()))
+            err(
+                pos,
+                (key != "." && !key.is_empty()).then_some(key),
+                with_suggestion(inner.message()),
+            )
         })
     } else {
         let value = toml::Value::Table(table);
         serde_path_to_error::deserialize::<_, Scenario>(value).map_err(|e| {
             let key = e.path().to_string();
             let inner = e.into_inner();
-            err(None, (key != "." && !key.is_empty()).then_some(key), with_suggestion(inner.message()))
+            err(
+                None,
+                (key != "." && !key.is_empty()).then_some(key),
+                with_suggestion(inner.message()),
+            )
         })
     }
 }
@@ -378,10 +419,18 @@ fn parse_value(raw: &str) -> Result<toml::Value, String> {
     let doc = format!("v = {raw}");
     match toml::from_str::<toml::Table>(&doc) {
         Ok(mut t) => t.remove("v").ok_or_else(|| "no value".to_string()),
-        Err(_) if !raw.is_empty() && raw.chars().all(|c| c.is_alphanumeric() || "-_.".contains(c)) => {
+        Err(_)
+            if !raw.is_empty()
+                && raw
+                    .chars()
+                    .all(|c| c.is_alphanumeric() || "-_.".contains(c)) =>
+        {
             Ok(toml::Value::String(raw.to_string()))
         }
-        Err(e) => Err(format!("cannot read the value `{raw}`: {}", e.message().trim())),
+        Err(e) => Err(format!(
+            "cannot read the value `{raw}`: {}",
+            e.message().trim()
+        )),
     }
 }
 
@@ -430,11 +479,17 @@ fn set_in_value(
         toml::Value::Table(t) => set_in_table(t, parts, i, value),
         toml::Value::Array(a) => {
             let idx: usize = part.parse().map_err(|_| {
-                (so_far.clone(), format!("`{parent}` is an array: expected an index, got `{part}`"))
+                (
+                    so_far.clone(),
+                    format!("`{parent}` is an array: expected an index, got `{part}`"),
+                )
             })?;
             let len = a.len();
             let slot = a.get_mut(idx).ok_or_else(|| {
-                (so_far.clone(), format!("index {idx} is past the end (the array has {len} entries)"))
+                (
+                    so_far.clone(),
+                    format!("index {idx} is past the end (the array has {len} entries)"),
+                )
             })?;
             if i + 1 == parts.len() {
                 *slot = value;
@@ -445,7 +500,10 @@ fn set_in_value(
         }
         other => Err((
             so_far,
-            format!("`{parent}` is a {}, not a table: it has no key `{part}`", other.type_str()),
+            format!(
+                "`{parent}` is a {}, not a table: it has no key `{part}`",
+                other.type_str()
+            ),
         )),
     }
 }
@@ -481,20 +539,38 @@ steps = 2
         let e = parse(&text, "t.toml", &[]).unwrap_err();
         assert_eq!(e.position.map(|p| p.0), Some(10), "{e}");
         assert!(e.to_string().contains("did you mean `mu`"), "{e}");
-        assert!(e.key.as_deref().unwrap_or("").contains("materials.m"), "{e}");
+        assert!(
+            e.key.as_deref().unwrap_or("").contains("materials.m"),
+            "{e}"
+        );
     }
 
     #[test]
     fn wrong_type_names_key_and_type() {
         let text = MINIMAL.replace("steps = 2", "steps = \"two\"");
         let e = parse(&text, "t.toml", &[]).unwrap_err();
-        assert!(e.to_string().contains("stages[0].steps") || e.to_string().contains("stages.0.steps"), "{e}");
-        assert!(e.message.contains("integer") || e.message.contains("u64"), "{e}");
+        assert!(
+            e.to_string().contains("stages[0].steps") || e.to_string().contains("stages.0.steps"),
+            "{e}"
+        );
+        assert!(
+            e.message.contains("integer") || e.message.contains("u64"),
+            "{e}"
+        );
     }
 
     #[test]
     fn overrides_change_tables_and_arrays() {
-        let s = parse(MINIMAL, "t.toml", &["stages.0.steps=7".into(), "mesh.divisions=[2,3,4]".into(), "materials.m.viscosity=100".into()]).unwrap();
+        let s = parse(
+            MINIMAL,
+            "t.toml",
+            &[
+                "stages.0.steps=7".into(),
+                "mesh.divisions=[2,3,4]".into(),
+                "materials.m.viscosity=100".into(),
+            ],
+        )
+        .unwrap();
         assert_eq!(s.stages[0].steps, Some(7));
         assert_eq!(s.mesh.divisions, Some([2, 3, 4]));
         assert_eq!(s.materials["m"].viscosity, Some(100.0));
@@ -511,7 +587,10 @@ steps = 2
     #[test]
     fn syntax_errors_and_empty_files() {
         let e = parse("name = \n", "x.toml", &[]).unwrap_err();
-        assert!(e.position.is_some() && e.message.contains("invalid TOML"), "{e}");
+        assert!(
+            e.position.is_some() && e.message.contains("invalid TOML"),
+            "{e}"
+        );
         let e = parse("", "x.toml", &[]).unwrap_err();
         assert!(e.message.contains("empty"), "{e}");
         let e = parse("\u{0}\u{1}\u{2}binary", "x.toml", &[]).unwrap_err();
@@ -520,7 +599,10 @@ steps = 2
 
     #[test]
     fn suggestions() {
-        assert_eq!(closest("divsions", ["divisions", "size"]), Some("divisions"));
+        assert_eq!(
+            closest("divsions", ["divisions", "size"]),
+            Some("divisions")
+        );
         assert_eq!(closest("zzzzzz", ["divisions", "size"]), None);
     }
 }

@@ -1,0 +1,108 @@
+//! Probes: named scalar outputs evaluated at every accepted step.
+
+/// A nodal quantity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NodalQuantity {
+    /// Displacement component 0, 1, 2 (m).
+    Component(usize),
+    /// Displacement magnitude (m).
+    Magnitude,
+    /// Electric potential (V).
+    Potential,
+}
+
+impl NodalQuantity {
+    fn value(self, state: &[f64], node: usize) -> f64 {
+        let s = &state[node * 4..node * 4 + 4];
+        match self {
+            NodalQuantity::Component(c) => s[c],
+            NodalQuantity::Magnitude => (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt(),
+            NodalQuantity::Potential => s[3],
+        }
+    }
+}
+
+/// What a probe measures.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ProbeKind {
+    /// Mean of a nodal quantity over a node set.
+    Mean(NodalQuantity, Vec<usize>),
+    Max(NodalQuantity, Vec<usize>),
+    Min(NodalQuantity, Vec<usize>),
+    /// Value at one node.
+    Point(NodalQuantity, usize),
+    /// Charge (C) on the electrode with this index.
+    Charge(usize),
+    /// Charge / voltage (F) of the electrode with this index.
+    Capacitance(usize),
+    /// Sum of the reaction force component (N) over a node set.
+    Reaction(usize, Vec<usize>),
+    /// Mechanical strain energy (J).
+    StoredEnergy,
+    /// Electric field energy in the body (J).
+    ElectricEnergy,
+}
+
+/// A probe: offset + scale · quantity.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Probe {
+    pub kind: ProbeKind,
+    pub scale: f64,
+    pub offset: f64,
+}
+
+/// What probes read.
+pub struct ProbeInput<'a> {
+    /// Physical state, 4 values per node.
+    pub state: &'a [f64],
+    /// ∂Π/∂x per dof (N for u, C for Φ).
+    pub reactions: &'a [f64],
+    /// Node sets and present voltage (V) of the electrodes.
+    pub electrodes: &'a [(&'a [usize], f64)],
+    /// Mechanical and electric energies (J).
+    pub stored: f64,
+    pub electric: f64,
+}
+
+impl Probe {
+    /// The probe's value.
+    pub fn evaluate(&self, inp: &ProbeInput) -> f64 {
+        let v = match &self.kind {
+            ProbeKind::Mean(q, nodes) => {
+                nodes.iter().map(|&n| q.value(inp.state, n)).sum::<f64>()
+                    / nodes.len().max(1) as f64
+            }
+            ProbeKind::Max(q, nodes) => nodes
+                .iter()
+                .map(|&n| q.value(inp.state, n))
+                .fold(f64::NEG_INFINITY, f64::max),
+            ProbeKind::Min(q, nodes) => nodes
+                .iter()
+                .map(|&n| q.value(inp.state, n))
+                .fold(f64::INFINITY, f64::min),
+            ProbeKind::Point(q, n) => q.value(inp.state, *n),
+            ProbeKind::Charge(e) => charge(inp, *e),
+            ProbeKind::Capacitance(e) => {
+                let v = inp.electrodes[*e].1;
+                if v == 0.0 {
+                    f64::NAN
+                } else {
+                    charge(inp, *e) / v
+                }
+            }
+            ProbeKind::Reaction(c, nodes) => nodes.iter().map(|&n| inp.reactions[n * 4 + c]).sum(),
+            ProbeKind::StoredEnergy => inp.stored,
+            ProbeKind::ElectricEnergy => inp.electric,
+        };
+        self.offset + self.scale * v
+    }
+}
+
+/// Charge on an electrode: Q = −Σ ∂Π/∂Φ_a over its nodes (the free charge the source supplies).
+fn charge(inp: &ProbeInput, e: usize) -> f64 {
+    -inp.electrodes[e]
+        .0
+        .iter()
+        .map(|&n| inp.reactions[n * 4 + 3])
+        .sum::<f64>()
+}

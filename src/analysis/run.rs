@@ -1,0 +1,290 @@
+//! The job: runs the stages of a plan one after the other and reports every accepted step to an
+//! observer (writers, progress display). It never reports a state that did not converge.
+
+use super::probes::ProbeInput;
+use super::statics::{cell_fields, energies, nodal_reactions, solve_static};
+use crate::dofs::{Dirichlet, Field, FIELDS};
+use crate::element::CellFields;
+use crate::io::build::{Plan, StageKind};
+use crate::solve::newton::NewtonSettings;
+use crate::solve::stepping::StepControl;
+use std::time::Instant;
+
+/// Energies of a state (J), as in `history.csv`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Energies {
+    pub kinetic: f64,
+    pub stored: f64,
+    pub electric: f64,
+    pub gravity: f64,
+    pub dissipated: f64,
+    /// Residual of the energy balance (see `docs/theory.md`).
+    pub energy_error: f64,
+}
+
+/// One accepted step.
+#[derive(Debug, Clone)]
+pub struct StepRecord {
+    /// Time (s); pseudo-time in static stages.
+    pub time: f64,
+    pub stage: String,
+    /// Step number within the stage (0: the state the stage starts from).
+    pub step: usize,
+    /// Largest electrode voltage (by magnitude, V).
+    pub voltage: f64,
+    pub newton_iterations: usize,
+    pub energies: Energies,
+    /// Probe values in plan order.
+    pub probes: Vec<f64>,
+    /// Largest spatial electric field magnitude at a quadrature point (V/m).
+    pub max_electric_field: f64,
+}
+
+/// What a finished stage reports.
+#[derive(Debug, Clone)]
+pub struct StageSummary {
+    pub name: String,
+    pub kind: String,
+    pub steps: usize,
+    pub newton_iterations: usize,
+    pub wall_s: f64,
+    pub converged: bool,
+}
+
+/// The outcome of a run.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    pub converged: bool,
+    pub error: Option<String>,
+    pub stages: Vec<StageSummary>,
+    pub wall_s: f64,
+    pub dofs: usize,
+    pub warnings: Vec<String>,
+}
+
+/// Receives the progress of a run.
+pub trait Observer {
+    /// A stage begins.
+    fn stage_started(&mut self, _index: usize, _name: &str) {}
+    /// A step was accepted; `state` holds u (m) and Φ (V), 4 per node; `fields` the cell fields.
+    fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]);
+    /// The run ended (converged or not).
+    fn finished(&mut self, plan: &Plan, summary: &RunSummary);
+}
+
+/// Accumulates the work of the prescribed values and evaluates records.
+struct Recorder<'p> {
+    plan: &'p Plan,
+    prev_reactions: Vec<f64>,
+    prev_state: Vec<f64>,
+    boundary_work: f64,
+    initial_potential: Option<f64>,
+}
+
+impl<'p> Recorder<'p> {
+    fn record(
+        &mut self,
+        state: &[f64],
+        time: f64,
+        stage: &str,
+        step: usize,
+        iterations: usize,
+    ) -> Result<(StepRecord, Vec<CellFields>), String> {
+        let model = &self.plan.model;
+        let reactions = nodal_reactions(model, state)?;
+        let (stored, electric) = energies(model, state)?;
+        // work done on the body through prescribed values: Σ ½(R₀ + R₁)·(x₁ − x₀) (trapezoidal);
+        // the reactions of free dofs vanish at equilibrium, so the sum may run over every dof
+        if !self.prev_state.is_empty() {
+            for d in 0..state.len() {
+                self.boundary_work +=
+                    0.5 * (self.prev_reactions[d] + reactions[d]) * (state[d] - self.prev_state[d]);
+            }
+        }
+        let potential = stored - electric;
+        let initial = *self.initial_potential.get_or_insert(potential);
+        let energy_error = potential - initial - self.boundary_work;
+        let voltages: Vec<(&[usize], f64)> = self
+            .plan
+            .electrodes
+            .iter()
+            .map(|e| (e.nodes.as_slice(), state[e.nodes[0] * FIELDS + 3]))
+            .collect();
+        let voltage = voltages
+            .iter()
+            .map(|v| v.1)
+            .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
+        let input = ProbeInput {
+            state,
+            reactions: &reactions,
+            electrodes: &voltages,
+            stored,
+            electric,
+        };
+        let probes = self
+            .plan
+            .probes
+            .iter()
+            .map(|(_, p)| p.evaluate(&input))
+            .collect();
+        let fields = cell_fields(model, state)?;
+        let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
+        self.prev_reactions = reactions;
+        self.prev_state = state.to_vec();
+        Ok((
+            StepRecord {
+                time,
+                stage: stage.to_string(),
+                step,
+                voltage,
+                newton_iterations: iterations,
+                energies: Energies {
+                    stored,
+                    electric,
+                    energy_error,
+                    ..Default::default()
+                },
+                probes,
+                max_electric_field,
+            },
+            fields,
+        ))
+    }
+}
+
+/// Runs every stage of the plan. `newton` and the step control's minimum increment apply to all
+/// static stages.
+pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) -> RunSummary {
+    let start = Instant::now();
+    let mut model = plan.model.clone();
+    let n_nodes = model.mesh.n_nodes();
+    let mut state = vec![0.0; n_nodes * FIELDS];
+    let mut summary = RunSummary {
+        converged: true,
+        error: None,
+        stages: Vec::new(),
+        wall_s: 0.0,
+        dofs: n_nodes * FIELDS,
+        warnings: Vec::new(),
+    };
+    let mut rec = Recorder {
+        plan,
+        prev_reactions: Vec::new(),
+        prev_state: Vec::new(),
+        boundary_work: 0.0,
+        initial_potential: None,
+    };
+    let mut time = 0.0;
+    for (si, stage) in plan.stages.iter().enumerate() {
+        observer.stage_started(si, &stage.name);
+        let stage_start = Instant::now();
+        let t_end = time + stage.duration;
+        // targets at the end of the stage
+        let start_voltages: Vec<f64> = plan
+            .electrodes
+            .iter()
+            .map(|e| state[e.nodes[0] * FIELDS + 3])
+            .collect();
+        let targets: Vec<f64> = plan
+            .electrodes
+            .iter()
+            .map(|e| e.voltage.value(t_end))
+            .collect();
+        model.dirichlet = plan.supports.clone();
+        for (e, &v) in plan.electrodes.iter().zip(&targets) {
+            model.dirichlet.push(Dirichlet {
+                nodes: e.nodes.clone(),
+                field: Field::Phi,
+                value: v,
+            });
+        }
+        let voltage_at = |s: f64| -> f64 {
+            start_voltages
+                .iter()
+                .zip(&targets)
+                .map(|(a, b)| a + s * (b - a))
+                .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m })
+        };
+        if si == 0 {
+            match rec.record(&state, time, &stage.name, 0, 0) {
+                Ok((r, f)) => observer.step(plan, &r, &state, &f),
+                Err(e) => {
+                    summary.converged = false;
+                    summary.error = Some(format!("initial state: {e}"));
+                    break;
+                }
+            }
+        }
+        let StageKind::Static { steps } = stage.kind;
+        let control = StepControl {
+            steps,
+            ..Default::default()
+        };
+        let mut step_no = 0;
+        let mut record_error: Option<String> = None;
+        let outcome = solve_static(&model, Some(state.clone()), &control, newton, |p, acc| {
+            step_no += 1;
+            let t = time + acc.load * stage.duration;
+            match rec.record(&p.state, t, &stage.name, step_no, acc.newton.iterations) {
+                Ok((r, f)) => observer.step(plan, &r, &p.state, &f),
+                Err(e) => {
+                    record_error.get_or_insert(e);
+                }
+            }
+        });
+        state = outcome.state;
+        let mut stage_summary = StageSummary {
+            name: stage.name.clone(),
+            kind: "static".into(),
+            steps: step_no,
+            newton_iterations: 0,
+            wall_s: stage_start.elapsed().as_secs_f64(),
+            converged: true,
+        };
+        match outcome.result {
+            Ok(r) => {
+                stage_summary.newton_iterations = r.newton_iterations;
+            }
+            Err(f) => {
+                stage_summary.newton_iterations = f.newton_iterations;
+                stage_summary.converged = false;
+                let v_last = voltage_at(f.last_converged);
+                let v_try = voltage_at(f.attempted);
+                let electric = start_voltages.iter().zip(&targets).any(|(a, b)| a != b);
+                let what = if f.limit_point && electric {
+                    "electromechanical instability (pull-in)"
+                } else if f.limit_point {
+                    "limit point (loss of stability)"
+                } else {
+                    "solve failed"
+                };
+                summary.error = Some(format!(
+                    "{what} in stage `{}` at t = {:.6} s: no stable equilibrium beyond load factor {:.6} \
+                     (tried {:.6}); last converged voltage {:.2} V, failed at {:.2} V; last failure: {}",
+                    stage.name,
+                    time + f.last_converged * stage.duration,
+                    f.last_converged,
+                    f.attempted,
+                    v_last,
+                    v_try,
+                    f.reason
+                ));
+                summary.converged = false;
+            }
+        }
+        if let Some(e) = record_error {
+            summary.warnings.push(format!(
+                "stage `{}`: output evaluation failed: {e}",
+                stage.name
+            ));
+        }
+        summary.stages.push(stage_summary);
+        if !summary.converged {
+            break;
+        }
+        time = t_end;
+    }
+    summary.wall_s = start.elapsed().as_secs_f64();
+    observer.finished(plan, &summary);
+    summary
+}

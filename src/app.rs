@@ -1,0 +1,291 @@
+//! The commands of the `deasim` binary. `main.rs` only parses arguments and calls these; each
+//! returns the process exit status of INTERFACE.md: 0 success, 1 the solve failed, 2 bad input.
+
+use crate::analysis::run::{run, Observer, RunSummary, StepRecord};
+use crate::element::CellFields;
+use crate::io::build::{build, Plan, StageKind};
+use crate::io::examples::{example, DEFAULT, EXAMPLES};
+use crate::io::output::OutputWriter;
+use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
+use crate::solve::newton::NewtonSettings;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+/// Exit status: success.
+pub const EXIT_OK: i32 = 0;
+/// Exit status: the solve failed.
+pub const EXIT_SOLVE_FAILED: i32 = 1;
+/// Exit status: bad input.
+pub const EXIT_BAD_INPUT: i32 = 2;
+
+/// Reads and builds a scenario file (or the default example when `path` is `None`).
+pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Plan, InputError> {
+    let (text, name, base) = match path {
+        None => (
+            example(DEFAULT)
+                .expect("the default example is embedded")
+                .to_string(),
+            format!("<embedded {DEFAULT}>"),
+            None,
+        ),
+        Some(p) => {
+            let name = p.display().to_string();
+            let meta = std::fs::metadata(p).map_err(|e| InputError {
+                file: name.clone(),
+                position: None,
+                key: None,
+                message: format!("cannot read the scenario: {e}"),
+            })?;
+            if meta.len() > MAX_SCENARIO_BYTES as u64 {
+                return Err(InputError {
+                    file: name,
+                    position: None,
+                    key: None,
+                    message: format!(
+                        "file too large ({} bytes, at most {MAX_SCENARIO_BYTES})",
+                        meta.len()
+                    ),
+                });
+            }
+            let bytes = std::fs::read(p).map_err(|e| InputError {
+                file: name.clone(),
+                position: None,
+                key: None,
+                message: format!("cannot read the scenario: {e}"),
+            })?;
+            let text = String::from_utf8(bytes).map_err(|e| InputError {
+                file: name.clone(),
+                position: None,
+                key: None,
+                message: format!(
+                    "not a UTF-8 text file (invalid byte at offset {}): expected TOML",
+                    e.utf8_error().valid_up_to()
+                ),
+            })?;
+            (text, name, p.parent().map(Path::to_path_buf))
+        }
+    };
+    let scenario = parse(&text, &name, overrides)?;
+    build(&scenario, &name, base.as_deref())
+}
+
+/// Shows progress: a bar on a terminal, plain lines otherwise.
+struct Progress {
+    bar: Option<ProgressBar>,
+    total_steps: u64,
+    done: u64,
+}
+
+impl Progress {
+    fn new(plan: &Plan) -> Self {
+        let total: u64 = plan
+            .stages
+            .iter()
+            .map(|s| match s.kind {
+                StageKind::Static { steps } => steps as u64,
+            })
+            .sum();
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let b = ProgressBar::new(total);
+            b.set_style(
+                ProgressStyle::with_template(
+                    "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} steps {msg} (ETA {eta})",
+                )
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            b
+        });
+        Progress {
+            bar,
+            total_steps: total,
+            done: 0,
+        }
+    }
+}
+
+impl Observer for Progress {
+    fn stage_started(&mut self, index: usize, name: &str) {
+        match &self.bar {
+            Some(b) => b.set_message(format!("stage {name}")),
+            None => eprintln!("stage {index} `{name}`"),
+        }
+    }
+
+    fn step(&mut self, _plan: &Plan, r: &StepRecord, _state: &[f64], _fields: &[CellFields]) {
+        if r.step == 0 {
+            return;
+        }
+        self.done += 1;
+        let msg = format!(
+            "t = {:.4} s, V = {:.1} V, {} Newton it.",
+            r.time, r.voltage, r.newton_iterations
+        );
+        match &self.bar {
+            Some(b) => {
+                b.set_position(self.done.min(self.total_steps));
+                b.set_message(format!("{} {msg}", r.stage));
+            }
+            None => eprintln!("  {} step {}: {msg}", r.stage, r.step),
+        }
+    }
+
+    fn finished(&mut self, _plan: &Plan, s: &RunSummary) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+        eprintln!(
+            "{} in {:.2} s",
+            if s.converged { "finished" } else { "FAILED" },
+            s.wall_s
+        );
+    }
+}
+
+/// Sends events to both observers.
+struct Both<'a>(&'a mut dyn Observer, &'a mut dyn Observer);
+
+impl Observer for Both<'_> {
+    fn stage_started(&mut self, i: usize, n: &str) {
+        self.0.stage_started(i, n);
+        self.1.stage_started(i, n);
+    }
+    fn step(&mut self, p: &Plan, r: &StepRecord, s: &[f64], f: &[CellFields]) {
+        self.0.step(p, r, s, f);
+        self.1.step(p, r, s, f);
+    }
+    fn finished(&mut self, p: &Plan, s: &RunSummary) {
+        self.0.finished(p, s);
+        self.1.finished(p, s);
+    }
+}
+
+/// `deasim run`.
+pub fn cmd_run(scenario: Option<&Path>, out: Option<&Path>, overrides: &[String]) -> i32 {
+    let plan = match load(scenario, overrides) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
+    let dir: PathBuf = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| Path::new("deasim-out").join(&plan.name));
+    let mut writer = match OutputWriter::new(&dir) {
+        Ok(w) => w,
+        Err(e) => {
+            eprintln!(
+                "error: cannot create the output directory {}: {e}",
+                dir.display()
+            );
+            return EXIT_BAD_INPUT;
+        }
+    };
+    eprintln!(
+        "deasim: scenario `{}`: {} nodes, {} {} cells, {} dofs; output in {}",
+        plan.name,
+        plan.model.mesh.n_nodes(),
+        plan.model.mesh.n_cells(),
+        plan.model.mesh.kind.name(),
+        plan.model.mesh.n_nodes() * 4,
+        dir.display()
+    );
+    let mut progress = Progress::new(&plan);
+    let summary = run(
+        &plan,
+        &NewtonSettings::default(),
+        &mut Both(&mut writer, &mut progress),
+    );
+    for e in &writer.errors {
+        eprintln!("warning: {e}");
+    }
+    if summary.converged {
+        EXIT_OK
+    } else {
+        eprintln!(
+            "error: {}",
+            summary.error.as_deref().unwrap_or("the solve failed")
+        );
+        EXIT_SOLVE_FAILED
+    }
+}
+
+/// `deasim check`.
+pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
+    match load(Some(scenario), overrides) {
+        Ok(plan) => {
+            let m = &plan.model.mesh;
+            println!("scenario `{}` is valid", plan.name);
+            println!(
+                "mesh: {} nodes, {} {} cells",
+                m.n_nodes(),
+                m.n_cells(),
+                m.kind.name()
+            );
+            println!("dofs: {} ({} per node)", m.n_nodes() * 4, 4);
+            println!("materials: {}", plan.model.materials.len());
+            for e in &plan.electrodes {
+                println!("electrode `{}`: {} nodes", e.name, e.nodes.len());
+            }
+            for (i, s) in plan.stages.iter().enumerate() {
+                match s.kind {
+                    StageKind::Static { steps } => {
+                        println!(
+                            "stage {i} `{}`: static, {steps} steps, duration {} s",
+                            s.name, s.duration
+                        )
+                    }
+                }
+            }
+            println!(
+                "probes: {}",
+                plan.probes
+                    .iter()
+                    .map(|p| p.0.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            println!("problems: none");
+            EXIT_OK
+        }
+        Err(e) => {
+            println!("problems:\n  {e}");
+            EXIT_BAD_INPUT
+        }
+    }
+}
+
+/// `deasim example [NAME]`.
+pub fn cmd_example(name: Option<&str>) -> i32 {
+    match name {
+        None => {
+            for (n, text) in EXAMPLES {
+                let desc = text
+                    .lines()
+                    .find_map(|l| l.strip_prefix("description = "))
+                    .unwrap_or("")
+                    .trim_matches('"');
+                println!("{n:<16} {desc}");
+            }
+            EXIT_OK
+        }
+        Some(n) => match example(n) {
+            Some(t) => {
+                print!("{t}");
+                EXIT_OK
+            }
+            None => {
+                let names: Vec<&str> = EXAMPLES.iter().map(|e| e.0).collect();
+                let hint = crate::io::scenario::closest(n, names.iter().copied())
+                    .map(|c| format!("; did you mean `{c}`?"))
+                    .unwrap_or_default();
+                eprintln!(
+                    "error: no example named `{n}` (examples: {}){hint}",
+                    names.join(", ")
+                );
+                EXIT_BAD_INPUT
+            }
+        },
+    }
+}

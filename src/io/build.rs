@@ -1,0 +1,778 @@
+//! Validation of a parsed [`Scenario`] and construction of what the analysis runs: the model, the
+//! electrodes with their waveforms, the stages and the probes. Every error names the file, the key
+//! and what was expected (type, range, unit).
+
+use super::scenario::{closest, InputError, MaterialSpec, Scenario, VoltageSpec, WaveformSpec};
+use crate::analysis::probes::{NodalQuantity, Probe, ProbeKind};
+use crate::dofs::Field;
+use crate::material::{ElectroNeoHooke, Material, EPSILON_0};
+use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
+use crate::model::Model;
+use crate::waveform::{FourierBase, Shape, Waveform};
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Material models deasim knows.
+pub const MODELS: &[&str] = &["neo-hooke"];
+/// Largest number of cells a generated mesh may have (memory guard: ~5 GB of tangent).
+pub const MAX_CELLS: u64 = 2_000_000;
+
+/// An electrode of the plan.
+#[derive(Debug, Clone)]
+pub struct Electrode {
+    pub name: String,
+    pub nodes: Vec<usize>,
+    pub voltage: Waveform,
+}
+
+/// The kind of a stage.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StageKind {
+    /// Load steps from the previous state to the targets at the end of the stage.
+    Static { steps: usize },
+}
+
+/// A stage of the plan.
+#[derive(Debug, Clone)]
+pub struct Stage {
+    pub name: String,
+    pub kind: StageKind,
+    /// Duration (s): pseudo-time of a static stage.
+    pub duration: f64,
+}
+
+/// Output settings.
+#[derive(Debug, Clone)]
+pub struct OutputPlan {
+    pub fields_every: usize,
+    pub plots: bool,
+    pub plot_format: String,
+}
+
+/// Everything needed to run a scenario.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    pub name: String,
+    pub model: Model,
+    /// Displacement conditions (fixed for the whole run).
+    pub supports: Vec<crate::dofs::Dirichlet>,
+    pub electrodes: Vec<Electrode>,
+    pub stages: Vec<Stage>,
+    pub probes: Vec<(String, Probe)>,
+    pub output: OutputPlan,
+}
+
+struct Ctx<'a> {
+    file: &'a str,
+}
+
+impl Ctx<'_> {
+    fn err(&self, key: impl Into<String>, msg: impl Into<String>) -> InputError {
+        InputError::at_key(self.file, key, msg)
+    }
+
+    fn positive(&self, key: &str, v: Option<f64>, what: &str) -> Result<f64, InputError> {
+        match v {
+            None => Err(self.err(key, format!("missing: expected {what} (a positive number)"))),
+            Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+            Some(x) => Err(self.err(
+                key,
+                format!("must be a positive finite number ({what}); got {x}"),
+            )),
+        }
+    }
+
+    fn finite(&self, key: &str, v: f64, what: &str) -> Result<f64, InputError> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.err(key, format!("must be a finite number ({what}); got {v}")))
+        }
+    }
+
+    fn set_nodes(&self, mesh: &Mesh, key: &str, name: &str) -> Result<Vec<usize>, InputError> {
+        match mesh.set_nodes(name) {
+            Some(n) if !n.is_empty() => Ok(n),
+            Some(_) => Err(self.err(key, format!("set `{name}` is empty"))),
+            None => {
+                let names = mesh.set_names();
+                let hint = closest(name, names.iter().map(|s| s.as_str()))
+                    .map(|c| format!("; did you mean `{c}`?"))
+                    .unwrap_or_default();
+                Err(self.err(
+                    key,
+                    format!(
+                        "unknown set `{name}` (the mesh has: {}){hint}",
+                        names.join(", ")
+                    ),
+                ))
+            }
+        }
+    }
+}
+
+fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
+    let m = &s.mesh;
+    if m.file.is_some() {
+        return Err(ctx.err(
+            "mesh.file",
+            "Gmsh mesh files are not supported yet: use `generator = \"box\"`",
+        ));
+    }
+    let generator = m
+        .generator
+        .as_deref()
+        .ok_or_else(|| ctx.err("mesh.generator", "missing: expected `box` (or a `file`)"))?;
+    if generator != "box" {
+        let hint = closest(generator, ["box"])
+            .map(|c| format!("; did you mean `{c}`?"))
+            .unwrap_or_default();
+        return Err(ctx.err(
+            "mesh.generator",
+            format!("unknown generator `{generator}`: expected `box`{hint}"),
+        ));
+    }
+    let kind = match m.element.as_str() {
+        "hex8" => ElementKind::Hex8,
+        "tet4" => ElementKind::Tet4,
+        other => {
+            let hint = closest(other, ["hex8", "tet4"])
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            return Err(ctx.err(
+                "mesh.element",
+                format!("unknown element `{other}`: expected `hex8` or `tet4`{hint}"),
+            ));
+        }
+    };
+    let size = m
+        .size
+        .ok_or_else(|| ctx.err("mesh.size", "missing: expected [lx, ly, lz] in m"))?;
+    for (i, v) in size.iter().enumerate() {
+        ctx.positive(&format!("mesh.size.{i}"), Some(*v), "edge length in m")?;
+    }
+    let div = m.divisions.ok_or_else(|| {
+        ctx.err(
+            "mesh.divisions",
+            "missing: expected [nx, ny, nz], cells per direction",
+        )
+    })?;
+    if div.contains(&0) {
+        return Err(ctx.err("mesh.divisions", "every entry must be at least 1"));
+    }
+    let per_hex = if kind == ElementKind::Tet4 { 6 } else { 1 };
+    let cells = div
+        .iter()
+        .try_fold(per_hex as u64, |acc, &d| acc.checked_mul(d));
+    match cells {
+        Some(c) if c <= MAX_CELLS => {}
+        _ => return Err(ctx.err(
+            "mesh.divisions",
+            format!(
+                "{div:?} gives more than {MAX_CELLS} cells: too large for this machine's memory"
+            ),
+        )),
+    }
+    Ok(box_mesh(
+        size,
+        [div[0] as usize, div[1] as usize, div[2] as usize],
+        kind,
+    ))
+}
+
+fn build_material(
+    ctx: &Ctx,
+    name: &str,
+    m: &MaterialSpec,
+) -> Result<Arc<dyn Material>, InputError> {
+    let key = |k: &str| format!("materials.{name}.{k}");
+    match m.model.as_str() {
+        "neo-hooke" => {
+            let mu = ctx.positive(&key("mu"), m.mu, "shear modulus in Pa")?;
+            let lambda = m.lambda.ok_or_else(|| {
+                ctx.err(key("lambda"), "missing: expected the Lamé constant Λ in Pa")
+            })?;
+            ctx.finite(&key("lambda"), lambda, "Lamé constant in Pa")?;
+            if lambda + 2.0 * mu / 3.0 <= 0.0 {
+                return Err(ctx.err(
+                    key("lambda"),
+                    format!(
+                        "bulk modulus Λ + 2μ/3 must be positive; got {}",
+                        lambda + 2.0 * mu / 3.0
+                    ),
+                ));
+            }
+            let eps_r = m.permittivity.ok_or_else(|| {
+                ctx.err(
+                    key("permittivity"),
+                    "missing: expected the relative permittivity εᵣ ≥ 1",
+                )
+            })?;
+            if !(eps_r.is_finite() && eps_r >= 1.0) {
+                return Err(ctx.err(
+                    key("permittivity"),
+                    format!("relative permittivity must be a finite number ≥ 1; got {eps_r}"),
+                ));
+            }
+            let c1 = ctx.finite(
+                &key("c1"),
+                m.c1.unwrap_or(0.0),
+                "coupling coefficient in F/m",
+            )?;
+            let c2 = ctx.finite(
+                &key("c2"),
+                m.c2.unwrap_or(0.0),
+                "coupling coefficient in F/m",
+            )?;
+            let mat = ElectroNeoHooke::new(mu, lambda, eps_r).with_coupling(c1, c2);
+            if mat.permittivity() <= 0.0 {
+                return Err(ctx.err(key("c1"), format!(
+                    "the small-strain permittivity εᵣε₀ − 2c₁ − 2c₂ must be positive; got {:e} F/m (ε₀ = {EPSILON_0:e})",
+                    mat.permittivity()
+                )));
+            }
+            if let Some(d) = m.density {
+                if !(d.is_finite() && d >= 0.0) {
+                    return Err(ctx.err(
+                        key("density"),
+                        format!("must be a finite number ≥ 0 in kg/m³; got {d}"),
+                    ));
+                }
+            }
+            if let Some(v) = m.viscosity {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(ctx.err(
+                        key("viscosity"),
+                        format!("must be a finite number ≥ 0 in Pa·s; got {v}"),
+                    ));
+                }
+            }
+            Ok(Arc::new(mat))
+        }
+        other => {
+            let hint = closest(other, MODELS.iter().copied())
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            Err(ctx.err(
+                key("model"),
+                format!(
+                    "unknown material model `{other}` (known: {}){hint}",
+                    MODELS.join(", ")
+                ),
+            ))
+        }
+    }
+}
+
+fn build_waveform(
+    ctx: &Ctx,
+    key: &str,
+    v: &VoltageSpec,
+    base_dir: Option<&Path>,
+) -> Result<Waveform, InputError> {
+    let w: &WaveformSpec = match v {
+        VoltageSpec::Constant(x) => {
+            return Ok(Waveform::constant(ctx.finite(key, *x, "voltage in V")?))
+        }
+        VoltageSpec::Waveform(w) => w,
+    };
+    let k = |s: &str| format!("{key}.{s}");
+    ctx.finite(&k("amplitude"), w.amplitude, "amplitude in V")?;
+    ctx.finite(&k("offset"), w.offset, "offset in V")?;
+    ctx.finite(&k("phase"), w.phase, "phase in degrees")?;
+    let bipolar = match w.polarity.as_deref() {
+        None | Some("unipolar") => false,
+        Some("bipolar") => true,
+        Some(o) => {
+            return Err(ctx.err(
+                k("polarity"),
+                format!("expected `unipolar` or `bipolar`; got `{o}`"),
+            ))
+        }
+    };
+    let freq = || ctx.positive(&k("frequency"), w.frequency, "frequency in Hz");
+    let shape = match w.waveform.as_str() {
+        "constant" => Shape::Constant,
+        "ramp" => Shape::Ramp {
+            rise_time: w
+                .rise_time
+                .map(|r| ctx.positive(&k("rise_time"), Some(r), "rise time in s"))
+                .transpose()?
+                .unwrap_or(0.0),
+        },
+        "step" => Shape::Step {
+            at: ctx.finite(&k("at"), w.at.unwrap_or(0.0), "time in s")?,
+            rise_time: w
+                .rise_time
+                .map(|r| ctx.positive(&k("rise_time"), Some(r), "rise time in s"))
+                .transpose()?
+                .unwrap_or(0.0),
+        },
+        "square" => {
+            let duty = w.duty.unwrap_or(0.5);
+            if !(duty > 0.0 && duty < 1.0) {
+                return Err(ctx.err(
+                    k("duty"),
+                    format!("must lie strictly between 0 and 1; got {duty}"),
+                ));
+            }
+            Shape::Square {
+                frequency: freq()?,
+                duty,
+                bipolar,
+            }
+        }
+        "triangle" => Shape::Triangle {
+            frequency: freq()?,
+            bipolar,
+        },
+        "sine" => Shape::Sine {
+            frequency: freq()?,
+            bipolar,
+        },
+        "fourier" => {
+            let base = match w.base.as_deref() {
+                Some("square") => FourierBase::Square,
+                Some("triangle") => FourierBase::Triangle,
+                o => {
+                    return Err(ctx.err(
+                        k("base"),
+                        format!("expected `square` or `triangle`; got {o:?}"),
+                    ))
+                }
+            };
+            let terms = w.terms.unwrap_or(5);
+            if !(1..=10_000).contains(&terms) {
+                return Err(ctx.err(
+                    k("terms"),
+                    format!("must be between 1 and 10000; got {terms}"),
+                ));
+            }
+            Shape::Fourier {
+                base,
+                frequency: freq()?,
+                terms: terms as usize,
+                bipolar,
+            }
+        }
+        "table" => {
+            let file = w
+                .file
+                .as_deref()
+                .ok_or_else(|| ctx.err(k("file"), "missing: a CSV file of `time,value` rows"))?;
+            let path = base_dir
+                .map(|d| d.join(file))
+                .unwrap_or_else(|| file.into());
+            let text = std::fs::read_to_string(&path).map_err(|e| {
+                ctx.err(k("file"), format!("cannot read `{}`: {e}", path.display()))
+            })?;
+            let mut points = Vec::new();
+            for (i, line) in text.lines().enumerate() {
+                let line = line.trim();
+                if line.is_empty() || line.starts_with('#') {
+                    continue;
+                }
+                let mut parts = line.split(',').map(|p| p.trim().parse::<f64>());
+                match (parts.next(), parts.next(), parts.next()) {
+                    (Some(Ok(t)), Some(Ok(v)), None) if t.is_finite() && v.is_finite() => {
+                        points.push((t, v))
+                    }
+                    _ if i == 0 => {} // header
+                    _ => {
+                        return Err(ctx.err(
+                            k("file"),
+                            format!(
+                                "{}:{}: expected `time,value` with two finite numbers",
+                                path.display(),
+                                i + 1
+                            ),
+                        ))
+                    }
+                }
+            }
+            if points.is_empty() || points.windows(2).any(|p| p[1].0 <= p[0].0) {
+                return Err(ctx.err(
+                    k("file"),
+                    format!(
+                        "{}: expected at least one row and strictly increasing times",
+                        path.display()
+                    ),
+                ));
+            }
+            // the table holds volts: amplitude scales it (1 by default when not given)
+            return Ok(Waveform {
+                shape: Shape::Table { points },
+                amplitude: if w.amplitude == 0.0 { 1.0 } else { w.amplitude },
+                offset: w.offset,
+                phase_deg: 0.0,
+            });
+        }
+        other => {
+            let names = [
+                "constant", "ramp", "step", "square", "triangle", "sine", "fourier", "table",
+            ];
+            let hint = closest(other, names)
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            return Err(ctx.err(
+                k("waveform"),
+                format!(
+                    "unknown waveform `{other}` (known: {}){hint}",
+                    names.join(", ")
+                ),
+            ));
+        }
+    };
+    Ok(Waveform {
+        shape,
+        amplitude: w.amplitude,
+        offset: w.offset,
+        phase_deg: w.phase,
+    })
+}
+
+/// Validates a scenario and builds its plan. `file` names the source in messages; `base_dir` is
+/// where relative file names point.
+pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, InputError> {
+    let ctx = Ctx { file };
+    if s.name.trim().is_empty() || s.name.contains(['/', '\\']) || s.name.len() > 100 {
+        return Err(ctx.err(
+            "name",
+            "expected a non-empty name of at most 100 characters without slashes",
+        ));
+    }
+    let mesh = build_mesh(&ctx, s)?;
+    if s.materials.is_empty() {
+        return Err(ctx.err("materials", "at least one material is needed"));
+    }
+    let mut mats: Vec<Arc<dyn Material>> = Vec::new();
+    let mut index: BTreeMap<&str, usize> = BTreeMap::new();
+    for (name, m) in &s.materials {
+        index.insert(name, mats.len());
+        mats.push(build_material(&ctx, name, m)?);
+    }
+    let n_cells = mesh.n_cells();
+    let mut cell_material = vec![usize::MAX; n_cells];
+    if s.regions.is_empty() {
+        if mats.len() > 1 {
+            return Err(ctx.err(
+                "regions",
+                "several materials: `regions` must say which cell set has which material",
+            ));
+        }
+        cell_material.iter_mut().for_each(|c| *c = 0);
+    } else {
+        for (set, mat) in &s.regions {
+            let key = format!("regions.{set}");
+            let m = *index.get(mat.as_str()).ok_or_else(|| {
+                let hint = closest(mat, index.keys().copied())
+                    .map(|c| format!("; did you mean `{c}`?"))
+                    .unwrap_or_default();
+                ctx.err(&key, format!("unknown material `{mat}`{hint}"))
+            })?;
+            let cells = mesh.cell_sets.get(set).ok_or_else(|| {
+                let names: Vec<&str> = mesh.cell_sets.keys().map(|s| s.as_str()).collect();
+                ctx.err(
+                    &key,
+                    format!("unknown cell set `{set}` (cell sets: {})", names.join(", ")),
+                )
+            })?;
+            for &c in cells {
+                cell_material[c] = m;
+            }
+        }
+        if let Some(c) = cell_material.iter().position(|&m| m == usize::MAX) {
+            return Err(ctx.err(
+                "regions",
+                format!("cell {c} has no material: the regions must cover the body"),
+            ));
+        }
+    }
+    let mut model =
+        Model::new(mesh, mats[0].clone()).map_err(|e| ctx.err("mesh", e.to_string()))?;
+    model.materials = mats;
+    model.cell_material = cell_material;
+
+    let mut supports = Vec::new();
+    for (i, c) in s.constraints.iter().enumerate() {
+        let key = format!("constraints.{i}");
+        let nodes = ctx.set_nodes(&model.mesh, &format!("{key}.set"), &c.set)?;
+        ctx.finite(&format!("{key}.value"), c.value, "displacement in m")?;
+        if c.fix.is_empty() {
+            return Err(ctx.err(
+                format!("{key}.fix"),
+                "expected a list of components among \"x\", \"y\", \"z\"",
+            ));
+        }
+        for comp in &c.fix {
+            let field = match comp.as_str() {
+                "x" => Field::Ux,
+                "y" => Field::Uy,
+                "z" => Field::Uz,
+                o => {
+                    return Err(ctx.err(
+                        format!("{key}.fix"),
+                        format!("unknown component `{o}`: expected \"x\", \"y\" or \"z\""),
+                    ))
+                }
+            };
+            supports.push(crate::dofs::Dirichlet {
+                nodes: nodes.clone(),
+                field,
+                value: c.value,
+            });
+        }
+    }
+
+    let mut electrodes = Vec::new();
+    for (name, e) in &s.electrodes {
+        let key = format!("electrodes.{name}");
+        let nodes = ctx.set_nodes(&model.mesh, &format!("{key}.set"), &e.set)?;
+        let voltage = build_waveform(&ctx, &format!("{key}.voltage"), &e.voltage, base_dir)?;
+        electrodes.push(Electrode {
+            name: name.clone(),
+            nodes,
+            voltage,
+        });
+    }
+    for (i, a) in electrodes.iter().enumerate() {
+        for b in &electrodes[i + 1..] {
+            if a.nodes.iter().any(|n| b.nodes.binary_search(n).is_ok()) {
+                return Err(ctx.err(
+                    format!("electrodes.{}.set", b.name),
+                    format!(
+                        "electrodes `{}` and `{}` share nodes: they would short-circuit",
+                        a.name, b.name
+                    ),
+                ));
+            }
+        }
+    }
+
+    if s.stages.is_empty() {
+        return Err(ctx.err("stages", "at least one stage is needed"));
+    }
+    let mut stages = Vec::new();
+    for (i, st) in s.stages.iter().enumerate() {
+        let key = format!("stages.{i}");
+        let name = st.name.clone().unwrap_or_else(|| format!("stage{i}"));
+        let duration = match st.duration {
+            Some(d) => ctx.positive(&format!("{key}.duration"), Some(d), "duration in s")?,
+            None => 1.0,
+        };
+        let kind = match st.kind.as_str() {
+            "static" => {
+                let steps = st.steps.unwrap_or(1);
+                if !(1..=1_000_000).contains(&steps) {
+                    return Err(ctx.err(
+                        format!("{key}.steps"),
+                        format!("must be between 1 and 1000000; got {steps}"),
+                    ));
+                }
+                for (k, v) in [
+                    ("dt", st.dt.is_some()),
+                    ("integrator", st.integrator.is_some()),
+                ] {
+                    if v {
+                        return Err(ctx.err(format!("{key}.{k}"), "applies to dynamic stages only"));
+                    }
+                }
+                StageKind::Static {
+                    steps: steps as usize,
+                }
+            }
+            "dynamic" => {
+                return Err(ctx.err(
+                    format!("{key}.kind"),
+                    "dynamic stages are not available in this version (only `static`)",
+                ))
+            }
+            o => {
+                let hint = closest(o, ["static", "dynamic"])
+                    .map(|c| format!("; did you mean `{c}`?"))
+                    .unwrap_or_default();
+                return Err(ctx.err(
+                    format!("{key}.kind"),
+                    format!("unknown stage kind `{o}`: expected `static` or `dynamic`{hint}"),
+                ));
+            }
+        };
+        if stages.iter().any(|s: &Stage| s.name == name) {
+            return Err(ctx.err(
+                format!("{key}.name"),
+                format!("two stages are named `{name}`"),
+            ));
+        }
+        stages.push(Stage {
+            name,
+            kind,
+            duration,
+        });
+    }
+
+    let mut probes = Vec::new();
+    for (name, p) in &s.probes {
+        let key = format!("probes.{name}");
+        probes.push((
+            name.clone(),
+            build_probe(&ctx, &key, p, &model, &electrodes)?,
+        ));
+    }
+    let o = &s.output;
+    if !["png", "svg"].contains(&o.plot_format.as_str()) {
+        return Err(ctx.err(
+            "output.plot_format",
+            format!("expected `png` or `svg`; got `{}`", o.plot_format),
+        ));
+    }
+    Ok(Plan {
+        name: s.name.clone(),
+        model,
+        supports,
+        electrodes,
+        stages,
+        probes,
+        output: OutputPlan {
+            fields_every: o.fields_every.min(usize::MAX as u64) as usize,
+            plots: o.plots,
+            plot_format: o.plot_format.clone(),
+        },
+    })
+}
+
+fn build_probe(
+    ctx: &Ctx,
+    key: &str,
+    p: &super::scenario::ProbeSpec,
+    model: &Model,
+    electrodes: &[Electrode],
+) -> Result<Probe, InputError> {
+    let need = |v: &Option<String>, what: &str| {
+        v.clone().ok_or_else(|| {
+            ctx.err(
+                format!("{key}.{what}"),
+                format!("missing: `{}` probes need `{what}`", p.kind),
+            )
+        })
+    };
+    let nodal = |q: &str| -> Result<NodalQuantity, InputError> {
+        Ok(match q {
+            "ux" => NodalQuantity::Component(0),
+            "uy" => NodalQuantity::Component(1),
+            "uz" => NodalQuantity::Component(2),
+            "u" => NodalQuantity::Magnitude,
+            "phi" => NodalQuantity::Potential,
+            o => {
+                let names = ["ux", "uy", "uz", "u", "phi"];
+                let hint = closest(o, names)
+                    .map(|c| format!("; did you mean `{c}`?"))
+                    .unwrap_or_default();
+                return Err(ctx.err(
+                    format!("{key}.quantity"),
+                    format!(
+                        "unknown nodal quantity `{o}` (known: {}){hint}",
+                        names.join(", ")
+                    ),
+                ));
+            }
+        })
+    };
+    let electrode = |name: &str| -> Result<usize, InputError> {
+        electrodes
+            .iter()
+            .position(|e| e.name == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = electrodes.iter().map(|e| e.name.as_str()).collect();
+                ctx.err(
+                    format!("{key}.electrode"),
+                    format!(
+                        "unknown electrode `{name}` (electrodes: {})",
+                        names.join(", ")
+                    ),
+                )
+            })
+    };
+    let kind = match p.kind.as_str() {
+        "mean" | "max" | "min" => {
+            let q = nodal(&need(&p.quantity, "quantity")?)?;
+            let nodes = ctx.set_nodes(&model.mesh, &format!("{key}.set"), &need(&p.set, "set")?)?;
+            match p.kind.as_str() {
+                "mean" => ProbeKind::Mean(q, nodes),
+                "max" => ProbeKind::Max(q, nodes),
+                _ => ProbeKind::Min(q, nodes),
+            }
+        }
+        "point" => {
+            let q = nodal(&need(&p.quantity, "quantity")?)?;
+            let at = p.at.ok_or_else(|| {
+                ctx.err(
+                    format!("{key}.at"),
+                    "missing: `point` probes need `at = [x, y, z]` in m",
+                )
+            })?;
+            if at.iter().any(|v| !v.is_finite()) {
+                return Err(ctx.err(format!("{key}.at"), "coordinates must be finite (m)"));
+            }
+            ProbeKind::Point(q, model.mesh.nearest_node(at))
+        }
+        "charge" => ProbeKind::Charge(electrode(&need(&p.electrode, "electrode")?)?),
+        "capacitance" => ProbeKind::Capacitance(electrode(&need(&p.electrode, "electrode")?)?),
+        "reaction" => {
+            let c = match need(&p.quantity, "quantity")?.as_str() {
+                "x" => 0,
+                "y" => 1,
+                "z" => 2,
+                o => {
+                    return Err(ctx.err(
+                        format!("{key}.quantity"),
+                        format!("reaction component must be \"x\", \"y\" or \"z\"; got `{o}`"),
+                    ))
+                }
+            };
+            ProbeKind::Reaction(
+                c,
+                ctx.set_nodes(&model.mesh, &format!("{key}.set"), &need(&p.set, "set")?)?,
+            )
+        }
+        "energy" => match need(&p.quantity, "quantity")?.as_str() {
+            "stored" => ProbeKind::StoredEnergy,
+            "electric" => ProbeKind::ElectricEnergy,
+            o => {
+                return Err(ctx.err(
+                    format!("{key}.quantity"),
+                    format!("energy must be `stored` or `electric`; got `{o}`"),
+                ))
+            }
+        },
+        o => {
+            let names = [
+                "mean",
+                "max",
+                "min",
+                "point",
+                "charge",
+                "capacitance",
+                "reaction",
+                "energy",
+            ];
+            let hint = closest(o, names)
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            return Err(ctx.err(
+                format!("{key}.kind"),
+                format!(
+                    "unknown probe kind `{o}` (known: {}){hint}",
+                    names.join(", ")
+                ),
+            ));
+        }
+    };
+    let scale = ctx.finite(&format!("{key}.scale"), p.scale.unwrap_or(1.0), "factor")?;
+    let offset = ctx.finite(&format!("{key}.offset"), p.offset.unwrap_or(0.0), "offset")?;
+    Ok(Probe {
+        kind,
+        scale,
+        offset,
+    })
+}

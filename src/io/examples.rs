@@ -1,0 +1,19 @@
+//! The example scenarios embedded in the binary (`deasim example NAME`). Each is a file under
+//! `scenarios/` and runs as printed.
+
+/// (name, TOML text) of every example.
+pub const EXAMPLES: &[(&str, &str)] = &[
+    ("film", include_str!("../../scenarios/film.toml")),
+    (
+        "film-pull-in",
+        include_str!("../../scenarios/film-pull-in.toml"),
+    ),
+];
+
+/// The scenario `deasim run` uses without a file.
+pub const DEFAULT: &str = "film";
+
+/// The text of an example.
+pub fn example(name: &str) -> Option<&'static str> {
+    EXAMPLES.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+}

@@ -1,0 +1,318 @@
+//! The output directory of a run: `history.csv`, `summary.json`, `fields.pvd` + `fields/*.vtu`,
+//! `plots/`. Every file is written to a temporary name and renamed, so an interrupted run leaves
+//! valid files. Only converged steps reach the writer.
+
+use super::atomic::write_atomic;
+use super::build::Plan;
+use super::plot::{line_plot, PlotSpec, Series};
+use super::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuPiece};
+use crate::analysis::run::{Observer, RunSummary, StepRecord};
+use crate::element::CellFields;
+use crate::mesh::ElementKind;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The fixed leading columns of `history.csv`.
+pub const HISTORY_COLUMNS: &[&str] = &[
+    "time",
+    "stage",
+    "step",
+    "voltage",
+    "newton_iterations",
+    "kinetic",
+    "stored",
+    "electric",
+    "gravity",
+    "dissipated",
+    "energy_error",
+];
+
+/// Writes a run's files into a directory.
+pub struct OutputWriter {
+    dir: PathBuf,
+    records: Vec<StepRecord>,
+    pvd: Vec<(f64, String)>,
+    steps_seen: usize,
+    last_flush: Instant,
+    last_state: Option<(StepRecord, Vec<f64>, Vec<CellFields>)>,
+    last_written_step: Option<usize>,
+    /// I/O problems (reported in the summary's warnings).
+    pub errors: Vec<String>,
+}
+
+fn csv_number(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:e}")
+    } else {
+        "NaN".into()
+    }
+}
+
+fn json_number(v: f64) -> Value {
+    if v.is_finite() {
+        json!(v)
+    } else {
+        Value::Null
+    }
+}
+
+impl OutputWriter {
+    /// Creates the directory (and `fields/`, `plots/`).
+    pub fn new(dir: &Path) -> std::io::Result<Self> {
+        std::fs::create_dir_all(dir.join("fields"))?;
+        std::fs::create_dir_all(dir.join("plots"))?;
+        Ok(OutputWriter {
+            dir: dir.to_path_buf(),
+            records: Vec::new(),
+            pvd: Vec::new(),
+            steps_seen: 0,
+            last_flush: Instant::now(),
+            last_state: None,
+            last_written_step: None,
+            errors: Vec::new(),
+        })
+    }
+
+    /// The history as CSV text.
+    pub fn history_csv(plan: &Plan, records: &[StepRecord]) -> String {
+        let mut s = HISTORY_COLUMNS.join(",");
+        for (name, _) in &plan.probes {
+            s.push_str(&format!(",probe:{name}"));
+        }
+        s.push('\n');
+        for r in records {
+            let e = &r.energies;
+            let mut row = vec![
+                csv_number(r.time),
+                r.stage.clone(),
+                r.step.to_string(),
+                csv_number(r.voltage),
+                r.newton_iterations.to_string(),
+                csv_number(e.kinetic),
+                csv_number(e.stored),
+                csv_number(e.electric),
+                csv_number(e.gravity),
+                csv_number(e.dissipated),
+                csv_number(e.energy_error),
+            ];
+            row.extend(r.probes.iter().map(|&v| csv_number(v)));
+            s.push_str(&row.join(","));
+            s.push('\n');
+        }
+        s
+    }
+
+    fn write_history(&mut self, plan: &Plan) {
+        let text = Self::history_csv(plan, &self.records);
+        if let Err(e) = write_atomic(&self.dir.join("history.csv"), text.as_bytes()) {
+            self.errors.push(format!("history.csv: {e}"));
+        }
+        self.last_flush = Instant::now();
+    }
+
+    fn write_fields(
+        &mut self,
+        plan: &Plan,
+        record: &StepRecord,
+        state: &[f64],
+        fields: &[CellFields],
+    ) {
+        let mesh = &plan.model.mesh;
+        let n = mesh.n_nodes();
+        let mut disp = Vec::with_capacity(3 * n);
+        let mut phi = Vec::with_capacity(n);
+        for node in 0..n {
+            disp.extend_from_slice(&state[node * 4..node * 4 + 3]);
+            phi.push(state[node * 4 + 3]);
+        }
+        let e: Vec<f64> = fields.iter().flat_map(|f| f.e).collect();
+        let sigma: Vec<f64> = fields.iter().flat_map(|f| f.sigma).collect();
+        let j: Vec<f64> = fields.iter().map(|f| f.j).collect();
+        let cell_type = match mesh.kind {
+            ElementKind::Hex8 => CellType::Hex8,
+            ElementKind::Tet4 => CellType::Tet4,
+        };
+        let name = format!("step_{:05}.vtu", self.pvd.len());
+        let piece = VtuPiece {
+            points: &mesh.nodes,
+            cell_type,
+            connectivity: &mesh.connectivity,
+            point_data: vec![
+                DataArray {
+                    name: "displacement",
+                    components: 3,
+                    values: &disp,
+                },
+                DataArray {
+                    name: "potential",
+                    components: 1,
+                    values: &phi,
+                },
+            ],
+            cell_data: vec![
+                DataArray {
+                    name: "electric_field",
+                    components: 3,
+                    values: &e,
+                },
+                DataArray {
+                    name: "cauchy_stress",
+                    components: 9,
+                    values: &sigma,
+                },
+                DataArray {
+                    name: "J",
+                    components: 1,
+                    values: &j,
+                },
+            ],
+        };
+        match write_vtu(&self.dir.join("fields").join(&name), &piece) {
+            Ok(()) => {
+                self.pvd.push((record.time, format!("fields/{name}")));
+                if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
+                    self.errors.push(e.to_string());
+                }
+                self.last_written_step = Some(self.steps_seen);
+            }
+            Err(e) => self.errors.push(e.to_string()),
+        }
+    }
+
+    /// The summary as JSON.
+    pub fn summary_json(&self, plan: &Plan, summary: &RunSummary) -> Value {
+        let last = self.records.last();
+        let mut probes = serde_json::Map::new();
+        for (i, (name, _)) in plan.probes.iter().enumerate() {
+            probes.insert(
+                name.clone(),
+                last.map(|r| json_number(r.probes[i]))
+                    .unwrap_or(Value::Null),
+            );
+        }
+        let e = last.map(|r| r.energies).unwrap_or_default();
+        let max_field = self
+            .records
+            .iter()
+            .map(|r| r.max_electric_field)
+            .fold(0.0, f64::max);
+        let mut warnings = summary.warnings.clone();
+        warnings.extend(self.errors.iter().cloned());
+        let mut v = json!({
+            "scenario": plan.name,
+            "dofs": summary.dofs,
+            "nodes": plan.model.mesh.n_nodes(),
+            "elements": plan.model.mesh.n_cells(),
+            "converged": summary.converged,
+            "wall_s": summary.wall_s,
+            "stages": summary.stages.iter().map(|s| json!({
+                "name": s.name, "kind": s.kind, "steps": s.steps,
+                "newton_iterations": s.newton_iterations, "wall_s": s.wall_s, "converged": s.converged,
+            })).collect::<Vec<_>>(),
+            "probes": probes,
+            "max_electric_field": json_number(max_field),
+            "energy": {
+                "kinetic": json_number(e.kinetic), "stored": json_number(e.stored),
+                "electric": json_number(e.electric), "gravity": json_number(e.gravity),
+                "dissipated": json_number(e.dissipated), "energy_error": json_number(e.energy_error),
+            },
+            "warnings": warnings,
+        });
+        if let Some(err) = &summary.error {
+            v["error"] = json!(err);
+        }
+        v
+    }
+
+    fn write_plots(&mut self, plan: &Plan) {
+        if !plan.output.plots || self.records.is_empty() {
+            return;
+        }
+        let ext = &plan.output.plot_format;
+        let t: Vec<f64> = self.records.iter().map(|r| r.time).collect();
+        let v: Vec<f64> = self.records.iter().map(|r| r.voltage).collect();
+        let mut plots: Vec<(String, String, String, Series, String)> = vec![(
+            "voltage".into(),
+            "largest electrode voltage".into(),
+            "voltage [V]".into(),
+            Series {
+                label: "voltage".into(),
+                x: t.clone(),
+                y: v.clone(),
+            },
+            "time [s]".into(),
+        )];
+        let voltage_varies = v.iter().any(|&x| x != v[0]);
+        for (i, (name, _)) in plan.probes.iter().enumerate() {
+            let y: Vec<f64> = self.records.iter().map(|r| r.probes[i]).collect();
+            plots.push((
+                name.clone(),
+                format!("probe {name}"),
+                name.clone(),
+                Series {
+                    label: name.clone(),
+                    x: t.clone(),
+                    y: y.clone(),
+                },
+                "time [s]".into(),
+            ));
+            if voltage_varies {
+                plots.push((
+                    format!("{name}_vs_voltage"),
+                    format!("probe {name} against voltage"),
+                    name.clone(),
+                    Series {
+                        label: name.clone(),
+                        x: v.clone(),
+                        y,
+                    },
+                    "voltage [V]".into(),
+                ));
+            }
+        }
+        for (file, title, ylabel, series, xlabel) in plots {
+            let path = self.dir.join("plots").join(format!("{file}.{ext}"));
+            let spec = PlotSpec {
+                title: &title,
+                x_label: &xlabel,
+                y_label: &ylabel,
+                series: std::slice::from_ref(&series),
+            };
+            if let Err(e) = line_plot(&path, &spec) {
+                self.errors.push(e.to_string());
+            }
+        }
+    }
+}
+
+impl Observer for OutputWriter {
+    fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
+        self.records.push(record.clone());
+        let every = plan.output.fields_every;
+        if every > 0 && self.steps_seen.is_multiple_of(every) {
+            self.write_fields(plan, record, state, fields);
+        }
+        self.steps_seen += 1;
+        self.last_state = Some((record.clone(), state.to_vec(), fields.to_vec()));
+        if self.last_flush.elapsed().as_secs_f64() > 2.0 {
+            self.write_history(plan);
+        }
+    }
+
+    fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
+        // the last converged state is always in the field files
+        if self.last_written_step != Some(self.steps_seen.saturating_sub(1)) {
+            if let Some((r, s, f)) = self.last_state.take() {
+                self.write_fields(plan, &r, &s, &f);
+            }
+        }
+        self.write_history(plan);
+        self.write_plots(plan);
+        let json = self.summary_json(plan, summary);
+        let text = serde_json::to_string_pretty(&json).unwrap_or_else(|_| "{}".into());
+        if let Err(e) = write_atomic(&self.dir.join("summary.json"), text.as_bytes()) {
+            self.errors.push(format!("summary.json: {e}"));
+        }
+    }
+}
