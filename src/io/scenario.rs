@@ -537,7 +537,7 @@ steps = 2
     fn unknown_key_is_positioned_and_suggested() {
         let text = MINIMAL.replace("mu = 1.0", "muu = 1.0");
         let e = parse(&text, "t.toml", &[]).unwrap_err();
-        assert_eq!(e.position.map(|p| p.0), Some(10), "{e}");
+        assert_eq!(e.position.map(|p| p.0), Some(9), "{e}");
         assert!(e.to_string().contains("did you mean `mu`"), "{e}");
         assert!(
             e.key.as_deref().unwrap_or("").contains("materials.m"),
