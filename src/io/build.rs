@@ -167,12 +167,14 @@ fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
         .try_fold(per_hex as u64, |acc, &d| acc.checked_mul(d));
     match cells {
         Some(c) if c <= MAX_CELLS => {}
-        _ => return Err(ctx.err(
-            "mesh.divisions",
-            format!(
+        _ => {
+            return Err(ctx.err(
+                "mesh.divisions",
+                format!(
                 "{div:?} gives more than {MAX_CELLS} cells: too large for this machine's memory"
             ),
-        )),
+            ))
+        }
     }
     Ok(box_mesh(
         size,

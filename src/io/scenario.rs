@@ -150,11 +150,41 @@ pub struct ElectrodeSpec {
 }
 
 /// A voltage: constant or a waveform.
-#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[derive(Debug, Clone, Serialize, PartialEq)]
 #[serde(untagged)]
 pub enum VoltageSpec {
     Constant(f64),
     Waveform(WaveformSpec),
+}
+
+impl<'de> Deserialize<'de> for VoltageSpec {
+    /// A number, or a waveform table whose errors keep their key path.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = VoltageSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a voltage in V (a number) or a waveform table such as { waveform = \"sine\", amplitude = 3000.0, frequency = 2.0 }")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<VoltageSpec, E> {
+                Ok(VoltageSpec::Constant(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<VoltageSpec, E> {
+                Ok(VoltageSpec::Constant(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<VoltageSpec, E> {
+                Ok(VoltageSpec::Constant(v as f64))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<VoltageSpec, A::Error> {
+                WaveformSpec::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(VoltageSpec::Waveform)
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 impl Default for VoltageSpec {

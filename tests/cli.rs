@@ -1,0 +1,390 @@
+//! The command line as a user and a script see it (INTERFACE.md): examples print, check and run;
+//! the film's history matches the closed form; bad input exits 2 with a message naming the problem;
+//! pull-in exits 1 with `converged: false`; VTU files read back with the expected arrays; `--set`
+//! changes what it names and rejects unknown paths.
+
+use deasim::analytic::Film;
+use deasim::examples::{FILM_EPS_R, FILM_LAMBDA, FILM_MU};
+use deasim::io::vtu::read_vtu;
+use deasim::material::EPSILON_0;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn deasim(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run deasim")
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("deasim-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned() + &String::from_utf8_lossy(&o.stdout)
+}
+
+/// Parses history.csv into (header, rows).
+fn history(dir: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn every_example_prints_checks_and_the_small_ones_run() {
+    let dir = tempdir("examples");
+    let list = deasim(&["example"], &dir);
+    assert!(list.status.success());
+    let names: Vec<String> = String::from_utf8_lossy(&list.stdout)
+        .lines()
+        .filter_map(|l| l.split_whitespace().next().map(String::from))
+        .collect();
+    assert!(
+        names.contains(&"film".to_string()) && names.contains(&"film-pull-in".to_string()),
+        "{names:?}"
+    );
+    for name in &names {
+        let out = deasim(&["example", name], &dir);
+        assert!(out.status.success());
+        let file = dir.join(format!("{name}.toml"));
+        std::fs::write(&file, &out.stdout).unwrap();
+        let check = deasim(&["check", file.to_str().unwrap()], &dir);
+        assert!(check.status.success(), "{name}: {}", stderr(&check));
+        assert!(String::from_utf8_lossy(&check.stdout).contains("problems: none"));
+    }
+    let unknown = deasim(&["example", "flim"], &dir);
+    assert_eq!(unknown.status.code(), Some(2));
+    assert!(
+        stderr(&unknown).contains("did you mean `film`"),
+        "{}",
+        stderr(&unknown)
+    );
+}
+
+#[test]
+fn film_run_matches_the_closed_form_and_writes_every_output() {
+    let dir = tempdir("film");
+    let scenario = dir.join("film.toml");
+    std::fs::write(&scenario, deasim(&["example", "film"], &dir).stdout).unwrap();
+    let out = deasim(&["run", "film.toml", "--out", "out"], &dir);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let out_dir = dir.join("out");
+    let (header, rows) = history(&out_dir);
+    let fixed = [
+        "time",
+        "stage",
+        "step",
+        "voltage",
+        "newton_iterations",
+        "kinetic",
+        "stored",
+        "electric",
+        "gravity",
+        "dissipated",
+        "energy_error",
+    ];
+    assert_eq!(&header[..fixed.len()], &fixed.map(String::from));
+    assert!(header.contains(&"probe:thickness_stretch".to_string()));
+    assert_eq!(rows.len(), 16, "initial state + 15 load steps");
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let reference = Film {
+        mu: FILM_MU,
+        lambda: FILM_LAMBDA,
+        eps: FILM_EPS_R * EPSILON_0,
+        c2: 0.0,
+    };
+    for row in &rows {
+        assert_eq!(row.len(), header.len(), "no missing column");
+        let v: f64 = row[col("voltage")].parse().unwrap();
+        let s = reference.state(v / 1e-3).unwrap();
+        let t: f64 = row[col("probe:thickness_stretch")].parse().unwrap();
+        let l: f64 = row[col("probe:inplane_stretch")].parse().unwrap();
+        assert!(
+            (t - s.t).abs() < 1e-8 && (l - s.lambda).abs() < 1e-8,
+            "V = {v}: {t} {l} vs {s:?}"
+        );
+    }
+    assert_eq!(
+        rows.last().unwrap()[col("voltage")].parse::<f64>().unwrap(),
+        30e3
+    );
+    // summary.json
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("summary.json")).unwrap())
+            .unwrap();
+    for key in [
+        "scenario",
+        "dofs",
+        "nodes",
+        "elements",
+        "converged",
+        "wall_s",
+        "stages",
+        "probes",
+        "max_electric_field",
+        "energy",
+        "warnings",
+    ] {
+        assert!(summary.get(key).is_some(), "summary lacks {key}");
+    }
+    assert_eq!(summary["converged"], true);
+    assert!(summary.get("error").is_none());
+    assert_eq!(summary["stages"][0]["name"], "charge");
+    assert_eq!(summary["stages"][0]["steps"], 15);
+    let e = &summary["energy"];
+    for key in [
+        "kinetic",
+        "stored",
+        "electric",
+        "gravity",
+        "dissipated",
+        "energy_error",
+    ] {
+        assert!(e[key].is_number(), "energy.{key}");
+    }
+    // the discrete energy balance closes to the quadrature error of 15 load steps
+    let err = e["energy_error"].as_f64().unwrap().abs();
+    assert!(
+        err < 5e-3 * e["electric"].as_f64().unwrap(),
+        "energy_error {err}"
+    );
+    // fields: pvd + one VTU per step with the expected arrays and sizes
+    let pvd = std::fs::read_to_string(out_dir.join("fields.pvd")).unwrap();
+    assert_eq!(pvd.matches("<DataSet").count(), 16);
+    let last = read_vtu(&out_dir.join("fields").join("step_00015.vtu")).unwrap();
+    let nodes = summary["nodes"].as_u64().unwrap() as usize;
+    let cells = summary["elements"].as_u64().unwrap() as usize;
+    assert_eq!(last.points.len(), nodes);
+    assert_eq!(last.types.len(), cells);
+    assert_eq!(last.point_data["displacement"].0, 3);
+    assert_eq!(last.point_data["displacement"].1.len(), 3 * nodes);
+    assert_eq!(last.point_data["potential"].1.len(), nodes);
+    assert_eq!(last.cell_data["electric_field"].1.len(), 3 * cells);
+    assert_eq!(last.cell_data["cauchy_stress"].0, 9);
+    assert_eq!(last.cell_data["J"].1.len(), cells);
+    let s = reference.state(30e6).unwrap();
+    for j in &last.cell_data["J"].1 {
+        assert!((j - s.lambda * s.lambda * s.t).abs() < 1e-8);
+    }
+    // the in-plane Cauchy stress of the free film vanishes: σ₁₁ ≈ 0 relative to the Maxwell stress
+    let maxwell = FILM_EPS_R * EPSILON_0 * (30e6 / s.t).powi(2);
+    for c in last.cell_data["cauchy_stress"].1.chunks(9) {
+        assert!(
+            c[0].abs() < 1e-6 * maxwell && c[8].abs() < 1e-6 * maxwell,
+            "{c:?}"
+        );
+    }
+    for plot in [
+        "thickness_stretch.png",
+        "inplane_stretch.png",
+        "voltage.png",
+    ] {
+        let bytes = std::fs::read(out_dir.join("plots").join(plot)).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{plot}");
+    }
+    // no temporary files left behind
+    for entry in std::fs::read_dir(&out_dir).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(!name.contains(".tmp"), "{name}");
+    }
+}
+
+#[test]
+fn pull_in_example_exits_1_and_names_the_instability() {
+    let dir = tempdir("pullin");
+    std::fs::write(
+        dir.join("p.toml"),
+        deasim(&["example", "film-pull-in"], &dir).stdout,
+    )
+    .unwrap();
+    let out = deasim(&["run", "p.toml", "--out", "out"], &dir);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["converged"], false);
+    let error = summary["error"].as_str().unwrap();
+    assert!(
+        error.contains("electromechanical instability (pull-in)"),
+        "{error}"
+    );
+    // the last converged voltage, within 0.5 % below the closed-form 33.695 kV
+    let v: f64 = error
+        .split("last converged voltage ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap();
+    assert!(v <= 33695.34 && v >= 0.995 * 33695.33, "{v}");
+    // history holds converged steps only: its last voltage is the last converged one
+    let (header, rows) = history(&dir.join("out"));
+    let vcol = header.iter().position(|h| h == "voltage").unwrap();
+    let last: f64 = rows.last().unwrap()[vcol].parse().unwrap();
+    assert!((last - v).abs() < 0.01, "{last} vs {v}");
+}
+
+#[test]
+fn set_overrides_change_values_and_reject_unknown_paths() {
+    let dir = tempdir("set");
+    std::fs::write(
+        dir.join("film.toml"),
+        deasim(&["example", "film"], &dir).stdout,
+    )
+    .unwrap();
+    let out = deasim(
+        &[
+            "run",
+            "film.toml",
+            "--out",
+            "o",
+            "--set",
+            "stages.0.steps=3",
+            "--set",
+            "electrodes.top.voltage.amplitude=9000",
+            "--set",
+            "mesh.divisions=[2,2,1]",
+        ],
+        &dir,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (header, rows) = history(&dir.join("o"));
+    assert_eq!(rows.len(), 4);
+    let vcol = header.iter().position(|h| h == "voltage").unwrap();
+    assert_eq!(rows[3][vcol].parse::<f64>().unwrap(), 9000.0);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["nodes"], 18);
+    for (set, fragment) in [
+        ("materials.elastomer.muu=1", "did you mean `mu`"),
+        ("stages.5.steps=1", "past the end"),
+        ("mesh.divisons=[1,1,1]", "did you mean `divisions`"),
+        ("electrodes.top.voltage.amplitude=high", "amplitude"),
+        ("novalue", "KEY=VALUE"),
+    ] {
+        let out = deasim(&["check", "film.toml", "--set", set], &dir);
+        assert_eq!(out.status.code(), Some(2), "{set}");
+        assert!(stderr(&out).contains(fragment), "{set}: {}", stderr(&out));
+    }
+}
+
+/// Bad inputs: each exits 2 (never a panic) with a message naming the problem.
+#[test]
+fn bad_inputs_exit_2_with_a_message() {
+    let dir = tempdir("bad");
+    let film = String::from_utf8(deasim(&["example", "film"], &dir).stdout).unwrap();
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "missing key",
+            film.replace("name = \"film\"\n", "").into_bytes(),
+            "missing field `name`",
+        ),
+        (
+            "wrong type",
+            film.replace("steps = 15", "steps = \"many\"").into_bytes(),
+            "stages",
+        ),
+        (
+            "negative modulus",
+            film.replace("mu = 1e5", "mu = -1e5").into_bytes(),
+            "materials.elastomer.mu",
+        ),
+        (
+            "unknown material model",
+            film.replace("model = \"neo-hooke\"", "model = \"neo-hook\"")
+                .into_bytes(),
+            "did you mean `neo-hooke`",
+        ),
+        (
+            "unknown region material",
+            film.replace(
+                "[[constraints]]\nset = \"x0\"",
+                "[regions]\nall = \"rubber\"\n\n[[constraints]]\nset = \"x0\"",
+            )
+            .into_bytes(),
+            "unknown material `rubber`",
+        ),
+        (
+            "unknown set name",
+            film.replace("set = \"z1\"\nvoltage", "set = \"z2\"\nvoltage")
+                .into_bytes(),
+            "unknown set `z2`",
+        ),
+        ("empty file", Vec::new(), "empty"),
+        (
+            "non-TOML bytes",
+            vec![0x00, 0xff, 0xfe, 0x13, 0x37, 0x80],
+            "UTF-8",
+        ),
+        (
+            "binary but UTF-8",
+            "\u{1}\u{2}\u{3} = = [".as_bytes().to_vec(),
+            "invalid TOML",
+        ),
+        (
+            "permittivity below 1",
+            film.replace("permittivity = 4.7", "permittivity = 0.5")
+                .into_bytes(),
+            "permittivity",
+        ),
+        (
+            "zero steps",
+            film.replace("steps = 15", "steps = 0").into_bytes(),
+            "steps",
+        ),
+        (
+            "NaN modulus",
+            film.replace("mu = 1e5", "mu = nan").into_bytes(),
+            "mu",
+        ),
+        (
+            "huge mesh",
+            film.replace(
+                "divisions = [4, 4, 2]",
+                "divisions = [100000, 100000, 100000]",
+            )
+            .into_bytes(),
+            "too large",
+        ),
+        (
+            "unknown key",
+            film.replace("plots = true", "plot = true").into_bytes(),
+            "did you mean `plots`",
+        ),
+        (
+            "unknown waveform",
+            film.replace("waveform = \"ramp\"", "waveform = \"rampe\"")
+                .into_bytes(),
+            "did you mean `ramp`",
+        ),
+    ];
+    for (what, bytes, fragment) in cases {
+        let file = dir.join("bad.toml");
+        std::fs::write(&file, &bytes).unwrap();
+        let out = deasim(&["run", "bad.toml", "--out", "o"], &dir);
+        let msg = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{what}: {msg}");
+        assert!(
+            msg.contains(fragment),
+            "{what}: expected `{fragment}` in: {msg}"
+        );
+        assert!(
+            msg.contains("bad.toml"),
+            "{what}: the message names the file: {msg}"
+        );
+        assert!(!msg.contains("panicked"), "{what}: {msg}");
+    }
+    let missing = deasim(&["run", "nonexistent.toml"], &dir);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(stderr(&missing).contains("nonexistent.toml"));
+}
