@@ -82,9 +82,7 @@ impl Progress {
         let total: u64 = plan
             .stages
             .iter()
-            .map(|s| match s.kind {
-                StageKind::Static { steps } => steps as u64,
-            })
+            .map(|s| s.kind.nominal_steps(s.duration) as u64)
             .sum();
         let bar = std::io::stderr().is_terminal().then(|| {
             let b = ProgressBar::new(total);
@@ -236,6 +234,13 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
                             s.name, s.duration
                         )
                     }
+                    StageKind::Dynamic { dt, scheme } => println!(
+                        "stage {i} `{}`: dynamic ({}), duration {} s, dt {dt} s ({} steps)",
+                        s.name,
+                        scheme.name(),
+                        s.duration,
+                        s.kind.nominal_steps(s.duration)
+                    ),
                 }
             }
             println!(

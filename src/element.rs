@@ -217,3 +217,87 @@ pub fn cell_fields(
     }
     Ok(out)
 }
+
+/// Kelvin–Voigt viscosity (Wriggers' 3-D form, PHYSICS.md §2.3): P_vis = Jη d F⁻ᵀ with
+/// d = sym(Ḟ F⁻¹), the derivative of the Rayleigh function R = (Jη/2) d:d with respect to Ḟ.
+/// With the spatial gradients h_a = F⁻ᵀ∇₀N_a: r_{a,i} = ∫ Jη (d h_a)_i dV and
+/// ∂r_{a,i}/∂v_{b,k} = ∫ (Jη/2)(δ_ik h_a·h_b + h_{b,i} h_{a,k}) dV (symmetric, positive semi-definite).
+/// Adds the viscous forces to the u rows of `r` and, when given, their derivative with respect to
+/// the nodal velocities to `kv`; `local` is the configuration, `vel` the nodal velocities (4 per
+/// node, potential entries ignored). Returns the dissipation power ∫ Jη d:d dV (W).
+pub fn cell_viscous(
+    geom: &CellGeometry,
+    eta: f64,
+    local: &[f64],
+    vel: &[f64],
+    r: &mut [f64],
+    mut kv: Option<&mut [f64]>,
+) -> Result<f64, PointFailure> {
+    let n = geom.n_nodes;
+    let nl = n * FIELDS;
+    let (u, phi) = split_local(n, local);
+    let (v, _) = split_local(n, vel);
+    let mut power = 0.0;
+    for q in 0..geom.n_qp {
+        let g = &geom.grad[q];
+        let w = geom.weights[q];
+        let (f, _) = kinematics(&g[..n], &u[..n], &phi[..n]);
+        let j = f.determinant();
+        let fail = |error| PointFailure { qp: q, error };
+        if j.is_nan() || j <= 0.0 {
+            return Err(fail(MaterialError::NonPositiveJ(j)));
+        }
+        let finv = f
+            .try_inverse()
+            .ok_or(fail(MaterialError::NonPositiveJ(j)))?;
+        let mut h = [[0.0; 3]; MAX_NODES];
+        for a in 0..n {
+            for i in 0..3 {
+                h[a][i] = finv[(0, i)] * g[a][0] + finv[(1, i)] * g[a][1] + finv[(2, i)] * g[a][2];
+            }
+        }
+        // l = Ḟ F⁻¹ = Σ v_a ⊗ h_a, d = sym(l)
+        let mut l = [[0.0; 3]; 3];
+        for a in 0..n {
+            for i in 0..3 {
+                for m in 0..3 {
+                    l[i][m] += v[a][i] * h[a][m];
+                }
+            }
+        }
+        let mut d = [[0.0; 3]; 3];
+        let mut dd = 0.0;
+        for i in 0..3 {
+            for m in 0..3 {
+                d[i][m] = 0.5 * (l[i][m] + l[m][i]);
+            }
+        }
+        for i in 0..3 {
+            for m in 0..3 {
+                dd += d[i][m] * d[i][m];
+            }
+        }
+        let c = w * j * eta;
+        power += c * dd;
+        for a in 0..n {
+            for i in 0..3 {
+                r[a * 4 + i] += c * (d[i][0] * h[a][0] + d[i][1] * h[a][1] + d[i][2] * h[a][2]);
+            }
+        }
+        if let Some(kv) = kv.as_deref_mut() {
+            for a in 0..n {
+                for b in 0..n {
+                    let hab = h[a][0] * h[b][0] + h[a][1] * h[b][1] + h[a][2] * h[b][2];
+                    for i in 0..3 {
+                        let row = (a * 4 + i) * nl + b * 4;
+                        for k in 0..3 {
+                            let delta = if i == k { hab } else { 0.0 };
+                            kv[row + k] += 0.5 * c * (delta + h[b][i] * h[a][k]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(power)
+}

@@ -18,5 +18,6 @@ pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod solve;
+pub mod time;
 pub mod validate;
 pub mod waveform;

@@ -3,11 +3,14 @@
 
 use super::probes::ProbeInput;
 use super::statics::{cell_fields, energies, nodal_reactions, solve_static};
-use crate::dofs::{Dirichlet, Field, FIELDS};
+use crate::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::element::CellFields;
 use crate::io::build::{Plan, StageKind};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
+use crate::time::integrator::TimeLevel;
+use crate::time::mass::{MassKind, NodalMass};
+use crate::time::stage::{run_dynamic, DynamicInputs, DynamicSettings};
 use std::time::Instant;
 
 /// Energies of a state (J), as in `history.csv`.
@@ -33,6 +36,8 @@ pub struct StepRecord {
     /// Largest electrode voltage (by magnitude, V).
     pub voltage: f64,
     pub newton_iterations: usize,
+    /// Step size (s; the pseudo-time increment in static stages).
+    pub dt: f64,
     pub energies: Energies,
     /// Probe values in plan order.
     pub probes: Vec<f64>,
@@ -82,28 +87,38 @@ struct Recorder<'p> {
 }
 
 impl<'p> Recorder<'p> {
+    /// Evaluates the record of an accepted state. `prescribed` flags the dofs whose values are
+    /// prescribed (their reactions do work on the body); `kinetic` and `dissipated` come from the
+    /// time integrator (0 in statics).
+    #[allow(clippy::too_many_arguments)]
     fn record(
         &mut self,
         state: &[f64],
+        prescribed: &[bool],
         time: f64,
         stage: &str,
         step: usize,
         iterations: usize,
+        dt: f64,
+        kinetic: f64,
+        dissipated: f64,
     ) -> Result<(StepRecord, Vec<CellFields>), String> {
         let model = &self.plan.model;
         let reactions = nodal_reactions(model, state)?;
         let (stored, electric) = energies(model, state)?;
-        // work done on the body through prescribed values: Σ ½(R₀ + R₁)·(x₁ − x₀) (trapezoidal);
-        // the reactions of free dofs vanish at equilibrium, so the sum may run over every dof
+        // work done on the body through prescribed values: Σ ½(R₀ + R₁)·(x₁ − x₀) (trapezoidal)
         if !self.prev_state.is_empty() {
             for d in 0..state.len() {
-                self.boundary_work +=
-                    0.5 * (self.prev_reactions[d] + reactions[d]) * (state[d] - self.prev_state[d]);
+                if prescribed[d] {
+                    self.boundary_work += 0.5
+                        * (self.prev_reactions[d] + reactions[d])
+                        * (state[d] - self.prev_state[d]);
+                }
             }
         }
-        let potential = stored - electric;
-        let initial = *self.initial_potential.get_or_insert(potential);
-        let energy_error = potential - initial - self.boundary_work;
+        let total = kinetic + stored - electric + dissipated;
+        let initial = *self.initial_potential.get_or_insert(total);
+        let energy_error = total - initial - self.boundary_work;
         let voltages: Vec<(&[usize], f64)> = self
             .plan
             .electrodes
@@ -138,9 +153,12 @@ impl<'p> Recorder<'p> {
                 step,
                 voltage,
                 newton_iterations: iterations,
+                dt,
                 energies: Energies {
+                    kinetic,
                     stored,
                     electric,
+                    dissipated,
                     energy_error,
                     ..Default::default()
                 },
@@ -152,13 +170,14 @@ impl<'p> Recorder<'p> {
     }
 }
 
-/// Runs every stage of the plan. `newton` and the step control's minimum increment apply to all
-/// static stages.
+/// Runs every stage of the plan. `newton` applies to every stage.
 pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) -> RunSummary {
     let start = Instant::now();
     let mut model = plan.model.clone();
     let n_nodes = model.mesh.n_nodes();
     let mut state = vec![0.0; n_nodes * FIELDS];
+    let mut velocity = vec![0.0; n_nodes * FIELDS];
+    let mut acceleration = vec![0.0; n_nodes * FIELDS];
     let mut summary = RunSummary {
         converged: true,
         error: None,
@@ -175,38 +194,22 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         initial_potential: None,
     };
     let mut time = 0.0;
+    let mut dissipated = 0.0;
     for (si, stage) in plan.stages.iter().enumerate() {
         observer.stage_started(si, &stage.name);
         let stage_start = Instant::now();
         let t_end = time + stage.duration;
-        // targets at the end of the stage
-        let start_voltages: Vec<f64> = plan
-            .electrodes
-            .iter()
-            .map(|e| state[e.nodes[0] * FIELDS + 3])
-            .collect();
-        let targets: Vec<f64> = plan
-            .electrodes
-            .iter()
-            .map(|e| e.voltage.value(t_end))
-            .collect();
         model.dirichlet = plan.supports.clone();
-        for (e, &v) in plan.electrodes.iter().zip(&targets) {
+        for e in &plan.electrodes {
             model.dirichlet.push(Dirichlet {
                 nodes: e.nodes.clone(),
                 field: Field::Phi,
-                value: v,
+                value: e.voltage.value(t_end),
             });
         }
-        let voltage_at = |s: f64| -> f64 {
-            start_voltages
-                .iter()
-                .zip(&targets)
-                .map(|(a, b)| a + s * (b - a))
-                .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m })
-        };
+        let prescribed = constrained_flags(n_nodes, &model.dirichlet);
         if si == 0 {
-            match rec.record(&state, time, &stage.name, 0, 0) {
+            match rec.record(&state, &prescribed, time, &stage.name, 0, 0, 0.0, 0.0, 0.0) {
                 Ok((r, f)) => observer.step(plan, &r, &state, &f),
                 Err(e) => {
                     summary.converged = false;
@@ -215,68 +218,190 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                 }
             }
         }
-        let StageKind::Static { steps } = stage.kind;
-        let control = StepControl {
-            steps,
-            ..Default::default()
-        };
-        let mut step_no = 0;
-        let mut record_error: Option<String> = None;
-        let outcome = solve_static(&model, Some(state.clone()), &control, newton, |p, acc| {
-            step_no += 1;
-            let t = time + acc.load * stage.duration;
-            match rec.record(&p.state, t, &stage.name, step_no, acc.newton.iterations) {
-                Ok((r, f)) => observer.step(plan, &r, &p.state, &f),
-                Err(e) => {
-                    record_error.get_or_insert(e);
-                }
-            }
-        });
-        state = outcome.state;
         let mut stage_summary = StageSummary {
             name: stage.name.clone(),
-            kind: "static".into(),
-            steps: step_no,
+            kind: String::new(),
+            steps: 0,
             newton_iterations: 0,
-            wall_s: stage_start.elapsed().as_secs_f64(),
+            wall_s: 0.0,
             converged: true,
         };
-        match outcome.result {
-            Ok(r) => {
-                stage_summary.newton_iterations = r.newton_iterations;
-            }
-            Err(f) => {
-                stage_summary.newton_iterations = f.newton_iterations;
-                stage_summary.converged = false;
-                let v_last = voltage_at(f.last_converged);
-                let v_try = voltage_at(f.attempted);
-                let electric = start_voltages.iter().zip(&targets).any(|(a, b)| a != b);
-                let what = if f.limit_point && electric {
-                    "electromechanical instability (pull-in)"
-                } else if f.limit_point {
-                    "limit point (loss of stability)"
-                } else {
-                    "solve failed"
+        let mut record_error: Option<String> = None;
+        let failure: Option<String> = match stage.kind {
+            StageKind::Static { steps } => {
+                stage_summary.kind = "static".into();
+                velocity.iter_mut().for_each(|v| *v = 0.0);
+                acceleration.iter_mut().for_each(|v| *v = 0.0);
+                let start_voltages: Vec<f64> = plan
+                    .electrodes
+                    .iter()
+                    .map(|e| state[e.nodes[0] * FIELDS + 3])
+                    .collect();
+                let targets: Vec<f64> = plan
+                    .electrodes
+                    .iter()
+                    .map(|e| e.voltage.value(t_end))
+                    .collect();
+                let voltage_at = |s: f64| -> f64 {
+                    start_voltages
+                        .iter()
+                        .zip(&targets)
+                        .map(|(a, b)| a + s * (b - a))
+                        .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m })
                 };
-                summary.error = Some(format!(
-                    "{what} in stage `{}` at t = {:.6} s: no stable equilibrium beyond load factor {:.6} \
-                     (tried {:.6}); last converged voltage {:.2} V, failed at {:.2} V; last failure: {}",
-                    stage.name,
-                    time + f.last_converged * stage.duration,
-                    f.last_converged,
-                    f.attempted,
-                    v_last,
-                    v_try,
-                    f.reason
-                ));
-                summary.converged = false;
+                let control = StepControl {
+                    steps,
+                    ..Default::default()
+                };
+                let mut step_no = 0;
+                let mut last_load = 0.0;
+                let outcome =
+                    solve_static(&model, Some(state.clone()), &control, newton, |p, acc| {
+                        step_no += 1;
+                        let t = time + acc.load * stage.duration;
+                        let dt = (acc.load - last_load) * stage.duration;
+                        last_load = acc.load;
+                        match rec.record(
+                            &p.state,
+                            &prescribed,
+                            t,
+                            &stage.name,
+                            step_no,
+                            acc.newton.iterations,
+                            dt,
+                            0.0,
+                            dissipated,
+                        ) {
+                            Ok((r, f)) => observer.step(plan, &r, &p.state, &f),
+                            Err(e) => {
+                                record_error.get_or_insert(e);
+                            }
+                        }
+                    });
+                state = outcome.state;
+                stage_summary.steps = step_no;
+                match outcome.result {
+                    Ok(r) => {
+                        stage_summary.newton_iterations = r.newton_iterations;
+                        None
+                    }
+                    Err(f) => {
+                        stage_summary.newton_iterations = f.newton_iterations;
+                        let electric = start_voltages.iter().zip(&targets).any(|(a, b)| a != b);
+                        let what = if f.limit_point && electric {
+                            "electromechanical instability (pull-in)"
+                        } else if f.limit_point {
+                            "limit point (loss of stability)"
+                        } else {
+                            "solve failed"
+                        };
+                        Some(format!(
+                            "{what} in stage `{}` at t = {:.6} s: no stable equilibrium beyond load factor {:.6} \
+                             (tried {:.6}); last converged voltage {:.2} V, failed at {:.2} V; last failure: {}",
+                            stage.name,
+                            time + f.last_converged * stage.duration,
+                            f.last_converged,
+                            f.attempted,
+                            voltage_at(f.last_converged),
+                            voltage_at(f.attempted),
+                            f.reason
+                        ))
+                    }
+                }
             }
-        }
+            StageKind::Dynamic { dt, scheme } => {
+                stage_summary.kind = "dynamic".into();
+                let mass = NodalMass::new(&model, &plan.densities, MassKind::Consistent);
+                model.dirichlet = plan.supports.clone();
+                let inputs = DynamicInputs {
+                    mass: &mass,
+                    viscosity: plan.viscosities.clone(),
+                    body_force: vec![[0.0; 3]; plan.densities.len()],
+                    electrodes: plan
+                        .electrodes
+                        .iter()
+                        .map(|e| (e.nodes.clone(), e.voltage.clone()))
+                        .collect(),
+                };
+                let settings = DynamicSettings {
+                    duration: stage.duration,
+                    dt,
+                    scheme,
+                    min_fraction: 1.0 / 1024.0,
+                    easy_iterations: 6,
+                };
+                let start_level = TimeLevel {
+                    t: time,
+                    q: state.clone(),
+                    v: velocity.clone(),
+                    a: acceleration.clone(),
+                };
+                let mut step_no = 0;
+                let mut mv = vec![0.0; state.len()];
+                let outcome = run_dynamic(
+                    &model,
+                    &inputs,
+                    start_level,
+                    &settings,
+                    newton,
+                    |level, info| {
+                        step_no += 1;
+                        dissipated += info.dissipated;
+                        mass.mul(&level.v, &mut mv);
+                        let kinetic =
+                            0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
+                        match rec.record(
+                            &level.q,
+                            &prescribed,
+                            level.t,
+                            &stage.name,
+                            step_no,
+                            info.newton_iterations,
+                            info.dt,
+                            kinetic,
+                            dissipated,
+                        ) {
+                            Ok((r, f)) => observer.step(plan, &r, &level.q, &f),
+                            Err(e) => {
+                                record_error.get_or_insert(e);
+                            }
+                        }
+                    },
+                );
+                stage_summary.steps = step_no;
+                let (level, failure) = match outcome {
+                    Ok((level, its)) => {
+                        stage_summary.newton_iterations = its;
+                        (level, None)
+                    }
+                    Err((level, f)) => {
+                        stage_summary.newton_iterations = f.newton_iterations;
+                        (
+                            level,
+                            Some(format!(
+                                "dynamic stage `{}` stopped at t = {:.6e} s: {}",
+                                stage.name, f.t, f.reason
+                            )),
+                        )
+                    }
+                };
+                state = level.q;
+                velocity = level.v;
+                acceleration = level.a;
+                failure
+            }
+        };
+        stage_summary.wall_s = stage_start.elapsed().as_secs_f64();
         if let Some(e) = record_error {
             summary.warnings.push(format!(
                 "stage `{}`: output evaluation failed: {e}",
                 stage.name
             ));
+        }
+        if let Some(f) = failure {
+            stage_summary.converged = false;
+            summary.converged = false;
+            summary.error = Some(f);
         }
         summary.stages.push(stage_summary);
         if !summary.converged {

@@ -27,20 +27,27 @@ pub struct StaticProblem<'m> {
     floor: f64,
 }
 
+/// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
+/// absolute residual floor (N) of a model.
+pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
+    let n_nodes = model.mesh.n_nodes();
+    let flags = constrained_flags(n_nodes, &model.dirichlet);
+    let dofs = DofMap::new(n_nodes, &flags, model.potential_scale());
+    let assembler = Assembler::new(&model.mesh, &dofs);
+    let mu = model
+        .materials
+        .iter()
+        .map(|m| m.shear_modulus())
+        .fold(0.0, f64::max);
+    let h = model.cell_size();
+    (dofs, assembler, RESIDUAL_FLOOR * mu * h * h)
+}
+
 impl<'m> StaticProblem<'m> {
     /// Sets up the problem starting from `state` (zero when `None`).
     pub fn new(model: &'m Model, state: Option<Vec<f64>>) -> Self {
-        let n_nodes = model.mesh.n_nodes();
-        let flags = constrained_flags(n_nodes, &model.dirichlet);
-        let dofs = DofMap::new(n_nodes, &flags, model.potential_scale());
-        let assembler = Assembler::new(&model.mesh, &dofs);
-        let state = state.unwrap_or_else(|| vec![0.0; n_nodes * FIELDS]);
-        let mu = model
-            .materials
-            .iter()
-            .map(|m| m.shear_modulus())
-            .fold(0.0, f64::max);
-        let h = model.cell_size();
+        let (dofs, assembler, floor) = discretize(model);
+        let state = state.unwrap_or_else(|| vec![0.0; model.mesh.n_nodes() * FIELDS]);
         StaticProblem {
             model,
             dofs,
@@ -48,7 +55,7 @@ impl<'m> StaticProblem<'m> {
             start: state.clone(),
             state,
             cell_energy: Vec::new(),
-            floor: RESIDUAL_FLOOR * mu * h * h,
+            floor,
         }
     }
 

@@ -8,6 +8,7 @@ use crate::dofs::Field;
 use crate::material::{ElectroNeoHooke, Material, EPSILON_0};
 use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
 use crate::model::Model;
+use crate::time::integrator::Scheme;
 use crate::waveform::{FourierBase, Shape, Waveform};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -31,6 +32,18 @@ pub struct Electrode {
 pub enum StageKind {
     /// Load steps from the previous state to the targets at the end of the stage.
     Static { steps: usize },
+    /// Time integration with nominal step `dt` (s).
+    Dynamic { dt: f64, scheme: Scheme },
+}
+
+impl StageKind {
+    /// Nominal number of steps of a stage of this kind lasting `duration`.
+    pub fn nominal_steps(&self, duration: f64) -> usize {
+        match self {
+            StageKind::Static { steps } => *steps,
+            StageKind::Dynamic { dt, .. } => (duration / dt - 1e-9).ceil().max(1.0) as usize,
+        }
+    }
 }
 
 /// A stage of the plan.
@@ -61,6 +74,10 @@ pub struct Plan {
     pub stages: Vec<Stage>,
     pub probes: Vec<(String, Probe)>,
     pub output: OutputPlan,
+    /// Mass density (kg/m³) of each material, in `model.materials` order.
+    pub densities: Vec<f64>,
+    /// Kelvin–Voigt viscosity (Pa·s) of each material.
+    pub viscosities: Vec<f64>,
 }
 
 struct Ctx<'a> {
@@ -621,6 +638,16 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             build_probe(&ctx, &key, p, &model, &electrodes)?,
         ));
     }
+    let densities = s
+        .materials
+        .values()
+        .map(|m| m.density.unwrap_or(0.0))
+        .collect();
+    let viscosities = s
+        .materials
+        .values()
+        .map(|m| m.viscosity.unwrap_or(0.0))
+        .collect();
     let o = &s.output;
     if !["png", "svg"].contains(&o.plot_format.as_str()) {
         return Err(ctx.err(
@@ -640,6 +667,8 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             plots: o.plots,
             plot_format: o.plot_format.clone(),
         },
+        densities,
+        viscosities,
     })
 }
 

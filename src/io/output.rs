@@ -80,7 +80,7 @@ impl OutputWriter {
         for (name, _) in &plan.probes {
             s.push_str(&format!(",probe:{name}"));
         }
-        s.push('\n');
+        s.push_str(",dt\n");
         for r in records {
             let e = &r.energies;
             let mut row = vec![
@@ -97,6 +97,7 @@ impl OutputWriter {
                 csv_number(e.energy_error),
             ];
             row.extend(r.probes.iter().map(|&v| csv_number(v)));
+            row.push(csv_number(r.dt));
             s.push_str(&row.join(","));
             s.push('\n');
         }

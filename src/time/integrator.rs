@@ -1,0 +1,433 @@
+//! One time step of the coupled problem, as a nonlinear system for Newton.
+//!
+//! **Midpoint variational integrator** (PHYSICS.md §2.1): the discrete Lagrangian
+//! L_d = Δt·L(q_{n+½}, (q_{n+1} − q_n)/Δt) with Kelvin–Voigt forces through the discrete
+//! Lagrange–d'Alembert principle gives, in position–velocity form (p = M v),
+//!   R_u = M(v̄ − v_n) + (Δt/2)[∇_u V(q_{n+½}) − f_vis(q_{n+½}, v̄) − f_ext] = 0,   v̄ = (q_{n+1} − q_n)/Δt,
+//!   R_Φ = (Δt/2) ∇_Φ V(q_{n+½}) = 0   (Gauss's law at the midpoint; electrodes at V(t_{n+½})),
+//!   v_{n+1} = 2v̄ − v_n.
+//! The tangent M/Δt + (Δt/4)K_T + ½∂f_vis/∂v is symmetric. After each step the potential is
+//! re-projected onto electrostatic equilibrium at q_{n+1} (see `stage.rs`), so that end-point
+//! energies and charges are those of the reduced Lagrangian V(u, Φ*(u)).
+//!
+//! **Newmark** (β, γ; the conventional reference): Gauss's law and the electrodes at t_{n+1},
+//!   R = βΔt²[M a_{n+1} + ∇V(q_{n+1}) + f_vis(q_{n+1}, v_{n+1}) − f_ext],
+//! tangent M + βΔt² K_T + γΔt ∂f_vis/∂v.
+
+use crate::analysis::statics::discretize;
+use crate::assembly::{Assembler, CsrMatrix};
+use crate::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::element::{cell_residual_tangent, cell_viscous, MAX_LOCAL};
+use crate::model::Model;
+use crate::solve::newton::NonlinearSystem;
+use crate::time::mass::NodalMass;
+
+/// A time integration scheme.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Scheme {
+    /// Midpoint variational integrator (symplectic, momentum preserving).
+    Midpoint,
+    /// Newmark with parameters β, γ (β = 1/4, γ = 1/2: the trapezoidal rule).
+    Newmark { beta: f64, gamma: f64 },
+}
+
+impl Scheme {
+    /// Name for messages and files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scheme::Midpoint => "midpoint",
+            Scheme::Newmark { .. } => "newmark",
+        }
+    }
+}
+
+/// The state at a time level: positions q (u in m, Φ in V, 4 per node), velocities and
+/// accelerations of the displacements (4 per node, potential entries unused).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TimeLevel {
+    pub t: f64,
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+    pub a: Vec<f64>,
+}
+
+/// One step from `prev` to `prev.t + dt`, the unknown being q_{n+1}.
+pub struct TimeStep<'m> {
+    model: &'m Model,
+    pub dofs: DofMap,
+    assembler: Assembler,
+    mass: &'m NodalMass,
+    /// Kelvin–Voigt viscosity of each material (Pa·s).
+    viscosity: Vec<f64>,
+    /// Body force per reference volume of each material (N/m³), e.g. ρ₀g.
+    body_force: Vec<[f64; 3]>,
+    scheme: Scheme,
+    pub prev: TimeLevel,
+    /// The iterate q_{n+1}.
+    pub q: Vec<f64>,
+    pub dt: f64,
+    floor: f64,
+    /// (tangent position, mass value index, mass row node, mass column node) of every free u–u
+    /// mass coupling, to add M to the tangent without searching.
+    mass_map: Vec<(usize, usize)>,
+    mass_map_built: bool,
+    work_q: Vec<f64>,
+    work_v: Vec<f64>,
+    work_m: Vec<f64>,
+    cell_energy: Vec<f64>,
+}
+
+impl<'m> TimeStep<'m> {
+    /// Sets up the step operator for a model whose Dirichlet conditions hold the constrained dofs.
+    pub fn new(
+        model: &'m Model,
+        mass: &'m NodalMass,
+        viscosity: Vec<f64>,
+        body_force: Vec<[f64; 3]>,
+        scheme: Scheme,
+        start: TimeLevel,
+    ) -> Self {
+        let (dofs, assembler, floor) = discretize(model);
+        let n = start.q.len();
+        TimeStep {
+            model,
+            dofs,
+            assembler,
+            mass,
+            viscosity,
+            body_force,
+            scheme,
+            q: start.q.clone(),
+            prev: start,
+            dt: 0.0,
+            floor,
+            mass_map: Vec::new(),
+            mass_map_built: false,
+            work_q: vec![0.0; n],
+            work_v: vec![0.0; n],
+            work_m: vec![0.0; n],
+            cell_energy: Vec::new(),
+        }
+    }
+
+    /// Prepares the step to `prev.t + dt`: prescribed potentials `phi_d(t)` on the electrode nodes
+    /// (midpoint: set so that the midpoint potential equals the voltage at t_{n+½}), and the
+    /// predictor q_{n+1} = q_n + Δt v_n.
+    pub fn begin(&mut self, dt: f64, electrodes: &[(&[usize], f64, f64)]) {
+        self.dt = dt;
+        let n_nodes = self.q.len() / FIELDS;
+        for node in 0..n_nodes {
+            for i in 0..3 {
+                let d = node * FIELDS + i;
+                self.q[d] = if self.dofs.eq[d] == CONSTRAINED {
+                    self.prev.q[d]
+                } else {
+                    self.prev.q[d] + dt * self.prev.v[d]
+                };
+            }
+            self.q[node * FIELDS + PHI] = self.prev.q[node * FIELDS + PHI];
+        }
+        // electrodes: (nodes, voltage at t_{n+½}, voltage at t_{n+1})
+        for (nodes, v_mid, v_end) in electrodes {
+            for &node in nodes.iter() {
+                let d = node * FIELDS + PHI;
+                self.q[d] = match self.scheme {
+                    Scheme::Midpoint => 2.0 * v_mid - self.prev.q[d],
+                    Scheme::Newmark { .. } => *v_end,
+                };
+            }
+        }
+    }
+
+    /// The time level reached by the converged iterate (potential not yet re-projected).
+    pub fn end_level(&self) -> TimeLevel {
+        let dt = self.dt;
+        let mut v = self.prev.v.clone();
+        let mut a = self.prev.a.clone();
+        for d in 0..self.q.len() {
+            if d % FIELDS == PHI {
+                continue;
+            }
+            match self.scheme {
+                Scheme::Midpoint => {
+                    let vbar = (self.q[d] - self.prev.q[d]) / dt;
+                    v[d] = 2.0 * vbar - self.prev.v[d];
+                }
+                Scheme::Newmark { beta, gamma } => {
+                    let an = (self.q[d] - self.prev.q[d] - dt * self.prev.v[d]) / (beta * dt * dt)
+                        - (0.5 / beta - 1.0) * self.prev.a[d];
+                    v[d] = self.prev.v[d] + dt * ((1.0 - gamma) * self.prev.a[d] + gamma * an);
+                    a[d] = an;
+                }
+            }
+        }
+        TimeLevel {
+            t: self.prev.t + dt,
+            q: self.q.clone(),
+            v,
+            a,
+        }
+    }
+
+    /// The configuration where forces are evaluated and the velocity of the viscous forces.
+    fn evaluation_point(&mut self) {
+        let dt = self.dt;
+        for d in 0..self.q.len() {
+            match self.scheme {
+                Scheme::Midpoint => {
+                    self.work_q[d] = 0.5 * (self.prev.q[d] + self.q[d]);
+                    self.work_v[d] = (self.q[d] - self.prev.q[d]) / dt;
+                }
+                Scheme::Newmark { beta, gamma } => {
+                    self.work_q[d] = self.q[d];
+                    let an = (self.q[d] - self.prev.q[d] - dt * self.prev.v[d]) / (beta * dt * dt)
+                        - (0.5 / beta - 1.0) * self.prev.a[d];
+                    self.work_v[d] =
+                        self.prev.v[d] + dt * ((1.0 - gamma) * self.prev.a[d] + gamma * an);
+                }
+            }
+        }
+    }
+
+    /// Dissipation power ∫ Jη d:d dV (W) at the evaluation point of the current iterate.
+    pub fn dissipation_power(&mut self) -> Result<f64, String> {
+        self.evaluation_point();
+        let mut total = 0.0;
+        let mut r = vec![0.0; MAX_LOCAL];
+        let (qv, vv) = (&self.work_q, &self.work_v);
+        let model = self.model;
+        let mut vel = vec![0.0; MAX_LOCAL];
+        model.for_each_cell(qv, |c, g, _, local| {
+            let eta = self.viscosity[model.cell_material[c]];
+            if eta == 0.0 {
+                return Ok::<(), String>(());
+            }
+            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                vel[a * FIELDS..(a + 1) * FIELDS]
+                    .copy_from_slice(&vv[node * FIELDS..(node + 1) * FIELDS]);
+            }
+            total += cell_viscous(g, eta, local, &vel[..local.len()], &mut r, None)
+                .map_err(|e| format!("cell {c}: {}", e.error))?;
+            Ok(())
+        })?;
+        Ok(total)
+    }
+
+    /// Internal, viscous and body forces f_int + f_vis − f_ext at configuration `q` and velocity
+    /// `v` (N, 4 per node; potential entries are ∂Π/∂Φ), all dofs.
+    pub fn forces_at(&mut self, q: &[f64], v: &[f64]) -> Result<Vec<f64>, String> {
+        let model = self.model;
+        let mut out = vec![0.0; q.len()];
+        let mut r = vec![0.0; MAX_LOCAL];
+        let mut rv = vec![0.0; MAX_LOCAL];
+        let mut vel = vec![0.0; MAX_LOCAL];
+        model.for_each_cell(q, |c, g, mat, local| {
+            let nl = local.len();
+            cell_residual_tangent(g, mat, local, &mut r, None)
+                .map_err(|e| format!("cell {c}: {}", e.error))?;
+            let m = model.cell_material[c];
+            let eta = self.viscosity[m];
+            rv[..nl].iter_mut().for_each(|x| *x = 0.0);
+            if eta > 0.0 {
+                for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                    vel[a * FIELDS..(a + 1) * FIELDS]
+                        .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
+                }
+                cell_viscous(g, eta, local, &vel[..nl], &mut rv, None)
+                    .map_err(|e| format!("cell {c}: {}", e.error))?;
+            }
+            let b = self.body_force[m];
+            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                for f in 0..FIELDS {
+                    out[node * FIELDS + f] += r[a * FIELDS + f] + rv[a * FIELDS + f];
+                }
+                for qp in 0..g.n_qp {
+                    for i in 0..3 {
+                        out[node * FIELDS + i] -= g.weights[qp] * model.reference.n[qp][a] * b[i];
+                    }
+                }
+            }
+            Ok::<(), String>(())
+        })?;
+        Ok(out)
+    }
+
+    fn build_mass_map(&mut self, k: &CsrMatrix) {
+        let m = self.mass;
+        self.mass_map.clear();
+        for a in 0..m.row_ptr.len() - 1 {
+            for p in m.row_ptr[a]..m.row_ptr[a + 1] {
+                let b = m.col_idx[p];
+                for i in 0..3 {
+                    let (ea, eb) = (self.dofs.eq[a * FIELDS + i], self.dofs.eq[b * FIELDS + i]);
+                    if ea != CONSTRAINED && eb != CONSTRAINED {
+                        if let Some(pos) = k.position(ea, eb) {
+                            self.mass_map.push((pos, p));
+                        }
+                    }
+                }
+            }
+        }
+        self.mass_map_built = true;
+    }
+}
+
+impl NonlinearSystem for TimeStep<'_> {
+    fn n(&self) -> usize {
+        self.dofs.n_free
+    }
+
+    fn evaluate(&mut self, r: &mut [f64], mut k: Option<&mut CsrMatrix>) -> Result<(), String> {
+        self.evaluation_point();
+        let dt = self.dt;
+        // factors of the internal forces, their stiffness, and the viscous velocity derivative
+        let (f_r, f_k, f_v) = match self.scheme {
+            Scheme::Midpoint => (0.5 * dt, 0.25 * dt, 0.5),
+            Scheme::Newmark { beta, gamma } => (beta * dt * dt, beta * dt * dt, gamma * dt),
+        };
+        let model = self.model;
+        let npc = model.mesh.kind.nodes_per_cell();
+        let (viscosity, body, vel_all) = (&self.viscosity, &self.body_force, &self.work_v);
+        let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
+            let mut x = [[0.0; 3]; crate::fem::MAX_NODES];
+            model.mesh.cell_coords_into(c, &mut x[..npc]);
+            let g = model
+                .reference
+                .geometry(&x[..npc])
+                .map_err(|e| format!("degenerate cell (Jacobian {:e})", e.det))?;
+            let mat = model.cell_material[c];
+            let nl = npc * FIELDS;
+            let mut kl = kl;
+            let e = cell_residual_tangent(
+                &g,
+                model.materials[mat].as_ref(),
+                local,
+                rl,
+                kl.as_deref_mut(),
+            )
+            .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
+            rl[..nl].iter_mut().for_each(|v| *v *= f_r);
+            if let Some(kl) = kl.as_deref_mut() {
+                kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
+            }
+            let b = body[mat];
+            if b != [0.0; 3] {
+                // consistent body force −∫ N_a b dV on the residual
+                for q in 0..g.n_qp {
+                    for a in 0..npc {
+                        let w = f_r * g.weights[q] * model.reference.n[q][a];
+                        for i in 0..3 {
+                            rl[a * FIELDS + i] -= w * b[i];
+                        }
+                    }
+                }
+            }
+            let eta = viscosity[mat];
+            if eta > 0.0 {
+                let mut vel = [0.0; MAX_LOCAL];
+                for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                    vel[a * FIELDS..(a + 1) * FIELDS]
+                        .copy_from_slice(&vel_all[node * FIELDS..(node + 1) * FIELDS]);
+                }
+                let mut rv = [0.0; MAX_LOCAL];
+                let mut kv = kl.as_ref().map(|_| vec![0.0; nl * nl]);
+                cell_viscous(&g, eta, local, &vel[..nl], &mut rv, kv.as_deref_mut())
+                    .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
+                for i in 0..nl {
+                    rl[i] += f_r * rv[i];
+                }
+                if let (Some(kl), Some(kv)) = (kl.as_deref_mut(), kv) {
+                    for i in 0..nl * nl {
+                        kl[i] += f_v * kv[i];
+                    }
+                }
+            }
+            Ok::<f64, String>(e)
+        };
+        let (q_eval, dofs) = (&self.work_q, &self.dofs);
+        self.assembler
+            .assemble(
+                &model.mesh,
+                dofs,
+                q_eval,
+                kernel,
+                r,
+                k.as_deref_mut(),
+                &mut self.cell_energy,
+            )
+            .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        // inertia: midpoint M(v̄ − v_n); Newmark βΔt² M a_{n+1}
+        for d in 0..self.q.len() {
+            self.work_m[d] = if d % FIELDS == PHI {
+                0.0
+            } else {
+                match self.scheme {
+                    Scheme::Midpoint => self.work_v[d] - self.prev.v[d],
+                    Scheme::Newmark { beta, .. } => {
+                        self.q[d]
+                            - self.prev.q[d]
+                            - dt * self.prev.v[d]
+                            - beta * dt * dt * (0.5 / beta - 1.0) * self.prev.a[d]
+                    }
+                }
+            };
+        }
+        let mut mv = vec![0.0; self.q.len()];
+        self.mass.mul(&self.work_m, &mut mv);
+        for (d, &e) in self.dofs.eq.iter().enumerate() {
+            if e != CONSTRAINED && d % FIELDS != PHI {
+                r[e] += mv[d];
+            }
+        }
+        if let Some(k) = k {
+            if !self.mass_map_built {
+                self.build_mass_map(k);
+            }
+            let factor = match self.scheme {
+                Scheme::Midpoint => 1.0 / dt,
+                Scheme::Newmark { .. } => 1.0,
+            };
+            for &(pos, p) in &self.mass_map {
+                k.values[pos] += factor * self.mass.values[p];
+            }
+        }
+        Ok(())
+    }
+
+    fn increment(&mut self, dx: &[f64], alpha: f64) {
+        self.dofs.add_scaled(&mut self.q, dx, alpha);
+    }
+
+    fn snapshot(&self) -> Vec<f64> {
+        self.q.clone()
+    }
+
+    fn restore(&mut self, s: &[f64]) {
+        self.q.copy_from_slice(s);
+    }
+
+    fn new_matrix(&self) -> CsrMatrix {
+        self.assembler.new_matrix()
+    }
+
+    fn expected_negative_pivots(&self) -> usize {
+        self.dofs.n_free_phi
+    }
+
+    fn residual_floor(&self) -> f64 {
+        // the residual carries the factor of the internal forces
+        let f = match self.scheme {
+            Scheme::Midpoint => 0.5 * self.dt,
+            Scheme::Newmark { beta, .. } => beta * self.dt * self.dt,
+        };
+        self.floor * f.max(1e-300)
+    }
+
+    fn groups(&self) -> Vec<u8> {
+        self.dofs
+            .field_of_equation()
+            .into_iter()
+            .map(|f| u8::from(f == PHI))
+            .collect()
+    }
+}

@@ -1,0 +1,281 @@
+//! The driver of a dynamic stage: steps from t₀ to t₀ + duration with the chosen scheme, halving
+//! the step on failure (Newton divergence, J ≤ 0, singular tangent) and growing it back after easy
+//! steps, never past the stage end; after each midpoint step the potential is re-projected onto
+//! electrostatic equilibrium at the new configuration.
+
+use super::integrator::{Scheme, TimeLevel, TimeStep};
+use super::mass::NodalMass;
+use crate::analysis::statics::StaticProblem;
+use crate::dofs::{Dirichlet, Field, FIELDS, PHI};
+use crate::model::Model;
+use crate::solve::linear::{FaerLdlt, LinearSolver};
+use crate::solve::newton::{newton, NewtonSettings};
+use crate::waveform::Waveform;
+
+/// Settings of a dynamic stage.
+#[derive(Debug, Clone)]
+pub struct DynamicSettings {
+    pub duration: f64,
+    /// Nominal (largest) time step (s).
+    pub dt: f64,
+    pub scheme: Scheme,
+    /// Smallest step as a fraction of the nominal one.
+    pub min_fraction: f64,
+    /// Newton iterations at or below which the step grows back (doubles).
+    pub easy_iterations: usize,
+}
+
+/// An accepted step.
+#[derive(Debug, Clone)]
+pub struct DynamicStepInfo {
+    pub dt: f64,
+    pub newton_iterations: usize,
+    /// Energy dissipated by viscosity during the step (J).
+    pub dissipated: f64,
+}
+
+/// The stage stopped before its end.
+#[derive(Debug, Clone)]
+pub struct DynamicFailure {
+    /// Time of the last accepted state (the state returned).
+    pub t: f64,
+    pub reason: String,
+    pub newton_iterations: usize,
+}
+
+/// Everything a dynamic stage needs besides the model.
+pub struct DynamicInputs<'a> {
+    pub mass: &'a NodalMass,
+    pub viscosity: Vec<f64>,
+    pub body_force: Vec<[f64; 3]>,
+    pub electrodes: Vec<(Vec<usize>, Waveform)>,
+}
+
+/// Runs the stage from `start`; `model.dirichlet` holds the displacement supports (the electrode
+/// conditions are added here). Calls `on_step` after every accepted step with the new level, whose
+/// potential is in electrostatic equilibrium. Returns the final level, or the failure together
+/// with the last accepted level.
+pub fn run_dynamic(
+    model: &Model,
+    inputs: &DynamicInputs,
+    start: TimeLevel,
+    settings: &DynamicSettings,
+    newton_settings: &NewtonSettings,
+    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
+    let mut step_model = model.clone();
+    for (nodes, w) in &inputs.electrodes {
+        step_model.dirichlet.push(Dirichlet {
+            nodes: nodes.clone(),
+            field: Field::Phi,
+            value: w.value(start.t),
+        });
+    }
+    // electrostatic projection: every displacement held, the potential free except at electrodes
+    let mut proj_model = step_model.clone();
+    let all: Vec<usize> = (0..model.mesh.n_nodes()).collect();
+    proj_model.dirichlet = [Field::Ux, Field::Uy, Field::Uz]
+        .into_iter()
+        .map(|field| Dirichlet {
+            nodes: all.clone(),
+            field,
+            value: 0.0,
+        })
+        .chain(
+            step_model
+                .dirichlet
+                .iter()
+                .filter(|d| d.field == Field::Phi)
+                .cloned(),
+        )
+        .collect();
+    let mut projector = StaticProblem::new(&proj_model, Some(start.q.clone()));
+    let mut proj_solver = FaerLdlt::new();
+    let mut proj_k = crate::solve::newton::NonlinearSystem::new_matrix(&projector);
+    let proj_settings = NewtonSettings {
+        check_stability: false,
+        ..newton_settings.clone()
+    };
+
+    let mut start = start;
+    if let Scheme::Newmark { .. } = settings.scheme {
+        // consistent initial state: Φ in equilibrium at t₀ and M a₀ = f_ext − f_int − f_vis
+        project(
+            &mut projector,
+            &mut proj_solver,
+            &mut proj_k,
+            &proj_settings,
+            &mut start.q,
+            inputs,
+            start.t,
+            model.mesh.n_nodes(),
+        )
+        .map_err(|e| {
+            (
+                start.clone(),
+                DynamicFailure {
+                    t: start.t,
+                    reason: e,
+                    newton_iterations: 0,
+                },
+            )
+        })?;
+        let mut probe = TimeStep::new(
+            &step_model,
+            inputs.mass,
+            inputs.viscosity.clone(),
+            inputs.body_force.clone(),
+            Scheme::Midpoint,
+            start.clone(),
+        );
+        let forces = probe.forces_at(&start.q, &start.v).map_err(|e| {
+            (
+                start.clone(),
+                DynamicFailure {
+                    t: start.t,
+                    reason: e,
+                    newton_iterations: 0,
+                },
+            )
+        })?;
+        let free: Vec<bool> = probe
+            .dofs
+            .eq
+            .iter()
+            .map(|&e| e != crate::dofs::CONSTRAINED)
+            .collect();
+        let rhs: Vec<f64> = forces.iter().map(|f| -f).collect();
+        start.a = inputs.mass.solve(&rhs, &free, 1e-12);
+    }
+    let mut step = TimeStep::new(
+        &step_model,
+        inputs.mass,
+        inputs.viscosity.clone(),
+        inputs.body_force.clone(),
+        settings.scheme,
+        start,
+    );
+    let mut solver = FaerLdlt::new();
+    let mut k = crate::solve::newton::NonlinearSystem::new_matrix(&step);
+    let t_end = step.prev.t + settings.duration;
+    let min_dt = settings.dt * settings.min_fraction;
+    let mut dt = settings.dt;
+    let mut total_iterations = 0;
+    let step_settings = NewtonSettings {
+        check_stability: false,
+        ..newton_settings.clone()
+    };
+    while step.prev.t < t_end - 1e-12 * settings.duration {
+        let h = dt.min(t_end - step.prev.t);
+        let t0 = step.prev.t;
+        let voltages: Vec<(&[usize], f64, f64)> = inputs
+            .electrodes
+            .iter()
+            .map(|(n, w)| (n.as_slice(), w.value(t0 + 0.5 * h), w.value(t0 + h)))
+            .collect();
+        step.begin(h, &voltages);
+        let result = newton(
+            &mut step,
+            &mut solver as &mut dyn LinearSolver,
+            &mut k,
+            &step_settings,
+        );
+        let failure = match result {
+            Ok(rep) => {
+                total_iterations += rep.iterations;
+                let dissipated = match step.dissipation_power() {
+                    Ok(p) => p * h,
+                    Err(e) => {
+                        return Err((
+                            step.prev.clone(),
+                            DynamicFailure {
+                                t: t0,
+                                reason: e,
+                                newton_iterations: total_iterations,
+                            },
+                        ))
+                    }
+                };
+                let mut level = step.end_level();
+                if settings.scheme == Scheme::Midpoint {
+                    // Gauss's law at t_{n+1}: solve for the potential with u_{n+1} held
+                    let t1 = level.t;
+                    if let Err(e) = project(
+                        &mut projector,
+                        &mut proj_solver,
+                        &mut proj_k,
+                        &proj_settings,
+                        &mut level.q,
+                        inputs,
+                        t1,
+                        model.mesh.n_nodes(),
+                    ) {
+                        return Err((
+                            step.prev.clone(),
+                            DynamicFailure {
+                                t: t0,
+                                reason: e,
+                                newton_iterations: total_iterations,
+                            },
+                        ));
+                    }
+                }
+                let info = DynamicStepInfo {
+                    dt: h,
+                    newton_iterations: rep.iterations,
+                    dissipated,
+                };
+                on_step(&level, &info);
+                step.q = level.q.clone();
+                step.prev = level;
+                if rep.iterations <= settings.easy_iterations {
+                    dt = (2.0 * dt).min(settings.dt);
+                }
+                continue;
+            }
+            Err(e) => e.to_string(),
+        };
+        // cut back
+        step.q = step.prev.q.clone();
+        dt = 0.5 * h;
+        if dt < min_dt {
+            return Err((
+                step.prev.clone(),
+                DynamicFailure {
+                    t: t0,
+                    reason: format!("time step fell below {min_dt:e} s at t = {t0:.6e} s; last failure: {failure}"),
+                    newton_iterations: total_iterations,
+                },
+            ));
+        }
+    }
+    Ok((step.prev, total_iterations))
+}
+
+/// Puts the potential of `q` into electrostatic equilibrium at fixed displacements, with the
+/// electrodes at their voltages at time `t`.
+#[allow(clippy::too_many_arguments)]
+fn project(
+    projector: &mut StaticProblem,
+    solver: &mut FaerLdlt,
+    k: &mut crate::assembly::CsrMatrix,
+    settings: &NewtonSettings,
+    q: &mut [f64],
+    inputs: &DynamicInputs,
+    t: f64,
+    n_nodes: usize,
+) -> Result<(), String> {
+    projector.state.copy_from_slice(q);
+    for (nodes, w) in &inputs.electrodes {
+        let v = w.value(t);
+        for &node in nodes {
+            projector.state[node * FIELDS + PHI] = v;
+        }
+    }
+    newton(projector, solver as &mut dyn LinearSolver, k, settings)
+        .map_err(|e| format!("electrostatic projection: {e}"))?;
+    for node in 0..n_nodes {
+        q[node * FIELDS + PHI] = projector.state[node * FIELDS + PHI];
+    }
+    Ok(())
+}
