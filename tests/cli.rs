@@ -388,3 +388,68 @@ fn bad_inputs_exit_2_with_a_message() {
     assert_eq!(missing.status.code(), Some(2));
     assert!(stderr(&missing).contains("nonexistent.toml"));
 }
+
+/// The `film-vibration` example: at least 500 steps over at least five periods of the breathing
+/// mode; undamped it oscillates about the static 20 kV state with kinetic + stored − electric
+/// conserved; with `--set materials.elastomer.viscosity=100` it settles on the static state
+/// (λ = 1.033231, PHYSICS.md §6.1) and dissipates energy.
+#[test]
+fn film_vibration_runs_undamped_and_damped() {
+    let dir = tempdir("vibration");
+    std::fs::write(
+        dir.join("v.toml"),
+        deasim(&["example", "film-vibration"], &dir).stdout,
+    )
+    .unwrap();
+    let out = deasim(&["run", "v.toml", "--out", "u"], &dir);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let (header, rows) = history(&dir.join("u"));
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    assert!(rows.len() > 500, "{} rows", rows.len());
+    assert!(header.contains(&"dt".to_string()));
+    let value = |r: &Vec<String>, c: &str| r[col(c)].parse::<f64>().unwrap();
+    let stretch: Vec<f64> = rows[1..]
+        .iter()
+        .map(|r| value(r, "probe:inplane_stretch"))
+        .collect();
+    let times: Vec<f64> = rows[1..].iter().map(|r| value(r, "time")).collect();
+    let mean = stretch.iter().sum::<f64>() / stretch.len() as f64;
+    let upcrossings = stretch
+        .windows(2)
+        .filter(|w| w[0] < mean && w[1] >= mean)
+        .count();
+    assert!(upcrossings >= 5, "{upcrossings} periods");
+    assert!(
+        (mean - 1.033231).abs() < 0.005,
+        "oscillates about the static state: mean {mean}"
+    );
+    assert!((times.last().unwrap() - 0.01).abs() < 1e-12);
+    let energy: Vec<f64> = rows[1..]
+        .iter()
+        .map(|r| value(r, "kinetic") + value(r, "stored") - value(r, "electric"))
+        .collect();
+    let spread = energy.iter().fold(f64::MIN, |a, &b| a.max(b))
+        - energy.iter().fold(f64::MAX, |a, &b| a.min(b));
+    assert!(
+        spread < 1e-4 * energy[0].abs(),
+        "conserved: spread {spread:e} of {:e}",
+        energy[0]
+    );
+    let damped = deasim(
+        &[
+            "run",
+            "v.toml",
+            "--out",
+            "d",
+            "--set",
+            "materials.elastomer.viscosity=100",
+        ],
+        &dir,
+    );
+    assert_eq!(damped.status.code(), Some(0), "{}", stderr(&damped));
+    let (_, rows) = history(&dir.join("d"));
+    let last = rows.last().unwrap();
+    assert!((value(last, "probe:inplane_stretch") - 1.033231).abs() < 1e-5);
+    assert!(value(last, "dissipated") > 0.0);
+    assert!(value(last, "kinetic") < 1e-12);
+}

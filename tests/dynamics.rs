@@ -37,6 +37,7 @@ struct Run {
     dissipated: Vec<f64>,
 }
 
+#[allow(clippy::too_many_arguments)]
 fn simulate(
     model: &Model,
     top: &[usize],
@@ -109,9 +110,6 @@ fn energy_band(e: &[f64]) -> f64 {
 #[test]
 fn energy_is_conserved_without_drift() {
     let (mut model, bottom, top) = block(false);
-    for n in &top {
-        let _ = n;
-    }
     model.dirichlet.push(Dirichlet {
         nodes: bottom.clone(),
         field: Field::Phi,

@@ -602,10 +602,60 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
                 }
             }
             "dynamic" => {
-                return Err(ctx.err(
-                    format!("{key}.kind"),
-                    "dynamic stages are not available in this version (only `static`)",
-                ))
+                let duration = st.duration.ok_or_else(|| {
+                    ctx.err(
+                        format!("{key}.duration"),
+                        "missing: dynamic stages need a duration in s",
+                    )
+                })?;
+                let dt = ctx.positive(&format!("{key}.dt"), st.dt, "time step in s")?;
+                if dt > duration {
+                    return Err(ctx.err(
+                        format!("{key}.dt"),
+                        format!("the time step {dt} s exceeds the stage duration {duration} s"),
+                    ));
+                }
+                if duration / dt > 1e7 {
+                    return Err(ctx.err(
+                        format!("{key}.dt"),
+                        format!("{duration} s in steps of {dt} s is more than 10⁷ steps"),
+                    ));
+                }
+                if st.steps.is_some() {
+                    return Err(ctx.err(
+                        format!("{key}.steps"),
+                        "applies to static stages only (dynamic stages use `dt`)",
+                    ));
+                }
+                let scheme = match st.integrator.as_deref().unwrap_or("midpoint") {
+                    "midpoint" => Scheme::Midpoint,
+                    "newmark" => Scheme::Newmark {
+                        beta: 0.25,
+                        gamma: 0.5,
+                    },
+                    o => {
+                        let hint = closest(o, ["midpoint", "newmark"])
+                            .map(|c| format!("; did you mean `{c}`?"))
+                            .unwrap_or_default();
+                        return Err(ctx.err(
+                            format!("{key}.integrator"),
+                            format!(
+                                "unknown integrator `{o}`: expected `midpoint` or `newmark`{hint}"
+                            ),
+                        ));
+                    }
+                };
+                for (mname, m) in &s.materials {
+                    if !m.density.is_some_and(|d| d > 0.0) {
+                        return Err(ctx.err(
+                            format!("materials.{mname}.density"),
+                            format!(
+                                "dynamic stage `{name}` needs a positive mass density in kg/m³"
+                            ),
+                        ));
+                    }
+                }
+                StageKind::Dynamic { dt, scheme }
             }
             o => {
                 let hint = closest(o, ["static", "dynamic"])

@@ -8,6 +8,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "film-pull-in",
         include_str!("../../scenarios/film-pull-in.toml"),
     ),
+    (
+        "film-vibration",
+        include_str!("../../scenarios/film-vibration.toml"),
+    ),
 ];
 
 /// The scenario `deasim run` uses without a file.

@@ -336,7 +336,7 @@ impl NonlinearSystem for TimeStep<'_> {
                 for i in 0..nl {
                     rl[i] += f_r * rv[i];
                 }
-                if let (Some(kl), Some(kv)) = (kl.as_deref_mut(), kv) {
+                if let (Some(kl), Some(kv)) = (kl, kv) {
                     for i in 0..nl * nl {
                         kl[i] += f_v * kv[i];
                     }
