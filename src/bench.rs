@@ -114,5 +114,96 @@ pub fn cmd_bench(large: bool) -> i32 {
             }
         }
     }
+    println!();
+    println!(
+        "dynamic film: midpoint integrator, 20 kV step at t = 0, dt = 20 µs, time per step (s)"
+    );
+    println!("{DYNAMIC_HEADER}");
+    for (div, steps) in [([4, 4, 2], 200), ([40, 40, 6], 20)] {
+        for reuse in [false, true] {
+            match bench_dynamic(div, steps, 2e-5, reuse) {
+                Ok(row) => println!("{row}"),
+                Err(e) => {
+                    eprintln!("error: {div:?}: {e}");
+                    return 1;
+                }
+            }
+        }
+    }
     0
 }
+
+/// Benchmarks the dynamic film (1000 kg/m³, 20 kV step, midpoint integrator): `steps` steps of
+/// `dt`, with plain and with modified Newton. Returns the table row.
+pub fn bench_dynamic(
+    div: [usize; 3],
+    steps: usize,
+    dt: f64,
+    reuse: bool,
+) -> Result<String, String> {
+    use crate::time::integrator::{Scheme, TimeLevel};
+    use crate::time::mass::{MassKind, NodalMass};
+    use crate::time::stage::{run_dynamic, DynamicInputs, DynamicSettings};
+    use crate::waveform::Waveform;
+    let mut model = film(div, ElementKind::Hex8, 0.0).map_err(|e| e.to_string())?;
+    // supports only: the electrodes are driven by the stage
+    model
+        .dirichlet
+        .retain(|d| d.field != crate::dofs::Field::Phi);
+    let bottom = model.mesh.node_sets["z0"].clone();
+    let top = model.mesh.node_sets["z1"].clone();
+    let mass = NodalMass::new(&model, &[1000.0], MassKind::Consistent);
+    let inputs = DynamicInputs {
+        mass: &mass,
+        viscosity: vec![0.0],
+        body_force: vec![[0.0; 3]],
+        electrodes: vec![
+            (bottom, Waveform::constant(0.0)),
+            (top, Waveform::constant(20e3)),
+        ],
+    };
+    let n = model.mesh.n_nodes() * 4;
+    let start = TimeLevel {
+        t: 0.0,
+        q: vec![0.0; n],
+        v: vec![0.0; n],
+        a: vec![0.0; n],
+    };
+    let settings = DynamicSettings {
+        duration: dt * steps as f64,
+        dt,
+        scheme: Scheme::Midpoint,
+        min_fraction: 1.0 / 1024.0,
+        easy_iterations: 6,
+        reuse_factorization: reuse,
+    };
+    let t = Instant::now();
+    let mut its = 0;
+    let mut accepted = 0;
+    run_dynamic(
+        &model,
+        &inputs,
+        start,
+        &settings,
+        &NewtonSettings::default(),
+        |_, info| {
+            its += info.newton_iterations;
+            accepted += 1;
+        },
+    )
+    .map_err(|(_, f)| f.reason)?;
+    let total = t.elapsed().as_secs_f64();
+    Ok(format!(
+        "{:>10} {:>8} {:>6} {:>9} {:>10.4} {:>8.2} {:>8.0}",
+        format!("{}x{}x{}", div[0], div[1], div[2]),
+        n,
+        accepted,
+        if reuse { "modified" } else { "full" },
+        total / accepted.max(1) as f64,
+        its as f64 / accepted.max(1) as f64,
+        peak_memory_mib()
+    ))
+}
+
+/// Column titles of [`bench_dynamic`]'s rows.
+pub const DYNAMIC_HEADER: &str = "      mesh     dofs  steps    newton   s/step  its/step peak_MiB";

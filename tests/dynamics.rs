@@ -72,6 +72,7 @@ fn simulate(
         scheme,
         min_fraction: 1.0 / 64.0,
         easy_iterations: 100,
+        reuse_factorization: true,
     };
     let mut run = Run {
         levels: Vec::new(),

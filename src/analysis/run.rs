@@ -329,6 +329,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     scheme,
                     min_fraction: 1.0 / 1024.0,
                     easy_iterations: 6,
+                    reuse_factorization: true,
                 };
                 let start_level = TimeLevel {
                     t: time,

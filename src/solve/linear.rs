@@ -44,6 +44,12 @@ pub trait LinearSolver: Send {
     fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError>;
     /// Short name for reports.
     fn name(&self) -> &'static str;
+    /// True when a factorisation is held (for modified Newton).
+    fn is_factored(&self) -> bool {
+        false
+    }
+    /// Drops the held factorisation (the matrix changed, e.g. a new time step size).
+    fn invalidate(&mut self) {}
 }
 
 /// Fill-reducing ordering of [`FaerLdlt`].
@@ -238,6 +244,14 @@ impl LinearSolver for FaerLdlt {
             stack,
         );
         Ok(())
+    }
+
+    fn is_factored(&self) -> bool {
+        self.factored
+    }
+
+    fn invalidate(&mut self) {
+        self.factored = false;
     }
 
     fn name(&self) -> &'static str {

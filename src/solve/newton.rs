@@ -41,6 +41,9 @@ pub struct NewtonSettings {
     pub check_stability: bool,
     /// Print a convergence table per iteration on stderr.
     pub verbose: bool,
+    /// Modified Newton: keep the solver's factorisation (from an earlier iteration or step) and
+    /// refactor only when an iteration reduces the residual by less than 10×.
+    pub reuse_factorization: bool,
 }
 
 impl Default for NewtonSettings {
@@ -51,6 +54,7 @@ impl Default for NewtonSettings {
             max_backtracks: 6,
             check_stability: true,
             verbose: false,
+            reuse_factorization: false,
         }
     }
 }
@@ -114,8 +118,11 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         Vec::new()
     };
     let floor = system.residual_floor();
+    let reuse = settings.reuse_factorization;
+    // k_fresh: `k` holds the tangent at the current iterate
+    let mut k_fresh = !(reuse && solver.is_factored());
     system
-        .evaluate(&mut r, Some(k))
+        .evaluate(&mut r, if k_fresh { Some(&mut *k) } else { None })
         .map_err(|message| NewtonError::Evaluation {
             iteration: 0,
             message,
@@ -141,6 +148,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         );
     }
     let mut iteration = 0;
+    let mut refactor = !reuse || !solver.is_factored();
     while rn > tol {
         if iteration >= settings.max_iterations {
             return Err(NewtonError::MaxIterations {
@@ -150,13 +158,21 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
             });
         }
         iteration += 1;
-        solver.factor(k).map_err(|e| match e {
-            LinearSolverError::Singular(_) => NewtonError::Singular { iteration },
-            other => NewtonError::Evaluation {
-                iteration,
-                message: other.to_string(),
-            },
-        })?;
+        if refactor || !solver.is_factored() {
+            if !k_fresh {
+                system
+                    .evaluate(&mut r, Some(&mut *k))
+                    .map_err(|message| NewtonError::Evaluation { iteration, message })?;
+                k_fresh = true;
+            }
+            solver.factor(k).map_err(|e| match e {
+                LinearSolverError::Singular(_) => NewtonError::Singular { iteration },
+                other => NewtonError::Evaluation {
+                    iteration,
+                    message: other.to_string(),
+                },
+            })?;
+        }
         dx.iter_mut().zip(&r).for_each(|(d, v)| *d = -v);
         solver
             .solve_in_place(&mut dx)
@@ -198,10 +214,19 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
             alpha = 1.0;
             system.increment(&dx, alpha);
         }
-        system
-            .evaluate(&mut r, Some(k))
-            .map_err(|message| NewtonError::Evaluation { iteration, message })?;
+        if reuse && accepted {
+            // the line search already evaluated the residual here
+            r.copy_from_slice(&trial);
+            k_fresh = false;
+        } else {
+            system
+                .evaluate(&mut r, if reuse { None } else { Some(&mut *k) })
+                .map_err(|message| NewtonError::Evaluation { iteration, message })?;
+            k_fresh = !reuse;
+        }
+        let previous = rn;
         rn = norm(&r);
+        refactor = !reuse || rn > 0.1 * previous;
         residuals.push(rn);
         if settings.verbose {
             let g = group_norms(&r, &groups);
@@ -228,6 +253,11 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
     let mut inertia = None;
     let mut stable = true;
     if settings.check_stability && n > 0 {
+        if !k_fresh {
+            system
+                .evaluate(&mut r, Some(&mut *k))
+                .map_err(|message| NewtonError::Evaluation { iteration, message })?;
+        }
         match solver.factor(k) {
             Ok(i) => {
                 stable = i.negative <= system.expected_negative_pivots();

@@ -23,6 +23,9 @@ pub struct DynamicSettings {
     pub min_fraction: f64,
     /// Newton iterations at or below which the step grows back (doubles).
     pub easy_iterations: usize,
+    /// Modified Newton: reuse the factorised iteration matrix across iterations and steps while
+    /// the step size is unchanged.
+    pub reuse_factorization: bool,
 }
 
 /// An accepted step.
@@ -94,6 +97,7 @@ pub fn run_dynamic(
     let mut proj_k = crate::solve::newton::NonlinearSystem::new_matrix(&projector);
     let proj_settings = NewtonSettings {
         check_stability: false,
+        reuse_factorization: settings.reuse_factorization,
         ..newton_settings.clone()
     };
 
@@ -163,8 +167,10 @@ pub fn run_dynamic(
     let mut total_iterations = 0;
     let step_settings = NewtonSettings {
         check_stability: false,
+        reuse_factorization: settings.reuse_factorization,
         ..newton_settings.clone()
     };
+    let mut last_h = f64::NAN;
     while step.prev.t < t_end - 1e-12 * settings.duration {
         let h = dt.min(t_end - step.prev.t);
         let t0 = step.prev.t;
@@ -174,6 +180,11 @@ pub fn run_dynamic(
             .map(|(n, w)| (n.as_slice(), w.value(t0 + 0.5 * h), w.value(t0 + h)))
             .collect();
         step.begin(h, &voltages);
+        if h != last_h {
+            // the iteration matrix M/Δt + (Δt/4)K depends on the step size
+            solver.invalidate();
+            last_h = h;
+        }
         let result = newton(
             &mut step,
             &mut solver as &mut dyn LinearSolver,
