@@ -163,7 +163,6 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                 system
                     .evaluate(&mut r, Some(&mut *k))
                     .map_err(|message| NewtonError::Evaluation { iteration, message })?;
-                k_fresh = true;
             }
             solver.factor(k).map_err(|e| match e {
                 LinearSolverError::Singular(_) => NewtonError::Singular { iteration },
