@@ -234,7 +234,7 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
                             s.name, s.duration
                         )
                     }
-                    StageKind::Dynamic { dt, scheme } => println!(
+                    StageKind::Dynamic { dt, scheme, .. } => println!(
                         "stage {i} `{}`: dynamic ({}), duration {} s, dt {dt} s ({} steps)",
                         s.name,
                         scheme.name(),

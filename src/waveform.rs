@@ -42,6 +42,7 @@ pub enum Shape {
 pub enum FourierBase {
     Square,
     Triangle,
+    Sine,
 }
 
 /// A signal offset + amplitude · shape(t + phase/(360 f)).
@@ -131,6 +132,9 @@ impl Waveform {
                     u += match base {
                         FourierBase::Square => 2.0 / (n * PI) * (n * w).sin(),
                         FourierBase::Triangle => -4.0 / (n * n * PI * PI) * (n * w).cos(),
+                        // the unipolar sine (1 − cos ωt)/2 is its own one-term series
+                        FourierBase::Sine if k == 0 => -0.5 * w.cos(),
+                        FourierBase::Sine => 0.0,
                     };
                 }
                 bip(u, *bipolar)

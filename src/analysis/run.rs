@@ -9,7 +9,7 @@ use crate::io::build::{Plan, StageKind};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
 use crate::time::integrator::TimeLevel;
-use crate::time::mass::{MassKind, NodalMass};
+use crate::time::mass::NodalMass;
 use crate::time::stage::{run_dynamic, DynamicInputs, DynamicSettings};
 use std::time::Instant;
 
@@ -309,9 +309,13 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     }
                 }
             }
-            StageKind::Dynamic { dt, scheme } => {
+            StageKind::Dynamic {
+                dt,
+                scheme,
+                mass: mass_kind,
+            } => {
                 stage_summary.kind = "dynamic".into();
-                let mass = NodalMass::new(&model, &plan.densities, MassKind::Consistent);
+                let mass = NodalMass::new(&model, &plan.densities, mass_kind);
                 model.dirichlet = plan.supports.clone();
                 let inputs = DynamicInputs {
                     mass: &mass,

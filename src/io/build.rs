@@ -9,6 +9,7 @@ use crate::material::{ElectroNeoHooke, Material, EPSILON_0};
 use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
 use crate::model::Model;
 use crate::time::integrator::Scheme;
+use crate::time::mass::MassKind;
 use crate::waveform::{FourierBase, Shape, Waveform};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -33,7 +34,11 @@ pub enum StageKind {
     /// Load steps from the previous state to the targets at the end of the stage.
     Static { steps: usize },
     /// Time integration with nominal step `dt` (s).
-    Dynamic { dt: f64, scheme: Scheme },
+    Dynamic {
+        dt: f64,
+        scheme: Scheme,
+        mass: MassKind,
+    },
 }
 
 impl StageKind {
@@ -354,6 +359,7 @@ fn build_waveform(
             let base = match w.base.as_deref() {
                 Some("square") => FourierBase::Square,
                 Some("triangle") => FourierBase::Triangle,
+                Some("sine") => FourierBase::Sine,
                 o => {
                     return Err(ctx.err(
                         k("base"),
@@ -592,6 +598,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
                 for (k, v) in [
                     ("dt", st.dt.is_some()),
                     ("integrator", st.integrator.is_some()),
+                    ("mass", st.mass.is_some()),
                 ] {
                     if v {
                         return Err(ctx.err(format!("{key}.{k}"), "applies to dynamic stages only"));
@@ -655,7 +662,17 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
                         ));
                     }
                 }
-                StageKind::Dynamic { dt, scheme }
+                let mass = match st.mass.as_deref().unwrap_or("consistent") {
+                    "consistent" => MassKind::Consistent,
+                    "lumped" => MassKind::Lumped,
+                    o => {
+                        return Err(ctx.err(
+                            format!("{key}.mass"),
+                            format!("expected `consistent` or `lumped`; got `{o}`"),
+                        ))
+                    }
+                };
+                StageKind::Dynamic { dt, scheme, mass }
             }
             o => {
                 let hint = closest(o, ["static", "dynamic"])

@@ -256,6 +256,9 @@ pub struct StageSpec {
     /// Time integrator of a dynamic stage.
     #[serde(default)]
     pub integrator: Option<String>,
+    /// Mass matrix of a dynamic stage: `consistent` (default) or `lumped`.
+    #[serde(default)]
+    pub mass: Option<String>,
 }
 
 /// A recorded quantity.
