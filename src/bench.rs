@@ -141,9 +141,9 @@ pub fn bench_dynamic(
     dt: f64,
     reuse: bool,
 ) -> Result<String, String> {
-    use crate::time::integrator::{Scheme, TimeLevel};
+    use crate::time::integrator::TimeLevel;
     use crate::time::mass::{MassKind, NodalMass};
-    use crate::time::stage::{run_dynamic, DynamicInputs, DynamicSettings};
+    use crate::time::stage::{run_dynamic, DynamicInputs, DynamicSettings, Method};
     use crate::waveform::Waveform;
     let mut model = film(div, ElementKind::Hex8, 0.0).map_err(|e| e.to_string())?;
     // supports only: the electrodes are driven by the stage
@@ -172,7 +172,7 @@ pub fn bench_dynamic(
     let settings = DynamicSettings {
         duration: dt * steps as f64,
         dt,
-        scheme: Scheme::Midpoint,
+        scheme: Method::Midpoint,
         min_fraction: 1.0 / 1024.0,
         easy_iterations: 6,
         reuse_factorization: reuse,

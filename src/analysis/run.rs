@@ -184,7 +184,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         stages: Vec::new(),
         wall_s: 0.0,
         dofs: n_nodes * FIELDS,
-        warnings: Vec::new(),
+        warnings: plan.warnings.clone(),
     };
     let mut rec = Recorder {
         plan,

@@ -5,18 +5,17 @@
 use super::scenario::{closest, InputError, MaterialSpec, Scenario, VoltageSpec, WaveformSpec};
 use crate::analysis::probes::{NodalQuantity, Probe, ProbeKind};
 use crate::dofs::Field;
-use crate::material::{ElectroNeoHooke, Material, EPSILON_0};
+use crate::material::registry::{self, MaterialParams};
+use crate::material::Material;
 use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
 use crate::model::Model;
-use crate::time::integrator::Scheme;
 use crate::time::mass::MassKind;
+use crate::time::stage::Method;
 use crate::waveform::{FourierBase, Shape, Waveform};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
-/// Material models deasim knows.
-pub const MODELS: &[&str] = &["neo-hooke"];
 /// Largest number of cells a generated mesh may have (memory guard: ~5 GB of tangent).
 pub const MAX_CELLS: u64 = 2_000_000;
 
@@ -36,7 +35,7 @@ pub enum StageKind {
     /// Time integration with nominal step `dt` (s).
     Dynamic {
         dt: f64,
-        scheme: Scheme,
+        scheme: Method,
         mass: MassKind,
     },
 }
@@ -83,6 +82,8 @@ pub struct Plan {
     pub densities: Vec<f64>,
     /// Kelvin–Voigt viscosity (Pa·s) of each material.
     pub viscosities: Vec<f64>,
+    /// Problems that do not stop the run (e.g. Drucker instability of a fit), for the summary.
+    pub warnings: Vec<String>,
 }
 
 struct Ctx<'a> {
@@ -209,84 +210,103 @@ fn build_material(
     ctx: &Ctx,
     name: &str,
     m: &MaterialSpec,
+    warnings: &mut Vec<String>,
 ) -> Result<Arc<dyn Material>, InputError> {
     let key = |k: &str| format!("materials.{name}.{k}");
-    match m.model.as_str() {
-        "neo-hooke" => {
-            let mu = ctx.positive(&key("mu"), m.mu, "shear modulus in Pa")?;
-            let lambda = m.lambda.ok_or_else(|| {
-                ctx.err(key("lambda"), "missing: expected the Lamé constant Λ in Pa")
-            })?;
-            ctx.finite(&key("lambda"), lambda, "Lamé constant in Pa")?;
-            if lambda + 2.0 * mu / 3.0 <= 0.0 {
-                return Err(ctx.err(
-                    key("lambda"),
-                    format!(
-                        "bulk modulus Λ + 2μ/3 must be positive; got {}",
-                        lambda + 2.0 * mu / 3.0
-                    ),
-                ));
-            }
-            let eps_r = m.permittivity.ok_or_else(|| {
+    let (model, mut p) = match &m.preset {
+        Some(preset) => {
+            let (model, params) = registry::preset(preset).ok_or_else(|| {
+                let hint = closest(preset, registry::PRESETS.iter().copied())
+                    .map(|c| format!("; did you mean `{c}`?"))
+                    .unwrap_or_default();
                 ctx.err(
-                    key("permittivity"),
-                    "missing: expected the relative permittivity εᵣ ≥ 1",
+                    key("preset"),
+                    format!(
+                        "unknown preset `{preset}` (known: {}){hint}",
+                        registry::PRESETS.join(", ")
+                    ),
                 )
             })?;
-            if !(eps_r.is_finite() && eps_r >= 1.0) {
-                return Err(ctx.err(
-                    key("permittivity"),
-                    format!("relative permittivity must be a finite number ≥ 1; got {eps_r}"),
-                ));
-            }
-            let c1 = ctx.finite(
-                &key("c1"),
-                m.c1.unwrap_or(0.0),
-                "coupling coefficient in F/m",
-            )?;
-            let c2 = ctx.finite(
-                &key("c2"),
-                m.c2.unwrap_or(0.0),
-                "coupling coefficient in F/m",
-            )?;
-            let mat = ElectroNeoHooke::new(mu, lambda, eps_r).with_coupling(c1, c2);
-            if mat.permittivity() <= 0.0 {
-                return Err(ctx.err(key("c1"), format!(
-                    "the small-strain permittivity εᵣε₀ − 2c₁ − 2c₂ must be positive; got {:e} F/m (ε₀ = {EPSILON_0:e})",
-                    mat.permittivity()
-                )));
-            }
-            if let Some(d) = m.density {
-                if !(d.is_finite() && d >= 0.0) {
+            if let Some(given) = &m.model {
+                if given != model {
                     return Err(ctx.err(
-                        key("density"),
-                        format!("must be a finite number ≥ 0 in kg/m³; got {d}"),
+                        key("model"),
+                        format!("preset `{preset}` is a `{model}` material; got model `{given}`"),
                     ));
                 }
             }
-            if let Some(v) = m.viscosity {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(ctx.err(
-                        key("viscosity"),
-                        format!("must be a finite number ≥ 0 in Pa·s; got {v}"),
-                    ));
-                }
-            }
-            Ok(Arc::new(mat))
+            (model.to_string(), params)
         }
-        other => {
-            let hint = closest(other, MODELS.iter().copied())
-                .map(|c| format!("; did you mean `{c}`?"))
-                .unwrap_or_default();
-            Err(ctx.err(
-                key("model"),
-                format!(
-                    "unknown material model `{other}` (known: {}){hint}",
-                    MODELS.join(", ")
-                ),
-            ))
+        None => {
+            let model = m.model.clone().ok_or_else(|| {
+                ctx.err(
+                    key("model"),
+                    format!(
+                        "missing: expected a model ({}) or a `preset`",
+                        registry::MODELS.join(", ")
+                    ),
+                )
+            })?;
+            (model, MaterialParams::default())
+        }
+    };
+    if !registry::MODELS.contains(&model.as_str()) {
+        let hint = closest(&model, registry::MODELS.iter().copied())
+            .map(|c| format!("; did you mean `{c}`?"))
+            .unwrap_or_default();
+        return Err(ctx.err(
+            key("model"),
+            format!(
+                "unknown material model `{model}` (known: {}){hint}",
+                registry::MODELS.join(", ")
+            ),
+        ));
+    }
+    // parameters given in the scenario override the preset's
+    if let Some(mu) = &m.mu {
+        p.mu = mu.to_vec();
+    }
+    if let Some(a) = &m.alpha {
+        p.alpha = a.clone();
+    }
+    for (slot, value) in [
+        (&mut p.lambda, m.lambda),
+        (&mut p.kappa, m.kappa),
+        (&mut p.c10, m.c10),
+        (&mut p.c20, m.c20),
+        (&mut p.c30, m.c30),
+        (&mut p.c01, m.c01),
+        (&mut p.d1, m.d1),
+        (&mut p.d2, m.d2),
+        (&mut p.d3, m.d3),
+        (&mut p.jm, m.jm),
+        (&mut p.lambda_m, m.lambda_m),
+        (&mut p.permittivity, m.permittivity),
+        (&mut p.c1, m.c1),
+        (&mut p.c2, m.c2),
+    ] {
+        if value.is_some() {
+            *slot = value;
         }
     }
+    for (k, v) in [
+        ("density", m.density, "kg/m³"),
+        ("viscosity", m.viscosity, "Pa·s"),
+    ]
+    .map(|(k, v, u)| (k, (v, u)))
+    {
+        if let (Some(x), unit) = v {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(ctx.err(
+                    key(k),
+                    format!("must be a finite number ≥ 0 in {unit}; got {x}"),
+                ));
+            }
+        }
+    }
+    let (mat, w) = registry::build(&model, &p).map_err(|e| ctx.err(key(&e.key), e.message))?;
+    warnings.extend(w.into_iter().map(|w| format!("material `{name}`: {w}")));
+    Ok(mat)
 }
 
 fn build_waveform(
@@ -471,11 +491,12 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     if s.materials.is_empty() {
         return Err(ctx.err("materials", "at least one material is needed"));
     }
+    let mut warnings = Vec::new();
     let mut mats: Vec<Arc<dyn Material>> = Vec::new();
     let mut index: BTreeMap<&str, usize> = BTreeMap::new();
     for (name, m) in &s.materials {
         index.insert(name, mats.len());
-        mats.push(build_material(&ctx, name, m)?);
+        mats.push(build_material(&ctx, name, m, &mut warnings)?);
     }
     let n_cells = mesh.n_cells();
     let mut cell_material = vec![usize::MAX; n_cells];
@@ -635,19 +656,20 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
                     ));
                 }
                 let scheme = match st.integrator.as_deref().unwrap_or("midpoint") {
-                    "midpoint" => Scheme::Midpoint,
-                    "newmark" => Scheme::Newmark {
+                    "midpoint" => Method::Midpoint,
+                    "trapezoidal" => Method::Trapezoidal,
+                    "newmark" => Method::Newmark {
                         beta: 0.25,
                         gamma: 0.5,
                     },
                     o => {
-                        let hint = closest(o, ["midpoint", "newmark"])
+                        let hint = closest(o, ["midpoint", "newmark", "trapezoidal"])
                             .map(|c| format!("; did you mean `{c}`?"))
                             .unwrap_or_default();
                         return Err(ctx.err(
                             format!("{key}.integrator"),
                             format!(
-                                "unknown integrator `{o}`: expected `midpoint` or `newmark`{hint}"
+                                "unknown integrator `{o}`: expected `midpoint`, `newmark` or `trapezoidal`{hint}"
                             ),
                         ));
                     }
@@ -736,6 +758,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         },
         densities,
         viscosities,
+        warnings,
     })
 }
 

@@ -104,16 +104,40 @@ fn default_element() -> String {
     "hex8".into()
 }
 
-/// A material: the model and its parameters in SI units.
+/// A material: the model (or a preset) and its parameters in SI units.
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
-    /// `neo-hooke`.
-    pub model: String,
-    /// Shear modulus μ (Pa).
-    pub mu: Option<f64>,
-    /// Lamé constant Λ (Pa).
+    /// `neo-hooke`, `neo-hooke-split`, `yeoh`, `mooney-rivlin`, `gent`, `ogden`, `arruda-boyce`;
+    /// may be omitted when `preset` is given.
+    #[serde(default)]
+    pub model: Option<String>,
+    /// A named parameter set (e.g. `vhb4910-yeoh`); parameters given here override it.
+    #[serde(default)]
+    pub preset: Option<String>,
+    /// Shear modulus μ (Pa), or the list of Ogden μₚ (Pa).
+    #[serde(default)]
+    pub mu: Option<Numbers>,
+    /// Lamé constant Λ (Pa) of `neo-hooke`.
     pub lambda: Option<f64>,
+    /// Bulk modulus κ (Pa) of the split models.
+    pub kappa: Option<f64>,
+    /// Yeoh / Mooney–Rivlin coefficients (Pa).
+    pub c10: Option<f64>,
+    pub c20: Option<f64>,
+    pub c30: Option<f64>,
+    pub c01: Option<f64>,
+    /// Abaqus compressibility coefficients Dᵢ (1/Pa).
+    pub d1: Option<f64>,
+    pub d2: Option<f64>,
+    pub d3: Option<f64>,
+    /// Gent locking parameter Jm (–).
+    pub jm: Option<f64>,
+    /// Arruda–Boyce locking stretch λm (–).
+    pub lambda_m: Option<f64>,
+    /// Ogden exponents αₚ (–).
+    #[serde(default)]
+    pub alpha: Option<Vec<f64>>,
     /// Relative permittivity εᵣ (–).
     pub permittivity: Option<f64>,
     /// Vu coupling coefficient c₁ (N/V², i.e. F/m).
@@ -124,6 +148,50 @@ pub struct MaterialSpec {
     pub density: Option<f64>,
     /// Kelvin–Voigt viscosity η (Pa·s).
     pub viscosity: Option<f64>,
+}
+
+/// One number or a list of numbers.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum Numbers {
+    One(f64),
+    Many(Vec<f64>),
+}
+
+impl Numbers {
+    /// The values as a list.
+    pub fn to_vec(&self) -> Vec<f64> {
+        match self {
+            Numbers::One(x) => vec![*x],
+            Numbers::Many(v) => v.clone(),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Numbers {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = Numbers;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number or an array of numbers")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Numbers, E> {
+                Ok(Numbers::One(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Numbers, E> {
+                Ok(Numbers::One(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Numbers, E> {
+                Ok(Numbers::One(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, seq: A) -> Result<Numbers, A::Error> {
+                Vec::<f64>::deserialize(serde::de::value::SeqAccessDeserializer::new(seq))
+                    .map(Numbers::Many)
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 /// Fixed displacement components on a set.

@@ -1,5 +1,8 @@
 //! Finite-difference and invariance tests that apply to any [`Material`].
 //!
+//! The helpers (random generator, finite differences) are shared with
+//! [`model_tests`](super::model_tests).
+//!
 //! All randomness comes from a small inline xorshift generator with a fixed
 //! seed, so the tests are deterministic.
 
@@ -7,10 +10,10 @@ use super::ElectroNeoHooke;
 use super::{Mat3, Mat9, Mat93, Material, MaterialError, Vec3};
 
 /// xorshift64* pseudo-random generator.
-struct Rng(u64);
+pub(super) struct Rng(u64);
 
 impl Rng {
-    fn new(seed: u64) -> Self {
+    pub(super) fn new(seed: u64) -> Self {
         Rng(seed.max(1))
     }
     fn next_u64(&mut self) -> u64 {
@@ -22,21 +25,21 @@ impl Rng {
         x.wrapping_mul(0x2545_F491_4F6C_DD1D)
     }
     /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
+    pub(super) fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
     /// Uniform in [-1, 1).
-    fn sym(&mut self) -> f64 {
+    pub(super) fn sym(&mut self) -> f64 {
         2.0 * self.uniform() - 1.0
     }
-    fn mat3(&mut self) -> Mat3 {
+    pub(super) fn mat3(&mut self) -> Mat3 {
         Mat3::from_fn(|_, _| self.sym())
     }
-    fn vec3(&mut self) -> Vec3 {
+    pub(super) fn vec3(&mut self) -> Vec3 {
         Vec3::new(self.sym(), self.sym(), self.sym())
     }
     /// F = I + 0.3·random with det F comfortably positive.
-    fn deformation(&mut self) -> Mat3 {
+    pub(super) fn deformation(&mut self) -> Mat3 {
         loop {
             let f = Mat3::identity() + self.mat3() * 0.3;
             if f.determinant() > 0.3 {
@@ -45,7 +48,7 @@ impl Rng {
         }
     }
     /// E0 with magnitude ~ 0.3·sqrt(μ/ε) (times 0.5..1.5), random direction.
-    fn field(&mut self, m: &dyn Material) -> Vec3 {
+    pub(super) fn field(&mut self, m: &dyn Material) -> Vec3 {
         let scale = (m.shear_modulus() / m.permittivity()).sqrt() * 0.3;
         loop {
             let v = self.vec3();
@@ -56,7 +59,7 @@ impl Rng {
         }
     }
     /// Random proper rotation.
-    fn rotation(&mut self) -> Mat3 {
+    pub(super) fn rotation(&mut self) -> Mat3 {
         let axis_angle = self.vec3() * 3.0;
         nalgebra::Rotation3::new(axis_angle).into_inner()
     }
@@ -80,22 +83,22 @@ fn materials() -> Vec<(&'static str, ElectroNeoHooke)> {
 }
 
 const POINTS_PER_MATERIAL: usize = 12;
-const TOL: f64 = 1e-6;
+pub(super) const TOL: f64 = 1e-6;
 
 /// Error `got` relative to `reference` (guarded against a zero reference).
-fn rel_err(got: f64, reference: f64) -> f64 {
+pub(super) fn rel_err(got: f64, reference: f64) -> f64 {
     got / reference.max(f64::MIN_POSITIVE)
 }
 
 /// Finite-difference step for F entries (entries are O(1)).
-const H_F: f64 = 1e-6;
+pub(super) const H_F: f64 = 1e-6;
 /// Relative finite-difference step for E0. P is dominated by the Λ term
 /// (~1e6 Pa) while ∂P/∂E0 ~ εE0 is tiny, so round-off, not truncation,
 /// limits the accuracy; 1e-4·|E0| keeps both well below the tolerance (for
 /// energies quadratic in E0 the central difference is exact anyway).
 const H_E_REL: f64 = 1e-4;
 
-fn fd_p_from_energy(m: &dyn Material, f: &Mat3, e0: &Vec3) -> Mat3 {
+pub(super) fn fd_p_from_energy(m: &dyn Material, f: &Mat3, e0: &Vec3) -> Mat3 {
     let mut p = Mat3::zeros();
     for i in 0..3 {
         for j in 0..3 {
@@ -109,7 +112,7 @@ fn fd_p_from_energy(m: &dyn Material, f: &Mat3, e0: &Vec3) -> Mat3 {
     p
 }
 
-fn fd_d0_from_energy(m: &dyn Material, f: &Mat3, e0: &Vec3) -> Vec3 {
+pub(super) fn fd_d0_from_energy(m: &dyn Material, f: &Mat3, e0: &Vec3) -> Vec3 {
     let h = H_E_REL * e0.norm();
     let mut d = Vec3::zeros();
     for k in 0..3 {
@@ -124,7 +127,7 @@ fn fd_d0_from_energy(m: &dyn Material, f: &Mat3, e0: &Vec3) -> Vec3 {
 
 /// Returns (A_fd, (∂D0/∂F)_fd as 3x9 transposed into 9x3 with sign so that it
 /// should equal B) from differences of P and D0 with respect to F.
-fn fd_wrt_f(m: &dyn Material, f: &Mat3, e0: &Vec3) -> (Mat9, Mat93) {
+pub(super) fn fd_wrt_f(m: &dyn Material, f: &Mat3, e0: &Vec3) -> (Mat9, Mat93) {
     let mut a = Mat9::zeros();
     let mut b_from_d = Mat93::zeros();
     for k in 0..3 {
@@ -152,7 +155,7 @@ fn fd_wrt_f(m: &dyn Material, f: &Mat3, e0: &Vec3) -> (Mat9, Mat93) {
 }
 
 /// (B_fd, G_fd) from differences of P and D0 with respect to E0.
-fn fd_wrt_e(m: &dyn Material, f: &Mat3, e0: &Vec3) -> (Mat93, Mat3) {
+pub(super) fn fd_wrt_e(m: &dyn Material, f: &Mat3, e0: &Vec3) -> (Mat93, Mat3) {
     let h = H_E_REL * e0.norm();
     let mut b = Mat93::zeros();
     let mut g = Mat3::zeros();

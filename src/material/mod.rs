@@ -13,14 +13,44 @@
 //! Models that are naturally written in terms of C = FᵀF implement
 //! [`isotropic::CMaterial`] and use the generic conversion functions in
 //! [`isotropic`] to obtain the F-form quantities.
+//!
+//! The isotropic models are assembled from a purely mechanical energy W(C)
+//! ([`hyperelastic::Hyperelastic`]: [`NeoHooke`], [`NeoHookeSplit`],
+//! [`Yeoh`], [`MooneyRivlin`], [`Gent`], [`Ogden`], [`ArrudaBoyce`]) and the
+//! linear dielectric [`ElectricPart`] by the generic [`Electroelastic`].
+//! [`registry`] builds validated models from names, parameters and
+//! literature presets.
 
+pub mod arruda_boyce;
+pub mod electric;
+pub mod electroelastic;
+pub mod gent;
+pub mod homogeneous;
+pub mod hyperelastic;
 pub mod isotropic;
+pub mod mooney_rivlin;
 pub mod neo_hooke;
+pub mod neo_hooke_split;
+pub mod ogden;
+pub mod registry;
+pub mod yeoh;
 
 #[cfg(test)]
 mod fd_tests;
+#[cfg(test)]
+mod model_tests;
 
-pub use neo_hooke::ElectroNeoHooke;
+pub use arruda_boyce::{ArrudaBoyce, ElectroArrudaBoyce};
+pub use electric::ElectricPart;
+pub use electroelastic::Electroelastic;
+pub use gent::{ElectroGent, Gent};
+pub use hyperelastic::Hyperelastic;
+pub use mooney_rivlin::{ElectroMooneyRivlin, MooneyRivlin};
+pub use neo_hooke::{ElectroNeoHooke, NeoHooke};
+pub use neo_hooke_split::{ElectroNeoHookeSplit, NeoHookeSplit};
+pub use ogden::{ElectroOgden, Ogden};
+pub use registry::{MaterialParams, ParamError};
+pub use yeoh::{ElectroYeoh, Yeoh};
 
 /// 3×3 matrix (deformation gradient, stresses, …).
 pub type Mat3 = nalgebra::Matrix3<f64>;

@@ -9,24 +9,79 @@
 //! With c₁ = c₂ = 0 this is the ideal dielectric elastomer (ε = ε_r ε₀); the
 //! "Vu" form uses ε = ε₀ and electrostrictive coefficients c₁, c₂.
 //!
-//! Derivatives (g = C⁻¹E0, a = E0·g, H_IJKL = ½(C⁻¹_IK C⁻¹_JL + C⁻¹_IL C⁻¹_JK)):
+//! The mechanical part is [`NeoHooke`] (W = μ/2 (tr C − 3) + U(J) with
+//! U = −μ ln J + Λ/2 (ln J)²):
 //!
 //! ```text
-//! S   = μ(I − C⁻¹) + Λ ln J C⁻¹ + 2c₂ E0⊗E0 + εJ (g⊗g − ½ a C⁻¹)
-//! D0  = −2c₁E0 − 2c₂ C E0 + εJ g
-//! 𝕃   = [2(μ − Λ ln J) + εJ a] H + (Λ − ½ εJ a) C⁻¹⊗C⁻¹
-//!       + εJ [ (g⊗g)⊗C⁻¹ + C⁻¹⊗(g⊗g)
-//!              − (C⁻¹_IK g_J g_L + C⁻¹_IL g_J g_K + C⁻¹_JK g_I g_L + C⁻¹_JL g_I g_K) ]
-//! ∂S_IJ/∂E0_K = 2c₂(δ_IK E0_J + E0_I δ_JK) + εJ (C⁻¹_IK g_J + g_I C⁻¹_JK − g_K C⁻¹_IJ)
-//! ∂D0/∂E0     = −2c₁ I − 2c₂ C + εJ C⁻¹
+//! S = μ(I − C⁻¹) + Λ ln J C⁻¹
+//! 𝕃 = 2(μ − Λ ln J) H + Λ C⁻¹⊗C⁻¹,   H_IJKL = ½(C⁻¹_IK C⁻¹_JL + C⁻¹_IL C⁻¹_JK)
 //! ```
+//!
+//! and the dielectric part is the shared
+//! [`ElectricPart`]; [`ElectroNeoHooke`]
+//! evaluates through [`Electroelastic`]`<NeoHooke>`.
 //!
 //! The Cauchy stress is
 //! σ = (μ/J)(b − I) + (Λ ln J/J) I + ε(e⊗e − ½|e|² I) + (2c₂/J)(b e)⊗(b e),
 //! with e = F⁻ᵀE0 and b = FFᵀ.
 
-use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial, Tensor3, Tensor4};
+use super::electric::ElectricPart;
+use super::electroelastic::Electroelastic;
+use super::hyperelastic::{add_vol_tangent, vol_stress, HFirst, HSecond, Hyperelastic, VolDerivs};
+use super::isotropic::{CDerivs, CFirst, CKinematics, CMaterial, Tensor4};
 use super::{Mat3, Material, MaterialError, Stress, Tangent, Vec3, EPSILON_0};
+
+/// Mechanical compressible neo-Hooke energy
+/// W = μ/2 (tr C − 3) − μ ln J + Λ/2 (ln J)² (not split into isochoric and
+/// volumetric parts; μ₀ = μ, K₀ = Λ + 2μ/3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NeoHooke {
+    /// Shear modulus μ (Pa).
+    pub mu: f64,
+    /// Lamé constant Λ (Pa).
+    pub lambda: f64,
+}
+
+impl NeoHooke {
+    /// U(J) = −μ ln J + Λ/2 (ln J)² and its derivatives.
+    fn vol(&self, j: f64) -> VolDerivs {
+        let ln_j = j.ln();
+        VolDerivs {
+            u: -self.mu * ln_j + 0.5 * self.lambda * ln_j * ln_j,
+            du: (self.lambda * ln_j - self.mu) / j,
+            ddu: (self.lambda + self.mu - self.lambda * ln_j) / (j * j),
+        }
+    }
+}
+
+impl Hyperelastic for NeoHooke {
+    fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
+        Ok(0.5 * self.mu * (k.c.trace() - 3.0) + self.vol(k.j).u)
+    }
+
+    fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError> {
+        let v = self.vol(k.j);
+        Ok(HFirst {
+            w: 0.5 * self.mu * (k.c.trace() - 3.0) + v.u,
+            s: Mat3::identity() * self.mu + vol_stress(k, &v),
+        })
+    }
+
+    fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError> {
+        let HFirst { w, s } = self.s(k)?;
+        let mut ll: Tensor4 = [[[[0.0; 3]; 3]; 3]; 3];
+        add_vol_tangent(k, &self.vol(k.j), &mut ll);
+        Ok(HSecond { w, s, ll })
+    }
+
+    fn shear_modulus(&self) -> f64 {
+        self.mu
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        self.lambda + 2.0 * self.mu / 3.0
+    }
+}
 
 /// Electro-elastic compressible neo-Hooke model (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,16 +126,20 @@ impl ElectroNeoHooke {
         }
     }
 
-    /// (mechanical, E0-dependent part) of Ω, with Ω = mech + elec_terms.
-    fn parts(&self, k: &CKinematics, e0: &Vec3) -> (f64, f64) {
-        let ln_j = k.j.ln();
-        let mech =
-            0.5 * self.mu * (k.c.trace() - 3.0) - self.mu * ln_j + 0.5 * self.lambda * ln_j * ln_j;
-        let ee = e0.dot(e0);
-        let ece = e0.dot(&(k.c * e0));
-        let a = e0.dot(&(k.c_inv * e0));
-        let elec = self.c1 * ee + self.c2 * ece - 0.5 * self.eps * k.j * a;
-        (mech, elec)
+    /// The same model as a generic [`Electroelastic`]`<NeoHooke>`, through
+    /// which it is evaluated.
+    pub fn generic(&self) -> Electroelastic<NeoHooke> {
+        Electroelastic {
+            mech: NeoHooke {
+                mu: self.mu,
+                lambda: self.lambda,
+            },
+            elec: ElectricPart {
+                eps: self.eps,
+                c1: self.c1,
+                c2: self.c2,
+            },
+        }
     }
 
     /// Closed-form Cauchy stress
@@ -101,113 +160,33 @@ impl ElectroNeoHooke {
             + (e * e.transpose() - id * (0.5 * e.dot(&e))) * self.eps
             + be * be.transpose() * (2.0 * self.c2 / j))
     }
-
-    fn s_and_d0(&self, k: &CKinematics, e0: &Vec3) -> (Mat3, Vec3) {
-        let ci = &k.c_inv;
-        let ln_j = k.j.ln();
-        let g = ci * e0;
-        let a = e0.dot(&g);
-        let ej = self.eps * k.j;
-        let id = Mat3::identity();
-        let s = (id - ci) * self.mu
-            + ci * (self.lambda * ln_j)
-            + e0 * e0.transpose() * (2.0 * self.c2)
-            + (g * g.transpose() - ci * (0.5 * a)) * ej;
-        let d0 = e0 * (-2.0 * self.c1) - (k.c * e0) * (2.0 * self.c2) + g * ej;
-        (s, d0)
-    }
 }
 
 impl CMaterial for ElectroNeoHooke {
     fn c_energy(&self, k: &CKinematics, e0: &Vec3) -> Result<f64, MaterialError> {
-        let (mech, elec) = self.parts(k, e0);
-        Ok(mech + elec)
+        self.generic().c_energy(k, e0)
     }
 
     fn c_first(&self, k: &CKinematics, e0: &Vec3) -> Result<CFirst, MaterialError> {
-        let energy = self.c_energy(k, e0)?;
-        let (s, d0) = self.s_and_d0(k, e0);
-        Ok(CFirst { energy, s, d0 })
+        self.generic().c_first(k, e0)
     }
 
     fn c_second(&self, k: &CKinematics, e0: &Vec3) -> Result<CDerivs, MaterialError> {
-        let energy = self.c_energy(k, e0)?;
-        let (s, d0) = self.s_and_d0(k, e0);
-        let ci = &k.c_inv;
-        let ln_j = k.j.ln();
-        let g = ci * e0;
-        let a = e0.dot(&g);
-        let ej = self.eps * k.j;
-
-        // 𝕃_IJKL = h_coef · H_IJKL + Λ Ci_IJ Ci_KL
-        //        + εJ [ Ci_KL g_I g_J + Ci_IJ g_K g_L − ½ a Ci_IJ Ci_KL
-        //               − (Ci_IK g_J g_L + Ci_IL g_J g_K + Ci_JK g_I g_L + Ci_JL g_I g_K) ]
-        // with H_IJKL = ½(Ci_IK Ci_JL + Ci_IL Ci_JK), h_coef = 2(μ − Λ ln J) + εJ a.
-        let h_coef = 2.0 * (self.mu - self.lambda * ln_j) + ej * a;
-        let cc_coef = self.lambda - 0.5 * ej * a;
-        let mut ll: Tensor4 = [[[[0.0; 3]; 3]; 3]; 3];
-        for (i, lli) in ll.iter_mut().enumerate() {
-            for (j, llij) in lli.iter_mut().enumerate() {
-                let cij = ci[(i, j)];
-                let gij = g[i] * g[j];
-                for (kk, llijk) in llij.iter_mut().enumerate() {
-                    for (l, v) in llijk.iter_mut().enumerate() {
-                        let ckl = ci[(kk, l)];
-                        let h = 0.5 * (ci[(i, kk)] * ci[(j, l)] + ci[(i, l)] * ci[(j, kk)]);
-                        let cross = ci[(i, kk)] * g[j] * g[l]
-                            + ci[(i, l)] * g[j] * g[kk]
-                            + ci[(j, kk)] * g[i] * g[l]
-                            + ci[(j, l)] * g[i] * g[kk];
-                        *v = h_coef * h
-                            + cc_coef * cij * ckl
-                            + ej * (ckl * gij + cij * g[kk] * g[l] - cross);
-                    }
-                }
-            }
-        }
-
-        // ∂S_IJ/∂E0_K = 2c₂(δ_IK E_J + E_I δ_JK) + εJ(Ci_IK g_J + g_I Ci_JK − g_K Ci_IJ)
-        let mut se: Tensor3 = [[[0.0; 3]; 3]; 3];
-        for (i, sei) in se.iter_mut().enumerate() {
-            for (j, seij) in sei.iter_mut().enumerate() {
-                for (kk, v) in seij.iter_mut().enumerate() {
-                    let mut w = ej * (ci[(i, kk)] * g[j] + g[i] * ci[(j, kk)] - g[kk] * ci[(i, j)]);
-                    if i == kk {
-                        w += 2.0 * self.c2 * e0[j];
-                    }
-                    if j == kk {
-                        w += 2.0 * self.c2 * e0[i];
-                    }
-                    *v = w;
-                }
-            }
-        }
-
-        // ∂D0/∂E0 = −2c₁ I − 2c₂ C + εJ C⁻¹
-        let dd = Mat3::identity() * (-2.0 * self.c1) - k.c * (2.0 * self.c2) + ci * ej;
-
-        Ok(CDerivs {
-            energy,
-            s,
-            d0,
-            ll,
-            se,
-            dd,
-        })
+        self.generic().c_second(k, e0)
     }
 }
 
 impl Material for ElectroNeoHooke {
     fn energy(&self, f: &Mat3, e0: &Vec3) -> Result<f64, MaterialError> {
-        isotropic::energy_from_c(self, f, e0)
+        self.generic().energy(f, e0)
     }
 
     fn stress(&self, f: &Mat3, e0: &Vec3) -> Result<Stress, MaterialError> {
-        isotropic::stress_from_c(self, f, e0)
+        self.generic().stress(f, e0)
     }
 
     fn tangent(&self, f: &Mat3, e0: &Vec3) -> Result<Tangent, MaterialError> {
-        isotropic::tangent_from_c(self, f, e0)
+        self.generic().tangent(f, e0)
     }
 
     fn shear_modulus(&self) -> f64 {
@@ -223,11 +202,7 @@ impl Material for ElectroNeoHooke {
     }
 
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
-        // Validate exactly like the energy evaluation does.
-        isotropic::energy_from_c(self, f, e0)?;
-        let k = CKinematics::from_f(f)?;
-        let (mech, elec) = self.parts(&k, e0);
-        Ok((mech, -elec))
+        self.generic().energy_split(f, e0)
     }
 }
 

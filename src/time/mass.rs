@@ -199,6 +199,32 @@ impl NodalMass {
     }
 }
 
+impl NodalMass {
+    /// (position in `k`, index into `values`) of every coupling between free displacement dofs,
+    /// to add the mass to a tangent with the pattern of `k` without searching.
+    pub fn positions_in(
+        &self,
+        dofs: &crate::dofs::DofMap,
+        k: &crate::assembly::CsrMatrix,
+    ) -> Vec<(usize, usize)> {
+        let mut out = Vec::new();
+        for a in 0..self.row_ptr.len() - 1 {
+            for p in self.row_ptr[a]..self.row_ptr[a + 1] {
+                let b = self.col_idx[p];
+                for i in 0..3 {
+                    let (ea, eb) = (dofs.eq[a * 4 + i], dofs.eq[b * 4 + i]);
+                    if ea != crate::dofs::CONSTRAINED && eb != crate::dofs::CONSTRAINED {
+                        if let Some(pos) = k.position(ea, eb) {
+                            out.push((pos, p));
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

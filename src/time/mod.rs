@@ -4,3 +4,4 @@
 pub mod integrator;
 pub mod mass;
 pub mod stage;
+pub mod trapezoidal;

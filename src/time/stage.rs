@@ -12,13 +12,35 @@ use crate::solve::linear::{FaerLdlt, LinearSolver};
 use crate::solve::newton::{newton, NewtonSettings};
 use crate::waveform::Waveform;
 
+/// A time integration method of a dynamic stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Method {
+    /// Implicit midpoint variational integrator.
+    Midpoint,
+    /// Implicit Newmark.
+    Newmark { beta: f64, gamma: f64 },
+    /// Explicit trapezoidal variational integrator (Störmer–Verlet), see `trapezoidal.rs`.
+    Trapezoidal,
+}
+
+impl Method {
+    /// Name for messages and files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Midpoint => "midpoint",
+            Method::Newmark { .. } => "newmark",
+            Method::Trapezoidal => "trapezoidal",
+        }
+    }
+}
+
 /// Settings of a dynamic stage.
 #[derive(Debug, Clone)]
 pub struct DynamicSettings {
     pub duration: f64,
     /// Nominal (largest) time step (s).
     pub dt: f64,
-    pub scheme: Scheme,
+    pub scheme: Method,
     /// Smallest step as a fraction of the nominal one.
     pub min_fraction: f64,
     /// Newton iterations at or below which the step grows back (doubles).
@@ -102,7 +124,27 @@ pub fn run_dynamic(
     };
 
     let mut start = start;
-    if let Scheme::Newmark { .. } = settings.scheme {
+    let scheme = match settings.scheme {
+        Method::Midpoint => Scheme::Midpoint,
+        Method::Newmark { beta, gamma } => Scheme::Newmark { beta, gamma },
+        Method::Trapezoidal => {
+            return run_trapezoidal(
+                &step_model,
+                inputs,
+                start,
+                settings,
+                newton_settings,
+                (
+                    &mut projector,
+                    &mut proj_solver,
+                    &mut proj_k,
+                    &proj_settings,
+                ),
+                on_step,
+            )
+        }
+    };
+    if let Scheme::Newmark { .. } = scheme {
         // consistent initial state: Φ in equilibrium at t₀ and M a₀ = f_ext − f_int − f_vis
         project(
             &mut projector,
@@ -156,7 +198,7 @@ pub fn run_dynamic(
         inputs.mass,
         inputs.viscosity.clone(),
         inputs.body_force.clone(),
-        settings.scheme,
+        scheme,
         start,
     );
     let mut solver = FaerLdlt::new();
@@ -208,7 +250,7 @@ pub fn run_dynamic(
                     }
                 };
                 let mut level = step.end_level();
-                if settings.scheme == Scheme::Midpoint {
+                if scheme == Scheme::Midpoint {
                     // Gauss's law at t_{n+1}: solve for the potential with u_{n+1} held
                     let t1 = level.t;
                     if let Err(e) = project(
@@ -289,4 +331,163 @@ fn project(
         q[node * FIELDS + PHI] = projector.state[node * FIELDS + PHI];
     }
     Ok(())
+}
+
+/// The projector of the potential: (problem, solver, tangent, Newton settings).
+type Projector<'a, 'm> = (
+    &'a mut StaticProblem<'m>,
+    &'a mut FaerLdlt,
+    &'a mut crate::assembly::CsrMatrix,
+    &'a NewtonSettings,
+);
+
+/// The explicit trapezoidal (Störmer–Verlet) variational integrator; see `trapezoidal.rs`.
+fn run_trapezoidal(
+    step_model: &Model,
+    inputs: &DynamicInputs,
+    start: TimeLevel,
+    settings: &DynamicSettings,
+    newton_settings: &NewtonSettings,
+    projector: Projector,
+    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
+    use super::trapezoidal::{dissipation_power, TrapezoidalStep};
+    let (proj, proj_solver, proj_k, proj_settings) = projector;
+    let n_nodes = step_model.mesh.n_nodes();
+    let fail = |level: &TimeLevel, t: f64, reason: String, its: usize| {
+        (
+            level.clone(),
+            DynamicFailure {
+                t,
+                reason,
+                newton_iterations: its,
+            },
+        )
+    };
+    let mut level = start;
+    project(
+        proj,
+        proj_solver,
+        proj_k,
+        proj_settings,
+        &mut level.q,
+        inputs,
+        level.t,
+        n_nodes,
+    )
+    .map_err(|e| fail(&level, level.t, e, 0))?;
+    let mut forces = TimeStep::new(
+        step_model,
+        inputs.mass,
+        inputs.viscosity.clone(),
+        inputs.body_force.clone(),
+        Scheme::Midpoint,
+        level.clone(),
+    );
+    let zero = vec![0.0; level.q.len()];
+    let mut f_n = forces
+        .forces_at(&level.q, &zero)
+        .map_err(|e| fail(&level, level.t, e, 0))?;
+    let mut trap = TrapezoidalStep::new(step_model, inputs.mass, inputs.viscosity.clone());
+    let free = trap.free_u();
+    let mut solver = FaerLdlt::new();
+    let mut k = crate::solve::newton::NonlinearSystem::new_matrix(&trap);
+    let step_settings = NewtonSettings {
+        check_stability: false,
+        ..newton_settings.clone()
+    };
+    let t_end = level.t + settings.duration;
+    let min_dt = settings.dt * settings.min_fraction;
+    let mut dt = settings.dt;
+    let mut total = 0;
+    while level.t < t_end - 1e-12 * settings.duration {
+        let h = dt.min(t_end - level.t);
+        let t0 = level.t;
+        trap.q_n.copy_from_slice(&level.q);
+        trap.v_n.copy_from_slice(&level.v);
+        trap.f_n.copy_from_slice(&f_n);
+        trap.dt = h;
+        for d in 0..level.q.len() {
+            trap.q[d] = if free[d] {
+                level.q[d] + h * level.v[d]
+            } else {
+                level.q[d]
+            };
+        }
+        solver.invalidate();
+        let attempt = newton(
+            &mut trap,
+            &mut solver as &mut dyn LinearSolver,
+            &mut k,
+            &step_settings,
+        )
+        .map_err(|e| e.to_string())
+        .and_then(|rep| {
+            let vbar: Vec<f64> = trap
+                .q
+                .iter()
+                .zip(&level.q)
+                .map(|(a, b)| (a - b) / h)
+                .collect();
+            let mut q1 = trap.q.clone();
+            project(
+                proj,
+                proj_solver,
+                proj_k,
+                proj_settings,
+                &mut q1,
+                inputs,
+                t0 + h,
+                n_nodes,
+            )?;
+            let f1 = forces.forces_at(&q1, &vbar)?;
+            let mut mv = vec![0.0; vbar.len()];
+            inputs.mass.mul(&vbar, &mut mv);
+            let p1: Vec<f64> = mv.iter().zip(&f1).map(|(m, f)| m - 0.5 * h * f).collect();
+            let v1 = inputs.mass.solve(&p1, &free, 1e-12);
+            let p0 = dissipation_power(step_model, &inputs.viscosity, &level.q, &vbar)?;
+            let p1w = dissipation_power(step_model, &inputs.viscosity, &q1, &vbar)?;
+            let f_next = forces.forces_at(&q1, &zero)?;
+            if v1.iter().chain(&q1).any(|x| !x.is_finite()) {
+                return Err(
+                    "non-finite state (explicit step beyond its stability limit?)".to_string(),
+                );
+            }
+            Ok((rep.iterations, q1, v1, 0.5 * h * (p0 + p1w), f_next))
+        });
+        match attempt {
+            Ok((its, q1, v1, dissipated, f_next)) => {
+                total += its;
+                let a = level.a.clone();
+                level = TimeLevel {
+                    t: t0 + h,
+                    q: q1,
+                    v: v1,
+                    a,
+                };
+                f_n = f_next;
+                on_step(
+                    &level,
+                    &DynamicStepInfo {
+                        dt: h,
+                        newton_iterations: its,
+                        dissipated,
+                    },
+                );
+                dt = (2.0 * dt).min(settings.dt);
+            }
+            Err(reason) => {
+                dt = 0.5 * h;
+                if dt < min_dt {
+                    return Err(fail(
+                        &level,
+                        t0,
+                        format!("time step fell below {min_dt:e} s at t = {t0:.6e} s; last failure: {reason}"),
+                        total,
+                    ));
+                }
+            }
+        }
+    }
+    Ok((level, total))
 }

@@ -1,0 +1,111 @@
+//! Arruda–Boyce (eight-chain) solid, five-term series form
+//!
+//! ```text
+//! W = μ Σᵢ₌₁⁵ Cᵢ/λ_m^(2i−2) (Ī₁ⁱ − 3ⁱ) + κ/4 (J² − 1 − 2 ln J)
+//! C = [1/2, 1/20, 11/1050, 19/7000, 519/673750]
+//! ```
+//!
+//! The parameter μ is the series coefficient, *not* the initial shear
+//! modulus: μ₀ = μ(1 + 3/(5λ_m²) + 99/(175λ_m⁴) + 513/(875λ_m⁶)
+//! + 42039/(67375λ_m⁸)) ([`ArrudaBoyce::initial_shear_factor`]). K₀ = κ.
+
+use super::electroelastic::Electroelastic;
+use super::hyperelastic::{
+    invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond, Hyperelastic,
+    InvariantDerivs, IsoInvariants,
+};
+use super::isotropic::CKinematics;
+use super::MaterialError;
+
+/// Series coefficients Cᵢ of the five-term Arruda–Boyce energy.
+pub const AB_COEFFS: [f64; 5] = [
+    0.5,
+    1.0 / 20.0,
+    11.0 / 1050.0,
+    19.0 / 7000.0,
+    519.0 / 673750.0,
+];
+
+/// Arruda–Boyce W = μ Σ Cᵢ/λ_m^(2i−2)(Ī₁ⁱ − 3ⁱ) + κ/4 (J² − 1 − 2 ln J).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArrudaBoyce {
+    /// Series coefficient μ (Pa); see [`ArrudaBoyce::initial_shear_factor`].
+    pub mu: f64,
+    /// Locking stretch λ_m (dimensionless), > 1.
+    pub lambda_m: f64,
+    /// Bulk modulus κ (Pa).
+    pub kappa: f64,
+}
+
+/// [`ArrudaBoyce`] with a linear dielectric.
+pub type ElectroArrudaBoyce = Electroelastic<ArrudaBoyce>;
+
+impl ArrudaBoyce {
+    /// μ₀/μ = 1 + 3/(5λ_m²) + 99/(175λ_m⁴) + 513/(875λ_m⁶) + 42039/(67375λ_m⁸).
+    pub fn initial_shear_factor(lambda_m: f64) -> f64 {
+        let b = 1.0 / (lambda_m * lambda_m);
+        1.0 + b * (3.0 / 5.0 + b * (99.0 / 175.0 + b * (513.0 / 875.0 + b * 42039.0 / 67375.0)))
+    }
+
+    /// Ŵ and its derivatives in Ī₁.
+    fn iso(&self, i1b: f64) -> (f64, InvariantDerivs) {
+        let b = 1.0 / (self.lambda_m * self.lambda_m);
+        let (mut w, mut w1, mut w11) = (0.0, 0.0, 0.0);
+        // Term i (1-based): a_i (Ī₁ⁱ − 3ⁱ), a_i = μ Cᵢ b^(i−1).
+        let mut scale = self.mu; // μ b^(i−1)
+        let mut ip = 1.0; // Ī₁^(i−1)
+        let mut ipm1 = 0.0; // Ī₁^(i−2) (0 for i = 1)
+        let mut three = 1.0; // 3^(i−1)
+        for (idx, c) in AB_COEFFS.iter().enumerate() {
+            let n = (idx + 1) as f64;
+            let a = scale * c;
+            w += a * (ip * i1b - three * 3.0);
+            w1 += a * n * ip;
+            w11 += a * n * (n - 1.0) * ipm1;
+            ipm1 = ip;
+            ip *= i1b;
+            three *= 3.0;
+            scale *= b;
+        }
+        (
+            w,
+            InvariantDerivs {
+                w1,
+                w11,
+                ..Default::default()
+            },
+        )
+    }
+}
+
+impl Hyperelastic for ArrudaBoyce {
+    fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        Ok(self.iso(inv.i1b).0 + vol_log(self.kappa, k.j).u)
+    }
+
+    fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let (w, d) = self.iso(inv.i1b);
+        let v = vol_log(self.kappa, k.j);
+        Ok(HFirst {
+            w: w + v.u,
+            s: iso_stress(k, &inv, &d) + vol_stress(k, &v),
+        })
+    }
+
+    fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let (w, d) = self.iso(inv.i1b);
+        let v = vol_log(self.kappa, k.j);
+        Ok(invariant_model_second(k, &inv, w + v.u, &d, &v))
+    }
+
+    fn shear_modulus(&self) -> f64 {
+        self.mu * Self::initial_shear_factor(self.lambda_m)
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        self.kappa
+    }
+}

@@ -1,0 +1,131 @@
+//! Linear dielectric part of the energy, shared by every electro-elastic
+//! model:
+//!
+//! ```text
+//! Ω_e(C, E0) = c₁ E0·E0 + c₂ E0·(C E0) − ε/2 J E0·(C⁻¹E0)
+//! ```
+//!
+//! With c₁ = c₂ = 0 this is the ideal dielectric (ε = εᵣε₀); the "Vu" form
+//! uses ε = ε₀ and electrostrictive coefficients c₁, c₂. The small-strain
+//! permittivity is ε − 2c₁ − 2c₂.
+//!
+//! Derivatives (g = C⁻¹E0, a = E0·g, H_IJKL = ½(C⁻¹_IK C⁻¹_JL + C⁻¹_IL C⁻¹_JK)):
+//!
+//! ```text
+//! S_e  = 2c₂ E0⊗E0 + εJ (g⊗g − ½ a C⁻¹)
+//! D0   = −2c₁E0 − 2c₂ C E0 + εJ g
+//! 𝕃_e  = εJ a H − ½ εJ a C⁻¹⊗C⁻¹
+//!        + εJ [ (g⊗g)⊗C⁻¹ + C⁻¹⊗(g⊗g)
+//!               − (C⁻¹_IK g_J g_L + C⁻¹_IL g_J g_K + C⁻¹_JK g_I g_L + C⁻¹_JL g_I g_K) ]
+//! ∂S_IJ/∂E0_K = 2c₂(δ_IK E0_J + E0_I δ_JK) + εJ (C⁻¹_IK g_J + g_I C⁻¹_JK − g_K C⁻¹_IJ)
+//! ∂D0/∂E0     = −2c₁ I − 2c₂ C + εJ C⁻¹
+//! ```
+
+use super::isotropic::{CKinematics, Tensor3, Tensor4};
+use super::{Mat3, Vec3, EPSILON_0};
+
+/// Dielectric part of the energy (SI units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElectricPart {
+    /// Permittivity ε (F/m).
+    pub eps: f64,
+    /// Electrostrictive coefficient c₁ (F/m = N/V²).
+    pub c1: f64,
+    /// Electrostrictive coefficient c₂ (F/m = N/V²).
+    pub c2: f64,
+}
+
+impl ElectricPart {
+    /// Ideal dielectric with relative permittivity εᵣ: ε = εᵣε₀, c₁ = c₂ = 0.
+    pub fn ideal(eps_r: f64) -> Self {
+        Self {
+            eps: eps_r * EPSILON_0,
+            c1: 0.0,
+            c2: 0.0,
+        }
+    }
+
+    /// Same part with the electrostrictive coefficients set to (c₁, c₂).
+    pub fn with_coupling(self, c1: f64, c2: f64) -> Self {
+        Self { c1, c2, ..self }
+    }
+
+    /// Small-strain permittivity ε − 2c₁ − 2c₂ (F/m).
+    pub fn small_strain_permittivity(&self) -> f64 {
+        self.eps - 2.0 * self.c1 - 2.0 * self.c2
+    }
+
+    /// Ω_e = c₁ E0·E0 + c₂ E0·CE0 − ε/2 J E0·C⁻¹E0 (the E0-dependent part of
+    /// the energy; the bookkeeping "electric energy" is −Ω_e).
+    pub fn energy(&self, k: &CKinematics, e0: &Vec3) -> f64 {
+        let ee = e0.dot(e0);
+        let ece = e0.dot(&(k.c * e0));
+        let a = e0.dot(&(k.c_inv * e0));
+        self.c1 * ee + self.c2 * ece - 0.5 * self.eps * k.j * a
+    }
+
+    /// (S_e, D0).
+    pub fn first(&self, k: &CKinematics, e0: &Vec3) -> (Mat3, Vec3) {
+        let ci = &k.c_inv;
+        let g = ci * e0;
+        let a = e0.dot(&g);
+        let ej = self.eps * k.j;
+        let s = e0 * e0.transpose() * (2.0 * self.c2) + (g * g.transpose() - ci * (0.5 * a)) * ej;
+        let d0 = e0 * (-2.0 * self.c1) - (k.c * e0) * (2.0 * self.c2) + g * ej;
+        (s, d0)
+    }
+
+    /// Adds 𝕃_e to `ll` and returns (∂S/∂E0 indexed `[I][J][K]`, ∂D0/∂E0).
+    pub fn second_into(&self, k: &CKinematics, e0: &Vec3, ll: &mut Tensor4) -> (Tensor3, Mat3) {
+        let ci = &k.c_inv;
+        let g = ci * e0;
+        let a = e0.dot(&g);
+        let ej = self.eps * k.j;
+
+        // 𝕃_IJKL = εJ [ a H_IJKL − ½ a Ci_IJ Ci_KL + Ci_KL g_I g_J + Ci_IJ g_K g_L
+        //               − (Ci_IK g_J g_L + Ci_IL g_J g_K + Ci_JK g_I g_L + Ci_JL g_I g_K) ]
+        // (identically zero for E0 = 0).
+        if *e0 != Vec3::zeros() {
+            for (i, lli) in ll.iter_mut().enumerate() {
+                for (j, llij) in lli.iter_mut().enumerate() {
+                    let cij = ci[(i, j)];
+                    let gij = g[i] * g[j];
+                    for (kk, llijk) in llij.iter_mut().enumerate() {
+                        for (l, v) in llijk.iter_mut().enumerate() {
+                            let ckl = ci[(kk, l)];
+                            let h = 0.5 * (ci[(i, kk)] * ci[(j, l)] + ci[(i, l)] * ci[(j, kk)]);
+                            let cross = ci[(i, kk)] * g[j] * g[l]
+                                + ci[(i, l)] * g[j] * g[kk]
+                                + ci[(j, kk)] * g[i] * g[l]
+                                + ci[(j, l)] * g[i] * g[kk];
+                            *v += ej
+                                * (a * h - 0.5 * a * cij * ckl + ckl * gij + cij * g[kk] * g[l]
+                                    - cross);
+                        }
+                    }
+                }
+            }
+        }
+
+        // ∂S_IJ/∂E0_K = 2c₂(δ_IK E_J + E_I δ_JK) + εJ(Ci_IK g_J + g_I Ci_JK − g_K Ci_IJ)
+        let mut se: Tensor3 = [[[0.0; 3]; 3]; 3];
+        for (i, sei) in se.iter_mut().enumerate() {
+            for (j, seij) in sei.iter_mut().enumerate() {
+                for (kk, v) in seij.iter_mut().enumerate() {
+                    let mut w = ej * (ci[(i, kk)] * g[j] + g[i] * ci[(j, kk)] - g[kk] * ci[(i, j)]);
+                    if i == kk {
+                        w += 2.0 * self.c2 * e0[j];
+                    }
+                    if j == kk {
+                        w += 2.0 * self.c2 * e0[i];
+                    }
+                    *v = w;
+                }
+            }
+        }
+
+        // ∂D0/∂E0 = −2c₁ I − 2c₂ C + εJ C⁻¹
+        let dd = Mat3::identity() * (-2.0 * self.c1) - k.c * (2.0 * self.c2) + ci * ej;
+        (se, dd)
+    }
+}

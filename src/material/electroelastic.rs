@@ -1,0 +1,99 @@
+//! Generic electro-elastic material: a mechanical energy W(C) plus the
+//! linear dielectric part,
+//!
+//! ```text
+//! Ω(C, E0) = W(C) + c₁ E0·E0 + c₂ E0·(C E0) − ε/2 J E0·(C⁻¹E0).
+//! ```
+//!
+//! [`Material::energy_split`] returns `(W, −Ω_e)` with Ω_e the E0-dependent
+//! terms, so that Ψ = mechanical − electric.
+
+use super::electric::ElectricPart;
+use super::hyperelastic::Hyperelastic;
+use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial};
+use super::{Mat3, Material, MaterialError, Stress, Tangent, Vec3};
+
+/// Mechanical model `H` combined with a linear dielectric.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Electroelastic<H> {
+    /// Mechanical part W(C).
+    pub mech: H,
+    /// Dielectric part.
+    pub elec: ElectricPart,
+}
+
+impl<H: Hyperelastic> Electroelastic<H> {
+    /// Combine a mechanical model with a dielectric part.
+    pub fn new(mech: H, elec: ElectricPart) -> Self {
+        Self { mech, elec }
+    }
+
+    /// Mechanical model with an ideal dielectric of relative permittivity εᵣ.
+    pub fn ideal(mech: H, eps_r: f64) -> Self {
+        Self::new(mech, ElectricPart::ideal(eps_r))
+    }
+}
+
+impl<H: Hyperelastic> CMaterial for Electroelastic<H> {
+    fn c_energy(&self, k: &CKinematics, e0: &Vec3) -> Result<f64, MaterialError> {
+        Ok(self.mech.w(k)? + self.elec.energy(k, e0))
+    }
+
+    fn c_first(&self, k: &CKinematics, e0: &Vec3) -> Result<CFirst, MaterialError> {
+        let m = self.mech.s(k)?;
+        let (se, d0) = self.elec.first(k, e0);
+        Ok(CFirst {
+            energy: m.w + self.elec.energy(k, e0),
+            s: m.s + se,
+            d0,
+        })
+    }
+
+    fn c_second(&self, k: &CKinematics, e0: &Vec3) -> Result<CDerivs, MaterialError> {
+        let m = self.mech.ll(k)?;
+        let (s_e, d0) = self.elec.first(k, e0);
+        let mut ll = m.ll;
+        let (se, dd) = self.elec.second_into(k, e0, &mut ll);
+        Ok(CDerivs {
+            energy: m.w + self.elec.energy(k, e0),
+            s: m.s + s_e,
+            d0,
+            ll,
+            se,
+            dd,
+        })
+    }
+}
+
+impl<H: Hyperelastic> Material for Electroelastic<H> {
+    fn energy(&self, f: &Mat3, e0: &Vec3) -> Result<f64, MaterialError> {
+        isotropic::energy_from_c(self, f, e0)
+    }
+
+    fn stress(&self, f: &Mat3, e0: &Vec3) -> Result<Stress, MaterialError> {
+        isotropic::stress_from_c(self, f, e0)
+    }
+
+    fn tangent(&self, f: &Mat3, e0: &Vec3) -> Result<Tangent, MaterialError> {
+        isotropic::tangent_from_c(self, f, e0)
+    }
+
+    fn shear_modulus(&self) -> f64 {
+        self.mech.shear_modulus()
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        self.mech.bulk_modulus()
+    }
+
+    fn permittivity(&self) -> f64 {
+        self.elec.small_strain_permittivity()
+    }
+
+    fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
+        // Validate exactly like the energy evaluation does.
+        isotropic::energy_from_c(self, f, e0)?;
+        let k = CKinematics::from_f(f)?;
+        Ok((self.mech.w(&k)?, -self.elec.energy(&k, e0)))
+    }
+}

@@ -1,0 +1,271 @@
+//! Purely mechanical isotropic hyperelastic energies W(C) and the shared
+//! building blocks (isochoric invariants, volumetric functions) used by the
+//! models in this directory.
+//!
+//! A model implements [`Hyperelastic`], returning
+//!
+//! * `W(C)`,
+//! * `S = 2 ∂W/∂C`,
+//! * `𝕃 = 4 ∂²W/∂C∂C` (minor and major symmetry),
+//!
+//! and is combined with an [`ElectricPart`](super::electric::ElectricPart) by
+//! [`Electroelastic`](super::electroelastic::Electroelastic).
+//!
+//! # Invariant-based models
+//!
+//! With I₁ = tr C, I₂ = ½(I₁² − tr C²), J = √det C and the isochoric
+//! invariants Ī₁ = J^(−2/3) I₁, Ī₂ = J^(−4/3) I₂ one has (Ci = C⁻¹)
+//!
+//! ```text
+//! ∂Ī₁/∂C = J^(−2/3) (I − I₁/3 Ci)
+//! ∂Ī₂/∂C = J^(−4/3) (I₁ I − C − 2I₂/3 Ci)
+//! ∂²Ī₁/∂C² = J^(−2/3) [ −⅓(I⊗Ci + Ci⊗I) + I₁/9 Ci⊗Ci + I₁/3 H ]
+//! ∂²Ī₂/∂C² = J^(−4/3) [ I⊗I − 𝕀 − ⅔I₁(I⊗Ci + Ci⊗I) + ⅔(C⊗Ci + Ci⊗C)
+//!                        + 4I₂/9 Ci⊗Ci + 2I₂/3 H ]
+//! ```
+//!
+//! with H_IJKL = ½(Ci_IK Ci_JL + Ci_IL Ci_JK) = −∂Ci_IJ/∂C_KL and
+//! 𝕀_IJKL = ½(δ_IK δ_JL + δ_IL δ_JK). For W = Ŵ(Ī₁, Ī₂) + U(J):
+//!
+//! ```text
+//! S = 2(W₁ ∂Ī₁/∂C + W₂ ∂Ī₂/∂C) + J U′ Ci
+//! 𝕃 = 4[ W₁₁ A⊗A + W₁₂(A⊗B + B⊗A) + W₂₂ B⊗B + W₁ ∂²Ī₁/∂C² + W₂ ∂²Ī₂/∂C² ]
+//!     + J(U′ + J U″) Ci⊗Ci − 2J U′ H          (A = ∂Ī₁/∂C, B = ∂Ī₂/∂C)
+//! ```
+//!
+//! # Volumetric functions
+//!
+//! The split models (neo-Hooke split, Gent, Ogden, Arruda–Boyce) all use
+//! [`vol_log`], U(J) = κ/4 (J² − 1 − 2 ln J), the function of the deal.II
+//! Cook's membrane benchmark (U″(1) = κ, so the small-strain bulk modulus
+//! is κ; U grows without bound for J → 0 and J → ∞). Yeoh and Mooney–Rivlin
+//! use the Abaqus polynomial form [`vol_poly`], U = Σᵢ (1/Dᵢ)(J − 1)^(2i),
+//! with K₀ = 2/D₁.
+
+use super::isotropic::{CKinematics, Tensor4};
+use super::{Mat3, MaterialError};
+
+/// W and S = 2∂W/∂C.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HFirst {
+    /// Energy per reference volume W (J/m³).
+    pub w: f64,
+    /// S = 2 ∂W/∂C (Pa).
+    pub s: Mat3,
+}
+
+/// W, S and 𝕃 = 4∂²W/∂C².
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HSecond {
+    /// Energy per reference volume W (J/m³).
+    pub w: f64,
+    /// S = 2 ∂W/∂C (Pa).
+    pub s: Mat3,
+    /// 𝕃 = 4 ∂²W/∂C∂C (Pa), minor and major symmetry.
+    pub ll: Tensor4,
+}
+
+/// A purely mechanical isotropic strain energy W(C) per unit reference
+/// volume.
+pub trait Hyperelastic: Send + Sync + std::fmt::Debug {
+    /// W(C).
+    fn w(&self, k: &CKinematics) -> Result<f64, MaterialError>;
+    /// W and S = 2∂W/∂C.
+    fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError>;
+    /// W, S and 𝕃 = 4∂²W/∂C².
+    fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError>;
+    /// Small-strain shear modulus μ₀ (Pa).
+    fn shear_modulus(&self) -> f64;
+    /// Small-strain bulk modulus K₀ (Pa).
+    fn bulk_modulus(&self) -> f64;
+}
+
+/// Value and first two derivatives of a volumetric function U(J).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VolDerivs {
+    /// U(J).
+    pub u: f64,
+    /// U′(J).
+    pub du: f64,
+    /// U″(J).
+    pub ddu: f64,
+}
+
+/// U(J) = κ/4 (J² − 1 − 2 ln J): U′ = κ/2 (J − 1/J), U″ = κ/2 (1 + 1/J²).
+pub fn vol_log(kappa: f64, j: f64) -> VolDerivs {
+    VolDerivs {
+        u: 0.25 * kappa * (j * j - 1.0 - 2.0 * j.ln()),
+        du: 0.5 * kappa * (j - 1.0 / j),
+        ddu: 0.5 * kappa * (1.0 + 1.0 / (j * j)),
+    }
+}
+
+/// Abaqus polynomial form U(J) = Σᵢ (1/Dᵢ)(J − 1)^(2i), i = 1, 2, …, given
+/// the inverse compressibilities `inv_d[i−1]` = 1/Dᵢ (0 for an absent term).
+pub fn vol_poly(inv_d: &[f64], j: f64) -> VolDerivs {
+    let x = j - 1.0;
+    let x2 = x * x;
+    let mut v = VolDerivs {
+        u: 0.0,
+        du: 0.0,
+        ddu: 0.0,
+    };
+    // Term i: (J−1)^(2i)/Dᵢ, derivative 2i (J−1)^(2i−1)/Dᵢ,
+    // second derivative 2i(2i−1)(J−1)^(2i−2)/Dᵢ.
+    let mut x2im2 = 1.0; // (J−1)^(2i−2)
+    for (idx, &c) in inv_d.iter().enumerate() {
+        let n = 2.0 * (idx + 1) as f64;
+        v.u += c * x2im2 * x2;
+        v.du += c * n * x2im2 * x;
+        v.ddu += c * n * (n - 1.0) * x2im2;
+        x2im2 *= x2;
+    }
+    v
+}
+
+/// Volumetric stress S_vol = J U′ C⁻¹.
+pub fn vol_stress(k: &CKinematics, v: &VolDerivs) -> Mat3 {
+    k.c_inv * (k.j * v.du)
+}
+
+/// Adds 𝕃_vol = J(U′ + J U″) C⁻¹⊗C⁻¹ − 2J U′ H to `ll`.
+pub fn add_vol_tangent(k: &CKinematics, v: &VolDerivs, ll: &mut Tensor4) {
+    let cc = k.j * (v.du + k.j * v.ddu);
+    let hh = -2.0 * k.j * v.du;
+    let ci = &k.c_inv;
+    for (i, lli) in ll.iter_mut().enumerate() {
+        for (j, llij) in lli.iter_mut().enumerate() {
+            for (kk, llijk) in llij.iter_mut().enumerate() {
+                for (l, x) in llijk.iter_mut().enumerate() {
+                    let h = 0.5 * (ci[(i, kk)] * ci[(j, l)] + ci[(i, l)] * ci[(j, kk)]);
+                    *x += cc * ci[(i, j)] * ci[(kk, l)] + hh * h;
+                }
+            }
+        }
+    }
+}
+
+/// Invariants of C needed by the invariant-based models.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IsoInvariants {
+    /// I₁ = tr C.
+    pub i1: f64,
+    /// I₂ = ½(I₁² − tr C²).
+    pub i2: f64,
+    /// J^(−2/3).
+    pub jm23: f64,
+    /// Ī₁ = J^(−2/3) I₁.
+    pub i1b: f64,
+    /// Ī₂ = J^(−4/3) I₂.
+    pub i2b: f64,
+}
+
+impl IsoInvariants {
+    /// Invariants from the kinematics.
+    pub fn new(k: &CKinematics) -> Self {
+        let i1 = k.c.trace();
+        let i2 = 0.5 * (i1 * i1 - (k.c * k.c).trace());
+        let jm23 = k.j.powf(-2.0 / 3.0);
+        Self {
+            i1,
+            i2,
+            jm23,
+            i1b: jm23 * i1,
+            i2b: jm23 * jm23 * i2,
+        }
+    }
+
+    /// ∂Ī₁/∂C = J^(−2/3)(I − I₁/3 C⁻¹).
+    pub fn d_i1b(&self, k: &CKinematics) -> Mat3 {
+        (Mat3::identity() - k.c_inv * (self.i1 / 3.0)) * self.jm23
+    }
+
+    /// ∂Ī₂/∂C = J^(−4/3)(I₁ I − C − 2I₂/3 C⁻¹).
+    pub fn d_i2b(&self, k: &CKinematics) -> Mat3 {
+        (Mat3::identity() * self.i1 - k.c - k.c_inv * (2.0 * self.i2 / 3.0))
+            * (self.jm23 * self.jm23)
+    }
+}
+
+/// Derivatives of the isochoric energy Ŵ(Ī₁, Ī₂).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct InvariantDerivs {
+    /// ∂Ŵ/∂Ī₁.
+    pub w1: f64,
+    /// ∂Ŵ/∂Ī₂.
+    pub w2: f64,
+    /// ∂²Ŵ/∂Ī₁².
+    pub w11: f64,
+    /// ∂²Ŵ/∂Ī₁∂Ī₂.
+    pub w12: f64,
+    /// ∂²Ŵ/∂Ī₂².
+    pub w22: f64,
+}
+
+/// S_iso = 2(W₁ ∂Ī₁/∂C + W₂ ∂Ī₂/∂C).
+pub fn iso_stress(k: &CKinematics, inv: &IsoInvariants, d: &InvariantDerivs) -> Mat3 {
+    let mut s = inv.d_i1b(k) * (2.0 * d.w1);
+    if d.w2 != 0.0 {
+        s += inv.d_i2b(k) * (2.0 * d.w2);
+    }
+    s
+}
+
+/// 𝕃_iso = 4[W₁₁ A⊗A + W₁₂(A⊗B + B⊗A) + W₂₂ B⊗B + W₁ ∂²Ī₁ + W₂ ∂²Ī₂]
+/// (see the module documentation).
+pub fn iso_tangent(k: &CKinematics, inv: &IsoInvariants, d: &InvariantDerivs) -> Tensor4 {
+    let ci = &k.c_inv;
+    let c = &k.c;
+    let a = inv.d_i1b(k);
+    let b = inv.d_i2b(k);
+    let with_i2 = d.w2 != 0.0 || d.w12 != 0.0 || d.w22 != 0.0;
+    let del = |p: usize, q: usize| if p == q { 1.0 } else { 0.0 };
+    // Coefficients of the second-derivative terms, with the factor 4 and
+    // the J powers folded in.
+    let f1 = 4.0 * d.w1 * inv.jm23;
+    let f2 = 4.0 * d.w2 * inv.jm23 * inv.jm23;
+    let (i1, i2) = (inv.i1, inv.i2);
+    let mut ll: Tensor4 = [[[[0.0; 3]; 3]; 3]; 3];
+    for (i, lli) in ll.iter_mut().enumerate() {
+        for (j, llij) in lli.iter_mut().enumerate() {
+            let (aij, bij, cij, dij, cmij) =
+                (a[(i, j)], b[(i, j)], ci[(i, j)], del(i, j), c[(i, j)]);
+            for (kk, llijk) in llij.iter_mut().enumerate() {
+                for (l, x) in llijk.iter_mut().enumerate() {
+                    let (akl, ckl, dkl) = (a[(kk, l)], ci[(kk, l)], del(kk, l));
+                    let h = 0.5 * (ci[(i, kk)] * ci[(j, l)] + ci[(i, l)] * ci[(j, kk)]);
+                    let mut v = 4.0 * d.w11 * aij * akl
+                        + f1 * (-(dij * ckl + cij * dkl) / 3.0
+                            + i1 / 9.0 * cij * ckl
+                            + i1 / 3.0 * h);
+                    if with_i2 {
+                        let bkl = b[(kk, l)];
+                        let sym_i = 0.5 * (del(i, kk) * del(j, l) + del(i, l) * del(j, kk));
+                        v += 4.0 * d.w12 * (aij * bkl + bij * akl)
+                            + 4.0 * d.w22 * bij * bkl
+                            + f2 * (dij * dkl - sym_i - 2.0 / 3.0 * i1 * (dij * ckl + cij * dkl)
+                                + 2.0 / 3.0 * (cmij * ckl + cij * c[(kk, l)])
+                                + 4.0 * i2 / 9.0 * cij * ckl
+                                + 2.0 * i2 / 3.0 * h);
+                    }
+                    *x = v;
+                }
+            }
+        }
+    }
+    ll
+}
+
+/// Complete [`HSecond`] for W = Ŵ(Ī₁, Ī₂) + U(J).
+pub fn invariant_model_second(
+    k: &CKinematics,
+    inv: &IsoInvariants,
+    w: f64,
+    d: &InvariantDerivs,
+    v: &VolDerivs,
+) -> HSecond {
+    let s = iso_stress(k, inv, d) + vol_stress(k, v);
+    let mut ll = iso_tangent(k, inv, d);
+    add_vol_tangent(k, v, &mut ll);
+    HSecond { w, s, ll }
+}

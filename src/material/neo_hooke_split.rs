@@ -1,0 +1,67 @@
+//! Neo-Hooke solid in the isochoric/volumetric split form
+//!
+//! ```text
+//! W = μ/2 (Ī₁ − 3) + κ/4 (J² − 1 − 2 ln J)
+//! ```
+//!
+//! (the energy of the deal.II Cook's membrane benchmark). μ₀ = μ, K₀ = κ.
+
+use super::electroelastic::Electroelastic;
+use super::hyperelastic::{
+    invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond, Hyperelastic,
+    InvariantDerivs, IsoInvariants,
+};
+use super::isotropic::CKinematics;
+use super::MaterialError;
+
+/// Split neo-Hooke W = μ/2 (Ī₁ − 3) + κ/4 (J² − 1 − 2 ln J).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NeoHookeSplit {
+    /// Shear modulus μ (Pa).
+    pub mu: f64,
+    /// Bulk modulus κ (Pa).
+    pub kappa: f64,
+}
+
+/// [`NeoHookeSplit`] with a linear dielectric.
+pub type ElectroNeoHookeSplit = Electroelastic<NeoHookeSplit>;
+
+impl NeoHookeSplit {
+    fn derivs(&self) -> InvariantDerivs {
+        InvariantDerivs {
+            w1: 0.5 * self.mu,
+            ..Default::default()
+        }
+    }
+}
+
+impl Hyperelastic for NeoHookeSplit {
+    fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        Ok(0.5 * self.mu * (inv.i1b - 3.0) + vol_log(self.kappa, k.j).u)
+    }
+
+    fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let v = vol_log(self.kappa, k.j);
+        Ok(HFirst {
+            w: 0.5 * self.mu * (inv.i1b - 3.0) + v.u,
+            s: iso_stress(k, &inv, &self.derivs()) + vol_stress(k, &v),
+        })
+    }
+
+    fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let v = vol_log(self.kappa, k.j);
+        let w = 0.5 * self.mu * (inv.i1b - 3.0) + v.u;
+        Ok(invariant_model_second(k, &inv, w, &self.derivs(), &v))
+    }
+
+    fn shear_modulus(&self) -> f64 {
+        self.mu
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        self.kappa
+    }
+}

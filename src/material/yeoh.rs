@@ -1,0 +1,88 @@
+//! Yeoh solid (Abaqus form)
+//!
+//! ```text
+//! W = Σᵢ₌₁³ Cᵢ₀ (Ī₁ − 3)ⁱ + Σᵢ₌₁³ (1/Dᵢ)(J − 1)²ⁱ
+//! ```
+//!
+//! A coefficient Dᵢ = 0 means that volumetric term is absent (Abaqus uses
+//! D = 0 for "incompressible"; here only D₂ and D₃ may be zero, since the
+//! compressible formulation needs K₀ = 2/D₁ > 0). μ₀ = 2C₁₀.
+
+use super::electroelastic::Electroelastic;
+use super::hyperelastic::{
+    invariant_model_second, iso_stress, vol_poly, vol_stress, HFirst, HSecond, Hyperelastic,
+    InvariantDerivs, IsoInvariants,
+};
+use super::isotropic::CKinematics;
+use super::MaterialError;
+
+/// Yeoh W = Σ Cᵢ₀(Ī₁ − 3)ⁱ + Σ (J − 1)²ⁱ/Dᵢ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Yeoh {
+    /// C₁₀, C₂₀, C₃₀ (Pa).
+    pub c: [f64; 3],
+    /// D₁, D₂, D₃ (1/Pa); 0 switches the term off (D₁ must be > 0).
+    pub d: [f64; 3],
+}
+
+/// [`Yeoh`] with a linear dielectric.
+pub type ElectroYeoh = Electroelastic<Yeoh>;
+
+impl Yeoh {
+    /// Yeoh model from the Abaqus coefficients.
+    pub fn new(c10: f64, c20: f64, c30: f64, d1: f64, d2: f64, d3: f64) -> Self {
+        Self {
+            c: [c10, c20, c30],
+            d: [d1, d2, d3],
+        }
+    }
+
+    fn inv_d(&self) -> [f64; 3] {
+        self.d.map(|d| if d == 0.0 { 0.0 } else { 1.0 / d })
+    }
+
+    /// (Ŵ, Ŵ′, Ŵ″) as functions of x = Ī₁ − 3.
+    fn iso(&self, i1b: f64) -> (f64, InvariantDerivs) {
+        let x = i1b - 3.0;
+        let [c1, c2, c3] = self.c;
+        let w = x * (c1 + x * (c2 + x * c3));
+        let d = InvariantDerivs {
+            w1: c1 + x * (2.0 * c2 + 3.0 * c3 * x),
+            w11: 2.0 * c2 + 6.0 * c3 * x,
+            ..Default::default()
+        };
+        (w, d)
+    }
+}
+
+impl Hyperelastic for Yeoh {
+    fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        Ok(self.iso(inv.i1b).0 + vol_poly(&self.inv_d(), k.j).u)
+    }
+
+    fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let (w, d) = self.iso(inv.i1b);
+        let v = vol_poly(&self.inv_d(), k.j);
+        Ok(HFirst {
+            w: w + v.u,
+            s: iso_stress(k, &inv, &d) + vol_stress(k, &v),
+        })
+    }
+
+    fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let (w, d) = self.iso(inv.i1b);
+        let v = vol_poly(&self.inv_d(), k.j);
+        Ok(invariant_model_second(k, &inv, w + v.u, &d, &v))
+    }
+
+    fn shear_modulus(&self) -> f64 {
+        2.0 * self.c[0]
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        2.0 / self.d[0]
+    }
+}

@@ -1,0 +1,208 @@
+//! The trapezoidal discrete Lagrangian (PHYSICS.md §2.2): L_d = (Δt/2)[L(q_n, v̄) + L(q_{n+1}, v̄)],
+//! v̄ = (q_{n+1} − q_n)/Δt, with the reduced potential V(u, Φ*(u)) and Kelvin–Voigt forces
+//! f_d⁻ = (Δt/2) f_vis(q_n, v̄), f_d⁺ = (Δt/2) f_vis(q_{n+1}, v̄). In position–momentum form:
+//!   M v̄ = p_n − (Δt/2)[f(q_n) + f_vis-term at q_n],      p_{n+1} = M v̄ − (Δt/2) f(q_{n+1}, v̄),
+//! with f = ∇_u V − f_ext + r_vis: the Störmer–Verlet (velocity Verlet) scheme, explicit in the
+//! positions (only the mass and the viscous damping at q_n enter the step's matrix) and therefore
+//! stable only for Δt < 2/ω_max. Gauss's law holds at every end point (the potential is solved at
+//! q_{n+1} with the voltages at t_{n+1}). Symplectic and momentum preserving for η = 0.
+
+use super::mass::NodalMass;
+use crate::analysis::statics::discretize;
+use crate::assembly::{Assembler, CsrMatrix};
+use crate::dofs::{Dirichlet, DofMap, Field, CONSTRAINED, FIELDS, PHI};
+use crate::element::{cell_viscous, MAX_LOCAL};
+use crate::model::Model;
+use crate::solve::newton::NonlinearSystem;
+
+/// The velocity equation of one trapezoidal step; the unknown is u_{n+1} (the potential is held).
+pub struct TrapezoidalStep<'m> {
+    model: Model,
+    dofs: DofMap,
+    assembler: Assembler,
+    mass: &'m NodalMass,
+    viscosity: Vec<f64>,
+    /// q_n, v_n and the conservative forces ∇_u V − f_ext at q_n (4 per node).
+    pub q_n: Vec<f64>,
+    pub v_n: Vec<f64>,
+    pub f_n: Vec<f64>,
+    /// The iterate q_{n+1}.
+    pub q: Vec<f64>,
+    pub dt: f64,
+    floor: f64,
+    mass_positions: Vec<(usize, usize)>,
+    cell_energy: Vec<f64>,
+}
+
+impl<'m> TrapezoidalStep<'m> {
+    /// `model.dirichlet` holds the displacement supports; every potential dof is held here.
+    pub fn new(model: &Model, mass: &'m NodalMass, viscosity: Vec<f64>) -> Self {
+        let mut m = model.clone();
+        m.dirichlet.retain(|d| d.field != Field::Phi);
+        m.dirichlet.push(Dirichlet {
+            nodes: (0..m.mesh.n_nodes()).collect(),
+            field: Field::Phi,
+            value: 0.0,
+        });
+        let (dofs, assembler, floor) = discretize(&m);
+        let n = m.mesh.n_nodes() * FIELDS;
+        TrapezoidalStep {
+            model: m,
+            dofs,
+            assembler,
+            mass,
+            viscosity,
+            q_n: vec![0.0; n],
+            v_n: vec![0.0; n],
+            f_n: vec![0.0; n],
+            q: vec![0.0; n],
+            dt: 0.0,
+            floor,
+            mass_positions: Vec::new(),
+            cell_energy: Vec::new(),
+        }
+    }
+
+    /// Flags of the free displacement dofs.
+    pub fn free_u(&self) -> Vec<bool> {
+        self.dofs
+            .eq
+            .iter()
+            .enumerate()
+            .map(|(d, &e)| e != CONSTRAINED && d % FIELDS != PHI)
+            .collect()
+    }
+
+    fn velocity(&self) -> Vec<f64> {
+        self.q
+            .iter()
+            .zip(&self.q_n)
+            .map(|(a, b)| (a - b) / self.dt)
+            .collect()
+    }
+}
+
+/// Viscous dissipation power ∫ Jη d:d dV (W) at configuration `q` and velocity `v`.
+pub fn dissipation_power(
+    model: &Model,
+    viscosity: &[f64],
+    q: &[f64],
+    v: &[f64],
+) -> Result<f64, String> {
+    let mut total = 0.0;
+    let mut r = vec![0.0; MAX_LOCAL];
+    let mut vel = vec![0.0; MAX_LOCAL];
+    model.for_each_cell(q, |c, g, _, local| {
+        let eta = viscosity[model.cell_material[c]];
+        if eta > 0.0 {
+            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                vel[a * FIELDS..(a + 1) * FIELDS]
+                    .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
+            }
+            total += cell_viscous(g, eta, local, &vel[..local.len()], &mut r, None)
+                .map_err(|e| format!("cell {c}: {}", e.error))?;
+        }
+        Ok::<(), String>(())
+    })?;
+    Ok(total)
+}
+
+impl NonlinearSystem for TrapezoidalStep<'_> {
+    fn n(&self) -> usize {
+        self.dofs.n_free
+    }
+
+    fn evaluate(&mut self, r: &mut [f64], mut k: Option<&mut CsrMatrix>) -> Result<(), String> {
+        let dt = self.dt;
+        let vbar = self.velocity();
+        let model = &self.model;
+        let npc = model.mesh.kind.nodes_per_cell();
+        let viscosity = &self.viscosity;
+        // viscous forces at q_n with the step velocity: (Δt/2) r_vis, tangent ½ ∂r_vis/∂v
+        let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
+            let nl = npc * FIELDS;
+            rl[..nl].iter_mut().for_each(|v| *v = 0.0);
+            let mut kl = kl;
+            if let Some(kl) = kl.as_deref_mut() {
+                kl[..nl * nl].iter_mut().for_each(|v| *v = 0.0);
+            }
+            let eta = viscosity[model.cell_material[c]];
+            if eta > 0.0 {
+                let mut x = [[0.0; 3]; crate::fem::MAX_NODES];
+                model.mesh.cell_coords_into(c, &mut x[..npc]);
+                let g = model
+                    .reference
+                    .geometry(&x[..npc])
+                    .map_err(|e| format!("degenerate cell ({:e})", e.det))?;
+                let mut vel = [0.0; MAX_LOCAL];
+                for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                    vel[a * FIELDS..(a + 1) * FIELDS]
+                        .copy_from_slice(&vbar[node * FIELDS..(node + 1) * FIELDS]);
+                }
+                cell_viscous(&g, eta, local, &vel[..nl], rl, kl.as_deref_mut())
+                    .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
+                rl[..nl].iter_mut().for_each(|v| *v *= 0.5 * dt);
+                if let Some(kl) = kl {
+                    kl[..nl * nl].iter_mut().for_each(|v| *v *= 0.5);
+                }
+            }
+            Ok::<f64, String>(0.0)
+        };
+        self.assembler
+            .assemble(
+                &model.mesh,
+                &self.dofs,
+                &self.q_n,
+                kernel,
+                r,
+                k.as_deref_mut(),
+                &mut self.cell_energy,
+            )
+            .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        let dv: Vec<f64> = vbar.iter().zip(&self.v_n).map(|(a, b)| a - b).collect();
+        let mut mdv = vec![0.0; dv.len()];
+        self.mass.mul(&dv, &mut mdv);
+        for (d, &e) in self.dofs.eq.iter().enumerate() {
+            if e != CONSTRAINED {
+                r[e] += mdv[d] + 0.5 * dt * self.f_n[d];
+            }
+        }
+        if let Some(k) = k {
+            if self.mass_positions.is_empty() {
+                self.mass_positions = self.mass.positions_in(&self.dofs, k);
+            }
+            for &(pos, p) in &self.mass_positions {
+                k.values[pos] += self.mass.values[p] / dt;
+            }
+        }
+        Ok(())
+    }
+
+    fn increment(&mut self, dx: &[f64], alpha: f64) {
+        self.dofs.add_scaled(&mut self.q, dx, alpha);
+    }
+
+    fn snapshot(&self) -> Vec<f64> {
+        self.q.clone()
+    }
+
+    fn restore(&mut self, s: &[f64]) {
+        self.q.copy_from_slice(s);
+    }
+
+    fn new_matrix(&self) -> CsrMatrix {
+        self.assembler.new_matrix()
+    }
+
+    fn expected_negative_pivots(&self) -> usize {
+        0
+    }
+
+    fn residual_floor(&self) -> f64 {
+        self.floor * 0.5 * self.dt
+    }
+
+    fn groups(&self) -> Vec<u8> {
+        vec![0; self.dofs.n_free]
+    }
+}
