@@ -453,3 +453,82 @@ fn film_vibration_runs_undamped_and_damped() {
     assert!(value(last, "dissipated") > 0.0);
     assert!(value(last, "kinetic") < 1e-12);
 }
+
+/// Materials by model and by preset: the Yeoh preset of the experimental study runs the film (and
+/// its load-time checks are reported as warnings), a model with its own parameters runs, and a wrong
+/// preset, a parameter the model does not use, or a missing parameter exit 2 naming the key.
+#[test]
+fn material_models_and_presets_in_scenarios() {
+    let dir = tempdir("materials");
+    let film = String::from_utf8(deasim(&["example", "film"], &dir).stdout).unwrap();
+    let mech = "model = \"neo-hooke\"           # Ω = μ/2 (tr C − 3) − μ ln J + Λ/2 (ln J)² − ε/2 J E₀·C⁻¹E₀\nmu = 1e5                      # shear modulus μ, Pa\nlambda = 1e7                  # Lamé constant Λ, Pa\npermittivity = 4.7            # relative permittivity εᵣ";
+    assert!(
+        film.contains(mech),
+        "the film example's material block changed"
+    );
+    let with = |block: &str| film.replace(mech, block);
+    let run = |name: &str, text: String, extra: &[&str]| {
+        std::fs::write(dir.join(format!("{name}.toml")), text).unwrap();
+        let mut args = vec![
+            "run".to_string(),
+            format!("{name}.toml"),
+            "--out".into(),
+            name.to_string(),
+        ];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        deasim(&a, &dir)
+    };
+    let out = run(
+        "yeoh",
+        with("preset = \"vhb4910-yeoh\""),
+        &[
+            "--set",
+            "electrodes.top.voltage.amplitude=20e3",
+            "--set",
+            "stages.0.steps=5",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("yeoh/summary.json")).unwrap())
+            .unwrap();
+    let t = summary["probes"]["thickness_stretch"].as_f64().unwrap();
+    // C10 = 0.2019 MPa (μ₀ ≈ 0.40 MPa): at 20 kV the film thins by a few per cent only
+    assert!(t < 1.0 && t > 0.95, "{t}");
+    assert!(
+        summary["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("yeoh")),
+        "{summary}"
+    );
+    let out = run(
+        "gent",
+        with("model = \"gent\"\nmu = 1e5\njm = 100\nkappa = 1e7\npermittivity = 4.7"),
+        &["--set", "stages.0.steps=5"],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    for (name, block, fragment) in [
+        (
+            "badpreset",
+            "preset = \"vhb4910-yeo\"",
+            "did you mean `vhb4910-yeoh`",
+        ),
+        (
+            "unused",
+            "model = \"gent\"\nmu = 1e5\njm = 100\nkappa = 1e7\nlambda = 3\npermittivity = 4.7",
+            "materials.elastomer.lambda",
+        ),
+        (
+            "missing",
+            "model = \"yeoh\"\nc10 = 1e5\npermittivity = 4.7",
+            "materials.elastomer.d1",
+        ),
+    ] {
+        let out = run(name, with(block), &[]);
+        assert_eq!(out.status.code(), Some(2), "{name}: {}", stderr(&out));
+        assert!(stderr(&out).contains(fragment), "{name}: {}", stderr(&out));
+    }
+}
