@@ -1,8 +1,11 @@
-//! A model: mesh, materials of the cells and Dirichlet conditions (supports and electrodes).
+//! A model: mesh, materials of the cells, element formulation, Dirichlet conditions (supports and
+//! electrodes) and surface tractions.
 
 use crate::dofs::Dirichlet;
 use crate::dofs::FIELDS;
+pub use crate::element_fbar::Formulation;
 use crate::fem::{CellGeometry, ReferenceElement};
+pub use crate::loads::Traction;
 use crate::material::Material;
 use crate::mesh::Mesh;
 use std::sync::Arc;
@@ -18,6 +21,11 @@ pub struct Model {
     pub cell_material: Vec<usize>,
     /// Prescribed displacements (m) and potentials (V) at the end of the current stage.
     pub dirichlet: Vec<Dirichlet>,
+    /// Element formulation (standard displacement, or mean-dilatation for near incompressibility).
+    pub formulation: Formulation,
+    /// Dead nominal tractions (N/m² of reference area) at the end of the current stage; statics
+    /// scales them by the load factor, dynamics applies them at full value.
+    pub tractions: Vec<Traction>,
 }
 
 /// Problems found while building a model.
@@ -41,6 +49,8 @@ impl Model {
             materials: vec![material],
             cell_material: vec![0; n],
             dirichlet: Vec::new(),
+            formulation: Formulation::Standard,
+            tractions: Vec::new(),
         };
         model.check_cells()?;
         Ok(model)
@@ -85,6 +95,32 @@ impl Model {
             field,
             value,
         });
+        Ok(())
+    }
+
+    /// Adds a dead nominal traction `value` (N/m² of reference area) on a named face set.
+    pub fn add_traction(&mut self, face_set: &str, value: [f64; 3]) -> Result<(), ModelError> {
+        let faces = self
+            .mesh
+            .face_sets
+            .get(face_set)
+            .ok_or_else(|| ModelError::UnknownSet {
+                name: face_set.to_string(),
+                known: self
+                    .mesh
+                    .face_sets
+                    .keys()
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })?
+            .clone();
+        if value.iter().any(|v| !v.is_finite()) {
+            return Err(ModelError::Invalid(format!(
+                "traction on '{face_set}' must be finite; got {value:?}"
+            )));
+        }
+        self.tractions.push(Traction { faces, value });
         Ok(())
     }
 

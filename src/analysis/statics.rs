@@ -1,9 +1,12 @@
-//! The static problem: equilibrium of Π(u, Φ) = ∫Ψ dV under prescribed displacements and electrode
-//! potentials, ramped from their values at the start of the stage to the model's targets.
+//! The static problem: equilibrium of Π(u, Φ) = ∫Ψ dV − W_ext under prescribed displacements and
+//! electrode potentials, ramped from their values at the start of the stage to the model's targets,
+//! and dead surface tractions scaled by the load factor. The cell kernel is the model's
+//! [`Formulation`](crate::model::Formulation) (standard or mean-dilatation).
 
 use crate::assembly::{Assembler, CsrMatrix};
-use crate::dofs::{apply_dirichlet, constrained_flags, DofMap, FIELDS, PHI};
-use crate::element::{cell_energy_split, cell_residual_tangent, CellFields};
+use crate::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::element::CellFields;
+use crate::loads::traction_forces;
 use crate::model::Model;
 use crate::solve::linear::{FaerLdlt, LinearSolver};
 use crate::solve::newton::{NewtonSettings, NonlinearSystem};
@@ -13,6 +16,12 @@ use crate::solve::stepping::{
 
 /// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
 const RESIDUAL_FLOOR: f64 = 1e-11;
+/// Round-off level of the residual norm of a nearly incompressible body, in units of ε·K·h²·√n
+/// (ε the machine epsilon, K the bulk modulus, n the number of unknowns): J = det F carries an
+/// absolute rounding error ≈ ε, hence the pressure ≈ εK and each nodal force ≈ εK·h², and the
+/// norm sums n such errors. With K/μ ≳ 10³ on fine meshes this exceeds the μ-based floor and
+/// Newton would stall just above it (measured: ≈ 0.3 ε·K·h²·√n on Cook's membrane, ν = 0.4999).
+const ROUNDOFF_FLOOR: f64 = 4.0 * f64::EPSILON;
 
 /// The discrete static problem of a model.
 pub struct StaticProblem<'m> {
@@ -25,10 +34,16 @@ pub struct StaticProblem<'m> {
     start: Vec<f64>,
     cell_energy: Vec<f64>,
     floor: f64,
+    /// Load factor of the tractions (0 until [`LoadedSystem::set_load`]).
+    load: f64,
+    /// Nodal forces of the model's tractions at full value (N, `FIELDS` per node); empty without
+    /// tractions.
+    traction: Vec<f64>,
 }
 
 /// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
-/// absolute residual floor (N) of a model.
+/// absolute residual floor (N) of a model: h²·max(10⁻¹¹ μ, 4ε·K·√n) with the largest shear and
+/// bulk moduli of the materials.
 pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
     let n_nodes = model.mesh.n_nodes();
     let flags = constrained_flags(n_nodes, &model.dirichlet);
@@ -39,8 +54,14 @@ pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
         .iter()
         .map(|m| m.shear_modulus())
         .fold(0.0, f64::max);
+    let kappa = model
+        .materials
+        .iter()
+        .map(|m| m.bulk_modulus())
+        .fold(0.0, f64::max);
     let h = model.cell_size();
-    (dofs, assembler, RESIDUAL_FLOOR * mu * h * h)
+    let floor = (RESIDUAL_FLOOR * mu).max(ROUNDOFF_FLOOR * kappa * (dofs.n_free as f64).sqrt());
+    (dofs, assembler, floor * h * h)
 }
 
 impl<'m> StaticProblem<'m> {
@@ -48,6 +69,11 @@ impl<'m> StaticProblem<'m> {
     pub fn new(model: &'m Model, state: Option<Vec<f64>>) -> Self {
         let (dofs, assembler, floor) = discretize(model);
         let state = state.unwrap_or_else(|| vec![0.0; model.mesh.n_nodes() * FIELDS]);
+        let traction = if model.tractions.is_empty() {
+            Vec::new()
+        } else {
+            traction_forces(&model.mesh, &model.tractions, 1.0)
+        };
         StaticProblem {
             model,
             dofs,
@@ -56,7 +82,14 @@ impl<'m> StaticProblem<'m> {
             state,
             cell_energy: Vec::new(),
             floor,
+            load: 0.0,
+            traction,
         }
+    }
+
+    /// Current load factor of the tractions.
+    pub fn load(&self) -> f64 {
+        self.load
     }
 
     /// The assembler (for benchmarks).
@@ -69,10 +102,14 @@ impl<'m> StaticProblem<'m> {
         energies(self.model, &self.state)
     }
 
-    /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ); zero at the free dofs of
-    /// an equilibrium.
+    /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ): internal forces minus the
+    /// traction forces at the current load factor; zero at the free dofs of an equilibrium.
     pub fn nodal_reactions(&self) -> Result<Vec<f64>, String> {
-        nodal_reactions(self.model, &self.state)
+        let mut r = nodal_reactions(self.model, &self.state)?;
+        for (v, t) in r.iter_mut().zip(&self.traction) {
+            *v -= self.load * t;
+        }
+        Ok(r)
     }
 }
 
@@ -80,8 +117,10 @@ impl<'m> StaticProblem<'m> {
 pub fn energies(model: &Model, state: &[f64]) -> Result<(f64, f64), String> {
     let (mut mech, mut elec) = (0.0, 0.0);
     model.for_each_cell(state, |c, g, mat, local| {
-        let (a, b) =
-            cell_energy_split(g, mat, local).map_err(|e| format!("cell {c}: {}", e.error))?;
+        let (a, b) = model
+            .formulation
+            .energy_split(g, mat, local)
+            .map_err(|e| format!("cell {c}: {}", e.error))?;
         mech += a;
         elec += b;
         Ok::<(), String>(())
@@ -89,12 +128,16 @@ pub fn energies(model: &Model, state: &[f64]) -> Result<(f64, f64), String> {
     Ok((mech, elec))
 }
 
-/// ∂Π/∂x for every dof of a state (N for u, C for Φ).
+/// Internal forces ∂(∫Ψ dV)/∂x for every dof of a state (N for u, C for Φ). Tractions are not
+/// included: where a traction acts on a constrained node, subtract
+/// [`traction_forces`](crate::loads::traction_forces) for its reaction.
 pub fn nodal_reactions(model: &Model, state: &[f64]) -> Result<Vec<f64>, String> {
     let mut out = vec![0.0; state.len()];
     let mut r = vec![0.0; crate::element::MAX_LOCAL];
     model.for_each_cell(state, |c, g, mat, local| {
-        cell_residual_tangent(g, mat, local, &mut r, None)
+        model
+            .formulation
+            .residual_tangent(g, mat, local, &mut r, None)
             .map_err(|e| format!("cell {c}: {}", e.error))?;
         for (a, &node) in model.mesh.cell(c).iter().enumerate() {
             for f in 0..FIELDS {
@@ -111,7 +154,9 @@ pub fn cell_fields(model: &Model, state: &[f64]) -> Result<Vec<CellFields>, Stri
     let mut out = Vec::with_capacity(model.mesh.n_cells());
     model.for_each_cell(state, |c, g, mat, local| {
         out.push(
-            crate::element::cell_fields(g, mat, local)
+            model
+                .formulation
+                .fields(g, mat, local)
                 .map_err(|e| format!("cell {c}: {}", e.error))?,
         );
         Ok::<(), String>(())
@@ -134,7 +179,8 @@ impl NonlinearSystem for StaticProblem<'_> {
                 .reference
                 .geometry(&x[..npc])
                 .map_err(|e| format!("degenerate cell (Jacobian {:e})", e.det))?;
-            cell_residual_tangent(&g, m.materials[m.cell_material[c]].as_ref(), local, rl, kl)
+            m.formulation
+                .residual_tangent(&g, m.materials[m.cell_material[c]].as_ref(), local, rl, kl)
                 .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
         };
         self.assembler
@@ -147,20 +193,39 @@ impl NonlinearSystem for StaticProblem<'_> {
                 k,
                 &mut self.cell_energy,
             )
-            .map(|_| ())
-            .map_err(|f| format!("cell {}: {}", f.cell, f.error))
+            .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        // dead tractions: −s·∫N t₀ dA on the free displacement rows (scaled residual s_f·r)
+        if self.load != 0.0 {
+            for (d, &t) in self.traction.iter().enumerate() {
+                let e = self.dofs.eq[d];
+                if e != CONSTRAINED && t != 0.0 {
+                    r[e] -= self.dofs.scale[d % FIELDS] * self.load * t;
+                }
+            }
+        }
+        Ok(())
     }
 
     fn increment(&mut self, dx: &[f64], alpha: f64) {
         self.dofs.add_scaled(&mut self.state, dx, alpha);
     }
 
+    /// The state followed by the traction load factor (which the state does not carry, unlike
+    /// the prescribed values).
     fn snapshot(&self) -> Vec<f64> {
-        self.state.clone()
+        let mut s = Vec::with_capacity(self.state.len() + 1);
+        s.extend_from_slice(&self.state);
+        s.push(self.load);
+        s
     }
 
+    /// Accepts a snapshot, or a bare state (the load factor is then kept).
     fn restore(&mut self, s: &[f64]) {
-        self.state.copy_from_slice(s);
+        let n = self.state.len();
+        self.state.copy_from_slice(&s[..n]);
+        if let Some(&load) = s.get(n) {
+            self.load = load;
+        }
     }
 
     fn new_matrix(&self) -> CsrMatrix {
@@ -185,7 +250,10 @@ impl NonlinearSystem for StaticProblem<'_> {
 }
 
 impl LoadedSystem for StaticProblem<'_> {
+    /// Dirichlet values ramp linearly from the start state to the targets; tractions are the
+    /// model's values times `s`.
     fn set_load(&mut self, s: f64) {
+        self.load = s;
         let targets = &self.model.dirichlet;
         let mut end = self.state.clone();
         apply_dirichlet(&mut end, targets);
@@ -205,7 +273,8 @@ pub struct StaticOutcome {
     pub result: Result<RampReport, RampFailure>,
 }
 
-/// Ramps the model's Dirichlet values from `initial` (zero state when `None`) in `steps` steps.
+/// Ramps the model's Dirichlet values from `initial` (zero state when `None`), and its tractions
+/// from zero, to their targets in `steps` steps.
 /// `on_step` sees the problem after every accepted step.
 pub fn solve_static(
     model: &Model,

@@ -17,7 +17,8 @@
 use crate::analysis::statics::discretize;
 use crate::assembly::{Assembler, CsrMatrix};
 use crate::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
-use crate::element::{cell_residual_tangent, cell_viscous, MAX_LOCAL};
+use crate::element::{cell_viscous, MAX_LOCAL};
+use crate::loads::for_each_nodal_force;
 use crate::model::Model;
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
@@ -213,8 +214,8 @@ impl<'m> TimeStep<'m> {
         Ok(total)
     }
 
-    /// Internal, viscous and body forces f_int + f_vis − f_ext at configuration `q` and velocity
-    /// `v` (N, 4 per node; potential entries are ∂Π/∂Φ), all dofs.
+    /// Internal, viscous, body and traction forces f_int + f_vis − f_ext at configuration `q` and
+    /// velocity `v` (N, 4 per node; potential entries are ∂Π/∂Φ), all dofs. Tractions at full value.
     pub fn forces_at(&mut self, q: &[f64], v: &[f64]) -> Result<Vec<f64>, String> {
         let model = self.model;
         let mut out = vec![0.0; q.len()];
@@ -223,7 +224,9 @@ impl<'m> TimeStep<'m> {
         let mut vel = vec![0.0; MAX_LOCAL];
         model.for_each_cell(q, |c, g, mat, local| {
             let nl = local.len();
-            cell_residual_tangent(g, mat, local, &mut r, None)
+            model
+                .formulation
+                .residual_tangent(g, mat, local, &mut r, None)
                 .map_err(|e| format!("cell {c}: {}", e.error))?;
             let m = model.cell_material[c];
             let eta = self.viscosity[m];
@@ -249,6 +252,11 @@ impl<'m> TimeStep<'m> {
             }
             Ok::<(), String>(())
         })?;
+        for_each_nodal_force(&model.mesh, &model.tractions, |node, f| {
+            for i in 0..3 {
+                out[node * FIELDS + i] -= f[i];
+            }
+        });
         Ok(out)
     }
 
@@ -298,14 +306,16 @@ impl NonlinearSystem for TimeStep<'_> {
             let mat = model.cell_material[c];
             let nl = npc * FIELDS;
             let mut kl = kl;
-            let e = cell_residual_tangent(
-                &g,
-                model.materials[mat].as_ref(),
-                local,
-                rl,
-                kl.as_deref_mut(),
-            )
-            .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
+            let e = model
+                .formulation
+                .residual_tangent(
+                    &g,
+                    model.materials[mat].as_ref(),
+                    local,
+                    rl,
+                    kl.as_deref_mut(),
+                )
+                .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
             rl[..nl].iter_mut().for_each(|v| *v *= f_r);
             if let Some(kl) = kl.as_deref_mut() {
                 kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
@@ -356,6 +366,16 @@ impl NonlinearSystem for TimeStep<'_> {
                 &mut self.cell_energy,
             )
             .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        // dead tractions at full value, with the factor of the internal forces: −f_r ∫N t₀ dA
+        let (eq, scale) = (&self.dofs.eq, self.dofs.scale);
+        for_each_nodal_force(&model.mesh, &model.tractions, |node, f| {
+            for i in 0..3 {
+                let e = eq[node * FIELDS + i];
+                if e != CONSTRAINED {
+                    r[e] -= scale[i] * f_r * f[i];
+                }
+            }
+        });
         // inertia: midpoint M(v̄ − v_n); Newmark βΔt² M a_{n+1}
         for d in 0..self.q.len() {
             self.work_m[d] = if d % FIELDS == PHI {
