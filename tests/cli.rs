@@ -532,3 +532,86 @@ fn material_models_and_presets_in_scenarios() {
         assert!(stderr(&out).contains(fragment), "{name}: {}", stderr(&out));
     }
 }
+
+/// `mesh.formulation` and `tractions` from a scenario: a block in uniaxial tension under a dead
+/// traction reaches the stretch at which the homogeneous uniaxial nominal stress of the material
+/// (`material::homogeneous`, lateral stresses zero) equals the traction, with either formulation;
+/// an unknown formulation exits 2.
+#[test]
+fn tractions_and_formulation_from_the_scenario() {
+    let dir = tempdir("traction");
+    let text = r#"
+name = "tension"
+[mesh]
+generator = "box"
+size = [0.01, 0.01, 0.01]
+divisions = [2, 2, 2]
+formulation = "mean-dilatation"
+[materials.rubber]
+model = "neo-hooke-split"
+mu = 1e5
+kappa = 1e8
+permittivity = 3.0
+[[constraints]]
+set = "x0"
+fix = ["x"]
+[[constraints]]
+set = "y0"
+fix = ["y"]
+[[constraints]]
+set = "z0"
+fix = ["z"]
+[[tractions]]
+set = "x1"
+value = [5e4, 0.0, 0.0]
+[[stages]]
+kind = "static"
+steps = 5
+[probes.stretch]
+kind = "mean"
+quantity = "ux"
+set = "x1"
+scale = 100.0
+offset = 1.0
+"#;
+    std::fs::write(dir.join("t.toml"), text).unwrap();
+    let mut params = deasim::material::registry::MaterialParams::default();
+    params.mu = vec![1e5];
+    params.kappa = Some(1e8);
+    params.permittivity = Some(3.0);
+    let (mat, _) = deasim::material::registry::build("neo-hooke-split", &params).unwrap();
+    for formulation in ["mean-dilatation", "standard"] {
+        let out = deasim(
+            &[
+                "run",
+                "t.toml",
+                "--out",
+                formulation,
+                "--set",
+                &format!("mesh.formulation={formulation}"),
+            ],
+            &dir,
+        );
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        let summary: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.join(formulation).join("summary.json")).unwrap(),
+        )
+        .unwrap();
+        let stretch = summary["probes"]["stretch"].as_f64().unwrap();
+        let state = deasim::material::homogeneous::solve(
+            mat.as_ref(),
+            deasim::material::homogeneous::Mode::Uniaxial,
+            stretch,
+        )
+        .unwrap();
+        assert!(
+            (state.p11 - 5e4).abs() < 1e-6 * 5e4,
+            "{formulation}: λ = {stretch}, P11 = {}",
+            state.p11
+        );
+        assert!(stretch > 1.1, "{stretch}");
+    }
+    let bad = deasim(&["check", "t.toml", "--set", "mesh.formulation=q2"], &dir);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(stderr(&bad).contains("mesh.formulation"));
+}

@@ -84,6 +84,11 @@ struct Recorder<'p> {
     prev_state: Vec<f64>,
     boundary_work: f64,
     initial_potential: Option<f64>,
+    /// Nodal forces of the tractions at full value (empty without tractions).
+    traction: Vec<f64>,
+    /// Load factor of the tractions at the state being recorded.
+    external_factor: f64,
+    prev_external: Vec<f64>,
 }
 
 impl<'p> Recorder<'p> {
@@ -106,9 +111,20 @@ impl<'p> Recorder<'p> {
         let model = &self.plan.model;
         let reactions = nodal_reactions(model, state)?;
         let (stored, electric) = energies(model, state)?;
-        // work done on the body through prescribed values: Σ ½(R₀ + R₁)·(x₁ − x₀) (trapezoidal)
+        // work done on the body, by the trapezoidal rule: reactions at prescribed dofs
+        // Σ ½(R₀ + R₁)·(x₁ − x₀) and external (traction) forces at free dofs
+        let external: Vec<f64> = self
+            .traction
+            .iter()
+            .map(|t| t * self.external_factor)
+            .collect();
         if !self.prev_state.is_empty() {
             for d in 0..state.len() {
+                if !prescribed[d] && !external.is_empty() {
+                    let prev = self.prev_external.get(d).copied().unwrap_or(0.0);
+                    self.boundary_work +=
+                        0.5 * (prev + external[d]) * (state[d] - self.prev_state[d]);
+                }
                 if prescribed[d] {
                     self.boundary_work += 0.5
                         * (self.prev_reactions[d] + reactions[d])
@@ -145,6 +161,7 @@ impl<'p> Recorder<'p> {
         let fields = cell_fields(model, state)?;
         let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
         self.prev_reactions = reactions;
+        self.prev_external = external;
         self.prev_state = state.to_vec();
         Ok((
             StepRecord {
@@ -192,6 +209,13 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         prev_state: Vec::new(),
         boundary_work: 0.0,
         initial_potential: None,
+        traction: if plan.model.tractions.is_empty() {
+            Vec::new()
+        } else {
+            crate::loads::traction_forces(&plan.model.mesh, &plan.model.tractions, 1.0)
+        },
+        external_factor: 0.0,
+        prev_external: Vec::new(),
     };
     let mut time = 0.0;
     let mut dissipated = 0.0;
@@ -261,6 +285,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                         let t = time + acc.load * stage.duration;
                         let dt = (acc.load - last_load) * stage.duration;
                         last_load = acc.load;
+                        rec.external_factor = acc.load;
                         match rec.record(
                             &p.state,
                             &prescribed,
@@ -355,6 +380,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                         mass.mul(&level.v, &mut mv);
                         let kinetic =
                             0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
+                        rec.external_factor = 1.0;
                         match rec.record(
                             &level.q,
                             &prescribed,

@@ -5,6 +5,7 @@
 use super::scenario::{closest, InputError, MaterialSpec, Scenario, VoltageSpec, WaveformSpec};
 use crate::analysis::probes::{NodalQuantity, Probe, ProbeKind};
 use crate::dofs::Field;
+use crate::element_fbar::Formulation;
 use crate::material::registry::{self, MaterialParams};
 use crate::material::Material;
 use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
@@ -539,6 +540,22 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         Model::new(mesh, mats[0].clone()).map_err(|e| ctx.err("mesh", e.to_string()))?;
     model.materials = mats;
     model.cell_material = cell_material;
+    if let Some(f) = &s.mesh.formulation {
+        model.formulation = Formulation::from_name(f).ok_or_else(|| {
+            ctx.err(
+                "mesh.formulation",
+                format!("unknown formulation `{f}`: expected `standard` or `mean-dilatation`"),
+            )
+        })?;
+    }
+    for (i, t) in s.tractions.iter().enumerate() {
+        for (c, v) in t.value.iter().enumerate() {
+            ctx.finite(&format!("tractions.{i}.value.{c}"), *v, "traction in Pa")?;
+        }
+        model
+            .add_traction(&t.set, t.value)
+            .map_err(|e| ctx.err(format!("tractions.{i}.set"), e.to_string()))?;
+    }
 
     let mut supports = Vec::new();
     for (i, c) in s.constraints.iter().enumerate() {
@@ -596,6 +613,15 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         }
     }
 
+    if electrodes.is_empty() {
+        // no electrode: a purely mechanical problem; the potential would be defined only up to a
+        // constant (a singular tangent), so it is held at 0 everywhere
+        supports.push(crate::dofs::Dirichlet {
+            nodes: (0..model.mesh.n_nodes()).collect(),
+            field: Field::Phi,
+            value: 0.0,
+        });
+    }
     if s.stages.is_empty() {
         return Err(ctx.err("stages", "at least one stage is needed"));
     }

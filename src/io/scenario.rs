@@ -77,6 +77,10 @@ pub struct Scenario {
     pub probes: BTreeMap<String, ProbeSpec>,
     #[serde(default)]
     pub output: OutputSpec,
+    /// Dead surface tractions (nominal, Pa of reference area), ramped with the load factor of
+    /// static stages.
+    #[serde(default)]
+    pub tractions: Vec<TractionSpec>,
 }
 
 /// The mesh: a generator with its parameters, or a file.
@@ -95,6 +99,10 @@ pub struct MeshSpec {
     /// Cells along x, y, z.
     #[serde(default)]
     pub divisions: Option<[u64; 3]>,
+    /// Element formulation: `standard` (default) or `mean-dilatation` (locking-free hex8 for
+    /// nearly incompressible materials).
+    #[serde(default)]
+    pub formulation: Option<String>,
     /// `hex8` (default) or `tet4`.
     #[serde(default = "default_element")]
     pub element: String,
@@ -192,6 +200,16 @@ impl<'de> Deserialize<'de> for Numbers {
         }
         d.deserialize_any(V)
     }
+}
+
+/// A dead traction on a face set.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TractionSpec {
+    /// A face set.
+    pub set: String,
+    /// Traction vector (Pa, force per reference area).
+    pub value: [f64; 3],
 }
 
 /// Fixed displacement components on a set.
