@@ -575,10 +575,12 @@ scale = 100.0
 offset = 1.0
 "#;
     std::fs::write(dir.join("t.toml"), text).unwrap();
-    let mut params = deasim::material::registry::MaterialParams::default();
-    params.mu = vec![1e5];
-    params.kappa = Some(1e8);
-    params.permittivity = Some(3.0);
+    let params = deasim::material::registry::MaterialParams {
+        mu: vec![1e5],
+        kappa: Some(1e8),
+        permittivity: Some(3.0),
+        ..Default::default()
+    };
     let (mat, _) = deasim::material::registry::build("neo-hooke-split", &params).unwrap();
     for formulation in ["mean-dilatation", "standard"] {
         let out = deasim(
