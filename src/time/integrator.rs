@@ -68,8 +68,8 @@ pub struct TimeStep<'m> {
     pub q: Vec<f64>,
     pub dt: f64,
     floor: f64,
-    /// (tangent position, mass value index, mass row node, mass column node) of every free u–u
-    /// mass coupling, to add M to the tangent without searching.
+    /// (tangent position, mass value index) of every free u–u mass coupling, to add M to the
+    /// tangent without searching.
     mass_map: Vec<(usize, usize)>,
     mass_map_built: bool,
     work_q: Vec<f64>,
@@ -261,21 +261,7 @@ impl<'m> TimeStep<'m> {
     }
 
     fn build_mass_map(&mut self, k: &CsrMatrix) {
-        let m = self.mass;
-        self.mass_map.clear();
-        for a in 0..m.row_ptr.len() - 1 {
-            for p in m.row_ptr[a]..m.row_ptr[a + 1] {
-                let b = m.col_idx[p];
-                for i in 0..3 {
-                    let (ea, eb) = (self.dofs.eq[a * FIELDS + i], self.dofs.eq[b * FIELDS + i]);
-                    if ea != CONSTRAINED && eb != CONSTRAINED {
-                        if let Some(pos) = k.position(ea, eb) {
-                            self.mass_map.push((pos, p));
-                        }
-                    }
-                }
-            }
-        }
+        self.mass_map = self.mass.positions_in(&self.dofs, k);
         self.mass_map_built = true;
     }
 }
