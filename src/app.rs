@@ -159,7 +159,12 @@ impl Observer for Both<'_> {
 }
 
 /// `deasim run`.
-pub fn cmd_run(scenario: Option<&Path>, out: Option<&Path>, overrides: &[String]) -> i32 {
+pub fn cmd_run(
+    scenario: Option<&Path>,
+    out: Option<&Path>,
+    overrides: &[String],
+    overwrite: bool,
+) -> i32 {
     let plan = match load(scenario, overrides) {
         Ok(p) => p,
         Err(e) => {
@@ -170,6 +175,10 @@ pub fn cmd_run(scenario: Option<&Path>, out: Option<&Path>, overrides: &[String]
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(&plan.name));
+    if let Err(e) = OutputWriter::check_directory(&dir, &plan.name, overwrite) {
+        eprintln!("error: {e}");
+        return EXIT_BAD_INPUT;
+    }
     let mut writer = match OutputWriter::new(&dir) {
         Ok(w) => w,
         Err(e) => {

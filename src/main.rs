@@ -26,6 +26,9 @@ enum Command {
         /// Override a value by its dotted path, e.g. --set stages.0.steps=20 (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Replace the results of a different scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
     },
     /// Validate a scenario without solving.
     Check {
@@ -59,9 +62,12 @@ fn main() {
         }
     };
     let code = match cli.command {
-        Command::Run { scenario, out, set } => {
-            deasim::app::cmd_run(scenario.as_deref(), out.as_deref(), &set)
-        }
+        Command::Run {
+            scenario,
+            out,
+            set,
+            overwrite,
+        } => deasim::app::cmd_run(scenario.as_deref(), out.as_deref(), &set, overwrite),
         Command::Check { scenario, set } => deasim::app::cmd_check(&scenario, &set),
         Command::Example { name } => deasim::app::cmd_example(name.as_deref()),
         Command::Validate => deasim::validate::cmd_validate(),

@@ -617,3 +617,70 @@ offset = 1.0
     assert_eq!(bad.status.code(), Some(2));
     assert!(stderr(&bad).contains("mesh.formulation"));
 }
+
+/// Output safety: a directory holding another scenario's results is refused (exit 2) unless
+/// `--overwrite`; re-running the same scenario replaces its results without stale field files;
+/// files of the user in the directory are never deleted.
+#[test]
+fn output_directory_of_another_scenario_is_refused_without_overwrite() {
+    let dir = tempdir("outdir");
+    std::fs::write(
+        dir.join("film.toml"),
+        deasim(&["example", "film"], &dir).stdout,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("v.toml"),
+        deasim(&["example", "film-vibration"], &dir).stdout,
+    )
+    .unwrap();
+    let first = deasim(&["run", "film.toml", "--out", "o"], &dir);
+    assert_eq!(first.status.code(), Some(0), "{}", stderr(&first));
+    std::fs::write(dir.join("o/notes.txt"), "mine").unwrap();
+    // the same scenario again, with fewer steps: no stale step files remain
+    let again = deasim(
+        &[
+            "run",
+            "film.toml",
+            "--out",
+            "o",
+            "--set",
+            "stages.0.steps=3",
+        ],
+        &dir,
+    );
+    assert_eq!(again.status.code(), Some(0), "{}", stderr(&again));
+    let vtus = std::fs::read_dir(dir.join("o/fields")).unwrap().count();
+    assert_eq!(vtus, 4, "initial state + 3 steps");
+    // another scenario is refused
+    let other = deasim(
+        &[
+            "run",
+            "v.toml",
+            "--out",
+            "o",
+            "--set",
+            "stages.0.duration=1e-4",
+        ],
+        &dir,
+    );
+    assert_eq!(other.status.code(), Some(2));
+    assert!(stderr(&other).contains("--overwrite"), "{}", stderr(&other));
+    let forced = deasim(
+        &[
+            "run",
+            "v.toml",
+            "--out",
+            "o",
+            "--set",
+            "stages.0.duration=1e-4",
+            "--overwrite",
+        ],
+        &dir,
+    );
+    assert_eq!(forced.status.code(), Some(0), "{}", stderr(&forced));
+    assert_eq!(
+        std::fs::read_to_string(dir.join("o/notes.txt")).unwrap(),
+        "mine"
+    );
+}

@@ -58,6 +58,50 @@ fn json_number(v: f64) -> Value {
 }
 
 impl OutputWriter {
+    /// Checks that `dir` may receive the results of scenario `name`: refused when it holds the
+    /// results of a different scenario (its `summary.json` names another scenario) unless
+    /// `overwrite`. Results of the same scenario are replaced. Nothing is deleted except, when
+    /// replacing, deasim's own field files `fields/step_NNNNN.vtu` (so that no stale steps remain);
+    /// other files in the directory are left alone.
+    pub fn check_directory(dir: &Path, name: &str, overwrite: bool) -> Result<(), String> {
+        let summary = dir.join("summary.json");
+        if let Ok(text) = std::fs::read_to_string(&summary) {
+            let other = serde_json::from_str::<Value>(&text)
+                .ok()
+                .and_then(|v| v.get("scenario").and_then(|s| s.as_str()).map(String::from));
+            match other {
+                Some(o) if o == name => {}
+                Some(o) if !overwrite => {
+                    return Err(format!(
+                        "{} holds the results of scenario `{o}`; use --overwrite to replace them or --out to choose another directory",
+                        dir.display()
+                    ))
+                }
+                None if !overwrite => {
+                    return Err(format!(
+                        "{} holds a summary.json that deasim did not write; use --overwrite or another --out",
+                        summary.display()
+                    ))
+                }
+                _ => {}
+            }
+        }
+        if let Ok(entries) = std::fs::read_dir(dir.join("fields")) {
+            for e in entries.flatten() {
+                let n = e.file_name().to_string_lossy().into_owned();
+                let ours = n
+                    .strip_prefix("step_")
+                    .and_then(|r| r.strip_suffix(".vtu"))
+                    .is_some_and(|d| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit()));
+                if ours {
+                    std::fs::remove_file(e.path())
+                        .map_err(|err| format!("{}: {err}", e.path().display()))?;
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Creates the directory (and `fields/`, `plots/`).
     pub fn new(dir: &Path) -> std::io::Result<Self> {
         std::fs::create_dir_all(dir.join("fields"))?;
