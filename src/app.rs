@@ -18,6 +18,8 @@ pub const EXIT_OK: i32 = 0;
 pub const EXIT_SOLVE_FAILED: i32 = 1;
 /// Exit status: bad input.
 pub const EXIT_BAD_INPUT: i32 = 2;
+/// Exit status: stopped by SIGINT/SIGTERM (outputs hold the last accepted step).
+pub const EXIT_INTERRUPTED: i32 = 130;
 
 /// Reads and builds a scenario file (or the default example when `path` is `None`).
 pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Plan, InputError> {
@@ -198,6 +200,12 @@ pub fn cmd_run(
         plan.model.mesh.n_nodes() * 4,
         dir.display()
     );
+    // first signal: finish the current step, write the outputs, exit 130; second: stop at once
+    let _ = ctrlc::set_handler(|| {
+        if crate::solve::interrupt::request() {
+            std::process::exit(EXIT_INTERRUPTED);
+        }
+    });
     let mut progress = Progress::new(&plan);
     let summary = run(
         &plan,
@@ -206,6 +214,10 @@ pub fn cmd_run(
     );
     for e in &writer.errors {
         eprintln!("warning: {e}");
+    }
+    if summary.interrupted {
+        eprintln!("interrupted: the outputs hold the last accepted step");
+        return EXIT_INTERRUPTED;
     }
     if summary.converged {
         EXIT_OK

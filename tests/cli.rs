@@ -684,3 +684,66 @@ fn output_directory_of_another_scenario_is_refused_without_overwrite() {
         "mine"
     );
 }
+
+/// SIGINT during a run: deasim finishes the current step, writes valid outputs holding the last
+/// accepted step (`converged: false`, an error naming the interruption) and exits 130.
+#[test]
+fn sigint_stops_cleanly_with_valid_outputs() {
+    let dir = tempdir("sigint");
+    std::fs::write(
+        dir.join("v.toml"),
+        deasim(&["example", "film-vibration"], &dir).stdout,
+    )
+    .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args([
+            "run",
+            "v.toml",
+            "--out",
+            "o",
+            "--set",
+            "stages.0.duration=10.0",
+            "--set",
+            "output.fields_every=50",
+        ])
+        .current_dir(&dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // wait until the run has accepted steps (history.csv is flushed every 2 s)
+    let start = std::time::Instant::now();
+    while !dir.join("o/history.csv").exists() && start.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["converged"], false);
+    assert!(
+        summary["error"].as_str().unwrap().contains("interrupted"),
+        "{summary}"
+    );
+    let (header, rows) = history(&dir.join("o"));
+    assert!(rows.len() > 2);
+    let tcol = header.iter().position(|h| h == "time").unwrap();
+    let t_last: f64 = rows.last().unwrap()[tcol].parse().unwrap();
+    assert!(t_last > 0.0 && t_last < 10.0, "{t_last}");
+    assert!(rows.iter().all(|r| r.len() == header.len()));
+    // the pvd's last entry is the last accepted state
+    let pvd = std::fs::read_to_string(dir.join("o/fields.pvd")).unwrap();
+    assert!(pvd.trim_end().ends_with("</VTKFile>"));
+}

@@ -65,6 +65,8 @@ pub struct RunSummary {
     pub wall_s: f64,
     pub dofs: usize,
     pub warnings: Vec<String>,
+    /// The run stopped because a stop was requested (SIGINT/SIGTERM).
+    pub interrupted: bool,
 }
 
 /// Receives the progress of a run.
@@ -202,6 +204,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         wall_s: 0.0,
         dofs: n_nodes * FIELDS,
         warnings: plan.warnings.clone(),
+        interrupted: false,
     };
     let mut rec = Recorder {
         plan,
@@ -317,6 +320,8 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                             "electromechanical instability (pull-in)"
                         } else if f.limit_point {
                             "limit point (loss of stability)"
+                        } else if f.reason == crate::solve::interrupt::MESSAGE {
+                            "interrupted by a signal (the last accepted step is in the outputs)"
                         } else {
                             "solve failed"
                         };
@@ -441,6 +446,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         time = t_end;
     }
     summary.wall_s = start.elapsed().as_secs_f64();
+    summary.interrupted = crate::solve::interrupt::requested() && !summary.converged;
     observer.finished(plan, &summary);
     summary
 }

@@ -94,6 +94,15 @@ pub fn ramp<S: LoadedSystem + ?Sized>(
     let mut have_factor =
         system.evaluate(&mut predictor_work, Some(&mut k)).is_ok() && solver.factor(&k).is_ok();
     while next_nominal <= control.steps.max(1) {
+        if super::interrupt::requested() {
+            return Err(RampFailure {
+                last_converged: s,
+                attempted: s,
+                reason: super::interrupt::MESSAGE.into(),
+                limit_point: false,
+                newton_iterations: report.newton_iterations,
+            });
+        }
         let target_nominal = next_nominal as f64 * nominal;
         let target = (s + inc).min(target_nominal);
         let hits_nominal = (target - target_nominal).abs() <= 1e-12;

@@ -214,6 +214,17 @@ pub fn run_dynamic(
     };
     let mut last_h = f64::NAN;
     while step.prev.t < t_end - 1e-12 * settings.duration {
+        if crate::solve::interrupt::requested() {
+            let t = step.prev.t;
+            return Err((
+                step.prev.clone(),
+                DynamicFailure {
+                    t,
+                    reason: crate::solve::interrupt::MESSAGE.into(),
+                    newton_iterations: total_iterations,
+                },
+            ));
+        }
         let h = dt.min(t_end - step.prev.t);
         let t0 = step.prev.t;
         let voltages: Vec<(&[usize], f64, f64)> = inputs
@@ -401,6 +412,17 @@ fn run_trapezoidal(
     let mut dt = settings.dt;
     let mut total = 0;
     while level.t < t_end - 1e-12 * settings.duration {
+        if crate::solve::interrupt::requested() {
+            let t = level.t;
+            return Err((
+                level.clone(),
+                DynamicFailure {
+                    t,
+                    reason: crate::solve::interrupt::MESSAGE.into(),
+                    newton_iterations: total,
+                },
+            ));
+        }
         let h = dt.min(t_end - level.t);
         let t0 = level.t;
         trap.q_n.copy_from_slice(&level.q);
