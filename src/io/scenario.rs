@@ -496,6 +496,14 @@ pub fn parse(text: &str, file: &str, overrides: &[String]) -> Result<Scenario, I
         let pos = e.span().map(|s| line_col(text, s.start));
         err(pos, None, format!("invalid TOML: {}", e.message().trim()))
     })?;
+    if table.is_empty() && overrides.is_empty() {
+        return Err(err(
+            None,
+            None,
+            "empty scenario: expected TOML with at least `name`, `mesh`, `materials` and `stages`"
+                .into(),
+        ));
+    }
     for o in overrides {
         apply_override(&mut table, o).map_err(|(key, message)| InputError {
             file: "--set".into(),

@@ -2,6 +2,7 @@
 //!
 //! Coordinates are in metres (reference configuration). Generators live in submodules.
 
+pub mod disc;
 pub mod generate;
 
 use std::collections::BTreeMap;
