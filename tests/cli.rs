@@ -747,3 +747,37 @@ fn sigint_stops_cleanly_with_valid_outputs() {
     let pvd = std::fs::read_to_string(dir.join("o/fields.pvd")).unwrap();
     assert!(pvd.trim_end().ends_with("</VTKFile>"));
 }
+
+/// The `disc` generator and `prestretch` from a scenario: a quarter disc (O-grid, mean dilatation)
+/// whose rim is moved to λ = 2 on a bottom held on rollers is in the homogeneous equibiaxial state,
+/// so its thickness stretch equals the lateral stretch of the material's homogeneous equibiaxial
+/// path (`material::homogeneous`) to 1e-8.
+#[test]
+fn prestretched_disc_is_homogeneous() {
+    let dir = tempdir("disc");
+    let scenario =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/disc_prestretch.toml");
+    let out = deasim(&["run", scenario.to_str().unwrap(), "--out", "d"], &dir);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("d/summary.json")).unwrap())
+            .unwrap();
+    let t = summary["probes"]["thickness_stretch"].as_f64().unwrap();
+    let params = deasim::material::registry::MaterialParams {
+        mu: vec![5e4],
+        kappa: Some(5e7),
+        permittivity: Some(4.7),
+        ..Default::default()
+    };
+    let (mat, _) = deasim::material::registry::build("neo-hooke-split", &params).unwrap();
+    let state = deasim::material::homogeneous::solve(
+        mat.as_ref(),
+        deasim::material::homogeneous::Mode::Equibiaxial,
+        2.0,
+    )
+    .unwrap();
+    assert!((t - state.lateral).abs() < 1e-8, "{t} vs {}", state.lateral);
+    let check = deasim(&["check", scenario.to_str().unwrap()], &dir);
+    let text = String::from_utf8_lossy(&check.stdout);
+    assert!(text.contains("electrode `top`"), "{text}");
+}

@@ -8,6 +8,7 @@ use crate::dofs::Field;
 use crate::element_fbar::Formulation;
 use crate::material::registry::{self, MaterialParams};
 use crate::material::Material;
+use crate::mesh::disc::{disc_mesh, DiscSpec};
 use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
 use crate::model::Model;
 use crate::time::mass::MassKind;
@@ -148,13 +149,13 @@ fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
         .generator
         .as_deref()
         .ok_or_else(|| ctx.err("mesh.generator", "missing: expected `box` (or a `file`)"))?;
-    if generator != "box" {
-        let hint = closest(generator, ["box"])
+    if generator != "box" && generator != "disc" {
+        let hint = closest(generator, ["box", "disc"])
             .map(|c| format!("; did you mean `{c}`?"))
             .unwrap_or_default();
         return Err(ctx.err(
             "mesh.generator",
-            format!("unknown generator `{generator}`: expected `box`{hint}"),
+            format!("unknown generator `{generator}`: expected `box` or `disc`{hint}"),
         ));
     }
     let kind = match m.element.as_str() {
@@ -170,6 +171,9 @@ fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
             ));
         }
     };
+    if generator == "disc" {
+        return build_disc(ctx, m, kind);
+    }
     let size = m
         .size
         .ok_or_else(|| ctx.err("mesh.size", "missing: expected [lx, ly, lz] in m"))?;
@@ -205,6 +209,57 @@ fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
         [div[0] as usize, div[1] as usize, div[2] as usize],
         kind,
     ))
+}
+
+/// The `disc` generator: a circular membrane (O-grid) with sets `rim`, `top`, `bottom`, `pad`,
+/// `electrode_top`, `electrode_bottom` (and `symmetry_x`, `symmetry_y` for a quarter).
+fn build_disc(
+    ctx: &Ctx,
+    m: &super::scenario::MeshSpec,
+    kind: ElementKind,
+) -> Result<Mesh, InputError> {
+    let radius = ctx.positive("mesh.radius", m.radius, "outer radius in m")?;
+    let thickness = ctx.positive("mesh.thickness", m.thickness, "thickness in m")?;
+    let pad_radius = ctx.positive("mesh.pad_radius", m.pad_radius, "pad radius in m")?;
+    let electrode_radius = ctx.positive(
+        "mesh.electrode_radius",
+        m.electrode_radius,
+        "electrode radius in m",
+    )?;
+    let radial = m.radial.unwrap_or(8);
+    let layers = m.layers.unwrap_or(1);
+    if !(2..=2000).contains(&radial) {
+        return Err(ctx.err(
+            "mesh.radial",
+            format!("must be between 2 and 2000; got {radial}"),
+        ));
+    }
+    if !(1..=200).contains(&layers) {
+        return Err(ctx.err(
+            "mesh.layers",
+            format!("must be between 1 and 200; got {layers}"),
+        ));
+    }
+    let spec = DiscSpec {
+        radius,
+        thickness,
+        pad_radius,
+        electrode_radius,
+        radial: radial as usize,
+        layers: layers as usize,
+        quarter: m.quarter.unwrap_or(true),
+        grading: m.grading.unwrap_or(1.0),
+        kind,
+    };
+    let layout = spec.layout().map_err(|e| ctx.err("mesh", e))?;
+    let cells = layout.hexahedra as u64 * if kind == ElementKind::Tet4 { 6 } else { 1 };
+    if cells > MAX_CELLS {
+        return Err(ctx.err(
+            "mesh.radial",
+            format!("{cells} cells: too large for this machine's memory"),
+        ));
+    }
+    disc_mesh(&spec).map_err(|e| ctx.err("mesh", e))
 }
 
 fn build_material(
@@ -588,6 +643,26 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         }
     }
 
+    if let Some(p) = &s.prestretch {
+        let l = ctx.positive("prestretch.stretch", Some(p.stretch), "in-plane stretch")?;
+        if !(0.1..=20.0).contains(&l) {
+            return Err(ctx.err(
+                "prestretch.stretch",
+                format!("expected a stretch between 0.1 and 20; got {l}"),
+            ));
+        }
+        let nodes = ctx.set_nodes(&model.mesh, "prestretch.set", &p.set)?;
+        for n in nodes {
+            let x = model.mesh.nodes[n];
+            for (field, value) in [(Field::Ux, (l - 1.0) * x[0]), (Field::Uy, (l - 1.0) * x[1])] {
+                supports.push(crate::dofs::Dirichlet {
+                    nodes: vec![n],
+                    field,
+                    value,
+                });
+            }
+        }
+    }
     let mut electrodes = Vec::new();
     for (name, e) in &s.electrodes {
         let key = format!("electrodes.{name}");

@@ -77,6 +77,10 @@ pub struct Scenario {
     pub probes: BTreeMap<String, ProbeSpec>,
     #[serde(default)]
     pub output: OutputSpec,
+    /// An equibiaxial in-plane pre-stretch imposed on a set (the rim) by the first static stage and
+    /// held afterwards.
+    #[serde(default)]
+    pub prestretch: Option<PrestretchSpec>,
     /// Dead surface tractions (nominal, Pa of reference area), ramped with the load factor of
     /// static stages.
     #[serde(default)]
@@ -99,6 +103,30 @@ pub struct MeshSpec {
     /// Cells along x, y, z.
     #[serde(default)]
     pub divisions: Option<[u64; 3]>,
+    /// `disc`: outer (clamped rim) radius (m).
+    #[serde(default)]
+    pub radius: Option<f64>,
+    /// `disc`: thickness (m).
+    #[serde(default)]
+    pub thickness: Option<f64>,
+    /// `disc`: radius of the central pad (m).
+    #[serde(default)]
+    pub pad_radius: Option<f64>,
+    /// `disc`: radius of the electrodes (m).
+    #[serde(default)]
+    pub electrode_radius: Option<f64>,
+    /// `disc`: cells across the annulus between pad and rim (default 8).
+    #[serde(default)]
+    pub radial: Option<u64>,
+    /// `disc`: cells through the thickness (default 1).
+    #[serde(default)]
+    pub layers: Option<u64>,
+    /// `disc`: a quarter disc with symmetry faces (default true) or the full disc.
+    #[serde(default)]
+    pub quarter: Option<bool>,
+    /// `disc`: outer/inner radial cell size ratio of the annulus (default 1).
+    #[serde(default)]
+    pub grading: Option<f64>,
     /// Element formulation: `standard` (default) or `mean-dilatation` (locking-free hex8 for
     /// nearly incompressible materials).
     #[serde(default)]
@@ -200,6 +228,21 @@ impl<'de> Deserialize<'de> for Numbers {
         }
         d.deserialize_any(V)
     }
+}
+
+/// Pre-stretch: the nodes of `set` are moved to (λx, λy, z) (u = (λ − 1)(x, y, 0)).
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PrestretchSpec {
+    /// In-plane stretch λ (> 0; 1 = none).
+    pub stretch: f64,
+    /// The set held at the stretched position (default `rim`).
+    #[serde(default = "rim")]
+    pub set: String,
+}
+
+fn rim() -> String {
+    "rim".into()
 }
 
 /// A dead traction on a face set.
