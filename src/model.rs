@@ -26,6 +26,9 @@ pub struct Model {
     /// Dead nominal tractions (N/m² of reference area) at the end of the current stage; statics
     /// scales them by the load factor, dynamics applies them at full value.
     pub tractions: Vec<Traction>,
+    /// Fraction of the tractions already applied when a static stage starts (0 for the first
+    /// stage that applies them, 1 afterwards): a static stage ramps them from here to full.
+    pub traction_start: f64,
 }
 
 /// Problems found while building a model.
@@ -51,6 +54,7 @@ impl Model {
             dirichlet: Vec::new(),
             formulation: Formulation::Standard,
             tractions: Vec::new(),
+            traction_start: 0.0,
         };
         model.check_cells()?;
         Ok(model)

@@ -613,6 +613,39 @@ offset = 1.0
         );
         assert!(stretch > 1.1, "{stretch}");
     }
+    // a second static stage keeps the traction applied: nothing changes
+    let two_stages = text.replace(
+        "[probes.stretch]",
+        "[[stages]]\nkind = \"static\"\nsteps = 2\n\n[probes.stretch]",
+    );
+    std::fs::write(dir.join("t2.toml"), two_stages).unwrap();
+    let two = deasim(&["run", "t2.toml", "--out", "two"], &dir);
+    assert_eq!(two.status.code(), Some(0), "{}", stderr(&two));
+    let (header, rows) = history(&dir.join("two"));
+    let col = header.iter().position(|h| h == "probe:stretch").unwrap();
+    let scol = header.iter().position(|h| h == "stage").unwrap();
+    let first_end: f64 = rows.iter().rev().find(|r| r[scol] == "stage0").unwrap()[col]
+        .parse()
+        .unwrap();
+    let second_end: f64 = rows.last().unwrap()[col].parse().unwrap();
+    assert_eq!(
+        rows.iter().filter(|r| r[scol] == "stage1").count(),
+        2,
+        "two steps in the second stage"
+    );
+    assert!(
+        (first_end - second_end).abs() < 1e-10,
+        "{first_end} vs {second_end}"
+    );
+    let ecol = header.iter().position(|h| h == "energy_error").unwrap();
+    let stored: f64 = rows.last().unwrap()[header.iter().position(|h| h == "stored").unwrap()]
+        .parse()
+        .unwrap();
+    let err: f64 = rows.last().unwrap()[ecol].parse().unwrap();
+    assert!(
+        err.abs() < 1e-2 * stored,
+        "energy balance with tractions: {err} of {stored}"
+    );
     let bad = deasim(&["check", "t.toml", "--set", "mesh.formulation=q2"], &dir);
     assert_eq!(bad.status.code(), Some(2));
     assert!(stderr(&bad).contains("mesh.formulation"));

@@ -288,7 +288,8 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                         let t = time + acc.load * stage.duration;
                         let dt = (acc.load - last_load) * stage.duration;
                         last_load = acc.load;
-                        rec.external_factor = acc.load;
+                        rec.external_factor =
+                            model.traction_start + acc.load * (1.0 - model.traction_start);
                         match rec.record(
                             &p.state,
                             &prescribed,
@@ -311,6 +312,8 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                 match outcome.result {
                     Ok(r) => {
                         stage_summary.newton_iterations = r.newton_iterations;
+                        // the tractions are now fully applied; later static stages keep them
+                        model.traction_start = 1.0;
                         None
                     }
                     Err(f) => {
@@ -422,6 +425,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     }
                 };
                 state = level.q;
+                model.traction_start = 1.0;
                 velocity = level.v;
                 acceleration = level.a;
                 failure

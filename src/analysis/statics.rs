@@ -34,7 +34,7 @@ pub struct StaticProblem<'m> {
     start: Vec<f64>,
     cell_energy: Vec<f64>,
     floor: f64,
-    /// Load factor of the tractions (0 until [`LoadedSystem::set_load`]).
+    /// Load factor of the tractions (`model.traction_start` until [`LoadedSystem::set_load`]).
     load: f64,
     /// Nodal forces of the model's tractions at full value (N, `FIELDS` per node); empty without
     /// tractions.
@@ -82,7 +82,7 @@ impl<'m> StaticProblem<'m> {
             state,
             cell_energy: Vec::new(),
             floor,
-            load: 0.0,
+            load: model.traction_start,
             traction,
         }
     }
@@ -250,10 +250,11 @@ impl NonlinearSystem for StaticProblem<'_> {
 }
 
 impl LoadedSystem for StaticProblem<'_> {
-    /// Dirichlet values ramp linearly from the start state to the targets; tractions are the
-    /// model's values times `s`.
+    /// Dirichlet values ramp linearly from the start state to the targets; tractions ramp from
+    /// `model.traction_start` (of their full value) to full.
     fn set_load(&mut self, s: f64) {
-        self.load = s;
+        let t0 = self.model.traction_start;
+        self.load = t0 + s * (1.0 - t0);
         let targets = &self.model.dirichlet;
         let mut end = self.state.clone();
         apply_dirichlet(&mut end, targets);
