@@ -77,6 +77,8 @@ struct Progress {
     bar: Option<ProgressBar>,
     total_steps: u64,
     done: u64,
+    /// When the last plain line was printed (plain lines: at most one a second).
+    last_line: Option<std::time::Instant>,
 }
 
 impl Progress {
@@ -100,6 +102,7 @@ impl Progress {
             bar,
             total_steps: total,
             done: 0,
+            last_line: None,
         }
     }
 }
@@ -126,7 +129,15 @@ impl Observer for Progress {
                 b.set_position(self.done.min(self.total_steps));
                 b.set_message(format!("{} {msg}", r.stage));
             }
-            None => eprintln!("  {} step {}: {msg}", r.stage, r.step),
+            None => {
+                if self
+                    .last_line
+                    .is_none_or(|t| t.elapsed().as_secs_f64() >= 1.0)
+                {
+                    eprintln!("  {} step {}: {msg}", r.stage, r.step);
+                    self.last_line = Some(std::time::Instant::now());
+                }
+            }
         }
     }
 
