@@ -104,52 +104,7 @@ pub fn cell_residual_tangent(
                 let t = mat.tangent(&f, &e0).map_err(fail)?;
                 energy += w * t.energy;
                 add_residual(g, n, w, &t.p, &t.d0, r);
-                // ga[a][i][kL] = Σ_J ∂N_a/∂X_J A_{iJ,kL}; gb[a][i][K] = Σ_J ∂N_a/∂X_J B_{iJ,K}
-                let mut ga = [[[0.0; 9]; 3]; MAX_NODES];
-                let mut gb = [[[0.0; 3]; 3]; MAX_NODES];
-                let mut gg = [[0.0; 3]; MAX_NODES];
-                for a in 0..n {
-                    for i in 0..3 {
-                        for jj in 0..3 {
-                            let gaj = g[a][jj];
-                            let row = i * 3 + jj;
-                            for c in 0..9 {
-                                ga[a][i][c] += gaj * t.a[(row, c)];
-                            }
-                            for c in 0..3 {
-                                gb[a][i][c] += gaj * t.b[(row, c)];
-                            }
-                        }
-                    }
-                    for c in 0..3 {
-                        gg[a][c] =
-                            g[a][0] * t.g[(0, c)] + g[a][1] * t.g[(1, c)] + g[a][2] * t.g[(2, c)];
-                    }
-                }
-                for a in 0..n {
-                    for b in 0..n {
-                        let gbv = g[b];
-                        for i in 0..3 {
-                            let row = (a * 4 + i) * nl + b * 4;
-                            for kk in 0..3 {
-                                let c = &ga[a][i][kk * 3..kk * 3 + 3];
-                                k[row + kk] += w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
-                            }
-                            // ∂r_{a,i}/∂Φ_b = Σ ∂N_a/∂X_J B_{iJ,K} (−∂N_b/∂X_K)
-                            let c = &gb[a][i];
-                            k[row + 3] -= w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
-                        }
-                        let row = (a * 4 + 3) * nl + b * 4;
-                        // ∂r_{a,Φ}/∂u_{b,k} = −Σ ∂N_a/∂X_J B_{kL,J} ∂N_b/∂X_L (symmetric partner)
-                        for kk in 0..3 {
-                            let c = &gb[b][kk];
-                            k[row + kk] -= w * (c[0] * g[a][0] + c[1] * g[a][1] + c[2] * g[a][2]);
-                        }
-                        // ∂r_{a,Φ}/∂Φ_b = Σ ∂N_a/∂X_J G_JK ∂N_b/∂X_K
-                        k[row + 3] +=
-                            w * (gg[a][0] * gbv[0] + gg[a][1] * gbv[1] + gg[a][2] * gbv[2]);
-                    }
-                }
+                add_point_tangent(g, n, w, &t.a, &t.b, &t.g, k);
             }
         }
     }
@@ -300,4 +255,61 @@ pub fn cell_viscous(
         }
     }
     Ok(power)
+}
+
+/// Adds w·(∂r/∂x) of one quadrature point to the local tangent `k` (leading dimension 4n), given
+/// the point's blocks A = ∂P/∂F (9×9), B = ∂P/∂E₀ (9×3) and G = ∂²Ψ/∂E₀² (3×3):
+/// K_{ai,bk} = Σ ∂N_a/∂X_J A_{iJ,kL} ∂N_b/∂X_L, K_{ai,bΦ} = −Σ ∂N_a/∂X_J B_{iJ,K} ∂N_b/∂X_K,
+/// K_{aΦ,bk} its symmetric partner and K_{aΦ,bΦ} = Σ ∂N_a/∂X_J G_JK ∂N_b/∂X_K.
+pub(crate) fn add_point_tangent(
+    g: &[[f64; 3]; MAX_NODES],
+    n: usize,
+    w: f64,
+    a_blk: &crate::material::Mat9,
+    b_blk: &crate::material::Mat93,
+    g_blk: &crate::material::Mat3,
+    k: &mut [f64],
+) {
+    let nl = n * FIELDS;
+    // ga[a][i][kL] = Σ_J ∂N_a/∂X_J A_{iJ,kL}; gb[a][i][K] = Σ_J ∂N_a/∂X_J B_{iJ,K}
+    let mut ga = [[[0.0; 9]; 3]; MAX_NODES];
+    let mut gb = [[[0.0; 3]; 3]; MAX_NODES];
+    let mut gg = [[0.0; 3]; MAX_NODES];
+    for a in 0..n {
+        for i in 0..3 {
+            for jj in 0..3 {
+                let gaj = g[a][jj];
+                let row = i * 3 + jj;
+                for c in 0..9 {
+                    ga[a][i][c] += gaj * a_blk[(row, c)];
+                }
+                for c in 0..3 {
+                    gb[a][i][c] += gaj * b_blk[(row, c)];
+                }
+            }
+        }
+        for c in 0..3 {
+            gg[a][c] = g[a][0] * g_blk[(0, c)] + g[a][1] * g_blk[(1, c)] + g[a][2] * g_blk[(2, c)];
+        }
+    }
+    for a in 0..n {
+        for b in 0..n {
+            let gbv = g[b];
+            for i in 0..3 {
+                let row = (a * 4 + i) * nl + b * 4;
+                for kk in 0..3 {
+                    let c = &ga[a][i][kk * 3..kk * 3 + 3];
+                    k[row + kk] += w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
+                }
+                let c = &gb[a][i];
+                k[row + 3] -= w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
+            }
+            let row = (a * 4 + 3) * nl + b * 4;
+            for kk in 0..3 {
+                let c = &gb[b][kk];
+                k[row + kk] -= w * (c[0] * g[a][0] + c[1] * g[a][1] + c[2] * g[a][2]);
+            }
+            k[row + 3] += w * (gg[a][0] * gbv[0] + gg[a][1] * gbv[1] + gg[a][2] * gbv[2]);
+        }
+    }
 }

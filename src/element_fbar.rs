@@ -394,46 +394,7 @@ pub fn cell_residual_tangent_md(
         }
 
         // per-point blocks, as in the standard kernel
-        let mut ga = [[[0.0; 9]; 3]; MAX_NODES];
-        let mut gb = [[[0.0; 3]; 3]; MAX_NODES];
-        let mut gg = [[0.0; 3]; MAX_NODES];
-        for a in 0..n {
-            for i in 0..3 {
-                for jj in 0..3 {
-                    let gaj = g[a][jj];
-                    let row = i * 3 + jj;
-                    for c in 0..9 {
-                        ga[a][i][c] += gaj * a_eff[(row, c)];
-                    }
-                    for c in 0..3 {
-                        gb[a][i][c] += gaj * b_eff[(row, c)];
-                    }
-                }
-            }
-            for c in 0..3 {
-                gg[a][c] = g[a][0] * t.g[(0, c)] + g[a][1] * t.g[(1, c)] + g[a][2] * t.g[(2, c)];
-            }
-        }
-        for a in 0..n {
-            for b in 0..n {
-                let gbv = g[b];
-                for i in 0..3 {
-                    let row = (a * 4 + i) * nl + b * 4;
-                    for kk in 0..3 {
-                        let c = &ga[a][i][kk * 3..kk * 3 + 3];
-                        k[row + kk] += w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
-                    }
-                    let c = &gb[a][i];
-                    k[row + 3] -= w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
-                }
-                let row = (a * 4 + 3) * nl + b * 4;
-                for kk in 0..3 {
-                    let c = &gb[b][kk];
-                    k[row + kk] -= w * (c[0] * g[a][0] + c[1] * g[a][1] + c[2] * g[a][2]);
-                }
-                k[row + 3] += w * (gg[a][0] * gbv[0] + gg[a][1] * gbv[1] + gg[a][2] * gbv[2]);
-            }
-        }
+        crate::element::add_point_tangent(g, n, w, &a_eff, &b_eff, &t.g, k);
     }
 
     // couplings of all points through θ̄
