@@ -457,9 +457,9 @@ mod tests {
 
     /// A distorted hex8 (about 1 mm) and a random-looking state with displacement gradients
     /// of order 0.1 and a field of order 0.3√(μ/ε).
-    fn cell() -> (CellGeometry, Vec<f64>) {
-        let h = 1e-3;
-        let x = [
+    /// Nodes of a distorted hex8 about 1 mm in size.
+    fn cell_coords() -> [[f64; 3]; 8] {
+        [
             [0.0, 0.0, 0.0],
             [1.2, 0.1, 0.0],
             [1.3, 0.9, 0.1],
@@ -469,7 +469,12 @@ mod tests {
             [1.1, 1.2, 0.9],
             [0.0, 1.1, 1.2],
         ]
-        .map(|p| p.map(|c| c * h));
+        .map(|p| p.map(|c| c * 1e-3))
+    }
+
+    fn cell() -> (CellGeometry, Vec<f64>) {
+        let h = 1e-3;
+        let x = cell_coords();
         let g = ReferenceElement::new(ElementKind::Hex8)
             .geometry(&x)
             .unwrap();
@@ -556,18 +561,7 @@ mod tests {
     #[test]
     fn homogeneous_state_matches_standard() {
         let (g, _) = cell();
-        let h = 1e-3;
-        let x = [
-            [0.0, 0.0, 0.0],
-            [1.2, 0.1, 0.0],
-            [1.3, 0.9, 0.1],
-            [-0.1, 1.0, 0.0],
-            [0.1, 0.0, 1.0],
-            [1.0, 0.2, 1.1],
-            [1.1, 1.2, 0.9],
-            [0.0, 1.1, 1.2],
-        ]
-        .map(|p| p.map(|c| c * h));
+        let x = cell_coords();
         let grad = [[0.05, 0.02, -0.01], [0.01, -0.03, 0.02], [0.0, 0.04, 0.06]];
         let ef = [2e6, -1e6, 5e6];
         let mut local = vec![0.0; 32];
