@@ -28,3 +28,44 @@ pub fn distort(mesh: &mut Mesh, h: f64, amount: f64, rng: &mut Rng) {
         }
     }
 }
+
+/// Compares the assembled tangent of `p` at its current state with central differences of its
+/// residual (step `step` in the scaled unknowns) and checks its symmetry to 1e-12. Returns the
+/// largest |K − K_fd| relative to the largest tangent entry.
+pub fn tangent_fd_error<S: deasim::solve::newton::NonlinearSystem>(p: &mut S, step: f64) -> f64 {
+    let n = p.n();
+    let mut k = p.new_matrix();
+    let mut r = vec![0.0; n];
+    p.evaluate(&mut r, Some(&mut k)).unwrap();
+    let kmax = k.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let (mut rp, mut rm) = (vec![0.0; n], vec![0.0; n]);
+    let mut e = vec![0.0; n];
+    let mut worst = 0.0f64;
+    for j in 0..n {
+        e.iter_mut().for_each(|v| *v = 0.0);
+        e[j] = 1.0;
+        let s = p.snapshot();
+        p.increment(&e, step);
+        p.evaluate(&mut rp, None).unwrap();
+        p.restore(&s);
+        p.increment(&e, -step);
+        p.evaluate(&mut rm, None).unwrap();
+        p.restore(&s);
+        for i in 0..n {
+            let fd = (rp[i] - rm[i]) / (2.0 * step);
+            let kij = k.position(i, j).map(|q| k.values[q]).unwrap_or(0.0);
+            worst = worst.max((fd - kij).abs() / kmax);
+        }
+    }
+    for i in 0..n {
+        for q in k.row_ptr[i]..k.row_ptr[i + 1] {
+            let j = k.col_idx[q];
+            let kji = k.values[k.position(j, i).unwrap()];
+            assert!(
+                (k.values[q] - kji).abs() <= 1e-12 * kmax,
+                "tangent not symmetric at ({i}, {j})"
+            );
+        }
+    }
+    worst
+}
