@@ -258,6 +258,38 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
             for e in &plan.electrodes {
                 println!("electrode `{}`: {} nodes", e.name, e.nodes.len());
             }
+            if let Some(steps) = plan.prestretch_steps {
+                println!("pre-stretch: {steps} load steps before the first stage");
+            }
+            let g = plan
+                .model
+                .body_force
+                .iter()
+                .zip(&plan.densities)
+                .find(|(_, &r)| r > 0.0);
+            if let Some((b, rho)) = g {
+                println!(
+                    "gravity: [{}, {}, {}] m/s²",
+                    b[0] / rho,
+                    b[1] / rho,
+                    b[2] / rho
+                );
+            }
+            for r in &plan.rigid {
+                println!(
+                    "rigid region `{}`: {} nodes, attached mass {} kg in the mesh",
+                    r.set,
+                    r.nodes.len(),
+                    r.mass
+                );
+            }
+            if plan.symmetry_factor != 1.0 {
+                println!(
+                    "symmetry: the mesh is 1/{} of the device; global probes and energies are \
+                     for the whole device",
+                    plan.symmetry_factor
+                );
+            }
             for (i, s) in plan.stages.iter().enumerate() {
                 match s.kind {
                     StageKind::Static { steps } => {
@@ -284,6 +316,12 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
                     .join(", ")
             );
             println!("problems: none");
+            if !plan.warnings.is_empty() {
+                println!("warnings:");
+                for w in &plan.warnings {
+                    println!("  {w}");
+                }
+            }
             EXIT_OK
         }
         Err(e) => {

@@ -88,27 +88,37 @@ impl Assembler {
         let mut row_ptr = Vec::with_capacity(dofs.n_free + 1);
         let mut col_idx = Vec::new();
         row_ptr.push(0);
-        // equations are numbered node-major, so rows come node by node in increasing order
-        let mut row_of_eq = vec![usize::MAX; dofs.n_free];
-        let mut cols: Vec<usize> = Vec::new();
-        let mut neighbours: Vec<usize> = Vec::new();
-        let mut order: Vec<(usize, usize)> = Vec::new(); // (eq, node*FIELDS+field)
+        // (equation, node) of every free dof; a tied equation has several nodes
+        let mut order: Vec<(usize, usize)> = Vec::new();
         for node in 0..mesh.n_nodes() {
             for f in 0..FIELDS {
                 let e = dofs.eq[node * FIELDS + f];
                 if e != CONSTRAINED {
-                    order.push((e, node * FIELDS + f));
+                    order.push((e, node));
                 }
             }
         }
         order.sort_unstable();
-        let mut last_node = usize::MAX;
-        for &(e, d) in &order {
-            let node = d / FIELDS;
-            if node != last_node {
+        order.dedup();
+        let mut cols: Vec<usize> = Vec::new();
+        let mut neighbours: Vec<usize> = Vec::new();
+        let mut last_nodes: Vec<usize> = Vec::new();
+        let mut i = 0;
+        while i < order.len() {
+            let e = order[i].0;
+            let mut j = i;
+            while j < order.len() && order[j].0 == e {
+                j += 1;
+            }
+            let nodes: Vec<usize> = order[i..j].iter().map(|p| p.1).collect();
+            debug_assert_eq!(row_ptr.len() - 1, e, "equations are numbered densely");
+            // consecutive equations of one node (or one tie) share their columns
+            if nodes != last_nodes {
                 neighbours.clear();
-                for &c in &node_cells[node] {
-                    neighbours.extend_from_slice(mesh.cell(c));
+                for &node in &nodes {
+                    for &c in &node_cells[node] {
+                        neighbours.extend_from_slice(mesh.cell(c));
+                    }
                 }
                 neighbours.sort_unstable();
                 neighbours.dedup();
@@ -122,16 +132,16 @@ impl Assembler {
                     }
                 }
                 cols.sort_unstable();
-                last_node = node;
+                cols.dedup();
+                last_nodes = nodes;
             }
-            row_of_eq[e] = row_ptr.len() - 1;
             col_idx.extend_from_slice(&cols);
             row_ptr.push(col_idx.len());
+            i = j;
         }
-        debug_assert!(row_of_eq.iter().enumerate().all(|(e, &r)| e == r));
         let nnz = col_idx.len();
         Assembler {
-            colours: mesh.cell_colours(),
+            colours: mesh.cell_colours_grouped(&dofs.node_representatives()),
             pattern: CsrMatrix {
                 n: dofs.n_free,
                 row_ptr,

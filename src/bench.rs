@@ -156,7 +156,6 @@ pub fn bench_dynamic(
     let inputs = DynamicInputs {
         mass: &mass,
         viscosity: vec![0.0],
-        body_force: vec![[0.0; 3]],
         electrodes: vec![
             (bottom, Waveform::constant(0.0)),
             (top, Waveform::constant(20e3)),

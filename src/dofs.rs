@@ -51,17 +51,47 @@ pub struct DofMap {
 impl DofMap {
     /// Numbers the dofs not marked in `constrained` (one flag per dof), in node-major order.
     pub fn new(n_nodes: usize, constrained: &[bool], phi_scale: f64) -> Self {
+        Self::with_ties(n_nodes, constrained, phi_scale, &[])
+    }
+
+    /// As [`DofMap::new`], and every tie's dofs share one equation (they move together by the
+    /// same increments). A tie with a constrained member is constrained as a whole: its dofs keep
+    /// their current values.
+    pub fn with_ties(n_nodes: usize, constrained: &[bool], phi_scale: f64, ties: &[Tie]) -> Self {
         assert_eq!(constrained.len(), n_nodes * FIELDS);
+        let mut flags = constrained.to_vec();
+        // leader[d]: the first dof of d's tie (d itself when untied)
+        let mut leader: Vec<usize> = (0..n_nodes * FIELDS).collect();
+        for t in ties {
+            let dofs: Vec<usize> = t
+                .nodes
+                .iter()
+                .map(|&n| Self::dof(n, t.field.index()))
+                .collect();
+            let Some(&first) = dofs.iter().min() else {
+                continue;
+            };
+            let held = dofs.iter().any(|&d| flags[d]);
+            for &d in &dofs {
+                leader[d] = first;
+                flags[d] |= held;
+            }
+        }
         let mut eq = vec![CONSTRAINED; n_nodes * FIELDS];
         let mut n = 0;
         let mut n_phi = 0;
-        for (d, &c) in constrained.iter().enumerate() {
-            if !c {
-                eq[d] = n;
-                n += 1;
-                if d % FIELDS == PHI {
-                    n_phi += 1;
-                }
+        for d in 0..n_nodes * FIELDS {
+            if flags[d] {
+                continue;
+            }
+            if leader[d] != d {
+                eq[d] = eq[leader[d]];
+                continue;
+            }
+            eq[d] = n;
+            n += 1;
+            if d % FIELDS == PHI {
+                n_phi += 1;
             }
         }
         DofMap {
@@ -71,6 +101,37 @@ impl DofMap {
             n_free_phi: n_phi,
             scale: [1.0, 1.0, 1.0, phi_scale],
         }
+    }
+
+    /// For every node, a representative node of its class under "shares an equation" (through
+    /// ties, transitively; the node itself when it has no tied dof): cells whose nodes have a
+    /// common representative may write the same rows, so they must not be assembled concurrently.
+    pub fn node_representatives(&self) -> Vec<usize> {
+        fn find(parent: &mut [usize], mut a: usize) -> usize {
+            while parent[a] != a {
+                parent[a] = parent[parent[a]];
+                a = parent[a];
+            }
+            a
+        }
+        let mut parent: Vec<usize> = (0..self.n_nodes).collect();
+        let mut first_node_of_eq = vec![usize::MAX; self.n_free];
+        for (d, &e) in self.eq.iter().enumerate() {
+            if e == CONSTRAINED {
+                continue;
+            }
+            let node = d / FIELDS;
+            if first_node_of_eq[e] == usize::MAX {
+                first_node_of_eq[e] = node;
+            } else {
+                let (a, b) = (
+                    find(&mut parent, node),
+                    find(&mut parent, first_node_of_eq[e]),
+                );
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+        (0..self.n_nodes).map(|n| find(&mut parent, n)).collect()
     }
 
     /// Global dof index of a node's field.
@@ -97,6 +158,14 @@ impl DofMap {
         }
         f
     }
+}
+
+/// A tie: `field` of every node in `nodes` takes one common increment (a rigid translation of a
+/// region along one axis).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tie {
+    pub nodes: Vec<usize>,
+    pub field: Field,
 }
 
 /// A Dirichlet condition: `field` of every node in `nodes` equals `value` (m or V).

@@ -1,8 +1,8 @@
 //! A model: mesh, materials of the cells, element formulation, Dirichlet conditions (supports and
 //! electrodes) and surface tractions.
 
-use crate::dofs::Dirichlet;
 use crate::dofs::FIELDS;
+use crate::dofs::{Dirichlet, Tie};
 pub use crate::element_fbar::Formulation;
 use crate::fem::{CellGeometry, ReferenceElement};
 pub use crate::loads::Traction;
@@ -26,9 +26,17 @@ pub struct Model {
     /// Dead nominal tractions (N/m² of reference area) at the end of the current stage; statics
     /// scales them by the load factor, dynamics applies them at full value.
     pub tractions: Vec<Traction>,
-    /// Fraction of the tractions already applied when a static stage starts (0 for the first
-    /// stage that applies them, 1 afterwards): a static stage ramps them from here to full.
-    pub traction_start: f64,
+    /// Body force per reference volume of each material (N/m³, e.g. ρ₀g), a dead load like the
+    /// tractions.
+    pub body_force: Vec<[f64; 3]>,
+    /// Dead point forces (node, N), e.g. the weight of an attached mass.
+    pub point_forces: Vec<(usize, [f64; 3])>,
+    /// Fraction of the dead loads (tractions, body and point forces) already applied when a static
+    /// stage starts (0 for the first stage that applies them, 1 afterwards): a static stage ramps
+    /// them from here to full.
+    pub dead_load_start: f64,
+    /// Groups of dofs that move together (a rigid region's translations).
+    pub ties: Vec<Tie>,
 }
 
 /// Problems found while building a model.
@@ -54,7 +62,10 @@ impl Model {
             dirichlet: Vec::new(),
             formulation: Formulation::Standard,
             tractions: Vec::new(),
-            traction_start: 0.0,
+            body_force: Vec::new(),
+            point_forces: Vec::new(),
+            dead_load_start: 0.0,
+            ties: Vec::new(),
         };
         model.check_cells()?;
         Ok(model)
@@ -126,6 +137,13 @@ impl Model {
         }
         self.tractions.push(Traction { faces, value });
         Ok(())
+    }
+
+    /// Whether the model carries any dead load (traction, body force, point force).
+    pub fn has_dead_loads(&self) -> bool {
+        !self.tractions.is_empty()
+            || !self.point_forces.is_empty()
+            || self.body_force.iter().any(|b| *b != [0.0; 3])
     }
 
     /// Potential scale √(μ/ε) (V/m) from the stiffest and most permittive materials, so that the

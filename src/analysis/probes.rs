@@ -41,6 +41,25 @@ pub enum ProbeKind {
     StoredEnergy,
     /// Electric field energy in the body (J).
     ElectricEnergy,
+    /// Downward displacement of a set (the pad) from the reference state (the pre-stretched one):
+    /// −mean(u_z − u_z,ref) (m, positive downward).
+    Deflection(Vec<usize>),
+    /// Largest true (spatial) electric field magnitude at a quadrature point (V/m).
+    MaxElectricField,
+}
+
+impl ProbeKind {
+    /// Whether the value is a total over the device (multiplied by the symmetry factor).
+    fn is_global(&self) -> bool {
+        matches!(
+            self,
+            ProbeKind::Charge(_)
+                | ProbeKind::Capacitance(_)
+                | ProbeKind::Reaction(..)
+                | ProbeKind::StoredEnergy
+                | ProbeKind::ElectricEnergy
+        )
+    }
 }
 
 /// A probe: offset + scale · quantity.
@@ -59,9 +78,15 @@ pub struct ProbeInput<'a> {
     pub reactions: &'a [f64],
     /// Node sets and present voltage (V) of the electrodes.
     pub electrodes: &'a [(&'a [usize], f64)],
-    /// Mechanical and electric energies (J).
+    /// Mechanical and electric energies (J) of the meshed part.
     pub stored: f64,
     pub electric: f64,
+    /// The state deflections are measured from (4 values per node).
+    pub reference: &'a [f64],
+    /// Largest true electric field (V/m).
+    pub max_field: f64,
+    /// Copies of the meshed part in the device (4 for a quarter model).
+    pub symmetry: f64,
 }
 
 impl Probe {
@@ -93,6 +118,19 @@ impl Probe {
             ProbeKind::Reaction(c, nodes) => nodes.iter().map(|&n| inp.reactions[n * 4 + c]).sum(),
             ProbeKind::StoredEnergy => inp.stored,
             ProbeKind::ElectricEnergy => inp.electric,
+            ProbeKind::Deflection(nodes) => {
+                -nodes
+                    .iter()
+                    .map(|&n| inp.state[n * 4 + 2] - inp.reference[n * 4 + 2])
+                    .sum::<f64>()
+                    / nodes.len().max(1) as f64
+            }
+            ProbeKind::MaxElectricField => inp.max_field,
+        };
+        let v = if self.kind.is_global() {
+            v * inp.symmetry
+        } else {
+            v
         };
         self.offset + self.scale * v
     }

@@ -88,9 +88,20 @@ struct Recorder<'p> {
     initial_potential: Option<f64>,
     /// Nodal forces of the tractions at full value (empty without tractions).
     traction: Vec<f64>,
-    /// Load factor of the tractions at the state being recorded.
+    /// Nodal forces of gravity and attached masses at full value (empty without).
+    weight: Vec<f64>,
+    /// Load factor of the dead loads at the state being recorded.
     external_factor: f64,
+    prev_factor: f64,
     prev_external: Vec<f64>,
+    /// Work of changing the weight load factor at fixed positions, −∫ f·u dλ (J).
+    load_change_work: f64,
+    /// The state deflections are measured from (the pre-stretched state; zero without).
+    reference: Vec<f64>,
+    /// Materials whose dielectric strength has been exceeded (reported once each).
+    broken_down: Vec<bool>,
+    /// Warnings raised while recording (breakdown).
+    warnings: Vec<String>,
 }
 
 impl<'p> Recorder<'p> {
@@ -134,9 +145,17 @@ impl<'p> Recorder<'p> {
                 }
             }
         }
-        let total = kinetic + stored - electric + dissipated;
+        // gravity: potential −λ f·u of the weights; changing λ at fixed u does work −Δλ f·ū
+        let weight_dot = |u: &[f64]| -> f64 { self.weight.iter().zip(u).map(|(f, x)| f * x).sum() };
+        let gravity = -self.external_factor * weight_dot(state);
+        if !self.prev_state.is_empty() && !self.weight.is_empty() {
+            let mean = 0.5 * (weight_dot(state) + weight_dot(&self.prev_state));
+            self.load_change_work -= (self.external_factor - self.prev_factor) * mean;
+        }
+        self.prev_factor = self.external_factor;
+        let total = kinetic + stored - electric + gravity + dissipated;
         let initial = *self.initial_potential.get_or_insert(total);
-        let energy_error = total - initial - self.boundary_work;
+        let energy_error = total - initial - self.boundary_work - self.load_change_work;
         let voltages: Vec<(&[usize], f64)> = self
             .plan
             .electrodes
@@ -147,12 +166,18 @@ impl<'p> Recorder<'p> {
             .iter()
             .map(|v| v.1)
             .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
+        let fields = cell_fields(model, state)?;
+        let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
+        self.check_breakdown(&fields, time, stage);
         let input = ProbeInput {
             state,
             reactions: &reactions,
             electrodes: &voltages,
             stored,
             electric,
+            reference: &self.reference,
+            max_field: max_electric_field,
+            symmetry: self.plan.symmetry_factor,
         };
         let probes = self
             .plan
@@ -160,8 +185,6 @@ impl<'p> Recorder<'p> {
             .iter()
             .map(|(_, p)| p.evaluate(&input))
             .collect();
-        let fields = cell_fields(model, state)?;
-        let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
         self.prev_reactions = reactions;
         self.prev_external = external;
         self.prev_state = state.to_vec();
@@ -177,15 +200,63 @@ impl<'p> Recorder<'p> {
                     kinetic,
                     stored,
                     electric,
+                    gravity,
                     dissipated,
                     energy_error,
-                    ..Default::default()
-                },
+                }
+                .scaled(self.plan.symmetry_factor),
                 probes,
                 max_electric_field,
             },
             fields,
         ))
+    }
+}
+
+impl Recorder<'_> {
+    /// Warns (once per material) where the true field first exceeds a material's dielectric
+    /// strength, and asks the driver to stop when the plan says so.
+    fn check_breakdown(&mut self, fields: &[CellFields], time: f64, stage: &str) {
+        let plan = self.plan;
+        for (c, f) in fields.iter().enumerate() {
+            let m = plan.model.cell_material[c];
+            let Some(strength) = plan.breakdown[m] else {
+                continue;
+            };
+            if f.e_max <= strength || self.broken_down[m] {
+                continue;
+            }
+            self.broken_down[m] = true;
+            let centre = plan.model.mesh.cell_centroid(c);
+            let message = format!(
+                "dielectric breakdown: true field {:.4e} V/m exceeds the strength {:.4e} V/m of                  material `{}` at t = {:.6} s (stage `{stage}`), cell {c} at ({:.4e}, {:.4e},                  {:.4e}) m",
+                f.e_max,
+                strength,
+                plan.material_names[m],
+                time,
+                centre[0],
+                centre[1],
+                centre[2]
+            );
+            if plan.stop_at_breakdown {
+                crate::solve::interrupt::stop_here(format!("stopped on {message}"));
+            }
+            self.warnings.push(message);
+        }
+    }
+}
+
+impl Energies {
+    /// All energies times `factor` (the symmetry factor of a partial model).
+    fn scaled(self, factor: f64) -> Self {
+        Energies {
+            kinetic: self.kinetic * factor,
+            stored: self.stored * factor,
+            electric: self.electric * factor,
+            gravity: self.gravity * factor,
+            dissipated: self.dissipated * factor,
+            energy_error: self.energy_error * factor,
+        }
     }
 }
 
@@ -217,21 +288,46 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         } else {
             crate::loads::traction_forces(&plan.model.mesh, &plan.model.tractions, 1.0)
         },
+        weight: if plan.model.point_forces.is_empty()
+            && plan.model.body_force.iter().all(|b| *b == [0.0; 3])
+        {
+            Vec::new()
+        } else {
+            crate::loads::weight_forces(&plan.model)
+        },
         external_factor: 0.0,
+        prev_factor: 0.0,
         prev_external: Vec::new(),
+        load_change_work: 0.0,
+        reference: vec![0.0; n_nodes * FIELDS],
+        broken_down: vec![false; plan.model.materials.len()],
+        warnings: Vec::new(),
     };
+    crate::solve::interrupt::clear_local();
     let mut time = 0.0;
     let mut dissipated = 0.0;
     for (si, stage) in plan.stages.iter().enumerate() {
         observer.stage_started(si, &stage.name);
         let stage_start = Instant::now();
         let t_end = time + stage.duration;
+        // waveforms run on stage time (0 at the start of the stage), as Abaqus' step time;
+        // a stage with its electrodes off holds them at 0 V
+        let voltage_of = |w: &crate::waveform::Waveform, t_stage: f64| {
+            if stage.electrodes_on {
+                w.value(t_stage)
+            } else {
+                0.0
+            }
+        };
+        // steps already recorded under this stage's name (the pre-stretch, for the first stage)
+        let mut first_step = 0;
+        let mut prestretch_iterations = 0;
         model.dirichlet = plan.supports.clone();
         for e in &plan.electrodes {
             model.dirichlet.push(Dirichlet {
                 nodes: e.nodes.clone(),
                 field: Field::Phi,
-                value: e.voltage.value(t_end),
+                value: voltage_of(&e.voltage, stage.duration),
             });
         }
         let prescribed = constrained_flags(n_nodes, &model.dirichlet);
@@ -242,6 +338,38 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     summary.converged = false;
                     summary.error = Some(format!("initial state: {e}"));
                     break;
+                }
+            }
+            if let Some(steps) = plan.prestretch_steps {
+                match prestretch(
+                    plan,
+                    &model,
+                    &state,
+                    steps,
+                    newton,
+                    &mut rec,
+                    &stage.name,
+                    observer,
+                ) {
+                    Ok((s, n, its)) => {
+                        state = s;
+                        first_step = n;
+                        prestretch_iterations = its;
+                        rec.reference = state.clone();
+                    }
+                    Err(e) => {
+                        summary.converged = false;
+                        summary.error = Some(e);
+                        summary.stages.push(StageSummary {
+                            name: stage.name.clone(),
+                            kind: "static".into(),
+                            steps: 0,
+                            newton_iterations: 0,
+                            wall_s: stage_start.elapsed().as_secs_f64(),
+                            converged: false,
+                        });
+                        break;
+                    }
                 }
             }
         }
@@ -267,7 +395,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                 let targets: Vec<f64> = plan
                     .electrodes
                     .iter()
-                    .map(|e| e.voltage.value(t_end))
+                    .map(|e| voltage_of(&e.voltage, stage.duration))
                     .collect();
                 let voltage_at = |s: f64| -> f64 {
                     start_voltages
@@ -280,7 +408,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     steps,
                     ..Default::default()
                 };
-                let mut step_no = 0;
+                let mut step_no = first_step;
                 let mut last_load = 0.0;
                 let outcome =
                     solve_static(&model, Some(state.clone()), &control, newton, |p, acc| {
@@ -289,7 +417,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                         let dt = (acc.load - last_load) * stage.duration;
                         last_load = acc.load;
                         rec.external_factor =
-                            model.traction_start + acc.load * (1.0 - model.traction_start);
+                            model.dead_load_start + acc.load * (1.0 - model.dead_load_start);
                         match rec.record(
                             &p.state,
                             &prescribed,
@@ -311,13 +439,15 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                 stage_summary.steps = step_no;
                 match outcome.result {
                     Ok(r) => {
-                        stage_summary.newton_iterations = r.newton_iterations;
+                        stage_summary.newton_iterations =
+                            r.newton_iterations + prestretch_iterations;
                         // the tractions are now fully applied; later static stages keep them
-                        model.traction_start = 1.0;
+                        model.dead_load_start = 1.0;
                         None
                     }
                     Err(f) => {
-                        stage_summary.newton_iterations = f.newton_iterations;
+                        stage_summary.newton_iterations =
+                            f.newton_iterations + prestretch_iterations;
                         let electric = start_voltages.iter().zip(&targets).any(|(a, b)| a != b);
                         let what = if f.limit_point && electric {
                             "electromechanical instability (pull-in)"
@@ -348,16 +478,27 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                 mass: mass_kind,
             } => {
                 stage_summary.kind = "dynamic".into();
-                let mass = NodalMass::new(&model, &plan.densities, mass_kind);
+                let mut mass = NodalMass::new(&model, &plan.densities, mass_kind);
+                for r in &plan.rigid {
+                    if r.mass > 0.0 {
+                        mass.add_point_mass(r.nodes[0], r.mass);
+                    }
+                }
                 model.dirichlet = plan.supports.clone();
                 let inputs = DynamicInputs {
                     mass: &mass,
                     viscosity: plan.viscosities.clone(),
-                    body_force: vec![[0.0; 3]; plan.densities.len()],
                     electrodes: plan
                         .electrodes
                         .iter()
-                        .map(|e| (e.nodes.clone(), e.voltage.clone()))
+                        .map(|e| {
+                            let w = if stage.electrodes_on {
+                                e.voltage.clone()
+                            } else {
+                                crate::waveform::Waveform::constant(0.0)
+                            };
+                            (e.nodes.clone(), w)
+                        })
                         .collect(),
                 };
                 let settings = DynamicSettings {
@@ -368,13 +509,14 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     easy_iterations: 6,
                     reuse_factorization: true,
                 };
+                // the integrator runs on stage time; records get the global time
                 let start_level = TimeLevel {
-                    t: time,
+                    t: 0.0,
                     q: state.clone(),
                     v: velocity.clone(),
                     a: acceleration.clone(),
                 };
-                let mut step_no = 0;
+                let mut step_no = first_step;
                 let mut mv = vec![0.0; state.len()];
                 let outcome = run_dynamic(
                     &model,
@@ -392,7 +534,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                         match rec.record(
                             &level.q,
                             &prescribed,
-                            level.t,
+                            time + level.t,
                             &stage.name,
                             step_no,
                             info.newton_iterations,
@@ -419,19 +561,22 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                             level,
                             Some(format!(
                                 "dynamic stage `{}` stopped at t = {:.6e} s: {}",
-                                stage.name, f.t, f.reason
+                                stage.name,
+                                time + f.t,
+                                f.reason
                             )),
                         )
                     }
                 };
                 state = level.q;
-                model.traction_start = 1.0;
+                model.dead_load_start = 1.0;
                 velocity = level.v;
                 acceleration = level.a;
                 failure
             }
         };
         stage_summary.wall_s = stage_start.elapsed().as_secs_f64();
+        summary.warnings.append(&mut rec.warnings);
         if let Some(e) = record_error {
             summary.warnings.push(format!(
                 "stage `{}`: output evaluation failed: {e}",
@@ -449,8 +594,83 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         }
         time = t_end;
     }
+    summary.warnings.append(&mut rec.warnings);
     summary.wall_s = start.elapsed().as_secs_f64();
     summary.interrupted = crate::solve::interrupt::requested() && !summary.converged;
     observer.finished(plan, &summary);
     summary
+}
+
+/// The pre-stretch phase before the first stage: the supports (which hold the pre-stretch targets)
+/// are ramped in `steps` load steps with the electrodes at the first stage's initial voltages, without the
+/// dead loads and with the rigid regions free (the pad is attached to the stretched membrane).
+/// Steps are recorded under the first stage's name, at time 0, with deflections measured from
+/// the current state. Returns the state, the number of recorded steps and the Newton iterations.
+#[allow(clippy::too_many_arguments)]
+fn prestretch(
+    plan: &Plan,
+    model: &crate::model::Model,
+    state: &[f64],
+    steps: usize,
+    newton: &NewtonSettings,
+    rec: &mut Recorder,
+    stage: &str,
+    observer: &mut dyn Observer,
+) -> Result<(Vec<f64>, usize, usize), String> {
+    let mut pre = model.clone();
+    pre.body_force.clear();
+    pre.point_forces.clear();
+    pre.tractions.clear();
+    pre.ties.clear();
+    pre.dirichlet = plan.supports.clone();
+    for e in &plan.electrodes {
+        pre.dirichlet.push(Dirichlet {
+            nodes: e.nodes.clone(),
+            field: Field::Phi,
+            value: if plan.stages[0].electrodes_on {
+                e.voltage.value(0.0)
+            } else {
+                0.0
+            },
+        });
+    }
+    let prescribed = constrained_flags(model.mesh.n_nodes(), &pre.dirichlet);
+    let control = StepControl {
+        steps,
+        ..Default::default()
+    };
+    let mut step_no = 0;
+    let mut record_error = None;
+    let outcome = solve_static(&pre, Some(state.to_vec()), &control, newton, |p, acc| {
+        step_no += 1;
+        rec.external_factor = 0.0;
+        rec.reference = p.state.clone();
+        match rec.record(
+            &p.state,
+            &prescribed,
+            0.0,
+            stage,
+            step_no,
+            acc.newton.iterations,
+            0.0,
+            0.0,
+            0.0,
+        ) {
+            Ok((r, f)) => observer.step(plan, &r, &p.state, &f),
+            Err(e) => {
+                record_error.get_or_insert(e);
+            }
+        }
+    });
+    if let Some(e) = record_error {
+        rec.warnings
+            .push(format!("pre-stretch: output evaluation failed: {e}"));
+    }
+    match outcome.result {
+        Ok(r) => Ok((outcome.state, step_no, r.newton_iterations)),
+        Err(f) => Err(format!(
+            "pre-stretch failed at load factor {:.6} (last converged {:.6}): {}",
+            f.attempted, f.last_converged, f.reason
+        )),
+    }
 }

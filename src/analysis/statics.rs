@@ -1,12 +1,12 @@
 //! The static problem: equilibrium of Π(u, Φ) = ∫Ψ dV − W_ext under prescribed displacements and
 //! electrode potentials, ramped from their values at the start of the stage to the model's targets,
-//! and dead surface tractions scaled by the load factor. The cell kernel is the model's
+//! and dead loads (tractions, body and point forces) scaled by the load factor. The cell kernel is the model's
 //! [`Formulation`](crate::model::Formulation) (standard or mean-dilatation).
 
 use crate::assembly::{Assembler, CsrMatrix};
 use crate::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::element::CellFields;
-use crate::loads::traction_forces;
+use crate::loads::dead_load_forces;
 use crate::model::Model;
 use crate::solve::linear::{FaerLdlt, LinearSolver};
 use crate::solve::newton::{NewtonSettings, NonlinearSystem};
@@ -34,11 +34,11 @@ pub struct StaticProblem<'m> {
     start: Vec<f64>,
     cell_energy: Vec<f64>,
     floor: f64,
-    /// Load factor of the tractions (`model.traction_start` until [`LoadedSystem::set_load`]).
+    /// Load factor of the dead loads (`model.dead_load_start` until [`LoadedSystem::set_load`]).
     load: f64,
-    /// Nodal forces of the model's tractions at full value (N, `FIELDS` per node); empty without
-    /// tractions.
-    traction: Vec<f64>,
+    /// Nodal forces of the model's dead loads at full value (N, `FIELDS` per node); empty without
+    /// dead loads.
+    dead_load: Vec<f64>,
 }
 
 /// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
@@ -47,7 +47,7 @@ pub struct StaticProblem<'m> {
 pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
     let n_nodes = model.mesh.n_nodes();
     let flags = constrained_flags(n_nodes, &model.dirichlet);
-    let dofs = DofMap::new(n_nodes, &flags, model.potential_scale());
+    let dofs = DofMap::with_ties(n_nodes, &flags, model.potential_scale(), &model.ties);
     let assembler = Assembler::new(&model.mesh, &dofs);
     let mu = model
         .materials
@@ -69,10 +69,10 @@ impl<'m> StaticProblem<'m> {
     pub fn new(model: &'m Model, state: Option<Vec<f64>>) -> Self {
         let (dofs, assembler, floor) = discretize(model);
         let state = state.unwrap_or_else(|| vec![0.0; model.mesh.n_nodes() * FIELDS]);
-        let traction = if model.tractions.is_empty() {
-            Vec::new()
+        let dead_load = if model.has_dead_loads() {
+            dead_load_forces(model)
         } else {
-            traction_forces(&model.mesh, &model.tractions, 1.0)
+            Vec::new()
         };
         StaticProblem {
             model,
@@ -82,12 +82,12 @@ impl<'m> StaticProblem<'m> {
             state,
             cell_energy: Vec::new(),
             floor,
-            load: model.traction_start,
-            traction,
+            load: model.dead_load_start,
+            dead_load,
         }
     }
 
-    /// Current load factor of the tractions.
+    /// Current load factor of the dead loads.
     pub fn load(&self) -> f64 {
         self.load
     }
@@ -103,10 +103,10 @@ impl<'m> StaticProblem<'m> {
     }
 
     /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ): internal forces minus the
-    /// traction forces at the current load factor; zero at the free dofs of an equilibrium.
+    /// dead loads at the current load factor; zero at the free dofs of an equilibrium.
     pub fn nodal_reactions(&self) -> Result<Vec<f64>, String> {
         let mut r = nodal_reactions(self.model, &self.state)?;
-        for (v, t) in r.iter_mut().zip(&self.traction) {
+        for (v, t) in r.iter_mut().zip(&self.dead_load) {
             *v -= self.load * t;
         }
         Ok(r)
@@ -128,9 +128,9 @@ pub fn energies(model: &Model, state: &[f64]) -> Result<(f64, f64), String> {
     Ok((mech, elec))
 }
 
-/// Internal forces ∂(∫Ψ dV)/∂x for every dof of a state (N for u, C for Φ). Tractions are not
-/// included: where a traction acts on a constrained node, subtract
-/// [`traction_forces`](crate::loads::traction_forces) for its reaction.
+/// Internal forces ∂(∫Ψ dV)/∂x for every dof of a state (N for u, C for Φ). Dead loads are not
+/// included: where one acts on a constrained node, subtract
+/// [`dead_load_forces`](crate::loads::dead_load_forces) for its reaction.
 pub fn nodal_reactions(model: &Model, state: &[f64]) -> Result<Vec<f64>, String> {
     let mut out = vec![0.0; state.len()];
     let mut r = vec![0.0; crate::element::MAX_LOCAL];
@@ -194,9 +194,9 @@ impl NonlinearSystem for StaticProblem<'_> {
                 &mut self.cell_energy,
             )
             .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
-        // dead tractions: −s·∫N t₀ dA on the free displacement rows (scaled residual s_f·r)
+        // dead loads: −s·f on the free displacement rows (scaled residual s_f·r)
         if self.load != 0.0 {
-            for (d, &t) in self.traction.iter().enumerate() {
+            for (d, &t) in self.dead_load.iter().enumerate() {
                 let e = self.dofs.eq[d];
                 if e != CONSTRAINED && t != 0.0 {
                     r[e] -= self.dofs.scale[d % FIELDS] * self.load * t;
@@ -210,7 +210,7 @@ impl NonlinearSystem for StaticProblem<'_> {
         self.dofs.add_scaled(&mut self.state, dx, alpha);
     }
 
-    /// The state followed by the traction load factor (which the state does not carry, unlike
+    /// The state followed by the dead-load factor (which the state does not carry, unlike
     /// the prescribed values).
     fn snapshot(&self) -> Vec<f64> {
         let mut s = Vec::with_capacity(self.state.len() + 1);
@@ -250,10 +250,10 @@ impl NonlinearSystem for StaticProblem<'_> {
 }
 
 impl LoadedSystem for StaticProblem<'_> {
-    /// Dirichlet values ramp linearly from the start state to the targets; tractions ramp from
-    /// `model.traction_start` (of their full value) to full.
+    /// Dirichlet values ramp linearly from the start state to the targets; dead loads ramp from
+    /// `model.dead_load_start` (of their full value) to full.
     fn set_load(&mut self, s: f64) {
-        let t0 = self.model.traction_start;
+        let t0 = self.model.dead_load_start;
         self.load = t0 + s * (1.0 - t0);
         let targets = &self.model.dirichlet;
         let mut end = self.state.clone();
@@ -274,8 +274,8 @@ pub struct StaticOutcome {
     pub result: Result<RampReport, RampFailure>,
 }
 
-/// Ramps the model's Dirichlet values from `initial` (zero state when `None`), and its tractions
-/// from zero, to their targets in `steps` steps.
+/// Ramps the model's Dirichlet values from `initial` (zero state when `None`), and its dead loads
+/// from `model.dead_load_start`, to their targets in `steps` steps.
 /// `on_step` sees the problem after every accepted step.
 pub fn solve_static(
     model: &Model,

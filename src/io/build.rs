@@ -59,6 +59,8 @@ pub struct Stage {
     pub kind: StageKind,
     /// Duration (s): pseudo-time of a static stage.
     pub duration: f64,
+    /// Whether the electrodes follow their waveforms (else they are held at 0 V).
+    pub electrodes_on: bool,
 }
 
 /// Output settings.
@@ -86,6 +88,28 @@ pub struct Plan {
     pub viscosities: Vec<f64>,
     /// Problems that do not stop the run (e.g. Drucker instability of a fit), for the summary.
     pub warnings: Vec<String>,
+    /// Rigid regions with their attached masses (ties and weights are in `model`).
+    pub rigid: Vec<Rigid>,
+    /// Names of the materials, in `model.materials` order.
+    pub material_names: Vec<String>,
+    /// Load steps of the pre-stretch phase that runs before the first stage (none: no pre-stretch).
+    pub prestretch_steps: Option<usize>,
+    /// Copies of the meshed part that make the physical device (4 for a quarter disc): global
+    /// probes (charge, capacitance, reaction, energies) are multiplied by it.
+    pub symmetry_factor: f64,
+    /// Dielectric strength (V/m) of each material, if given.
+    pub breakdown: Vec<Option<f64>>,
+    /// Stop at the first step whose true field exceeds a material's strength.
+    pub stop_at_breakdown: bool,
+}
+
+/// A rigid region of the plan.
+#[derive(Debug, Clone)]
+pub struct Rigid {
+    pub set: String,
+    pub nodes: Vec<usize>,
+    /// Attached mass carried by the mesh (kg; the physical mass divided by the symmetry factor).
+    pub mass: f64,
 }
 
 struct Ctx<'a> {
@@ -663,6 +687,47 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             }
         }
     }
+    let symmetry_factor =
+        if s.mesh.generator.as_deref() == Some("disc") && s.mesh.quarter != Some(false) {
+            4.0
+        } else {
+            1.0
+        };
+    let rigid = build_loads(&ctx, s, &mut model, &supports, symmetry_factor)?;
+    let prestretch_steps = match &s.prestretch {
+        Some(p) => {
+            let n = p.steps.unwrap_or(4);
+            if !(1..=100_000).contains(&n) {
+                return Err(ctx.err(
+                    "prestretch.steps",
+                    format!("must be between 1 and 100000; got {n}"),
+                ));
+            }
+            Some(n as usize)
+        }
+        None => None,
+    };
+    let mut breakdown = Vec::new();
+    let mut stop_at_breakdown = false;
+    for (name, m) in &s.materials {
+        breakdown.push(match m.breakdown_field {
+            Some(e) => Some(ctx.positive(
+                &format!("materials.{name}.breakdown_field"),
+                Some(e),
+                "dielectric strength in V/m",
+            )?),
+            None => None,
+        });
+        if m.stop_at_breakdown == Some(true) {
+            if m.breakdown_field.is_none() {
+                return Err(ctx.err(
+                    format!("materials.{name}.stop_at_breakdown"),
+                    "needs `breakdown_field` (V/m) on the same material",
+                ));
+            }
+            stop_at_breakdown = true;
+        }
+    }
     let mut electrodes = Vec::new();
     for (name, e) in &s.electrodes {
         let key = format!("electrodes.{name}");
@@ -817,6 +882,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             name,
             kind,
             duration,
+            electrodes_on: st.electrodes_on.unwrap_or(true),
         });
     }
 
@@ -860,7 +926,102 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         densities,
         viscosities,
         warnings,
+        rigid,
+        material_names: s.materials.keys().cloned().collect(),
+        prestretch_steps,
+        symmetry_factor,
+        breakdown,
+        stop_at_breakdown,
     })
+}
+
+/// Gravity (body forces ρg and the weights of the attached masses) and rigid regions (ties of the
+/// three translations), written into the model.
+fn build_loads(
+    ctx: &Ctx,
+    s: &Scenario,
+    model: &mut Model,
+    supports: &[crate::dofs::Dirichlet],
+    symmetry_factor: f64,
+) -> Result<Vec<Rigid>, InputError> {
+    let Some(loads) = &s.loads else {
+        return Ok(Vec::new());
+    };
+    let g = match loads.gravity {
+        Some(g) => {
+            for (i, v) in g.iter().enumerate() {
+                ctx.finite(&format!("loads.gravity.{i}"), *v, "acceleration in m/s²")?;
+            }
+            if g.iter().map(|v| v * v).sum::<f64>().sqrt() > 1e4 {
+                return Err(ctx.err(
+                    "loads.gravity",
+                    format!("expected an acceleration in m/s² (e.g. [0, 0, -9.81]); got {g:?}"),
+                ));
+            }
+            g
+        }
+        None => [0.0; 3],
+    };
+    model.body_force = s
+        .materials
+        .values()
+        .map(|m| {
+            let rho = m.density.unwrap_or(0.0);
+            g.map(|a| rho * a)
+        })
+        .collect();
+    let mut rigid = Vec::new();
+    for (i, r) in loads.rigid.iter().enumerate() {
+        let key = format!("loads.rigid.{i}");
+        let mut nodes = ctx.set_nodes(&model.mesh, &format!("{key}.set"), &r.set)?;
+        nodes.sort_unstable();
+        nodes.dedup();
+        if !(r.mass.is_finite() && r.mass >= 0.0) {
+            return Err(ctx.err(
+                format!("{key}.mass"),
+                format!("expected a mass in kg ≥ 0; got {}", r.mass),
+            ));
+        }
+        for (j, other) in rigid.iter().enumerate() {
+            let o: &Rigid = other;
+            if nodes.iter().any(|n| o.nodes.binary_search(n).is_ok()) {
+                return Err(ctx.err(
+                    format!("{key}.set"),
+                    format!(
+                        "overlaps rigid region {j} (`{}`): merge them into one set",
+                        o.set
+                    ),
+                ));
+            }
+        }
+        for c in supports {
+            if c.value != 0.0 && c.nodes.iter().any(|n| nodes.binary_search(n).is_ok()) {
+                return Err(ctx.err(
+                    format!("{key}.set"),
+                    format!(
+                        "`{}` contains nodes with a prescribed non-zero displacement (a                          constraint or the pre-stretch): a rigid region can only be held or free",
+                        r.set
+                    ),
+                ));
+            }
+        }
+        for field in [Field::Ux, Field::Uy, Field::Uz] {
+            model.ties.push(crate::dofs::Tie {
+                nodes: nodes.clone(),
+                field,
+            });
+        }
+        let mass = r.mass / symmetry_factor;
+        if mass > 0.0 && g != [0.0; 3] {
+            model.point_forces.push((nodes[0], g.map(|a| mass * a)));
+        }
+        rigid.push(Rigid {
+            set: r.set.clone(),
+            nodes,
+            mass,
+        });
+    }
+    Ok(rigid)
 }
 
 fn build_probe(
@@ -967,6 +1128,12 @@ fn build_probe(
                 ))
             }
         },
+        "center_deflection" => ProbeKind::Deflection(ctx.set_nodes(
+            &model.mesh,
+            &format!("{key}.set"),
+            p.set.as_deref().unwrap_or("pad"),
+        )?),
+        "max_electric_field" => ProbeKind::MaxElectricField,
         o => {
             let names = [
                 "mean",
@@ -977,6 +1144,8 @@ fn build_probe(
                 "capacitance",
                 "reaction",
                 "energy",
+                "center_deflection",
+                "max_electric_field",
             ];
             let hint = closest(o, names)
                 .map(|c| format!("; did you mean `{c}`?"))

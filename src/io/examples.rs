@@ -12,10 +12,11 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "film-vibration",
         include_str!("../../scenarios/film-vibration.toml"),
     ),
+    ("diaphragm", include_str!("../../scenarios/diaphragm.toml")),
 ];
 
 /// The scenario `deasim run` uses without a file.
-pub const DEFAULT: &str = "film";
+pub const DEFAULT: &str = "diaphragm";
 
 /// The text of an example.
 pub fn example(name: &str) -> Option<&'static str> {

@@ -85,6 +85,35 @@ pub struct Scenario {
     /// static stages.
     #[serde(default)]
     pub tractions: Vec<TractionSpec>,
+    /// Gravity and rigid regions with attached masses.
+    #[serde(default)]
+    pub loads: Option<LoadsSpec>,
+}
+
+/// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped
+/// like the tractions by static stages.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LoadsSpec {
+    /// Gravitational acceleration (m/s²), e.g. `[0, 0, -9.81]`; acts on every material with a
+    /// density and on the attached masses.
+    #[serde(default)]
+    pub gravity: Option<[f64; 3]>,
+    /// Rigid regions: every node of the set moves by one common translation.
+    #[serde(default)]
+    pub rigid: Vec<RigidSpec>,
+}
+
+/// A rigid region (all three translations shared, rotations suppressed) with an attached mass.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RigidSpec {
+    /// The node set (e.g. `pad`).
+    pub set: String,
+    /// Attached point mass (kg) of the whole physical region; a quarter-disc mesh carries a quarter
+    /// of it.
+    #[serde(default)]
+    pub mass: f64,
 }
 
 /// The mesh: a generator with its parameters, or a file.
@@ -184,6 +213,10 @@ pub struct MaterialSpec {
     pub density: Option<f64>,
     /// Kelvin–Voigt viscosity η (Pa·s).
     pub viscosity: Option<f64>,
+    /// Dielectric strength (V/m): a true field above it is reported in the summary's warnings.
+    pub breakdown_field: Option<f64>,
+    /// Stop the run at the first step whose true field exceeds `breakdown_field` (default false).
+    pub stop_at_breakdown: Option<bool>,
 }
 
 /// One number or a list of numbers.
@@ -239,6 +272,10 @@ pub struct PrestretchSpec {
     /// The set held at the stretched position (default `rim`).
     #[serde(default = "rim")]
     pub set: String,
+    /// Load steps of the pre-stretch (default 4); it runs before the first stage, with the rigid
+    /// regions free and without the loads, and its steps are recorded under the first stage's name.
+    #[serde(default)]
+    pub steps: Option<u64>,
 }
 
 fn rim() -> String {
@@ -388,6 +425,10 @@ pub struct StageSpec {
     /// Mass matrix of a dynamic stage: `consistent` (default) or `lumped`.
     #[serde(default)]
     pub mass: Option<String>,
+    /// `false`: every electrode is held at 0 V during this stage (e.g. while a mass is hung);
+    /// default `true`: the electrodes follow their waveforms, in stage time.
+    #[serde(default)]
+    pub electrodes_on: Option<bool>,
 }
 
 /// A recorded quantity.
@@ -395,7 +436,9 @@ pub struct StageSpec {
 #[serde(deny_unknown_fields)]
 pub struct ProbeSpec {
     /// `mean`, `max`, `min` (of a nodal quantity over a set), `point` (at the node nearest to
-    /// `at`), `charge`, `capacitance` (of an electrode), `reaction` (force on a set), `energy`.
+    /// `at`), `charge`, `capacitance` (of an electrode), `reaction` (force on a set), `energy`,
+    /// `center_deflection` (downward displacement of `set`, default `pad`, from the pre-stretched
+    /// state), `max_electric_field` (largest true field).
     pub kind: String,
     /// Nodal quantity: `ux`, `uy`, `uz`, `u` (magnitude), `phi`; energy: `stored`, `electric`,
     /// `kinetic`; reaction: component `x`, `y`, `z`.

@@ -26,7 +26,8 @@
 //! # Sets
 //!
 //! Node and face sets `rim`, `top`, `bottom`, `electrode_top`, `electrode_bottom` and, for a
-//! quarter disc, `symmetry_x` (x = 0) and `symmetry_y` (y = 0); node set `pad` (r ≤ pad_radius);
+//! quarter disc, `symmetry_x` (x = 0) and `symmetry_y` (y = 0); node sets `pad` (r ≤ pad_radius)
+//! and `rim_bottom` (the rim's bottom edge, where the clamp holds the membrane vertically);
 //! cell sets `all`, `pad` (block and inner ring) and `annulus` (the rest). Set membership uses a
 //! tolerance of `1e-9 · radius`.
 
@@ -444,6 +445,13 @@ pub fn disc_mesh(spec: &DiscSpec) -> Result<Mesh, String> {
         .filter(|&n| radius_of(mesh.nodes[n]) <= spec.pad_radius + tol)
         .collect();
     mesh.node_sets.insert("pad".to_string(), pad_nodes);
+    // the clamp line: held vertically while the clamped edge may still thin
+    let rim_bottom: Vec<usize> = mesh.node_sets["rim"]
+        .iter()
+        .copied()
+        .filter(|n| mesh.node_sets["bottom"].binary_search(n).is_ok())
+        .collect();
+    mesh.node_sets.insert("rim_bottom".to_string(), rim_bottom);
     mesh.cell_sets
         .insert("all".to_string(), (0..mesh.n_cells()).collect());
     mesh.cell_sets.insert("pad".to_string(), pad_cells);

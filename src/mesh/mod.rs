@@ -153,13 +153,32 @@ impl Mesh {
         best.1
     }
 
+    /// Mean of the corner coordinates of cell `c` (m).
+    pub fn cell_centroid(&self, c: usize) -> [f64; 3] {
+        let nodes = self.cell(c);
+        let mut x = [0.0; 3];
+        for &n in nodes {
+            for i in 0..3 {
+                x[i] += self.nodes[n][i] / nodes.len() as f64;
+            }
+        }
+        x
+    }
+
     /// Greedy colouring of the cells so that no two cells of one colour share a node.
     /// Deterministic: cells are visited in index order and take the lowest free colour.
     pub fn cell_colours(&self) -> Vec<Vec<usize>> {
+        let identity: Vec<usize> = (0..self.n_nodes()).collect();
+        self.cell_colours_grouped(&identity)
+    }
+
+    /// As [`Mesh::cell_colours`], with nodes of one representative (`rep[node]`) counting as one
+    /// node (tied nodes share equations).
+    pub fn cell_colours_grouped(&self, rep: &[usize]) -> Vec<Vec<usize>> {
         let mut node_cells: Vec<Vec<usize>> = vec![Vec::new(); self.n_nodes()];
         for c in 0..self.n_cells() {
             for &n in self.cell(c) {
-                node_cells[n].push(c);
+                node_cells[rep[n]].push(c);
             }
         }
         let mut colour = vec![usize::MAX; self.n_cells()];
@@ -168,7 +187,7 @@ impl Mesh {
         for c in 0..self.n_cells() {
             used.iter_mut().for_each(|u| *u = false);
             for &n in self.cell(c) {
-                for &o in &node_cells[n] {
+                for &o in &node_cells[rep[n]] {
                     if colour[o] != usize::MAX {
                         used[colour[o]] = true;
                     }

@@ -1,7 +1,33 @@
-//! A process-wide stop request (set by SIGINT/SIGTERM in the binary). Drivers check it between
-//! steps and stop cleanly at the last accepted state, so that the outputs stay valid.
+//! Stop requests: a process-wide one (set by SIGINT/SIGTERM in the binary) and one of the calling
+//! thread (set by a step observer, e.g. on dielectric breakdown). Drivers check them between steps
+//! and stop cleanly at the last accepted state, so that the outputs stay valid.
 
+use std::cell::RefCell;
 use std::sync::atomic::{AtomicBool, Ordering};
+
+thread_local! {
+    static LOCAL: RefCell<Option<String>> = const { RefCell::new(None) };
+}
+
+/// Asks the drivers running on this thread to stop after the current step, for `reason`.
+pub fn stop_here(reason: String) {
+    LOCAL.with(|l| {
+        l.borrow_mut().get_or_insert(reason);
+    });
+}
+
+/// Clears this thread's stop request (at the start of a run).
+pub fn clear_local() {
+    LOCAL.with(|l| *l.borrow_mut() = None);
+}
+
+/// The reason to stop now, if any: the signal first, then this thread's request.
+pub fn pending() -> Option<String> {
+    if requested() {
+        return Some(MESSAGE.to_string());
+    }
+    LOCAL.with(|l| l.borrow().clone())
+}
 
 static REQUESTED: AtomicBool = AtomicBool::new(false);
 

@@ -94,11 +94,11 @@ pub fn ramp<S: LoadedSystem + ?Sized>(
     let mut have_factor =
         system.evaluate(&mut predictor_work, Some(&mut k)).is_ok() && solver.factor(&k).is_ok();
     while next_nominal <= control.steps.max(1) {
-        if super::interrupt::requested() {
+        if let Some(reason) = super::interrupt::pending() {
             return Err(RampFailure {
                 last_converged: s,
                 attempted: s,
-                reason: super::interrupt::MESSAGE.into(),
+                reason,
                 limit_point: false,
                 newton_iterations: report.newton_iterations,
             });

@@ -18,7 +18,6 @@ use crate::analysis::statics::discretize;
 use crate::assembly::{Assembler, CsrMatrix};
 use crate::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::element::{cell_viscous, MAX_LOCAL};
-use crate::loads::for_each_nodal_force;
 use crate::model::Model;
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
@@ -60,8 +59,8 @@ pub struct TimeStep<'m> {
     mass: &'m NodalMass,
     /// Kelvin–Voigt viscosity of each material (Pa·s).
     viscosity: Vec<f64>,
-    /// Body force per reference volume of each material (N/m³), e.g. ρ₀g.
-    body_force: Vec<[f64; 3]>,
+    /// Nodal forces of the model's dead loads at full value (N, `FIELDS` per node; empty without).
+    dead_load: Vec<f64>,
     scheme: Scheme,
     pub prev: TimeLevel,
     /// The iterate q_{n+1}.
@@ -84,7 +83,6 @@ impl<'m> TimeStep<'m> {
         model: &'m Model,
         mass: &'m NodalMass,
         viscosity: Vec<f64>,
-        body_force: Vec<[f64; 3]>,
         scheme: Scheme,
         start: TimeLevel,
     ) -> Self {
@@ -96,7 +94,11 @@ impl<'m> TimeStep<'m> {
             assembler,
             mass,
             viscosity,
-            body_force,
+            dead_load: if model.has_dead_loads() {
+                crate::loads::dead_load_forces(model)
+            } else {
+                Vec::new()
+            },
             scheme,
             q: start.q.clone(),
             prev: start,
@@ -214,8 +216,8 @@ impl<'m> TimeStep<'m> {
         Ok(total)
     }
 
-    /// Internal, viscous, body and traction forces f_int + f_vis − f_ext at configuration `q` and
-    /// velocity `v` (N, 4 per node; potential entries are ∂Π/∂Φ), all dofs. Tractions at full value.
+    /// Internal, viscous and dead-load forces f_int + f_vis − f_ext at configuration `q` and
+    /// velocity `v` (N, 4 per node; potential entries are ∂Π/∂Φ), all dofs. Dead loads at full value.
     pub fn forces_at(&mut self, q: &[f64], v: &[f64]) -> Result<Vec<f64>, String> {
         let model = self.model;
         let mut out = vec![0.0; q.len()];
@@ -239,24 +241,16 @@ impl<'m> TimeStep<'m> {
                 cell_viscous(g, eta, local, &vel[..nl], &mut rv, None)
                     .map_err(|e| format!("cell {c}: {}", e.error))?;
             }
-            let b = self.body_force[m];
             for (a, &node) in model.mesh.cell(c).iter().enumerate() {
                 for f in 0..FIELDS {
                     out[node * FIELDS + f] += r[a * FIELDS + f] + rv[a * FIELDS + f];
                 }
-                for qp in 0..g.n_qp {
-                    for i in 0..3 {
-                        out[node * FIELDS + i] -= g.weights[qp] * model.reference.n[qp][a] * b[i];
-                    }
-                }
             }
             Ok::<(), String>(())
         })?;
-        for_each_nodal_force(&model.mesh, &model.tractions, |node, f| {
-            for i in 0..3 {
-                out[node * FIELDS + i] -= f[i];
-            }
-        });
+        for (o, f) in out.iter_mut().zip(&self.dead_load) {
+            *o -= f;
+        }
         Ok(out)
     }
 
@@ -281,7 +275,7 @@ impl NonlinearSystem for TimeStep<'_> {
         };
         let model = self.model;
         let npc = model.mesh.kind.nodes_per_cell();
-        let (viscosity, body, vel_all) = (&self.viscosity, &self.body_force, &self.work_v);
+        let (viscosity, vel_all) = (&self.viscosity, &self.work_v);
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let mut x = [[0.0; 3]; crate::fem::MAX_NODES];
             model.mesh.cell_coords_into(c, &mut x[..npc]);
@@ -305,18 +299,6 @@ impl NonlinearSystem for TimeStep<'_> {
             rl[..nl].iter_mut().for_each(|v| *v *= f_r);
             if let Some(kl) = kl.as_deref_mut() {
                 kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
-            }
-            let b = body[mat];
-            if b != [0.0; 3] {
-                // consistent body force −∫ N_a b dV on the residual
-                for q in 0..g.n_qp {
-                    for a in 0..npc {
-                        let w = f_r * g.weights[q] * model.reference.n[q][a];
-                        for i in 0..3 {
-                            rl[a * FIELDS + i] -= w * b[i];
-                        }
-                    }
-                }
             }
             let eta = viscosity[mat];
             if eta > 0.0 {
@@ -352,16 +334,14 @@ impl NonlinearSystem for TimeStep<'_> {
                 &mut self.cell_energy,
             )
             .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
-        // dead tractions at full value, with the factor of the internal forces: −f_r ∫N t₀ dA
+        // dead loads at full value, with the factor of the internal forces: −f_r·f_ext
         let (eq, scale) = (&self.dofs.eq, self.dofs.scale);
-        for_each_nodal_force(&model.mesh, &model.tractions, |node, f| {
-            for i in 0..3 {
-                let e = eq[node * FIELDS + i];
-                if e != CONSTRAINED {
-                    r[e] -= scale[i] * f_r * f[i];
-                }
+        for (d, &f) in self.dead_load.iter().enumerate() {
+            let e = eq[d];
+            if e != CONSTRAINED && f != 0.0 {
+                r[e] -= scale[d % FIELDS] * f_r * f;
             }
-        });
+        }
         // inertia: midpoint M(v̄ − v_n); Newmark βΔt² M a_{n+1}
         for d in 0..self.q.len() {
             self.work_m[d] = if d % FIELDS == PHI {

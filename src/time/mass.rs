@@ -1,6 +1,7 @@
 //! The mass matrix M = ∫ρ₀ N_a N_b dV of the displacements (the potential has no mass), stored at
 //! node level (m_ab, the same for the three components), consistent or lumped (row sums).
 
+use crate::dofs::{DofMap, CONSTRAINED};
 use crate::mesh::Mesh;
 use crate::model::Model;
 
@@ -133,56 +134,76 @@ impl NodalMass {
 }
 
 impl NodalMass {
-    /// Solves M x = b on the displacement dofs flagged in `free` (4 per node; other entries of x
-    /// are 0) by conjugate gradients with the diagonal as preconditioner. The consistent mass
-    /// matrix is well conditioned, so a few dozen iterations reach `rtol`.
-    pub fn solve(&self, b: &[f64], free: &[bool], rtol: f64) -> Vec<f64> {
+    /// Solves the reduced system (PᵀMP) y = Pᵀb over the free displacement equations of `dofs`
+    /// (P maps equations to dofs; tied dofs share an equation) and returns x = P y, 4 values per
+    /// node (constrained and potential entries 0). Conjugate gradients with the diagonal as
+    /// preconditioner: the consistent mass matrix is well conditioned, so a few dozen iterations
+    /// reach `rtol`.
+    pub fn solve(&self, b: &[f64], dofs: &DofMap, rtol: f64) -> Vec<f64> {
         let n = b.len();
-        let mask = |v: &mut [f64]| {
-            for (d, x) in v.iter_mut().enumerate() {
-                if d % 4 == 3 || !free[d] {
-                    *x = 0.0;
+        let ne = dofs.n_free;
+        let is_u = |d: usize| d % 4 != 3 && dofs.eq[d] != CONSTRAINED;
+        // Pᵀ v (equation space) and P y (dof space)
+        let restrict = |v: &[f64], out: &mut [f64]| {
+            out.iter_mut().for_each(|x| *x = 0.0);
+            for d in 0..n {
+                if is_u(d) {
+                    out[dofs.eq[d]] += v[d];
                 }
             }
         };
-        let mut diag = vec![0.0; n / 4];
+        let prolong = |y: &[f64], out: &mut [f64]| {
+            for d in 0..n {
+                out[d] = if is_u(d) { y[dofs.eq[d]] } else { 0.0 };
+            }
+        };
+        let mut diag_dof = vec![0.0; n];
         for a in 0..n / 4 {
             for p in self.row_ptr[a]..self.row_ptr[a + 1] {
                 if self.col_idx[p] == a {
-                    diag[a] = self.values[p];
+                    diag_dof[a * 4..a * 4 + 3]
+                        .iter_mut()
+                        .for_each(|m| *m = self.values[p]);
                 }
             }
         }
+        let mut diag = vec![0.0; ne];
+        restrict(&diag_dof, &mut diag);
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
         let precond = |r: &[f64], z: &mut [f64]| {
-            for d in 0..n {
-                let m = diag[d / 4];
-                z[d] = if m > 0.0 { r[d] / m } else { 0.0 };
+            for e in 0..ne {
+                z[e] = if diag[e] > 0.0 { r[e] / diag[e] } else { 0.0 };
             }
         };
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-        let mut x = vec![0.0; n];
-        let mut r = b.to_vec();
-        mask(&mut r);
+        let (mut full, mut mfull) = (vec![0.0; n], vec![0.0; n]);
+        let mut apply = |y: &[f64], out: &mut [f64]| {
+            prolong(y, &mut full);
+            self.mul(&full, &mut mfull);
+            restrict(&mfull, out);
+        };
+        let mut y = vec![0.0; ne];
+        let mut r = vec![0.0; ne];
+        restrict(b, &mut r);
         let norm0 = dot(&r, &r).sqrt();
+        let mut x = vec![0.0; n];
         if norm0 == 0.0 {
             return x;
         }
-        let mut z = vec![0.0; n];
+        let mut z = vec![0.0; ne];
         precond(&r, &mut z);
         let mut p = z.clone();
         let mut rz = dot(&r, &z);
-        let mut ap = vec![0.0; n];
-        for _ in 0..10 * n.max(10) {
-            self.mul(&p, &mut ap);
-            mask(&mut ap);
+        let mut ap = vec![0.0; ne];
+        for _ in 0..10 * ne.max(10) {
+            apply(&p, &mut ap);
             let pap = dot(&p, &ap);
             if pap <= 0.0 {
                 break;
             }
             let alpha = rz / pap;
-            for d in 0..n {
-                x[d] += alpha * p[d];
-                r[d] -= alpha * ap[d];
+            for e in 0..ne {
+                y[e] += alpha * p[e];
+                r[e] -= alpha * ap[e];
             }
             if dot(&r, &r).sqrt() <= rtol * norm0 {
                 break;
@@ -191,10 +212,11 @@ impl NodalMass {
             let rz_new = dot(&r, &z);
             let beta = rz_new / rz;
             rz = rz_new;
-            for d in 0..n {
-                p[d] = z[d] + beta * p[d];
+            for e in 0..ne {
+                p[e] = z[e] + beta * p[e];
             }
         }
+        prolong(&y, &mut x);
         x
     }
 }
@@ -251,12 +273,38 @@ mod tests {
                         }
                     })
                     .collect();
-                let free = vec![true; n];
-                let x = m.solve(&b, &free, 1e-13);
+                let dofs = DofMap::new(n / 4, &vec![false; n], 1.0);
+                let x = m.solve(&b, &dofs, 1e-13);
                 let mut mx = vec![0.0; n];
                 m.mul(&x, &mut mx);
                 for d in 0..n {
                     assert!((mx[d] - b[d]).abs() < 1e-9, "{kind:?} {mk:?}");
+                }
+                // tied uz of the x = 0 face: one common value, and the summed equation holds
+                let face = model.mesh.set_nodes("x0").unwrap();
+                let tie = crate::dofs::Tie {
+                    nodes: face.clone(),
+                    field: crate::dofs::Field::Uz,
+                };
+                let mut flags = vec![false; n];
+                flags[0] = true; // node 0 (on x0) holds ux: the tie on uz is unaffected
+                let tied = DofMap::with_ties(n / 4, &flags, 1.0, &[tie]);
+                assert_eq!(tied.n_free, n - 1 - (face.len() - 1));
+                let x = m.solve(&b, &tied, 1e-13);
+                m.mul(&x, &mut mx);
+                let uz = x[face[0] * 4 + 2];
+                let mut sum = 0.0;
+                for &node in &face {
+                    assert_eq!(x[node * 4 + 2], uz);
+                    sum += mx[node * 4 + 2] - b[node * 4 + 2];
+                }
+                assert!(sum.abs() < 1e-9, "{kind:?} {mk:?}: {sum}");
+                assert_eq!(x[0], 0.0);
+                for d in 1..n {
+                    let in_tie = d % 4 == 2 && face.contains(&(d / 4));
+                    if d % 4 != 3 && !in_tie {
+                        assert!((mx[d] - b[d]).abs() < 1e-9, "{kind:?} {mk:?} dof {d}");
+                    }
                 }
             }
         }

@@ -72,7 +72,6 @@ pub struct DynamicFailure {
 pub struct DynamicInputs<'a> {
     pub mass: &'a NodalMass,
     pub viscosity: Vec<f64>,
-    pub body_force: Vec<[f64; 3]>,
     pub electrodes: Vec<(Vec<usize>, Waveform)>,
 }
 
@@ -170,7 +169,6 @@ pub fn run_dynamic(
             &step_model,
             inputs.mass,
             inputs.viscosity.clone(),
-            inputs.body_force.clone(),
             Scheme::Midpoint,
             start.clone(),
         );
@@ -184,20 +182,13 @@ pub fn run_dynamic(
                 },
             )
         })?;
-        let free: Vec<bool> = probe
-            .dofs
-            .eq
-            .iter()
-            .map(|&e| e != crate::dofs::CONSTRAINED)
-            .collect();
         let rhs: Vec<f64> = forces.iter().map(|f| -f).collect();
-        start.a = inputs.mass.solve(&rhs, &free, 1e-12);
+        start.a = inputs.mass.solve(&rhs, &probe.dofs, 1e-12);
     }
     let mut step = TimeStep::new(
         &step_model,
         inputs.mass,
         inputs.viscosity.clone(),
-        inputs.body_force.clone(),
         scheme,
         start,
     );
@@ -214,13 +205,13 @@ pub fn run_dynamic(
     };
     let mut last_h = f64::NAN;
     while step.prev.t < t_end - 1e-12 * settings.duration {
-        if crate::solve::interrupt::requested() {
+        if let Some(reason) = crate::solve::interrupt::pending() {
             let t = step.prev.t;
             return Err((
                 step.prev.clone(),
                 DynamicFailure {
                     t,
-                    reason: crate::solve::interrupt::MESSAGE.into(),
+                    reason,
                     newton_iterations: total_iterations,
                 },
             ));
@@ -391,7 +382,6 @@ fn run_trapezoidal(
         step_model,
         inputs.mass,
         inputs.viscosity.clone(),
-        inputs.body_force.clone(),
         Scheme::Midpoint,
         level.clone(),
     );
@@ -412,13 +402,13 @@ fn run_trapezoidal(
     let mut dt = settings.dt;
     let mut total = 0;
     while level.t < t_end - 1e-12 * settings.duration {
-        if crate::solve::interrupt::requested() {
+        if let Some(reason) = crate::solve::interrupt::pending() {
             let t = level.t;
             return Err((
                 level.clone(),
                 DynamicFailure {
                     t,
-                    reason: crate::solve::interrupt::MESSAGE.into(),
+                    reason,
                     newton_iterations: total,
                 },
             ));
@@ -466,7 +456,7 @@ fn run_trapezoidal(
             let mut mv = vec![0.0; vbar.len()];
             inputs.mass.mul(&vbar, &mut mv);
             let p1: Vec<f64> = mv.iter().zip(&f1).map(|(m, f)| m - 0.5 * h * f).collect();
-            let v1 = inputs.mass.solve(&p1, &free, 1e-12);
+            let v1 = inputs.mass.solve(&p1, &trap.dofs, 1e-12);
             let p0 = dissipation_power(step_model, &inputs.viscosity, &level.q, &vbar)?;
             let p1w = dissipation_power(step_model, &inputs.viscosity, &q1, &vbar)?;
             let f_next = forces.forces_at(&q1, &zero)?;

@@ -18,7 +18,7 @@ use crate::solve::newton::NonlinearSystem;
 /// The velocity equation of one trapezoidal step; the unknown is u_{n+1} (the potential is held).
 pub struct TrapezoidalStep<'m> {
     model: Model,
-    dofs: DofMap,
+    pub(crate) dofs: DofMap,
     assembler: Assembler,
     mass: &'m NodalMass,
     viscosity: Vec<f64>,
