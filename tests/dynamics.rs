@@ -53,7 +53,6 @@ fn simulate(
     let inputs = DynamicInputs {
         mass: &mass,
         viscosity: vec![eta],
-        body_force: vec![[0.0; 3]],
         electrodes: vec![
             (bottom.to_vec(), Waveform::constant(0.0)),
             (top.to_vec(), Waveform::constant(volts)),
