@@ -37,6 +37,9 @@ pub struct Model {
     pub dead_load_start: f64,
     /// Groups of dofs that move together (a rigid region's translations).
     pub ties: Vec<Tie>,
+    /// Linear dashpots (node, N·s/m) on the translations of a node (of a rigid region: the
+    /// damping of the attached mass by air and fixture); dynamics only.
+    pub point_dampers: Vec<(usize, f64)>,
 }
 
 /// Problems found while building a model.
@@ -66,6 +69,7 @@ impl Model {
             point_forces: Vec::new(),
             dead_load_start: 0.0,
             ties: Vec::new(),
+            point_dampers: Vec::new(),
         };
         model.check_cells()?;
         Ok(model)

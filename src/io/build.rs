@@ -1011,6 +1011,33 @@ fn build_loads(
                 field,
             });
         }
+        if !(r.damping.is_finite() && r.damping >= 0.0) {
+            return Err(ctx.err(
+                format!("{key}.damping"),
+                format!(
+                    "expected a damping coefficient in N·s/m ≥ 0; got {}",
+                    r.damping
+                ),
+            ));
+        }
+        if r.damping > 0.0 {
+            if let Some(j) = s
+                .stages
+                .iter()
+                .position(|st| st.integrator.as_deref() == Some("trapezoidal"))
+            {
+                return Err(ctx.err(
+                    format!("{key}.damping"),
+                    format!(
+                        "a damped rigid region needs the `midpoint` or `newmark` integrator; \
+                         stage {j} uses `trapezoidal`"
+                    ),
+                ));
+            }
+            model
+                .point_dampers
+                .push((nodes[0], r.damping / symmetry_factor));
+        }
         let mass = r.mass / symmetry_factor;
         if mass > 0.0 && g != [0.0; 3] {
             model.point_forces.push((nodes[0], g.map(|a| mass * a)));

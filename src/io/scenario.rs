@@ -114,6 +114,10 @@ pub struct RigidSpec {
     /// of it.
     #[serde(default)]
     pub mass: f64,
+    /// Linear damping of the region's motion (N·s/m, whole device): air drag and fixture losses of
+    /// the attached mass, a dashpot to ground; dynamic stages only.
+    #[serde(default)]
+    pub damping: f64,
 }
 
 /// The mesh: a generator with its parameters, or a file.

@@ -192,7 +192,7 @@ impl<'m> TimeStep<'m> {
         }
     }
 
-    /// Dissipation power ∫ Jη d:d dV (W) at the evaluation point of the current iterate.
+    /// Dissipation power ∫ Jη d:d dV + Σ c|v|² (W) at the evaluation point of the current iterate.
     pub fn dissipation_power(&mut self) -> Result<f64, String> {
         self.evaluation_point();
         let mut total = 0.0;
@@ -213,6 +213,7 @@ impl<'m> TimeStep<'m> {
                 .map_err(|e| format!("cell {c}: {}", e.error))?;
             Ok(())
         })?;
+        total += damper_power(model, vv);
         Ok(total)
     }
 
@@ -250,6 +251,11 @@ impl<'m> TimeStep<'m> {
         })?;
         for (o, f) in out.iter_mut().zip(&self.dead_load) {
             *o -= f;
+        }
+        for &(node, c) in &model.point_dampers {
+            for i in 0..3 {
+                out[node * FIELDS + i] += c * v[node * FIELDS + i];
+            }
         }
         Ok(out)
     }
@@ -342,6 +348,21 @@ impl NonlinearSystem for TimeStep<'_> {
                 r[e] -= scale[d % FIELDS] * f_r * f;
             }
         }
+        // dashpots c·v at the evaluation velocity, like the viscous forces
+        for &(node, c) in &model.point_dampers {
+            for i in 0..3 {
+                let d = node * FIELDS + i;
+                let e = eq[d];
+                if e == CONSTRAINED {
+                    continue;
+                }
+                r[e] += scale[i] * f_r * c * self.work_v[d];
+                if let Some(k) = k.as_deref_mut() {
+                    let pos = k.position(e, e).expect("the pattern holds the diagonal");
+                    k.values[pos] += scale[i] * scale[i] * f_v * c;
+                }
+            }
+        }
         // inertia: midpoint M(v̄ − v_n); Newmark βΔt² M a_{n+1}
         for d in 0..self.q.len() {
             self.work_m[d] = if d % FIELDS == PHI {
@@ -416,4 +437,13 @@ impl NonlinearSystem for TimeStep<'_> {
             .map(|f| u8::from(f == PHI))
             .collect()
     }
+}
+
+/// Power Σ c|v|² (W) of the model's dashpots at velocity `v` (4 values per node).
+pub fn damper_power(model: &Model, v: &[f64]) -> f64 {
+    model
+        .point_dampers
+        .iter()
+        .map(|&(node, c)| c * (0..3).map(|i| v[node * FIELDS + i].powi(2)).sum::<f64>())
+        .sum()
 }

@@ -1,0 +1,185 @@
+//! The circular actuator (issue #6): pre-stretched disc with a rigid pad carrying a mass.
+//! Runs scenarios through the library (parse → build → run) on coarse meshes.
+
+use deasim::analysis::run::{run, Observer, RunSummary, StepRecord};
+use deasim::element::CellFields;
+use deasim::io::build::{build, Plan};
+use deasim::io::examples::example;
+use deasim::io::scenario::parse;
+use deasim::material::homogeneous::{solve, Mode};
+use deasim::solve::newton::NewtonSettings;
+
+/// Keeps every record.
+#[derive(Default)]
+struct Records(Vec<StepRecord>);
+
+impl Observer for Records {
+    fn step(&mut self, _: &Plan, r: &StepRecord, _: &[f64], _: &[CellFields]) {
+        self.0.push(r.clone());
+    }
+    fn finished(&mut self, _: &Plan, _: &RunSummary) {}
+}
+
+/// Runs the `diaphragm` example (or `text`) with overrides; returns the records and the plan.
+fn run_with(text: &str, sets: &[&str]) -> (Vec<StepRecord>, Plan, RunSummary) {
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    let scenario = parse(text, "test.toml", &sets).unwrap_or_else(|e| panic!("{e}"));
+    let plan = build(&scenario, "test.toml", None).unwrap_or_else(|e| panic!("{e}"));
+    let mut rec = Records::default();
+    let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+    assert!(summary.converged, "{:?}", summary.error);
+    (rec.0, plan, summary)
+}
+
+fn probe(plan: &Plan, r: &StepRecord, name: &str) -> f64 {
+    let i = plan.probes.iter().position(|p| p.0 == name).unwrap();
+    r.probes[i]
+}
+
+/// A coarse diaphragm (fast): 8 radial cells, one layer.
+const COARSE: [&str; 2] = ["mesh.radial=8", "mesh.layers=1"];
+
+/// A small mass (1 g) on the pre-stretched neo-Hooke membrane, no membrane weight: the pad sinks
+/// by δ = m g ln(b/a) / (2π T₀), T₀ = σ₀h from the material's homogeneous equibiaxial state at λp
+/// (PHYSICS.md §5), within 2 %.
+#[test]
+fn small_mass_matches_the_membrane_formula() {
+    let text = example("diaphragm").unwrap();
+    let (mass, lp, r_ref, a_ref) = (1e-3, 2.0, 17.5e-3, 3.75e-3);
+    let sets = [
+        "mesh.radial=16",
+        "mesh.grading=3",
+        "mesh.layers=1",
+        "materials.vhb.preset=vhb4910-gent",
+        "materials.vhb.density=0",
+        "loads.rigid.0.mass=0.001",
+        "stages.1.duration=0.001",
+    ];
+    // the load stage alone: drop the dynamic stage by running only the static part
+    let mut scenario = parse(
+        text,
+        "test.toml",
+        &sets.iter().map(|s| s.to_string()).collect::<Vec<_>>(),
+    )
+    .unwrap();
+    scenario.stages.truncate(1);
+    let plan = build(&scenario, "test.toml", None).unwrap();
+    let mut rec = Records::default();
+    let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+    assert!(summary.converged, "{:?}", summary.error);
+    let delta = probe(&plan, rec.0.last().unwrap(), "center_deflection");
+
+    let state = solve(plan.model.materials[0].as_ref(), Mode::Equibiaxial, lp).unwrap();
+    let h = 1e-3 * state.lateral;
+    let sigma = state.p11 / (lp * state.lateral); // Cauchy stress = P₁₁ λ / (λ² t)
+    let t0 = sigma * h;
+    let (a, b) = (lp * a_ref, lp * r_ref);
+    let expected = mass * 9.81 * (b / a).ln() / (2.0 * std::f64::consts::PI * t0);
+    let err = (delta - expected).abs() / expected;
+    println!(
+        "small mass: δ = {delta:.6e} m, membrane formula {expected:.6e} m (T₀ = {t0:.4} N/m), \
+         relative difference {err:.3e}"
+    );
+    assert!(err < 0.02, "{delta} vs {expected}");
+}
+
+/// The quarter disc and the full disc (its mirror image) give the same center deflection after
+/// the load stage.
+#[test]
+fn quarter_and_full_disc_agree() {
+    let text = example("diaphragm").unwrap();
+    let mut quarter = parse(
+        text,
+        "q.toml",
+        &COARSE.iter().map(|s| s.to_string()).collect::<Vec<_>>(),
+    )
+    .unwrap();
+    quarter.stages.truncate(1);
+    let mut full = quarter.clone();
+    full.mesh.quarter = Some(false);
+    full.constraints.retain(|c| !c.set.starts_with("symmetry"));
+    let value = |s: &deasim::io::scenario::Scenario| {
+        let plan = build(s, "t.toml", None).unwrap();
+        let mut rec = Records::default();
+        let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+        assert!(summary.converged, "{:?}", summary.error);
+        let last = rec.0.last().unwrap();
+        (
+            probe(&plan, last, "center_deflection"),
+            last.energies.stored,
+            plan.model.mesh.n_nodes(),
+        )
+    };
+    let (dq, eq, nq) = value(&quarter);
+    let (df, ef, nf) = value(&full);
+    println!(
+        "quarter ({nq} nodes): δ = {dq:.12e} m, stored {eq:.10e} J; full ({nf} nodes): \
+         δ = {df:.12e} m, stored {ef:.10e} J"
+    );
+    assert!(nf > 3 * nq);
+    assert!((dq - df).abs() <= 1e-6 * df.abs(), "{dq} vs {df}");
+    assert!((eq - ef).abs() <= 1e-6 * ef.abs(), "{eq} vs {ef}");
+}
+
+/// Extra deflection (over the static sag) of the pad during the actuate stage, averaged over
+/// whole periods, and its largest value and steady peak-to-peak ripple (the last period).
+fn response(waveform: &str, frequency: f64, periods: f64) -> (f64, f64, f64) {
+    let text = example("diaphragm").unwrap();
+    let duration = periods / frequency;
+    let dt = (1.0 / frequency / 100.0).min(2e-3);
+    let sets = [
+        COARSE[0].to_string(),
+        COARSE[1].to_string(),
+        format!("electrodes.top.voltage.waveform={waveform}"),
+        format!("electrodes.top.voltage.frequency={frequency}"),
+        format!("stages.1.duration={duration}"),
+        format!("stages.1.dt={dt}"),
+    ];
+    let refs: Vec<&str> = sets.iter().map(|s| s.as_str()).collect();
+    let (records, plan, _) = run_with(text, &refs);
+    let load_end = records.iter().rposition(|r| r.stage == "load").unwrap();
+    let sag = probe(&plan, &records[load_end], "center_deflection");
+    let act: Vec<(f64, f64)> = records[load_end + 1..]
+        .iter()
+        .map(|r| (r.dt, probe(&plan, r, "center_deflection") - sag))
+        .collect();
+    let total: f64 = act.iter().map(|a| a.0).sum();
+    let mean = act.iter().map(|a| a.0 * a.1).sum::<f64>() / total;
+    let max = act.iter().map(|a| a.1).fold(f64::MIN, f64::max);
+    let t_end = records.last().unwrap().time;
+    let last: Vec<f64> = records[load_end + 1..]
+        .iter()
+        .filter(|r| r.time > t_end - 1.0 / frequency - 1e-12)
+        .map(|r| probe(&plan, r, "center_deflection"))
+        .collect();
+    let ripple =
+        last.iter().fold(f64::MIN, |a, &b| a.max(b)) - last.iter().fold(f64::MAX, |a, &b| a.min(b));
+    (mean, max, ripple)
+}
+
+/// Unipolar square, sine and triangle of equal peak at 2 Hz: the mean extra deflection orders
+/// square > sine > triangle (mean V²: V²/2, 3V²/8, V²/3) and the square gives the largest extra
+/// deflection; at 200 Hz the steady ripple is below 30 % of the 2 Hz one.
+#[test]
+fn waveforms_order_and_high_frequency_ripple() {
+    let (sq, sq_max, sq_ripple) = response("square", 2.0, 2.0);
+    let (si, si_max, _) = response("sine", 2.0, 2.0);
+    let (tr, tr_max, _) = response("triangle", 2.0, 2.0);
+    println!("2 Hz mean extra deflection (m): square {sq:.4e}, sine {si:.4e}, triangle {tr:.4e}");
+    println!("2 Hz largest extra deflection (m): square {sq_max:.4e}, sine {si_max:.4e}, triangle {tr_max:.4e}");
+    assert!(sq > si && si > tr && tr > 0.0, "{sq} {si} {tr}");
+    // the mean follows mean V² (quasi-static at 2 Hz, far below the pad mode)
+    assert!(((si / sq) - 0.75).abs() < 0.05, "sine/square {}", si / sq);
+    assert!(
+        ((tr / sq) - 2.0 / 3.0).abs() < 0.05,
+        "triangle/square {}",
+        tr / sq
+    );
+    assert!(sq_max > si_max && sq_max > tr_max);
+    let (_, _, hf_ripple) = response("square", 200.0, 20.0);
+    println!(
+        "steady ripple (m): 2 Hz {sq_ripple:.4e}, 200 Hz {hf_ripple:.4e} (ratio {:.3})",
+        hf_ripple / sq_ripple
+    );
+    assert!(hf_ripple < 0.3 * sq_ripple);
+}
