@@ -88,11 +88,8 @@ impl GentMembrane {
     /// Static equilibrium under the DC load (V_ac off): the first stable λ ≥ 1.
     pub fn static_stretch(&self) -> Result<f64, LumpedError> {
         self.validate()?;
-        let q = self.v_dc;
-        let eval = |l: f64| {
-            let (_, f, k) = self.gent(l)?;
-            Ok((f - self.pressure - q * l * l * l, k - 3.0 * q * l * l))
-        };
+        let dc = Dc(self);
+        let eval = |l: f64| Ok((dc.force(l, 0.0)?, dc.stiffness(l, 0.0)?));
         let search = Search {
             start: 1.0,
             limit: ((self.jm + 3.0) / 2.0).sqrt(),
@@ -102,7 +99,7 @@ impl GentMembrane {
         match first_root(eval, search)? {
             Root::At(l) => Ok(l),
             Root::None { last, reason } => Err(LumpedError::NoEquilibrium {
-                load: q,
+                load: self.v_dc,
                 reason: format!("{reason} (λ up to {last})"),
             }),
         }
@@ -112,7 +109,7 @@ impl GentMembrane {
     /// rad per unit time; the period is 2π/√k).
     pub fn angular_frequency(&self) -> Result<f64, LumpedError> {
         let l = self.static_stretch()?;
-        let k = Oscillator::stiffness(&Dc(self), l, 0.0)?;
+        let k = Dc(self).stiffness(l, 0.0)?;
         if k > 0.0 {
             Ok(k.sqrt())
         } else {
