@@ -16,6 +16,7 @@ pub mod examples;
 pub mod fem;
 pub mod io;
 pub mod loads;
+pub mod lumped;
 pub mod material;
 pub mod mesh;
 pub mod model;
