@@ -345,7 +345,7 @@ pub fn disc_mesh(spec: &DiscSpec) -> Result<Mesh, String> {
     if spec.kind == ElementKind::Tet10 {
         let linear = DiscSpec {
             kind: ElementKind::Tet4,
-            ..spec.clone()
+            ..*spec
         };
         return Ok(super::quadratic::to_tet10(&disc_mesh(&linear)?));
     }
