@@ -4,7 +4,9 @@
 //! −f_a (a dead load has no tangent). Quadrilateral faces (hex8) are bilinear patches integrated
 //! with 2×2 Gauss points: exact on plane faces (there the area element |∂X/∂ξ × ∂X/∂η| is bilinear,
 //! so N_a dA is biquadratic), an approximation on warped ones; triangular faces (tet4) are flat and
-//! ∫N_a dA = A/3 exactly.
+//! ∫N_a dA = A/3 exactly. Six-node triangles (tet10) are quadratic patches integrated with the
+//! 6-point rule of degree 4 (Dunavant): exact on flat straight-sided faces (∫N_a dA = 0 at a corner,
+//! A/3 at a mid-edge node), an approximation on curved ones.
 
 use crate::dofs::FIELDS;
 use crate::mesh::{FaceRef, Mesh};
@@ -19,12 +21,50 @@ pub struct Traction {
 
 /// ∫ N_a dA (m²) of each node of a face, in the order of [`crate::mesh::ElementKind::faces`].
 /// Returns the local node list of the face and the weights (only the first `list.len()` are used).
-pub fn face_node_areas(mesh: &Mesh, face: FaceRef) -> (&'static [usize], [f64; 4]) {
+pub fn face_node_areas(mesh: &Mesh, face: FaceRef) -> (&'static [usize], [f64; 6]) {
     let local = mesh.kind.faces()[face.face];
     let cell = mesh.cell(face.cell);
     let p: Vec<[f64; 3]> = local.iter().map(|&l| mesh.nodes[cell[l]]).collect();
-    let mut out = [0.0; 4];
+    let mut out = [0.0; 6];
     match local.len() {
+        6 => {
+            // Dunavant's degree-4 rule: (weight, a) for the orbits (a, a, 1 − 2a)
+            const ORBITS: [(f64, f64); 2] = [
+                (0.223_381_589_678_011, 0.445_948_490_915_965),
+                (0.109_951_743_655_322, 0.091_576_213_509_771),
+            ];
+            for (w, a) in ORBITS {
+                for k in 0..3 {
+                    let mut l = [a; 3];
+                    l[k] = 1.0 - 2.0 * a;
+                    // L = (1 − s − t, s, t); derivatives with respect to s and t
+                    let dl = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
+                    let mut n = [0.0; 6];
+                    let mut dn = [[0.0; 2]; 6];
+                    for i in 0..3 {
+                        n[i] = l[i] * (2.0 * l[i] - 1.0);
+                        dn[i] = dl[i].map(|d| (4.0 * l[i] - 1.0) * d);
+                        let j = (i + 1) % 3;
+                        n[3 + i] = 4.0 * l[i] * l[j];
+                        for c in 0..2 {
+                            dn[3 + i][c] = 4.0 * (dl[i][c] * l[j] + l[i] * dl[j][c]);
+                        }
+                    }
+                    let mut ds = [0.0; 3];
+                    let mut dt = [0.0; 3];
+                    for a in 0..6 {
+                        for i in 0..3 {
+                            ds[i] += dn[a][0] * p[a][i];
+                            dt[i] += dn[a][1] * p[a][i];
+                        }
+                    }
+                    let da = 0.5 * w * norm(cross(ds, dt));
+                    for a in 0..6 {
+                        out[a] += n[a] * da;
+                    }
+                }
+            }
+        }
         3 => {
             let a = sub(p[1], p[0]);
             let b = sub(p[2], p[0]);
@@ -56,7 +96,7 @@ pub fn face_node_areas(mesh: &Mesh, face: FaceRef) -> (&'static [usize], [f64; 4
                 }
             }
         }
-        k => unreachable!("faces have 3 or 4 nodes, not {k}"),
+        k => unreachable!("faces have 3, 4 or 6 nodes, not {k}"),
     }
     (local, out)
 }
@@ -162,7 +202,7 @@ mod tests {
     /// is a non-planar (warped) quadrilateral; the first moment ∫X dA is reproduced as well.
     #[test]
     fn total_force_and_moment() {
-        for kind in [ElementKind::Hex8, ElementKind::Tet4] {
+        for kind in [ElementKind::Hex8, ElementKind::Tet4, ElementKind::Tet10] {
             let mesh = box_mesh([2.0, 3.0, 0.5], [2, 3, 2], kind);
             let t = Traction {
                 faces: mesh.face_sets["x1"].clone(),

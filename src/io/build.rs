@@ -161,13 +161,41 @@ impl Ctx<'_> {
     }
 }
 
-fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
+/// The element kinds by scenario name.
+const ELEMENTS: [(&str, ElementKind); 3] = [
+    ("hex8", ElementKind::Hex8),
+    ("tet4", ElementKind::Tet4),
+    ("tet10", ElementKind::Tet10),
+];
+
+fn element_kind(ctx: &Ctx, name: &str) -> Result<ElementKind, InputError> {
+    ELEMENTS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, k)| *k)
+        .ok_or_else(|| {
+            let hint = closest(name, ELEMENTS.map(|e| e.0))
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            ctx.err(
+                "mesh.element",
+                format!("unknown element `{name}`: expected `hex8`, `tet4` or `tet10`{hint}"),
+            )
+        })
+}
+
+/// The mesh of a scenario, and warnings about it (cells the Gmsh import reoriented).
+fn build_mesh(
+    ctx: &Ctx,
+    s: &Scenario,
+    base_dir: Option<&Path>,
+) -> Result<(Mesh, Vec<String>), InputError> {
     let m = &s.mesh;
-    if m.file.is_some() {
-        return Err(ctx.err(
-            "mesh.file",
-            "Gmsh mesh files are not supported yet: use `generator = \"box\"`",
-        ));
+    if let Some(file) = &m.file {
+        return build_file_mesh(ctx, m, file, base_dir);
+    }
+    if m.scale.is_some() {
+        return Err(ctx.err("mesh.scale", "applies to meshes read from a `file` only"));
     }
     let generator = m
         .generator
@@ -182,21 +210,9 @@ fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
             format!("unknown generator `{generator}`: expected `box` or `disc`{hint}"),
         ));
     }
-    let kind = match m.element.as_str() {
-        "hex8" => ElementKind::Hex8,
-        "tet4" => ElementKind::Tet4,
-        other => {
-            let hint = closest(other, ["hex8", "tet4"])
-                .map(|c| format!("; did you mean `{c}`?"))
-                .unwrap_or_default();
-            return Err(ctx.err(
-                "mesh.element",
-                format!("unknown element `{other}`: expected `hex8` or `tet4`{hint}"),
-            ));
-        }
-    };
+    let kind = element_kind(ctx, m.element.as_deref().unwrap_or("hex8"))?;
     if generator == "disc" {
-        return build_disc(ctx, m, kind);
+        return Ok((build_disc(ctx, m, kind)?, Vec::new()));
     }
     let size = m
         .size
@@ -213,7 +229,7 @@ fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
     if div.contains(&0) {
         return Err(ctx.err("mesh.divisions", "every entry must be at least 1"));
     }
-    let per_hex = if kind == ElementKind::Tet4 { 6 } else { 1 };
+    let per_hex = if kind == ElementKind::Hex8 { 1 } else { 6 };
     let cells = div
         .iter()
         .try_fold(per_hex as u64, |acc, &d| acc.checked_mul(d));
@@ -228,11 +244,84 @@ fn build_mesh(ctx: &Ctx, s: &Scenario) -> Result<Mesh, InputError> {
             ))
         }
     }
-    Ok(box_mesh(
-        size,
-        [div[0] as usize, div[1] as usize, div[2] as usize],
-        kind,
+    Ok((
+        box_mesh(
+            size,
+            [div[0] as usize, div[1] as usize, div[2] as usize],
+            kind,
+        ),
+        Vec::new(),
     ))
+}
+
+/// `mesh.file`: a Gmsh mesh, its path relative to the scenario file.
+fn build_file_mesh(
+    ctx: &Ctx,
+    m: &super::scenario::MeshSpec,
+    file: &str,
+    base_dir: Option<&Path>,
+) -> Result<(Mesh, Vec<String>), InputError> {
+    let generator_keys = [
+        ("generator", m.generator.is_some()),
+        ("size", m.size.is_some()),
+        ("divisions", m.divisions.is_some()),
+        ("radius", m.radius.is_some()),
+        ("thickness", m.thickness.is_some()),
+        ("pad_radius", m.pad_radius.is_some()),
+        ("electrode_radius", m.electrode_radius.is_some()),
+        ("radial", m.radial.is_some()),
+        ("layers", m.layers.is_some()),
+        ("quarter", m.quarter.is_some()),
+        ("grading", m.grading.is_some()),
+    ];
+    if let Some((k, _)) = generator_keys.iter().find(|(_, given)| *given) {
+        return Err(ctx.err(
+            format!("mesh.{k}"),
+            format!(
+                "applies to the mesh generators, not to a mesh read from `mesh.file = \"{file}\"`"
+            ),
+        ));
+    }
+    let scale = match m.scale {
+        None => 1.0,
+        Some(v) => ctx.positive("mesh.scale", Some(v), "factor from file units to m")?,
+    };
+    let path = base_dir
+        .map(|d| d.join(file))
+        .unwrap_or_else(|| file.into());
+    let g = crate::mesh::gmsh::read_msh(&path, scale)
+        .map_err(|e| ctx.err("mesh.file", e.to_string()))?;
+    if let Some(name) = &m.element {
+        let want = element_kind(ctx, name)?;
+        if want != g.mesh.kind {
+            return Err(ctx.err(
+                "mesh.element",
+                format!(
+                    "`{name}` given, but `{}` holds {} cells",
+                    path.display(),
+                    g.mesh.kind.name()
+                ),
+            ));
+        }
+    }
+    if g.mesh.n_cells() as u64 > MAX_CELLS {
+        return Err(ctx.err(
+            "mesh.file",
+            format!(
+                "{} cells: too large for this machine's memory",
+                g.mesh.n_cells()
+            ),
+        ));
+    }
+    let mut warnings = Vec::new();
+    if g.reoriented > 0 {
+        warnings.push(format!(
+            "{}: {} inverted cells were reordered to a positive orientation",
+            path.display(),
+            g.reoriented
+        ));
+    }
+    Ok((g.mesh, warnings))
 }
 
 /// The `disc` generator: a circular membrane (O-grid) with sets `rim`, `top`, `bottom`, `pad`,
@@ -276,7 +365,7 @@ fn build_disc(
         kind,
     };
     let layout = spec.layout().map_err(|e| ctx.err("mesh", e))?;
-    let cells = layout.hexahedra as u64 * if kind == ElementKind::Tet4 { 6 } else { 1 };
+    let cells = layout.hexahedra as u64 * if kind == ElementKind::Hex8 { 1 } else { 6 };
     if cells > MAX_CELLS {
         return Err(ctx.err(
             "mesh.radial",
@@ -567,11 +656,10 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             "expected a non-empty name of at most 100 characters without slashes",
         ));
     }
-    let mesh = build_mesh(&ctx, s)?;
+    let (mesh, mut warnings) = build_mesh(&ctx, s, base_dir)?;
     if s.materials.is_empty() {
         return Err(ctx.err("materials", "at least one material is needed"));
     }
-    let mut warnings = Vec::new();
     let mut mats: Vec<Arc<dyn Material>> = Vec::new();
     let mut index: BTreeMap<&str, usize> = BTreeMap::new();
     for (name, m) in &s.materials {
@@ -626,6 +714,14 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
                 format!("unknown formulation `{f}`: expected `standard` or `mean-dilatation`"),
             )
         })?;
+        if model.formulation == Formulation::MeanDilatation && model.mesh.kind == ElementKind::Tet10
+        {
+            return Err(ctx.err(
+                "mesh.formulation",
+                "`mean-dilatation` is the locking-free hex8 (Q1/P0); tet10 is used with the \
+                 `standard` formulation",
+            ));
+        }
     }
     for (i, t) in s.tractions.iter().enumerate() {
         for (c, v) in t.value.iter().enumerate() {

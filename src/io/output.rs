@@ -177,6 +177,7 @@ impl OutputWriter {
         let cell_type = match mesh.kind {
             ElementKind::Hex8 => CellType::Hex8,
             ElementKind::Tet4 => CellType::Tet4,
+            ElementKind::Tet10 => CellType::Tet10,
         };
         let name = format!("step_{:05}.vtu", self.pvd.len());
         let piece = VtuPiece {

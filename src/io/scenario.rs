@@ -127,9 +127,12 @@ pub struct MeshSpec {
     /// `box`.
     #[serde(default)]
     pub generator: Option<String>,
-    /// A Gmsh `.msh` file relative to the scenario (not supported yet).
+    /// A Gmsh `.msh` file (MSH 4.1 ASCII or binary, 2.2 ASCII), relative to the scenario file.
     #[serde(default)]
     pub file: Option<String>,
+    /// Factor applied to the coordinates of `file` (1e-3 for a file drawn in mm; default 1).
+    #[serde(default)]
+    pub scale: Option<f64>,
     /// Edge lengths of the box (m).
     #[serde(default)]
     pub size: Option<[f64; 3]>,
@@ -164,13 +167,10 @@ pub struct MeshSpec {
     /// nearly incompressible materials).
     #[serde(default)]
     pub formulation: Option<String>,
-    /// `hex8` (default) or `tet4`.
-    #[serde(default = "default_element")]
-    pub element: String,
-}
-
-fn default_element() -> String {
-    "hex8".into()
+    /// `hex8` (default), `tet4` or `tet10` for the generators; for a `file`, the kind the file
+    /// must hold (optional).
+    #[serde(default)]
+    pub element: Option<String>,
 }
 
 /// A material: the model (or a preset) and its parameters in SI units.
@@ -747,7 +747,7 @@ steps = 2
     fn minimal_parses() {
         let s = parse(MINIMAL, "t.toml", &[]).unwrap();
         assert_eq!(s.stages[0].steps, Some(2));
-        assert_eq!(s.mesh.element, "hex8");
+        assert_eq!(s.mesh.element, None);
     }
 
     #[test]

@@ -22,6 +22,9 @@ pub enum CellType {
     Hex8,
     /// 4-node tetrahedron, `VTK_TETRA` = 10.
     Tet4,
+    /// 10-node tetrahedron, `VTK_QUADRATIC_TETRA` = 24 (mid-edge nodes of 0–1, 1–2, 2–0, 0–3,
+    /// 1–3, 2–3).
+    Tet10,
 }
 
 impl CellType {
@@ -30,6 +33,7 @@ impl CellType {
         match self {
             CellType::Hex8 => 12,
             CellType::Tet4 => 10,
+            CellType::Tet10 => 24,
         }
     }
 
@@ -38,6 +42,7 @@ impl CellType {
         match self {
             CellType::Hex8 => 8,
             CellType::Tet4 => 4,
+            CellType::Tet10 => 10,
         }
     }
 }
@@ -1123,6 +1128,37 @@ mod tests {
         assert_bits_eq(&data.point_data["u"].1, &u);
         assert_eq!(data.cell_data["E"].0, 3);
         assert_bits_eq(&data.cell_data["E"].1, &e_field);
+        fs::remove_dir_all(&dir).expect("cleanup");
+    }
+
+    #[test]
+    fn tet10_is_vtk_quadratic_tetra() {
+        let dir = scratch_dir("tet10");
+        let path = dir.join("tet10.vtu");
+        let c = [
+            [0.0, 0.0, 0.0],
+            [1e-3, 0.0, 0.0],
+            [0.0, 1e-3, 0.0],
+            [0.0, 0.0, 1e-3],
+        ];
+        let mut points = c.to_vec();
+        for [i, j] in crate::fem::TET10_EDGES {
+            points.push([0, 1, 2].map(|k| 0.5 * (c[i][k] + c[j][k])));
+        }
+        let conn: Vec<usize> = (0..10).collect();
+        let piece = VtuPiece {
+            points: &points,
+            cell_type: CellType::Tet10,
+            connectivity: &conn,
+            point_data: vec![],
+            cell_data: vec![],
+        };
+        write_vtu(&path, &piece).expect("write");
+        let data = read_vtu(&path).expect("read");
+        assert_eq!(data.types, vec![24]);
+        assert_eq!(data.offsets, vec![10]);
+        assert_eq!(data.connectivity, conn);
+        assert_bits_eq(data.points.as_flattened(), points.as_flattened());
         fs::remove_dir_all(&dir).expect("cleanup");
     }
 

@@ -343,6 +343,13 @@ fn signed_volume(p: [[f64; 3]; 4]) -> f64 {
 
 /// A disc mesh (see the module documentation for the topology and the sets).
 pub fn disc_mesh(spec: &DiscSpec) -> Result<Mesh, String> {
+    if spec.kind == ElementKind::Tet10 {
+        let linear = DiscSpec {
+            kind: ElementKind::Tet4,
+            ..*spec
+        };
+        return Ok(super::quadratic::to_tet10(&disc_mesh(&linear)?));
+    }
     let lay = spec.layout()?;
     let plane = plane_mesh(spec, &lay);
     for (c, quad) in plane.quads.iter().enumerate() {
@@ -384,7 +391,7 @@ pub fn disc_mesh(spec: &DiscSpec) -> Result<Mesh, String> {
                     connectivity.extend(quad.iter().map(|&n| up + n));
                     cell += 1;
                 }
-                ElementKind::Tet4 => {
+                ElementKind::Tet4 | ElementKind::Tet10 => {
                     // Two triangles along the shorter diagonal; each triangular prism into three
                     // tetrahedra whose vertical face diagonals run from the lower-numbered bottom
                     // node to the higher-numbered top node, a rule that depends only on the face,
@@ -643,7 +650,7 @@ mod tests {
                         .enumerate()
                         .map(|(k, e)| [k, e[0], e[1], e[2]])
                         .collect(),
-                    ElementKind::Tet4 => vec![[0, 1, 2, 3]],
+                    ElementKind::Tet4 | ElementKind::Tet10 => vec![[0, 1, 2, 3]],
                 };
                 for [o, a, b, d] in corners {
                     let (ea, eb, ed) = (

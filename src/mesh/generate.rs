@@ -15,11 +15,14 @@ const HEX_TO_TETS: [[usize; 4]; 6] = [
 ];
 
 /// A block `[0, size[0]] × [0, size[1]] × [0, size[2]]` (m) with `divisions` cells per direction,
-/// hexahedra or tetrahedra (each hexahedron split into six).
+/// hexahedra or tetrahedra (each hexahedron split into six; tet10 with straight edges).
 ///
 /// Sets: node sets and face sets `x0 x1 y0 y1 z0 z1` (the faces at the low/high end of each axis),
 /// node sets of the same names, and the cell set `all`.
 pub fn box_mesh(size: [f64; 3], divisions: [usize; 3], kind: ElementKind) -> Mesh {
+    if kind == ElementKind::Tet10 {
+        return super::quadratic::to_tet10(&box_mesh(size, divisions, ElementKind::Tet4));
+    }
     let [nx, ny, nz] = divisions;
     let node_id = |i: usize, j: usize, k: usize| (k * (ny + 1) + j) * (nx + 1) + i;
     let mut nodes = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
@@ -74,7 +77,7 @@ pub fn box_mesh(size: [f64; 3], divisions: [usize; 3], kind: ElementKind) -> Mes
                         }
                         cell += 1;
                     }
-                    ElementKind::Tet4 => {
+                    ElementKind::Tet4 | ElementKind::Tet10 => {
                         for t in HEX_TO_TETS {
                             let tet = [h[t[0]], h[t[1]], h[t[2]], h[t[3]]];
                             connectivity.extend_from_slice(&tet);
@@ -93,7 +96,7 @@ pub fn box_mesh(size: [f64; 3], divisions: [usize; 3], kind: ElementKind) -> Mes
         face_sets,
         cell_sets: BTreeMap::new(),
     };
-    if kind == ElementKind::Tet4 {
+    if kind != ElementKind::Hex8 {
         mesh.face_sets = boundary_faces_on_planes(&mesh, size);
     }
     for (name, axis, value) in [
@@ -167,13 +170,20 @@ mod tests {
 
     #[test]
     fn box_counts_sets_and_volume() {
-        for kind in [ElementKind::Hex8, ElementKind::Tet4] {
+        for kind in [ElementKind::Hex8, ElementKind::Tet4, ElementKind::Tet10] {
             let m = box_mesh([2.0, 3.0, 0.5], [2, 3, 1], kind);
-            assert_eq!(m.n_nodes(), 3 * 4 * 2);
+            if kind != ElementKind::Tet10 {
+                assert_eq!(m.n_nodes(), 3 * 4 * 2);
+            }
             let per_hex = if kind == ElementKind::Hex8 { 1 } else { 6 };
             assert_eq!(m.n_cells(), 6 * per_hex);
-            assert_eq!(m.node_sets["z1"].len(), 12);
-            assert_eq!(m.face_set_nodes("x0").unwrap().len(), 4 * 2);
+            let (z1, x0) = if kind == ElementKind::Tet10 {
+                (5 * 7, 7 * 3)
+            } else {
+                (12, 4 * 2)
+            };
+            assert_eq!(m.node_sets["z1"].len(), z1);
+            assert_eq!(m.face_set_nodes("x0").unwrap().len(), x0);
             let faces_z0 = m.face_sets["z0"].len();
             assert_eq!(faces_z0, 6 * if kind == ElementKind::Hex8 { 1 } else { 2 });
             assert!((total_volume(&m) - 3.0).abs() < 1e-12, "{kind:?}");
@@ -182,7 +192,7 @@ mod tests {
 
     #[test]
     fn face_normals_point_outwards() {
-        for kind in [ElementKind::Hex8, ElementKind::Tet4] {
+        for kind in [ElementKind::Hex8, ElementKind::Tet4, ElementKind::Tet10] {
             let m = box_mesh([1.0, 1.0, 1.0], [2, 2, 2], kind);
             let expect = [
                 ("x0", [-1.0, 0.0, 0.0]),

@@ -4,6 +4,8 @@
 
 pub mod disc;
 pub mod generate;
+pub mod gmsh;
+pub mod quadratic;
 
 use std::collections::BTreeMap;
 
@@ -14,6 +16,9 @@ pub enum ElementKind {
     Hex8,
     /// Linear tetrahedron.
     Tet4,
+    /// Quadratic tetrahedron, VTK node order: corners 0–3, then the mid-edge nodes of the edges
+    /// 0–1, 1–2, 2–0, 0–3, 1–3, 2–3.
+    Tet10,
 }
 
 impl ElementKind {
@@ -22,11 +27,13 @@ impl ElementKind {
         match self {
             ElementKind::Hex8 => 8,
             ElementKind::Tet4 => 4,
+            ElementKind::Tet10 => 10,
         }
     }
 
     /// Local node lists of the faces, ordered so that the normal points outwards
-    /// (counter-clockwise seen from outside).
+    /// (counter-clockwise seen from outside): the corners first, then (tet10) the mid-edge nodes
+    /// of the edges corner 0–1, 1–2, 2–0 of the face.
     pub fn faces(self) -> &'static [&'static [usize]] {
         match self {
             ElementKind::Hex8 => &[
@@ -38,6 +45,21 @@ impl ElementKind {
                 &[3, 0, 4, 7],
             ],
             ElementKind::Tet4 => &[&[0, 2, 1], &[0, 1, 3], &[1, 2, 3], &[0, 3, 2]],
+            ElementKind::Tet10 => &[
+                &[0, 2, 1, 6, 5, 4],
+                &[0, 1, 3, 4, 8, 7],
+                &[1, 2, 3, 5, 9, 8],
+                &[0, 3, 2, 7, 9, 6],
+            ],
+        }
+    }
+
+    /// Number of corner nodes of each face (3 for triangles, 4 for quadrilaterals): the corners
+    /// come first in [`ElementKind::faces`].
+    pub fn face_corners(self) -> usize {
+        match self {
+            ElementKind::Hex8 => 4,
+            ElementKind::Tet4 | ElementKind::Tet10 => 3,
         }
     }
 
@@ -46,6 +68,7 @@ impl ElementKind {
         match self {
             ElementKind::Hex8 => "hex8",
             ElementKind::Tet4 => "tet4",
+            ElementKind::Tet10 => "tet10",
         }
     }
 }

@@ -1,5 +1,11 @@
 //! The mass matrix M = ∫ρ₀ N_a N_b dV of the displacements (the potential has no mass), stored at
-//! node level (m_ab, the same for the three components), consistent or lumped (row sums).
+//! node level (m_ab, the same for the three components), consistent or lumped.
+//!
+//! Lumping: row sums for hex8 and tet4. The row sums of the quadratic tetrahedron are negative at
+//! its corners (−ρV/20), so tet10 is lumped by HRZ diagonal scaling (Hinton, Rock & Zienkiewicz
+//! 1976): m_aa = M_aa · ρV / Σ_b M_bb, positive, with the cell's total mass. Tet10 masses are
+//! integrated with a degree-5 rule: the element's 4-point rule is not exact for N_aN_b (degree 4)
+//! and would give a singular matrix.
 
 use crate::dofs::{DofMap, CONSTRAINED};
 use crate::mesh::Mesh;
@@ -17,7 +23,7 @@ pub struct NodalMass {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MassKind {
     Consistent,
-    /// Row-sum lumping (diagonal).
+    /// Diagonal: row sums (hex8, tet4) or HRZ scaling (tet10).
     Lumped,
 }
 
@@ -38,6 +44,31 @@ fn node_pattern(mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
         row_ptr.push(col_idx.len());
     }
     (row_ptr, col_idx)
+}
+
+/// Consistent mass ∫ρ N_a N_b dV (kg) of a tet10 cell with node coordinates `x`, by the degree-5
+/// rule (exact for straight-sided cells).
+fn tet10_cell_mass(x: &[[f64; 3]], rho: f64) -> [[f64; 10]; 10] {
+    use crate::fem::{shape_functions, tet_rule_degree5};
+    let mut m = [[0.0; 10]; 10];
+    for (xi, w) in tet_rule_degree5() {
+        let (n, dn) = shape_functions(crate::mesh::ElementKind::Tet10, xi);
+        let mut jac = crate::material::Mat3::zeros();
+        for a in 0..10 {
+            for i in 0..3 {
+                for j in 0..3 {
+                    jac[(i, j)] += x[a][i] * dn[a][j];
+                }
+            }
+        }
+        let dv = rho * w * jac.determinant().abs();
+        for a in 0..10 {
+            for b in 0..10 {
+                m[a][b] += dv * n[a] * n[b];
+            }
+        }
+    }
+    m
 }
 
 impl NodalMass {
@@ -78,6 +109,22 @@ impl NodalMass {
                             MassKind::Consistent => m.add(cell[a], cell[b], v),
                             MassKind::Lumped => m.add(cell[a], cell[a], v),
                         }
+                    }
+                }
+                continue;
+            }
+            if mesh.kind == crate::mesh::ElementKind::Tet10 {
+                let mc = tet10_cell_mass(&x, rho);
+                let diag: f64 = (0..10).map(|a| mc[a][a]).sum();
+                let total: f64 = mc.iter().flatten().sum();
+                for a in 0..10 {
+                    match kind {
+                        MassKind::Consistent => {
+                            for b in 0..10 {
+                                m.add(cell[a], cell[b], mc[a][b]);
+                            }
+                        }
+                        MassKind::Lumped => m.add(cell[a], cell[a], mc[a][a] * total / diag),
                     }
                 }
                 continue;
@@ -256,7 +303,7 @@ mod tests {
 
     #[test]
     fn mass_totals_and_solve() {
-        for kind in [ElementKind::Hex8, ElementKind::Tet4] {
+        for kind in [ElementKind::Hex8, ElementKind::Tet4, ElementKind::Tet10] {
             let mesh = box_mesh([2.0, 1.0, 0.5], [3, 2, 2], kind);
             let model = Model::new(mesh, Arc::new(ElectroNeoHooke::new(1.0, 1.0, 1.0))).unwrap();
             for mk in [MassKind::Consistent, MassKind::Lumped] {
@@ -308,5 +355,70 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The tet10 consistent mass of a straight-sided cell against its closed form ρV/420 ×
+    /// (6 corner diagonal, 1 corner–corner, −4 corner–adjacent edge, −6 corner–opposite edge,
+    /// 32 edge diagonal, 16 edges sharing a corner, 8 opposite edges); the HRZ lumped masses are
+    /// positive and sum to ρV.
+    #[test]
+    fn tet10_mass_closed_form_and_hrz() {
+        use crate::fem::TET10_EDGES;
+        let c = [
+            [0.1, 0.0, 0.2],
+            [1.3, 0.1, 0.0],
+            [0.2, 1.1, 0.1],
+            [0.0, 0.3, 0.9],
+        ];
+        let mut x = c.to_vec();
+        for [i, j] in TET10_EDGES {
+            x.push([0, 1, 2].map(|k| 0.5 * (c[i][k] + c[j][k])));
+        }
+        let e = |a: usize, b: usize| [0, 1, 2].map(|k| c[b][k] - c[a][k]);
+        let (a, b, d) = (e(0, 1), e(0, 2), e(0, 3));
+        let vol = (a[0] * (b[1] * d[2] - b[2] * d[1]) - a[1] * (b[0] * d[2] - b[2] * d[0])
+            + a[2] * (b[0] * d[1] - b[1] * d[0]))
+            / 6.0;
+        let rho = 3.0;
+        let m = tet10_cell_mass(&x, rho);
+        let ends = |n: usize| TET10_EDGES[n - 4];
+        for p in 0..10 {
+            for q in 0..10 {
+                let k = match (p < 4, q < 4) {
+                    (true, true) => {
+                        if p == q {
+                            6.0
+                        } else {
+                            1.0
+                        }
+                    }
+                    (true, false) | (false, true) => {
+                        let (v, ed) = if p < 4 { (p, ends(q)) } else { (q, ends(p)) };
+                        if ed.contains(&v) {
+                            -4.0
+                        } else {
+                            -6.0
+                        }
+                    }
+                    (false, false) => {
+                        let (e1, e2) = (ends(p), ends(q));
+                        if p == q {
+                            32.0
+                        } else if e1.iter().any(|v| e2.contains(v)) {
+                            16.0
+                        } else {
+                            8.0
+                        }
+                    }
+                };
+                let expect = rho * vol * k / 420.0;
+                assert!((m[p][q] - expect).abs() < 1e-13 * rho * vol, "({p},{q})");
+            }
+        }
+        let mesh = box_mesh([2.0, 1.0, 0.5], [2, 1, 1], ElementKind::Tet10);
+        let model = Model::new(mesh, Arc::new(ElectroNeoHooke::new(1.0, 1.0, 1.0))).unwrap();
+        let lumped = NodalMass::new(&model, &[7.0], MassKind::Lumped);
+        assert!(lumped.values.iter().all(|&v| v > 0.0));
+        assert!((lumped.total() - 7.0).abs() < 1e-12);
     }
 }

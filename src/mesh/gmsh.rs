@@ -1,0 +1,1269 @@
+//! Gmsh mesh import: MSH 4.1 (ASCII and binary) and MSH 2.2 (ASCII).
+//!
+//! Volume elements become the cells (tet4, tet10 or hex8, one kind per file); physical groups by
+//! name become sets: a volume group a cell set (and the node set of its cells), a surface group
+//! (triangles, six-node triangles or quadrilaterals) a face set matched to the faces of the cells
+//! by their corner nodes (internal surfaces too: the face of the first adjacent cell), and the node
+//! set of those faces. Points and curves are ignored. Groups without a name are called
+//! `volume<tag>` and `surface<tag>`. Nodes are renumbered compactly in file order; nodes no cell
+//! uses are dropped. Node orders are converted to deasim's (VTK's) and inverted cells reordered.
+//!
+//! Errors name the line (ASCII) or byte offset (binary) and what was expected; the reader never
+//! panics, and its memory grows only with the bytes it has read, whatever counts the file claims.
+
+use super::{ElementKind, FaceRef, Mesh};
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+/// Where in the file a problem is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Location {
+    /// 1-based line of an ASCII section.
+    Line(usize),
+    /// Byte offset of binary data.
+    Byte(usize),
+}
+
+impl std::fmt::Display for Location {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Location::Line(l) => write!(f, "line {l}: "),
+            Location::Byte(b) => write!(f, "byte {b}: "),
+        }
+    }
+}
+
+/// A file that cannot be read as a deasim mesh.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file}: {}{message}", .at.map(|a| a.to_string()).unwrap_or_default())]
+pub struct GmshError {
+    pub file: String,
+    pub at: Option<Location>,
+    pub message: String,
+}
+
+/// A mesh read from a Gmsh file, with what the import changed.
+#[derive(Debug, Clone)]
+pub struct GmshMesh {
+    pub mesh: Mesh,
+    /// Cells whose node order described an inverted cell and was mirrored.
+    pub reoriented: usize,
+    /// `4.1 ASCII`, `4.1 binary` or `2.2 ASCII`.
+    pub format: String,
+}
+
+/// Reads a `.msh` file; coordinates are multiplied by `scale` (1e-3 for a file drawn in mm).
+pub fn read_msh(path: &Path, scale: f64) -> Result<GmshMesh, GmshError> {
+    let name = path.display().to_string();
+    let data = std::fs::read(path).map_err(|e| GmshError {
+        file: name.clone(),
+        at: None,
+        message: format!("cannot read: {e}"),
+    })?;
+    parse_msh(&data, &name, scale)
+}
+
+/// Parses the bytes of a `.msh` file; `file` names it in messages.
+pub fn parse_msh(data: &[u8], file: &str, scale: f64) -> Result<GmshMesh, GmshError> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(GmshError {
+            file: file.into(),
+            at: None,
+            message: format!("scale must be a positive finite number; got {scale}"),
+        });
+    }
+    let mut r = Reader {
+        data,
+        pos: 0,
+        line: 1,
+        file,
+        binary: false,
+        size_t: 8,
+        swap: false,
+    };
+    let raw = r.read_file()?;
+    raw.build(file, scale)
+}
+
+/// A physical-group membership of an element: through its entity (4.1) or its own tag (2.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Group {
+    Entity(i32, i32),
+    Physical(i32, i32),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Version {
+    V41,
+    V22,
+}
+
+/// What the element types deasim reads are for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Role {
+    Volume(ElementKind),
+    /// A face with this many corners.
+    Face(usize),
+    Ignored,
+    Unsupported,
+}
+
+/// (dimension, nodes, name, role) of a Gmsh element type.
+fn element_type(t: i32) -> Option<(i32, usize, &'static str, Role)> {
+    use Role::*;
+    Some(match t {
+        1 => (1, 2, "2-node line", Ignored),
+        2 => (2, 3, "3-node triangle", Face(3)),
+        3 => (2, 4, "4-node quadrangle", Face(4)),
+        4 => (3, 4, "4-node tetrahedron", Volume(ElementKind::Tet4)),
+        5 => (3, 8, "8-node hexahedron", Volume(ElementKind::Hex8)),
+        6 => (3, 6, "6-node prism", Unsupported),
+        7 => (3, 5, "5-node pyramid", Unsupported),
+        8 => (1, 3, "3-node line", Ignored),
+        9 => (2, 6, "6-node triangle", Face(3)),
+        10 => (2, 9, "9-node quadrangle", Unsupported),
+        11 => (3, 10, "10-node tetrahedron", Volume(ElementKind::Tet10)),
+        12 => (3, 27, "27-node hexahedron", Unsupported),
+        13 => (3, 18, "18-node prism", Unsupported),
+        14 => (3, 14, "14-node pyramid", Unsupported),
+        15 => (0, 1, "point", Ignored),
+        16 => (2, 8, "8-node quadrangle", Unsupported),
+        17 => (3, 20, "20-node hexahedron", Unsupported),
+        18 => (3, 15, "15-node prism", Unsupported),
+        19 => (3, 13, "13-node pyramid", Unsupported),
+        20 => (2, 9, "9-node triangle", Unsupported),
+        21 => (2, 10, "10-node triangle", Unsupported),
+        26 => (1, 4, "4-node line", Ignored),
+        27 => (1, 5, "5-node line", Ignored),
+        28 => (1, 6, "6-node line", Ignored),
+        29 => (3, 20, "20-node tetrahedron", Unsupported),
+        _ => return None,
+    })
+}
+
+const SUPPORTED: &str =
+    "deasim reads volume elements of types 4 (tet4), 11 (tet10) and 5 (hex8) and faces of types 2 \
+     (triangle), 9 (6-node triangle) and 3 (quadrangle)";
+
+struct Element {
+    tag: u64,
+    kind: ElementKind,
+    nodes: Vec<u64>,
+    group: Option<Group>,
+}
+
+struct Face {
+    tag: u64,
+    corners: Vec<u64>,
+    group: Group,
+}
+
+/// Everything read from the file, in Gmsh's numbering.
+#[derive(Default)]
+struct Raw {
+    version: Option<(Version, bool)>,
+    names: BTreeMap<(i32, i32), String>,
+    entity_groups: HashMap<(i32, i32), Vec<i32>>,
+    node_tags: Vec<u64>,
+    coords: Vec<[f64; 3]>,
+    seen_nodes: bool,
+    seen_elements: bool,
+    volumes: Vec<Element>,
+    faces: Vec<Face>,
+    /// Surface blocks of unsupported types: (entity, type, element tag), an error if physical.
+    odd_faces: Vec<(Group, i32, u64)>,
+}
+
+struct Reader<'a> {
+    data: &'a [u8],
+    pos: usize,
+    line: usize,
+    file: &'a str,
+    binary: bool,
+    size_t: usize,
+    swap: bool,
+}
+
+type Res<T> = Result<T, GmshError>;
+
+impl<'a> Reader<'a> {
+    fn err_line(&self, msg: impl Into<String>) -> GmshError {
+        GmshError {
+            file: self.file.into(),
+            at: Some(Location::Line(self.line)),
+            message: msg.into(),
+        }
+    }
+
+    fn err_byte(&self, at: usize, msg: impl Into<String>) -> GmshError {
+        GmshError {
+            file: self.file.into(),
+            at: Some(Location::Byte(at)),
+            message: msg.into(),
+        }
+    }
+
+    /// The next whitespace-separated token (ASCII), counting lines.
+    fn token(&mut self) -> Option<&'a [u8]> {
+        while let Some(&b) = self.data.get(self.pos) {
+            if b == b'\n' {
+                self.line += 1;
+            }
+            if !b.is_ascii_whitespace() {
+                break;
+            }
+            self.pos += 1;
+        }
+        let start = self.pos;
+        while self
+            .data
+            .get(self.pos)
+            .is_some_and(|b| !b.is_ascii_whitespace())
+        {
+            self.pos += 1;
+        }
+        (self.pos > start).then(|| &self.data[start..self.pos])
+    }
+
+    /// A token that must be a number of type `T`; `what` says what it is, `section` where.
+    fn num<T: std::str::FromStr>(&mut self, what: &str, section: &str) -> Res<T> {
+        match self.token() {
+            None => Err(self.err_line(format!(
+                "unexpected end of file in ${section}: expected {what}"
+            ))),
+            Some(t) if t.first() == Some(&b'$') => Err(self.err_line(format!(
+                "truncated ${section} section: expected {what}, found `{}`",
+                String::from_utf8_lossy(t)
+            ))),
+            Some(t) => std::str::from_utf8(t)
+                .ok()
+                .and_then(|s| s.parse::<T>().ok())
+                .ok_or_else(|| {
+                    self.err_line(format!(
+                        "expected {what} in ${section}, found `{}`",
+                        String::from_utf8_lossy(&t[..t.len().min(40)])
+                    ))
+                }),
+        }
+    }
+
+    fn coord(&mut self, what: &str, section: &str) -> Res<f64> {
+        let v: f64 = self.num(what, section)?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.err_line(format!("{what} in ${section} is not finite: {v}")))
+        }
+    }
+
+    /// Skips the rest of the current line (ASCII).
+    fn skip_line(&mut self) {
+        while let Some(&b) = self.data.get(self.pos) {
+            self.pos += 1;
+            if b == b'\n' {
+                self.line += 1;
+                return;
+            }
+        }
+    }
+
+    /// Expects the token `$End<section>`.
+    fn end(&mut self, section: &str) -> Res<()> {
+        let t = self.token();
+        let want = format!("$End{section}");
+        match t {
+            Some(t) if t == want.as_bytes() => Ok(()),
+            Some(t) => Err(self.err_line(format!(
+                "expected `{want}` (the counts of ${section} do not match its contents), found `{}`",
+                String::from_utf8_lossy(&t[..t.len().min(40)])
+            ))),
+            None => Err(self.err_line(format!("unexpected end of file: expected `{want}`"))),
+        }
+    }
+
+    /// Skips an unknown section up to its end marker.
+    fn skip_section(&mut self, section: &str) -> Res<()> {
+        let want = format!("$End{section}");
+        let rest = &self.data[self.pos..];
+        match rest.windows(want.len()).position(|w| w == want.as_bytes()) {
+            Some(p) => {
+                self.line += rest[..p].iter().filter(|&&b| b == b'\n').count();
+                self.pos += p + want.len();
+                Ok(())
+            }
+            None => Err(self.err_line(format!("section ${section} has no end marker `{want}`"))),
+        }
+    }
+
+    // ---- binary ----
+
+    fn bytes(&mut self, n: usize, what: &str, section: &str) -> Res<&'a [u8]> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.data.len());
+        match end {
+            Some(e) => {
+                let b = &self.data[self.pos..e];
+                self.pos = e;
+                Ok(b)
+            }
+            None => Err(self.err_byte(
+                self.pos,
+                format!("binary ${section} is truncated: expected {what}"),
+            )),
+        }
+    }
+
+    /// Fails early when `count` items of `each` bytes cannot fit in the rest of the file.
+    fn room(&self, count: u64, each: usize, what: &str, section: &str) -> Res<()> {
+        let need = (count as u128) * (each as u128);
+        if need > (self.data.len() - self.pos) as u128 {
+            return Err(self.err_byte(
+                self.pos,
+                format!(
+                    "binary ${section} is truncated: {count} {what} need {need} bytes, {} remain",
+                    self.data.len() - self.pos
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn int(&mut self, what: &str, section: &str) -> Res<i32> {
+        let mut b: [u8; 4] = self.bytes(4, what, section)?.try_into().unwrap_or([0; 4]);
+        if self.swap {
+            b.reverse();
+        }
+        Ok(i32::from_le_bytes(b))
+    }
+
+    fn size(&mut self, what: &str, section: &str) -> Res<u64> {
+        if self.size_t == 4 {
+            Ok(self.int(what, section)? as u32 as u64)
+        } else {
+            let mut b: [u8; 8] = self.bytes(8, what, section)?.try_into().unwrap_or([0; 8]);
+            if self.swap {
+                b.reverse();
+            }
+            Ok(u64::from_le_bytes(b))
+        }
+    }
+
+    fn double(&mut self, what: &str, section: &str) -> Res<f64> {
+        let at = self.pos;
+        let mut b: [u8; 8] = self.bytes(8, what, section)?.try_into().unwrap_or([0; 8]);
+        if self.swap {
+            b.reverse();
+        }
+        let v = f64::from_le_bytes(b);
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.err_byte(at, format!("{what} in ${section} is not finite: {v}")))
+        }
+    }
+
+    // ---- mode-independent readers for 4.1 sections ----
+
+    fn i(&mut self, what: &str, section: &str) -> Res<i32> {
+        if self.binary {
+            self.int(what, section)
+        } else {
+            self.num(what, section)
+        }
+    }
+
+    fn sz(&mut self, what: &str, section: &str) -> Res<u64> {
+        if self.binary {
+            self.size(what, section)
+        } else {
+            self.num(what, section)
+        }
+    }
+
+    fn f(&mut self, what: &str, section: &str) -> Res<f64> {
+        if self.binary {
+            self.double(what, section)
+        } else {
+            self.coord(what, section)
+        }
+    }
+
+    /// An error at the current position, by line or byte.
+    fn here(&self, msg: impl Into<String>) -> GmshError {
+        if self.binary {
+            self.err_byte(self.pos, msg)
+        } else {
+            self.err_line(msg)
+        }
+    }
+
+    // ---- sections ----
+
+    fn read_file(&mut self) -> Res<Raw> {
+        let mut raw = Raw::default();
+        while let Some(t) = self.token() {
+            let header = String::from_utf8_lossy(t).into_owned();
+            let Some(section) = header.strip_prefix('$') else {
+                return Err(self.err_line(format!(
+                    "expected a section header such as `$Nodes`, found `{}`",
+                    &header[..header.len().min(40)]
+                )));
+            };
+            if raw.version.is_none() && section != "MeshFormat" && section != "Comments" {
+                return Err(self.err_line(format!(
+                    "expected `$MeshFormat` first, found `{header}`: not a Gmsh MSH file?"
+                )));
+            }
+            let v = raw.version.map(|v| v.0);
+            if self.binary && matches!(section, "Entities" | "Nodes" | "Elements") {
+                // binary data starts right after the header line
+                self.skip_line();
+            }
+            match section {
+                "MeshFormat" => self.mesh_format(&mut raw)?,
+                "PhysicalNames" => self.physical_names(&mut raw)?,
+                "Entities" if v == Some(Version::V41) => self.entities(&mut raw)?,
+                "Nodes" if v == Some(Version::V41) => self.nodes41(&mut raw)?,
+                "Elements" if v == Some(Version::V41) => self.elements41(&mut raw)?,
+                "Nodes" => self.nodes22(&mut raw)?,
+                "Elements" => self.elements22(&mut raw)?,
+                s if s.starts_with("End") => {
+                    return Err(self.err_line(format!("`{header}` without its section")))
+                }
+                other => self.skip_section(other)?,
+            }
+        }
+        if raw.version.is_none() {
+            return Err(self.err_line("empty file: expected `$MeshFormat`"));
+        }
+        for (seen, s) in [(raw.seen_nodes, "$Nodes"), (raw.seen_elements, "$Elements")] {
+            if !seen {
+                return Err(GmshError {
+                    file: self.file.into(),
+                    at: None,
+                    message: format!("no {s} section"),
+                });
+            }
+        }
+        Ok(raw)
+    }
+
+    fn mesh_format(&mut self, raw: &mut Raw) -> Res<()> {
+        const S: &str = "MeshFormat";
+        let v = self
+            .token()
+            .map(|t| String::from_utf8_lossy(t).into_owned())
+            .unwrap_or_default();
+        let file_type: i32 = self.num("the file type (0 ASCII, 1 binary)", S)?;
+        let size: usize = self.num("the data size (8)", S)?;
+        let binary = match file_type {
+            0 => false,
+            1 => true,
+            o => return Err(self.err_line(format!("file type must be 0 or 1, found {o}"))),
+        };
+        let version = match v.as_str() {
+            "4.1" => Version::V41,
+            "2.2" | "2.1" | "2" | "2.0" if !binary => Version::V22,
+            "2.2" | "2.1" | "2" | "2.0" => return Err(self.err_line(
+                "binary MSH 2 is not supported: save as MSH 4.1 (binary or ASCII) or MSH 2.2 ASCII",
+            )),
+            other => {
+                return Err(self.err_line(format!(
+                    "unsupported MSH version `{other}`: deasim reads 4.1 (ASCII or binary) and 2.2 \
+                     (ASCII); re-export with Gmsh (`-format msh41` or `-format msh22`)"
+                )))
+            }
+        };
+        if size != 4 && size != 8 {
+            return Err(self.err_line(format!("data size must be 4 or 8, found {size}")));
+        }
+        self.size_t = size;
+        if binary {
+            self.skip_line();
+            let at = self.pos;
+            let b: [u8; 4] = self
+                .bytes(4, "the endianness marker 1", S)?
+                .try_into()
+                .unwrap_or([0; 4]);
+            match (i32::from_le_bytes(b), i32::from_be_bytes(b)) {
+                (1, _) => self.swap = false,
+                (_, 1) => self.swap = true,
+                _ => return Err(self.err_byte(at, "expected the binary integer 1 (endianness)")),
+            }
+        }
+        self.end(S)?;
+        self.binary = binary;
+        raw.version = Some((version, binary));
+        Ok(())
+    }
+
+    fn physical_names(&mut self, raw: &mut Raw) -> Res<()> {
+        const S: &str = "PhysicalNames";
+        let n: u64 = self.num("the number of names", S)?;
+        for _ in 0..n {
+            let dim: i32 = self.num("a dimension", S)?;
+            let tag: i32 = self.num("a physical tag", S)?;
+            // the quoted name is the rest of the line
+            let start = self.pos;
+            let end = self.data[start..]
+                .iter()
+                .position(|&b| b == b'\n')
+                .map_or(self.data.len(), |p| start + p);
+            let text = String::from_utf8_lossy(&self.data[start..end]);
+            let text = text.trim();
+            let name = text
+                .strip_prefix('"')
+                .and_then(|s| s.strip_suffix('"'))
+                .filter(|s| !s.is_empty())
+                .ok_or_else(|| {
+                    self.err_line(format!(
+                        "expected a quoted physical name, found `{}`",
+                        &text[..text.len().min(40)]
+                    ))
+                })?;
+            raw.names.insert((dim, tag), name.to_string());
+            self.pos = end;
+        }
+        self.end(S)
+    }
+
+    fn entities(&mut self, raw: &mut Raw) -> Res<()> {
+        const S: &str = "Entities";
+        let counts = [
+            self.sz("the number of points", S)?,
+            self.sz("the number of curves", S)?,
+            self.sz("the number of surfaces", S)?,
+            self.sz("the number of volumes", S)?,
+        ];
+        for (dim, &count) in counts.iter().enumerate() {
+            if self.binary {
+                self.room(count, 4 + 3 * 8 + self.size_t, "entities", S)?;
+            }
+            for _ in 0..count {
+                let tag = self.i("an entity tag", S)?;
+                let n_box = if dim == 0 { 3 } else { 6 };
+                for _ in 0..n_box {
+                    self.f("a bounding-box coordinate", S)?;
+                }
+                let n_phys = self.sz("the number of physical tags", S)?;
+                if self.binary {
+                    self.room(n_phys, 4, "physical tags", S)?;
+                }
+                let mut tags = Vec::new();
+                for _ in 0..n_phys {
+                    tags.push(self.i("a physical tag", S)?);
+                }
+                raw.entity_groups.insert((dim as i32, tag), tags);
+                if dim > 0 {
+                    let n_b = self.sz("the number of bounding entities", S)?;
+                    if self.binary {
+                        self.room(n_b, 4, "bounding entities", S)?;
+                    }
+                    for _ in 0..n_b {
+                        self.i("a bounding entity tag", S)?;
+                    }
+                }
+            }
+        }
+        self.end(S)
+    }
+
+    fn nodes41(&mut self, raw: &mut Raw) -> Res<()> {
+        const S: &str = "Nodes";
+        raw.seen_nodes = true;
+        let blocks = self.sz("the number of entity blocks", S)?;
+        self.sz("the number of nodes", S)?;
+        self.sz("the smallest node tag", S)?;
+        self.sz("the largest node tag", S)?;
+        for _ in 0..blocks {
+            let dim = self.i("an entity dimension", S)?;
+            self.i("an entity tag", S)?;
+            let parametric = self.i("the parametric flag (0 or 1)", S)?;
+            let n = self.sz("the number of nodes in the block", S)?;
+            let extra = match parametric {
+                0 => 0,
+                1 => dim.clamp(0, 3) as usize,
+                o => return Err(self.here(format!("parametric flag must be 0 or 1, found {o}"))),
+            };
+            if self.binary {
+                self.room(n, self.size_t + (3 + extra) * 8, "nodes", S)?;
+            }
+            for _ in 0..n {
+                raw.node_tags.push(self.sz("a node tag", S)?);
+            }
+            for _ in 0..n {
+                let x = [
+                    self.f("an x coordinate", S)?,
+                    self.f("a y coordinate", S)?,
+                    self.f("a z coordinate", S)?,
+                ];
+                for _ in 0..extra {
+                    self.f("a parametric coordinate", S)?;
+                }
+                raw.coords.push(x);
+            }
+        }
+        self.end(S)
+    }
+
+    fn elements41(&mut self, raw: &mut Raw) -> Res<()> {
+        const S: &str = "Elements";
+        raw.seen_elements = true;
+        let blocks = self.sz("the number of entity blocks", S)?;
+        self.sz("the number of elements", S)?;
+        self.sz("the smallest element tag", S)?;
+        self.sz("the largest element tag", S)?;
+        for _ in 0..blocks {
+            let dim = self.i("an entity dimension", S)?;
+            let tag = self.i("an entity tag", S)?;
+            let at = (self.line, self.pos);
+            let t = self.i("an element type", S)?;
+            let n = self.sz("the number of elements in the block", S)?;
+            let info = element_type(t);
+            if let Some((d, _, name, _)) = info {
+                if d != dim {
+                    return Err(self.here(format!(
+                        "element type {t} ({name}) in a block of dimension {dim}"
+                    )));
+                }
+            }
+            let group = Group::Entity(dim, tag);
+            let (nodes, role) = match info {
+                Some((_, nodes, _, role)) => (nodes, role),
+                None if dim <= 1 && !self.binary => {
+                    // points and curves are ignored; an ASCII element is one line
+                    self.skip_line();
+                    for _ in 0..n {
+                        if self.pos >= self.data.len() {
+                            return Err(self.here("unexpected end of file in $Elements"));
+                        }
+                        self.skip_line();
+                    }
+                    continue;
+                }
+                None => {
+                    let msg = format!("unknown element type {t} ({SUPPORTED})");
+                    return Err(if self.binary {
+                        self.err_byte(at.1, msg)
+                    } else {
+                        GmshError {
+                            file: self.file.into(),
+                            at: Some(Location::Line(at.0)),
+                            message: msg,
+                        }
+                    });
+                }
+            };
+            if role == Role::Unsupported && dim == 3 {
+                return Err(self.here(format!(
+                    "element type {t} ({}) is not supported: {SUPPORTED}",
+                    info.map_or("", |i| i.2)
+                )));
+            }
+            if self.binary {
+                self.room(n, self.size_t * (1 + nodes), "elements", S)?;
+            }
+            for _ in 0..n {
+                let etag = self.sz("an element tag", S)?;
+                let mut list = Vec::with_capacity(nodes);
+                for _ in 0..nodes {
+                    list.push(self.sz("a node tag", S)?);
+                }
+                match role {
+                    Role::Volume(kind) => raw.volumes.push(Element {
+                        tag: etag,
+                        kind,
+                        nodes: list,
+                        group: Some(group),
+                    }),
+                    Role::Face(c) => {
+                        list.truncate(c);
+                        raw.faces.push(Face {
+                            tag: etag,
+                            corners: list,
+                            group,
+                        })
+                    }
+                    Role::Unsupported => raw.odd_faces.push((group, t, etag)),
+                    Role::Ignored => {}
+                }
+            }
+        }
+        self.end(S)
+    }
+
+    fn nodes22(&mut self, raw: &mut Raw) -> Res<()> {
+        const S: &str = "Nodes";
+        raw.seen_nodes = true;
+        let n: u64 = self.num("the number of nodes", S)?;
+        for _ in 0..n {
+            raw.node_tags.push(self.num("a node tag", S)?);
+            raw.coords.push([
+                self.coord("an x coordinate", S)?,
+                self.coord("a y coordinate", S)?,
+                self.coord("a z coordinate", S)?,
+            ]);
+        }
+        self.end(S)
+    }
+
+    fn elements22(&mut self, raw: &mut Raw) -> Res<()> {
+        const S: &str = "Elements";
+        raw.seen_elements = true;
+        let n: u64 = self.num("the number of elements", S)?;
+        for _ in 0..n {
+            let etag: u64 = self.num("an element tag", S)?;
+            let t: i32 = self.num("an element type", S)?;
+            let Some((dim, nodes, name, role)) = element_type(t) else {
+                return Err(self.err_line(format!(
+                    "element {etag}: unknown element type {t} ({SUPPORTED})"
+                )));
+            };
+            let n_tags: u64 = self.num("the number of tags", S)?;
+            let mut tags = Vec::new();
+            for _ in 0..n_tags {
+                tags.push(self.num::<i32>("a tag", S)?);
+            }
+            let phys = tags.first().copied().unwrap_or(0);
+            let group = Group::Physical(dim, phys);
+            let mut list = Vec::with_capacity(nodes);
+            for _ in 0..nodes {
+                list.push(self.num::<u64>("a node tag", S)?);
+            }
+            match role {
+                Role::Volume(kind) => raw.volumes.push(Element {
+                    tag: etag,
+                    kind,
+                    nodes: list,
+                    group: (phys != 0).then_some(group),
+                }),
+                Role::Face(c) if phys != 0 => {
+                    list.truncate(c);
+                    raw.faces.push(Face {
+                        tag: etag,
+                        corners: list,
+                        group,
+                    });
+                }
+                Role::Unsupported if dim == 3 => {
+                    return Err(self.err_line(format!(
+                        "element {etag}: type {t} ({name}) is not supported: {SUPPORTED}"
+                    )))
+                }
+                Role::Unsupported if phys != 0 => raw.odd_faces.push((group, t, etag)),
+                _ => {}
+            }
+        }
+        self.end(S)
+    }
+}
+
+/// Sign of the Jacobian of a cell from its corners: the volume of a tetrahedron, the Jacobian at
+/// the centre of a hexahedron.
+fn orientation(kind: ElementKind, x: &[[f64; 3]]) -> f64 {
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let (a, b, c) = match kind {
+        ElementKind::Tet4 | ElementKind::Tet10 => {
+            (sub(x[1], x[0]), sub(x[2], x[0]), sub(x[3], x[0]))
+        }
+        ElementKind::Hex8 => {
+            // Σ ±x_a with the signs of the reference corners (−1, 1, 1, −1, −1, 1, 1, −1) etc.
+            let s = [
+                [-1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0, -1.0],
+                [-1.0, -1.0, 1.0, 1.0, -1.0, -1.0, 1.0, 1.0],
+                [-1.0, -1.0, -1.0, -1.0, 1.0, 1.0, 1.0, 1.0],
+            ];
+            let d = |k: usize| {
+                let mut v = [0.0; 3];
+                for (p, sign) in x.iter().zip(s[k]) {
+                    for i in 0..3 {
+                        v[i] += sign * p[i];
+                    }
+                }
+                v
+            };
+            (d(0), d(1), d(2))
+        }
+    };
+    a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+        + a[2] * (b[0] * c[1] - b[1] * c[0])
+}
+
+/// The mirror image node order of a cell (its Jacobian changes sign).
+fn mirror(kind: ElementKind) -> &'static [usize] {
+    match kind {
+        ElementKind::Tet4 => &[0, 2, 1, 3],
+        // corners 1 ↔ 2: edges 0–1 ↔ 0–2, 1–3 ↔ 2–3
+        ElementKind::Tet10 => &[0, 2, 1, 3, 6, 5, 4, 7, 9, 8],
+        ElementKind::Hex8 => &[4, 5, 6, 7, 0, 1, 2, 3],
+    }
+}
+
+impl Raw {
+    fn build(self, file: &str, scale: f64) -> Res<GmshMesh> {
+        let err = |message: String| GmshError {
+            file: file.into(),
+            at: None,
+            message,
+        };
+        let (version, binary) = self.version.unwrap_or((Version::V41, false));
+        let format = match (version, binary) {
+            (Version::V41, false) => "4.1 ASCII",
+            (Version::V41, true) => "4.1 binary",
+            (Version::V22, _) => "2.2 ASCII",
+        };
+        let first = self.volumes.first().ok_or_else(|| {
+            err(format!(
+                "no volume elements: {SUPPORTED}; mesh the volumes (`gmsh -3`) and, if physical \
+                 groups are defined, put the volumes in one (`Physical Volume`)"
+            ))
+        })?;
+        let kind = first.kind;
+        if let Some(o) = self.volumes.iter().find(|e| e.kind != kind) {
+            return Err(err(format!(
+                "mixed volume element kinds: {} (element {}) and {} (element {}); deasim needs one \
+                 kind per mesh",
+                kind.name(),
+                first.tag,
+                o.kind.name(),
+                o.tag
+            )));
+        }
+        // the groups an element belongs to
+        let groups_of = |g: Option<Group>| -> Vec<(i32, i32)> {
+            match g {
+                None => vec![],
+                Some(Group::Physical(d, t)) => vec![(d, t)],
+                Some(Group::Entity(d, t)) => self
+                    .entity_groups
+                    .get(&(d, t))
+                    .map(|v| v.iter().map(|&p| (d, p)).collect())
+                    .unwrap_or_default(),
+            }
+        };
+        for &(g, t, etag) in &self.odd_faces {
+            if let Some((d, p)) = groups_of(Some(g)).first() {
+                let name = self.names.get(&(*d, *p)).cloned().unwrap_or(format!("{p}"));
+                return Err(err(format!(
+                    "element {etag} of physical surface `{name}` has type {t}, not supported: \
+                     {SUPPORTED}"
+                )));
+            }
+        }
+        let group_name = |(d, p): (i32, i32)| -> String {
+            self.names.get(&(d, p)).cloned().unwrap_or_else(|| {
+                if d == 3 {
+                    format!("volume{p}")
+                } else {
+                    format!("surface{p}")
+                }
+            })
+        };
+        let node_pos: HashMap<u64, usize> = self
+            .node_tags
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| (t, i))
+            .collect();
+        if node_pos.len() != self.node_tags.len() {
+            return Err(err("a node tag appears twice in $Nodes".into()));
+        }
+        // unique cells (MSH 2.2 repeats an element once per physical group), Gmsh node positions
+        let npc = kind.nodes_per_cell();
+        let mut cells: Vec<Vec<usize>> = Vec::new();
+        let mut cell_groups: Vec<Vec<(i32, i32)>> = Vec::new();
+        let mut cell_tags: Vec<u64> = Vec::new();
+        let mut by_nodes: HashMap<Vec<usize>, usize> = HashMap::new();
+        for e in &self.volumes {
+            let mut pos = Vec::with_capacity(npc);
+            for &t in &e.nodes {
+                pos.push(*node_pos.get(&t).ok_or_else(|| {
+                    err(format!(
+                        "element {} refers to node {t}, which is not in $Nodes",
+                        e.tag
+                    ))
+                })?);
+            }
+            if kind == ElementKind::Tet10 {
+                // Gmsh: mid-edge nodes of 0–1, 1–2, 2–0, 0–3, 2–3, 1–3; VTK: …, 1–3, 2–3
+                pos.swap(8, 9);
+            }
+            let mut key = pos.clone();
+            key.sort_unstable();
+            if key.windows(2).any(|w| w[0] == w[1]) {
+                return Err(err(format!("element {} repeats a node", e.tag)));
+            }
+            let c = *by_nodes.entry(key).or_insert_with(|| {
+                cells.push(pos);
+                cell_groups.push(Vec::new());
+                cell_tags.push(e.tag);
+                cells.len() - 1
+            });
+            cell_groups[c].extend(groups_of(e.group));
+        }
+        // compact numbering in file order
+        let mut new_index = vec![usize::MAX; self.coords.len()];
+        for cell in &cells {
+            for &p in cell {
+                new_index[p] = 0;
+            }
+        }
+        let mut nodes = Vec::new();
+        for (p, slot) in new_index.iter_mut().enumerate() {
+            if *slot == 0 {
+                *slot = nodes.len();
+                let x = self.coords[p];
+                nodes.push([scale * x[0], scale * x[1], scale * x[2]]);
+            }
+        }
+        let mut connectivity = Vec::with_capacity(cells.len() * npc);
+        let mut reoriented = 0;
+        let mut x = vec![[0.0; 3]; npc];
+        for (c, cell) in cells.iter().enumerate() {
+            let mut ids: Vec<usize> = cell.iter().map(|&p| new_index[p]).collect();
+            for (xa, &n) in x.iter_mut().zip(&ids) {
+                *xa = nodes[n];
+            }
+            let det = orientation(kind, &x);
+            if det.is_nan() || det == 0.0 {
+                return Err(err(format!(
+                    "volume element {} is degenerate (zero volume)",
+                    cell_tags[c]
+                )));
+            }
+            if det < 0.0 {
+                ids = mirror(kind).iter().map(|&l| ids[l]).collect();
+                reoriented += 1;
+            }
+            connectivity.extend_from_slice(&ids);
+        }
+        // sets
+        let mut cell_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+        let mut face_sets: BTreeMap<String, Vec<FaceRef>> = BTreeMap::new();
+        // named groups exist even when empty
+        for (&(d, _), name) in &self.names {
+            if d == 3 {
+                cell_sets.entry(name.clone()).or_default();
+            } else if d == 2 {
+                face_sets.entry(name.clone()).or_default();
+            }
+        }
+        for (c, gs) in cell_groups.iter().enumerate() {
+            for &g in gs {
+                cell_sets.entry(group_name(g)).or_default().push(c);
+            }
+        }
+        let corners = kind.face_corners();
+        let mut face_of: HashMap<[usize; 4], FaceRef> = HashMap::new();
+        for c in 0..cells.len() {
+            let cell = &connectivity[c * npc..(c + 1) * npc];
+            for (f, local) in kind.faces().iter().enumerate() {
+                let mut key = [usize::MAX; 4];
+                for (k, &l) in local[..corners].iter().enumerate() {
+                    key[k] = cell[l];
+                }
+                key.sort_unstable();
+                face_of.entry(key).or_insert(FaceRef { cell: c, face: f });
+            }
+        }
+        for face in &self.faces {
+            let gs = groups_of(Some(face.group));
+            if gs.is_empty() {
+                continue;
+            }
+            let name = group_name(gs[0]);
+            let mut key = [usize::MAX; 4];
+            for (k, t) in face.corners.iter().enumerate() {
+                let p = node_pos.get(t).ok_or_else(|| {
+                    err(format!(
+                        "surface element {} refers to node {t}, which is not in $Nodes",
+                        face.tag
+                    ))
+                })?;
+                key[k] = new_index[*p];
+                if key[k] == usize::MAX {
+                    return Err(err(format!(
+                        "surface element {} of physical group `{name}` has node {t}, which no \
+                         volume element uses",
+                        face.tag
+                    )));
+                }
+            }
+            key.sort_unstable();
+            let f = face_of.get(&key).ok_or_else(|| {
+                err(format!(
+                    "surface element {} of physical group `{name}` is not a face of a {} volume \
+                     element",
+                    face.tag,
+                    kind.name()
+                ))
+            })?;
+            for g in gs {
+                face_sets.entry(group_name(g)).or_default().push(*f);
+            }
+        }
+        if let Some(n) = cell_sets.keys().find(|n| face_sets.contains_key(*n)) {
+            return Err(err(format!(
+                "the physical name `{n}` names both a volume and a surface group"
+            )));
+        }
+        cell_sets.values_mut().for_each(|s| {
+            s.sort_unstable();
+            s.dedup();
+        });
+        face_sets.values_mut().for_each(|s| {
+            s.sort_unstable();
+            s.dedup();
+        });
+        let mut mesh = Mesh {
+            kind,
+            nodes,
+            connectivity,
+            node_sets: BTreeMap::new(),
+            face_sets,
+            cell_sets,
+        };
+        let mut node_sets = BTreeMap::new();
+        for name in mesh.face_sets.keys() {
+            node_sets.insert(name.clone(), mesh.face_set_nodes(name).unwrap_or_default());
+        }
+        for (name, cells) in &mesh.cell_sets {
+            let mut n: Vec<usize> = cells.iter().flat_map(|&c| mesh.cell(c).to_vec()).collect();
+            n.sort_unstable();
+            n.dedup();
+            node_sets.insert(name.clone(), n);
+        }
+        mesh.node_sets = node_sets;
+        Ok(GmshMesh {
+            mesh,
+            reoriented,
+            format: format.into(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::{ReferenceElement, TET10_EDGES};
+
+    fn data(name: &str) -> Vec<u8> {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/gmsh")
+            .join(name);
+        std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+    }
+
+    fn parse(text: &str) -> Result<GmshMesh, GmshError> {
+        parse_msh(text.as_bytes(), "t.msh", 1.0)
+    }
+
+    const FORMATS: [&str; 3] = ["msh41", "msh41-bin", "msh22"];
+
+    /// Every film file: the kind, a 10 × 10 × 1 mm volume, the named sets on their planes, the
+    /// same mesh whatever the format.
+    #[test]
+    fn film_files_written_by_gmsh() {
+        for (kind, name) in [
+            (ElementKind::Tet4, "tet4"),
+            (ElementKind::Tet10, "tet10"),
+            (ElementKind::Hex8, "hex8"),
+        ] {
+            let mut first: Option<Mesh> = None;
+            for f in FORMATS {
+                let file = format!("film-{name}-{f}.msh");
+                let g = parse_msh(&data(&file), &file, 1e-3).unwrap();
+                let m = &g.mesh;
+                assert_eq!(m.kind, kind, "{file}");
+                assert_eq!(g.reoriented, 0, "{file}");
+                let re = ReferenceElement::new(kind);
+                let mut x = vec![[0.0; 3]; kind.nodes_per_cell()];
+                let mut vol = 0.0;
+                for c in 0..m.n_cells() {
+                    m.cell_coords_into(c, &mut x);
+                    let geom = re.geometry(&x).expect("positive Jacobian");
+                    vol += geom.weights[..geom.n_qp].iter().sum::<f64>();
+                    if kind == ElementKind::Tet10 {
+                        for (e, [i, j]) in TET10_EDGES.iter().enumerate() {
+                            for k in 0..3 {
+                                let mid = 0.5 * (x[*i][k] + x[*j][k]);
+                                assert!((x[4 + e][k] - mid).abs() < 1e-12, "{file} cell {c}");
+                            }
+                        }
+                    }
+                }
+                assert!((vol - 1e-7).abs() < 1e-18, "{file}: volume {vol}");
+                assert_eq!(m.cell_sets["elastomer"].len(), m.n_cells(), "{file}");
+                assert_eq!(m.node_sets["elastomer"].len(), m.n_nodes(), "{file}");
+                for (set, axis, value) in [
+                    ("x0", 0, 0.0),
+                    ("x1", 0, 10e-3),
+                    ("y0", 1, 0.0),
+                    ("y1", 1, 10e-3),
+                    ("z0", 2, 0.0),
+                    ("z1", 2, 1e-3),
+                ] {
+                    let on: Vec<usize> = (0..m.n_nodes())
+                        .filter(|&n| (m.nodes[n][axis] - value).abs() < 1e-12)
+                        .collect();
+                    assert_eq!(m.node_sets[set], on, "{file} {set}");
+                    assert_eq!(m.face_set_nodes(set).unwrap(), on, "{file} {set}");
+                }
+                assert_eq!(m.face_sets["top"], m.face_sets["z1"]);
+                assert_eq!(m.face_sets["bottom"], m.face_sets["z0"]);
+                match &first {
+                    None => first = Some(m.clone()),
+                    Some(a) => {
+                        // ASCII files hold 16 significant digits
+                        for (p, q) in a.nodes.iter().zip(&m.nodes) {
+                            for k in 0..3 {
+                                assert!((p[k] - q[k]).abs() < 1e-17, "{file}");
+                            }
+                        }
+                        assert_eq!(a.nodes.len(), m.nodes.len(), "{file}");
+                        assert_eq!(a.connectivity, m.connectivity, "{file}");
+                        assert_eq!(a.face_sets, m.face_sets, "{file}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Every prefix of the files (binary and ASCII) is an error, never a panic; so is every
+    /// single-byte corruption of the binary file (or it still reads).
+    #[test]
+    fn truncated_and_corrupted_files_are_errors() {
+        for file in [
+            "film-tet10-msh41-bin.msh",
+            "film-hex8-msh41.msh",
+            "film-tet4-msh22.msh",
+        ] {
+            let d = data(file);
+            for len in 0..d.len() - 14 {
+                let r = parse_msh(&d[..len], file, 1.0);
+                assert!(r.is_err(), "{file}: prefix of {len} bytes read");
+            }
+        }
+        let d = data("film-tet4-msh41-bin.msh");
+        for i in 0..d.len() {
+            for v in [0u8, 0xff, b'$', b'\n'] {
+                let mut c = d.clone();
+                c[i] = v;
+                let _ = parse_msh(&c, "c.msh", 1.0);
+            }
+        }
+    }
+
+    fn replace_in(file: &str, from: &str, to: &str) -> String {
+        let text = String::from_utf8(data(file)).unwrap();
+        assert!(text.contains(from), "{file} has no `{from}`");
+        text.replacen(from, to, 1)
+    }
+
+    #[track_caller]
+    fn err_of(text: &str) -> String {
+        match parse(text) {
+            Ok(_) => panic!("read without error"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn bad_files_give_clear_errors() {
+        // the hex8 volume block `3 1 5 18` with a 20-node hexahedron type
+        let e = err_of(&replace_in(
+            "film-hex8-msh41.msh",
+            "\n3 1 5 18\n",
+            "\n3 1 17 18\n",
+        ));
+        assert!(e.contains("line ") && e.contains("type 17"), "{e}");
+        let e = err_of(&replace_in(
+            "film-hex8-msh41.msh",
+            "\n3 1 5 18\n",
+            "\n3 1 99 18\n",
+        ));
+        assert!(e.contains("unknown element type 99"), "{e}");
+        let e = err_of(&replace_in("film-tet4-msh41.msh", "4.1 0 8", "4.0 0 8"));
+        assert!(e.contains("line 2: unsupported MSH version `4.0`"), "{e}");
+        let text = String::from_utf8(data("film-tet4-msh22.msh")).unwrap();
+        let e = err_of(&text.replace("Elements", "Elephants"));
+        assert!(e.contains("no $Elements section"), "{e}");
+        let e = err_of(&replace_in(
+            "film-tet4-msh22.msh",
+            "\n1 0 0 1\n",
+            "\n1 0 zero 1\n",
+        ));
+        assert!(
+            e.contains("line 18: expected a y coordinate in $Nodes, found `zero`"),
+            "{e}"
+        );
+        // a node line dropped: the count claims one more than there is
+        let e = err_of(&replace_in("film-tet4-msh22.msh", "\n1 0 0 1\n", "\n"));
+        assert!(e.contains("truncated $Nodes section"), "{e}");
+        let e = err_of(&replace_in(
+            "film-tet4-msh22.msh",
+            "$MeshFormat",
+            "$MeshFormats",
+        ));
+        assert!(
+            e.contains("expected `$MeshFormat` first") || e.contains("no end marker"),
+            "{e}"
+        );
+        // binary: the element block header cut short
+        let d = data("film-hex8-msh41-bin.msh");
+        let at = d.windows(9).position(|w| w == b"$Elements").unwrap() + 30;
+        let e = parse_msh(&d[..at], "b.msh", 1.0).unwrap_err().to_string();
+        assert!(e.contains("byte ") && e.contains("truncated"), "{e}");
+    }
+
+    /// A tetrahedron and a hexahedron in one file; an inverted tetrahedron; a face not on a cell.
+    #[test]
+    fn mixed_inverted_and_stray_faces() {
+        let head = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n1\n2 7 \"top\"\n\
+                    $EndPhysicalNames\n$Nodes\n9\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 0\n\
+                    6 0 1 1\n7 1 0 1\n8 1 1 1\n9 5 5 5\n$EndNodes\n";
+        let e = err_of(&format!(
+            "{head}$Elements\n2\n1 4 0 1 2 3 4\n2 5 0 1 2 5 3 4 7 8 6\n$EndElements\n"
+        ));
+        assert!(
+            e.contains("mixed volume element kinds: tet4 (element 1) and hex8 (element 2)"),
+            "{e}"
+        );
+        let g = parse(&format!(
+            "{head}$Elements\n1\n1 4 0 1 3 2 4\n$EndElements\n"
+        ))
+        .unwrap();
+        assert_eq!(g.reoriented, 1);
+        assert_eq!(g.mesh.cell(0), &[0, 1, 2, 3]);
+        assert_eq!(g.mesh.n_nodes(), 4, "unused nodes dropped");
+        let e = err_of(&format!(
+            "{head}$Elements\n2\n1 4 0 1 2 3 4\n2 2 2 7 1 1 2 9\n$EndElements\n"
+        ));
+        assert!(
+            e.contains("surface element 2 of physical group `top` has node 9"),
+            "{e}"
+        );
+        let e = err_of(&format!(
+            "{head}$Elements\n2\n1 5 0 1 2 5 3 4 7 8 6\n2 2 2 7 1 1 2 8\n$EndElements\n"
+        ));
+        assert!(
+            e.contains("surface element 2 of physical group `top` is not a face of a hex8"),
+            "{e}"
+        );
+        let g = parse(&format!(
+            "{head}$Elements\n2\n1 4 0 1 2 3 4\n2 2 2 7 1 4 3 2\n$EndElements\n"
+        ))
+        .unwrap();
+        assert_eq!(g.mesh.face_sets["top"], vec![FaceRef { cell: 0, face: 2 }]);
+        // an inverted hexahedron and an inverted tet10 are mirrored to positive cells
+        let hex = parse(&format!(
+            "{head}$Elements\n1\n1 5 0 4 7 8 6 1 2 5 3\n$EndElements\n"
+        ))
+        .unwrap();
+        assert_eq!(hex.reoriented, 1);
+        let mut x = vec![[0.0; 3]; 8];
+        hex.mesh.cell_coords_into(0, &mut x);
+        assert!(ReferenceElement::new(ElementKind::Hex8)
+            .geometry(&x)
+            .is_ok());
+    }
+}
