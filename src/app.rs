@@ -23,6 +23,14 @@ pub const EXIT_INTERRUPTED: i32 = 130;
 
 /// Reads and builds a scenario file (or the default example when `path` is `None`).
 pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Plan, InputError> {
+    load_scenario(path, overrides).map(|(_, plan)| plan)
+}
+
+/// As [`load`], also returning the parsed scenario (for commands that read its geometry).
+pub fn load_scenario(
+    path: Option<&Path>,
+    overrides: &[String],
+) -> Result<(crate::io::scenario::Scenario, Plan), InputError> {
     let (text, name, base) = match path {
         None => (
             example(DEFAULT)
@@ -69,7 +77,8 @@ pub fn load(path: Option<&Path>, overrides: &[String]) -> Result<Plan, InputErro
         }
     };
     let scenario = parse(&text, &name, overrides)?;
-    build(&scenario, &name, base.as_deref())
+    let plan = build(&scenario, &name, base.as_deref())?;
+    Ok((scenario, plan))
 }
 
 /// Shows progress: a bar on a terminal, plain lines otherwise.

@@ -38,6 +38,20 @@ enum Command {
     },
     /// List the embedded examples, or print one as TOML.
     Example { name: Option<String> },
+    /// The lumped (one-degree-of-freedom) model of a diaphragm scenario: seconds instead of minutes.
+    Lumped {
+        /// Scenario file (TOML; the embedded default when omitted).
+        scenario: Option<PathBuf>,
+        /// Output directory (default ./deasim-out/<scenario name>-lumped/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a value by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output directory of a finite element run of the same scenario to overlay and compare.
+        #[arg(long, value_name = "DIR")]
+        compare: Option<PathBuf>,
+    },
     /// Run the verification cases and print a table.
     Validate,
     /// Run the benchmark scenarios and print timings and memory.
@@ -70,6 +84,17 @@ fn main() {
         } => deasim::app::cmd_run(scenario.as_deref(), out.as_deref(), &set, overwrite),
         Command::Check { scenario, set } => deasim::app::cmd_check(&scenario, &set),
         Command::Example { name } => deasim::app::cmd_example(name.as_deref()),
+        Command::Lumped {
+            scenario,
+            out,
+            set,
+            compare,
+        } => deasim::lumped::command::cmd_lumped(
+            scenario.as_deref(),
+            out.as_deref(),
+            &set,
+            compare.as_deref(),
+        ),
         Command::Validate => deasim::validate::cmd_validate(),
         Command::Bench { large } => deasim::bench::cmd_bench(large),
     };

@@ -71,6 +71,9 @@ pub struct DiaphragmParams {
     pub density: f64,
     /// Kelvin–Voigt viscosity η (Pa·s), as in deasim's viscous model.
     pub viscosity: f64,
+    /// Dashpot on the pad (N·s/m): air and fixture losses of the mass, added to the membrane's
+    /// viscous damping.
+    pub pad_damping: f64,
     /// Gauss points per radial panel (two panels: a..c and c..b).
     pub quadrature_points: usize,
 }
@@ -89,6 +92,7 @@ impl DiaphragmParams {
             gravity: 9.81,
             density: 960.0,
             viscosity: 0.0,
+            pad_damping: 0.0,
             quadrature_points: 16,
         }
     }
@@ -196,6 +200,12 @@ impl Diaphragm {
             p.viscosity,
             p.viscosity >= 0.0,
             "must be ≥ 0 (Pa·s)",
+        )?;
+        check(
+            "pad_damping",
+            p.pad_damping,
+            p.pad_damping >= 0.0,
+            "must be ≥ 0 (N·s/m)",
         )?;
         let nq = p.quadrature_points;
         check(
@@ -369,7 +379,7 @@ impl Diaphragm {
                 }
             }
         }
-        s.damping *= self.params.viscosity * h;
+        s.damping = s.damping * self.params.viscosity * h + self.params.pad_damping;
         Ok(s)
     }
 

@@ -10,6 +10,7 @@
 //! All are integrated in time by the midpoint rule of deasim's finite element dynamics
 //! ([`integrator`]). The derivation and the measured figures are in `docs/lumped.md`.
 
+pub mod command;
 pub mod diaphragm;
 pub mod equilibrium;
 pub mod gent_membrane;
@@ -18,6 +19,7 @@ pub mod integrator;
 pub mod linearised;
 pub mod plane_stress;
 pub mod quadrature;
+pub mod setup;
 
 pub use diaphragm::{Diaphragm, DiaphragmParams};
 pub use gent_membrane::{GentMembrane, GentSample};
