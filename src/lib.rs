@@ -21,6 +21,7 @@ pub mod material;
 pub mod mesh;
 pub mod model;
 pub mod solve;
+pub mod sweep;
 pub mod time;
 pub mod validate;
 pub mod waveform;

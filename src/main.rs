@@ -52,6 +52,27 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         compare: Option<PathBuf>,
     },
+    /// Run a scenario for every value of one parameter; tabulate and plot every probe's final
+    /// value, maximum and steady peak-to-peak against it.
+    Sweep {
+        /// Scenario file (TOML; the embedded default when omitted).
+        scenario: Option<PathBuf>,
+        /// The swept parameter: PATH=START:STOP:N (N values) or PATH=v1,v2,...
+        #[arg(long = "set-range", value_name = "PATH=START:STOP:N")]
+        set_range: String,
+        /// Geometric spacing of START:STOP:N (e.g. frequencies).
+        #[arg(long)]
+        log: bool,
+        /// Output directory (default ./deasim-out/<scenario name>-sweep/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a value for every run (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Runs at a time (default: the cores, as memory allows).
+        #[arg(long)]
+        jobs: Option<usize>,
+    },
     /// Run the verification cases and print a table.
     Validate,
     /// Run the benchmark scenarios and print timings and memory.
@@ -94,6 +115,21 @@ fn main() {
             out.as_deref(),
             &set,
             compare.as_deref(),
+        ),
+        Command::Sweep {
+            scenario,
+            set_range,
+            log,
+            out,
+            set,
+            jobs,
+        } => deasim::sweep::cmd_sweep(
+            scenario.as_deref(),
+            out.as_deref(),
+            &set,
+            &set_range,
+            log,
+            jobs,
         ),
         Command::Validate => deasim::validate::cmd_validate(),
         Command::Bench { large } => deasim::bench::cmd_bench(large),

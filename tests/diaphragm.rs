@@ -312,3 +312,62 @@ fn run_and_lumped_commands_on_the_diaphragm() {
     assert_eq!(film.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `deasim sweep` over the voltage amplitude: one row per value in sweep.csv, a plot per probe,
+/// and the largest center deflection grows with the voltage (and faster than linearly: ∝ V²).
+#[test]
+fn sweep_over_the_voltage() {
+    let dir = std::env::temp_dir().join(format!("deasim-diaphragm-sweep-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = deasim(
+        &[
+            "sweep",
+            "--set-range",
+            "electrodes.top.voltage.amplitude=0:4000:3",
+            "--set",
+            "mesh.radial=6",
+            "--set",
+            "mesh.layers=1",
+            "--set",
+            "stages.1.duration=0.1",
+            "--set",
+            "stages.1.dt=2e-3",
+            "--out",
+            "sw",
+        ],
+        &dir,
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.join("sw/sweep.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header
+        .iter()
+        .position(|h| *h == "center_deflection:max")
+        .unwrap();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            l.split(',')
+                .enumerate()
+                .filter(|(i, _)| *i != 1)
+                .map(|(_, v)| v.parse().unwrap())
+                .collect()
+        })
+        .collect();
+    assert_eq!(rows.len(), 3);
+    let extra: Vec<f64> = rows.iter().map(|r| r[col - 1] - rows[0][col - 1]).collect();
+    println!("sweep: extra max deflection {extra:?}");
+    assert!(extra[1] > 0.0 && extra[2] > 3.0 * extra[1], "{extra:?}");
+    assert!(dir.join("sw/plots/sweep_center_deflection.png").exists());
+    assert!(dir.join("sw/runs/002/summary.json").exists());
+    // a malformed range is bad input
+    let bad = deasim(&["sweep", "--set-range", "mesh.radial=1:2"], &dir);
+    assert_eq!(bad.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&dir);
+}

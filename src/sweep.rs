@@ -1,0 +1,440 @@
+//! `deasim sweep`: runs a scenario for every value of one parameter (several runs at a time where
+//! memory allows) and tabulates and plots every probe's final value, maximum and steady-state
+//! peak-to-peak against the swept value.
+
+use crate::analysis::run::{run, Observer, RunSummary, StepRecord};
+use crate::app::{load, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
+use crate::element::CellFields;
+use crate::io::atomic::write_atomic;
+use crate::io::build::{Plan, StageKind};
+use crate::io::output::OutputWriter;
+use crate::io::plot::{line_plot, PlotSpec, Series};
+use crate::solve::newton::NewtonSettings;
+use crate::waveform::Shape;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// Largest number of values of one sweep.
+const MAX_VALUES: usize = 1000;
+
+/// The swept parameter: a dotted scenario path and its values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Range {
+    pub path: String,
+    pub values: Vec<f64>,
+}
+
+/// Parses `PATH=START:STOP:N` (N values, linear or, with `log`, geometric) or `PATH=v1,v2,...`.
+pub fn parse_range(spec: &str, log: bool) -> Result<Range, String> {
+    let (path, rest) = spec.split_once('=').ok_or_else(|| {
+        format!("--set-range `{spec}`: expected PATH=START:STOP:N or PATH=v1,v2,…")
+    })?;
+    let num = |s: &str| -> Result<f64, String> {
+        s.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("--set-range `{spec}`: `{s}` is not a finite number"))
+    };
+    let values = if rest.contains(':') {
+        let parts: Vec<&str> = rest.split(':').collect();
+        let [a, b, n] = parts.as_slice() else {
+            return Err(format!("--set-range `{spec}`: expected START:STOP:N"));
+        };
+        let (a, b) = (num(a)?, num(b)?);
+        let n: usize = n
+            .trim()
+            .parse()
+            .ok()
+            .filter(|n| (1..=MAX_VALUES).contains(n))
+            .ok_or_else(|| format!("--set-range `{spec}`: N must be between 1 and {MAX_VALUES}"))?;
+        if log && (a <= 0.0 || b <= 0.0) {
+            return Err(format!(
+                "--set-range `{spec}`: --log needs positive START and STOP"
+            ));
+        }
+        (0..n)
+            .map(|i| {
+                let s = if n == 1 {
+                    0.0
+                } else {
+                    i as f64 / (n - 1) as f64
+                };
+                if log {
+                    a * (b / a).powf(s)
+                } else {
+                    a + s * (b - a)
+                }
+            })
+            .collect()
+    } else {
+        let v = rest.split(',').map(num).collect::<Result<Vec<f64>, _>>()?;
+        if v.is_empty() || v.len() > MAX_VALUES {
+            return Err(format!("--set-range `{spec}`: 1 to {MAX_VALUES} values"));
+        }
+        v
+    };
+    Ok(Range {
+        path: path.trim().to_string(),
+        values,
+    })
+}
+
+/// Figures of one probe over one run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProbeFigures {
+    pub last: f64,
+    pub max: f64,
+    /// Peak-to-peak over the last period of the driving signal in the last stage (the last
+    /// quarter of the stage when the signal is not periodic); NaN for a static last stage.
+    pub peak_to_peak: f64,
+}
+
+/// Final value, maximum and steady peak-to-peak of every probe, from the records of a run.
+pub fn figures(plan: &Plan, records: &[StepRecord]) -> Vec<ProbeFigures> {
+    let Some(last_stage) = plan.stages.last() else {
+        return Vec::new();
+    };
+    let t_end = records.last().map(|r| r.time).unwrap_or(0.0);
+    let period = plan.electrodes.iter().find_map(|e| match e.voltage.shape {
+        Shape::Square { frequency, .. }
+        | Shape::Triangle { frequency, .. }
+        | Shape::Sine { frequency, .. }
+        | Shape::Fourier { frequency, .. } => Some(1.0 / frequency),
+        _ => None,
+    });
+    let window = match period {
+        Some(p) if p <= last_stage.duration => p,
+        _ => 0.25 * last_stage.duration,
+    };
+    let dynamic = matches!(last_stage.kind, StageKind::Dynamic { .. });
+    (0..plan.probes.len())
+        .map(|i| {
+            let values = records
+                .iter()
+                .map(|r| r.probes[i])
+                .filter(|v| v.is_finite());
+            let max = values.clone().fold(f64::NAN, f64::max);
+            let tail: Vec<f64> = records
+                .iter()
+                .filter(|r| r.stage == last_stage.name && r.time >= t_end - window * (1.0 + 1e-9))
+                .map(|r| r.probes[i])
+                .filter(|v| v.is_finite())
+                .collect();
+            let peak_to_peak = if dynamic && !tail.is_empty() {
+                tail.iter().fold(f64::MIN, |a, &b| a.max(b))
+                    - tail.iter().fold(f64::MAX, |a, &b| a.min(b))
+            } else {
+                f64::NAN
+            };
+            ProbeFigures {
+                last: records.last().map(|r| r.probes[i]).unwrap_or(f64::NAN),
+                max,
+                peak_to_peak,
+            }
+        })
+        .collect()
+}
+
+/// Keeps the records and forwards everything to the run's output writer.
+struct Collect<'a> {
+    writer: &'a mut OutputWriter,
+    records: Vec<StepRecord>,
+}
+
+impl Observer for Collect<'_> {
+    fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
+        self.records.push(record.clone());
+        self.writer.step(plan, record, state, fields);
+    }
+    fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
+        self.writer.finished(plan, summary);
+    }
+}
+
+/// One finished run of the sweep.
+struct Outcome {
+    value: f64,
+    converged: bool,
+    error: Option<String>,
+    figures: Vec<ProbeFigures>,
+}
+
+/// Runs the sweep; returns the exit status (1 when a run failed, after writing the rest).
+pub fn cmd_sweep(
+    scenario: Option<&Path>,
+    out: Option<&Path>,
+    overrides: &[String],
+    range: &str,
+    log: bool,
+    jobs: Option<usize>,
+) -> i32 {
+    let range = match parse_range(range, log) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
+    // every value must give a valid scenario before anything runs
+    let mut plans = Vec::new();
+    for &v in &range.values {
+        let mut sets = overrides.to_vec();
+        sets.push(format!("{}={v}", range.path));
+        // per-run outputs: history and summary, the last state's fields, no plots
+        sets.push("output.plots=false".into());
+        sets.push("output.fields_every=0".into());
+        match load(scenario, &sets) {
+            Ok(p) => plans.push((v, p)),
+            Err(e) => {
+                eprintln!("error: {} = {v}: {e}", range.path);
+                return EXIT_BAD_INPUT;
+            }
+        }
+    }
+    let name = plans[0].1.name.clone();
+    let dir: PathBuf = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| Path::new("deasim-out").join(format!("{name}-sweep")));
+    if let Err(e) = std::fs::create_dir_all(dir.join("plots")) {
+        eprintln!("error: cannot create {}: {e}", dir.display());
+        return EXIT_BAD_INPUT;
+    }
+    let workers = jobs
+        .unwrap_or_else(|| default_jobs(&plans[0].1))
+        .clamp(1, plans.len());
+    eprintln!(
+        "deasim sweep: `{name}`, {} = {} values, {workers} run(s) at a time; output in {}",
+        range.path,
+        plans.len(),
+        dir.display()
+    );
+    let _ = ctrlc::set_handler(|| {
+        if crate::solve::interrupt::request() {
+            std::process::exit(crate::app::EXIT_INTERRUPTED);
+        }
+    });
+    let queue = Mutex::new(plans.into_iter().enumerate().collect::<Vec<_>>());
+    let results: Mutex<Vec<(usize, Outcome)>> = Mutex::new(Vec::new());
+    std::thread::scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|| loop {
+                let Some((i, (value, plan))) = queue.lock().map(|mut q| q.pop()).ok().flatten()
+                else {
+                    break;
+                };
+                let outcome = run_one(&dir, i, value, &plan);
+                eprintln!(
+                    "  run {i}: {} = {value:e}: {}",
+                    range.path,
+                    if outcome.converged {
+                        "converged"
+                    } else {
+                        "FAILED"
+                    }
+                );
+                if let Ok(mut r) = results.lock() {
+                    r.push((i, outcome));
+                }
+            });
+        }
+    });
+    let mut results = results.into_inner().unwrap_or_default();
+    results.sort_by_key(|r| r.0);
+    let plan = match load(scenario, overrides) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
+    let outcomes: Vec<Outcome> = results.into_iter().map(|r| r.1).collect();
+    if let Err(e) = write_table(&dir, &plan, &range, &outcomes, log) {
+        eprintln!("error: {e}");
+        return EXIT_SOLVE_FAILED;
+    }
+    let failed: Vec<String> = outcomes
+        .iter()
+        .filter(|o| !o.converged)
+        .map(|o| {
+            format!(
+                "{} = {:e}: {}",
+                range.path,
+                o.value,
+                o.error.as_deref().unwrap_or("")
+            )
+        })
+        .collect();
+    if failed.is_empty() {
+        EXIT_OK
+    } else {
+        for f in &failed {
+            eprintln!("error: {f}");
+        }
+        EXIT_SOLVE_FAILED
+    }
+}
+
+/// Runs the sweep's run `i` into `dir/runs/<i>/`.
+fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan) -> Outcome {
+    let run_dir = dir.join(format!("runs/{i:03}"));
+    let failed = |e: String| Outcome {
+        value,
+        converged: false,
+        error: Some(e),
+        figures: Vec::new(),
+    };
+    if let Err(e) = OutputWriter::check_directory(&run_dir, &plan.name, true) {
+        return failed(e);
+    }
+    let mut writer = match OutputWriter::new(&run_dir) {
+        Ok(w) => w,
+        Err(e) => return failed(format!("{}: {e}", run_dir.display())),
+    };
+    let mut obs = Collect {
+        writer: &mut writer,
+        records: Vec::new(),
+    };
+    let summary = run(plan, &NewtonSettings::default(), &mut obs);
+    Outcome {
+        value,
+        converged: summary.converged,
+        error: summary.error,
+        figures: figures(plan, &obs.records),
+    }
+}
+
+/// Runs at a time: the cores, limited by the available memory over a rough per-run estimate
+/// (≈ 40 kB per unknown for the tangent, its factor and the work vectors).
+fn default_jobs(plan: &Plan) -> usize {
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    let per_run = 40e3 * (plan.model.mesh.n_nodes() * 4) as f64 + 50e6;
+    let available = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("MemAvailable:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|kb| kb.parse::<f64>().ok())
+        })
+        .map(|kb| kb * 1024.0)
+        .unwrap_or(2e9);
+    cores.min((0.8 * available / per_run).floor().max(1.0) as usize)
+}
+
+/// Writes `sweep.csv` and one plot per probe; prints the table.
+fn write_table(
+    dir: &Path,
+    plan: &Plan,
+    range: &Range,
+    outcomes: &[Outcome],
+    log: bool,
+) -> Result<(), String> {
+    let mut csv = format!("{},converged", range.path);
+    for (name, _) in &plan.probes {
+        let _ = write!(csv, ",{name}:final,{name}:max,{name}:peak_to_peak");
+    }
+    csv.push('\n');
+    for o in outcomes {
+        let _ = write!(csv, "{:e},{}", o.value, o.converged);
+        for i in 0..plan.probes.len() {
+            match o.figures.get(i) {
+                Some(f) => {
+                    let _ = write!(csv, ",{:e},{:e},{:e}", f.last, f.max, f.peak_to_peak);
+                }
+                None => csv.push_str(",NaN,NaN,NaN"),
+            }
+        }
+        csv.push('\n');
+    }
+    write_atomic(&dir.join("sweep.csv"), csv.as_bytes())
+        .map_err(|e| format!("{}: {e}", dir.join("sweep.csv").display()))?;
+    print!("{csv}");
+    let x: Vec<f64> = outcomes
+        .iter()
+        .map(|o| if log { o.value.log10() } else { o.value })
+        .collect();
+    let x_label = if log {
+        format!("log10 {}", range.path)
+    } else {
+        range.path.clone()
+    };
+    let ext = &plan.output.plot_format;
+    for (i, (name, _)) in plan.probes.iter().enumerate() {
+        let pick = |f: fn(&ProbeFigures) -> f64| -> Vec<f64> {
+            outcomes
+                .iter()
+                .map(|o| o.figures.get(i).map(f).unwrap_or(f64::NAN))
+                .collect()
+        };
+        let mut series = vec![
+            Series {
+                label: "final".into(),
+                x: x.clone(),
+                y: pick(|f| f.last),
+            },
+            Series {
+                label: "maximum".into(),
+                x: x.clone(),
+                y: pick(|f| f.max),
+            },
+        ];
+        let pp = pick(|f| f.peak_to_peak);
+        if pp.iter().any(|v| v.is_finite()) {
+            series.push(Series {
+                label: "steady peak-to-peak".into(),
+                x: x.clone(),
+                y: pp,
+            });
+        }
+        let path = dir.join(format!("plots/sweep_{name}.{ext}"));
+        let title = format!("{name} against {}", range.path);
+        if let Err(e) = line_plot(
+            &path,
+            &PlotSpec {
+                title: &title,
+                x_label: &x_label,
+                y_label: name,
+                series: &series,
+            },
+        ) {
+            eprintln!("warning: {e}");
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_parse_and_reject() {
+        let r = parse_range("electrodes.top.voltage.amplitude=0:5000:6", false).unwrap();
+        assert_eq!(r.path, "electrodes.top.voltage.amplitude");
+        assert_eq!(r.values, vec![0.0, 1000.0, 2000.0, 3000.0, 4000.0, 5000.0]);
+        let r = parse_range("f=1:1e4:5", true).unwrap();
+        for (v, e) in r.values.iter().zip([1.0, 10.0, 100.0, 1000.0, 1e4]) {
+            assert!((v - e).abs() < 1e-9 * e);
+        }
+        assert_eq!(
+            parse_range("a=1,2.5", false).unwrap().values,
+            vec![1.0, 2.5]
+        );
+        for bad in [
+            "a",
+            "a=1:2",
+            "a=1:2:0",
+            "a=x:2:3",
+            "a=nan:1:2",
+            "a=1:2:3:4",
+            "a=",
+        ] {
+            assert!(parse_range(bad, false).is_err(), "{bad}");
+        }
+        assert!(parse_range("a=0:10:3", true).is_err());
+    }
+}
