@@ -4,7 +4,7 @@
 
 use super::atomic::write_atomic;
 use super::build::Plan;
-use super::plot::{line_plot, PlotSpec, Series};
+use super::plot::{line_plot, stacked_plot, PlotSpec, Series};
 use super::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuPiece};
 use crate::analysis::run::{Observer, RunSummary, StepRecord};
 use crate::element::CellFields;
@@ -327,6 +327,55 @@ impl OutputWriter {
             };
             if let Err(e) = line_plot(&path, &spec) {
                 self.errors.push(e.to_string());
+            }
+        }
+        // dynamic stages: every probe above the voltage, over the stage only
+        for stage in &plan.stages {
+            if !matches!(stage.kind, crate::io::build::StageKind::Dynamic { .. }) {
+                continue;
+            }
+            let rows: Vec<&StepRecord> = self
+                .records
+                .iter()
+                .filter(|r| r.stage == stage.name)
+                .collect();
+            if rows.len() < 2 {
+                continue;
+            }
+            let t: Vec<f64> = rows.iter().map(|r| r.time).collect();
+            let voltage = Series {
+                label: "voltage".into(),
+                x: t.clone(),
+                y: rows.iter().map(|r| r.voltage).collect(),
+            };
+            for (i, (name, _)) in plan.probes.iter().enumerate() {
+                let probe = Series {
+                    label: name.clone(),
+                    x: t.clone(),
+                    y: rows.iter().map(|r| r.probes[i]).collect(),
+                };
+                let title = format!("{name} in stage {}", stage.name);
+                let path = self
+                    .dir
+                    .join("plots")
+                    .join(format!("{}_{name}_and_voltage.{ext}", stage.name));
+                let panels = [
+                    PlotSpec {
+                        title: &title,
+                        x_label: "time [s]",
+                        y_label: name,
+                        series: std::slice::from_ref(&probe),
+                    },
+                    PlotSpec {
+                        title: "largest electrode voltage",
+                        x_label: "time [s]",
+                        y_label: "voltage [V]",
+                        series: std::slice::from_ref(&voltage),
+                    },
+                ];
+                if let Err(e) = stacked_plot(&path, &panels) {
+                    self.errors.push(e.to_string());
+                }
             }
         }
     }

@@ -95,6 +95,12 @@ enum Format {
 /// one finite point must remain. A constant series or a single point gets a padded range;
 /// a series reduced to a single point is drawn as a marker.
 pub fn line_plot(path: &Path, spec: &PlotSpec) -> Result<(), PlotError> {
+    stacked_plot(path, std::slice::from_ref(spec))
+}
+
+/// Draws each spec in its own panel, one above the other (500 px each), on a common x range:
+/// e.g. a response and the voltage that drives it. Rules as for [`line_plot`].
+pub fn stacked_plot(path: &Path, specs: &[PlotSpec]) -> Result<(), PlotError> {
     let format = match path
         .extension()
         .and_then(|e| e.to_str())
@@ -109,8 +115,23 @@ pub fn line_plot(path: &Path, spec: &PlotSpec) -> Result<(), PlotError> {
             })
         }
     };
-    let curves = prepare(path, spec)?;
-    let (x_range, y_range) = ranges(path, &curves)?;
+    if specs.is_empty() {
+        return Err(PlotError::NoData {
+            path: path.to_path_buf(),
+            reason: "no panel".to_string(),
+        });
+    }
+    let mut panels = Vec::with_capacity(specs.len());
+    for spec in specs {
+        let curves = prepare(path, spec)?;
+        let r = ranges(path, &curves)?;
+        panels.push((spec, curves, r));
+    }
+    let x_range = panels
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
+            (a.0.min(p.2 .0 .0), a.1.max(p.2 .0 .1))
+        });
     ensure_font().map_err(|reason| PlotError::Font {
         path: path.to_path_buf(),
         reason,
@@ -119,13 +140,14 @@ pub fn line_plot(path: &Path, spec: &PlotSpec) -> Result<(), PlotError> {
         path: path.to_path_buf(),
         reason,
     };
+    let height = HEIGHT * specs.len() as u32;
 
     match format {
         Format::Svg => {
             let mut svg = String::new();
             {
-                let root = SVGBackend::with_string(&mut svg, (WIDTH, HEIGHT)).into_drawing_area();
-                draw(root, spec, &curves, x_range, y_range).map_err(drawing_err)?;
+                let root = SVGBackend::with_string(&mut svg, (WIDTH, height)).into_drawing_area();
+                draw_panels(root, &panels, x_range).map_err(drawing_err)?;
             }
             write_atomic(path, svg.as_bytes()).map_err(|source| PlotError::Io {
                 path: path.to_path_buf(),
@@ -138,8 +160,8 @@ pub fn line_plot(path: &Path, spec: &PlotSpec) -> Result<(), PlotError> {
                 source,
             })?;
             let drawn = {
-                let root = BitMapBackend::new(&tmp, (WIDTH, HEIGHT)).into_drawing_area();
-                draw(root, spec, &curves, x_range, y_range)
+                let root = BitMapBackend::new(&tmp, (WIDTH, height)).into_drawing_area();
+                draw_panels(root, &panels, x_range)
                 // The backend is dropped here; on failure its drop may still save a file.
             };
             if let Err(reason) = drawn {
@@ -152,6 +174,25 @@ pub fn line_plot(path: &Path, spec: &PlotSpec) -> Result<(), PlotError> {
             })
         }
     }
+}
+
+/// A panel: its spec, its curves and its (x, y) ranges.
+type Panel<'a, 's> = (&'a PlotSpec<'s>, Vec<Curve<'s>>, (Range, Range));
+
+/// Draws the panels top to bottom on the common x range.
+fn draw_panels<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    panels: &[Panel],
+    x_range: Range,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let areas = root.split_evenly((panels.len(), 1));
+    for (area, (spec, curves, (_, y_range))) in areas.into_iter().zip(panels) {
+        draw(area, spec, curves, x_range, *y_range)?;
+    }
+    Ok(())
 }
 
 /// A series reduced to its finite points.
