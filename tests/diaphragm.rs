@@ -371,3 +371,37 @@ fn sweep_over_the_voltage() {
     assert_eq!(bad.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A dielectric strength below the 3 kV field (≈ 1.2e7 V/m): a warning naming the time, the
+/// material and the place; with `stop_at_breakdown` the run stops there, unconverged, with the
+/// reason, and records nothing after the step that broke down.
+#[test]
+fn breakdown_is_reported_and_can_stop_the_run() {
+    let text = example("diaphragm").unwrap();
+    let mut sets: Vec<String> = COARSE.iter().map(|s| s.to_string()).collect();
+    sets.push("materials.vhb.breakdown_field=1e7".into());
+    sets.push("stages.1.duration=0.02".into());
+    sets.push("stages.1.dt=2e-3".into());
+    let refs: Vec<&str> = sets.iter().map(|s| s.as_str()).collect();
+    let (records, _, summary) = run_with(text, &refs);
+    let warning = summary
+        .warnings
+        .iter()
+        .find(|w| w.contains("dielectric breakdown"))
+        .unwrap_or_else(|| panic!("{:?}", summary.warnings));
+    println!("{warning}");
+    assert!(warning.contains("material `vhb`") && warning.contains("t = 1.002"));
+    assert_eq!(records.last().unwrap().time, 1.02);
+
+    sets.push("materials.vhb.stop_at_breakdown=true".into());
+    let scenario = parse(text, "t.toml", &sets).unwrap();
+    let plan = build(&scenario, "t.toml", None).unwrap();
+    let mut rec = Records::default();
+    let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+    assert!(!summary.converged);
+    let error = summary.error.unwrap();
+    assert!(error.contains("stopped on dielectric breakdown"), "{error}");
+    let last = rec.0.last().unwrap();
+    assert_eq!(last.stage, "actuate");
+    assert!((last.time - 1.002).abs() < 1e-12, "{}", last.time);
+}

@@ -229,7 +229,7 @@ impl Recorder<'_> {
             self.broken_down[m] = true;
             let centre = plan.model.mesh.cell_centroid(c);
             let message = format!(
-                "dielectric breakdown: true field {:.4e} V/m exceeds the strength {:.4e} V/m of                  material `{}` at t = {:.6} s (stage `{stage}`), cell {c} at ({:.4e}, {:.4e},                  {:.4e}) m",
+                "dielectric breakdown: true field {:.4e} V/m exceeds the strength {:.4e} V/m of material `{}` at t = {:.6} s (stage `{stage}`), cell {c} at ({:.4e}, {:.4e}, {:.4e}) m",
                 f.e_max,
                 strength,
                 plan.material_names[m],

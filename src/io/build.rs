@@ -1095,7 +1095,7 @@ fn build_loads(
                 return Err(ctx.err(
                     format!("{key}.set"),
                     format!(
-                        "`{}` contains nodes with a prescribed non-zero displacement (a                          constraint or the pre-stretch): a rigid region can only be held or free",
+                        "`{}` contains nodes with a prescribed non-zero displacement (a constraint or the pre-stretch): a rigid region can only be held or free",
                         r.set
                     ),
                 ));
