@@ -267,8 +267,11 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
             for e in &plan.electrodes {
                 println!("electrode `{}`: {} nodes", e.name, e.nodes.len());
             }
-            if let Some(steps) = plan.prestretch_steps {
-                println!("pre-stretch: {steps} load steps before the first stage");
+            if let Some(p) = plan.prestretch {
+                println!(
+                    "pre-stretch: equibiaxial {} before the first stage (fallback ramp: {} steps)",
+                    p.stretch, p.steps
+                );
             }
             let g = plan
                 .model

@@ -86,6 +86,8 @@ struct Recorder<'p> {
     prev_state: Vec<f64>,
     boundary_work: f64,
     initial_potential: Option<f64>,
+    /// The energy total of the last record (J, meshed part).
+    last_total: f64,
     /// Nodal forces of the tractions at full value (empty without tractions).
     traction: Vec<f64>,
     /// Nodal forces of gravity and attached masses at full value (empty without).
@@ -154,6 +156,7 @@ impl<'p> Recorder<'p> {
         }
         self.prev_factor = self.external_factor;
         let total = kinetic + stored - electric + gravity + dissipated;
+        self.last_total = total;
         let initial = *self.initial_potential.get_or_insert(total);
         let energy_error = total - initial - self.boundary_work - self.load_change_work;
         let voltages: Vec<(&[usize], f64)> = self
@@ -214,6 +217,13 @@ impl<'p> Recorder<'p> {
 }
 
 impl Recorder<'_> {
+    /// Starts the energy balance afresh from the last recorded state.
+    fn rebase(&mut self) {
+        self.initial_potential = Some(self.last_total);
+        self.boundary_work = 0.0;
+        self.load_change_work = 0.0;
+    }
+
     /// Warns (once per material) where the true field first exceeds a material's dielectric
     /// strength, and asks the driver to stop when the plan says so.
     fn check_breakdown(&mut self, fields: &[CellFields], time: f64, stage: &str) {
@@ -283,6 +293,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         prev_state: Vec::new(),
         boundary_work: 0.0,
         initial_potential: None,
+        last_total: 0.0,
         traction: if plan.model.tractions.is_empty() {
             Vec::new()
         } else {
@@ -340,12 +351,12 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     break;
                 }
             }
-            if let Some(steps) = plan.prestretch_steps {
+            if let Some(p) = plan.prestretch {
                 match prestretch(
                     plan,
                     &model,
                     &state,
-                    steps,
+                    p,
                     newton,
                     &mut rec,
                     &stage.name,
@@ -602,16 +613,19 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
 }
 
 /// The pre-stretch phase before the first stage: the supports (which hold the pre-stretch targets)
-/// are ramped in `steps` load steps with the electrodes at the first stage's initial voltages, without the
-/// dead loads and with the rigid regions free (the pad is attached to the stretched membrane).
-/// Steps are recorded under the first stage's name, at time 0, with deflections measured from
-/// the current state. Returns the state, the number of recorded steps and the Newton iterations.
+/// are imposed with the electrodes at the first stage's initial voltages, without the dead loads
+/// and with the rigid regions free (the pad is attached to the stretched membrane). The solve
+/// starts from the homogeneous equibiaxial state of the first material (exact for a uniform
+/// membrane: one step, a few iterations); if that fails, the supports are ramped from the start
+/// in `steps` load steps. Steps are recorded under the first stage's name at time 0, deflections
+/// measured from the current state, and the energy balance starts afresh from the pre-stretched
+/// state. Returns the state, the number of recorded steps and the Newton iterations.
 #[allow(clippy::too_many_arguments)]
 fn prestretch(
     plan: &Plan,
     model: &crate::model::Model,
     state: &[f64],
-    steps: usize,
+    p: crate::io::build::Prestretch,
     newton: &NewtonSettings,
     rec: &mut Recorder,
     stage: &str,
@@ -635,42 +649,68 @@ fn prestretch(
         });
     }
     let prescribed = constrained_flags(model.mesh.n_nodes(), &pre.dirichlet);
-    let control = StepControl {
-        steps,
-        ..Default::default()
-    };
     let mut step_no = 0;
     let mut record_error = None;
-    let outcome = solve_static(&pre, Some(state.to_vec()), &control, newton, |p, acc| {
+    let mut record = |rec: &mut Recorder, s: &[f64], iterations: usize| {
         step_no += 1;
         rec.external_factor = 0.0;
-        rec.reference = p.state.clone();
-        match rec.record(
-            &p.state,
-            &prescribed,
-            0.0,
-            stage,
-            step_no,
-            acc.newton.iterations,
-            0.0,
-            0.0,
-            0.0,
-        ) {
-            Ok((r, f)) => observer.step(plan, &r, &p.state, &f),
+        rec.reference = s.to_vec();
+        match rec.record(s, &prescribed, 0.0, stage, step_no, iterations, 0.0, 0.0, 0.0) {
+            Ok((r, f)) => observer.step(plan, &r, s, &f),
             Err(e) => {
                 record_error.get_or_insert(e);
             }
         }
-    });
+    };
+    // the homogeneous guess
+    let thickness = crate::material::homogeneous::solve(
+        model.materials[0].as_ref(),
+        crate::material::homogeneous::Mode::Equibiaxial,
+        p.stretch,
+    )
+    .map(|h| h.lateral)
+    .unwrap_or(1.0 / (p.stretch * p.stretch));
+    let mut guess = state.to_vec();
+    for (n, x) in model.mesh.nodes.iter().enumerate() {
+        guess[n * FIELDS] = (p.stretch - 1.0) * x[0];
+        guess[n * FIELDS + 1] = (p.stretch - 1.0) * x[1];
+        guess[n * FIELDS + 2] = (thickness - 1.0) * x[2];
+    }
+    crate::dofs::apply_dirichlet(&mut guess, &pre.dirichlet);
+    let one = StepControl {
+        steps: 1,
+        min_fraction: 1.0,
+        ..Default::default()
+    };
+    let direct = solve_static(&pre, Some(guess), &one, newton, |_, _| {});
+    let (final_state, iterations) = match direct.result {
+        Ok(r) => {
+            record(rec, &direct.state, r.newton_iterations);
+            (direct.state, r.newton_iterations)
+        }
+        Err(_) => {
+            let control = StepControl {
+                steps: p.steps,
+                ..Default::default()
+            };
+            let ramped = solve_static(&pre, Some(state.to_vec()), &control, newton, |q, acc| {
+                record(rec, &q.state, acc.newton.iterations)
+            });
+            match ramped.result {
+                Ok(r) => (ramped.state, r.newton_iterations),
+                Err(f) => {
+                    return Err(format!(
+                        "pre-stretch failed at load factor {:.6} (last converged {:.6}): {}",
+                        f.attempted, f.last_converged, f.reason
+                    ))
+                }
+            }
+        }
+    };
     if let Some(e) = record_error {
         rec.warnings
             .push(format!("pre-stretch: output evaluation failed: {e}"));
     }
-    match outcome.result {
-        Ok(r) => Ok((outcome.state, step_no, r.newton_iterations)),
-        Err(f) => Err(format!(
-            "pre-stretch failed at load factor {:.6} (last converged {:.6}): {}",
-            f.attempted, f.last_converged, f.reason
-        )),
-    }
+    rec.rebase();
+    Ok((final_state, step_no, iterations))
 }

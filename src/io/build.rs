@@ -92,8 +92,8 @@ pub struct Plan {
     pub rigid: Vec<Rigid>,
     /// Names of the materials, in `model.materials` order.
     pub material_names: Vec<String>,
-    /// Load steps of the pre-stretch phase that runs before the first stage (none: no pre-stretch).
-    pub prestretch_steps: Option<usize>,
+    /// The pre-stretch phase that runs before the first stage, if any.
+    pub prestretch: Option<Prestretch>,
     /// Copies of the meshed part that make the physical device (4 for a quarter disc): global
     /// probes (charge, capacitance, reaction, energies) are multiplied by it.
     pub symmetry_factor: f64,
@@ -101,6 +101,14 @@ pub struct Plan {
     pub breakdown: Vec<Option<f64>>,
     /// Stop at the first step whose true field exceeds a material's strength.
     pub stop_at_breakdown: bool,
+}
+
+/// An equibiaxial in-plane pre-stretch of the body, imposed on a set (the rim).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prestretch {
+    pub stretch: f64,
+    /// Load steps of the fallback ramp (when the homogeneous guess does not converge).
+    pub steps: usize,
 }
 
 /// A rigid region of the plan.
@@ -790,7 +798,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             1.0
         };
     let rigid = build_loads(&ctx, s, &mut model, &supports, symmetry_factor)?;
-    let prestretch_steps = match &s.prestretch {
+    let prestretch = match &s.prestretch {
         Some(p) => {
             let n = p.steps.unwrap_or(4);
             if !(1..=100_000).contains(&n) {
@@ -799,7 +807,10 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
                     format!("must be between 1 and 100000; got {n}"),
                 ));
             }
-            Some(n as usize)
+            Some(Prestretch {
+                stretch: p.stretch,
+                steps: n as usize,
+            })
         }
         None => None,
     };
@@ -1024,7 +1035,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         warnings,
         rigid,
         material_names: s.materials.keys().cloned().collect(),
-        prestretch_steps,
+        prestretch,
         symmetry_factor,
         breakdown,
         stop_at_breakdown,

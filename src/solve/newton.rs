@@ -46,6 +46,9 @@ pub struct NewtonSettings {
     pub reuse_factorization: bool,
 }
 
+/// Residuals up to this multiple of the system's floor count as converged once they stagnate.
+const ROUNDOFF_BAND: f64 = 100.0;
+
 impl Default for NewtonSettings {
     fn default() -> Self {
         NewtonSettings {
@@ -53,7 +56,8 @@ impl Default for NewtonSettings {
             rtol: 1e-10,
             max_backtracks: 6,
             check_stability: true,
-            verbose: false,
+            // a table of every iteration on stderr (for diagnosing a failing solve)
+            verbose: std::env::var_os("DEASIM_NEWTON_VERBOSE").is_some(),
             reuse_factorization: false,
         }
     }
@@ -138,6 +142,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
     let mut residuals = vec![r0];
     let mut rn = r0;
     if settings.verbose {
+        eprintln!("    tolerance {tol:.3e} (floor {floor:.3e})");
         eprintln!(
             "    it   |r|         |r|/|r0|    |r_u|       |r_phi|     |dx_u|      |dx_phi|  alpha"
         );
@@ -150,6 +155,12 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
     let mut iteration = 0;
     let mut refactor = !reuse || !solver.is_factored();
     while rn > tol {
+        // round-off plateau: within ROUNDOFF_BAND of the floor and no longer halving over two
+        // iterations; the floor's round-off estimate is a few times off on distorted meshes
+        let n_res = residuals.len();
+        if n_res >= 3 && rn <= ROUNDOFF_BAND * floor && rn > 0.5 * residuals[n_res - 3] {
+            break;
+        }
         if iteration >= settings.max_iterations {
             return Err(NewtonError::MaxIterations {
                 iterations: iteration,
