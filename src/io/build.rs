@@ -9,6 +9,7 @@ use crate::element_fbar::Formulation;
 use crate::material::registry::{self, MaterialParams};
 use crate::material::Material;
 use crate::mesh::disc::{disc_mesh, DiscSpec};
+use crate::mesh::stack::{stack_mesh, StackSpec};
 use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
 use crate::model::Model;
 use crate::time::mass::MassKind;
@@ -94,7 +95,7 @@ pub struct Plan {
     pub material_names: Vec<String>,
     /// The pre-stretch phase that runs before the first stage, if any.
     pub prestretch: Option<Prestretch>,
-    /// Copies of the meshed part that make the physical device (4 for a quarter disc): global
+    /// Copies of the meshed part that make the physical device (4 for a quarter disc or stack): global
     /// probes (charge, capacitance, reaction, energies) are multiplied by it.
     pub symmetry_factor: f64,
     /// Dielectric strength (V/m) of each material, if given.
@@ -205,22 +206,28 @@ fn build_mesh(
     if m.scale.is_some() {
         return Err(ctx.err("mesh.scale", "applies to meshes read from a `file` only"));
     }
-    let generator = m
-        .generator
-        .as_deref()
-        .ok_or_else(|| ctx.err("mesh.generator", "missing: expected `box` (or a `file`)"))?;
-    if generator != "box" && generator != "disc" {
-        let hint = closest(generator, ["box", "disc"])
+    let generator = m.generator.as_deref().ok_or_else(|| {
+        ctx.err(
+            "mesh.generator",
+            "missing: expected `box`, `disc` or `stack` (or a `file`)",
+        )
+    })?;
+    if !["box", "disc", "stack"].contains(&generator) {
+        let hint = closest(generator, ["box", "disc", "stack"])
             .map(|c| format!("; did you mean `{c}`?"))
             .unwrap_or_default();
         return Err(ctx.err(
             "mesh.generator",
-            format!("unknown generator `{generator}`: expected `box` or `disc`{hint}"),
+            format!("unknown generator `{generator}`: expected `box`, `disc` or `stack`{hint}"),
         ));
     }
+    reject_foreign_keys(ctx, m, generator)?;
     let kind = element_kind(ctx, m.element.as_deref().unwrap_or("hex8"))?;
     if generator == "disc" {
         return Ok((build_disc(ctx, m, kind)?, Vec::new()));
+    }
+    if generator == "stack" {
+        return Ok((build_stack(ctx, m, kind)?, Vec::new()));
     }
     let size = m
         .size
@@ -262,6 +269,55 @@ fn build_mesh(
     ))
 }
 
+/// Keys of the `stack` generator (the other generators reject them).
+const STACK_KEYS: [&str; 6] = [
+    "side",
+    "films",
+    "film_thickness",
+    "border",
+    "layers_per_film",
+    "active_cells",
+];
+
+/// Rejects a stack key given to `box` or `disc`, and a `box` or `disc` key given to `stack`.
+fn reject_foreign_keys(
+    ctx: &Ctx,
+    m: &super::scenario::MeshSpec,
+    generator: &str,
+) -> Result<(), InputError> {
+    let given = [
+        ("size", m.size.is_some()),
+        ("divisions", m.divisions.is_some()),
+        ("radius", m.radius.is_some()),
+        ("thickness", m.thickness.is_some()),
+        ("pad_radius", m.pad_radius.is_some()),
+        ("electrode_radius", m.electrode_radius.is_some()),
+        ("radial", m.radial.is_some()),
+        ("layers", m.layers.is_some()),
+        ("side", m.side.is_some()),
+        ("films", m.films.is_some()),
+        ("film_thickness", m.film_thickness.is_some()),
+        ("border", m.border.is_some()),
+        ("layers_per_film", m.layers_per_film.is_some()),
+        ("active_cells", m.active_cells.is_some()),
+    ];
+    for (key, is_given) in given {
+        let stack_key = STACK_KEYS.contains(&key);
+        if is_given && stack_key != (generator == "stack") {
+            let owner = if stack_key {
+                "`stack`"
+            } else {
+                "`box` or `disc`"
+            };
+            return Err(ctx.err(
+                format!("mesh.{key}"),
+                format!("applies to the {owner} generator, not to `generator = \"{generator}\"`"),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// `mesh.file`: a Gmsh mesh, its path relative to the scenario file.
 fn build_file_mesh(
     ctx: &Ctx,
@@ -281,6 +337,12 @@ fn build_file_mesh(
         ("layers", m.layers.is_some()),
         ("quarter", m.quarter.is_some()),
         ("grading", m.grading.is_some()),
+        ("side", m.side.is_some()),
+        ("films", m.films.is_some()),
+        ("film_thickness", m.film_thickness.is_some()),
+        ("border", m.border.is_some()),
+        ("layers_per_film", m.layers_per_film.is_some()),
+        ("active_cells", m.active_cells.is_some()),
     ];
     if let Some((k, _)) = generator_keys.iter().find(|(_, given)| *given) {
         return Err(ctx.err(
@@ -381,6 +443,102 @@ fn build_disc(
         ));
     }
     disc_mesh(&spec).map_err(|e| ctx.err("mesh", e))
+}
+
+/// The `stack` generator: `films` films with electrodes `electrode_0` … `electrode_N` on every
+/// interface, a passive `border`, cells graded toward the electrode edges (see
+/// [`crate::mesh::stack`]).
+fn build_stack(
+    ctx: &Ctx,
+    m: &super::scenario::MeshSpec,
+    kind: ElementKind,
+) -> Result<Mesh, InputError> {
+    let side = match m.side.as_ref().map(|s| s.to_vec()) {
+        None => {
+            return Err(ctx.err(
+                "mesh.side",
+                "missing: expected the side length in m, or [lx, ly]",
+            ))
+        }
+        Some(v) if v.len() == 1 => [v[0], v[0]],
+        Some(v) if v.len() == 2 => [v[0], v[1]],
+        Some(v) => {
+            return Err(ctx.err(
+                "mesh.side",
+                format!(
+                    "expected one side length or [lx, ly] in m; got {} values",
+                    v.len()
+                ),
+            ))
+        }
+    };
+    for (i, v) in side.iter().enumerate() {
+        ctx.positive(&format!("mesh.side.{i}"), Some(*v), "side length in m")?;
+    }
+    let film_thickness = ctx.positive(
+        "mesh.film_thickness",
+        m.film_thickness,
+        "film thickness in m",
+    )?;
+    let films = m
+        .films
+        .ok_or_else(|| ctx.err("mesh.films", "missing: expected the number of films (≥ 1)"))?;
+    let border = m.border.ok_or_else(|| {
+        ctx.err(
+            "mesh.border",
+            "missing: expected the passive border width in m",
+        )
+    })?;
+    let half = 0.5 * side[0].min(side[1]);
+    if !(border.is_finite() && border >= 0.0 && border < half) {
+        return Err(ctx.err(
+            "mesh.border",
+            format!("must lie in [0, {half}) m (half the shorter side); got {border}"),
+        ));
+    }
+    for (key, value, range) in [
+        ("films", films, 1..=1000),
+        ("layers_per_film", m.layers_per_film.unwrap_or(2), 1..=100),
+        ("active_cells", m.active_cells.unwrap_or(8), 1..=2000),
+    ] {
+        if !range.contains(&value) {
+            return Err(ctx.err(
+                format!("mesh.{key}"),
+                format!(
+                    "must be between {} and {}; got {value}",
+                    range.start(),
+                    range.end()
+                ),
+            ));
+        }
+    }
+    let grading = m.grading.unwrap_or(1.0);
+    if !(grading.is_finite() && (1.0..=1e3).contains(&grading)) {
+        return Err(ctx.err(
+            "mesh.grading",
+            format!("expected a size ratio between 1 and 1000; got {grading}"),
+        ));
+    }
+    let spec = StackSpec {
+        side,
+        films: films as usize,
+        film_thickness,
+        border,
+        layers_per_film: m.layers_per_film.unwrap_or(2) as usize,
+        active_cells: m.active_cells.unwrap_or(8) as usize,
+        grading,
+        quarter: m.quarter.unwrap_or(true),
+        kind,
+    };
+    let layout = spec.layout().map_err(|e| ctx.err("mesh", e))?;
+    let cells = layout.hexahedra as u64 * if kind == ElementKind::Hex8 { 1 } else { 6 };
+    if cells > MAX_CELLS {
+        return Err(ctx.err(
+            "mesh.active_cells",
+            format!("{cells} cells: too large for this machine's memory"),
+        ));
+    }
+    stack_mesh(&spec).map_err(|e| ctx.err("mesh", e))
 }
 
 fn build_material(
@@ -791,12 +949,13 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             }
         }
     }
-    let symmetry_factor =
-        if s.mesh.generator.as_deref() == Some("disc") && s.mesh.quarter != Some(false) {
-            4.0
-        } else {
-            1.0
-        };
+    let symmetry_factor = if matches!(s.mesh.generator.as_deref(), Some("disc" | "stack"))
+        && s.mesh.quarter != Some(false)
+    {
+        4.0
+    } else {
+        1.0
+    };
     let rigid = build_loads(&ctx, s, &mut model, &supports, symmetry_factor)?;
     let prestretch = match &s.prestretch {
         Some(p) => {

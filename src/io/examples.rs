@@ -13,6 +13,11 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../../scenarios/film-vibration.toml"),
     ),
     ("diaphragm", include_str!("../../scenarios/diaphragm.toml")),
+    ("stack", include_str!("../../scenarios/stack.toml")),
+    (
+        "stack-blocked",
+        include_str!("../../scenarios/stack-blocked.toml"),
+    ),
 ];
 
 /// The scenario `deasim run` uses without a file.

@@ -124,7 +124,7 @@ pub struct RigidSpec {
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MeshSpec {
-    /// `box`.
+    /// `box`, `disc` or `stack`.
     #[serde(default)]
     pub generator: Option<String>,
     /// A Gmsh `.msh` file (MSH 4.1 ASCII or binary, 2.2 ASCII), relative to the scenario file.
@@ -157,12 +157,31 @@ pub struct MeshSpec {
     /// `disc`: cells through the thickness (default 1).
     #[serde(default)]
     pub layers: Option<u64>,
-    /// `disc`: a quarter disc with symmetry faces (default true) or the full disc.
+    /// `disc`, `stack`: a quarter model with symmetry faces (default true) or the full device.
     #[serde(default)]
     pub quarter: Option<bool>,
-    /// `disc`: outer/inner radial cell size ratio of the annulus (default 1).
+    /// `disc`: outer/inner radial cell size ratio of the annulus (default 1); `stack`:
+    /// largest/smallest in-plane cell size across the active half-width (default 1).
     #[serde(default)]
     pub grading: Option<f64>,
+    /// `stack`: in-plane edge length of the square device (m), or `[Lx, Ly]`.
+    #[serde(default)]
+    pub side: Option<Numbers>,
+    /// `stack`: number of elastomer films.
+    #[serde(default)]
+    pub films: Option<u64>,
+    /// `stack`: thickness of one film (m).
+    #[serde(default)]
+    pub film_thickness: Option<f64>,
+    /// `stack`: width of the passive border between the electrode edges and the sides (m).
+    #[serde(default)]
+    pub border: Option<f64>,
+    /// `stack`: cells through each film (default 2).
+    #[serde(default)]
+    pub layers_per_film: Option<u64>,
+    /// `stack`: cells from the centre to the electrode edge along x and y (default 8).
+    #[serde(default)]
+    pub active_cells: Option<u64>,
     /// Element formulation: `standard` (default) or `mean-dilatation` (locking-free hex8 for
     /// nearly incompressible materials).
     #[serde(default)]
