@@ -2,6 +2,7 @@
 
 pub mod atomic;
 pub mod build;
+pub mod checkpoint;
 pub mod examples;
 pub mod output;
 pub mod plot;
