@@ -1,7 +1,9 @@
 //! The commands of the `deasim` binary. `main.rs` only parses arguments and calls these; each
 //! returns the process exit status of INTERFACE.md: 0 success, 1 the solve failed, 2 bad input.
 
-use crate::analysis::run::{run, Observer, RunSummary, StepRecord};
+use crate::analysis::run::{
+    run_with, CheckpointOptions, Observer, RunOptions, RunSummary, ScenarioSource, StepRecord,
+};
 use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};
 use crate::io::examples::{example, DEFAULT, EXAMPLES};
@@ -31,7 +33,16 @@ pub fn load_scenario(
     path: Option<&Path>,
     overrides: &[String],
 ) -> Result<(crate::io::scenario::Scenario, Plan), InputError> {
-    let (text, name, base) = match path {
+    let (text, name, base) = read_scenario(path)?;
+    let scenario = parse(&text, &name, overrides)?;
+    let plan = build(&scenario, &name, base.as_deref())?;
+    Ok((scenario, plan))
+}
+
+/// The text of a scenario file (or of the default example), the name it is read under and its
+/// directory.
+pub fn read_scenario(path: Option<&Path>) -> Result<(String, String, Option<PathBuf>), InputError> {
+    Ok(match path {
         None => (
             example(DEFAULT)
                 .expect("the default example is embedded")
@@ -75,10 +86,7 @@ pub fn load_scenario(
             })?;
             (text, name, p.parent().map(Path::to_path_buf))
         }
-    };
-    let scenario = parse(&text, &name, overrides)?;
-    let plan = build(&scenario, &name, base.as_deref())?;
-    Ok((scenario, plan))
+    })
 }
 
 /// Shows progress: a bar on a terminal, plain lines otherwise.
@@ -150,6 +158,13 @@ impl Observer for Progress {
         }
     }
 
+    fn resumed(&mut self, _plan: &Plan, records: &[StepRecord]) {
+        self.done = records.iter().filter(|r| r.step > 0).count() as u64;
+        if let Some(b) = &self.bar {
+            b.set_position(self.done.min(self.total_steps));
+        }
+    }
+
     fn finished(&mut self, _plan: &Plan, s: &RunSummary) {
         if let Some(b) = &self.bar {
             b.finish_and_clear();
@@ -178,16 +193,26 @@ impl Observer for Both<'_> {
         self.0.finished(p, s);
         self.1.finished(p, s);
     }
+    fn resumed(&mut self, p: &Plan, r: &[StepRecord]) {
+        self.0.resumed(p, r);
+        self.1.resumed(p, r);
+    }
 }
 
-/// `deasim run`.
+/// `deasim run`; with `checkpoint_every`, a checkpoint every that many accepted steps.
 pub fn cmd_run(
     scenario: Option<&Path>,
     out: Option<&Path>,
     overrides: &[String],
     overwrite: bool,
+    checkpoint_every: Option<usize>,
 ) -> i32 {
-    let plan = match load(scenario, overrides) {
+    let loaded = read_scenario(scenario).and_then(|(text, name, base)| {
+        let s = parse(&text, &name, overrides)?;
+        let plan = build(&s, &name, base.as_deref())?;
+        Ok((plan, text, name, base))
+    });
+    let (plan, text, name, base) = match loaded {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
@@ -201,7 +226,14 @@ pub fn cmd_run(
         eprintln!("error: {e}");
         return EXIT_BAD_INPUT;
     }
-    let mut writer = match OutputWriter::new(&dir) {
+    // checkpoints of an earlier run in this directory belong to other results
+    for old in crate::io::checkpoint::list(&dir) {
+        if let Err(e) = std::fs::remove_file(&old) {
+            eprintln!("error: {}: {e}", old.display());
+            return EXIT_BAD_INPUT;
+        }
+    }
+    let writer = match OutputWriter::new(&dir) {
         Ok(w) => w,
         Err(e) => {
             eprintln!(
@@ -211,13 +243,171 @@ pub fn cmd_run(
             return EXIT_BAD_INPUT;
         }
     };
+    let checkpoint = checkpoint_every.map(|every| CheckpointOptions {
+        dir: dir.clone(),
+        every,
+        source: ScenarioSource {
+            text,
+            file: name,
+            base_dir: base.map(|b| b.display().to_string()),
+            overrides: overrides.to_vec(),
+        },
+    });
+    execute(
+        &plan,
+        &dir,
+        writer,
+        RunOptions {
+            checkpoint,
+            resume: None,
+        },
+    )
+}
+
+/// `deasim run --resume DIR`: continues the run whose newest checkpoint is in `dir`, with the
+/// scenario stored in it. A scenario file or overrides given again must equal the stored ones.
+pub fn cmd_resume(
+    dir: &Path,
+    scenario: Option<&Path>,
+    overrides: &[String],
+    checkpoint_every: Option<usize>,
+) -> i32 {
+    match prepare_resume(dir, scenario, overrides, checkpoint_every) {
+        Ok((plan, options)) => {
+            let writer = match OutputWriter::new(dir) {
+                Ok(w) => w,
+                Err(e) => {
+                    eprintln!("error: {}: {e}", dir.display());
+                    return EXIT_BAD_INPUT;
+                }
+            };
+            execute(&plan, dir, writer, options)
+        }
+        Err(e) => {
+            eprintln!("error: cannot resume from {}: {e}", dir.display());
+            EXIT_BAD_INPUT
+        }
+    }
+}
+
+/// Reads the newest checkpoint of `dir` and checks it against the plan it rebuilds.
+fn prepare_resume(
+    dir: &Path,
+    scenario: Option<&Path>,
+    overrides: &[String],
+    checkpoint_every: Option<usize>,
+) -> Result<(Plan, RunOptions), String> {
+    use crate::io::checkpoint::{fingerprint, latest, StagePosition};
+    let ck = latest(dir).map_err(|e| e.to_string())?;
+    let version = env!("CARGO_PKG_VERSION");
+    if ck.deasim_version != version {
+        return Err(format!(
+            "the checkpoint was written by deasim {}, this is deasim {version}",
+            ck.deasim_version
+        ));
+    }
+    if let Some(p) = scenario {
+        let (text, _, _) = read_scenario(Some(p)).map_err(|e| e.to_string())?;
+        if text != ck.scenario_text {
+            return Err(format!(
+                "{} differs from the scenario stored in the checkpoint (`{}`); resume without a                  scenario argument to use the stored one",
+                p.display(),
+                ck.scenario_file
+            ));
+        }
+    }
+    if !overrides.is_empty() && overrides != ck.overrides.as_slice() {
+        return Err(format!(
+            "--set {} differs from the stored overrides [{}]",
+            overrides.join(" --set "),
+            ck.overrides.join(", ")
+        ));
+    }
+    if let Some(n) = checkpoint_every {
+        if n as u64 != ck.every {
+            return Err(format!(
+                "--checkpoint-every {n} differs from the interval {} of the checkpointed run",
+                ck.every
+            ));
+        }
+    }
+    let s = parse(&ck.scenario_text, &ck.scenario_file, &ck.overrides)
+        .map_err(|e| format!("stored scenario: {e}"))?;
+    let plan = build(&s, &ck.scenario_file, ck.base_dir.as_deref().map(Path::new))
+        .map_err(|e| format!("stored scenario: {e}"))?;
+    if fingerprint(&plan) != ck.fingerprint {
+        return Err(
+            "the rebuilt model does not match the checkpoint (a mesh file changed?)".to_string(),
+        );
+    }
+    let n = plan.model.mesh.n_nodes() * crate::dofs::FIELDS;
+    let stage = plan.stages.get(ck.stage as usize);
+    let kinds_match = matches!(
+        (stage.map(|s| &s.kind), &ck.position),
+        (Some(StageKind::Static { .. }), StagePosition::Static { stage_start, .. })
+            if stage_start.len() == n
+    ) || matches!(
+        (stage.map(|s| &s.kind), &ck.position),
+        (
+            Some(StageKind::Dynamic { .. }),
+            StagePosition::Dynamic { .. }
+        )
+    );
+    let sizes_match = [ck.q.len(), ck.v.len(), ck.a.len()].iter().all(|&l| l == n)
+        && ck
+            .records
+            .iter()
+            .all(|r| r.probes.len() == plan.probes.len())
+        && ck.recorder.broken_down.len() == plan.model.materials.len()
+        && ck.recorder.reference.len() == n
+        && ck.every >= 1;
+    if !kinds_match || !sizes_match {
+        return Err("the checkpoint does not match the scenario's model or stages".to_string());
+    }
+    let threads = rayon::current_num_threads() as u64;
+    if ck.threads != threads {
+        eprintln!(
+            "warning: the checkpoint was written with {} threads, this run has {threads}: the \
+             results agree to round-off, not bit for bit",
+            ck.threads
+        );
+    }
     eprintln!(
-        "deasim: scenario `{}`: {} nodes, {} {} cells, {} dofs; output in {}",
+        "deasim: resuming `{}` from step {} (stage {}, {} steps recorded)",
+        plan.name,
+        ck.accepted,
+        ck.stage,
+        ck.records.len()
+    );
+    let checkpoint = Some(CheckpointOptions {
+        dir: dir.to_path_buf(),
+        every: ck.every as usize,
+        source: ScenarioSource {
+            text: ck.scenario_text.clone(),
+            file: ck.scenario_file.clone(),
+            base_dir: ck.base_dir.clone(),
+            overrides: ck.overrides.clone(),
+        },
+    });
+    Ok((
+        plan,
+        RunOptions {
+            checkpoint,
+            resume: Some(ck),
+        },
+    ))
+}
+
+/// Runs a plan into `dir` with SIGINT/SIGTERM handling; returns the exit status.
+fn execute(plan: &Plan, dir: &Path, mut writer: OutputWriter, options: RunOptions) -> i32 {
+    eprintln!(
+        "deasim: scenario `{}`: {} nodes, {} {} cells, {} dofs; {} thread(s); output in {}",
         plan.name,
         plan.model.mesh.n_nodes(),
         plan.model.mesh.n_cells(),
         plan.model.mesh.kind.name(),
         plan.model.mesh.n_nodes() * 4,
+        rayon::current_num_threads(),
         dir.display()
     );
     // first signal: finish the current step, write the outputs, exit 130; second: stop at once
@@ -226,11 +416,12 @@ pub fn cmd_run(
             std::process::exit(EXIT_INTERRUPTED);
         }
     });
-    let mut progress = Progress::new(&plan);
-    let summary = run(
-        &plan,
+    let mut progress = Progress::new(plan);
+    let summary = run_with(
+        plan,
         &NewtonSettings::default(),
         &mut Both(&mut writer, &mut progress),
+        options,
     );
     for e in &writer.errors {
         eprintln!("warning: {e}");

@@ -29,6 +29,12 @@ enum Command {
         /// Replace the results of a different scenario found in the output directory.
         #[arg(long)]
         overwrite: bool,
+        /// Write a restart file into OUT/checkpoint/ every N accepted steps (and on SIGINT/SIGTERM).
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        checkpoint_every: Option<u64>,
+        /// Continue the run whose checkpoints are in DIR (its output directory).
+        #[arg(long, value_name = "DIR", conflicts_with_all = ["out", "overwrite"])]
+        resume: Option<PathBuf>,
     },
     /// Validate a scenario without solving.
     Check {
@@ -102,7 +108,21 @@ fn main() {
             out,
             set,
             overwrite,
-        } => deasim::app::cmd_run(scenario.as_deref(), out.as_deref(), &set, overwrite),
+            checkpoint_every,
+            resume,
+        } => {
+            let every = checkpoint_every.map(|n| usize::try_from(n).unwrap_or(usize::MAX));
+            match resume {
+                Some(dir) => deasim::app::cmd_resume(&dir, scenario.as_deref(), &set, every),
+                None => deasim::app::cmd_run(
+                    scenario.as_deref(),
+                    out.as_deref(),
+                    &set,
+                    overwrite,
+                    every,
+                ),
+            }
+        }
         Command::Check { scenario, set } => deasim::app::cmd_check(&scenario, &set),
         Command::Example { name } => deasim::app::cmd_example(name.as_deref()),
         Command::Lumped {

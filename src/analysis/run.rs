@@ -2,15 +2,18 @@
 //! observer (writers, progress display). It never reports a state that did not converge.
 
 use super::probes::ProbeInput;
-use super::statics::{cell_fields, energies, nodal_reactions, solve_static};
+use super::statics::{cell_fields, energies, nodal_reactions, solve_static, solve_static_from};
 use crate::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::element::CellFields;
 use crate::io::build::{Plan, StageKind};
+use crate::io::checkpoint::{Checkpoint, RecorderState, StagePosition};
 use crate::solve::newton::NewtonSettings;
+use crate::solve::stepping::RampPosition;
 use crate::solve::stepping::StepControl;
 use crate::time::integrator::TimeLevel;
 use crate::time::mass::NodalMass;
-use crate::time::stage::{run_dynamic, DynamicInputs, DynamicSettings};
+use crate::time::stage::{run_dynamic_from, DynamicInputs, DynamicResume, DynamicSettings};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Energies of a state (J), as in `history.csv`.
@@ -77,6 +80,101 @@ pub trait Observer {
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]);
     /// The run ended (converged or not).
     fn finished(&mut self, plan: &Plan, summary: &RunSummary);
+    /// The run resumes from a checkpoint; `records` are the steps recorded before it (no
+    /// [`Observer::step`] is sent for them).
+    fn resumed(&mut self, _plan: &Plan, _records: &[StepRecord]) {}
+}
+
+/// Where a run reads its scenario from; stored in its checkpoints so that `--resume` rebuilds
+/// the same plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScenarioSource {
+    pub text: String,
+    /// The name the scenario was read under (its path, or `<embedded NAME>`).
+    pub file: String,
+    /// Its directory (relative mesh files are read from there).
+    pub base_dir: Option<String>,
+    pub overrides: Vec<String>,
+}
+
+/// Periodic checkpoints of a run.
+#[derive(Debug, Clone)]
+pub struct CheckpointOptions {
+    /// The output directory (checkpoints go to its `checkpoint/`).
+    pub dir: PathBuf,
+    /// Write one every this many accepted steps (≥ 1); also when the run stops on a signal.
+    pub every: usize,
+    pub source: ScenarioSource,
+}
+
+/// Options of [`run_with`].
+#[derive(Debug, Default)]
+pub struct RunOptions {
+    pub checkpoint: Option<CheckpointOptions>,
+    /// Continue from this checkpoint (already checked against the plan).
+    pub resume: Option<Checkpoint>,
+}
+
+/// What a checkpoint needs besides the recorder and the stage position.
+struct CheckpointContext<'a> {
+    options: &'a CheckpointOptions,
+    fingerprint: u64,
+    stage: usize,
+    stage_time: f64,
+    first_step: usize,
+    prestretch_iterations: usize,
+    dead_load_start: f64,
+    stages: &'a [StageSummary],
+    warnings: &'a [String],
+    wall_before: f64,
+    start: Instant,
+}
+
+impl CheckpointContext<'_> {
+    /// Builds and writes a checkpoint; a write failure becomes a warning of the recorder.
+    #[allow(clippy::too_many_arguments)]
+    fn write(
+        &self,
+        rec: &mut Recorder,
+        accepted: usize,
+        step_no: usize,
+        position: StagePosition,
+        q: &[f64],
+        v: &[f64],
+        a: &[f64],
+        dissipated: f64,
+    ) {
+        let ck = Checkpoint {
+            deasim_version: env!("CARGO_PKG_VERSION").to_string(),
+            scenario_text: self.options.source.text.clone(),
+            scenario_file: self.options.source.file.clone(),
+            base_dir: self.options.source.base_dir.clone(),
+            overrides: self.options.source.overrides.clone(),
+            fingerprint: self.fingerprint,
+            threads: rayon::current_num_threads() as u64,
+            every: self.options.every as u64,
+            accepted: accepted as u64,
+            stage: self.stage as u64,
+            stage_time: self.stage_time,
+            step_no: step_no as u64,
+            first_step: self.first_step as u64,
+            prestretch_iterations: self.prestretch_iterations as u64,
+            position,
+            q: q.to_vec(),
+            v: v.to_vec(),
+            a: a.to_vec(),
+            dissipated,
+            dead_load_start: self.dead_load_start,
+            recorder: rec.state(),
+            stages: self.stages.to_vec(),
+            warnings: self.warnings.to_vec(),
+            records: rec.history.clone(),
+            wall_s: self.wall_before + self.start.elapsed().as_secs_f64(),
+        };
+        if let Err(e) = ck.write(&self.options.dir) {
+            rec.warnings.push(format!("checkpoint not written: {e}"));
+        }
+    }
 }
 
 /// Accumulates the work of the prescribed values and evaluates records.
@@ -104,6 +202,9 @@ struct Recorder<'p> {
     broken_down: Vec<bool>,
     /// Warnings raised while recording (breakdown).
     warnings: Vec<String>,
+    /// Every record so far (kept for checkpoints only).
+    history: Vec<StepRecord>,
+    keep_history: bool,
 }
 
 impl<'p> Recorder<'p> {
@@ -191,28 +292,62 @@ impl<'p> Recorder<'p> {
         self.prev_reactions = reactions;
         self.prev_external = external;
         self.prev_state = state.to_vec();
-        Ok((
-            StepRecord {
-                time,
-                stage: stage.to_string(),
-                step,
-                voltage,
-                newton_iterations: iterations,
-                dt,
-                energies: Energies {
-                    kinetic,
-                    stored,
-                    electric,
-                    gravity,
-                    dissipated,
-                    energy_error,
-                }
-                .scaled(self.plan.symmetry_factor),
-                probes,
-                max_electric_field,
-            },
-            fields,
-        ))
+        let record = StepRecord {
+            time,
+            stage: stage.to_string(),
+            step,
+            voltage,
+            newton_iterations: iterations,
+            dt,
+            energies: Energies {
+                kinetic,
+                stored,
+                electric,
+                gravity,
+                dissipated,
+                energy_error,
+            }
+            .scaled(self.plan.symmetry_factor),
+            probes,
+            max_electric_field,
+        };
+        if self.keep_history {
+            self.history.push(record.clone());
+        }
+        Ok((record, fields))
+    }
+
+    /// The bookkeeping for a checkpoint.
+    fn state(&self) -> RecorderState {
+        RecorderState {
+            prev_reactions: self.prev_reactions.clone(),
+            prev_state: self.prev_state.clone(),
+            boundary_work: self.boundary_work,
+            initial_potential: self.initial_potential,
+            external_factor: self.external_factor,
+            prev_factor: self.prev_factor,
+            prev_external: self.prev_external.clone(),
+            load_change_work: self.load_change_work,
+            reference: self.reference.clone(),
+            broken_down: self.broken_down.clone(),
+            warnings: self.warnings.clone(),
+        }
+    }
+
+    /// Restores the bookkeeping of a checkpoint.
+    fn restore(&mut self, s: &RecorderState, history: &[StepRecord]) {
+        self.prev_reactions = s.prev_reactions.clone();
+        self.prev_state = s.prev_state.clone();
+        self.boundary_work = s.boundary_work;
+        self.initial_potential = s.initial_potential;
+        self.external_factor = s.external_factor;
+        self.prev_factor = s.prev_factor;
+        self.prev_external = s.prev_external.clone();
+        self.load_change_work = s.load_change_work;
+        self.reference = s.reference.clone();
+        self.broken_down = s.broken_down.clone();
+        self.warnings = s.warnings.clone();
+        self.history = history.to_vec();
     }
 }
 
@@ -272,7 +407,29 @@ impl Energies {
 
 /// Runs every stage of the plan. `newton` applies to every stage.
 pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) -> RunSummary {
+    run_with(plan, newton, observer, RunOptions::default())
+}
+
+/// [`run`] with checkpoints and/or from a checkpoint.
+///
+/// Checkpoints are written after every `every`-th accepted step of the stages (pre-stretch
+/// steps are not counted) and when a stop is requested. At each periodic checkpoint the
+/// drivers drop their reused factorisations (modified Newton) and re-factorise as at a start,
+/// so a run resumed from it repeats the decisions of the run that goes on: the two agree bit
+/// for bit on the same thread count. A resume from a stop checkpoint agrees to the Newton
+/// tolerance only (the uninterrupted run had no refresh there).
+pub fn run_with(
+    plan: &Plan,
+    newton: &NewtonSettings,
+    observer: &mut dyn Observer,
+    options: RunOptions,
+) -> RunSummary {
     let start = Instant::now();
+    let RunOptions {
+        checkpoint: ck_options,
+        mut resume,
+    } = options;
+    let fingerprint = crate::io::checkpoint::fingerprint(plan);
     let mut model = plan.model.clone();
     let n_nodes = model.mesh.n_nodes();
     let mut state = vec![0.0; n_nodes * FIELDS];
@@ -313,11 +470,32 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         reference: vec![0.0; n_nodes * FIELDS],
         broken_down: vec![false; plan.model.materials.len()],
         warnings: Vec::new(),
+        history: Vec::new(),
+        keep_history: ck_options.is_some(),
     };
     crate::solve::interrupt::clear_local();
     let mut time = 0.0;
     let mut dissipated = 0.0;
-    for (si, stage) in plan.stages.iter().enumerate() {
+    let mut accepted = 0usize;
+    let mut wall_before = 0.0;
+    let mut first_stage = 0;
+    if let Some(ck) = &resume {
+        state.clone_from(&ck.q);
+        velocity.clone_from(&ck.v);
+        acceleration.clone_from(&ck.a);
+        rec.restore(&ck.recorder, &ck.records);
+        summary.stages = ck.stages.clone();
+        summary.warnings = ck.warnings.clone();
+        time = ck.stage_time;
+        dissipated = ck.dissipated;
+        accepted = ck.accepted as usize;
+        wall_before = ck.wall_s;
+        first_stage = ck.stage as usize;
+        model.dead_load_start = ck.dead_load_start;
+        observer.resumed(plan, &ck.records);
+    }
+    for (si, stage) in plan.stages.iter().enumerate().skip(first_stage) {
+        let resume_here = resume.take();
         observer.stage_started(si, &stage.name);
         let stage_start = Instant::now();
         let t_end = time + stage.duration;
@@ -342,7 +520,10 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
             });
         }
         let prescribed = constrained_flags(n_nodes, &model.dirichlet);
-        if si == 0 {
+        if let Some(ck) = &resume_here {
+            first_step = ck.first_step as usize;
+            prestretch_iterations = ck.prestretch_iterations as usize;
+        } else if si == 0 {
             match rec.record(&state, &prescribed, time, &stage.name, 0, 0, 0.0, 0.0, 0.0) {
                 Ok((r, f)) => observer.step(plan, &r, &state, &f),
                 Err(e) => {
@@ -398,10 +579,28 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                 stage_summary.kind = "static".into();
                 velocity.iter_mut().for_each(|v| *v = 0.0);
                 acceleration.iter_mut().for_each(|v| *v = 0.0);
+                let (stage_start_state, resume_at, mut step_no, mut last_load) = match resume_here {
+                    Some(Checkpoint {
+                        position:
+                            StagePosition::Static {
+                                ramp,
+                                stage_start,
+                                last_load,
+                            },
+                        step_no,
+                        ..
+                    }) => (
+                        stage_start,
+                        Some((state.clone(), ramp)),
+                        step_no as usize,
+                        last_load,
+                    ),
+                    _ => (state.clone(), None, first_step, 0.0),
+                };
                 let start_voltages: Vec<f64> = plan
                     .electrodes
                     .iter()
-                    .map(|e| state[e.nodes[0] * FIELDS + 3])
+                    .map(|e| stage_start_state[e.nodes[0] * FIELDS + 3])
                     .collect();
                 let targets: Vec<f64> = plan
                     .electrodes
@@ -419,10 +618,38 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     steps,
                     ..Default::default()
                 };
-                let mut step_no = first_step;
-                let mut last_load = 0.0;
-                let outcome =
-                    solve_static(&model, Some(state.clone()), &control, newton, |p, acc| {
+                let nominal = 1.0 / steps.max(1) as f64;
+                let mut last_position = resume_at.as_ref().map_or(
+                    RampPosition {
+                        load: 0.0,
+                        increment: nominal,
+                        next_nominal: 1,
+                        accepted_steps: 0,
+                        cutbacks: 0,
+                        newton_iterations: 0,
+                    },
+                    |r| r.1,
+                );
+                let context = ck_options.as_ref().map(|o| CheckpointContext {
+                    options: o,
+                    fingerprint,
+                    stage: si,
+                    stage_time: time,
+                    first_step,
+                    prestretch_iterations,
+                    dead_load_start: model.dead_load_start,
+                    stages: &summary.stages,
+                    warnings: &summary.warnings,
+                    wall_before,
+                    start,
+                });
+                let outcome = solve_static_from(
+                    &model,
+                    stage_start_state.clone(),
+                    resume_at,
+                    &control,
+                    newton,
+                    |p, acc| {
                         step_no += 1;
                         let t = time + acc.load * stage.duration;
                         let dt = (acc.load - last_load) * stage.duration;
@@ -445,7 +672,47 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                                 record_error.get_or_insert(e);
                             }
                         }
-                    });
+                        accepted += 1;
+                        last_position = acc.position;
+                        let Some(ctx) = &context else { return false };
+                        if !accepted.is_multiple_of(ctx.options.every) {
+                            return false;
+                        }
+                        ctx.write(
+                            &mut rec,
+                            accepted,
+                            step_no,
+                            StagePosition::Static {
+                                ramp: acc.position,
+                                stage_start: stage_start_state.clone(),
+                                last_load,
+                            },
+                            &p.state,
+                            &velocity,
+                            &acceleration,
+                            dissipated,
+                        );
+                        true
+                    },
+                );
+                if let Some(ctx) = &context {
+                    if crate::solve::interrupt::requested() && outcome.result.is_err() {
+                        ctx.write(
+                            &mut rec,
+                            accepted,
+                            step_no,
+                            StagePosition::Static {
+                                ramp: last_position,
+                                stage_start: stage_start_state.clone(),
+                                last_load,
+                            },
+                            &outcome.state,
+                            &velocity,
+                            &acceleration,
+                            dissipated,
+                        );
+                    }
+                }
                 state = outcome.state;
                 stage_summary.steps = step_no;
                 match outcome.result {
@@ -521,20 +788,54 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                     reuse_factorization: true,
                 };
                 // the integrator runs on stage time; records get the global time
+                let (t0, dyn_resume, mut step_no) = match resume_here {
+                    Some(Checkpoint {
+                        position: StagePosition::Dynamic { t, dt, iterations },
+                        step_no,
+                        ..
+                    }) => (
+                        t,
+                        Some(DynamicResume {
+                            t_start: 0.0,
+                            dt,
+                            iterations: iterations as usize,
+                        }),
+                        step_no as usize,
+                    ),
+                    _ => (0.0, None, first_step),
+                };
                 let start_level = TimeLevel {
-                    t: 0.0,
+                    t: t0,
                     q: state.clone(),
                     v: velocity.clone(),
                     a: acceleration.clone(),
                 };
-                let mut step_no = first_step;
+                let mut last_position = (
+                    t0,
+                    dyn_resume.map_or(dt, |r| r.dt),
+                    dyn_resume.map_or(0, |r| r.iterations),
+                );
+                let context = ck_options.as_ref().map(|o| CheckpointContext {
+                    options: o,
+                    fingerprint,
+                    stage: si,
+                    stage_time: time,
+                    first_step,
+                    prestretch_iterations,
+                    dead_load_start: model.dead_load_start,
+                    stages: &summary.stages,
+                    warnings: &summary.warnings,
+                    wall_before,
+                    start,
+                });
                 let mut mv = vec![0.0; state.len()];
-                let outcome = run_dynamic(
+                let outcome = run_dynamic_from(
                     &model,
                     &inputs,
                     start_level,
                     &settings,
                     newton,
+                    dyn_resume,
                     |level, info| {
                         step_no += 1;
                         dissipated += info.dissipated;
@@ -558,8 +859,47 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
                                 record_error.get_or_insert(e);
                             }
                         }
+                        accepted += 1;
+                        last_position = (level.t, info.next_dt, info.total_iterations);
+                        let Some(ctx) = &context else { return false };
+                        if !accepted.is_multiple_of(ctx.options.every) {
+                            return false;
+                        }
+                        ctx.write(
+                            &mut rec,
+                            accepted,
+                            step_no,
+                            StagePosition::Dynamic {
+                                t: level.t,
+                                dt: info.next_dt,
+                                iterations: info.total_iterations as u64,
+                            },
+                            &level.q,
+                            &level.v,
+                            &level.a,
+                            dissipated,
+                        );
+                        true
                     },
                 );
+                if let (Some(ctx), Err((level, _))) = (&context, &outcome) {
+                    if crate::solve::interrupt::requested() {
+                        ctx.write(
+                            &mut rec,
+                            accepted,
+                            step_no,
+                            StagePosition::Dynamic {
+                                t: last_position.0,
+                                dt: last_position.1,
+                                iterations: last_position.2 as u64,
+                            },
+                            &level.q,
+                            &level.v,
+                            &level.a,
+                            dissipated,
+                        );
+                    }
+                }
                 stage_summary.steps = step_no;
                 let (level, failure) = match outcome {
                     Ok((level, its)) => {
@@ -606,7 +946,7 @@ pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) ->
         time = t_end;
     }
     summary.warnings.append(&mut rec.warnings);
-    summary.wall_s = start.elapsed().as_secs_f64();
+    summary.wall_s = wall_before + start.elapsed().as_secs_f64();
     summary.interrupted = crate::solve::interrupt::requested() && !summary.converged;
     observer.finished(plan, &summary);
     summary
@@ -655,7 +995,17 @@ fn prestretch(
         step_no += 1;
         rec.external_factor = 0.0;
         rec.reference = s.to_vec();
-        match rec.record(s, &prescribed, 0.0, stage, step_no, iterations, 0.0, 0.0, 0.0) {
+        match rec.record(
+            s,
+            &prescribed,
+            0.0,
+            stage,
+            step_no,
+            iterations,
+            0.0,
+            0.0,
+            0.0,
+        ) {
             Ok((r, f)) => observer.step(plan, &r, s, &f),
             Err(e) => {
                 record_error.get_or_insert(e);

@@ -298,3 +298,35 @@ pub fn solve_static(
         result,
     }
 }
+
+/// [`solve_static`] resumable: the ramp's prescribed values start from `stage_start`; with
+/// `resume = Some((state, position))` it continues from that converged state and ramp position.
+/// `on_step` returning true refreshes the factorisation (see [`ramp_from`](crate::solve::stepping::ramp_from)).
+pub fn solve_static_from(
+    model: &Model,
+    stage_start: Vec<f64>,
+    resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
+    control: &StepControl,
+    newton: &NewtonSettings,
+    mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep) -> bool,
+) -> StaticOutcome {
+    let mut problem = StaticProblem::new(model, Some(stage_start));
+    let position = resume.map(|(state, position)| {
+        problem.state.copy_from_slice(&state);
+        problem.set_load(position.load);
+        position
+    });
+    let mut solver = FaerLdlt::new();
+    let result = crate::solve::stepping::ramp_from(
+        &mut problem,
+        &mut solver as &mut dyn LinearSolver,
+        newton,
+        control,
+        position,
+        |p, s| on_step(p, s),
+    );
+    StaticOutcome {
+        state: problem.state,
+        result,
+    }
+}

@@ -249,7 +249,12 @@ fn build_mesh(
         .iter()
         .try_fold(per_hex as u64, |acc, &d| acc.checked_mul(d));
     match cells {
-        Some(c) if c <= MAX_CELLS => {}
+        Some(c) if c <= MAX_CELLS => {
+            // before generating it: the nodes of the box
+            let per_div = if kind == ElementKind::Tet10 { 2 } else { 1 };
+            let nodes: u64 = div.iter().map(|&d| per_div * d + 1).product();
+            super::memory::check(nodes, c, kind).map_err(|e| ctx.err("mesh.divisions", e))?;
+        }
         _ => {
             return Err(ctx.err(
                 "mesh.divisions",
@@ -823,6 +828,8 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         ));
     }
     let (mesh, mut warnings) = build_mesh(&ctx, s, base_dir)?;
+    super::memory::check(mesh.n_nodes() as u64, mesh.n_cells() as u64, mesh.kind)
+        .map_err(|e| ctx.err("mesh", e))?;
     if s.materials.is_empty() {
         return Err(ctx.err("materials", "at least one material is needed"));
     }

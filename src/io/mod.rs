@@ -2,7 +2,9 @@
 
 pub mod atomic;
 pub mod build;
+pub mod checkpoint;
 pub mod examples;
+pub mod memory;
 pub mod output;
 pub mod plot;
 pub mod scenario;

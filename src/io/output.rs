@@ -395,6 +395,44 @@ impl Observer for OutputWriter {
         }
     }
 
+    /// Takes over the records of the run before the checkpoint: rebuilds the PVD index of the
+    /// field files written for them, deletes deasim's own field files beyond it (written by the
+    /// killed run after the checkpoint) and rewrites `history.csv` and `fields.pvd`, so that no
+    /// row or entry is duplicated.
+    fn resumed(&mut self, plan: &Plan, records: &[StepRecord]) {
+        self.records = records.to_vec();
+        self.steps_seen = records.len();
+        self.pvd.clear();
+        self.last_written_step = None;
+        let every = plan.output.fields_every;
+        for (i, r) in records.iter().enumerate() {
+            if every > 0 && i.is_multiple_of(every) {
+                self.pvd
+                    .push((r.time, format!("fields/step_{:05}.vtu", self.pvd.len())));
+                self.last_written_step = Some(i);
+            }
+        }
+        if let Ok(entries) = std::fs::read_dir(self.dir.join("fields")) {
+            for e in entries.flatten() {
+                let n = e.file_name().to_string_lossy().into_owned();
+                let index = n
+                    .strip_prefix("step_")
+                    .and_then(|r| r.strip_suffix(".vtu"))
+                    .filter(|d| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit()))
+                    .and_then(|d| d.parse::<usize>().ok());
+                if index.is_some_and(|i| i >= self.pvd.len()) {
+                    if let Err(err) = std::fs::remove_file(e.path()) {
+                        self.errors.push(format!("{}: {err}", e.path().display()));
+                    }
+                }
+            }
+        }
+        if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
+            self.errors.push(e.to_string());
+        }
+        self.write_history(plan);
+    }
+
     fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
         // the last converged state is always in the field files
         if self.last_written_step != Some(self.steps_seen.saturating_sub(1)) {

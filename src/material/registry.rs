@@ -701,7 +701,7 @@ mod tests {
 
     #[test]
     fn presets_build() {
-        assert_eq!(PRESETS.len(), 4);
+        assert_eq!(PRESETS.len(), 5);
         for &name in PRESETS {
             let (model, p) = preset(name).unwrap_or_else(|| panic!("{name}"));
             assert!(MODELS.contains(&model), "{name}: {model}");

@@ -199,9 +199,15 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         let mut alpha = 1.0;
         let mut accepted = false;
         let mut full_step_ok = false;
+        // why the full step could not be evaluated (e.g. an inverted element)
+        let mut full_step_error: Option<String> = None;
         for _ in 0..=settings.max_backtracks {
             system.increment(&dx, alpha);
-            if system.evaluate(&mut trial, None).is_ok() {
+            let evaluated = system.evaluate(&mut trial, None);
+            if let (Err(m), true) = (&evaluated, alpha == 1.0) {
+                full_step_error = Some(m.clone());
+            }
+            if evaluated.is_ok() {
                 let tn = norm(&trial);
                 if alpha == 1.0 && tn.is_finite() {
                     full_step_ok = true;
@@ -218,7 +224,13 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
             if !full_step_ok {
                 return Err(NewtonError::Evaluation {
                     iteration,
-                    message: "no step along the Newton direction gives an admissible state".into(),
+                    message: match full_step_error {
+                        Some(m) => format!(
+                            "no step along the Newton direction gives an admissible state (full step: {m})"
+                        ),
+                        None => "no step along the Newton direction gives an admissible state"
+                            .into(),
+                    },
                 });
             }
             alpha = 1.0;

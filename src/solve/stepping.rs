@@ -46,6 +46,22 @@ pub struct AcceptedStep {
     /// True when `load` is one of the nominal points k/steps.
     pub nominal: bool,
     pub newton: NewtonReport,
+    /// Where the ramp stands after this step (to resume it from here).
+    pub position: RampPosition,
+}
+
+/// The ramp's position between two steps: enough to continue it with [`ramp_from`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RampPosition {
+    /// Load factor of the converged state.
+    pub load: f64,
+    /// The next increment to try.
+    pub increment: f64,
+    /// Index of the next nominal point k/steps.
+    pub next_nominal: usize,
+    pub accepted_steps: usize,
+    pub cutbacks: usize,
+    pub newton_iterations: usize,
 }
 
 /// The ramp stopped before reaching s = 1.
@@ -81,13 +97,43 @@ pub fn ramp<S: LoadedSystem + ?Sized>(
     control: &StepControl,
     mut on_step: impl FnMut(&mut S, &AcceptedStep),
 ) -> Result<RampReport, RampFailure> {
+    ramp_from(system, solver, settings, control, None, |s, a| {
+        on_step(s, a);
+        false
+    })
+}
+
+/// [`ramp`] from a position (`None`: the start, s = 0; else the system must hold the converged
+/// state at `start.load` with the prescribed values set). When `on_step` returns true the tangent
+/// is re-evaluated and re-factorised at the accepted state, exactly as at the start of a ramp: a
+/// ramp resumed from that step then makes the same decisions, bit for bit, as one that goes on.
+pub fn ramp_from<S: LoadedSystem + ?Sized>(
+    system: &mut S,
+    solver: &mut dyn LinearSolver,
+    settings: &NewtonSettings,
+    control: &StepControl,
+    start: Option<RampPosition>,
+    mut on_step: impl FnMut(&mut S, &AcceptedStep) -> bool,
+) -> Result<RampReport, RampFailure> {
     let nominal = 1.0 / control.steps.max(1) as f64;
     let min_inc = nominal * control.min_fraction;
     let mut k: CsrMatrix = system.new_matrix();
-    let mut report = RampReport::default();
-    let mut s = 0.0f64;
-    let mut inc = nominal;
-    let mut next_nominal = 1usize;
+    let start = start.unwrap_or(RampPosition {
+        load: 0.0,
+        increment: nominal,
+        next_nominal: 1,
+        accepted_steps: 0,
+        cutbacks: 0,
+        newton_iterations: 0,
+    });
+    let mut report = RampReport {
+        accepted_steps: start.accepted_steps,
+        cutbacks: start.cutbacks,
+        newton_iterations: start.newton_iterations,
+    };
+    let mut s = start.load;
+    let mut inc = start.increment;
+    let mut next_nominal = start.next_nominal;
     let mut last_reason = String::new();
     // the solver holds a factorisation of the tangent at (or next to) the current state
     let mut predictor_work = vec![0.0; system.n()];
@@ -121,17 +167,28 @@ pub fn ramp<S: LoadedSystem + ?Sized>(
                 report.accepted_steps += 1;
                 let easy = rep.iterations <= control.easy_iterations;
                 s = target;
-                let step = AcceptedStep {
-                    load: s,
-                    nominal: hits_nominal,
-                    newton: rep,
-                };
-                on_step(system, &step);
                 if hits_nominal {
                     next_nominal += 1;
                 }
                 if easy {
                     inc = (inc * 2.0).min(nominal);
+                }
+                let step = AcceptedStep {
+                    load: s,
+                    nominal: hits_nominal,
+                    newton: rep,
+                    position: RampPosition {
+                        load: s,
+                        increment: inc,
+                        next_nominal,
+                        accepted_steps: report.accepted_steps,
+                        cutbacks: report.cutbacks,
+                        newton_iterations: report.newton_iterations,
+                    },
+                };
+                if on_step(system, &step) {
+                    have_factor = system.evaluate(&mut predictor_work, Some(&mut k)).is_ok()
+                        && solver.factor(&k).is_ok();
                 }
                 continue;
             }

@@ -57,6 +57,22 @@ pub struct DynamicStepInfo {
     pub newton_iterations: usize,
     /// Energy dissipated by viscosity during the step (J).
     pub dissipated: f64,
+    /// The step size the next step will try (after the growth rule).
+    pub next_dt: f64,
+    /// Newton iterations of the stage so far, this step included.
+    pub total_iterations: usize,
+}
+
+/// Where to resume a dynamic stage: the start level given to [`run_dynamic_from`] is an accepted
+/// level of an earlier run (not the stage start), `dt` the step size to try next and
+/// `iterations` the Newton iterations spent so far. The start-of-stage set-up (Newmark's
+/// consistent acceleration, the trapezoidal scheme's first projection) is skipped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DynamicResume {
+    /// Time of the stage start (the stage ends at `t_start + duration`).
+    pub t_start: f64,
+    pub dt: f64,
+    pub iterations: usize,
 }
 
 /// The stage stopped before its end.
@@ -86,6 +102,32 @@ pub fn run_dynamic(
     settings: &DynamicSettings,
     newton_settings: &NewtonSettings,
     mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
+    run_dynamic_from(
+        model,
+        inputs,
+        start,
+        settings,
+        newton_settings,
+        None,
+        |l, i| {
+            on_step(l, i);
+            false
+        },
+    )
+}
+
+/// [`run_dynamic`], resumable. When `on_step` returns true the reused factorisations (modified
+/// Newton, projection) are dropped, so that the next step starts as a resumed run starts: a run
+/// resumed from a checkpoint written at that step then continues bit for bit.
+pub fn run_dynamic_from(
+    model: &Model,
+    inputs: &DynamicInputs,
+    start: TimeLevel,
+    settings: &DynamicSettings,
+    newton_settings: &NewtonSettings,
+    resume: Option<DynamicResume>,
+    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo) -> bool,
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
     let mut step_model = model.clone();
     for (nodes, w) in &inputs.electrodes {
@@ -139,11 +181,12 @@ pub fn run_dynamic(
                     &mut proj_k,
                     &proj_settings,
                 ),
+                resume,
                 on_step,
             )
         }
     };
-    if let Scheme::Newmark { .. } = scheme {
+    if let (Scheme::Newmark { .. }, None) = (scheme, resume) {
         // consistent initial state: Φ in equilibrium at t₀ and M a₀ = f_ext − f_int − f_vis
         project(
             &mut projector,
@@ -194,10 +237,10 @@ pub fn run_dynamic(
     );
     let mut solver = FaerLdlt::new();
     let mut k = crate::solve::newton::NonlinearSystem::new_matrix(&step);
-    let t_end = step.prev.t + settings.duration;
+    let t_end = resume.map_or(step.prev.t, |r| r.t_start) + settings.duration;
     let min_dt = settings.dt * settings.min_fraction;
-    let mut dt = settings.dt;
-    let mut total_iterations = 0;
+    let mut dt = resume.map_or(settings.dt, |r| r.dt);
+    let mut total_iterations = resume.map_or(0, |r| r.iterations);
     let step_settings = NewtonSettings {
         check_stability: false,
         reuse_factorization: settings.reuse_factorization,
@@ -275,17 +318,23 @@ pub fn run_dynamic(
                         ));
                     }
                 }
+                if rep.iterations <= settings.easy_iterations {
+                    dt = (2.0 * dt).min(settings.dt);
+                }
                 let info = DynamicStepInfo {
                     dt: h,
                     newton_iterations: rep.iterations,
                     dissipated,
+                    next_dt: dt,
+                    total_iterations,
                 };
-                on_step(&level, &info);
+                if on_step(&level, &info) {
+                    solver.invalidate();
+                    proj_solver.invalidate();
+                    last_h = f64::NAN;
+                }
                 step.q = level.q.clone();
                 step.prev = level;
-                if rep.iterations <= settings.easy_iterations {
-                    dt = (2.0 * dt).min(settings.dt);
-                }
                 continue;
             }
             Err(e) => e.to_string(),
@@ -344,6 +393,7 @@ type Projector<'a, 'm> = (
 );
 
 /// The explicit trapezoidal (Störmer–Verlet) variational integrator; see `trapezoidal.rs`.
+#[allow(clippy::too_many_arguments)]
 fn run_trapezoidal(
     step_model: &Model,
     inputs: &DynamicInputs,
@@ -351,7 +401,8 @@ fn run_trapezoidal(
     settings: &DynamicSettings,
     newton_settings: &NewtonSettings,
     projector: Projector,
-    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+    resume: Option<DynamicResume>,
+    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo) -> bool,
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
     use super::trapezoidal::{dissipation_power, TrapezoidalStep};
     let (proj, proj_solver, proj_k, proj_settings) = projector;
@@ -367,17 +418,19 @@ fn run_trapezoidal(
         )
     };
     let mut level = start;
-    project(
-        proj,
-        proj_solver,
-        proj_k,
-        proj_settings,
-        &mut level.q,
-        inputs,
-        level.t,
-        n_nodes,
-    )
-    .map_err(|e| fail(&level, level.t, e, 0))?;
+    if resume.is_none() {
+        project(
+            proj,
+            proj_solver,
+            proj_k,
+            proj_settings,
+            &mut level.q,
+            inputs,
+            level.t,
+            n_nodes,
+        )
+        .map_err(|e| fail(&level, level.t, e, 0))?;
+    }
     let mut forces = TimeStep::new(
         step_model,
         inputs.mass,
@@ -397,10 +450,10 @@ fn run_trapezoidal(
         check_stability: false,
         ..newton_settings.clone()
     };
-    let t_end = level.t + settings.duration;
+    let t_end = resume.map_or(level.t, |r| r.t_start) + settings.duration;
     let min_dt = settings.dt * settings.min_fraction;
-    let mut dt = settings.dt;
-    let mut total = 0;
+    let mut dt = resume.map_or(settings.dt, |r| r.dt);
+    let mut total = resume.map_or(0, |r| r.iterations);
     while level.t < t_end - 1e-12 * settings.duration {
         if let Some(reason) = crate::solve::interrupt::pending() {
             let t = level.t;
@@ -478,15 +531,20 @@ fn run_trapezoidal(
                     a,
                 };
                 f_n = f_next;
-                on_step(
+                dt = (2.0 * dt).min(settings.dt);
+                let refresh = on_step(
                     &level,
                     &DynamicStepInfo {
                         dt: h,
                         newton_iterations: its,
                         dissipated,
+                        next_dt: dt,
+                        total_iterations: total,
                     },
                 );
-                dt = (2.0 * dt).min(settings.dt);
+                if refresh {
+                    proj_solver.invalidate();
+                }
             }
             Err(reason) => {
                 dt = 0.5 * h;

@@ -1,0 +1,77 @@
+//! Runs that cannot reach their end stop honestly (issue #7): `converged: false` in summary.json,
+//! exit status 1, the reason and the time in the error, and only converged states in the outputs.
+//! (Pull-in is covered by `cli.rs::pull_in_example_exits_1_and_names_the_instability`.)
+
+use deasim::io::vtu::read_vtu;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn deasim(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run deasim")
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("deasim-fail-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The 1 mm film without voltage, its top face pushed down by 2 mm: the cells invert (J ≤ 0)
+/// near half of the ramp. The run ends with exit 1, `converged: false`, an error naming the
+/// inverted cell's volume ratio, and every written field file has J > 0 in every cell.
+#[test]
+fn inverted_elements_stop_the_run_with_the_reason() {
+    let dir = tempdir("invert");
+    let mut text = String::from_utf8(deasim(&["example", "film"], &dir).stdout).unwrap();
+    text.push_str("\n[[constraints]]\nset = \"z1\"\nfix = [\"z\"]\nvalue = -2e-3\n");
+    std::fs::write(dir.join("inv.toml"), text).unwrap();
+    let out = deasim(
+        &[
+            "run",
+            "inv.toml",
+            "--out",
+            "o",
+            "--set",
+            "electrodes.top.voltage.amplitude=0",
+            "--set",
+            "output.plots=false",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["converged"], false);
+    assert_eq!(summary["stages"][0]["converged"], false);
+    let error = summary["error"].as_str().unwrap();
+    assert!(error.contains("non-positive volume ratio J"), "{error}");
+    assert!(error.contains("at t = "), "{error}");
+    assert!(err.contains("non-positive volume ratio"), "{err}");
+    // the last recorded state is a converged one short of full compression (thickness > 0)
+    let t = summary["probes"]["thickness_stretch"].as_f64().unwrap();
+    assert!(t > 0.0 && t < 0.5, "{t}");
+    // every field file: J > 0 in every cell
+    let pvd = std::fs::read_to_string(dir.join("o/fields.pvd")).unwrap();
+    let files: Vec<&str> = pvd
+        .split("file=\"")
+        .skip(1)
+        .map(|s| s.split('"').next().unwrap())
+        .collect();
+    assert!(!files.is_empty());
+    for f in files {
+        let v = read_vtu(&dir.join("o").join(f)).unwrap();
+        let j = &v.cell_data["J"].1;
+        assert!(
+            j.iter().all(|&x| x > 0.0),
+            "{f}: min J {:?}",
+            j.iter().cloned().fold(f64::INFINITY, f64::min)
+        );
+    }
+}
