@@ -1,0 +1,274 @@
+//! The recorder of a run: evaluates the record of every accepted state (energies with the
+//! discrete energy balance, probes, cell fields) and watches the dielectric strength.
+
+use super::probes::ProbeInput;
+use super::run::{Energies, StepRecord};
+use super::statics::{cell_fields, energies, nodal_reactions};
+use crate::dofs::FIELDS;
+use crate::element::CellFields;
+use crate::io::build::Plan;
+use crate::io::checkpoint::RecorderState;
+
+/// Accumulates the work of the prescribed values and evaluates records.
+pub(super) struct Recorder<'p> {
+    pub(super) plan: &'p Plan,
+    pub(super) prev_reactions: Vec<f64>,
+    pub(super) prev_state: Vec<f64>,
+    pub(super) boundary_work: f64,
+    pub(super) initial_potential: Option<f64>,
+    /// The energy total of the last record (J, meshed part).
+    pub(super) last_total: f64,
+    /// Nodal forces of the tractions at full value (empty without tractions).
+    pub(super) traction: Vec<f64>,
+    /// Nodal forces of gravity and attached masses at full value (empty without).
+    pub(super) weight: Vec<f64>,
+    /// Load factor of the dead loads at the state being recorded.
+    pub(super) external_factor: f64,
+    pub(super) prev_factor: f64,
+    pub(super) prev_external: Vec<f64>,
+    /// Work of changing the weight load factor at fixed positions, −∫ f·u dλ (J).
+    pub(super) load_change_work: f64,
+    /// The state deflections are measured from (the pre-stretched state; zero without).
+    pub(super) reference: Vec<f64>,
+    /// Materials whose dielectric strength has been exceeded (reported once each).
+    pub(super) broken_down: Vec<bool>,
+    /// Warnings raised while recording (breakdown).
+    pub(super) warnings: Vec<String>,
+    /// Every record so far (kept for checkpoints only).
+    pub(super) history: Vec<StepRecord>,
+    pub(super) keep_history: bool,
+}
+
+impl<'p> Recorder<'p> {
+    /// Evaluates the record of an accepted state. `prescribed` flags the dofs whose values are
+    /// prescribed (their reactions do work on the body); `kinetic` and `dissipated` come from the
+    /// time integrator (0 in statics).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn record(
+        &mut self,
+        state: &[f64],
+        prescribed: &[bool],
+        time: f64,
+        stage: &str,
+        step: usize,
+        iterations: usize,
+        dt: f64,
+        kinetic: f64,
+        dissipated: f64,
+    ) -> Result<(StepRecord, Vec<CellFields>), String> {
+        let model = &self.plan.model;
+        let reactions = nodal_reactions(model, state)?;
+        let (stored, electric) = energies(model, state)?;
+        // work done on the body, by the trapezoidal rule: reactions at prescribed dofs
+        // Σ ½(R₀ + R₁)·(x₁ − x₀) and external (traction) forces at free dofs
+        let external: Vec<f64> = self
+            .traction
+            .iter()
+            .map(|t| t * self.external_factor)
+            .collect();
+        if !self.prev_state.is_empty() {
+            for d in 0..state.len() {
+                if !prescribed[d] && !external.is_empty() {
+                    let prev = self.prev_external.get(d).copied().unwrap_or(0.0);
+                    self.boundary_work +=
+                        0.5 * (prev + external[d]) * (state[d] - self.prev_state[d]);
+                }
+                if prescribed[d] {
+                    self.boundary_work += 0.5
+                        * (self.prev_reactions[d] + reactions[d])
+                        * (state[d] - self.prev_state[d]);
+                }
+            }
+        }
+        // gravity: potential −λ f·u of the weights; changing λ at fixed u does work −Δλ f·ū
+        let weight_dot = |u: &[f64]| -> f64 { self.weight.iter().zip(u).map(|(f, x)| f * x).sum() };
+        let gravity = -self.external_factor * weight_dot(state);
+        if !self.prev_state.is_empty() && !self.weight.is_empty() {
+            let mean = 0.5 * (weight_dot(state) + weight_dot(&self.prev_state));
+            self.load_change_work -= (self.external_factor - self.prev_factor) * mean;
+        }
+        self.prev_factor = self.external_factor;
+        let total = kinetic + stored - electric + gravity + dissipated;
+        self.last_total = total;
+        let initial = *self.initial_potential.get_or_insert(total);
+        let energy_error = total - initial - self.boundary_work - self.load_change_work;
+        let voltages: Vec<(&[usize], f64)> = self
+            .plan
+            .electrodes
+            .iter()
+            .map(|e| (e.nodes.as_slice(), state[e.nodes[0] * FIELDS + 3]))
+            .collect();
+        let voltage = voltages
+            .iter()
+            .map(|v| v.1)
+            .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
+        let fields = cell_fields(model, state)?;
+        let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
+        self.check_breakdown(&fields, time, stage);
+        let input = ProbeInput {
+            state,
+            reactions: &reactions,
+            electrodes: &voltages,
+            stored,
+            electric,
+            reference: &self.reference,
+            max_field: max_electric_field,
+            symmetry: self.plan.symmetry_factor,
+        };
+        let probes = self
+            .plan
+            .probes
+            .iter()
+            .map(|(_, p)| p.evaluate(&input))
+            .collect();
+        self.prev_reactions = reactions;
+        self.prev_external = external;
+        self.prev_state = state.to_vec();
+        let record = StepRecord {
+            time,
+            stage: stage.to_string(),
+            step,
+            voltage,
+            newton_iterations: iterations,
+            dt,
+            energies: Energies {
+                kinetic,
+                stored,
+                electric,
+                gravity,
+                dissipated,
+                energy_error,
+            }
+            .scaled(self.plan.symmetry_factor),
+            probes,
+            max_electric_field,
+        };
+        if self.keep_history {
+            self.history.push(record.clone());
+        }
+        Ok((record, fields))
+    }
+
+    /// The bookkeeping for a checkpoint.
+    pub(super) fn state(&self) -> RecorderState {
+        RecorderState {
+            prev_reactions: self.prev_reactions.clone(),
+            prev_state: self.prev_state.clone(),
+            boundary_work: self.boundary_work,
+            initial_potential: self.initial_potential,
+            external_factor: self.external_factor,
+            prev_factor: self.prev_factor,
+            prev_external: self.prev_external.clone(),
+            load_change_work: self.load_change_work,
+            reference: self.reference.clone(),
+            broken_down: self.broken_down.clone(),
+            warnings: self.warnings.clone(),
+        }
+    }
+
+    /// Restores the bookkeeping of a checkpoint.
+    pub(super) fn restore(&mut self, s: &RecorderState, history: &[StepRecord]) {
+        self.prev_reactions = s.prev_reactions.clone();
+        self.prev_state = s.prev_state.clone();
+        self.boundary_work = s.boundary_work;
+        self.initial_potential = s.initial_potential;
+        self.external_factor = s.external_factor;
+        self.prev_factor = s.prev_factor;
+        self.prev_external = s.prev_external.clone();
+        self.load_change_work = s.load_change_work;
+        self.reference = s.reference.clone();
+        self.broken_down = s.broken_down.clone();
+        self.warnings = s.warnings.clone();
+        self.history = history.to_vec();
+    }
+}
+
+impl Recorder<'_> {
+    /// Starts the energy balance afresh from the last recorded state.
+    pub(super) fn rebase(&mut self) {
+        self.initial_potential = Some(self.last_total);
+        self.boundary_work = 0.0;
+        self.load_change_work = 0.0;
+    }
+
+    /// Warns (once per material) where the true field first exceeds a material's dielectric
+    /// strength, and asks the driver to stop when the plan says so.
+    pub(super) fn check_breakdown(&mut self, fields: &[CellFields], time: f64, stage: &str) {
+        let plan = self.plan;
+        for (c, f) in fields.iter().enumerate() {
+            let m = plan.model.cell_material[c];
+            let Some(strength) = plan.breakdown[m] else {
+                continue;
+            };
+            if f.e_max <= strength || self.broken_down[m] {
+                continue;
+            }
+            self.broken_down[m] = true;
+            let centre = plan.model.mesh.cell_centroid(c);
+            let message = format!(
+                "dielectric breakdown: true field {:.4e} V/m exceeds the strength {:.4e} V/m of material `{}` at t = {:.6} s (stage `{stage}`), cell {c} at ({:.4e}, {:.4e}, {:.4e}) m",
+                f.e_max,
+                strength,
+                plan.material_names[m],
+                time,
+                centre[0],
+                centre[1],
+                centre[2]
+            );
+            if plan.stop_at_breakdown {
+                crate::solve::interrupt::stop_here(format!("stopped on {message}"));
+            }
+            self.warnings.push(message);
+        }
+    }
+}
+
+impl Energies {
+    /// All energies times `factor` (the symmetry factor of a partial model).
+    fn scaled(self, factor: f64) -> Self {
+        Energies {
+            kinetic: self.kinetic * factor,
+            stored: self.stored * factor,
+            electric: self.electric * factor,
+            gravity: self.gravity * factor,
+            dissipated: self.dissipated * factor,
+            energy_error: self.energy_error * factor,
+        }
+    }
+}
+
+impl<'p> Recorder<'p> {
+    /// A recorder at the start of a run; `keep_history` keeps every record (for checkpoints).
+    pub(super) fn new(plan: &'p Plan, keep_history: bool) -> Self {
+        let n_nodes = plan.model.mesh.n_nodes();
+        Recorder {
+            plan,
+            prev_reactions: Vec::new(),
+            prev_state: Vec::new(),
+            boundary_work: 0.0,
+            initial_potential: None,
+            last_total: 0.0,
+            traction: if plan.model.tractions.is_empty() {
+                Vec::new()
+            } else {
+                crate::loads::traction_forces(&plan.model.mesh, &plan.model.tractions, 1.0)
+            },
+            weight: if plan.model.point_forces.is_empty()
+                && plan.model.body_force.iter().all(|b| *b == [0.0; 3])
+            {
+                Vec::new()
+            } else {
+                crate::loads::weight_forces(&plan.model)
+            },
+            external_factor: 0.0,
+            prev_factor: 0.0,
+            prev_external: Vec::new(),
+            load_change_work: 0.0,
+            reference: vec![0.0; n_nodes * FIELDS],
+            broken_down: vec![false; plan.model.materials.len()],
+            warnings: Vec::new(),
+            history: Vec::new(),
+            keep_history,
+        }
+    }
+}
