@@ -90,6 +90,13 @@ enum Command {
 }
 
 fn main() {
+    // a closed pipe (`deasim example diaphragm | head`) ends the process quietly, as it does for
+    // other Unix tools, instead of making the next `println!` panic
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
