@@ -63,9 +63,10 @@ enum Command {
     Sweep {
         /// Scenario file (TOML; the embedded default when omitted).
         scenario: Option<PathBuf>,
-        /// The swept parameter: PATH=START:STOP:N (N values) or PATH=v1,v2,...
-        #[arg(long = "set-range", value_name = "PATH=START:STOP:N")]
-        set_range: String,
+        /// The swept parameter: PATH=START:STOP:N (N values) or PATH=v1,v2,...; repeat it for
+        /// parameters that move along with the first (same N), e.g. a time step.
+        #[arg(long = "set-range", value_name = "PATH=START:STOP:N", required = true)]
+        set_range: Vec<String>,
         /// Geometric spacing of START:STOP:N (e.g. frequencies).
         #[arg(long)]
         log: bool,

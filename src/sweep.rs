@@ -81,6 +81,28 @@ pub fn parse_range(spec: &str, log: bool) -> Result<Range, String> {
     })
 }
 
+/// Parses one or more `--set-range` values: the first is the swept parameter (the x axis), the
+/// others move along with it (e.g. a time step that follows the frequency) and need as many values.
+pub fn parse_ranges(specs: &[String], log: bool) -> Result<Vec<Range>, String> {
+    if specs.is_empty() {
+        return Err("--set-range: at least one PATH=START:STOP:N is needed".into());
+    }
+    let ranges = specs
+        .iter()
+        .map(|s| parse_range(s, log))
+        .collect::<Result<Vec<_>, _>>()?;
+    let n = ranges[0].values.len();
+    if let Some(r) = ranges.iter().find(|r| r.values.len() != n) {
+        return Err(format!(
+            "--set-range `{}` has {} values, `{}` has {n}: ranges that move together need as many",
+            r.path,
+            r.values.len(),
+            ranges[0].path
+        ));
+    }
+    Ok(ranges)
+}
+
 /// Figures of one probe over one run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProbeFigures {
@@ -166,22 +188,25 @@ pub fn cmd_sweep(
     scenario: Option<&Path>,
     out: Option<&Path>,
     overrides: &[String],
-    range: &str,
+    ranges: &[String],
     log: bool,
     jobs: Option<usize>,
 ) -> i32 {
-    let range = match parse_range(range, log) {
+    let ranges = match parse_ranges(ranges, log) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: {e}");
             return EXIT_BAD_INPUT;
         }
     };
+    let range = &ranges[0];
     // every value must give a valid scenario before anything runs
     let mut plans = Vec::new();
-    for &v in &range.values {
+    for (k, &v) in range.values.iter().enumerate() {
         let mut sets = overrides.to_vec();
-        sets.push(format!("{}={v}", range.path));
+        for r in &ranges {
+            sets.push(format!("{}={}", r.path, r.values[k]));
+        }
         // per-run outputs: history and summary, the last state's fields, no plots
         sets.push("output.plots=false".into());
         sets.push("output.fields_every=0".into());
@@ -250,7 +275,7 @@ pub fn cmd_sweep(
         }
     };
     let outcomes: Vec<Outcome> = results.into_iter().map(|r| r.1).collect();
-    if let Err(e) = write_table(&dir, &plan, &range, &outcomes, log) {
+    if let Err(e) = write_table(&dir, &plan, &ranges, &outcomes, log) {
         eprintln!("error: {e}");
         return EXIT_SOLVE_FAILED;
     }
@@ -329,17 +354,25 @@ fn default_jobs(plan: &Plan) -> usize {
 fn write_table(
     dir: &Path,
     plan: &Plan,
-    range: &Range,
+    ranges: &[Range],
     outcomes: &[Outcome],
     log: bool,
 ) -> Result<(), String> {
-    let mut csv = format!("{},converged", range.path);
+    let range = &ranges[0];
+    let mut csv = String::new();
+    for r in ranges {
+        let _ = write!(csv, "{},", r.path);
+    }
+    csv.push_str("converged");
     for (name, _) in &plan.probes {
         let _ = write!(csv, ",{name}:final,{name}:max,{name}:peak_to_peak");
     }
     csv.push('\n');
-    for o in outcomes {
-        let _ = write!(csv, "{:e},{}", o.value, o.converged);
+    for (k, o) in outcomes.iter().enumerate() {
+        for r in ranges {
+            let _ = write!(csv, "{:e},", r.values[k]);
+        }
+        let _ = write!(csv, "{}", o.converged);
         for i in 0..plan.probes.len() {
             match o.figures.get(i) {
                 Some(f) => {
@@ -436,5 +469,9 @@ mod tests {
             assert!(parse_range(bad, false).is_err(), "{bad}");
         }
         assert!(parse_range("a=0:10:3", true).is_err());
+        let r = parse_ranges(&["f=1:100:3".into(), "dt=0.01,0.001,0.0001".into()], false).unwrap();
+        assert_eq!(r[1].values, vec![0.01, 0.001, 0.0001]);
+        assert!(parse_ranges(&["f=1:100:3".into(), "dt=1,2".into()], false).is_err());
+        assert!(parse_ranges(&[], false).is_err());
     }
 }

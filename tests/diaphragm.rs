@@ -369,6 +369,44 @@ fn sweep_over_the_voltage() {
     // a malformed range is bad input
     let bad = deasim(&["sweep", "--set-range", "mesh.radial=1:2"], &dir);
     assert_eq!(bad.status.code(), Some(2));
+    // a second range moves along with the first (the time step follows the frequency)
+    let paired = deasim(
+        &[
+            "sweep",
+            "--set-range",
+            "electrodes.top.voltage.frequency=10:100:2",
+            "--set-range",
+            "stages.1.dt=2e-3:2e-4:2",
+            "--log",
+            "--set",
+            "mesh.radial=6",
+            "--set",
+            "mesh.layers=1",
+            "--set",
+            "stages.1.duration=0.02",
+            "--out",
+            "fsw",
+        ],
+        &dir,
+    );
+    assert_eq!(paired.status.code(), Some(0));
+    let csv = std::fs::read_to_string(dir.join("fsw/sweep.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert!(lines[0].starts_with("electrodes.top.voltage.frequency,stages.1.dt,converged,"));
+    assert!(lines[1].starts_with("1e1,2e-3,true,") && lines[2].starts_with("1e2,2e-4,true,"));
+    let summary = std::fs::read_to_string(dir.join("fsw/runs/001/history.csv")).unwrap();
+    assert!(summary.lines().filter(|l| l.contains(",actuate,")).count() >= 100);
+    let unequal = deasim(
+        &[
+            "sweep",
+            "--set-range",
+            "a.b=1:2:3",
+            "--set-range",
+            "c.d=1,2",
+        ],
+        &dir,
+    );
+    assert_eq!(unequal.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
 }
 
