@@ -10,10 +10,12 @@ use crate::io::build::{Plan, StageKind};
 use crate::io::output::OutputWriter;
 use crate::io::plot::{line_plot, PlotSpec, Series};
 use crate::solve::newton::NewtonSettings;
-use crate::waveform::Shape;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+
+/// Fewest records in the steady-state window for a peak-to-peak value (else NaN).
+const MIN_WINDOW_SAMPLES: usize = 8;
 
 /// Largest number of values of one sweep.
 const MAX_VALUES: usize = 1000;
@@ -109,7 +111,8 @@ pub struct ProbeFigures {
     pub last: f64,
     pub max: f64,
     /// Peak-to-peak over the last period of the driving signal in the last stage (the last
-    /// quarter of the stage when the signal is not periodic); NaN for a static last stage.
+    /// quarter of the stage when the signal is not periodic); NaN for a static last stage or
+    /// when fewer than 8 records fall in that window.
     pub peak_to_peak: f64,
 }
 
@@ -119,13 +122,13 @@ pub fn figures(plan: &Plan, records: &[StepRecord]) -> Vec<ProbeFigures> {
         return Vec::new();
     };
     let t_end = records.last().map(|r| r.time).unwrap_or(0.0);
-    let period = plan.electrodes.iter().find_map(|e| match e.voltage.shape {
-        Shape::Square { frequency, .. }
-        | Shape::Triangle { frequency, .. }
-        | Shape::Sine { frequency, .. }
-        | Shape::Fourier { frequency, .. } => Some(1.0 / frequency),
-        _ => None,
-    });
+    let period = if last_stage.electrodes_on {
+        plan.electrodes
+            .iter()
+            .find_map(|e| e.voltage.frequency().map(|f| 1.0 / f))
+    } else {
+        None
+    };
     let window = match period {
         Some(p) if p <= last_stage.duration => p,
         _ => 0.25 * last_stage.duration,
@@ -144,7 +147,8 @@ pub fn figures(plan: &Plan, records: &[StepRecord]) -> Vec<ProbeFigures> {
                 .map(|r| r.probes[i])
                 .filter(|v| v.is_finite())
                 .collect();
-            let peak_to_peak = if dynamic && !tail.is_empty() {
+            // too few samples in the window cannot show a peak-to-peak (the step is too long)
+            let peak_to_peak = if dynamic && tail.len() >= MIN_WINDOW_SAMPLES {
                 tail.iter().fold(f64::MIN, |a, &b| a.max(b))
                     - tail.iter().fold(f64::MAX, |a, &b| a.min(b))
             } else {

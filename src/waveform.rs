@@ -67,6 +67,17 @@ impl Waveform {
     }
 
     /// Value at time `t` (s).
+    /// Frequency (Hz) of a periodic shape; `None` for the others.
+    pub fn frequency(&self) -> Option<f64> {
+        match self.shape {
+            Shape::Square { frequency, .. }
+            | Shape::Triangle { frequency, .. }
+            | Shape::Sine { frequency, .. }
+            | Shape::Fourier { frequency, .. } => Some(frequency),
+            _ => None,
+        }
+    }
+
     pub fn value(&self, t: f64) -> f64 {
         self.offset + self.amplitude * self.shape_value(t)
     }

@@ -104,6 +104,14 @@ fn quarter_and_full_disc_agree() {
         let summary = run(&plan, &NewtonSettings::default(), &mut rec);
         assert!(summary.converged, "{:?}", summary.error);
         let last = rec.0.last().unwrap();
+        // the static balance (from the pre-stretched state, with the gravity potential and the
+        // work of ramping the weights) closes to the quadrature error
+        assert!(
+            last.energies.energy_error.abs() < 1e-9 * last.energies.stored,
+            "{:?}",
+            last.energies
+        );
+        assert!(last.energies.gravity < 0.0);
         (
             probe(&plan, last, "center_deflection"),
             last.energies.stored,

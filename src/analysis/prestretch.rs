@@ -49,6 +49,8 @@ pub(super) fn prestretch(
     let mut record_error = None;
     let mut record = |rec: &mut Recorder, s: &[f64], iterations: usize| {
         step_no += 1;
+        // the balance starts from the pre-stretched state (the last of these records)
+        rec.restart_balance();
         rec.external_factor = 0.0;
         rec.reference = s.to_vec();
         match rec.record(
@@ -117,6 +119,5 @@ pub(super) fn prestretch(
         rec.warnings
             .push(format!("pre-stretch: output evaluation failed: {e}"));
     }
-    rec.rebase();
     Ok((final_state, step_no, iterations))
 }

@@ -16,14 +16,15 @@ pub(super) struct Recorder<'p> {
     pub(super) prev_state: Vec<f64>,
     pub(super) boundary_work: f64,
     pub(super) initial_potential: Option<f64>,
-    /// The energy total of the last record (J, meshed part).
-    pub(super) last_total: f64,
     /// Nodal forces of the tractions at full value (empty without tractions).
     pub(super) traction: Vec<f64>,
     /// Nodal forces of gravity and attached masses at full value (empty without).
     pub(super) weight: Vec<f64>,
     /// Load factor of the dead loads at the state being recorded.
     pub(super) external_factor: f64,
+    /// The dead-load factor jumps to `external_factor` at the start of the step (dynamic stages)
+    /// instead of ramping with it (static stages).
+    pub(super) sudden_loads: bool,
     pub(super) prev_factor: f64,
     pub(super) prev_external: Vec<f64>,
     /// Work of changing the weight load factor at fixed positions, −∫ f·u dλ (J).
@@ -84,13 +85,27 @@ impl<'p> Recorder<'p> {
         let weight_dot = |u: &[f64]| -> f64 { self.weight.iter().zip(u).map(|(f, x)| f * x).sum() };
         let gravity = -self.external_factor * weight_dot(state);
         if !self.prev_state.is_empty() && !self.weight.is_empty() {
-            let mean = 0.5 * (weight_dot(state) + weight_dot(&self.prev_state));
-            self.load_change_work -= (self.external_factor - self.prev_factor) * mean;
+            // a ramp changes λ along with u (trapezoidal mean); a dynamic stage switches the
+            // loads on at once, at the positions it starts from
+            let at = if self.sudden_loads {
+                weight_dot(&self.prev_state)
+            } else {
+                0.5 * (weight_dot(state) + weight_dot(&self.prev_state))
+            };
+            self.load_change_work -= (self.external_factor - self.prev_factor) * at;
         }
         self.prev_factor = self.external_factor;
         let total = kinetic + stored - electric + gravity + dissipated;
-        self.last_total = total;
-        let initial = *self.initial_potential.get_or_insert(total);
+        // the first record of a balance is its origin: the work up to it does not count
+        let initial = match self.initial_potential {
+            Some(v) => v,
+            None => {
+                self.boundary_work = 0.0;
+                self.load_change_work = 0.0;
+                self.initial_potential = Some(total);
+                total
+            }
+        };
         let energy_error = total - initial - self.boundary_work - self.load_change_work;
         let voltages: Vec<(&[usize], f64)> = self
             .plan
@@ -184,9 +199,9 @@ impl<'p> Recorder<'p> {
 }
 
 impl Recorder<'_> {
-    /// Starts the energy balance afresh from the last recorded state.
-    pub(super) fn rebase(&mut self) {
-        self.initial_potential = Some(self.last_total);
+    /// Starts the energy balance afresh: the next record is its initial value (energy_error 0).
+    pub(super) fn restart_balance(&mut self) {
+        self.initial_potential = None;
         self.boundary_work = 0.0;
         self.load_change_work = 0.0;
     }
@@ -247,7 +262,6 @@ impl<'p> Recorder<'p> {
             prev_state: Vec::new(),
             boundary_work: 0.0,
             initial_potential: None,
-            last_total: 0.0,
             traction: if plan.model.tractions.is_empty() {
                 Vec::new()
             } else {
@@ -261,6 +275,7 @@ impl<'p> Recorder<'p> {
                 crate::loads::weight_forces(&plan.model)
             },
             external_factor: 0.0,
+            sudden_loads: false,
             prev_factor: 0.0,
             prev_external: Vec::new(),
             load_change_work: 0.0,

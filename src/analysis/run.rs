@@ -399,6 +399,7 @@ pub fn run_with(
                         let t = time + acc.load * stage.duration;
                         let dt = (acc.load - last_load) * stage.duration;
                         last_load = acc.load;
+                        rec.sudden_loads = false;
                         rec.external_factor =
                             model.dead_load_start + acc.load * (1.0 - model.dead_load_start);
                         match rec.record(
@@ -588,6 +589,7 @@ pub fn run_with(
                         let kinetic =
                             0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
                         rec.external_factor = 1.0;
+                        rec.sudden_loads = true;
                         match rec.record(
                             &level.q,
                             &prescribed,

@@ -19,6 +19,9 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
+/// Fewest time steps per period of a periodic voltage before a warning.
+pub const MIN_STEPS_PER_PERIOD: f64 = 20.0;
+
 /// Largest number of cells a generated mesh may have (memory guard: ~5 GB of tangent).
 pub const MAX_CELLS: u64 = 2_000_000;
 
@@ -1183,6 +1186,29 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             "output.plot_format",
             format!("expected `png` or `svg`; got `{}`", o.plot_format),
         ));
+    }
+    // a time step that cannot resolve a periodic voltage aliases it (the midpoint rule samples
+    // the signal at t + Δt/2): say so rather than report a response to a signal never seen
+    for st in &stages {
+        let StageKind::Dynamic { dt, .. } = st.kind else {
+            continue;
+        };
+        if !st.electrodes_on {
+            continue;
+        }
+        for e in &electrodes {
+            if let Some(f) = e.voltage.frequency() {
+                let per_period = 1.0 / (f * dt);
+                if per_period < MIN_STEPS_PER_PERIOD {
+                    warnings.push(format!(
+                        "stage `{}`: dt = {dt:e} s gives only {per_period:.1} steps per period of \
+                         the {f} Hz voltage of electrode `{}` (at least {MIN_STEPS_PER_PERIOD} \
+                         are needed to resolve it; the response is aliased)",
+                        st.name, e.name
+                    ));
+                }
+            }
+        }
     }
     Ok(Plan {
         name: s.name.clone(),
