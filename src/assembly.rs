@@ -56,6 +56,9 @@ pub struct CellFailure<E> {
 #[derive(Debug, Clone)]
 pub struct Assembler {
     colours: Vec<Vec<usize>>,
+    /// Cells touching tied nodes (which share equations with other cells' nodes): assembled one
+    /// after the other, in cell order, after the colours.
+    serial: Vec<usize>,
     pattern: CsrMatrix,
     nodes_per_cell: usize,
 }
@@ -140,8 +143,23 @@ impl Assembler {
             i = j;
         }
         let nnz = col_idx.len();
+        // cells of one colour share no node; cells on tied nodes go to the serial list
+        let rep = dofs.node_representatives();
+        let mut class_size = vec![0usize; mesh.n_nodes()];
+        for &r in &rep {
+            class_size[r] += 1;
+        }
+        let tied = |c: usize| mesh.cell(c).iter().any(|&n| class_size[rep[n]] > 1);
+        let serial: Vec<usize> = (0..mesh.n_cells()).filter(|&c| tied(c)).collect();
+        let colours: Vec<Vec<usize>> = mesh
+            .cell_colours()
+            .into_iter()
+            .map(|colour| colour.into_iter().filter(|&c| !tied(c)).collect::<Vec<_>>())
+            .filter(|colour| !colour.is_empty())
+            .collect();
         Assembler {
-            colours: mesh.cell_colours_grouped(&dofs.node_representatives()),
+            colours,
+            serial,
             pattern: CsrMatrix {
                 n: dofs.n_free,
                 row_ptr,
@@ -157,9 +175,9 @@ impl Assembler {
         self.pattern.clone()
     }
 
-    /// Number of colours (for reports).
+    /// Number of colours (for reports); the serial cells count as one.
     pub fn n_colours(&self) -> usize {
-        self.colours.len()
+        self.colours.len() + usize::from(!self.serial.is_empty())
     }
 
     /// Assembles the scaled residual r̂ (length `n_free`) and, when `k` is given, the scaled tangent.
@@ -194,67 +212,77 @@ impl Assembler {
         let k_ptr = k.as_deref_mut().map(|k| SharedMut(k.values.as_mut_ptr()));
         let e_ptr = SharedMut(cell_energy.as_mut_ptr());
         let pattern = k.as_deref().map(|k| (&k.row_ptr, &k.col_idx));
+        let init = || {
+            (
+                vec![0.0; MAX_LOCAL],
+                Box::new([0.0; MAX_LOCAL * MAX_LOCAL]) as Box<LocalMatrix>,
+                [0usize; MAX_LOCAL],
+                [0.0; MAX_LOCAL],
+            )
+        };
+        type Work = (
+            Vec<f64>,
+            Box<LocalMatrix>,
+            [usize; MAX_LOCAL],
+            [f64; MAX_LOCAL],
+        );
+        let body = |(rl, kl, eqs, scale): &mut Work, &c: &usize| {
+            let cell = mesh.cell(c);
+            let mut local = [0.0; MAX_LOCAL];
+            for (a, &node) in cell.iter().enumerate() {
+                for f in 0..FIELDS {
+                    let d = node * FIELDS + f;
+                    local[a * FIELDS + f] = state[d];
+                    eqs[a * FIELDS + f] = dofs.eq[d];
+                    scale[a * FIELDS + f] = dofs.scale[f];
+                }
+            }
+            let kl_opt = if want_k {
+                Some(&mut kl[..nl * nl])
+            } else {
+                None
+            };
+            let energy = kernel(c, &local[..nl], &mut rl[..nl], kl_opt)
+                .map_err(|error| CellFailure { cell: c, error })?;
+            // SAFETY: cells of one colour share no node, hence no dof (tied cells run
+            // alone): disjoint entries.
+            unsafe {
+                e_ptr.add(c, energy);
+                for i in 0..nl {
+                    if eqs[i] != CONSTRAINED {
+                        r_ptr.add(eqs[i], scale[i] * rl[i]);
+                    }
+                }
+            }
+            if let (Some(kp), Some((row_ptr, col_idx))) = (k_ptr, pattern) {
+                for i in 0..nl {
+                    let ei = eqs[i];
+                    if ei == CONSTRAINED {
+                        continue;
+                    }
+                    let cols = &col_idx[row_ptr[ei]..row_ptr[ei + 1]];
+                    for j in 0..nl {
+                        let ej = eqs[j];
+                        if ej == CONSTRAINED {
+                            continue;
+                        }
+                        let p = row_ptr[ei]
+                            + cols
+                                .binary_search(&ej)
+                                .expect("pattern holds every cell coupling");
+                        // SAFETY: as above, row ei belongs to a node of this cell only.
+                        unsafe { kp.add(p, scale[i] * scale[j] * kl[i * nl + j]) };
+                    }
+                }
+            }
+            Ok(())
+        };
         for colour in &self.colours {
-            colour.par_iter().try_for_each_init(
-                || {
-                    (
-                        vec![0.0; MAX_LOCAL],
-                        Box::new([0.0; MAX_LOCAL * MAX_LOCAL]) as Box<LocalMatrix>,
-                        [0usize; MAX_LOCAL],
-                        [0.0; MAX_LOCAL],
-                    )
-                },
-                |(rl, kl, eqs, scale), &c| {
-                    let cell = mesh.cell(c);
-                    let mut local = [0.0; MAX_LOCAL];
-                    for (a, &node) in cell.iter().enumerate() {
-                        for f in 0..FIELDS {
-                            let d = node * FIELDS + f;
-                            local[a * FIELDS + f] = state[d];
-                            eqs[a * FIELDS + f] = dofs.eq[d];
-                            scale[a * FIELDS + f] = dofs.scale[f];
-                        }
-                    }
-                    let kl_opt = if want_k {
-                        Some(&mut kl[..nl * nl])
-                    } else {
-                        None
-                    };
-                    let energy = kernel(c, &local[..nl], &mut rl[..nl], kl_opt)
-                        .map_err(|error| CellFailure { cell: c, error })?;
-                    // SAFETY: cells of one colour share no node, hence no dof: disjoint entries.
-                    unsafe {
-                        e_ptr.add(c, energy);
-                        for i in 0..nl {
-                            if eqs[i] != CONSTRAINED {
-                                r_ptr.add(eqs[i], scale[i] * rl[i]);
-                            }
-                        }
-                    }
-                    if let (Some(kp), Some((row_ptr, col_idx))) = (k_ptr, pattern) {
-                        for i in 0..nl {
-                            let ei = eqs[i];
-                            if ei == CONSTRAINED {
-                                continue;
-                            }
-                            let cols = &col_idx[row_ptr[ei]..row_ptr[ei + 1]];
-                            for j in 0..nl {
-                                let ej = eqs[j];
-                                if ej == CONSTRAINED {
-                                    continue;
-                                }
-                                let p = row_ptr[ei]
-                                    + cols
-                                        .binary_search(&ej)
-                                        .expect("pattern holds every cell coupling");
-                                // SAFETY: as above, row ei belongs to a node of this cell only.
-                                unsafe { kp.add(p, scale[i] * scale[j] * kl[i * nl + j]) };
-                            }
-                        }
-                    }
-                    Ok(())
-                },
-            )?;
+            colour.par_iter().try_for_each_init(init, body)?;
+        }
+        let mut work = init();
+        for c in &self.serial {
+            body(&mut work, c)?;
         }
         Ok(cell_energy.iter().sum())
     }
