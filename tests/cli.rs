@@ -3,27 +3,15 @@
 //! pull-in exits 1 with `converged: false`; VTU files read back with the expected arrays; `--set`
 //! changes what it names and rejects unknown paths.
 
+mod common;
+
+use common::{deasim, tempdir};
 use deasim::analytic::Film;
 use deasim::examples::{FILM_EPS_R, FILM_LAMBDA, FILM_MU};
 use deasim::io::vtu::read_vtu;
 use deasim::material::EPSILON_0;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
-
-fn deasim(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_deasim"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run deasim")
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deasim-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned() + &String::from_utf8_lossy(&o.stdout)

@@ -1,6 +1,9 @@
 //! The circular actuator (issue #6): pre-stretched disc with a rigid pad carrying a mass.
 //! Runs scenarios through the library (parse → build → run) on coarse meshes.
 
+mod common;
+
+use common::{deasim, tempdir};
 use deasim::analysis::run::{run, Observer, RunSummary, StepRecord};
 use deasim::element::CellFields;
 use deasim::io::build::{build, Plan};
@@ -241,22 +244,12 @@ fn lumped_model_agrees_with_finite_elements() {
     assert!(ds.abs() < 0.1 && df.abs() < 0.1);
 }
 
-fn deasim(args: &[&str], dir: &std::path::Path) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_deasim"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
-}
-
 /// `deasim run` of the coarse diaphragm, then `deasim lumped --compare` on its output: both exit
 /// 0; the FE summary has the probes and the static sag; the lumped command writes its history and
 /// the overlay plot and reports the static difference (< 10 %).
 #[test]
 fn run_and_lumped_commands_on_the_diaphragm() {
-    let dir = std::env::temp_dir().join(format!("deasim-diaphragm-cli-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tempdir("diaphragm-cli");
     let sets = [
         "--set",
         "mesh.radial=6",
@@ -325,9 +318,7 @@ fn run_and_lumped_commands_on_the_diaphragm() {
 /// and the largest center deflection grows with the voltage (and faster than linearly: ∝ V²).
 #[test]
 fn sweep_over_the_voltage() {
-    let dir = std::env::temp_dir().join(format!("deasim-diaphragm-sweep-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tempdir("diaphragm-sweep");
     let out = deasim(
         &[
             "sweep",

@@ -2,24 +2,10 @@
 //! exit status 1, the reason and the time in the error, and only converged states in the outputs.
 //! (Pull-in is covered by `cli.rs::pull_in_example_exits_1_and_names_the_instability`.)
 
+mod common;
+
+use common::{deasim, tempdir};
 use deasim::io::vtu::read_vtu;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn deasim(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_deasim"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run deasim")
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deasim-fail-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// The 1 mm film without voltage, its top face pushed down by 2 mm: the cells invert (J ≤ 0)
 /// near half of the ramp. The run ends with exit 1, `converged: false`, an error naming the

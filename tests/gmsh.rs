@@ -10,6 +10,9 @@
 //! An internal surface (the embedded electrode of tests/data/gmsh/bilayer.geo) is a face set and an
 //! electrode like any other.
 
+mod common;
+
+use common::tempdir;
 use deasim::analysis::statics::solve_static;
 use deasim::analytic::Film;
 use deasim::dofs::Field;
@@ -127,13 +130,6 @@ fn film_mass_from_gmsh_meshes() {
             assert!(negative > 0, "{file}: row-sum lumping would be valid");
         }
     }
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deasim-gmsh-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// `deasim run` on tests/data/gmsh/film.toml (tet10 file, physical groups `top`/`bottom`, scale

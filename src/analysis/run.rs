@@ -319,6 +319,20 @@ pub fn run_with(
             converged: true,
         };
         let mut record_error: Option<String> = None;
+        // what a checkpoint of this stage records besides the solver's position
+        let context = ck_options.as_ref().map(|o| CheckpointContext {
+            options: o,
+            fingerprint,
+            stage: si,
+            stage_time: time,
+            first_step,
+            prestretch_iterations,
+            dead_load_start: model.dead_load_start,
+            stages: &summary.stages,
+            warnings: &summary.warnings,
+            wall_before,
+            start,
+        });
         let failure: Option<String> = match stage.kind {
             StageKind::Static { steps } => {
                 stage_summary.kind = "static".into();
@@ -375,19 +389,6 @@ pub fn run_with(
                     },
                     |r| r.1,
                 );
-                let context = ck_options.as_ref().map(|o| CheckpointContext {
-                    options: o,
-                    fingerprint,
-                    stage: si,
-                    stage_time: time,
-                    first_step,
-                    prestretch_iterations,
-                    dead_load_start: model.dead_load_start,
-                    stages: &summary.stages,
-                    warnings: &summary.warnings,
-                    wall_before,
-                    start,
-                });
                 let outcome = solve_static_from(
                     &model,
                     stage_start_state.clone(),
@@ -561,19 +562,6 @@ pub fn run_with(
                     dyn_resume.map_or(dt, |r| r.dt),
                     dyn_resume.map_or(0, |r| r.iterations),
                 );
-                let context = ck_options.as_ref().map(|o| CheckpointContext {
-                    options: o,
-                    fingerprint,
-                    stage: si,
-                    stage_time: time,
-                    first_step,
-                    prestretch_iterations,
-                    dead_load_start: model.dead_load_start,
-                    stages: &summary.stages,
-                    warnings: &summary.warnings,
-                    wall_before,
-                    start,
-                });
                 let mut mv = vec![0.0; state.len()];
                 let outcome = run_dynamic_from(
                     &model,

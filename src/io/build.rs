@@ -443,14 +443,26 @@ fn build_disc(
         kind,
     };
     let layout = spec.layout().map_err(|e| ctx.err("mesh", e))?;
-    let cells = layout.hexahedra as u64 * if kind == ElementKind::Hex8 { 1 } else { 6 };
+    check_cell_count(ctx, "mesh.radial", layout.hexahedra, kind)?;
+    disc_mesh(&spec).map_err(|e| ctx.err("mesh", e))
+}
+
+/// Refuses a generated mesh of more than [`MAX_CELLS`] cells (`hexahedra` of the layout, six
+/// tetrahedra each for tet meshes), naming `key`, the parameter that sets the size.
+fn check_cell_count(
+    ctx: &Ctx,
+    key: &str,
+    hexahedra: usize,
+    kind: ElementKind,
+) -> Result<(), InputError> {
+    let cells = hexahedra as u64 * if kind == ElementKind::Hex8 { 1 } else { 6 };
     if cells > MAX_CELLS {
         return Err(ctx.err(
-            "mesh.radial",
+            key,
             format!("{cells} cells: too large for this machine's memory"),
         ));
     }
-    disc_mesh(&spec).map_err(|e| ctx.err("mesh", e))
+    Ok(())
 }
 
 /// The `stack` generator: `films` films with electrodes `electrode_0` … `electrode_N` on every
@@ -539,13 +551,7 @@ fn build_stack(
         kind,
     };
     let layout = spec.layout().map_err(|e| ctx.err("mesh", e))?;
-    let cells = layout.hexahedra as u64 * if kind == ElementKind::Hex8 { 1 } else { 6 };
-    if cells > MAX_CELLS {
-        return Err(ctx.err(
-            "mesh.active_cells",
-            format!("{cells} cells: too large for this machine's memory"),
-        ));
-    }
+    check_cell_count(ctx, "mesh.active_cells", layout.hexahedra, kind)?;
     stack_mesh(&spec).map_err(|e| ctx.err("mesh", e))
 }
 

@@ -829,15 +829,7 @@ mod tests {
     fn mesh_is_conforming_and_boundary_is_the_named_sets() {
         for s in variants() {
             let m = disc_mesh(&s).unwrap();
-            let mut count: BTreeMap<Vec<usize>, usize> = BTreeMap::new();
-            for c in 0..m.n_cells() {
-                let cell = m.cell(c);
-                for local in m.kind.faces() {
-                    let mut key: Vec<usize> = local.iter().map(|&l| cell[l]).collect();
-                    key.sort_unstable();
-                    *count.entry(key).or_default() += 1;
-                }
-            }
+            let count = m.face_use_counts();
             assert!(count.values().all(|&k| k == 1 || k == 2), "{s:?}");
             let boundary: BTreeSet<Vec<usize>> = count
                 .iter()

@@ -177,6 +177,21 @@ impl Mesh {
         best.1
     }
 
+    /// Every cell face (its sorted node list) with the number of cells it bounds: 1 on the
+    /// boundary, 2 inside a conforming mesh.
+    pub fn face_use_counts(&self) -> BTreeMap<Vec<usize>, usize> {
+        let mut count: BTreeMap<Vec<usize>, usize> = BTreeMap::new();
+        for c in 0..self.n_cells() {
+            let cell = self.cell(c);
+            for local in self.kind.faces() {
+                let mut key: Vec<usize> = local.iter().map(|&l| cell[l]).collect();
+                key.sort_unstable();
+                *count.entry(key).or_default() += 1;
+            }
+        }
+        count
+    }
+
     /// Mean of the corner coordinates of cell `c` (m).
     pub fn cell_centroid(&self, c: usize) -> [f64; 3] {
         let nodes = self.cell(c);

@@ -2,6 +2,25 @@
 #![allow(dead_code)]
 
 use deasim::mesh::Mesh;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs the `deasim` binary with `args` in `dir`.
+pub fn deasim(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run deasim")
+}
+
+/// A fresh, empty directory for one test (named after the test and the process).
+pub fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("deasim-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
 
 /// A small deterministic generator (xorshift64*), so tests need no extra crate.
 pub struct Rng(u64);
