@@ -1,7 +1,7 @@
-//! `cargo bench --bench core [-- SIZE [amd]]`: the film benchmark of `deasim::bench`, each size in
+//! `cargo bench --bench core [-- SIZE [amd]]`: the film benchmark of `deasim::cli::bench`, each size in
 //! its own process so that the peak memory belongs to one size. SIZE is NXxNYxNZ (hex8 cells).
 
-use deasim::bench::{bench_film, HEADER};
+use deasim::cli::bench::{bench_film, HEADER};
 use deasim::solve::linear::Ordering;
 
 fn main() {

@@ -2,26 +2,20 @@
 //! actuators. Unknowns are the displacement u and the electric potential Φ at every node; the
 //! equations are the stationarity conditions of one energy Π(u, Φ) = ∫Ψ(F, E₀) dV − W_ext.
 //!
-//! See `docs/architecture.md` for the data flow and the module responsibilities.
+//! Modules depend one way (`docs/architecture.md`; checked by `tests/architecture.rs`):
+//! mesh, fem, material, waveform, analytic → element → problem → solve, time → job → io →
+//! lumped → cli.
 
-pub mod analysis;
 pub mod analytic;
-pub mod app;
-pub mod assembly;
-pub mod bench;
-pub mod dofs;
+pub mod cli;
 pub mod element;
-pub mod element_fbar;
-pub mod examples;
 pub mod fem;
 pub mod io;
-pub mod loads;
+pub mod job;
 pub mod lumped;
 pub mod material;
 pub mod mesh;
-pub mod model;
+pub mod problem;
 pub mod solve;
-pub mod sweep;
 pub mod time;
-pub mod validate;
 pub mod waveform;

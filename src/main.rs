@@ -1,4 +1,4 @@
-//! The `deasim` command line: argument parsing only; the commands live in `deasim::app`.
+//! The `deasim` command line: argument parsing only; the commands live in `deasim::cli::app`.
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -102,7 +102,7 @@ fn main() {
         Ok(c) => c,
         Err(e) => {
             let code = if e.use_stderr() {
-                deasim::app::EXIT_BAD_INPUT
+                deasim::cli::app::EXIT_BAD_INPUT
             } else {
                 0
             };
@@ -121,8 +121,8 @@ fn main() {
         } => {
             let every = checkpoint_every.map(|n| usize::try_from(n).unwrap_or(usize::MAX));
             match resume {
-                Some(dir) => deasim::app::cmd_resume(&dir, scenario.as_deref(), &set, every),
-                None => deasim::app::cmd_run(
+                Some(dir) => deasim::cli::app::cmd_resume(&dir, scenario.as_deref(), &set, every),
+                None => deasim::cli::app::cmd_run(
                     scenario.as_deref(),
                     out.as_deref(),
                     &set,
@@ -131,14 +131,14 @@ fn main() {
                 ),
             }
         }
-        Command::Check { scenario, set } => deasim::app::cmd_check(&scenario, &set),
-        Command::Example { name } => deasim::app::cmd_example(name.as_deref()),
+        Command::Check { scenario, set } => deasim::cli::app::cmd_check(&scenario, &set),
+        Command::Example { name } => deasim::cli::app::cmd_example(name.as_deref()),
         Command::Lumped {
             scenario,
             out,
             set,
             compare,
-        } => deasim::lumped::command::cmd_lumped(
+        } => deasim::cli::lumped::cmd_lumped(
             scenario.as_deref(),
             out.as_deref(),
             &set,
@@ -151,7 +151,7 @@ fn main() {
             out,
             set,
             jobs,
-        } => deasim::sweep::cmd_sweep(
+        } => deasim::cli::sweep::cmd_sweep(
             scenario.as_deref(),
             out.as_deref(),
             &set,
@@ -159,8 +159,8 @@ fn main() {
             log,
             jobs,
         ),
-        Command::Validate => deasim::validate::cmd_validate(),
-        Command::Bench { large } => deasim::bench::cmd_bench(large),
+        Command::Validate => deasim::cli::validate::cmd_validate(),
+        Command::Bench { large } => deasim::cli::bench::cmd_bench(large),
     };
     std::process::exit(code);
 }

@@ -7,9 +7,9 @@ mod common;
 
 use common::{deasim, tempdir};
 use deasim::analytic::Film;
-use deasim::examples::{FILM_EPS_R, FILM_LAMBDA, FILM_MU};
 use deasim::io::vtu::read_vtu;
 use deasim::material::EPSILON_0;
+use deasim::problem::examples::{FILM_EPS_R, FILM_LAMBDA, FILM_MU};
 use std::path::Path;
 use std::process::{Command, Output};
 

@@ -32,12 +32,13 @@
 mod common;
 
 use common::{distort, tangent_fd_error, Rng};
-use deasim::analysis::statics::{solve_static, StaticProblem};
-use deasim::dofs::{Dirichlet, Field};
+use deasim::job::statics::solve_static;
 use deasim::material::registry::build;
 use deasim::material::{ElectroNeoHooke, MaterialParams, EPSILON_0};
 use deasim::mesh::{generate::box_mesh, ElementKind};
-use deasim::model::{Formulation, Model};
+use deasim::problem::dofs::{Dirichlet, Field};
+use deasim::problem::model::{Formulation, Model};
+use deasim::problem::statics::StaticProblem;
 use deasim::solve::newton::{NewtonSettings, NonlinearSystem};
 use deasim::solve::stepping::{LoadedSystem, StepControl};
 use std::sync::Arc;

@@ -4,11 +4,11 @@
 mod common;
 
 use common::{deasim, tempdir};
-use deasim::analysis::run::{run, Observer, RunSummary, StepRecord};
 use deasim::element::CellFields;
 use deasim::io::build::{build, Plan};
 use deasim::io::examples::example;
 use deasim::io::scenario::parse;
+use deasim::job::run::{run, Observer, RunSummary, StepRecord};
 use deasim::material::homogeneous::{solve, Mode};
 use deasim::solve::newton::NewtonSettings;
 

@@ -3,10 +3,10 @@
 //! References and tolerances are stated per test; all meshes are small so that 10⁴ steps run in
 //! seconds in a release build.
 
-use deasim::dofs::{Dirichlet, Field, FIELDS};
 use deasim::material::ElectroNeoHooke;
 use deasim::mesh::{generate::box_mesh, ElementKind};
-use deasim::model::Model;
+use deasim::problem::dofs::{Dirichlet, Field, FIELDS};
+use deasim::problem::model::Model;
 use deasim::solve::newton::NewtonSettings;
 use deasim::time::integrator::TimeLevel;
 use deasim::time::mass::{MassKind, NodalMass};
@@ -88,7 +88,7 @@ fn simulate(
     run_dynamic(model, &inputs, start, &settings, &newton, |level, info| {
         mass.mul(&level.v, &mut mv);
         let kinetic = 0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
-        let (stored, electric) = deasim::analysis::statics::energies(model, &level.q).unwrap();
+        let (stored, electric) = deasim::problem::statics::energies(model, &level.q).unwrap();
         dissipated += info.dissipated;
         run.energy.push(kinetic + stored - electric);
         run.dissipated.push(dissipated);

@@ -6,11 +6,11 @@
 //! the Newton tolerance: |Δλ| < 1e-8. Pull-in: ramped to 40 kV, the solver must stop with the last
 //! converged voltage within 0.5 % below the closed-form critical voltage 33.695 kV.
 
-use deasim::analysis::statics::solve_static;
 use deasim::analytic::Film;
-use deasim::examples::{film, FILM_EPS_R, FILM_LAMBDA, FILM_MU, FILM_SIZE};
+use deasim::job::statics::solve_static;
 use deasim::material::EPSILON_0;
 use deasim::mesh::ElementKind;
+use deasim::problem::examples::{film, FILM_EPS_R, FILM_LAMBDA, FILM_MU, FILM_SIZE};
 use deasim::solve::newton::NewtonSettings;
 use deasim::solve::stepping::StepControl;
 

@@ -9,11 +9,11 @@
 mod common;
 
 use common::{distort, tangent_fd_error, Rng};
-use deasim::analysis::statics::StaticProblem;
-use deasim::dofs::{Field, Tie};
 use deasim::material::{ElectroNeoHooke, EPSILON_0};
 use deasim::mesh::{generate::box_mesh, ElementKind};
-use deasim::model::Model;
+use deasim::problem::dofs::{Field, Tie};
+use deasim::problem::model::Model;
+use deasim::problem::statics::StaticProblem;
 use deasim::solve::newton::NonlinearSystem;
 use std::sync::Arc;
 

@@ -13,14 +13,14 @@
 mod common;
 
 use common::tempdir;
-use deasim::analysis::statics::solve_static;
 use deasim::analytic::Film;
-use deasim::dofs::Field;
-use deasim::examples::{FILM_EPS_R, FILM_LAMBDA, FILM_MU};
+use deasim::job::statics::solve_static;
 use deasim::material::{ElectroNeoHooke, EPSILON_0};
 use deasim::mesh::gmsh::read_msh;
 use deasim::mesh::ElementKind;
-use deasim::model::Model;
+use deasim::problem::dofs::Field;
+use deasim::problem::examples::{FILM_EPS_R, FILM_LAMBDA, FILM_MU};
+use deasim::problem::model::Model;
 use deasim::solve::newton::NewtonSettings;
 use deasim::solve::stepping::StepControl;
 use deasim::time::mass::{MassKind, NodalMass};

@@ -6,10 +6,10 @@
 mod common;
 
 use common::{distort, Rng};
-use deasim::analysis::statics::StaticProblem;
 use deasim::material::{ElectroNeoHooke, Mat3, EPSILON_0};
 use deasim::mesh::{generate::box_mesh, ElementKind};
-use deasim::model::Model;
+use deasim::problem::model::Model;
+use deasim::problem::statics::StaticProblem;
 use std::sync::Arc;
 
 #[test]

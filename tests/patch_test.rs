@@ -8,12 +8,12 @@
 mod common;
 
 use common::{distort, Rng};
-use deasim::analysis::statics::solve_static;
-use deasim::dofs::{Dirichlet, Field};
-use deasim::examples::film;
+use deasim::job::statics::solve_static;
 use deasim::material::{ElectroNeoHooke, EPSILON_0};
 use deasim::mesh::{generate::box_mesh, ElementKind};
-use deasim::model::Model;
+use deasim::problem::dofs::{Dirichlet, Field};
+use deasim::problem::examples::film;
+use deasim::problem::model::Model;
 use deasim::solve::newton::NewtonSettings;
 use deasim::solve::stepping::StepControl;
 use std::sync::Arc;

@@ -16,12 +16,12 @@
 mod common;
 
 use common::tangent_fd_error;
-use deasim::analysis::statics::{energies, nodal_reactions, StaticProblem};
-use deasim::dofs::FIELDS;
 use deasim::material::registry::{build, MaterialParams, MODELS};
 use deasim::material::EPSILON_0;
 use deasim::mesh::{generate::box_mesh, ElementKind};
-use deasim::model::Model;
+use deasim::problem::dofs::FIELDS;
+use deasim::problem::model::Model;
+use deasim::problem::statics::{energies, nodal_reactions, StaticProblem};
 use proptest::prelude::*;
 use proptest::test_runner::Config;
 

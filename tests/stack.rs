@@ -16,12 +16,12 @@
 //! bound of the exact one (Dirichlet minimum of ∫ε|∇Φ|²), so C_h/C_pp − 1 decreases with refinement
 //! toward P Δ/A, slowly, because the edge is singular.
 
-use deasim::analysis::run::{run, Observer, RunSummary, StepRecord};
 use deasim::analytic::Film;
 use deasim::element::CellFields;
 use deasim::io::build::{build, Plan};
 use deasim::io::examples::example;
 use deasim::io::scenario::parse;
+use deasim::job::run::{run, Observer, RunSummary, StepRecord};
 use deasim::material::EPSILON_0;
 use deasim::solve::newton::NewtonSettings;
 use std::sync::OnceLock;

@@ -4,6 +4,11 @@
 use crate::material::{Mat3, Vec3};
 use crate::mesh::ElementKind;
 
+/// Unknowns per node, interleaved node-major: ux, uy, uz (m) and Φ (V).
+pub const FIELDS: usize = 4;
+/// Index of the potential among a node's unknowns.
+pub const PHI: usize = 3;
+
 /// Largest number of nodes of a supported cell.
 pub const MAX_NODES: usize = 10;
 /// Largest number of quadrature points of a supported cell.
@@ -146,9 +151,7 @@ impl ReferenceElement {
     }
 }
 
-/// The corners of the reference tetrahedron are (0,0,0), (1,0,0), (0,1,0), (0,0,1); the local
-/// edges of the tet10 mid-edge nodes 4..9 (VTK order).
-pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]];
+pub use crate::mesh::TET10_EDGES;
 
 /// Shape functions N_a(ξ) and their reference gradients ∂N_a/∂ξ at a point ξ of the reference
 /// cell (entries beyond `nodes_per_cell` are 0). Tet10: with the barycentric coordinates

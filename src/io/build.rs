@@ -3,15 +3,15 @@
 //! and what was expected (type, range, unit).
 
 use super::scenario::{closest, InputError, MaterialSpec, Scenario, VoltageSpec, WaveformSpec};
-use crate::analysis::probes::{NodalQuantity, Probe, ProbeKind};
-use crate::dofs::Field;
-use crate::element_fbar::Formulation;
+use crate::element::mean_dilatation::Formulation;
+use crate::job::probes::{NodalQuantity, Probe, ProbeKind};
 use crate::material::registry::{self, MaterialParams};
 use crate::material::Material;
 use crate::mesh::disc::{disc_mesh, DiscSpec};
 use crate::mesh::stack::{stack_mesh, StackSpec};
 use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
-use crate::model::Model;
+use crate::problem::dofs::Field;
+use crate::problem::model::Model;
 use crate::time::mass::MassKind;
 use crate::time::stage::Method;
 use crate::waveform::{FourierBase, Shape, Waveform};
@@ -81,7 +81,7 @@ pub struct Plan {
     pub name: String,
     pub model: Model,
     /// Displacement conditions (fixed for the whole run).
-    pub supports: Vec<crate::dofs::Dirichlet>,
+    pub supports: Vec<crate::problem::dofs::Dirichlet>,
     pub electrodes: Vec<Electrode>,
     pub stages: Vec<Stage>,
     pub probes: Vec<(String, Probe)>,
@@ -937,7 +937,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
                     ))
                 }
             };
-            supports.push(crate::dofs::Dirichlet {
+            supports.push(crate::problem::dofs::Dirichlet {
                 nodes: nodes.clone(),
                 field,
                 value: c.value,
@@ -957,7 +957,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         for n in nodes {
             let x = model.mesh.nodes[n];
             for (field, value) in [(Field::Ux, (l - 1.0) * x[0]), (Field::Uy, (l - 1.0) * x[1])] {
-                supports.push(crate::dofs::Dirichlet {
+                supports.push(crate::problem::dofs::Dirichlet {
                     nodes: vec![n],
                     field,
                     value,
@@ -1038,7 +1038,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     if electrodes.is_empty() {
         // no electrode: a purely mechanical problem; the potential would be defined only up to a
         // constant (a singular tangent), so it is held at 0 everywhere
-        supports.push(crate::dofs::Dirichlet {
+        supports.push(crate::problem::dofs::Dirichlet {
             nodes: (0..model.mesh.n_nodes()).collect(),
             field: Field::Phi,
             value: 0.0,
@@ -1246,7 +1246,7 @@ fn build_loads(
     ctx: &Ctx,
     s: &Scenario,
     model: &mut Model,
-    supports: &[crate::dofs::Dirichlet],
+    supports: &[crate::problem::dofs::Dirichlet],
     symmetry_factor: f64,
 ) -> Result<Vec<Rigid>, InputError> {
     let Some(loads) = &s.loads else {
@@ -1311,7 +1311,7 @@ fn build_loads(
             }
         }
         for field in [Field::Ux, Field::Uy, Field::Uz] {
-            model.ties.push(crate::dofs::Tie {
+            model.ties.push(crate::problem::dofs::Tie {
                 nodes: nodes.clone(),
                 field,
             });

@@ -10,7 +10,7 @@
 //! file gives an error, never a panic or an unbounded allocation.
 
 use super::atomic::write_atomic;
-use crate::analysis::run::{Energies, StageSummary, StepRecord};
+use crate::job::run::{Energies, StageSummary, StepRecord};
 use std::path::{Path, PathBuf};
 
 /// The first bytes of every checkpoint.

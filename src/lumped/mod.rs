@@ -10,7 +10,6 @@
 //! All are integrated in time by the midpoint rule of deasim's finite element dynamics
 //! ([`integrator`]). The derivation and the measured figures are in `docs/lumped.md`.
 
-pub mod command;
 pub mod diaphragm;
 pub mod equilibrium;
 pub mod gent_membrane;

@@ -10,6 +10,10 @@ pub mod stack;
 
 use std::collections::BTreeMap;
 
+/// The corners of the reference tetrahedron are (0,0,0), (1,0,0), (0,1,0), (0,0,1); the local
+/// edges of the tet10 mid-edge nodes 4..9 (VTK order).
+pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]];
+
 /// The element kinds deasim knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ElementKind {

@@ -2,8 +2,8 @@
 //! a node at the midpoint of every edge (shared by the cells around the edge, so the mesh stays
 //! conforming).
 
+use super::TET10_EDGES;
 use super::{ElementKind, Mesh};
-use crate::fem::TET10_EDGES;
 use std::collections::HashMap;
 
 /// The tet10 mesh of a tet4 mesh: the same cells (cell and face sets keep their meaning) with

@@ -4,29 +4,9 @@
 //! and tangent over its free unknowns; Newton only sees vectors and a sparse matrix.
 
 use super::linear::{Inertia, LinearSolver, LinearSolverError};
-use crate::assembly::CsrMatrix;
+use crate::problem::assembly::CsrMatrix;
 
-/// A nonlinear system R(x) = 0 with a symmetric tangent.
-pub trait NonlinearSystem {
-    /// Number of unknowns.
-    fn n(&self) -> usize;
-    /// Residual at the current state, and the tangent when `k` is given.
-    fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String>;
-    /// x ← x + α·dx.
-    fn increment(&mut self, dx: &[f64], alpha: f64);
-    /// A copy of the state, to come back to.
-    fn snapshot(&self) -> Vec<f64>;
-    /// Returns to a snapshot.
-    fn restore(&mut self, s: &[f64]);
-    /// A zeroed tangent with the system's pattern.
-    fn new_matrix(&self) -> CsrMatrix;
-    /// Negative pivots of a stable state (the count of free potential unknowns).
-    fn expected_negative_pivots(&self) -> usize;
-    /// Absolute residual norm below which the state is converged whatever the first residual.
-    fn residual_floor(&self) -> f64;
-    /// For each unknown, its field group (0: displacement, 1: potential), for the printed table.
-    fn groups(&self) -> Vec<u8>;
-}
+pub use crate::problem::system::NonlinearSystem;
 
 /// Newton settings.
 #[derive(Debug, Clone)]

@@ -8,14 +8,10 @@
 //! control this is how a limit point such as electromechanical pull-in shows itself.
 
 use super::linear::LinearSolver;
-use super::newton::{newton, NewtonError, NewtonReport, NewtonSettings, NonlinearSystem};
-use crate::assembly::CsrMatrix;
+use super::newton::{newton, NewtonError, NewtonReport, NewtonSettings};
+use crate::problem::assembly::CsrMatrix;
 
-/// A nonlinear system driven by a load factor s ∈ [0, 1].
-pub trait LoadedSystem: NonlinearSystem {
-    /// Sets the prescribed values and loads for load factor `s`.
-    fn set_load(&mut self, s: f64);
-}
+pub use crate::problem::system::LoadedSystem;
 
 /// Step control.
 #[derive(Debug, Clone)]

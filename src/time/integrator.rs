@@ -14,11 +14,11 @@
 //!   R = βΔt²[M a_{n+1} + ∇V(q_{n+1}) + f_vis(q_{n+1}, v_{n+1}) − f_ext],
 //! tangent M + βΔt² K_T + γΔt ∂f_vis/∂v.
 
-use crate::analysis::statics::discretize;
-use crate::assembly::{Assembler, CsrMatrix};
-use crate::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::element::{cell_viscous, MAX_LOCAL};
-use crate::model::Model;
+use crate::problem::assembly::{Assembler, CsrMatrix};
+use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::model::Model;
+use crate::problem::statics::discretize;
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
 
@@ -95,7 +95,7 @@ impl<'m> TimeStep<'m> {
             mass,
             viscosity,
             dead_load: if model.has_dead_loads() {
-                crate::loads::dead_load_forces(model)
+                crate::problem::loads::dead_load_forces(model)
             } else {
                 Vec::new()
             },

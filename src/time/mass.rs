@@ -7,9 +7,9 @@
 //! integrated with a degree-5 rule: the element's 4-point rule is not exact for N_aN_b (degree 4)
 //! and would give a singular matrix.
 
-use crate::dofs::{DofMap, CONSTRAINED};
 use crate::mesh::Mesh;
-use crate::model::Model;
+use crate::problem::dofs::{DofMap, CONSTRAINED};
+use crate::problem::model::Model;
 
 /// Node-level mass matrix in CSR form (kg).
 #[derive(Debug, Clone)]
@@ -273,8 +273,8 @@ impl NodalMass {
     /// to add the mass to a tangent with the pattern of `k` without searching.
     pub fn positions_in(
         &self,
-        dofs: &crate::dofs::DofMap,
-        k: &crate::assembly::CsrMatrix,
+        dofs: &crate::problem::dofs::DofMap,
+        k: &crate::problem::assembly::CsrMatrix,
     ) -> Vec<(usize, usize)> {
         let mut out = Vec::new();
         for a in 0..self.row_ptr.len() - 1 {
@@ -282,7 +282,9 @@ impl NodalMass {
                 let b = self.col_idx[p];
                 for i in 0..3 {
                     let (ea, eb) = (dofs.eq[a * 4 + i], dofs.eq[b * 4 + i]);
-                    if ea != crate::dofs::CONSTRAINED && eb != crate::dofs::CONSTRAINED {
+                    if ea != crate::problem::dofs::CONSTRAINED
+                        && eb != crate::problem::dofs::CONSTRAINED
+                    {
                         if let Some(pos) = k.position(ea, eb) {
                             out.push((pos, p));
                         }
@@ -329,9 +331,9 @@ mod tests {
                 }
                 // tied uz of the x = 0 face: one common value, and the summed equation holds
                 let face = model.mesh.set_nodes("x0").unwrap();
-                let tie = crate::dofs::Tie {
+                let tie = crate::problem::dofs::Tie {
                     nodes: face.clone(),
-                    field: crate::dofs::Field::Uz,
+                    field: crate::problem::dofs::Field::Uz,
                 };
                 let mut flags = vec![false; n];
                 flags[0] = true; // node 0 (on x0) holds ux: the tie on uz is unaffected

@@ -5,9 +5,9 @@
 
 use super::integrator::{Scheme, TimeLevel, TimeStep};
 use super::mass::NodalMass;
-use crate::analysis::statics::StaticProblem;
-use crate::dofs::{Dirichlet, Field, FIELDS, PHI};
-use crate::model::Model;
+use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
+use crate::problem::model::Model;
+use crate::problem::statics::StaticProblem;
 use crate::solve::linear::{FaerLdlt, LinearSolver};
 use crate::solve::newton::{newton, NewtonSettings};
 use crate::waveform::Waveform;
@@ -362,7 +362,7 @@ pub fn run_dynamic_from(
 fn project(
     projector: &mut StaticProblem,
     solver: &mut FaerLdlt,
-    k: &mut crate::assembly::CsrMatrix,
+    k: &mut crate::problem::assembly::CsrMatrix,
     settings: &NewtonSettings,
     q: &mut [f64],
     inputs: &DynamicInputs,
@@ -388,7 +388,7 @@ fn project(
 type Projector<'a, 'm> = (
     &'a mut StaticProblem<'m>,
     &'a mut FaerLdlt,
-    &'a mut crate::assembly::CsrMatrix,
+    &'a mut crate::problem::assembly::CsrMatrix,
     &'a NewtonSettings,
 );
 

@@ -8,11 +8,11 @@
 //! q_{n+1} with the voltages at t_{n+1}). Symplectic and momentum preserving for η = 0.
 
 use super::mass::NodalMass;
-use crate::analysis::statics::discretize;
-use crate::assembly::{Assembler, CsrMatrix};
-use crate::dofs::{Dirichlet, DofMap, Field, CONSTRAINED, FIELDS, PHI};
 use crate::element::{cell_viscous, MAX_LOCAL};
-use crate::model::Model;
+use crate::problem::assembly::{Assembler, CsrMatrix};
+use crate::problem::dofs::{Dirichlet, DofMap, Field, CONSTRAINED, FIELDS, PHI};
+use crate::problem::model::Model;
+use crate::problem::statics::discretize;
 use crate::solve::newton::NonlinearSystem;
 
 /// The velocity equation of one trapezoidal step; the unknown is u_{n+1} (the potential is held).

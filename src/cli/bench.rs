@@ -5,9 +5,10 @@
 //! static solve to 20 kV in two load steps, Newton iterations, and the process's peak memory.
 //! Sizes run in increasing order, so the peak after a size is that size's peak.
 
-use crate::analysis::statics::{solve_static, StaticProblem};
-use crate::examples::film;
+use crate::job::statics::solve_static;
 use crate::mesh::ElementKind;
+use crate::problem::examples::film;
+use crate::problem::statics::StaticProblem;
 use crate::solve::linear::{FaerLdlt, LinearSolver, Ordering};
 use crate::solve::newton::{NewtonSettings, NonlinearSystem};
 use crate::solve::stepping::{LoadedSystem, StepControl};
@@ -149,7 +150,7 @@ pub fn bench_dynamic(
     // supports only: the electrodes are driven by the stage
     model
         .dirichlet
-        .retain(|d| d.field != crate::dofs::Field::Phi);
+        .retain(|d| d.field != crate::problem::dofs::Field::Phi);
     let bottom = model.mesh.node_sets["z0"].clone();
     let top = model.mesh.node_sets["z1"].clone();
     let mass = NodalMass::new(&model, &[1000.0], MassKind::Consistent);

@@ -1,9 +1,9 @@
 //! Ready-made models used by tests, benchmarks and validation.
 
-use crate::dofs::Field;
 use crate::material::ElectroNeoHooke;
 use crate::mesh::{generate::box_mesh, ElementKind};
-use crate::model::{Model, ModelError};
+use crate::problem::dofs::Field;
+use crate::problem::model::{Model, ModelError};
 use std::sync::Arc;
 
 /// Parameters of the `film` example (PHYSICS.md §6.1): a 10 × 10 × 1 mm quarter of a film.

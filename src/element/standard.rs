@@ -5,7 +5,7 @@
 //! r_{a,i} = ∫ P_iJ ∂N_a/∂X_J dV and r_{a,Φ} = ∂Π/∂Φ_a = ∫ D₀_J ∂N_a/∂X_J dV.
 //! The tangent is their exact derivative, symmetric, with a negative-definite Φ–Φ block.
 
-use crate::dofs::FIELDS;
+use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES};
 use crate::material::{Material, MaterialError};
 

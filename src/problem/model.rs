@@ -1,13 +1,13 @@
 //! A model: mesh, materials of the cells, element formulation, Dirichlet conditions (supports and
 //! electrodes) and surface tractions.
 
-use crate::dofs::FIELDS;
-use crate::dofs::{Dirichlet, Tie};
-pub use crate::element_fbar::Formulation;
+pub use crate::element::mean_dilatation::Formulation;
 use crate::fem::{CellGeometry, ReferenceElement};
-pub use crate::loads::Traction;
 use crate::material::Material;
 use crate::mesh::Mesh;
+use crate::problem::dofs::FIELDS;
+use crate::problem::dofs::{Dirichlet, Tie};
+pub use crate::problem::loads::Traction;
 use std::sync::Arc;
 
 /// Everything that defines the boundary value problem except the loading path.
@@ -105,7 +105,7 @@ impl Model {
     pub fn fix(
         &mut self,
         set: &str,
-        field: crate::dofs::Field,
+        field: crate::problem::dofs::Field,
         value: f64,
     ) -> Result<(), ModelError> {
         let nodes = self.set_nodes(set)?;

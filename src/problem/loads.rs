@@ -8,9 +8,9 @@
 //! 6-point rule of degree 4 (Dunavant): exact on flat straight-sided faces (∫N_a dA = 0 at a corner,
 //! A/3 at a mid-edge node), an approximation on curved ones.
 
-use crate::dofs::FIELDS;
 use crate::mesh::{FaceRef, Mesh};
-use crate::model::Model;
+use crate::problem::dofs::FIELDS;
+use crate::problem::model::Model;
 
 /// A dead nominal traction on a list of faces (N/m² of reference area).
 #[derive(Debug, Clone, PartialEq)]

@@ -3,11 +3,11 @@
 
 use super::probes::ProbeInput;
 use super::run::{Energies, StepRecord};
-use super::statics::{cell_fields, energies, nodal_reactions};
-use crate::dofs::FIELDS;
 use crate::element::CellFields;
 use crate::io::build::Plan;
 use crate::io::checkpoint::RecorderState;
+use crate::problem::dofs::FIELDS;
+use crate::problem::statics::{cell_fields, energies, nodal_reactions};
 
 /// Accumulates the work of the prescribed values and evaluates records.
 pub(super) struct Recorder<'p> {
@@ -265,14 +265,14 @@ impl<'p> Recorder<'p> {
             traction: if plan.model.tractions.is_empty() {
                 Vec::new()
             } else {
-                crate::loads::traction_forces(&plan.model.mesh, &plan.model.tractions, 1.0)
+                crate::problem::loads::traction_forces(&plan.model.mesh, &plan.model.tractions, 1.0)
             },
             weight: if plan.model.point_forces.is_empty()
                 && plan.model.body_force.iter().all(|b| *b == [0.0; 3])
             {
                 Vec::new()
             } else {
-                crate::loads::weight_forces(&plan.model)
+                crate::problem::loads::weight_forces(&plan.model)
             },
             external_factor: 0.0,
             sudden_loads: false,

@@ -1,14 +1,14 @@
 //! The commands of the `deasim` binary. `main.rs` only parses arguments and calls these; each
 //! returns the process exit status of INTERFACE.md: 0 success, 1 the solve failed, 2 bad input.
 
-use crate::analysis::run::{
-    run_with, CheckpointOptions, Observer, RunOptions, RunSummary, ScenarioSource, StepRecord,
-};
 use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};
 use crate::io::examples::{example, DEFAULT, EXAMPLES};
 use crate::io::output::OutputWriter;
 use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
+use crate::job::run::{
+    run_with, CheckpointOptions, Observer, RunOptions, RunSummary, ScenarioSource, StepRecord,
+};
 use crate::solve::newton::NewtonSettings;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -340,7 +340,7 @@ fn prepare_resume(
             "the rebuilt model does not match the checkpoint (a mesh file changed?)".to_string(),
         );
     }
-    let n = plan.model.mesh.n_nodes() * crate::dofs::FIELDS;
+    let n = plan.model.mesh.n_nodes() * crate::problem::dofs::FIELDS;
     let stage = plan.stages.get(ck.stage as usize);
     let kinds_match = matches!(
         (stage.map(|s| &s.kind), &ck.position),

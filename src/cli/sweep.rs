@@ -2,13 +2,13 @@
 //! memory allows) and tabulates and plots every probe's final value, maximum and steady-state
 //! peak-to-peak against the swept value.
 
-use crate::analysis::run::{run, Observer, RunSummary, StepRecord};
-use crate::app::{load, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
+use crate::cli::app::{load, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
 use crate::element::CellFields;
 use crate::io::atomic::write_atomic;
 use crate::io::build::{Plan, StageKind};
 use crate::io::output::OutputWriter;
 use crate::io::plot::{line_plot, PlotSpec, Series};
+use crate::job::run::{run, Observer, RunSummary, StepRecord};
 use crate::solve::newton::NewtonSettings;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -241,7 +241,7 @@ pub fn cmd_sweep(
     );
     let _ = ctrlc::set_handler(|| {
         if crate::solve::interrupt::request() {
-            std::process::exit(crate::app::EXIT_INTERRUPTED);
+            std::process::exit(crate::cli::app::EXIT_INTERRUPTED);
         }
     });
     let queue = Mutex::new(plans.into_iter().enumerate().collect::<Vec<_>>());

@@ -49,10 +49,10 @@
 //!
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
-use crate::dofs::FIELDS;
 use crate::element::{
     cell_energy, cell_energy_split, cell_residual_tangent, CellFields, PointFailure,
 };
+use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES, MAX_QP};
 use crate::material::{Mat3, Mat9, Mat93, Material, MaterialError, Tangent, Vec3};
 

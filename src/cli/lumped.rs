@@ -1,13 +1,13 @@
 //! `deasim lumped`: the lumped diaphragm model of a scenario, its linearisation, a simulation of
 //! the first dynamic stage, and the comparison with a finite element history.
 
-use super::setup::{from_scenario, LumpedSetup};
-use super::History;
-use crate::analysis::probes::ProbeKind;
-use crate::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
+use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
 use crate::io::atomic::write_atomic;
 use crate::io::build::Plan;
 use crate::io::plot::{line_plot, PlotSpec, Series};
+use crate::job::probes::ProbeKind;
+use crate::lumped::setup::{from_scenario, LumpedSetup};
+use crate::lumped::History;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

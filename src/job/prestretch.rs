@@ -3,8 +3,8 @@
 use super::recorder::Recorder;
 use super::run::Observer;
 use super::statics::solve_static;
-use crate::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::io::build::Plan;
+use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
 
@@ -19,7 +19,7 @@ use crate::solve::stepping::StepControl;
 #[allow(clippy::too_many_arguments)]
 pub(super) fn prestretch(
     plan: &Plan,
-    model: &crate::model::Model,
+    model: &crate::problem::model::Model,
     state: &[f64],
     p: crate::io::build::Prestretch,
     newton: &NewtonSettings,
@@ -84,7 +84,7 @@ pub(super) fn prestretch(
         guess[n * FIELDS + 1] = (p.stretch - 1.0) * x[1];
         guess[n * FIELDS + 2] = (thickness - 1.0) * x[2];
     }
-    crate::dofs::apply_dirichlet(&mut guess, &pre.dirichlet);
+    crate::problem::dofs::apply_dirichlet(&mut guess, &pre.dirichlet);
     let one = StepControl {
         steps: 1,
         min_fraction: 1.0,

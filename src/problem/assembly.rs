@@ -7,9 +7,9 @@
 //! matrix and vector entry therefore receives its contributions in the same order whatever the
 //! number of threads: results are bitwise reproducible.
 
-use crate::dofs::{DofMap, CONSTRAINED, FIELDS};
 use crate::element::{LocalMatrix, MAX_LOCAL};
 use crate::mesh::Mesh;
+use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS};
 use rayon::prelude::*;
 
 /// A square sparse matrix in compressed sparse row form (full storage, sorted columns).

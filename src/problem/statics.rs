@@ -1,18 +1,14 @@
 //! The static problem: equilibrium of Π(u, Φ) = ∫Ψ dV − W_ext under prescribed displacements and
 //! electrode potentials, ramped from their values at the start of the stage to the model's targets,
 //! and dead loads (tractions, body and point forces) scaled by the load factor. The cell kernel is the model's
-//! [`Formulation`](crate::model::Formulation) (standard or mean-dilatation).
+//! [`Formulation`](crate::problem::model::Formulation) (standard or mean-dilatation).
 
-use crate::assembly::{Assembler, CsrMatrix};
-use crate::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::element::CellFields;
-use crate::loads::dead_load_forces;
-use crate::model::Model;
-use crate::solve::linear::{FaerLdlt, LinearSolver};
-use crate::solve::newton::{NewtonSettings, NonlinearSystem};
-use crate::solve::stepping::{
-    ramp, AcceptedStep, LoadedSystem, RampFailure, RampReport, StepControl,
-};
+use crate::problem::assembly::{Assembler, CsrMatrix};
+use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::loads::dead_load_forces;
+use crate::problem::model::Model;
+use crate::problem::system::{LoadedSystem, NonlinearSystem};
 
 /// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
 const RESIDUAL_FLOOR: f64 = 1e-11;
@@ -130,7 +126,7 @@ pub fn energies(model: &Model, state: &[f64]) -> Result<(f64, f64), String> {
 
 /// Internal forces ∂(∫Ψ dV)/∂x for every dof of a state (N for u, C for Φ). Dead loads are not
 /// included: where one acts on a constrained node, subtract
-/// [`dead_load_forces`](crate::loads::dead_load_forces) for its reaction.
+/// [`dead_load_forces`](crate::problem::loads::dead_load_forces) for its reaction.
 pub fn nodal_reactions(model: &Model, state: &[f64]) -> Result<Vec<f64>, String> {
     let mut out = vec![0.0; state.len()];
     let mut r = vec![0.0; crate::element::MAX_LOCAL];
@@ -264,69 +260,5 @@ impl LoadedSystem for StaticProblem<'_> {
                 self.state[d] = self.start[d] + s * (end[d] - self.start[d]);
             }
         }
-    }
-}
-
-/// Outcome of a static ramp.
-#[derive(Debug)]
-pub struct StaticOutcome {
-    pub state: Vec<f64>,
-    pub result: Result<RampReport, RampFailure>,
-}
-
-/// Ramps the model's Dirichlet values from `initial` (zero state when `None`), and its dead loads
-/// from `model.dead_load_start`, to their targets in `steps` steps.
-/// `on_step` sees the problem after every accepted step.
-pub fn solve_static(
-    model: &Model,
-    initial: Option<Vec<f64>>,
-    control: &StepControl,
-    newton: &NewtonSettings,
-    mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
-) -> StaticOutcome {
-    let mut problem = StaticProblem::new(model, initial);
-    let mut solver = FaerLdlt::new();
-    let result = ramp(
-        &mut problem,
-        &mut solver as &mut dyn LinearSolver,
-        newton,
-        control,
-        |p, s| on_step(p, s),
-    );
-    StaticOutcome {
-        state: problem.state,
-        result,
-    }
-}
-
-/// [`solve_static`] resumable: the ramp's prescribed values start from `stage_start`; with
-/// `resume = Some((state, position))` it continues from that converged state and ramp position.
-/// `on_step` returning true refreshes the factorisation (see [`ramp_from`](crate::solve::stepping::ramp_from)).
-pub fn solve_static_from(
-    model: &Model,
-    stage_start: Vec<f64>,
-    resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
-    control: &StepControl,
-    newton: &NewtonSettings,
-    mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep) -> bool,
-) -> StaticOutcome {
-    let mut problem = StaticProblem::new(model, Some(stage_start));
-    let position = resume.map(|(state, position)| {
-        problem.state.copy_from_slice(&state);
-        problem.set_load(position.load);
-        position
-    });
-    let mut solver = FaerLdlt::new();
-    let result = crate::solve::stepping::ramp_from(
-        &mut problem,
-        &mut solver as &mut dyn LinearSolver,
-        newton,
-        control,
-        position,
-        |p, s| on_step(p, s),
-    );
-    StaticOutcome {
-        state: problem.state,
-        result,
     }
 }

@@ -1,12 +1,13 @@
 //! `deasim validate`: verification cases against closed-form solutions, printed as a table of
 //! case, expected, computed, relative error and pass/fail.
 
-use crate::analysis::statics::{nodal_reactions, solve_static};
 use crate::analytic::{incompressible_neo_hooke_pull_in, Film};
-use crate::examples::{film, FILM_EPS_R, FILM_LAMBDA, FILM_MU, FILM_SIZE};
+use crate::job::statics::solve_static;
 use crate::material::{ElectroNeoHooke, EPSILON_0};
 use crate::mesh::ElementKind;
-use crate::model::Model;
+use crate::problem::examples::{film, FILM_EPS_R, FILM_LAMBDA, FILM_MU, FILM_SIZE};
+use crate::problem::model::Model;
+use crate::problem::statics::nodal_reactions;
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
 use std::sync::Arc;

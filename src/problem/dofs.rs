@@ -6,10 +6,7 @@
 //! r̂ = s·r. Choosing `phi_scale` = √(μ/ε) makes the potential block of the Jacobian the same size as
 //! the displacement block, and the system stays symmetric.
 
-/// Number of fields per node.
-pub const FIELDS: usize = 4;
-/// Index of the potential among a node's fields.
-pub const PHI: usize = 3;
+pub use crate::fem::{FIELDS, PHI};
 /// Marker of a constrained dof in [`DofMap::eq`].
 pub const CONSTRAINED: usize = usize::MAX;
 

@@ -1,0 +1,7 @@
+//! The commands of the `deasim` binary; `main.rs` only parses arguments.
+
+pub mod app;
+pub mod bench;
+pub mod lumped;
+pub mod sweep;
+pub mod validate;

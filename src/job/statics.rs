@@ -1,0 +1,73 @@
+//! Static stages: the load ramp of a model's prescribed values and dead loads, solved by load
+//! stepping with Newton.
+
+use crate::problem::model::Model;
+use crate::problem::statics::StaticProblem;
+use crate::problem::system::LoadedSystem;
+use crate::solve::linear::{FaerLdlt, LinearSolver};
+use crate::solve::newton::NewtonSettings;
+use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepControl};
+
+/// Outcome of a static ramp.
+#[derive(Debug)]
+pub struct StaticOutcome {
+    pub state: Vec<f64>,
+    pub result: Result<RampReport, RampFailure>,
+}
+
+/// Ramps the model's Dirichlet values from `initial` (zero state when `None`), and its dead loads
+/// from `model.dead_load_start`, to their targets in `steps` steps.
+/// `on_step` sees the problem after every accepted step.
+pub fn solve_static(
+    model: &Model,
+    initial: Option<Vec<f64>>,
+    control: &StepControl,
+    newton: &NewtonSettings,
+    mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
+) -> StaticOutcome {
+    let mut problem = StaticProblem::new(model, initial);
+    let mut solver = FaerLdlt::new();
+    let result = ramp(
+        &mut problem,
+        &mut solver as &mut dyn LinearSolver,
+        newton,
+        control,
+        |p, s| on_step(p, s),
+    );
+    StaticOutcome {
+        state: problem.state,
+        result,
+    }
+}
+
+/// [`solve_static`] resumable: the ramp's prescribed values start from `stage_start`; with
+/// `resume = Some((state, position))` it continues from that converged state and ramp position.
+/// `on_step` returning true refreshes the factorisation (see [`ramp_from`](crate::solve::stepping::ramp_from)).
+pub fn solve_static_from(
+    model: &Model,
+    stage_start: Vec<f64>,
+    resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
+    control: &StepControl,
+    newton: &NewtonSettings,
+    mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep) -> bool,
+) -> StaticOutcome {
+    let mut problem = StaticProblem::new(model, Some(stage_start));
+    let position = resume.map(|(state, position)| {
+        problem.state.copy_from_slice(&state);
+        problem.set_load(position.load);
+        position
+    });
+    let mut solver = FaerLdlt::new();
+    let result = crate::solve::stepping::ramp_from(
+        &mut problem,
+        &mut solver as &mut dyn LinearSolver,
+        newton,
+        control,
+        position,
+        |p, s| on_step(p, s),
+    );
+    StaticOutcome {
+        state: problem.state,
+        result,
+    }
+}

@@ -1,0 +1,10 @@
+//! The discrete boundary value problem: dofs and constraints, the body (mesh, materials,
+//! formulation, loads), assembly of residual and tangent, and the static problem.
+
+pub mod assembly;
+pub mod dofs;
+pub mod examples;
+pub mod loads;
+pub mod model;
+pub mod statics;
+pub mod system;

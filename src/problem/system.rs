@@ -1,0 +1,33 @@
+//! What a nonlinear solver sees of a problem: residual and tangent over the free unknowns at a
+//! state the problem owns. Newton, load stepping and the time integrators work on these traits
+//! and know nothing of elements.
+
+use super::assembly::CsrMatrix;
+
+/// A nonlinear system R(x) = 0 with a symmetric tangent.
+pub trait NonlinearSystem {
+    /// Number of unknowns.
+    fn n(&self) -> usize;
+    /// Residual at the current state, and the tangent when `k` is given.
+    fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String>;
+    /// x ← x + α·dx.
+    fn increment(&mut self, dx: &[f64], alpha: f64);
+    /// A copy of the state, to come back to.
+    fn snapshot(&self) -> Vec<f64>;
+    /// Returns to a snapshot.
+    fn restore(&mut self, s: &[f64]);
+    /// A zeroed tangent with the system's pattern.
+    fn new_matrix(&self) -> CsrMatrix;
+    /// Negative pivots of a stable state (the count of free potential unknowns).
+    fn expected_negative_pivots(&self) -> usize;
+    /// Absolute residual norm below which the state is converged whatever the first residual.
+    fn residual_floor(&self) -> f64;
+    /// For each unknown, its field group (0: displacement, 1: potential), for the printed table.
+    fn groups(&self) -> Vec<u8>;
+}
+
+/// A nonlinear system driven by a load factor s ∈ [0, 1].
+pub trait LoadedSystem: NonlinearSystem {
+    /// Sets the prescribed values and loads for load factor `s`.
+    fn set_load(&mut self, s: f64);
+}
