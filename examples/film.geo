@@ -1,4 +1,4 @@
-// The film of the `film` example (PHYSICS.md §6.1): a quarter 10 x 10 x 1 mm, drawn in mm
+// The film of the `film` example (docs/theory.md): a quarter 10 x 10 x 1 mm, drawn in mm
 // (read it with `mesh.scale = 1e-3`). Physical groups carry the set names of the `box` generator:
 // volume `elastomer`, faces x0 x1 y0 y1 z0 z1 (low/high end of each axis), and `bottom`/`top` as
 // aliases of z0/z1.
