@@ -3,6 +3,7 @@
 //! and what was expected (type, range, unit).
 
 use super::scenario::{closest, InputError, MaterialSpec, Scenario, VoltageSpec, WaveformSpec};
+pub use crate::job::plan::{Electrode, OutputPlan, Plan, Prestretch, Rigid, Stage, StageKind};
 use crate::element::mean_dilatation::Formulation;
 use crate::job::probes::{NodalQuantity, Probe, ProbeKind};
 use crate::material::registry::{self, MaterialParams};
@@ -24,105 +25,6 @@ pub const MIN_STEPS_PER_PERIOD: f64 = 20.0;
 
 /// Largest number of cells a generated mesh may have (memory guard: ~5 GB of tangent).
 pub const MAX_CELLS: u64 = 2_000_000;
-
-/// An electrode of the plan.
-#[derive(Debug, Clone)]
-pub struct Electrode {
-    pub name: String,
-    pub nodes: Vec<usize>,
-    pub voltage: Waveform,
-}
-
-/// The kind of a stage.
-#[derive(Debug, Clone, PartialEq)]
-pub enum StageKind {
-    /// Load steps from the previous state to the targets at the end of the stage.
-    Static { steps: usize },
-    /// Time integration with nominal step `dt` (s).
-    Dynamic {
-        dt: f64,
-        scheme: Method,
-        mass: MassKind,
-    },
-}
-
-impl StageKind {
-    /// Nominal number of steps of a stage of this kind lasting `duration`.
-    pub fn nominal_steps(&self, duration: f64) -> usize {
-        match self {
-            StageKind::Static { steps } => *steps,
-            StageKind::Dynamic { dt, .. } => (duration / dt - 1e-9).ceil().max(1.0) as usize,
-        }
-    }
-}
-
-/// A stage of the plan.
-#[derive(Debug, Clone)]
-pub struct Stage {
-    pub name: String,
-    pub kind: StageKind,
-    /// Duration (s): pseudo-time of a static stage.
-    pub duration: f64,
-    /// Whether the electrodes follow their waveforms (else they are held at 0 V).
-    pub electrodes_on: bool,
-}
-
-/// Output settings.
-#[derive(Debug, Clone)]
-pub struct OutputPlan {
-    pub fields_every: usize,
-    pub plots: bool,
-    pub plot_format: String,
-}
-
-/// Everything needed to run a scenario.
-#[derive(Debug, Clone)]
-pub struct Plan {
-    pub name: String,
-    pub model: Model,
-    /// Displacement conditions (fixed for the whole run).
-    pub supports: Vec<crate::problem::dofs::Dirichlet>,
-    pub electrodes: Vec<Electrode>,
-    pub stages: Vec<Stage>,
-    pub probes: Vec<(String, Probe)>,
-    pub output: OutputPlan,
-    /// Mass density (kg/m³) of each material, in `model.materials` order.
-    pub densities: Vec<f64>,
-    /// Kelvin–Voigt viscosity (Pa·s) of each material.
-    pub viscosities: Vec<f64>,
-    /// Problems that do not stop the run (e.g. Drucker instability of a fit), for the summary.
-    pub warnings: Vec<String>,
-    /// Rigid regions with their attached masses (ties and weights are in `model`).
-    pub rigid: Vec<Rigid>,
-    /// Names of the materials, in `model.materials` order.
-    pub material_names: Vec<String>,
-    /// The pre-stretch phase that runs before the first stage, if any.
-    pub prestretch: Option<Prestretch>,
-    /// Copies of the meshed part that make the physical device (4 for a quarter disc or stack): global
-    /// probes (charge, capacitance, reaction, energies) are multiplied by it.
-    pub symmetry_factor: f64,
-    /// Dielectric strength (V/m) of each material, if given.
-    pub breakdown: Vec<Option<f64>>,
-    /// Stop at the first step whose true field exceeds a material's strength.
-    pub stop_at_breakdown: bool,
-}
-
-/// An equibiaxial in-plane pre-stretch of the body, imposed on a set (the rim).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Prestretch {
-    pub stretch: f64,
-    /// Load steps of the fallback ramp (when the homogeneous guess does not converge).
-    pub steps: usize,
-}
-
-/// A rigid region of the plan.
-#[derive(Debug, Clone)]
-pub struct Rigid {
-    pub set: String,
-    pub nodes: Vec<usize>,
-    /// Attached mass carried by the mesh (kg; the physical mass divided by the symmetry factor).
-    pub mass: f64,
-}
 
 struct Ctx<'a> {
     file: &'a str,

@@ -331,7 +331,7 @@ impl OutputWriter {
         }
         // dynamic stages: every probe above the voltage, over the stage only
         for stage in &plan.stages {
-            if !matches!(stage.kind, crate::io::build::StageKind::Dynamic { .. }) {
+            if !matches!(stage.kind, crate::job::plan::StageKind::Dynamic { .. }) {
                 continue;
             }
             let rows: Vec<&StepRecord> = self

@@ -2,6 +2,7 @@
 //! and observers.
 
 mod prestretch;
+pub mod plan;
 pub mod probes;
 mod recorder;
 pub mod run;

@@ -3,7 +3,7 @@
 use super::recorder::Recorder;
 use super::run::Observer;
 use super::statics::solve_static;
-use crate::io::build::Plan;
+use super::plan::Plan;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
@@ -21,7 +21,7 @@ pub(super) fn prestretch(
     plan: &Plan,
     model: &crate::problem::model::Model,
     state: &[f64],
-    p: crate::io::build::Prestretch,
+    p: super::plan::Prestretch,
     newton: &NewtonSettings,
     rec: &mut Recorder,
     stage: &str,

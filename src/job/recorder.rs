@@ -4,7 +4,7 @@
 use super::probes::ProbeInput;
 use super::run::{Energies, StepRecord};
 use crate::element::CellFields;
-use crate::io::build::Plan;
+use super::plan::Plan;
 use crate::io::checkpoint::RecorderState;
 use crate::problem::dofs::FIELDS;
 use crate::problem::statics::{cell_fields, energies, nodal_reactions};

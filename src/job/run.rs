@@ -5,7 +5,7 @@ use super::prestretch::prestretch;
 use super::recorder::Recorder;
 use super::statics::solve_static_from;
 use crate::element::CellFields;
-use crate::io::build::{Plan, StageKind};
+use super::plan::{Plan, StageKind};
 use crate::io::checkpoint::{Checkpoint, StagePosition};
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::solve::newton::NewtonSettings;
