@@ -13,6 +13,7 @@ use crate::mesh::stack::{stack_mesh, StackSpec};
 use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
 use crate::problem::dofs::Field;
 use crate::problem::model::Model;
+use crate::solve::linear::{Ordering, SolverKind, SolverSettings};
 use crate::time::mass::MassKind;
 use crate::time::stage::Method;
 use crate::waveform::{FourierBase, Shape, Waveform};
@@ -1139,7 +1140,39 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         symmetry_factor,
         breakdown,
         stop_at_breakdown,
+        solver: build_solver(&ctx, s)?,
     })
+}
+
+/// `[solver]` → the solver settings.
+fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, InputError> {
+    let mut out = SolverSettings::default();
+    let Some(spec) = &s.solver else {
+        return Ok(out);
+    };
+    if let Some(k) = &spec.kind {
+        out.kind = SolverKind::from_name(k).ok_or_else(|| {
+            ctx.err(
+                "solver.kind",
+                format!(
+                    "unknown solver `{k}`; expected one of: {}",
+                    SolverKind::NAMES.join(", ")
+                ),
+            )
+        })?;
+    }
+    if let Some(o) = &spec.ordering {
+        out.ordering = Ordering::from_name(o).ok_or_else(|| {
+            ctx.err(
+                "solver.ordering",
+                format!(
+                    "unknown ordering `{o}`; expected one of: {}",
+                    Ordering::NAMES.join(", ")
+                ),
+            )
+        })?;
+    }
+    Ok(out)
 }
 
 /// Gravity (body forces ρg and the weights of the attached masses) and rigid regions (ties of the

@@ -88,6 +88,19 @@ pub struct Scenario {
     /// Gravity and rigid regions with attached masses.
     #[serde(default)]
     pub loads: Option<LoadsSpec>,
+    /// The linear solver.
+    #[serde(default)]
+    pub solver: Option<SolverSpec>,
+}
+
+/// `[solver]`: the linear solver of every stage.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// `direct` (default).
+    pub kind: Option<String>,
+    /// Fill-reducing ordering of the direct solver: `nested-dissection` (default) or `amd`.
+    pub ordering: Option<String>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

@@ -3,6 +3,7 @@
 
 use super::probes::Probe;
 use crate::problem::model::Model;
+use crate::solve::linear::SolverSettings;
 use crate::time::mass::MassKind;
 use crate::time::stage::Method;
 use crate::waveform::Waveform;
@@ -87,6 +88,8 @@ pub struct Plan {
     pub breakdown: Vec<Option<f64>>,
     /// Stop at the first step whose true field exceeds a material's strength.
     pub stop_at_breakdown: bool,
+    /// The linear solver of every stage.
+    pub solver: SolverSettings,
 }
 
 /// An equibiaxial in-plane pre-stretch of the body, imposed on a set (the rim).

@@ -53,12 +53,85 @@ pub trait LinearSolver: Send {
 }
 
 /// Fill-reducing ordering of [`FaerLdlt`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Ordering {
     /// METIS nested dissection (default; falls back to AMD if METIS fails).
+    #[default]
     NestedDissection,
     /// faer's approximate minimum degree.
     Amd,
+}
+
+impl Ordering {
+    /// Names in scenario files (`[solver] ordering`).
+    pub const NAMES: [&'static str; 2] = ["nested-dissection", "amd"];
+
+    /// Parses a name of [`Ordering::NAMES`].
+    pub fn from_name(s: &str) -> Option<Self> {
+        match s {
+            "nested-dissection" | "metis" => Some(Ordering::NestedDissection),
+            "amd" => Some(Ordering::Amd),
+            _ => None,
+        }
+    }
+}
+
+/// The kind of linear solver of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum SolverKind {
+    /// Sparse LDLᵀ ([`FaerLdlt`]): exact, gives the inertia (the stability test).
+    #[default]
+    Direct,
+}
+
+impl SolverKind {
+    /// Names in scenario files (`[solver] kind`).
+    pub const NAMES: [&'static str; 1] = ["direct"];
+
+    /// Parses a name of [`SolverKind::NAMES`].
+    pub fn from_name(s: &str) -> Option<Self> {
+        match s {
+            "direct" => Some(SolverKind::Direct),
+            _ => None,
+        }
+    }
+
+    /// Name for messages and `summary.json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Direct => "direct",
+        }
+    }
+}
+
+/// The linear solver settings of a run (`[solver]` in a scenario).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct SolverSettings {
+    pub kind: SolverKind,
+    /// Fill-reducing ordering of the direct solver.
+    pub ordering: Ordering,
+}
+
+impl SolverSettings {
+    /// A new solver of these settings: the one place where concrete solver types are named.
+    pub fn build(&self) -> Box<dyn LinearSolver> {
+        match self.kind {
+            SolverKind::Direct => Box::new(FaerLdlt::with_ordering(self.ordering)),
+        }
+    }
+
+    /// One line for the start of a run: the solver and why.
+    pub fn describe(&self) -> String {
+        match self.kind {
+            SolverKind::Direct => format!(
+                "direct sparse LDLT, {} ordering (exact solves and the inertia for the stability test)",
+                match self.ordering {
+                    Ordering::NestedDissection => "METIS nested-dissection",
+                    Ordering::Amd => "AMD",
+                }
+            ),
+        }
+    }
 }
 
 /// Sparse supernodal LDLᵀ (faer) with a nested-dissection (METIS) or AMD ordering; the symbolic
