@@ -3,8 +3,8 @@
 //! and what was expected (type, range, unit).
 
 use super::scenario::{closest, InputError, MaterialSpec, Scenario, VoltageSpec, WaveformSpec};
-pub use crate::job::plan::{Electrode, OutputPlan, Plan, Prestretch, Rigid, Stage, StageKind};
 use crate::element::mean_dilatation::Formulation;
+pub use crate::job::plan::{Electrode, OutputPlan, Plan, Prestretch, Rigid, Stage, StageKind};
 use crate::job::probes::{NodalQuantity, Probe, ProbeKind};
 use crate::material::registry::{self, MaterialParams};
 use crate::material::Material;
