@@ -14,7 +14,7 @@
 //!   R = βΔt²[M a_{n+1} + ∇V(q_{n+1}) + f_vis(q_{n+1}, v_{n+1}) − f_ext],
 //! tangent M + βΔt² K_T + γΔt ∂f_vis/∂v.
 
-use crate::element::{cell_viscous, MAX_LOCAL};
+use crate::element::{cell_viscous, CellHistory, MAX_LOCAL};
 use crate::problem::assembly::{Assembler, CsrMatrix};
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
@@ -249,7 +249,7 @@ impl<'m> TimeStep<'m> {
             let nl = local.len();
             model
                 .formulation
-                .residual_tangent(g, mat, local, &mut r, None)
+                .residual_tangent(g, mat, CellHistory::NONE, local, &mut r, None)
                 .map_err(|e| format!("cell {c}: {}", e.error))?;
             let m = model.cell_material[c];
             let eta = self.viscosity[m];
@@ -348,6 +348,7 @@ impl NonlinearSystem for TimeStep<'_> {
                 .residual_tangent(
                     &g,
                     model.materials[mat].as_ref(),
+                    CellHistory::NONE,
                     local,
                     rl,
                     kl.as_deref_mut(),
