@@ -8,7 +8,9 @@
 //! tolerance). A forced cut-back (one load step, at most 2 Newton iterations) must leave no trace
 //! of the rejected attempts; a ramp resumed from a mid-stage state with its point states ends bit
 //! for bit where the uninterrupted one does; the dissipated energy closes the energy balance
-//! (work = stored + dissipated) to the update's first-order accuracy.
+//! (work = stored + dissipated) to the update's first-order accuracy. A cell in uniaxial stress
+//! ramped in one step with at most two Newton iterations is cut back, and its accepted states
+//! follow the closed form (bisection for the lateral stretch) along the accepted load factors.
 
 use deasim::job::statics::solve_static_from;
 use deasim::material::maxwell::MaxwellBranch;
@@ -189,6 +191,93 @@ fn maxwell_relaxation_follows_the_discrete_closed_form() {
     eprintln!("work {work:.6e} J, stored {stored:.6e} J, dissipated {dissipated:.6e} J, balance {error:.3e}");
     assert!(dissipated > 0.0);
     assert!(error.abs() < 0.05, "energy balance off by {error}");
+}
+
+/// Lateral stretch λ₂ = λ₃ of uniaxial stress at axial stretch λ from the committed diagonal A
+/// (P₂₂ = 0, solved by bisection), and the axial nominal stress P₁₁ there.
+fn uniaxial_stress(lam: f64, a: [f64; 3], k: f64) -> (f64, f64) {
+    let p = |l: [f64; 3], i: usize| {
+        let j = l[0] * l[1] * l[2];
+        let c = G / (2.0 * (1.0 + k));
+        let alpha = j.powf(-2.0 / 3.0);
+        let ia: f64 = (0..3).map(|m| l[m] * l[m] * a[m]).sum();
+        MU * (l[i] - 1.0 / l[i])
+            + LAMBDA * j.ln() / l[i]
+            + c * alpha * (2.0 * l[i] * a[i] - 2.0 / 3.0 * ia / l[i])
+    };
+    let (mut lo, mut hi) = (0.5, 1.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if p([lam, mid, mid], 1) > 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let l2 = 0.5 * (lo + hi);
+    (l2, p([lam, l2, l2], 0))
+}
+
+/// One load step to λ = 1.5 of a cell in uniaxial stress (lateral faces free) with at most 2
+/// Newton iterations: the ramp cuts back, and every accepted state still follows the closed form
+/// along the accepted load factors — a rejected attempt never commits its point states.
+#[test]
+fn cut_back_steps_leave_no_trace_in_the_points() {
+    let mesh = box_mesh([L, L, L], [1, 1, 1], ElementKind::Hex8);
+    let mat = MaxwellBranch {
+        equilibrium: ElectroNeoHooke::new(MU, LAMBDA, 4.7),
+        g: G,
+        tau: TAU,
+    };
+    let mut m = Model::new(mesh, Arc::new(mat)).unwrap();
+    m.fix("x0", Field::Ux, 0.0).unwrap();
+    m.fix("x1", Field::Ux, 0.5 * L).unwrap();
+    m.fix("y0", Field::Uy, 0.0).unwrap();
+    m.fix("z0", Field::Uz, 0.0).unwrap();
+    m.fix("z0", Field::Phi, 0.0).unwrap();
+    m.fix("z1", Field::Phi, 0.0).unwrap();
+    let newton = NewtonSettings {
+        rtol: 1e-12,
+        max_iterations: 2,
+        ..Default::default()
+    };
+    let n = m.mesh.n_nodes() * 4;
+    let y1 = m.mesh.node_sets["y1"].clone();
+    let mut states = Vec::new();
+    let stage = run_stage(
+        &m,
+        vec![0.0; n],
+        PointStates::new(&m),
+        0.1,
+        1,
+        &newton,
+        None,
+    );
+    assert!(stage.cutbacks > 0, "no cut-back was forced");
+    assert!(stage.steps.len() > 1);
+    let mut a = [1.0; 3];
+    let mut s_prev = 0.0;
+    for &(s, lam, p11) in &stage.steps {
+        let k = (s - s_prev) * 0.1 / TAU;
+        let (l2, expect) = uniaxial_stress(lam, a, k);
+        assert!(
+            (p11 - expect).abs() <= 1e-7 * expect.abs(),
+            "s = {s}: P11 {p11} vs {expect}"
+        );
+        states.push(l2);
+        let alpha = (lam * l2 * l2).powf(-2.0 / 3.0);
+        let l = [lam, l2, l2];
+        a = [0, 1, 2].map(|i| (a[i] + k / (alpha * l[i] * l[i])) / (1.0 + k));
+        s_prev = s;
+    }
+    let l2_fe = 1.0 + stage.state[y1[0] * 4 + 1] / L;
+    let l2_ref = *states.last().unwrap();
+    assert!((l2_fe - l2_ref).abs() < 1e-9, "{l2_fe} vs {l2_ref}");
+    eprintln!(
+        "{} accepted steps after {} cut-backs; lateral stretch {l2_fe:.9}",
+        stage.steps.len(),
+        stage.cutbacks
+    );
 }
 
 /// A ramp resumed from its state, ramp position and point states after step 4 ends bit for bit

@@ -46,6 +46,7 @@ pub fn solve_static(
 /// lasts Δs·duration) and the committed point states it starts from.
 /// The solver's factorisation after an accepted step is that of the converged state (Newton's
 /// stability test), which a resumed ramp factors again at its start: the two agree bit for bit.
+#[allow(clippy::too_many_arguments)]
 pub fn solve_static_from(
     model: &Model,
     solver: &SolverSettings,
