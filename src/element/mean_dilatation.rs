@@ -49,10 +49,8 @@
 //!
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
-use crate::element::CellHistory;
-use crate::element::{
-    cell_energy, cell_energy_split, cell_residual_tangent, CellFields, PointFailure,
-};
+use crate::element::{CellFields, PointFailure};
+use crate::element::{CellHistory, CellKernel, MeanDilatationKernel, StandardKernel};
 use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES, MAX_QP};
 use crate::material::{Mat3, Mat9, Mat93, Material, MaterialError, Tangent, Vec3};
@@ -93,96 +91,26 @@ impl Formulation {
     /// The names [`Formulation::from_name`] documents, for messages.
     pub const NAMES: [&'static str; 2] = ["standard", "mean-dilatation"];
 
-    /// Local residual (and tangent) of a cell; same contract as
-    /// [`crate::element::cell_residual_tangent`].
-    pub fn residual_tangent(
-        self,
-        geom: &CellGeometry,
-        mat: &dyn Material,
-        hist: CellHistory,
-        local: &[f64],
-        r: &mut [f64],
-        k: Option<&mut [f64]>,
-    ) -> Result<f64, PointFailure> {
+    /// The cell kernel of this formulation.
+    pub fn kernel(self) -> &'static dyn CellKernel {
         match self {
-            Formulation::Standard => cell_residual_tangent(geom, mat, hist, local, r, k),
-            Formulation::MeanDilatation => cell_residual_tangent_md(geom, mat, hist, local, r, k),
+            Formulation::Standard => &StandardKernel,
+            Formulation::MeanDilatation => &MeanDilatationKernel,
         }
     }
+}
 
-    /// Cell energy ∫Ψ dV (J).
-    pub fn energy(
-        self,
-        geom: &CellGeometry,
-        mat: &dyn Material,
-        hist: CellHistory,
-        local: &[f64],
-    ) -> Result<f64, PointFailure> {
-        match self {
-            Formulation::Standard => cell_energy(geom, mat, hist, local),
-            Formulation::MeanDilatation => cell_energy_md(geom, mat, hist, local),
-        }
+/// The F̄ and E₀ a material sees at each quadrature point of a mean-dilatation cell.
+pub fn point_deformations_md(
+    geom: &CellGeometry,
+    local: &[f64],
+    out: &mut [(Mat3, Vec3)],
+) -> Result<(), PointFailure> {
+    let k = MdKinematics::new(geom, local)?;
+    for q in 0..geom.n_qp {
+        out[q] = (k.fbar[q], k.e0[q]);
     }
-
-    /// Mechanical and electric parts of the cell energy (J).
-    pub fn energy_split(
-        self,
-        geom: &CellGeometry,
-        mat: &dyn Material,
-        hist: CellHistory,
-        local: &[f64],
-    ) -> Result<(f64, f64), PointFailure> {
-        match self {
-            Formulation::Standard => cell_energy_split(geom, mat, hist, local),
-            Formulation::MeanDilatation => cell_energy_split_md(geom, mat, hist, local),
-        }
-    }
-
-    /// The deformation gradient a material sees at each quadrature point (F̄ for the
-    /// mean-dilatation cell) and the referential field E₀, written to `out[..n_qp]`: where
-    /// internal variables are updated.
-    pub fn point_deformations(
-        self,
-        geom: &CellGeometry,
-        local: &[f64],
-        out: &mut [(Mat3, Vec3)],
-    ) -> Result<(), PointFailure> {
-        match self {
-            Formulation::Standard => {
-                let n = geom.n_nodes;
-                let mut u = [[0.0; 3]; MAX_NODES];
-                let mut phi = [0.0; MAX_NODES];
-                for a in 0..n {
-                    u[a] = [local[a * 4], local[a * 4 + 1], local[a * 4 + 2]];
-                    phi[a] = local[a * 4 + 3];
-                }
-                for q in 0..geom.n_qp {
-                    out[q] = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
-                }
-            }
-            Formulation::MeanDilatation => {
-                let k = MdKinematics::new(geom, local)?;
-                for q in 0..geom.n_qp {
-                    out[q] = (k.fbar[q], k.e0[q]);
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Output fields of a cell.
-    pub fn fields(
-        self,
-        geom: &CellGeometry,
-        mat: &dyn Material,
-        hist: CellHistory,
-        local: &[f64],
-    ) -> Result<CellFields, PointFailure> {
-        match self {
-            Formulation::Standard => crate::element::cell_fields(geom, mat, hist, local),
-            Formulation::MeanDilatation => cell_fields_md(geom, mat, hist, local),
-        }
-    }
+    Ok(())
 }
 
 /// Kinematics of a cell under the mean-dilatation formulation.
@@ -633,8 +561,15 @@ mod tests {
         for mat in materials() {
             let mat = mat.as_ref();
             let (mut r1, mut r2) = (vec![0.0; 32], vec![0.0; 32]);
-            let e1 =
-                cell_residual_tangent(&g, mat, CellHistory::NONE, &local, &mut r1, None).unwrap();
+            let e1 = crate::element::cell_residual_tangent(
+                &g,
+                mat,
+                CellHistory::NONE,
+                &local,
+                &mut r1,
+                None,
+            )
+            .unwrap();
             let e2 = cell_residual_tangent_md(&g, mat, CellHistory::NONE, &local, &mut r2, None)
                 .unwrap();
             assert!((e1 - e2).abs() <= 1e-12 * e1.abs());

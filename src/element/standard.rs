@@ -142,6 +142,19 @@ pub struct CellFields {
     pub e_max: f64,
 }
 
+/// F and E₀ at each quadrature point of a standard cell, into `out[..n_qp]`.
+pub fn point_deformations(
+    geom: &CellGeometry,
+    local: &[f64],
+    out: &mut [(crate::material::Mat3, crate::material::Vec3)],
+) {
+    let n = geom.n_nodes;
+    let (u, phi) = split_local(n, local);
+    for q in 0..geom.n_qp {
+        out[q] = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
+    }
+}
+
 /// Field values of a cell for output.
 pub fn cell_fields(
     geom: &CellGeometry,

@@ -193,6 +193,13 @@ impl<'p, 'o> Job<'p, 'o> {
             points: PointStates::new(&plan.model),
         };
         crate::solve::interrupt::clear_local();
+        if !plan.solver.gives_inertia() {
+            job.summary.warnings.push(format!(
+                "stability not checked: the linear solver ({}) gives no inertia, so limit points \
+                 show only as Newton failures",
+                plan.solver.kind.name()
+            ));
+        }
         if let Some(s) = start {
             job.q.clone_from(&s.q);
             job.v.clone_from(&s.v);

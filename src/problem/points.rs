@@ -3,7 +3,7 @@
 //! that is cut back never touches them.
 
 use super::model::Model;
-use crate::element::CellHistory;
+use crate::element::{CellHistory, CellInput};
 use crate::fem::{CellGeometry, MAX_QP};
 use crate::material::{Mat3, PointHistory, Vec3};
 
@@ -95,7 +95,16 @@ impl PointStates {
             }
             model
                 .formulation
-                .point_deformations(g, local, &mut points)
+                .kernel()
+                .point_deformations(
+                    &CellInput {
+                        geom: g,
+                        mat,
+                        hist: CellHistory::NONE,
+                        local,
+                    },
+                    &mut points,
+                )
                 .map_err(|e| format!("cell {c}: {}", e.error))?;
             for (q, (f, e0)) in points[..g.n_qp].iter().enumerate() {
                 let at = self.offsets[c] + q * s;

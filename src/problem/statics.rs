@@ -3,7 +3,7 @@
 //! and dead loads (tractions, body and point forces) scaled by the load factor. The cell kernel is the model's
 //! [`Formulation`](crate::problem::model::Formulation) (standard or mean-dilatation).
 
-use crate::element::CellFields;
+use crate::element::{CellFields, CellInput};
 use crate::problem::assembly::{Assembler, CsrMatrix};
 use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::loads::dead_load_forces;
@@ -157,7 +157,13 @@ pub fn energies_with(
     model.for_each_cell(state, |c, g, mat, local| {
         let (a, b) = model
             .formulation
-            .energy_split(g, mat, points.cell(c, model.cell_material[c], 0.0), local)
+            .kernel()
+            .energy_split(&CellInput {
+                geom: g,
+                mat,
+                hist: points.cell(c, model.cell_material[c], 0.0),
+                local,
+            })
             .map_err(|e| format!("cell {c}: {}", e.error))?;
         mech += a;
         elec += b;
@@ -186,7 +192,17 @@ pub fn nodal_reactions_with(
         let h = points.cell(c, model.cell_material[c], dt);
         model
             .formulation
-            .residual_tangent(g, mat, h, local, &mut r, None)
+            .kernel()
+            .residual_tangent(
+                &CellInput {
+                    geom: g,
+                    mat,
+                    hist: h,
+                    local,
+                },
+                &mut r,
+                None,
+            )
             .map_err(|e| format!("cell {c}: {}", e.error))?;
         for (a, &node) in model.mesh.cell(c).iter().enumerate() {
             for f in 0..FIELDS {
@@ -214,7 +230,13 @@ pub fn cell_fields_with(
         out.push(
             model
                 .formulation
-                .fields(g, mat, points.cell(c, model.cell_material[c], 0.0), local)
+                .kernel()
+                .fields(&CellInput {
+                    geom: g,
+                    mat,
+                    hist: points.cell(c, model.cell_material[c], 0.0),
+                    local,
+                })
                 .map_err(|e| format!("cell {c}: {}", e.error))?,
         );
         Ok::<(), String>(())
@@ -229,24 +251,17 @@ impl NonlinearSystem for StaticProblem<'_> {
 
     fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
         let m = self.model;
-        let npc = m.mesh.kind.nodes_per_cell();
         let (points, dt) = (&self.points, self.dt());
+        let cell_kernel = m.formulation.kernel();
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
-            let mut x = [[0.0; 3]; crate::fem::MAX_NODES];
-            m.mesh.cell_coords_into(c, &mut x[..npc]);
-            let g = m
-                .reference
-                .geometry(&x[..npc])
-                .map_err(|e| format!("degenerate cell (Jacobian {:e})", e.det))?;
-            m.formulation
-                .residual_tangent(
-                    &g,
-                    m.materials[m.cell_material[c]].as_ref(),
-                    points.cell(c, m.cell_material[c], dt),
-                    local,
-                    rl,
-                    kl,
-                )
+            let input = CellInput {
+                geom: &m.geometry[c],
+                mat: m.materials[m.cell_material[c]].as_ref(),
+                hist: points.cell(c, m.cell_material[c], dt),
+                local,
+            };
+            cell_kernel
+                .residual_tangent(&input, rl, kl)
                 .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
         };
         self.assembler
