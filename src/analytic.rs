@@ -234,6 +234,64 @@ pub fn incompressible_gent_pull_in(jm: f64, p: f64) -> Option<(f64, f64)> {
     Some((lc, f(lc)))
 }
 
+/// Nominal uniaxial stress (Pa) of an incompressible material with neo-Hookean Maxwell branches
+/// `(gᵢ, τᵢ)` (Pa, s) on an equilibrium energy W(I₁), under the stretch history `stretch(t)`,
+/// at the times `at` (ascending). The branches follow Ȧᵢ = (C⁻¹ − Aᵢ)/τᵢ with
+/// F = diag(λ, λ^(−1/2), λ^(−1/2)), Aᵢ = diag(a, b, b), and
+/// P = 2W'(I₁)(λ − λ⁻²) + Σ gᵢ(λ aᵢ − bᵢ/λ²). Integrated by the classical Runge–Kutta method with
+/// `steps_per_second` steps per second: the reference of the finite element path, independent of
+/// it (no element, no incremental potential).
+pub fn viscoelastic_uniaxial(
+    w1: impl Fn(f64) -> f64,
+    branches: &[(f64, f64)],
+    stretch: impl Fn(f64) -> f64,
+    at: &[f64],
+    steps_per_second: f64,
+) -> Vec<f64> {
+    let n = branches.len();
+    let rhs = |t: f64, a: &[f64]| -> Vec<f64> {
+        let l = stretch(t);
+        (0..n)
+            .flat_map(|i| {
+                let tau = branches[i].1;
+                [(1.0 / (l * l) - a[2 * i]) / tau, (l - a[2 * i + 1]) / tau]
+            })
+            .collect()
+    };
+    let stress = |t: f64, a: &[f64]| -> f64 {
+        let l = stretch(t);
+        let i1 = l * l + 2.0 / l;
+        let mut p = 2.0 * w1(i1) * (l - 1.0 / (l * l));
+        for (i, &(g, _)) in branches.iter().enumerate() {
+            p += g * (l * a[2 * i] - a[2 * i + 1] / (l * l));
+        }
+        p
+    };
+    let mut a = vec![1.0; 2 * n];
+    let mut t = 0.0;
+    let mut out = Vec::with_capacity(at.len());
+    for &target in at {
+        let steps = ((target - t) * steps_per_second).ceil().max(1.0) as usize;
+        let h = (target - t) / steps as f64;
+        for _ in 0..steps {
+            let k1 = rhs(t, &a);
+            let y2: Vec<f64> = a.iter().zip(&k1).map(|(y, k)| y + 0.5 * h * k).collect();
+            let k2 = rhs(t + 0.5 * h, &y2);
+            let y3: Vec<f64> = a.iter().zip(&k2).map(|(y, k)| y + 0.5 * h * k).collect();
+            let k3 = rhs(t + 0.5 * h, &y3);
+            let y4: Vec<f64> = a.iter().zip(&k3).map(|(y, k)| y + h * k).collect();
+            let k4 = rhs(t + h, &y4);
+            for j in 0..a.len() {
+                a[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+            }
+            t += h;
+        }
+        t = target;
+        out.push(stress(t, &a));
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

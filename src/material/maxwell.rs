@@ -1,8 +1,8 @@
-//! A small material with internal variables: one neo-Hookean Maxwell branch on the isochoric
-//! deformation in parallel with an elastic material,
+//! Finite viscoelasticity: neo-Hookean Maxwell branches on the isochoric deformation in parallel
+//! with any elastic material,
 //!
 //! ```text
-//! Ψ = Ψ_eq(F, E₀) + (g/2)(tr(C̄ A) − 3),   C̄ = J^(−2/3) C,   Ȧ = (C̄⁻¹ − A)/τ,
+//! Ψ = Ψ_eq(F, E₀) + Σᵢ (gᵢ/2)(tr(C̄ Aᵢ) − 3),   C̄ = J^(−2/3) C,   Ȧᵢ = (C̄⁻¹ − Aᵢ)/τᵢ,
 //! ```
 //!
 //! with A the inverse viscous right Cauchy–Green tensor (the evolution law of Linder, Tkachuk &
@@ -14,8 +14,7 @@
 //! which is the closed form the tests check. The dissipation of a step is
 //! −∂Ψ/∂A : ΔA = (g k/2)(tr(C̄ A_{n+1}) − 3) per reference volume.
 //!
-//! It proves the material-point state path of the run (commit, roll-back, checkpoints); the VHB
-//! models build on the same interface.
+//! Each branch keeps its Aᵢ (9 values, row-major) per quadrature point; branches add.
 
 use super::{Mat3, Mat9, Material, MaterialError, PointHistory, Stress, Tangent, Vec3};
 
@@ -28,12 +27,205 @@ pub struct MaxwellBranch<M> {
     pub tau: f64,
 }
 
+/// An elastic material (`dyn`) with any number of Maxwell branches `(g, τ)` (Pa, s).
+#[derive(Debug, Clone)]
+pub struct Viscoelastic {
+    pub equilibrium: std::sync::Arc<dyn Material>,
+    pub branches: Vec<(f64, f64)>,
+}
+
+impl Viscoelastic {
+    fn branch(&self, i: usize) -> MaxwellBranch<&dyn Material> {
+        MaxwellBranch {
+            equilibrium: self.equilibrium.as_ref(),
+            g: self.branches[i].0,
+            tau: self.branches[i].1,
+        }
+    }
+
+    fn state_of<'a>(h: &PointHistory<'a>, i: usize) -> PointHistory<'a> {
+        PointHistory {
+            state: if h.state.len() >= 9 * (i + 1) {
+                &h.state[9 * i..9 * (i + 1)]
+            } else {
+                &[]
+            },
+            dt: h.dt,
+        }
+    }
+
+    /// Instantaneous shear modulus G_eq + Σ gᵢ (Pa) and the relaxed one G_eq.
+    pub fn moduli(&self) -> (f64, f64) {
+        let eq = self.equilibrium.shear_modulus();
+        (eq + self.branches.iter().map(|b| b.0).sum::<f64>(), eq)
+    }
+}
+
+impl Material for Viscoelastic {
+    fn energy(&self, f: &Mat3, e0: &Vec3) -> Result<f64, MaterialError> {
+        self.energy_at(f, e0, PointHistory::NONE)
+    }
+
+    fn stress(&self, f: &Mat3, e0: &Vec3) -> Result<Stress, MaterialError> {
+        self.stress_at(f, e0, PointHistory::NONE)
+    }
+
+    fn tangent(&self, f: &Mat3, e0: &Vec3) -> Result<Tangent, MaterialError> {
+        self.tangent_at(f, e0, PointHistory::NONE)
+    }
+
+    /// The instantaneous modulus (equilibrium and branches).
+    fn shear_modulus(&self) -> f64 {
+        self.moduli().0
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        self.equilibrium.bulk_modulus()
+    }
+
+    fn permittivity(&self) -> f64 {
+        self.equilibrium.permittivity()
+    }
+
+    fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
+        self.energy_split_at(f, e0, &[])
+    }
+
+    fn state_size(&self) -> usize {
+        9 * self.branches.len()
+    }
+
+    fn initial_state(&self, state: &mut [f64]) {
+        for c in state.chunks_mut(9) {
+            c.copy_from_slice(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        }
+    }
+
+    fn state_names(&self) -> Vec<String> {
+        let comps = ["xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"];
+        (1..=self.branches.len())
+            .flat_map(|i| comps.iter().map(move |c| format!("A{i}_{c}")))
+            .collect()
+    }
+
+    fn energy_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<f64, MaterialError> {
+        let mut w = self.equilibrium.energy(f, e0)?;
+        for i in 0..self.branches.len() {
+            let b = self.branch(i);
+            let hi = Self::state_of(&h, i);
+            w += b
+                .branch(
+                    f,
+                    &MaxwellBranch::<&dyn Material>::committed(&hi),
+                    b.k(&hi),
+                    false,
+                )?
+                .0;
+        }
+        Ok(w)
+    }
+
+    fn stress_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<Stress, MaterialError> {
+        let mut s = self.equilibrium.stress(f, e0)?;
+        for i in 0..self.branches.len() {
+            let b = self.branch(i);
+            let hi = Self::state_of(&h, i);
+            let (w, p, _) = b.branch(
+                f,
+                &MaxwellBranch::<&dyn Material>::committed(&hi),
+                b.k(&hi),
+                false,
+            )?;
+            s.energy += w;
+            s.p += p;
+        }
+        Ok(s)
+    }
+
+    fn tangent_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<Tangent, MaterialError> {
+        let mut t = self.equilibrium.tangent(f, e0)?;
+        for i in 0..self.branches.len() {
+            let b = self.branch(i);
+            let hi = Self::state_of(&h, i);
+            let (w, p, a) = b.branch(
+                f,
+                &MaxwellBranch::<&dyn Material>::committed(&hi),
+                b.k(&hi),
+                true,
+            )?;
+            t.energy += w;
+            t.p += p;
+            t.a += a.expect("asked for");
+        }
+        Ok(t)
+    }
+
+    fn energy_split_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        state: &[f64],
+    ) -> Result<(f64, f64), MaterialError> {
+        let (mut mech, elec) = self.equilibrium.energy_split(f, e0)?;
+        let h = PointHistory { state, dt: 0.0 };
+        for i in 0..self.branches.len() {
+            let b = self.branch(i);
+            let hi = Self::state_of(&h, i);
+            mech += b
+                .branch(
+                    f,
+                    &MaxwellBranch::<&dyn Material>::committed(&hi),
+                    0.0,
+                    false,
+                )?
+                .0;
+        }
+        Ok((mech, elec))
+    }
+
+    fn update_state(
+        &self,
+        f: &Mat3,
+        _e0: &Vec3,
+        h: PointHistory,
+        new: &mut [f64],
+    ) -> Result<f64, MaterialError> {
+        let mut d = 0.0;
+        for i in 0..self.branches.len() {
+            d += self
+                .branch(i)
+                .update(f, &Self::state_of(&h, i), &mut new[9 * i..9 * (i + 1)])?;
+        }
+        Ok(d)
+    }
+}
+
 /// A from the 9 stored values (row-major).
 fn tensor(s: &[f64]) -> Mat3 {
     Mat3::from_row_slice(s)
 }
 
-impl<M: Material> MaxwellBranch<M> {
+impl<M> MaxwellBranch<M> {
+    /// The branch's internal variables after an accepted step to F (into `new`) and the energy
+    /// dissipated per reference volume.
+    fn update(&self, f: &Mat3, h: &PointHistory, new: &mut [f64]) -> Result<f64, MaterialError> {
+        let j = f.determinant();
+        if !(j > 0.0 && j.is_finite()) {
+            return Err(MaterialError::NonPositiveJ(j));
+        }
+        let cbar = f.transpose() * f * j.powf(-2.0 / 3.0);
+        let cbar_inv = cbar.try_inverse().ok_or(MaterialError::NonPositiveJ(j))?;
+        let k = self.k(h);
+        let a = (Self::committed(h) + cbar_inv * k) / (1.0 + k);
+        // row-major, as `tensor` reads it
+        for r in 0..3 {
+            for c in 0..3 {
+                new[r * 3 + c] = a[(r, c)];
+            }
+        }
+        Ok(0.5 * self.g * k * ((cbar * a).trace() - 3.0))
+    }
+
     /// The branch's incremental energy density, stress and (when asked) tangent at F for a step
     /// of factor k from the committed A.
     fn branch(
@@ -179,21 +371,7 @@ impl<M: Material> Material for MaxwellBranch<M> {
         h: PointHistory,
         new: &mut [f64],
     ) -> Result<f64, MaterialError> {
-        let j = f.determinant();
-        if !(j > 0.0 && j.is_finite()) {
-            return Err(MaterialError::NonPositiveJ(j));
-        }
-        let cbar = f.transpose() * f * j.powf(-2.0 / 3.0);
-        let cbar_inv = cbar.try_inverse().ok_or(MaterialError::NonPositiveJ(j))?;
-        let k = self.k(&h);
-        let a = (Self::committed(&h) + cbar_inv * k) / (1.0 + k);
-        // row-major, as `tensor` reads it
-        for r in 0..3 {
-            for c in 0..3 {
-                new[r * 3 + c] = a[(r, c)];
-            }
-        }
-        Ok(0.5 * self.g * k * ((cbar * a).trace() - 3.0))
+        self.update(f, &h, new)
     }
 }
 
@@ -211,18 +389,28 @@ mod tests {
     }
 
     /// P = ∂W/∂F and ∂P/∂F of the step's incremental energy against central differences, from
-    /// a committed state that is not the identity.
+    /// a committed state that is not the identity: one branch, and two branches on a `dyn`
+    /// equilibrium material.
     #[test]
     fn step_stress_and_tangent_match_finite_differences() {
-        let m = material();
+        check_derivatives(&material());
+        check_derivatives(&Viscoelastic {
+            equilibrium: std::sync::Arc::new(ElectroNeoHooke::new(1e5, 1e7, 4.7)),
+            branches: vec![(3e5, 0.5), (1e5, 20.0)],
+        });
+    }
+
+    fn check_derivatives(m: &dyn Material) {
         let f = Mat3::new(1.2, 0.1, -0.05, 0.02, 0.9, 0.1, 0.03, -0.04, 1.05);
         let e0 = Vec3::new(1e5, -2e5, 3e6);
-        let mut a = [0.0; 9];
+        let mut a0 = vec![0.0; m.state_size()];
+        m.initial_state(&mut a0);
+        let mut a = vec![0.0; m.state_size()];
         m.update_state(
             &Mat3::new(1.1, 0.05, 0.0, 0.0, 0.95, 0.02, 0.01, 0.0, 0.97),
             &e0,
             PointHistory {
-                state: &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                state: &a0,
                 dt: 0.3,
             },
             &mut a,
