@@ -72,6 +72,7 @@ fn simulate(
         min_fraction: 1.0 / 64.0,
         easy_iterations: 100,
         reuse_factorization: true,
+        solver: Default::default(),
     };
     let mut run = Run {
         levels: Vec::new(),

@@ -3,12 +3,11 @@
 
 use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};
+use crate::io::checkpoint::{CheckpointWriter, ScenarioSource};
 use crate::io::examples::{example, DEFAULT, EXAMPLES};
 use crate::io::output::OutputWriter;
 use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
-use crate::job::run::{
-    run_with, CheckpointOptions, Observer, RunOptions, RunSummary, ScenarioSource, StepRecord,
-};
+use crate::job::run::{run_with, Observer, RunState, RunSummary, StepRecord};
 use crate::solve::newton::NewtonSettings;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -177,28 +176,6 @@ impl Observer for Progress {
     }
 }
 
-/// Sends events to both observers.
-struct Both<'a>(&'a mut dyn Observer, &'a mut dyn Observer);
-
-impl Observer for Both<'_> {
-    fn stage_started(&mut self, i: usize, n: &str) {
-        self.0.stage_started(i, n);
-        self.1.stage_started(i, n);
-    }
-    fn step(&mut self, p: &Plan, r: &StepRecord, s: &[f64], f: &[CellFields]) {
-        self.0.step(p, r, s, f);
-        self.1.step(p, r, s, f);
-    }
-    fn finished(&mut self, p: &Plan, s: &RunSummary) {
-        self.0.finished(p, s);
-        self.1.finished(p, s);
-    }
-    fn resumed(&mut self, p: &Plan, r: &[StepRecord]) {
-        self.0.resumed(p, r);
-        self.1.resumed(p, r);
-    }
-}
-
 /// `deasim run`; with `checkpoint_every`, a checkpoint every that many accepted steps.
 pub fn cmd_run(
     scenario: Option<&Path>,
@@ -243,7 +220,7 @@ pub fn cmd_run(
             return EXIT_BAD_INPUT;
         }
     };
-    let checkpoint = checkpoint_every.map(|every| CheckpointOptions {
+    let checkpoint = checkpoint_every.map(|every| CheckpointWriter {
         dir: dir.clone(),
         every,
         source: ScenarioSource {
@@ -252,16 +229,9 @@ pub fn cmd_run(
             base_dir: base.map(|b| b.display().to_string()),
             overrides: overrides.to_vec(),
         },
+        fingerprint: plan.fingerprint(),
     });
-    execute(
-        &plan,
-        &dir,
-        writer,
-        RunOptions {
-            checkpoint,
-            resume: None,
-        },
-    )
+    execute(&plan, &dir, writer, checkpoint, None)
 }
 
 /// `deasim run --resume DIR`: continues the run whose newest checkpoint is in `dir`, with the
@@ -273,7 +243,7 @@ pub fn cmd_resume(
     checkpoint_every: Option<usize>,
 ) -> i32 {
     match prepare_resume(dir, scenario, overrides, checkpoint_every) {
-        Ok((plan, options)) => {
+        Ok((plan, checkpoint, state)) => {
             let writer = match OutputWriter::new(dir) {
                 Ok(w) => w,
                 Err(e) => {
@@ -281,7 +251,7 @@ pub fn cmd_resume(
                     return EXIT_BAD_INPUT;
                 }
             };
-            execute(&plan, dir, writer, options)
+            execute(&plan, dir, writer, Some(checkpoint), Some(state))
         }
         Err(e) => {
             eprintln!("error: cannot resume from {}: {e}", dir.display());
@@ -296,9 +266,11 @@ fn prepare_resume(
     scenario: Option<&Path>,
     overrides: &[String],
     checkpoint_every: Option<usize>,
-) -> Result<(Plan, RunOptions), String> {
-    use crate::io::checkpoint::{fingerprint, latest, StagePosition};
+) -> Result<(Plan, CheckpointWriter, RunState), String> {
+    use crate::io::checkpoint::latest;
+    use crate::job::state::StagePosition;
     let ck = latest(dir).map_err(|e| e.to_string())?;
+    let src = &ck.source;
     let version = env!("CARGO_PKG_VERSION");
     if ck.deasim_version != version {
         return Err(format!(
@@ -308,19 +280,19 @@ fn prepare_resume(
     }
     if let Some(p) = scenario {
         let (text, _, _) = read_scenario(Some(p)).map_err(|e| e.to_string())?;
-        if text != ck.scenario_text {
+        if text != src.text {
             return Err(format!(
                 "{} differs from the scenario stored in the checkpoint (`{}`); resume without a                  scenario argument to use the stored one",
                 p.display(),
-                ck.scenario_file
+                src.file
             ));
         }
     }
-    if !overrides.is_empty() && overrides != ck.overrides.as_slice() {
+    if !overrides.is_empty() && overrides != src.overrides.as_slice() {
         return Err(format!(
             "--set {} differs from the stored overrides [{}]",
             overrides.join(" --set "),
-            ck.overrides.join(", ")
+            src.overrides.join(", ")
         ));
     }
     if let Some(n) = checkpoint_every {
@@ -331,35 +303,36 @@ fn prepare_resume(
             ));
         }
     }
-    let s = parse(&ck.scenario_text, &ck.scenario_file, &ck.overrides)
+    let s =
+        parse(&src.text, &src.file, &src.overrides).map_err(|e| format!("stored scenario: {e}"))?;
+    let plan = build(&s, &src.file, src.base_dir.as_deref().map(Path::new))
         .map_err(|e| format!("stored scenario: {e}"))?;
-    let plan = build(&s, &ck.scenario_file, ck.base_dir.as_deref().map(Path::new))
-        .map_err(|e| format!("stored scenario: {e}"))?;
-    if fingerprint(&plan) != ck.fingerprint {
+    if plan.fingerprint() != ck.fingerprint {
         return Err(
             "the rebuilt model does not match the checkpoint (a mesh file changed?)".to_string(),
         );
     }
     let n = plan.model.mesh.n_nodes() * crate::problem::dofs::FIELDS;
-    let stage = plan.stages.get(ck.stage as usize);
+    let st = &ck.state;
+    let stage = plan.stages.get(st.stage);
     let kinds_match = matches!(
-        (stage.map(|s| &s.kind), &ck.position),
+        (stage.map(|s| &s.kind), &st.position),
         (Some(StageKind::Static { .. }), StagePosition::Static { stage_start, .. })
             if stage_start.len() == n
     ) || matches!(
-        (stage.map(|s| &s.kind), &ck.position),
+        (stage.map(|s| &s.kind), &st.position),
         (
             Some(StageKind::Dynamic { .. }),
             StagePosition::Dynamic { .. }
         )
     );
-    let sizes_match = [ck.q.len(), ck.v.len(), ck.a.len()].iter().all(|&l| l == n)
-        && ck
+    let sizes_match = [st.q.len(), st.v.len(), st.a.len()].iter().all(|&l| l == n)
+        && st
             .records
             .iter()
             .all(|r| r.probes.len() == plan.probes.len())
-        && ck.recorder.broken_down.len() == plan.model.materials.len()
-        && ck.recorder.reference.len() == n
+        && st.recorder.broken_down.len() == plan.model.materials.len()
+        && st.recorder.reference.len() == n
         && ck.every >= 1;
     if !kinds_match || !sizes_match {
         return Err("the checkpoint does not match the scenario's model or stages".to_string());
@@ -375,31 +348,27 @@ fn prepare_resume(
     eprintln!(
         "deasim: resuming `{}` from step {} (stage {}, {} steps recorded)",
         plan.name,
-        ck.accepted,
-        ck.stage,
-        ck.records.len()
+        st.accepted,
+        st.stage,
+        st.records.len()
     );
-    let checkpoint = Some(CheckpointOptions {
+    let checkpoint = CheckpointWriter {
         dir: dir.to_path_buf(),
         every: ck.every as usize,
-        source: ScenarioSource {
-            text: ck.scenario_text.clone(),
-            file: ck.scenario_file.clone(),
-            base_dir: ck.base_dir.clone(),
-            overrides: ck.overrides.clone(),
-        },
-    });
-    Ok((
-        plan,
-        RunOptions {
-            checkpoint,
-            resume: Some(ck),
-        },
-    ))
+        source: ck.source.clone(),
+        fingerprint: ck.fingerprint,
+    };
+    Ok((plan, checkpoint, ck.state))
 }
 
 /// Runs a plan into `dir` with SIGINT/SIGTERM handling; returns the exit status.
-fn execute(plan: &Plan, dir: &Path, mut writer: OutputWriter, options: RunOptions) -> i32 {
+fn execute(
+    plan: &Plan,
+    dir: &Path,
+    mut writer: OutputWriter,
+    checkpoint: Option<CheckpointWriter>,
+    start: Option<RunState>,
+) -> i32 {
     eprintln!(
         "deasim: scenario `{}`: {} nodes, {} {} cells, {} dofs; {} thread(s); output in {}",
         plan.name,
@@ -417,12 +386,13 @@ fn execute(plan: &Plan, dir: &Path, mut writer: OutputWriter, options: RunOption
         }
     });
     let mut progress = Progress::new(plan);
-    let summary = run_with(
-        plan,
-        &NewtonSettings::default(),
-        &mut Both(&mut writer, &mut progress),
-        options,
-    );
+    eprintln!("deasim: linear solver: {}", plan.solver.describe());
+    let mut checkpoint = checkpoint;
+    let mut observers: Vec<&mut dyn Observer> = vec![&mut writer, &mut progress];
+    if let Some(c) = checkpoint.as_mut() {
+        observers.push(c);
+    }
+    let summary = run_with(plan, &NewtonSettings::default(), &mut observers, start);
     for e in &writer.errors {
         eprintln!("warning: {e}");
     }

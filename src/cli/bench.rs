@@ -176,6 +176,7 @@ pub fn bench_dynamic(
         min_fraction: 1.0 / 1024.0,
         easy_iterations: 6,
         reuse_factorization: reuse,
+        solver: Default::default(),
     };
     let t = Instant::now();
     let mut its = 0;

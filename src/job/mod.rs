@@ -1,9 +1,10 @@
 //! The job: the plan of a run executed stage by stage, the recorder of accepted states, probes
 //! and observers.
 
-mod prestretch;
 pub mod plan;
+mod prestretch;
 pub mod probes;
 mod recorder;
 pub mod run;
+pub mod state;
 pub mod statics;

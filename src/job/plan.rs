@@ -92,6 +92,40 @@ pub struct Plan {
     pub solver: SolverSettings,
 }
 
+impl Plan {
+    /// Fingerprint of the plan (FNV-1a, 64 bit): its name, node coordinates, connectivity, cell
+    /// materials and stage kinds/durations. A resume whose rebuilt plan differs (e.g. a changed
+    /// mesh file) is refused.
+    pub fn fingerprint(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut write = |bytes: &[u8]| {
+            for &b in bytes {
+                h ^= b as u64;
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        };
+        write(self.name.as_bytes());
+        let m = &self.model.mesh;
+        for x in &m.nodes {
+            for c in x {
+                write(&c.to_bits().to_le_bytes());
+            }
+        }
+        for &c in &m.connectivity {
+            write(&(c as u64).to_le_bytes());
+        }
+        for &c in &self.model.cell_material {
+            write(&(c as u64).to_le_bytes());
+        }
+        for s in &self.stages {
+            write(s.name.as_bytes());
+            write(&s.duration.to_bits().to_le_bytes());
+            write(&(s.kind.nominal_steps(s.duration) as u64).to_le_bytes());
+        }
+        h
+    }
+}
+
 /// An equibiaxial in-plane pre-stretch of the body, imposed on a set (the rim).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Prestretch {
@@ -108,4 +142,3 @@ pub struct Rigid {
     /// Attached mass carried by the mesh (kg; the physical mass divided by the symmetry factor).
     pub mass: f64,
 }
-

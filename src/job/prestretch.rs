@@ -1,9 +1,9 @@
 //! The pre-stretch phase that runs before the first stage of a plan.
 
+use super::plan::Plan;
 use super::recorder::Recorder;
 use super::run::Observer;
 use super::statics::solve_static;
-use super::plan::Plan;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;

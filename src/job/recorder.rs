@@ -1,11 +1,11 @@
 //! The recorder of a run: evaluates the record of every accepted state (energies with the
 //! discrete energy balance, probes, cell fields) and watches the dielectric strength.
 
+use super::plan::Plan;
 use super::probes::ProbeInput;
 use super::run::{Energies, StepRecord};
+use super::state::RecorderState;
 use crate::element::CellFields;
-use super::plan::Plan;
-use crate::io::checkpoint::RecorderState;
 use crate::problem::dofs::FIELDS;
 use crate::problem::statics::{cell_fields, energies, nodal_reactions};
 

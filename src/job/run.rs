@@ -1,64 +1,26 @@
-//! The job: runs the stages of a plan one after the other and reports every accepted step to an
-//! observer (writers, progress display). It never reports a state that did not converge.
+//! The run: a short loop over the stages of a plan on one [`RunState`]. Every accepted step is
+//! recorded and sent to the observers (writers, progress display, checkpoints); a state that did
+//! not converge is never sent. An observer that asks for it receives the whole run state
+//! (checkpoints); taking it changes nothing in the run, so a run with checkpoints gives the same
+//! numbers, bit for bit, as one without, and a run resumed from a state continues exactly as the
+//! run that went on.
 
+use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
 use super::recorder::Recorder;
+pub use super::state::{
+    Energies, RecorderState, RunState, StagePosition, StageSummary, StepRecord,
+};
 use super::statics::solve_static_from;
 use crate::element::CellFields;
-use super::plan::{Plan, StageKind};
-use crate::io::checkpoint::{Checkpoint, StagePosition};
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
+use crate::problem::model::Model;
 use crate::solve::newton::NewtonSettings;
-use crate::solve::stepping::RampPosition;
-use crate::solve::stepping::StepControl;
+use crate::solve::stepping::{RampPosition, StepControl};
 use crate::time::integrator::TimeLevel;
 use crate::time::mass::NodalMass;
 use crate::time::stage::{run_dynamic_from, DynamicInputs, DynamicResume, DynamicSettings};
-use std::path::PathBuf;
 use std::time::Instant;
-
-/// Energies of a state (J), as in `history.csv`.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Energies {
-    pub kinetic: f64,
-    pub stored: f64,
-    pub electric: f64,
-    pub gravity: f64,
-    pub dissipated: f64,
-    /// Residual of the energy balance (see `docs/theory.md`).
-    pub energy_error: f64,
-}
-
-/// One accepted step.
-#[derive(Debug, Clone)]
-pub struct StepRecord {
-    /// Time (s); pseudo-time in static stages.
-    pub time: f64,
-    pub stage: String,
-    /// Step number within the stage (0: the state the stage starts from).
-    pub step: usize,
-    /// Largest electrode voltage (by magnitude, V).
-    pub voltage: f64,
-    pub newton_iterations: usize,
-    /// Step size (s; the pseudo-time increment in static stages).
-    pub dt: f64,
-    pub energies: Energies,
-    /// Probe values in plan order.
-    pub probes: Vec<f64>,
-    /// Largest spatial electric field magnitude at a quadrature point (V/m).
-    pub max_electric_field: f64,
-}
-
-/// What a finished stage reports.
-#[derive(Debug, Clone)]
-pub struct StageSummary {
-    pub name: String,
-    pub kind: String,
-    pub steps: usize,
-    pub newton_iterations: usize,
-    pub wall_s: f64,
-    pub converged: bool,
-}
 
 /// The outcome of a run.
 #[derive(Debug, Clone)]
@@ -81,236 +43,278 @@ pub trait Observer {
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]);
     /// The run ended (converged or not).
     fn finished(&mut self, plan: &Plan, summary: &RunSummary);
-    /// The run resumes from a checkpoint; `records` are the steps recorded before it (no
+    /// The run resumes from a state; `records` are the steps recorded before it (no
     /// [`Observer::step`] is sent for them).
     fn resumed(&mut self, _plan: &Plan, _records: &[StepRecord]) {}
+    /// Whether this observer may ask for run states (the run then keeps its history).
+    fn takes_states(&self) -> bool {
+        false
+    }
+    /// Whether it wants the run state after `accepted` accepted steps of the stages; `stopping`:
+    /// the run is about to stop on a signal.
+    fn wants_state(&self, _accepted: usize, _stopping: bool) -> bool {
+        false
+    }
+    /// The run state, when [`Observer::wants_state`] said so. An error becomes a warning.
+    fn run_state(&mut self, _plan: &Plan, _state: &RunState) -> Result<(), String> {
+        Ok(())
+    }
 }
 
-/// Where a run reads its scenario from; stored in its checkpoints so that `--resume` rebuilds
-/// the same plan.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ScenarioSource {
-    pub text: String,
-    /// The name the scenario was read under (its path, or `<embedded NAME>`).
-    pub file: String,
-    /// Its directory (relative mesh files are read from there).
-    pub base_dir: Option<String>,
-    pub overrides: Vec<String>,
-}
+/// Several observers as one: every event goes to each, in order.
+pub struct Observers<'a, 'b>(pub &'a mut [&'b mut dyn Observer]);
 
-/// Periodic checkpoints of a run.
-#[derive(Debug, Clone)]
-pub struct CheckpointOptions {
-    /// The output directory (checkpoints go to its `checkpoint/`).
-    pub dir: PathBuf,
-    /// Write one every this many accepted steps (≥ 1); also when the run stops on a signal.
-    pub every: usize,
-    pub source: ScenarioSource,
-}
-
-/// Options of [`run_with`].
-#[derive(Debug, Default)]
-pub struct RunOptions {
-    pub checkpoint: Option<CheckpointOptions>,
-    /// Continue from this checkpoint (already checked against the plan).
-    pub resume: Option<Checkpoint>,
-}
-
-/// What a checkpoint needs besides the recorder and the stage position.
-struct CheckpointContext<'a> {
-    options: &'a CheckpointOptions,
-    fingerprint: u64,
-    stage: usize,
-    stage_time: f64,
-    first_step: usize,
-    prestretch_iterations: usize,
-    dead_load_start: f64,
-    stages: &'a [StageSummary],
-    warnings: &'a [String],
-    wall_before: f64,
-    start: Instant,
-}
-
-impl CheckpointContext<'_> {
-    /// Builds and writes a checkpoint; a write failure becomes a warning of the recorder.
-    #[allow(clippy::too_many_arguments)]
-    fn write(
-        &self,
-        rec: &mut Recorder,
-        accepted: usize,
-        step_no: usize,
-        position: StagePosition,
-        q: &[f64],
-        v: &[f64],
-        a: &[f64],
-        dissipated: f64,
-    ) {
-        let ck = Checkpoint {
-            deasim_version: env!("CARGO_PKG_VERSION").to_string(),
-            scenario_text: self.options.source.text.clone(),
-            scenario_file: self.options.source.file.clone(),
-            base_dir: self.options.source.base_dir.clone(),
-            overrides: self.options.source.overrides.clone(),
-            fingerprint: self.fingerprint,
-            threads: rayon::current_num_threads() as u64,
-            every: self.options.every as u64,
-            accepted: accepted as u64,
-            stage: self.stage as u64,
-            stage_time: self.stage_time,
-            step_no: step_no as u64,
-            first_step: self.first_step as u64,
-            prestretch_iterations: self.prestretch_iterations as u64,
-            position,
-            q: q.to_vec(),
-            v: v.to_vec(),
-            a: a.to_vec(),
-            dissipated,
-            dead_load_start: self.dead_load_start,
-            recorder: rec.state(),
-            stages: self.stages.to_vec(),
-            warnings: self.warnings.to_vec(),
-            records: rec.history.clone(),
-            wall_s: self.wall_before + self.start.elapsed().as_secs_f64(),
-        };
-        if let Err(e) = ck.write(&self.options.dir) {
-            rec.warnings.push(format!("checkpoint not written: {e}"));
+impl Observer for Observers<'_, '_> {
+    fn stage_started(&mut self, index: usize, name: &str) {
+        self.0.iter_mut().for_each(|o| o.stage_started(index, name));
+    }
+    fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.step(plan, record, state, fields));
+    }
+    fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
+        self.0.iter_mut().for_each(|o| o.finished(plan, summary));
+    }
+    fn resumed(&mut self, plan: &Plan, records: &[StepRecord]) {
+        self.0.iter_mut().for_each(|o| o.resumed(plan, records));
+    }
+    fn takes_states(&self) -> bool {
+        self.0.iter().any(|o| o.takes_states())
+    }
+    fn wants_state(&self, accepted: usize, stopping: bool) -> bool {
+        self.0.iter().any(|o| o.wants_state(accepted, stopping))
+    }
+    fn run_state(&mut self, plan: &Plan, state: &RunState) -> Result<(), String> {
+        let mut errors = Vec::new();
+        for o in self.0.iter_mut() {
+            if o.wants_state(state.accepted, false) || o.wants_state(state.accepted, true) {
+                if let Err(e) = o.run_state(plan, state) {
+                    errors.push(e);
+                }
+            }
+        }
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(errors.join("; "))
         }
     }
 }
 
 /// Runs every stage of the plan. `newton` applies to every stage.
 pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) -> RunSummary {
-    run_with(plan, newton, observer, RunOptions::default())
+    run_with(plan, newton, &mut [observer], None)
 }
 
-/// [`run`] with checkpoints and/or from a checkpoint.
-///
-/// Checkpoints are written after every `every`-th accepted step of the stages (pre-stretch
-/// steps are not counted) and when a stop is requested. At each periodic checkpoint the
-/// drivers drop their reused factorisations (modified Newton) and re-factorise as at a start,
-/// so a run resumed from it repeats the decisions of the run that goes on: the two agree bit
-/// for bit on the same thread count. A resume from a stop checkpoint agrees to the Newton
-/// tolerance only (the uninterrupted run had no refresh there).
+/// [`run`] with several observers, from the start or from a run state (already checked against
+/// the plan).
 pub fn run_with(
     plan: &Plan,
     newton: &NewtonSettings,
-    observer: &mut dyn Observer,
-    options: RunOptions,
+    observers: &mut [&mut dyn Observer],
+    start: Option<RunState>,
 ) -> RunSummary {
-    let start = Instant::now();
-    let RunOptions {
-        checkpoint: ck_options,
-        mut resume,
-    } = options;
-    let fingerprint = crate::io::checkpoint::fingerprint(plan);
+    let mut observers = Observers(observers);
+    let mut job = Job::new(plan, newton, &mut observers, start.as_ref());
     let mut model = plan.model.clone();
-    let n_nodes = model.mesh.n_nodes();
-    let mut state = vec![0.0; n_nodes * FIELDS];
-    let mut velocity = vec![0.0; n_nodes * FIELDS];
-    let mut acceleration = vec![0.0; n_nodes * FIELDS];
-    let mut summary = RunSummary {
-        converged: true,
-        error: None,
-        stages: Vec::new(),
-        wall_s: 0.0,
-        dofs: n_nodes * FIELDS,
-        warnings: plan.warnings.clone(),
-        interrupted: false,
-    };
-    let mut rec = Recorder::new(plan, ck_options.is_some());
-    crate::solve::interrupt::clear_local();
-    let mut time = 0.0;
-    let mut dissipated = 0.0;
-    let mut accepted = 0usize;
-    let mut wall_before = 0.0;
-    let mut first_stage = 0;
-    if let Some(ck) = &resume {
-        state.clone_from(&ck.q);
-        velocity.clone_from(&ck.v);
-        acceleration.clone_from(&ck.a);
-        rec.restore(&ck.recorder, &ck.records);
-        summary.stages = ck.stages.clone();
-        summary.warnings = ck.warnings.clone();
-        time = ck.stage_time;
-        dissipated = ck.dissipated;
-        accepted = ck.accepted as usize;
-        wall_before = ck.wall_s;
-        first_stage = ck.stage as usize;
-        model.dead_load_start = ck.dead_load_start;
-        observer.resumed(plan, &ck.records);
+    if let Some(s) = &start {
+        model.dead_load_start = s.dead_load_start;
     }
-    for (si, stage) in plan.stages.iter().enumerate().skip(first_stage) {
-        let resume_here = resume.take();
-        observer.stage_started(si, &stage.name);
-        let stage_start = Instant::now();
-        let t_end = time + stage.duration;
-        // waveforms run on stage time (0 at the start of the stage), as Abaqus' step time;
-        // a stage with its electrodes off holds them at 0 V
-        let voltage_of = |w: &crate::waveform::Waveform, t_stage: f64| {
-            if stage.electrodes_on {
-                w.value(t_stage)
-            } else {
-                0.0
-            }
+    let first = start.as_ref().map_or(0, |s| s.stage);
+    let mut resume = start.map(|s| (s.position, s.step_no));
+    for si in first..plan.stages.len() {
+        if !job.stage(si, &mut model, resume.take()) {
+            break;
+        }
+    }
+    job.finish()
+}
+
+/// A run in progress.
+struct Job<'p, 'o> {
+    plan: &'p Plan,
+    newton: &'p NewtonSettings,
+    observer: &'o mut dyn Observer,
+    rec: Recorder<'p>,
+    summary: RunSummary,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    a: Vec<f64>,
+    /// Global time at the start of the current stage.
+    time: f64,
+    dissipated: f64,
+    accepted: usize,
+    /// Steps and Newton iterations of the pre-stretch, recorded under the first stage.
+    first_step: usize,
+    prestretch_iterations: usize,
+    wall_before: f64,
+    started: Instant,
+    /// The first failure to evaluate a record in the current stage.
+    record_error: Option<String>,
+}
+
+impl<'p, 'o> Job<'p, 'o> {
+    fn new(
+        plan: &'p Plan,
+        newton: &'p NewtonSettings,
+        observer: &'o mut dyn Observer,
+        start: Option<&RunState>,
+    ) -> Self {
+        let n = plan.model.mesh.n_nodes() * FIELDS;
+        let mut job = Job {
+            plan,
+            newton,
+            rec: Recorder::new(plan, observer.takes_states()),
+            observer,
+            summary: RunSummary {
+                converged: true,
+                error: None,
+                stages: Vec::new(),
+                wall_s: 0.0,
+                dofs: n,
+                warnings: plan.warnings.clone(),
+                interrupted: false,
+            },
+            q: vec![0.0; n],
+            v: vec![0.0; n],
+            a: vec![0.0; n],
+            time: 0.0,
+            dissipated: 0.0,
+            accepted: 0,
+            first_step: 0,
+            prestretch_iterations: 0,
+            wall_before: 0.0,
+            started: Instant::now(),
+            record_error: None,
         };
-        // steps already recorded under this stage's name (the pre-stretch, for the first stage)
-        let mut first_step = 0;
-        let mut prestretch_iterations = 0;
-        model.dirichlet = plan.supports.clone();
-        for e in &plan.electrodes {
+        crate::solve::interrupt::clear_local();
+        if let Some(s) = start {
+            job.q.clone_from(&s.q);
+            job.v.clone_from(&s.v);
+            job.a.clone_from(&s.a);
+            job.rec.restore(&s.recorder, &s.records);
+            job.summary.stages = s.stages.clone();
+            job.summary.warnings = s.warnings.clone();
+            job.time = s.stage_time;
+            job.dissipated = s.dissipated;
+            job.accepted = s.accepted;
+            job.wall_before = s.wall_s;
+            job.first_step = s.first_step;
+            job.prestretch_iterations = s.prestretch_iterations;
+            job.observer.resumed(plan, &s.records);
+        }
+        job
+    }
+
+    /// The run state at an accepted step of the current stage.
+    fn state(
+        &self,
+        model: &Model,
+        stage: usize,
+        step_no: usize,
+        position: StagePosition,
+        q: &[f64],
+    ) -> RunState {
+        RunState {
+            accepted: self.accepted,
+            stage,
+            stage_time: self.time,
+            step_no,
+            first_step: self.first_step,
+            prestretch_iterations: self.prestretch_iterations,
+            position,
+            q: q.to_vec(),
+            v: self.v.clone(),
+            a: self.a.clone(),
+            points: Vec::new(),
+            dissipated: self.dissipated,
+            dead_load_start: model.dead_load_start,
+            recorder: self.rec.state(),
+            stages: self.summary.stages.clone(),
+            warnings: self.summary.warnings.clone(),
+            records: self.rec.history.clone(),
+            wall_s: self.wall_before + self.started.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// Sends the run state to the observers that want it now.
+    fn offer_state(&mut self, stopping: bool, state: impl FnOnce(&Self) -> RunState) {
+        if self.observer.wants_state(self.accepted, stopping) {
+            let s = state(self);
+            if let Err(e) = self.observer.run_state(self.plan, &s) {
+                self.rec
+                    .warnings
+                    .push(format!("checkpoint not written: {e}"));
+            }
+        }
+    }
+
+    /// Records an accepted state and sends it to the observers.
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &mut self,
+        q: &[f64],
+        prescribed: &[bool],
+        time: f64,
+        stage: &str,
+        step: usize,
+        iterations: usize,
+        dt: f64,
+        kinetic: f64,
+    ) {
+        match self.rec.record(
+            q,
+            prescribed,
+            time,
+            stage,
+            step,
+            iterations,
+            dt,
+            kinetic,
+            self.dissipated,
+        ) {
+            Ok((r, f)) => self.observer.step(self.plan, &r, q, &f),
+            Err(e) => {
+                self.record_error.get_or_insert(e);
+            }
+        }
+    }
+
+    /// The prescribed values of a stage's end: supports and electrodes at their end voltages.
+    fn stage_conditions(&self, model: &mut Model, stage: &Stage) -> Vec<bool> {
+        model.dirichlet = self.plan.supports.clone();
+        for e in &self.plan.electrodes {
             model.dirichlet.push(Dirichlet {
                 nodes: e.nodes.clone(),
                 field: Field::Phi,
-                value: voltage_of(&e.voltage, stage.duration),
+                value: stage_voltage(stage, &e.voltage, stage.duration),
             });
         }
-        let prescribed = constrained_flags(n_nodes, &model.dirichlet);
-        if let Some(ck) = &resume_here {
-            first_step = ck.first_step as usize;
-            prestretch_iterations = ck.prestretch_iterations as usize;
-        } else if si == 0 {
-            match rec.record(&state, &prescribed, time, &stage.name, 0, 0, 0.0, 0.0, 0.0) {
-                Ok((r, f)) => observer.step(plan, &r, &state, &f),
-                Err(e) => {
-                    summary.converged = false;
-                    summary.error = Some(format!("initial state: {e}"));
-                    break;
-                }
-            }
-            if let Some(p) = plan.prestretch {
-                match prestretch(
-                    plan,
-                    &model,
-                    &state,
-                    p,
-                    newton,
-                    &mut rec,
-                    &stage.name,
-                    observer,
-                ) {
-                    Ok((s, n, its)) => {
-                        state = s;
-                        first_step = n;
-                        prestretch_iterations = its;
-                        rec.reference = state.clone();
-                    }
-                    Err(e) => {
-                        summary.converged = false;
-                        summary.error = Some(e);
-                        summary.stages.push(StageSummary {
-                            name: stage.name.clone(),
-                            kind: "static".into(),
-                            steps: 0,
-                            newton_iterations: 0,
-                            wall_s: stage_start.elapsed().as_secs_f64(),
-                            converged: false,
-                        });
-                        break;
-                    }
-                }
+        constrained_flags(model.mesh.n_nodes(), &model.dirichlet)
+    }
+
+    /// Runs stage `si` (from `position` when resuming inside it); false when the run stops.
+    fn stage(
+        &mut self,
+        si: usize,
+        model: &mut Model,
+        position: Option<(StagePosition, usize)>,
+    ) -> bool {
+        let plan = self.plan;
+        let stage = &plan.stages[si];
+        self.observer.stage_started(si, &stage.name);
+        let stage_start = Instant::now();
+        let prescribed = self.stage_conditions(model, stage);
+        if position.is_none() {
+            self.first_step = 0;
+            self.prestretch_iterations = 0;
+            if si == 0 && !self.initial_phase(model, stage, &prescribed, stage_start) {
+                return false;
             }
         }
-        let mut stage_summary = StageSummary {
+        self.record_error = None;
+        let mut summary = StageSummary {
             name: stage.name.clone(),
             kind: String::new(),
             steps: 0,
@@ -318,371 +322,462 @@ pub fn run_with(
             wall_s: 0.0,
             converged: true,
         };
-        let mut record_error: Option<String> = None;
-        // what a checkpoint of this stage records besides the solver's position
-        let context = ck_options.as_ref().map(|o| CheckpointContext {
-            options: o,
-            fingerprint,
-            stage: si,
-            stage_time: time,
-            first_step,
-            prestretch_iterations,
-            dead_load_start: model.dead_load_start,
-            stages: &summary.stages,
-            warnings: &summary.warnings,
-            wall_before,
-            start,
-        });
-        let failure: Option<String> = match stage.kind {
+        let failure = match stage.kind {
             StageKind::Static { steps } => {
-                stage_summary.kind = "static".into();
-                velocity.iter_mut().for_each(|v| *v = 0.0);
-                acceleration.iter_mut().for_each(|v| *v = 0.0);
-                let (stage_start_state, resume_at, mut step_no, mut last_load) = match resume_here {
-                    Some(Checkpoint {
-                        position:
-                            StagePosition::Static {
-                                ramp,
-                                stage_start,
-                                last_load,
-                            },
-                        step_no,
-                        ..
-                    }) => (
-                        stage_start,
-                        Some((state.clone(), ramp)),
-                        step_no as usize,
-                        last_load,
-                    ),
-                    _ => (state.clone(), None, first_step, 0.0),
-                };
-                let start_voltages: Vec<f64> = plan
-                    .electrodes
-                    .iter()
-                    .map(|e| stage_start_state[e.nodes[0] * FIELDS + 3])
-                    .collect();
-                let targets: Vec<f64> = plan
-                    .electrodes
-                    .iter()
-                    .map(|e| voltage_of(&e.voltage, stage.duration))
-                    .collect();
-                let voltage_at = |s: f64| -> f64 {
-                    start_voltages
-                        .iter()
-                        .zip(&targets)
-                        .map(|(a, b)| a + s * (b - a))
-                        .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m })
-                };
-                let control = StepControl {
-                    steps,
-                    ..Default::default()
-                };
-                let nominal = 1.0 / steps.max(1) as f64;
-                let mut last_position = resume_at.as_ref().map_or(
-                    RampPosition {
-                        load: 0.0,
-                        increment: nominal,
-                        next_nominal: 1,
-                        accepted_steps: 0,
-                        cutbacks: 0,
-                        newton_iterations: 0,
-                    },
-                    |r| r.1,
-                );
-                let outcome = solve_static_from(
-                    &model,
-                    stage_start_state.clone(),
-                    resume_at,
-                    &control,
-                    newton,
-                    |p, acc| {
-                        step_no += 1;
-                        let t = time + acc.load * stage.duration;
-                        let dt = (acc.load - last_load) * stage.duration;
-                        last_load = acc.load;
-                        rec.sudden_loads = false;
-                        rec.external_factor =
-                            model.dead_load_start + acc.load * (1.0 - model.dead_load_start);
-                        match rec.record(
-                            &p.state,
-                            &prescribed,
-                            t,
-                            &stage.name,
-                            step_no,
-                            acc.newton.iterations,
-                            dt,
-                            0.0,
-                            dissipated,
-                        ) {
-                            Ok((r, f)) => observer.step(plan, &r, &p.state, &f),
-                            Err(e) => {
-                                record_error.get_or_insert(e);
-                            }
-                        }
-                        accepted += 1;
-                        last_position = acc.position;
-                        let Some(ctx) = &context else { return false };
-                        if !accepted.is_multiple_of(ctx.options.every) {
-                            return false;
-                        }
-                        ctx.write(
-                            &mut rec,
-                            accepted,
-                            step_no,
-                            StagePosition::Static {
-                                ramp: acc.position,
-                                stage_start: stage_start_state.clone(),
-                                last_load,
-                            },
-                            &p.state,
-                            &velocity,
-                            &acceleration,
-                            dissipated,
-                        );
-                        true
-                    },
-                );
-                if let Some(ctx) = &context {
-                    if crate::solve::interrupt::requested() && outcome.result.is_err() {
-                        ctx.write(
-                            &mut rec,
-                            accepted,
-                            step_no,
-                            StagePosition::Static {
-                                ramp: last_position,
-                                stage_start: stage_start_state.clone(),
-                                last_load,
-                            },
-                            &outcome.state,
-                            &velocity,
-                            &acceleration,
-                            dissipated,
-                        );
-                    }
-                }
-                state = outcome.state;
-                stage_summary.steps = step_no;
-                match outcome.result {
-                    Ok(r) => {
-                        stage_summary.newton_iterations =
-                            r.newton_iterations + prestretch_iterations;
-                        // the tractions are now fully applied; later static stages keep them
-                        model.dead_load_start = 1.0;
-                        None
-                    }
-                    Err(f) => {
-                        stage_summary.newton_iterations =
-                            f.newton_iterations + prestretch_iterations;
-                        let electric = start_voltages.iter().zip(&targets).any(|(a, b)| a != b);
-                        let what = if f.limit_point && electric {
-                            "electromechanical instability (pull-in)"
-                        } else if f.limit_point {
-                            "limit point (loss of stability)"
-                        } else if f.reason == crate::solve::interrupt::MESSAGE {
-                            "interrupted by a signal (the last accepted step is in the outputs)"
-                        } else {
-                            "solve failed"
-                        };
-                        Some(format!(
-                            "{what} in stage `{}` at t = {:.6} s: no stable equilibrium beyond load factor {:.6} \
-                             (tried {:.6}); last converged voltage {:.2} V, failed at {:.2} V; last failure: {}",
-                            stage.name,
-                            time + f.last_converged * stage.duration,
-                            f.last_converged,
-                            f.attempted,
-                            voltage_at(f.last_converged),
-                            voltage_at(f.attempted),
-                            f.reason
-                        ))
-                    }
-                }
+                self.static_stage(si, model, steps, &prescribed, position, &mut summary)
             }
-            StageKind::Dynamic {
-                dt,
-                scheme,
-                mass: mass_kind,
-            } => {
-                stage_summary.kind = "dynamic".into();
-                let mut mass = NodalMass::new(&model, &plan.densities, mass_kind);
-                for r in &plan.rigid {
-                    if r.mass > 0.0 {
-                        mass.add_point_mass(r.nodes[0], r.mass);
-                    }
-                }
-                model.dirichlet = plan.supports.clone();
-                let inputs = DynamicInputs {
-                    mass: &mass,
-                    viscosity: plan.viscosities.clone(),
-                    electrodes: plan
-                        .electrodes
-                        .iter()
-                        .map(|e| {
-                            let w = if stage.electrodes_on {
-                                e.voltage.clone()
-                            } else {
-                                crate::waveform::Waveform::constant(0.0)
-                            };
-                            (e.nodes.clone(), w)
-                        })
-                        .collect(),
-                };
-                let settings = DynamicSettings {
-                    duration: stage.duration,
-                    dt,
-                    scheme,
-                    min_fraction: 1.0 / 1024.0,
-                    easy_iterations: 6,
-                    reuse_factorization: true,
-                };
-                // the integrator runs on stage time; records get the global time
-                let (t0, dyn_resume, mut step_no) = match resume_here {
-                    Some(Checkpoint {
-                        position: StagePosition::Dynamic { t, dt, iterations },
-                        step_no,
-                        ..
-                    }) => (
-                        t,
-                        Some(DynamicResume {
-                            t_start: 0.0,
-                            dt,
-                            iterations: iterations as usize,
-                        }),
-                        step_no as usize,
-                    ),
-                    _ => (0.0, None, first_step),
-                };
-                let start_level = TimeLevel {
-                    t: t0,
-                    q: state.clone(),
-                    v: velocity.clone(),
-                    a: acceleration.clone(),
-                };
-                let mut last_position = (
-                    t0,
-                    dyn_resume.map_or(dt, |r| r.dt),
-                    dyn_resume.map_or(0, |r| r.iterations),
-                );
-                let mut mv = vec![0.0; state.len()];
-                let outcome = run_dynamic_from(
-                    &model,
-                    &inputs,
-                    start_level,
-                    &settings,
-                    newton,
-                    dyn_resume,
-                    |level, info| {
-                        step_no += 1;
-                        dissipated += info.dissipated;
-                        mass.mul(&level.v, &mut mv);
-                        let kinetic =
-                            0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
-                        rec.external_factor = 1.0;
-                        rec.sudden_loads = true;
-                        match rec.record(
-                            &level.q,
-                            &prescribed,
-                            time + level.t,
-                            &stage.name,
-                            step_no,
-                            info.newton_iterations,
-                            info.dt,
-                            kinetic,
-                            dissipated,
-                        ) {
-                            Ok((r, f)) => observer.step(plan, &r, &level.q, &f),
-                            Err(e) => {
-                                record_error.get_or_insert(e);
-                            }
-                        }
-                        accepted += 1;
-                        last_position = (level.t, info.next_dt, info.total_iterations);
-                        let Some(ctx) = &context else { return false };
-                        if !accepted.is_multiple_of(ctx.options.every) {
-                            return false;
-                        }
-                        ctx.write(
-                            &mut rec,
-                            accepted,
-                            step_no,
-                            StagePosition::Dynamic {
-                                t: level.t,
-                                dt: info.next_dt,
-                                iterations: info.total_iterations as u64,
-                            },
-                            &level.q,
-                            &level.v,
-                            &level.a,
-                            dissipated,
-                        );
-                        true
-                    },
-                );
-                if let (Some(ctx), Err((level, _))) = (&context, &outcome) {
-                    if crate::solve::interrupt::requested() {
-                        ctx.write(
-                            &mut rec,
-                            accepted,
-                            step_no,
-                            StagePosition::Dynamic {
-                                t: last_position.0,
-                                dt: last_position.1,
-                                iterations: last_position.2 as u64,
-                            },
-                            &level.q,
-                            &level.v,
-                            &level.a,
-                            dissipated,
-                        );
-                    }
-                }
-                stage_summary.steps = step_no;
-                let (level, failure) = match outcome {
-                    Ok((level, its)) => {
-                        stage_summary.newton_iterations = its;
-                        (level, None)
-                    }
-                    Err((level, f)) => {
-                        stage_summary.newton_iterations = f.newton_iterations;
-                        (
-                            level,
-                            Some(format!(
-                                "dynamic stage `{}` stopped at t = {:.6e} s: {}",
-                                stage.name,
-                                time + f.t,
-                                f.reason
-                            )),
-                        )
-                    }
-                };
-                state = level.q;
-                model.dead_load_start = 1.0;
-                velocity = level.v;
-                acceleration = level.a;
-                failure
+            StageKind::Dynamic { .. } => {
+                self.dynamic_stage(si, model, &prescribed, position, &mut summary)
             }
         };
-        stage_summary.wall_s = stage_start.elapsed().as_secs_f64();
-        summary.warnings.append(&mut rec.warnings);
-        if let Some(e) = record_error {
-            summary.warnings.push(format!(
+        summary.wall_s = stage_start.elapsed().as_secs_f64();
+        self.summary.warnings.append(&mut self.rec.warnings);
+        if let Some(e) = self.record_error.take() {
+            self.summary.warnings.push(format!(
                 "stage `{}`: output evaluation failed: {e}",
                 stage.name
             ));
         }
         if let Some(f) = failure {
-            stage_summary.converged = false;
             summary.converged = false;
-            summary.error = Some(f);
+            self.summary.converged = false;
+            self.summary.error = Some(f);
         }
-        summary.stages.push(stage_summary);
-        if !summary.converged {
-            break;
+        self.summary.stages.push(summary);
+        if !self.summary.converged {
+            return false;
         }
-        time = t_end;
+        self.time += stage.duration;
+        true
     }
-    summary.warnings.append(&mut rec.warnings);
-    summary.wall_s = wall_before + start.elapsed().as_secs_f64();
-    summary.interrupted = crate::solve::interrupt::requested() && !summary.converged;
-    observer.finished(plan, &summary);
-    summary
+
+    /// The initial record and the pre-stretch phase before the first stage; false on failure.
+    fn initial_phase(
+        &mut self,
+        model: &Model,
+        stage: &Stage,
+        prescribed: &[bool],
+        started: Instant,
+    ) -> bool {
+        let plan = self.plan;
+        match self.rec.record(
+            &self.q,
+            prescribed,
+            self.time,
+            &stage.name,
+            0,
+            0,
+            0.0,
+            0.0,
+            0.0,
+        ) {
+            Ok((r, f)) => self.observer.step(plan, &r, &self.q, &f),
+            Err(e) => {
+                self.summary.converged = false;
+                self.summary.error = Some(format!("initial state: {e}"));
+                return false;
+            }
+        }
+        let Some(p) = plan.prestretch else {
+            return true;
+        };
+        match prestretch(
+            plan,
+            model,
+            &self.q,
+            p,
+            self.newton,
+            &mut self.rec,
+            &stage.name,
+            &mut *self.observer,
+        ) {
+            Ok((s, n, its)) => {
+                self.q = s;
+                self.first_step = n;
+                self.prestretch_iterations = its;
+                self.rec.reference = self.q.clone();
+                true
+            }
+            Err(e) => {
+                self.summary.converged = false;
+                self.summary.error = Some(e);
+                self.summary.stages.push(StageSummary {
+                    name: stage.name.clone(),
+                    kind: "static".into(),
+                    steps: 0,
+                    newton_iterations: 0,
+                    wall_s: started.elapsed().as_secs_f64(),
+                    converged: false,
+                });
+                false
+            }
+        }
+    }
+
+    /// A static stage: the load ramp to the stage's targets. Returns the failure, if any.
+    fn static_stage(
+        &mut self,
+        si: usize,
+        model: &mut Model,
+        steps: usize,
+        prescribed: &[bool],
+        position: Option<(StagePosition, usize)>,
+        summary: &mut StageSummary,
+    ) -> Option<String> {
+        let plan = self.plan;
+        let stage = &plan.stages[si];
+        summary.kind = "static".into();
+        self.v.iter_mut().for_each(|v| *v = 0.0);
+        self.a.iter_mut().for_each(|v| *v = 0.0);
+        let (stage_start, resume_at, mut step_no, mut last_load) = match position {
+            Some((
+                StagePosition::Static {
+                    ramp,
+                    stage_start,
+                    last_load,
+                },
+                step_no,
+            )) => (
+                stage_start,
+                Some((self.q.clone(), ramp)),
+                step_no,
+                last_load,
+            ),
+            _ => (self.q.clone(), None, self.first_step, 0.0),
+        };
+        let start_voltages: Vec<f64> = plan
+            .electrodes
+            .iter()
+            .map(|e| stage_start[e.nodes[0] * FIELDS + 3])
+            .collect();
+        let targets: Vec<f64> = plan
+            .electrodes
+            .iter()
+            .map(|e| stage_voltage(stage, &e.voltage, stage.duration))
+            .collect();
+        let voltage_at = |s: f64| -> f64 {
+            start_voltages
+                .iter()
+                .zip(&targets)
+                .map(|(a, b)| a + s * (b - a))
+                .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m })
+        };
+        let control = StepControl {
+            steps,
+            ..Default::default()
+        };
+        let nominal = 1.0 / steps.max(1) as f64;
+        let mut last_position = resume_at.as_ref().map_or(
+            RampPosition {
+                load: 0.0,
+                increment: nominal,
+                next_nominal: 1,
+                accepted_steps: 0,
+                cutbacks: 0,
+                newton_iterations: 0,
+            },
+            |r| r.1,
+        );
+        let time = self.time;
+        let model_ref: &Model = model;
+        let outcome = solve_static_from(
+            model_ref,
+            &plan.solver,
+            stage_start.clone(),
+            resume_at,
+            &control,
+            self.newton,
+            |p, acc| {
+                step_no += 1;
+                let t = time + acc.load * stage.duration;
+                let dt = (acc.load - last_load) * stage.duration;
+                last_load = acc.load;
+                self.rec.sudden_loads = false;
+                self.rec.external_factor =
+                    model_ref.dead_load_start + acc.load * (1.0 - model_ref.dead_load_start);
+                self.record(
+                    &p.state,
+                    prescribed,
+                    t,
+                    &stage.name,
+                    step_no,
+                    acc.newton.iterations,
+                    dt,
+                    0.0,
+                );
+                self.accepted += 1;
+                last_position = acc.position;
+                self.offer_state(false, |job| {
+                    job.state(
+                        model_ref,
+                        si,
+                        step_no,
+                        StagePosition::Static {
+                            ramp: acc.position,
+                            stage_start: stage_start.clone(),
+                            last_load,
+                        },
+                        &p.state,
+                    )
+                });
+            },
+        );
+        if crate::solve::interrupt::requested() && outcome.result.is_err() {
+            self.offer_state(true, |job| {
+                job.state(
+                    model_ref,
+                    si,
+                    step_no,
+                    StagePosition::Static {
+                        ramp: last_position,
+                        stage_start: stage_start.clone(),
+                        last_load,
+                    },
+                    &outcome.state,
+                )
+            });
+        }
+        self.q = outcome.state;
+        summary.steps = step_no;
+        match outcome.result {
+            Ok(r) => {
+                summary.newton_iterations = r.newton_iterations + self.prestretch_iterations;
+                // the tractions are now fully applied; later static stages keep them
+                model.dead_load_start = 1.0;
+                None
+            }
+            Err(f) => {
+                summary.newton_iterations = f.newton_iterations + self.prestretch_iterations;
+                let electric = start_voltages.iter().zip(&targets).any(|(a, b)| a != b);
+                let what = if f.limit_point && electric {
+                    "electromechanical instability (pull-in)"
+                } else if f.limit_point {
+                    "limit point (loss of stability)"
+                } else if f.reason == crate::solve::interrupt::MESSAGE {
+                    "interrupted by a signal (the last accepted step is in the outputs)"
+                } else {
+                    "solve failed"
+                };
+                Some(format!(
+                    "{what} in stage `{}` at t = {:.6} s: no stable equilibrium beyond load factor {:.6} \
+                     (tried {:.6}); last converged voltage {:.2} V, failed at {:.2} V; last failure: {}",
+                    stage.name,
+                    self.time + f.last_converged * stage.duration,
+                    f.last_converged,
+                    f.attempted,
+                    voltage_at(f.last_converged),
+                    voltage_at(f.attempted),
+                    f.reason
+                ))
+            }
+        }
+    }
+
+    /// A dynamic stage: time integration over the stage's duration. Returns the failure, if any.
+    fn dynamic_stage(
+        &mut self,
+        si: usize,
+        model: &mut Model,
+        prescribed: &[bool],
+        position: Option<(StagePosition, usize)>,
+        summary: &mut StageSummary,
+    ) -> Option<String> {
+        let plan = self.plan;
+        let stage = &plan.stages[si];
+        let StageKind::Dynamic {
+            dt,
+            scheme,
+            mass: mass_kind,
+        } = stage.kind
+        else {
+            unreachable!("a dynamic stage");
+        };
+        summary.kind = "dynamic".into();
+        let mut mass = NodalMass::new(model, &plan.densities, mass_kind);
+        for r in &plan.rigid {
+            if r.mass > 0.0 {
+                mass.add_point_mass(r.nodes[0], r.mass);
+            }
+        }
+        model.dirichlet = plan.supports.clone();
+        let inputs = DynamicInputs {
+            mass: &mass,
+            viscosity: plan.viscosities.clone(),
+            electrodes: plan
+                .electrodes
+                .iter()
+                .map(|e| {
+                    let w = if stage.electrodes_on {
+                        e.voltage.clone()
+                    } else {
+                        crate::waveform::Waveform::constant(0.0)
+                    };
+                    (e.nodes.clone(), w)
+                })
+                .collect(),
+        };
+        let settings = DynamicSettings {
+            duration: stage.duration,
+            dt,
+            scheme,
+            min_fraction: 1.0 / 1024.0,
+            easy_iterations: 6,
+            reuse_factorization: true,
+            solver: plan.solver,
+        };
+        // the integrator runs on stage time; records get the global time
+        let (t0, resume, mut step_no) = match position {
+            Some((
+                StagePosition::Dynamic {
+                    t,
+                    dt,
+                    iterations,
+                    last_h,
+                    step_factor,
+                    projection_factor,
+                },
+                step_no,
+            )) => (
+                t,
+                Some(DynamicResume {
+                    t_start: 0.0,
+                    dt,
+                    iterations,
+                    last_h,
+                    step_factor,
+                    projection_factor,
+                }),
+                step_no,
+            ),
+            _ => (0.0, None, self.first_step),
+        };
+        let start_level = TimeLevel {
+            t: t0,
+            q: self.q.clone(),
+            v: self.v.clone(),
+            a: self.a.clone(),
+        };
+        let mut last = resume.clone().unwrap_or(DynamicResume {
+            t_start: 0.0,
+            dt,
+            iterations: 0,
+            last_h: f64::NAN,
+            step_factor: None,
+            projection_factor: None,
+        });
+        let mut mv = vec![0.0; self.q.len()];
+        let time = self.time;
+        let model_ref: &Model = model;
+        let outcome = run_dynamic_from(
+            model_ref,
+            &inputs,
+            start_level,
+            &settings,
+            self.newton,
+            resume,
+            |level, info| {
+                step_no += 1;
+                self.dissipated += info.dissipated;
+                mass.mul(&level.v, &mut mv);
+                let kinetic = 0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
+                self.rec.external_factor = 1.0;
+                self.rec.sudden_loads = true;
+                self.record(
+                    &level.q,
+                    prescribed,
+                    time + level.t,
+                    &stage.name,
+                    step_no,
+                    info.newton_iterations,
+                    info.dt,
+                    kinetic,
+                );
+                self.accepted += 1;
+                last = info.resume_point(0.0);
+                if self.observer.wants_state(self.accepted, false) {
+                    let r = last.clone();
+                    self.v.clone_from(&level.v);
+                    self.a.clone_from(&level.a);
+                    self.offer_state(false, |job| {
+                        job.state(
+                            model_ref,
+                            si,
+                            step_no,
+                            dynamic_position(level.t, r),
+                            &level.q,
+                        )
+                    });
+                }
+            },
+        );
+        summary.steps = step_no;
+        let (level, failure) = match outcome {
+            Ok((level, its)) => {
+                summary.newton_iterations = its;
+                (level, None)
+            }
+            Err((level, f)) => {
+                summary.newton_iterations = f.newton_iterations;
+                if crate::solve::interrupt::requested() {
+                    self.v.clone_from(&level.v);
+                    self.a.clone_from(&level.a);
+                    let r = last.clone();
+                    self.offer_state(true, |job| {
+                        job.state(
+                            model_ref,
+                            si,
+                            step_no,
+                            dynamic_position(level.t, r),
+                            &level.q,
+                        )
+                    });
+                }
+                (
+                    level,
+                    Some(format!(
+                        "dynamic stage `{}` stopped at t = {:.6e} s: {}",
+                        stage.name,
+                        self.time + f.t,
+                        f.reason
+                    )),
+                )
+            }
+        };
+        self.q = level.q;
+        model.dead_load_start = 1.0;
+        self.v = level.v;
+        self.a = level.a;
+        failure
+    }
+
+    /// Ends the run: the summary, sent to the observers.
+    fn finish(mut self) -> RunSummary {
+        self.summary.warnings.append(&mut self.rec.warnings);
+        self.summary.wall_s = self.wall_before + self.started.elapsed().as_secs_f64();
+        self.summary.interrupted = crate::solve::interrupt::requested() && !self.summary.converged;
+        self.observer.finished(self.plan, &self.summary);
+        self.summary
+    }
+}
+
+/// The position of a dynamic stage at stage time `t`.
+fn dynamic_position(t: f64, r: DynamicResume) -> StagePosition {
+    StagePosition::Dynamic {
+        t,
+        dt: r.dt,
+        iterations: r.iterations,
+        last_h: r.last_h,
+        step_factor: r.step_factor,
+        projection_factor: r.projection_factor,
+    }
+}
+
+/// The voltage of an electrode's waveform at stage time `t`: waveforms run on stage time (0 at the
+/// start of the stage), as Abaqus' step time; a stage with its electrodes off holds them at 0 V.
+fn stage_voltage(stage: &Stage, w: &crate::waveform::Waveform, t: f64) -> f64 {
+    if stage.electrodes_on {
+        w.value(t)
+    } else {
+        0.0
+    }
 }

@@ -4,7 +4,7 @@
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
 use crate::problem::system::LoadedSystem;
-use crate::solve::linear::{FaerLdlt, LinearSolver};
+use crate::solve::linear::SolverSettings;
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepControl};
 
@@ -26,14 +26,10 @@ pub fn solve_static(
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, initial);
-    let mut solver = FaerLdlt::new();
-    let result = ramp(
-        &mut problem,
-        &mut solver as &mut dyn LinearSolver,
-        newton,
-        control,
-        |p, s| on_step(p, s),
-    );
+    let mut solver = SolverSettings::default().build();
+    let result = ramp(&mut problem, solver.as_mut(), newton, control, |p, s| {
+        on_step(p, s)
+    });
     StaticOutcome {
         state: problem.state,
         result,
@@ -42,14 +38,16 @@ pub fn solve_static(
 
 /// [`solve_static`] resumable: the ramp's prescribed values start from `stage_start`; with
 /// `resume = Some((state, position))` it continues from that converged state and ramp position.
-/// `on_step` returning true refreshes the factorisation (see [`ramp_from`](crate::solve::stepping::ramp_from)).
+/// The solver's factorisation after an accepted step is that of the converged state (Newton's
+/// stability test), which a resumed ramp factors again at its start: the two agree bit for bit.
 pub fn solve_static_from(
     model: &Model,
+    solver: &SolverSettings,
     stage_start: Vec<f64>,
     resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
     control: &StepControl,
     newton: &NewtonSettings,
-    mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep) -> bool,
+    mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, Some(stage_start));
     let position = resume.map(|(state, position)| {
@@ -57,14 +55,17 @@ pub fn solve_static_from(
         problem.set_load(position.load);
         position
     });
-    let mut solver = FaerLdlt::new();
+    let mut solver = solver.build();
     let result = crate::solve::stepping::ramp_from(
         &mut problem,
-        &mut solver as &mut dyn LinearSolver,
+        solver.as_mut(),
         newton,
         control,
         position,
-        |p, s| on_step(p, s),
+        |p, s| {
+            on_step(p, s);
+            false
+        },
     );
     StaticOutcome {
         state: problem.state,

@@ -28,6 +28,7 @@ pub mod gent;
 pub mod homogeneous;
 pub mod hyperelastic;
 pub mod isotropic;
+pub mod maxwell;
 pub mod mooney_rivlin;
 pub mod neo_hooke;
 pub mod neo_hooke_split;
@@ -103,8 +104,31 @@ pub struct Tangent {
     pub g: Mat3,
 }
 
+/// What a material with internal variables sees of a point's history: the committed internal
+/// variables (empty for an elastic material) and the time step to the state being evaluated.
+#[derive(Debug, Clone, Copy)]
+pub struct PointHistory<'a> {
+    pub state: &'a [f64],
+    /// Time step (s) from the committed state; 0 gives the instantaneous response.
+    pub dt: f64,
+}
+
+impl PointHistory<'_> {
+    /// No history: an elastic material's point.
+    pub const NONE: PointHistory<'static> = PointHistory {
+        state: &[],
+        dt: 0.0,
+    };
+}
+
 /// An electro-elastic material described by an energy Ψ(F, E0) per unit
 /// reference volume.
+///
+/// A material may carry internal variables per quadrature point ([`Material::state_size`] > 0).
+/// Within a step it is evaluated from the committed variables and the time step (the `*_at`
+/// methods: the energy, stress and tangent of the step's incremental potential); when the step is
+/// accepted, [`Material::update_state`] gives the new variables, which the run commits. Elastic
+/// materials keep the defaults and pay nothing.
 pub trait Material: Send + Sync + std::fmt::Debug {
     /// Energy per reference volume Ψ(F, E0).
     fn energy(&self, f: &Mat3, e0: &Vec3) -> Result<f64, MaterialError>;
@@ -122,6 +146,50 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     /// `mechanical` is the purely hyperelastic part (no E0 dependence) and
     /// `electric = −(all E0-dependent terms)`, so that Ψ = mechanical − electric.
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError>;
+
+    /// Internal variables per quadrature point (0: elastic).
+    fn state_size(&self) -> usize {
+        0
+    }
+    /// The internal variables of the virgin material.
+    fn initial_state(&self, _state: &mut [f64]) {}
+    /// Names of the internal variables (for field output).
+    fn state_names(&self) -> Vec<String> {
+        Vec::new()
+    }
+    /// Incremental energy of a step from the committed state `h`.
+    fn energy_at(&self, f: &Mat3, e0: &Vec3, _h: PointHistory) -> Result<f64, MaterialError> {
+        self.energy(f, e0)
+    }
+    /// Its first derivatives.
+    fn stress_at(&self, f: &Mat3, e0: &Vec3, _h: PointHistory) -> Result<Stress, MaterialError> {
+        self.stress(f, e0)
+    }
+    /// Its first and second derivatives (the consistent tangent of the update).
+    fn tangent_at(&self, f: &Mat3, e0: &Vec3, _h: PointHistory) -> Result<Tangent, MaterialError> {
+        self.tangent(f, e0)
+    }
+    /// `(stored mechanical, electric)` energy densities at a committed state (the branches' stored
+    /// energy included), as [`Material::energy_split`].
+    fn energy_split_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        _state: &[f64],
+    ) -> Result<(f64, f64), MaterialError> {
+        self.energy_split(f, e0)
+    }
+    /// The internal variables at the end of an accepted step (written to `new`) and the energy
+    /// dissipated per reference volume over the step (J/m³).
+    fn update_state(
+        &self,
+        _f: &Mat3,
+        _e0: &Vec3,
+        _h: PointHistory,
+        _new: &mut [f64],
+    ) -> Result<f64, MaterialError> {
+        Ok(0.0)
+    }
 }
 
 /// Cauchy stress σ = P Fᵀ / J from the first Piola stress.

@@ -35,6 +35,9 @@ pub struct StaticProblem<'m> {
     /// Nodal forces of the model's dead loads at full value (N, `FIELDS` per node); empty without
     /// dead loads.
     dead_load: Vec<f64>,
+    /// The state at which the solver last factored this problem's tangent (for a resumed run to
+    /// factor the same matrix again).
+    pub factored_at: Option<Vec<f64>>,
 }
 
 /// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
@@ -80,6 +83,7 @@ impl<'m> StaticProblem<'m> {
             floor,
             load: model.dead_load_start,
             dead_load,
+            factored_at: None,
         }
     }
 
@@ -234,6 +238,13 @@ impl NonlinearSystem for StaticProblem<'_> {
 
     fn residual_floor(&self) -> f64 {
         self.floor
+    }
+
+    fn factored(&mut self) {
+        match &mut self.factored_at {
+            Some(s) => s.copy_from_slice(&self.state),
+            None => self.factored_at = Some(self.state.clone()),
+        }
     }
 
     fn groups(&self) -> Vec<u8> {

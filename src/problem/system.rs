@@ -24,6 +24,10 @@ pub trait NonlinearSystem {
     fn residual_floor(&self) -> f64;
     /// For each unknown, its field group (0: displacement, 1: potential), for the printed table.
     fn groups(&self) -> Vec<u8>;
+    /// The solver has just factored the tangent of the current state: a system whose
+    /// factorisation is reused (modified Newton) records here where that was, so that a resumed
+    /// run can factor the same matrix again.
+    fn factored(&mut self) {}
 }
 
 /// A nonlinear system driven by a load factor s ∈ [0, 1].

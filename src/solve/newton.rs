@@ -162,6 +162,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                     message: other.to_string(),
                 },
             })?;
+            system.factored();
         }
         dx.iter_mut().zip(&r).for_each(|(d, v)| *d = -v);
         solver
@@ -262,6 +263,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         }
         match solver.factor(k) {
             Ok(i) => {
+                system.factored();
                 stable = i.negative <= system.expected_negative_pivots();
                 inertia = Some(i);
             }

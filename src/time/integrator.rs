@@ -51,6 +51,22 @@ pub struct TimeLevel {
     pub a: Vec<f64>,
 }
 
+/// The point at which a stage driver's reused iteration matrix was assembled and factored
+/// (modified Newton): a resumed run re-factors there, so that it makes the same decisions, bit for
+/// bit, as the run that went on.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FactorPoint {
+    /// The time level the step started from: t, q, v, a.
+    pub t: f64,
+    pub q_prev: Vec<f64>,
+    pub v_prev: Vec<f64>,
+    pub a_prev: Vec<f64>,
+    /// The Newton iterate at which the matrix was evaluated.
+    pub q: Vec<f64>,
+    /// The step size of the matrix.
+    pub dt: f64,
+}
+
 /// One step from `prev` to `prev.t + dt`, the unknown being q_{n+1}.
 pub struct TimeStep<'m> {
     model: &'m Model,
@@ -75,6 +91,9 @@ pub struct TimeStep<'m> {
     work_v: Vec<f64>,
     work_m: Vec<f64>,
     cell_energy: Vec<f64>,
+    /// Where the matrix the solver holds was factored (see [`FactorPoint`]); `None` when the
+    /// driver dropped the factorisation.
+    pub factor_point: Option<FactorPoint>,
 }
 
 impl<'m> TimeStep<'m> {
@@ -110,6 +129,7 @@ impl<'m> TimeStep<'m> {
             work_v: vec![0.0; n],
             work_m: vec![0.0; n],
             cell_energy: Vec::new(),
+            factor_point: None,
         }
     }
 
@@ -258,6 +278,37 @@ impl<'m> TimeStep<'m> {
             }
         }
         Ok(out)
+    }
+
+    /// Factors the iteration matrix at a recorded point (a resumed run), leaving the step as it
+    /// was otherwise.
+    pub fn refactor_at(
+        &mut self,
+        point: &FactorPoint,
+        solver: &mut dyn crate::solve::linear::LinearSolver,
+        k: &mut CsrMatrix,
+    ) -> Result<(), String> {
+        let prev = std::mem::replace(
+            &mut self.prev,
+            TimeLevel {
+                t: point.t,
+                q: point.q_prev.clone(),
+                v: point.v_prev.clone(),
+                a: point.a_prev.clone(),
+            },
+        );
+        let q = std::mem::replace(&mut self.q, point.q.clone());
+        let dt = std::mem::replace(&mut self.dt, point.dt);
+        let mut r = vec![0.0; self.dofs.n_free];
+        let result = self
+            .evaluate(&mut r, Some(k))
+            .and_then(|()| solver.factor(k).map(|_| ()).map_err(|e| e.to_string()));
+        self.prev = prev;
+        self.q = q;
+        self.dt = dt;
+        result?;
+        self.factor_point = Some(point.clone());
+        Ok(())
     }
 
     fn build_mass_map(&mut self, k: &CsrMatrix) {
@@ -436,6 +487,17 @@ impl NonlinearSystem for TimeStep<'_> {
             .into_iter()
             .map(|f| u8::from(f == PHI))
             .collect()
+    }
+
+    fn factored(&mut self) {
+        self.factor_point = Some(FactorPoint {
+            t: self.prev.t,
+            q_prev: self.prev.q.clone(),
+            v_prev: self.prev.v.clone(),
+            a_prev: self.prev.a.clone(),
+            q: self.q.clone(),
+            dt: self.dt,
+        });
     }
 }
 

@@ -1,14 +1,17 @@
-//! The driver of a dynamic stage: steps from t₀ to t₀ + duration with the chosen scheme, halving
-//! the step on failure (Newton divergence, J ≤ 0, singular tangent) and growing it back after easy
-//! steps, never past the stage end; after each midpoint step the potential is re-projected onto
-//! electrostatic equilibrium at the new configuration.
+//! The driver of a dynamic stage: one adaptive step loop for every time integration scheme. It
+//! steps from t₀ to t₀ + duration, halving the step on failure (Newton divergence, J ≤ 0, singular
+//! tangent) and growing it back after easy steps, never past the stage end. A scheme is a
+//! [`Stepper`]: it attempts one step of a given size from its current level. The midpoint scheme
+//! re-projects the potential onto electrostatic equilibrium after each step.
 
-use super::integrator::{Scheme, TimeLevel, TimeStep};
+use super::integrator::{FactorPoint, Scheme, TimeLevel, TimeStep};
 use super::mass::NodalMass;
+use crate::problem::assembly::CsrMatrix;
 use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
-use crate::solve::linear::{FaerLdlt, LinearSolver};
+use crate::problem::system::NonlinearSystem;
+use crate::solve::linear::{LinearSolver, SolverSettings};
 use crate::solve::newton::{newton, NewtonSettings};
 use crate::waveform::Waveform;
 
@@ -48,11 +51,13 @@ pub struct DynamicSettings {
     /// Modified Newton: reuse the factorised iteration matrix across iterations and steps while
     /// the step size is unchanged.
     pub reuse_factorization: bool,
+    /// The linear solver.
+    pub solver: SolverSettings,
 }
 
 /// An accepted step.
 #[derive(Debug, Clone)]
-pub struct DynamicStepInfo {
+pub struct DynamicStepInfo<'a> {
     pub dt: f64,
     pub newton_iterations: usize,
     /// Energy dissipated by viscosity during the step (J).
@@ -61,18 +66,41 @@ pub struct DynamicStepInfo {
     pub next_dt: f64,
     /// Newton iterations of the stage so far, this step included.
     pub total_iterations: usize,
+    /// Where the driver stands, to resume it from this step ([`DynamicResume`]).
+    pub last_h: f64,
+    pub step_factor: Option<&'a FactorPoint>,
+    pub projection_factor: Option<&'a [f64]>,
+}
+
+impl DynamicStepInfo<'_> {
+    /// The resume point of the driver after this step, for a stage that started at `t_start`.
+    pub fn resume_point(&self, t_start: f64) -> DynamicResume {
+        DynamicResume {
+            t_start,
+            dt: self.next_dt,
+            iterations: self.total_iterations,
+            last_h: self.last_h,
+            step_factor: self.step_factor.cloned(),
+            projection_factor: self.projection_factor.map(<[f64]>::to_vec),
+        }
+    }
 }
 
 /// Where to resume a dynamic stage: the start level given to [`run_dynamic_from`] is an accepted
-/// level of an earlier run (not the stage start), `dt` the step size to try next and
-/// `iterations` the Newton iterations spent so far. The start-of-stage set-up (Newmark's
-/// consistent acceleration, the trapezoidal scheme's first projection) is skipped.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// level of an earlier run (not the stage start), `dt` the step size to try next,
+/// `iterations` the Newton iterations spent so far, `last_h` the size of the last attempted step,
+/// and the points where the reused matrices were factored (they are factored there again, so the
+/// resumed run continues bit for bit). The start-of-stage set-up (Newmark's consistent
+/// acceleration, the trapezoidal scheme's first projection) is skipped.
+#[derive(Debug, Clone, PartialEq)]
 pub struct DynamicResume {
     /// Time of the stage start (the stage ends at `t_start + duration`).
     pub t_start: f64,
     pub dt: f64,
     pub iterations: usize,
+    pub last_h: f64,
+    pub step_factor: Option<FactorPoint>,
+    pub projection_factor: Option<Vec<f64>>,
 }
 
 /// The stage stopped before its end.
@@ -91,6 +119,387 @@ pub struct DynamicInputs<'a> {
     pub electrodes: Vec<(Vec<usize>, Waveform)>,
 }
 
+/// Why an attempted step did not give a new level.
+enum StepError {
+    /// The step may succeed with a smaller size (Newton failed, inadmissible state).
+    Retry(String),
+    /// The stage cannot go on (a failure after the step converged; its Newton iterations).
+    Fatal(String, usize),
+}
+
+/// An accepted attempt: the new level, Newton iterations, dissipated energy (J).
+struct Attempt {
+    level: TimeLevel,
+    iterations: usize,
+    dissipated: f64,
+}
+
+/// One time integration scheme as the adaptive loop sees it.
+trait Stepper {
+    /// The last accepted level.
+    fn level(&self) -> &TimeLevel;
+    /// Tries one step of size `h` from the current level.
+    fn attempt(&mut self, h: f64) -> Result<Attempt, StepError>;
+    /// Makes the level of the last successful attempt the current one.
+    fn accept(&mut self, level: TimeLevel);
+    /// Whether the step size may double after an accepted step of `iterations` Newton iterations.
+    fn easy(&self, iterations: usize, easy_iterations: usize) -> bool;
+    /// Size of the last attempted step and the points of the held factorisations.
+    fn position(&self) -> (f64, Option<&FactorPoint>, Option<&[f64]>);
+}
+
+/// The electrostatic projection: every displacement held, the potential solved for with the
+/// electrodes at their voltages (Gauss's law at a time level).
+struct Projector<'m> {
+    problem: StaticProblem<'m>,
+    solver: Box<dyn LinearSolver>,
+    k: CsrMatrix,
+    settings: NewtonSettings,
+}
+
+impl<'m> Projector<'m> {
+    fn new(
+        model: &'m Model,
+        start: &[f64],
+        settings: &DynamicSettings,
+        newton_settings: &NewtonSettings,
+    ) -> Self {
+        let problem = StaticProblem::new(model, Some(start.to_vec()));
+        let k = problem.new_matrix();
+        Projector {
+            problem,
+            solver: settings.solver.build(),
+            k,
+            settings: NewtonSettings {
+                check_stability: false,
+                reuse_factorization: settings.reuse_factorization,
+                ..newton_settings.clone()
+            },
+        }
+    }
+
+    /// The model of the projection: all displacements held, the potential prescribed where
+    /// `step_model` prescribes it.
+    fn model(step_model: &Model) -> Model {
+        let mut proj_model = step_model.clone();
+        let all: Vec<usize> = (0..step_model.mesh.n_nodes()).collect();
+        proj_model.dirichlet = [Field::Ux, Field::Uy, Field::Uz]
+            .into_iter()
+            .map(|field| Dirichlet {
+                nodes: all.clone(),
+                field,
+                value: 0.0,
+            })
+            .chain(
+                step_model
+                    .dirichlet
+                    .iter()
+                    .filter(|d| d.field == Field::Phi)
+                    .cloned(),
+            )
+            .collect();
+        proj_model
+    }
+
+    /// Factors the projection's matrix at a recorded state (a resumed run).
+    fn refactor_at(&mut self, state: &[f64]) -> Result<(), String> {
+        self.problem.state.copy_from_slice(state);
+        let mut r = vec![0.0; self.problem.n()];
+        self.problem.evaluate(&mut r, Some(&mut self.k))?;
+        self.solver.factor(&self.k).map_err(|e| e.to_string())?;
+        self.problem.factored();
+        Ok(())
+    }
+
+    /// Puts the potential of `q` into electrostatic equilibrium at fixed displacements, with the
+    /// electrodes at their voltages at time `t`.
+    fn project(&mut self, q: &mut [f64], inputs: &DynamicInputs, t: f64) -> Result<(), String> {
+        let p = &mut self.problem;
+        p.state.copy_from_slice(q);
+        for (nodes, w) in &inputs.electrodes {
+            let v = w.value(t);
+            for &node in nodes {
+                p.state[node * FIELDS + PHI] = v;
+            }
+        }
+        newton(p, self.solver.as_mut(), &mut self.k, &self.settings)
+            .map_err(|e| format!("electrostatic projection: {e}"))?;
+        for node in 0..q.len() / FIELDS {
+            q[node * FIELDS + PHI] = p.state[node * FIELDS + PHI];
+        }
+        Ok(())
+    }
+
+    fn factor_point(&self) -> Option<&[f64]> {
+        if self.solver.is_factored() {
+            self.problem.factored_at.as_deref()
+        } else {
+            None
+        }
+    }
+}
+
+/// Midpoint and Newmark: Newton on the step equation of [`TimeStep`].
+struct ImplicitStepper<'a, 'm> {
+    step: TimeStep<'m>,
+    solver: Box<dyn LinearSolver>,
+    k: CsrMatrix,
+    settings: NewtonSettings,
+    projector: Projector<'m>,
+    inputs: &'a DynamicInputs<'a>,
+    scheme: Scheme,
+    last_h: f64,
+}
+
+impl Stepper for ImplicitStepper<'_, '_> {
+    fn level(&self) -> &TimeLevel {
+        &self.step.prev
+    }
+
+    fn attempt(&mut self, h: f64) -> Result<Attempt, StepError> {
+        let t0 = self.step.prev.t;
+        let voltages: Vec<(&[usize], f64, f64)> = self
+            .inputs
+            .electrodes
+            .iter()
+            .map(|(n, w)| (n.as_slice(), w.value(t0 + 0.5 * h), w.value(t0 + h)))
+            .collect();
+        self.step.begin(h, &voltages);
+        if h != self.last_h {
+            // the iteration matrix M/Δt + (Δt/4)K depends on the step size
+            self.solver.invalidate();
+            self.last_h = h;
+        }
+        let rep = match newton(
+            &mut self.step,
+            self.solver.as_mut(),
+            &mut self.k,
+            &self.settings,
+        ) {
+            Ok(rep) => rep,
+            Err(e) => {
+                self.step.q = self.step.prev.q.clone();
+                return Err(StepError::Retry(e.to_string()));
+            }
+        };
+        let dissipated = match self.step.dissipation_power() {
+            Ok(p) => p * h,
+            Err(e) => return Err(StepError::Fatal(e, rep.iterations)),
+        };
+        let mut level = self.step.end_level();
+        if self.scheme == Scheme::Midpoint {
+            // Gauss's law at t_{n+1}: solve for the potential with u_{n+1} held
+            let t1 = level.t;
+            self.projector
+                .project(&mut level.q, self.inputs, t1)
+                .map_err(|e| StepError::Fatal(e, rep.iterations))?;
+        }
+        Ok(Attempt {
+            level,
+            iterations: rep.iterations,
+            dissipated,
+        })
+    }
+
+    fn accept(&mut self, level: TimeLevel) {
+        self.step.q = level.q.clone();
+        self.step.prev = level;
+    }
+
+    fn easy(&self, iterations: usize, easy_iterations: usize) -> bool {
+        iterations <= easy_iterations
+    }
+
+    fn position(&self) -> (f64, Option<&FactorPoint>, Option<&[f64]>) {
+        let step = if self.solver.is_factored() {
+            self.step.factor_point.as_ref()
+        } else {
+            None
+        };
+        (self.last_h, step, self.projector.factor_point())
+    }
+}
+
+/// The explicit trapezoidal (Störmer–Verlet) scheme; see `trapezoidal.rs`.
+struct TrapezoidalStepper<'a, 'm> {
+    level: TimeLevel,
+    trap: super::trapezoidal::TrapezoidalStep<'m>,
+    forces: TimeStep<'m>,
+    /// Conservative forces at the current level.
+    f_n: Vec<f64>,
+    free: Vec<bool>,
+    solver: Box<dyn LinearSolver>,
+    k: CsrMatrix,
+    settings: NewtonSettings,
+    projector: Projector<'m>,
+    inputs: &'a DynamicInputs<'a>,
+    model: &'m Model,
+    last_h: f64,
+    /// The forces at the level of the last successful attempt.
+    f_next: Vec<f64>,
+}
+
+impl Stepper for TrapezoidalStepper<'_, '_> {
+    fn level(&self) -> &TimeLevel {
+        &self.level
+    }
+
+    fn attempt(&mut self, h: f64) -> Result<Attempt, StepError> {
+        use super::trapezoidal::dissipation_power;
+        let level = &self.level;
+        let t0 = level.t;
+        let trap = &mut self.trap;
+        trap.q_n.copy_from_slice(&level.q);
+        trap.v_n.copy_from_slice(&level.v);
+        trap.f_n.copy_from_slice(&self.f_n);
+        trap.dt = h;
+        for d in 0..level.q.len() {
+            trap.q[d] = if self.free[d] {
+                level.q[d] + h * level.v[d]
+            } else {
+                level.q[d]
+            };
+        }
+        self.last_h = h;
+        self.solver.invalidate();
+        let (projector, forces, inputs, model) = (
+            &mut self.projector,
+            &mut self.forces,
+            self.inputs,
+            self.model,
+        );
+        let attempt = newton(trap, self.solver.as_mut(), &mut self.k, &self.settings)
+            .map_err(|e| e.to_string())
+            .and_then(|rep| {
+                let vbar: Vec<f64> = trap
+                    .q
+                    .iter()
+                    .zip(&level.q)
+                    .map(|(a, b)| (a - b) / h)
+                    .collect();
+                let mut q1 = trap.q.clone();
+                projector.project(&mut q1, inputs, t0 + h)?;
+                let f1 = forces.forces_at(&q1, &vbar)?;
+                let mut mv = vec![0.0; vbar.len()];
+                inputs.mass.mul(&vbar, &mut mv);
+                let p1: Vec<f64> = mv.iter().zip(&f1).map(|(m, f)| m - 0.5 * h * f).collect();
+                let v1 = inputs.mass.solve(&p1, &trap.dofs, 1e-12);
+                let p0 = dissipation_power(model, &inputs.viscosity, &level.q, &vbar)?;
+                let p1w = dissipation_power(model, &inputs.viscosity, &q1, &vbar)?;
+                let zero = vec![0.0; q1.len()];
+                let f_next = forces.forces_at(&q1, &zero)?;
+                if v1.iter().chain(&q1).any(|x| !x.is_finite()) {
+                    return Err(
+                        "non-finite state (explicit step beyond its stability limit?)".to_string(),
+                    );
+                }
+                Ok((rep.iterations, q1, v1, 0.5 * h * (p0 + p1w), f_next))
+            });
+        match attempt {
+            Ok((iterations, q, v, dissipated, f_next)) => {
+                self.f_next = f_next;
+                Ok(Attempt {
+                    level: TimeLevel {
+                        t: t0 + h,
+                        q,
+                        v,
+                        a: level.a.clone(),
+                    },
+                    iterations,
+                    dissipated,
+                })
+            }
+            Err(reason) => Err(StepError::Retry(reason)),
+        }
+    }
+
+    fn accept(&mut self, level: TimeLevel) {
+        self.level = level;
+        std::mem::swap(&mut self.f_n, &mut self.f_next);
+    }
+
+    fn easy(&self, _iterations: usize, _easy_iterations: usize) -> bool {
+        true
+    }
+
+    fn position(&self) -> (f64, Option<&FactorPoint>, Option<&[f64]>) {
+        (self.last_h, None, self.projector.factor_point())
+    }
+}
+
+/// The adaptive step loop shared by every scheme: `on_step` sees every accepted level.
+fn step_loop(
+    stepper: &mut dyn Stepper,
+    settings: &DynamicSettings,
+    t_end: f64,
+    mut dt: f64,
+    mut total: usize,
+    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
+    let min_dt = settings.dt * settings.min_fraction;
+    while stepper.level().t < t_end - 1e-12 * settings.duration {
+        let t0 = stepper.level().t;
+        if let Some(reason) = crate::solve::interrupt::pending() {
+            return Err((
+                stepper.level().clone(),
+                DynamicFailure {
+                    t: t0,
+                    reason,
+                    newton_iterations: total,
+                },
+            ));
+        }
+        let h = dt.min(t_end - t0);
+        match stepper.attempt(h) {
+            Ok(a) => {
+                total += a.iterations;
+                if stepper.easy(a.iterations, settings.easy_iterations) {
+                    dt = (2.0 * dt).min(settings.dt);
+                }
+                let (last_h, step_factor, projection_factor) = stepper.position();
+                let info = DynamicStepInfo {
+                    dt: h,
+                    newton_iterations: a.iterations,
+                    dissipated: a.dissipated,
+                    next_dt: dt,
+                    total_iterations: total,
+                    last_h,
+                    step_factor,
+                    projection_factor,
+                };
+                on_step(&a.level, &info);
+                stepper.accept(a.level);
+            }
+            Err(StepError::Fatal(reason, iterations)) => {
+                return Err((
+                    stepper.level().clone(),
+                    DynamicFailure {
+                        t: t0,
+                        reason,
+                        newton_iterations: total + iterations,
+                    },
+                ));
+            }
+            Err(StepError::Retry(failure)) => {
+                dt = 0.5 * h;
+                if dt < min_dt {
+                    return Err((
+                        stepper.level().clone(),
+                        DynamicFailure {
+                            t: t0,
+                            reason: format!(
+                                "time step fell below {min_dt:e} s at t = {t0:.6e} s; last failure: {failure}"
+                            ),
+                            newton_iterations: total,
+                        },
+                    ));
+                }
+            }
+        }
+    }
+    Ok((stepper.level().clone(), total))
+}
+
 /// Runs the stage from `start`; `model.dirichlet` holds the displacement supports (the electrode
 /// conditions are added here). Calls `on_step` after every accepted step with the new level, whose
 /// potential is in electrostatic equilibrium. Returns the final level, or the failure together
@@ -101,7 +510,7 @@ pub fn run_dynamic(
     start: TimeLevel,
     settings: &DynamicSettings,
     newton_settings: &NewtonSettings,
-    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+    on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
     run_dynamic_from(
         model,
@@ -110,16 +519,12 @@ pub fn run_dynamic(
         settings,
         newton_settings,
         None,
-        |l, i| {
-            on_step(l, i);
-            false
-        },
+        on_step,
     )
 }
 
-/// [`run_dynamic`], resumable. When `on_step` returns true the reused factorisations (modified
-/// Newton, projection) are dropped, so that the next step starts as a resumed run starts: a run
-/// resumed from a checkpoint written at that step then continues bit for bit.
+/// [`run_dynamic`], resumable from a [`DynamicResume`] recorded by an earlier run
+/// ([`DynamicStepInfo::resume_point`]).
 pub fn run_dynamic_from(
     model: &Model,
     inputs: &DynamicInputs,
@@ -127,7 +532,7 @@ pub fn run_dynamic_from(
     settings: &DynamicSettings,
     newton_settings: &NewtonSettings,
     resume: Option<DynamicResume>,
-    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo) -> bool,
+    on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
     let mut step_model = model.clone();
     for (nodes, w) in &inputs.electrodes {
@@ -137,77 +542,83 @@ pub fn run_dynamic_from(
             value: w.value(start.t),
         });
     }
-    // electrostatic projection: every displacement held, the potential free except at electrodes
-    let mut proj_model = step_model.clone();
-    let all: Vec<usize> = (0..model.mesh.n_nodes()).collect();
-    proj_model.dirichlet = [Field::Ux, Field::Uy, Field::Uz]
-        .into_iter()
-        .map(|field| Dirichlet {
-            nodes: all.clone(),
-            field,
-            value: 0.0,
-        })
-        .chain(
-            step_model
-                .dirichlet
-                .iter()
-                .filter(|d| d.field == Field::Phi)
-                .cloned(),
+    let proj_model = Projector::model(&step_model);
+    let mut projector = Projector::new(&proj_model, &start.q, settings, newton_settings);
+    let fail = |level: &TimeLevel, reason: String| {
+        (
+            level.clone(),
+            DynamicFailure {
+                t: level.t,
+                reason,
+                newton_iterations: 0,
+            },
         )
-        .collect();
-    let mut projector = StaticProblem::new(&proj_model, Some(start.q.clone()));
-    let mut proj_solver = FaerLdlt::new();
-    let mut proj_k = crate::solve::newton::NonlinearSystem::new_matrix(&projector);
-    let proj_settings = NewtonSettings {
-        check_stability: false,
-        reuse_factorization: settings.reuse_factorization,
-        ..newton_settings.clone()
     };
-
+    if let Some(q) = resume.as_ref().and_then(|r| r.projection_factor.as_ref()) {
+        projector
+            .refactor_at(q)
+            .map_err(|e| fail(&start, format!("re-factoring at the checkpoint: {e}")))?;
+    }
+    let t_end = resume.as_ref().map_or(start.t, |r| r.t_start) + settings.duration;
+    let dt = resume.as_ref().map_or(settings.dt, |r| r.dt);
+    let total = resume.as_ref().map_or(0, |r| r.iterations);
+    let last_h = resume.as_ref().map_or(f64::NAN, |r| r.last_h);
     let mut start = start;
     let scheme = match settings.scheme {
         Method::Midpoint => Scheme::Midpoint,
         Method::Newmark { beta, gamma } => Scheme::Newmark { beta, gamma },
         Method::Trapezoidal => {
-            return run_trapezoidal(
+            if resume.is_none() {
+                let t = start.t;
+                projector
+                    .project(&mut start.q, inputs, t)
+                    .map_err(|e| fail(&start, e))?;
+            }
+            let mut forces = TimeStep::new(
                 &step_model,
+                inputs.mass,
+                inputs.viscosity.clone(),
+                Scheme::Midpoint,
+                start.clone(),
+            );
+            let zero = vec![0.0; start.q.len()];
+            let f_n = forces
+                .forces_at(&start.q, &zero)
+                .map_err(|e| fail(&start, e))?;
+            let trap = super::trapezoidal::TrapezoidalStep::new(
+                &step_model,
+                inputs.mass,
+                inputs.viscosity.clone(),
+            );
+            let free = trap.free_u();
+            let k = trap.new_matrix();
+            let mut stepper = TrapezoidalStepper {
+                level: start,
+                trap,
+                forces,
+                f_next: vec![0.0; f_n.len()],
+                f_n,
+                free,
+                solver: settings.solver.build(),
+                k,
+                settings: NewtonSettings {
+                    check_stability: false,
+                    ..newton_settings.clone()
+                },
+                projector,
                 inputs,
-                start,
-                settings,
-                newton_settings,
-                (
-                    &mut projector,
-                    &mut proj_solver,
-                    &mut proj_k,
-                    &proj_settings,
-                ),
-                resume,
-                on_step,
-            )
+                model: &step_model,
+                last_h,
+            };
+            return step_loop(&mut stepper, settings, t_end, dt, total, on_step);
         }
     };
-    if let (Scheme::Newmark { .. }, None) = (scheme, resume) {
+    if let (Scheme::Newmark { .. }, None) = (scheme, &resume) {
         // consistent initial state: Φ in equilibrium at t₀ and M a₀ = f_ext − f_int − f_vis
-        project(
-            &mut projector,
-            &mut proj_solver,
-            &mut proj_k,
-            &proj_settings,
-            &mut start.q,
-            inputs,
-            start.t,
-            model.mesh.n_nodes(),
-        )
-        .map_err(|e| {
-            (
-                start.clone(),
-                DynamicFailure {
-                    t: start.t,
-                    reason: e,
-                    newton_iterations: 0,
-                },
-            )
-        })?;
+        let t = start.t;
+        projector
+            .project(&mut start.q, inputs, t)
+            .map_err(|e| fail(&start, e))?;
         let mut probe = TimeStep::new(
             &step_model,
             inputs.mass,
@@ -215,349 +626,39 @@ pub fn run_dynamic_from(
             Scheme::Midpoint,
             start.clone(),
         );
-        let forces = probe.forces_at(&start.q, &start.v).map_err(|e| {
-            (
-                start.clone(),
-                DynamicFailure {
-                    t: start.t,
-                    reason: e,
-                    newton_iterations: 0,
-                },
-            )
-        })?;
+        let forces = probe
+            .forces_at(&start.q, &start.v)
+            .map_err(|e| fail(&start, e))?;
         let rhs: Vec<f64> = forces.iter().map(|f| -f).collect();
         start.a = inputs.mass.solve(&rhs, &probe.dofs, 1e-12);
     }
-    let mut step = TimeStep::new(
+    let step = TimeStep::new(
         &step_model,
         inputs.mass,
         inputs.viscosity.clone(),
         scheme,
         start,
     );
-    let mut solver = FaerLdlt::new();
-    let mut k = crate::solve::newton::NonlinearSystem::new_matrix(&step);
-    let t_end = resume.map_or(step.prev.t, |r| r.t_start) + settings.duration;
-    let min_dt = settings.dt * settings.min_fraction;
-    let mut dt = resume.map_or(settings.dt, |r| r.dt);
-    let mut total_iterations = resume.map_or(0, |r| r.iterations);
-    let step_settings = NewtonSettings {
-        check_stability: false,
-        reuse_factorization: settings.reuse_factorization,
-        ..newton_settings.clone()
+    let k = step.new_matrix();
+    let mut stepper = ImplicitStepper {
+        step,
+        solver: settings.solver.build(),
+        k,
+        settings: NewtonSettings {
+            check_stability: false,
+            reuse_factorization: settings.reuse_factorization,
+            ..newton_settings.clone()
+        },
+        projector,
+        inputs,
+        scheme,
+        last_h,
     };
-    let mut last_h = f64::NAN;
-    while step.prev.t < t_end - 1e-12 * settings.duration {
-        if let Some(reason) = crate::solve::interrupt::pending() {
-            let t = step.prev.t;
-            return Err((
-                step.prev.clone(),
-                DynamicFailure {
-                    t,
-                    reason,
-                    newton_iterations: total_iterations,
-                },
-            ));
-        }
-        let h = dt.min(t_end - step.prev.t);
-        let t0 = step.prev.t;
-        let voltages: Vec<(&[usize], f64, f64)> = inputs
-            .electrodes
-            .iter()
-            .map(|(n, w)| (n.as_slice(), w.value(t0 + 0.5 * h), w.value(t0 + h)))
-            .collect();
-        step.begin(h, &voltages);
-        if h != last_h {
-            // the iteration matrix M/Δt + (Δt/4)K depends on the step size
-            solver.invalidate();
-            last_h = h;
-        }
-        let result = newton(
-            &mut step,
-            &mut solver as &mut dyn LinearSolver,
-            &mut k,
-            &step_settings,
-        );
-        let failure = match result {
-            Ok(rep) => {
-                total_iterations += rep.iterations;
-                let dissipated = match step.dissipation_power() {
-                    Ok(p) => p * h,
-                    Err(e) => {
-                        return Err((
-                            step.prev.clone(),
-                            DynamicFailure {
-                                t: t0,
-                                reason: e,
-                                newton_iterations: total_iterations,
-                            },
-                        ))
-                    }
-                };
-                let mut level = step.end_level();
-                if scheme == Scheme::Midpoint {
-                    // Gauss's law at t_{n+1}: solve for the potential with u_{n+1} held
-                    let t1 = level.t;
-                    if let Err(e) = project(
-                        &mut projector,
-                        &mut proj_solver,
-                        &mut proj_k,
-                        &proj_settings,
-                        &mut level.q,
-                        inputs,
-                        t1,
-                        model.mesh.n_nodes(),
-                    ) {
-                        return Err((
-                            step.prev.clone(),
-                            DynamicFailure {
-                                t: t0,
-                                reason: e,
-                                newton_iterations: total_iterations,
-                            },
-                        ));
-                    }
-                }
-                if rep.iterations <= settings.easy_iterations {
-                    dt = (2.0 * dt).min(settings.dt);
-                }
-                let info = DynamicStepInfo {
-                    dt: h,
-                    newton_iterations: rep.iterations,
-                    dissipated,
-                    next_dt: dt,
-                    total_iterations,
-                };
-                if on_step(&level, &info) {
-                    solver.invalidate();
-                    proj_solver.invalidate();
-                    last_h = f64::NAN;
-                }
-                step.q = level.q.clone();
-                step.prev = level;
-                continue;
-            }
-            Err(e) => e.to_string(),
-        };
-        // cut back
-        step.q = step.prev.q.clone();
-        dt = 0.5 * h;
-        if dt < min_dt {
-            return Err((
-                step.prev.clone(),
-                DynamicFailure {
-                    t: t0,
-                    reason: format!("time step fell below {min_dt:e} s at t = {t0:.6e} s; last failure: {failure}"),
-                    newton_iterations: total_iterations,
-                },
-            ));
-        }
+    if let Some(point) = resume.as_ref().and_then(|r| r.step_factor.as_ref()) {
+        let s = &mut stepper;
+        s.step
+            .refactor_at(point, s.solver.as_mut(), &mut s.k)
+            .map_err(|e| fail(&s.step.prev, format!("re-factoring at the checkpoint: {e}")))?;
     }
-    Ok((step.prev, total_iterations))
-}
-
-/// Puts the potential of `q` into electrostatic equilibrium at fixed displacements, with the
-/// electrodes at their voltages at time `t`.
-#[allow(clippy::too_many_arguments)]
-fn project(
-    projector: &mut StaticProblem,
-    solver: &mut FaerLdlt,
-    k: &mut crate::problem::assembly::CsrMatrix,
-    settings: &NewtonSettings,
-    q: &mut [f64],
-    inputs: &DynamicInputs,
-    t: f64,
-    n_nodes: usize,
-) -> Result<(), String> {
-    projector.state.copy_from_slice(q);
-    for (nodes, w) in &inputs.electrodes {
-        let v = w.value(t);
-        for &node in nodes {
-            projector.state[node * FIELDS + PHI] = v;
-        }
-    }
-    newton(projector, solver as &mut dyn LinearSolver, k, settings)
-        .map_err(|e| format!("electrostatic projection: {e}"))?;
-    for node in 0..n_nodes {
-        q[node * FIELDS + PHI] = projector.state[node * FIELDS + PHI];
-    }
-    Ok(())
-}
-
-/// The projector of the potential: (problem, solver, tangent, Newton settings).
-type Projector<'a, 'm> = (
-    &'a mut StaticProblem<'m>,
-    &'a mut FaerLdlt,
-    &'a mut crate::problem::assembly::CsrMatrix,
-    &'a NewtonSettings,
-);
-
-/// The explicit trapezoidal (Störmer–Verlet) variational integrator; see `trapezoidal.rs`.
-#[allow(clippy::too_many_arguments)]
-fn run_trapezoidal(
-    step_model: &Model,
-    inputs: &DynamicInputs,
-    start: TimeLevel,
-    settings: &DynamicSettings,
-    newton_settings: &NewtonSettings,
-    projector: Projector,
-    resume: Option<DynamicResume>,
-    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo) -> bool,
-) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
-    use super::trapezoidal::{dissipation_power, TrapezoidalStep};
-    let (proj, proj_solver, proj_k, proj_settings) = projector;
-    let n_nodes = step_model.mesh.n_nodes();
-    let fail = |level: &TimeLevel, t: f64, reason: String, its: usize| {
-        (
-            level.clone(),
-            DynamicFailure {
-                t,
-                reason,
-                newton_iterations: its,
-            },
-        )
-    };
-    let mut level = start;
-    if resume.is_none() {
-        project(
-            proj,
-            proj_solver,
-            proj_k,
-            proj_settings,
-            &mut level.q,
-            inputs,
-            level.t,
-            n_nodes,
-        )
-        .map_err(|e| fail(&level, level.t, e, 0))?;
-    }
-    let mut forces = TimeStep::new(
-        step_model,
-        inputs.mass,
-        inputs.viscosity.clone(),
-        Scheme::Midpoint,
-        level.clone(),
-    );
-    let zero = vec![0.0; level.q.len()];
-    let mut f_n = forces
-        .forces_at(&level.q, &zero)
-        .map_err(|e| fail(&level, level.t, e, 0))?;
-    let mut trap = TrapezoidalStep::new(step_model, inputs.mass, inputs.viscosity.clone());
-    let free = trap.free_u();
-    let mut solver = FaerLdlt::new();
-    let mut k = crate::solve::newton::NonlinearSystem::new_matrix(&trap);
-    let step_settings = NewtonSettings {
-        check_stability: false,
-        ..newton_settings.clone()
-    };
-    let t_end = resume.map_or(level.t, |r| r.t_start) + settings.duration;
-    let min_dt = settings.dt * settings.min_fraction;
-    let mut dt = resume.map_or(settings.dt, |r| r.dt);
-    let mut total = resume.map_or(0, |r| r.iterations);
-    while level.t < t_end - 1e-12 * settings.duration {
-        if let Some(reason) = crate::solve::interrupt::pending() {
-            let t = level.t;
-            return Err((
-                level.clone(),
-                DynamicFailure {
-                    t,
-                    reason,
-                    newton_iterations: total,
-                },
-            ));
-        }
-        let h = dt.min(t_end - level.t);
-        let t0 = level.t;
-        trap.q_n.copy_from_slice(&level.q);
-        trap.v_n.copy_from_slice(&level.v);
-        trap.f_n.copy_from_slice(&f_n);
-        trap.dt = h;
-        for d in 0..level.q.len() {
-            trap.q[d] = if free[d] {
-                level.q[d] + h * level.v[d]
-            } else {
-                level.q[d]
-            };
-        }
-        solver.invalidate();
-        let attempt = newton(
-            &mut trap,
-            &mut solver as &mut dyn LinearSolver,
-            &mut k,
-            &step_settings,
-        )
-        .map_err(|e| e.to_string())
-        .and_then(|rep| {
-            let vbar: Vec<f64> = trap
-                .q
-                .iter()
-                .zip(&level.q)
-                .map(|(a, b)| (a - b) / h)
-                .collect();
-            let mut q1 = trap.q.clone();
-            project(
-                proj,
-                proj_solver,
-                proj_k,
-                proj_settings,
-                &mut q1,
-                inputs,
-                t0 + h,
-                n_nodes,
-            )?;
-            let f1 = forces.forces_at(&q1, &vbar)?;
-            let mut mv = vec![0.0; vbar.len()];
-            inputs.mass.mul(&vbar, &mut mv);
-            let p1: Vec<f64> = mv.iter().zip(&f1).map(|(m, f)| m - 0.5 * h * f).collect();
-            let v1 = inputs.mass.solve(&p1, &trap.dofs, 1e-12);
-            let p0 = dissipation_power(step_model, &inputs.viscosity, &level.q, &vbar)?;
-            let p1w = dissipation_power(step_model, &inputs.viscosity, &q1, &vbar)?;
-            let f_next = forces.forces_at(&q1, &zero)?;
-            if v1.iter().chain(&q1).any(|x| !x.is_finite()) {
-                return Err(
-                    "non-finite state (explicit step beyond its stability limit?)".to_string(),
-                );
-            }
-            Ok((rep.iterations, q1, v1, 0.5 * h * (p0 + p1w), f_next))
-        });
-        match attempt {
-            Ok((its, q1, v1, dissipated, f_next)) => {
-                total += its;
-                let a = level.a.clone();
-                level = TimeLevel {
-                    t: t0 + h,
-                    q: q1,
-                    v: v1,
-                    a,
-                };
-                f_n = f_next;
-                dt = (2.0 * dt).min(settings.dt);
-                let refresh = on_step(
-                    &level,
-                    &DynamicStepInfo {
-                        dt: h,
-                        newton_iterations: its,
-                        dissipated,
-                        next_dt: dt,
-                        total_iterations: total,
-                    },
-                );
-                if refresh {
-                    proj_solver.invalidate();
-                }
-            }
-            Err(reason) => {
-                dt = 0.5 * h;
-                if dt < min_dt {
-                    return Err(fail(
-                        &level,
-                        t0,
-                        format!("time step fell below {min_dt:e} s at t = {t0:.6e} s; last failure: {reason}"),
-                        total,
-                    ));
-                }
-            }
-        }
-    }
-    Ok((level, total))
+    step_loop(&mut stepper, settings, t_end, dt, total, on_step)
 }

@@ -1,0 +1,124 @@
+//! The state of a run as one serialisable value: where the run stands (stage, step, the stage
+//! driver's position), the nodal values, the recorder's bookkeeping and everything recorded so far.
+//! Checkpoints are this value written to a file; a run continues from it bit for bit.
+
+use crate::solve::stepping::RampPosition;
+pub use crate::time::integrator::FactorPoint;
+use serde::{Deserialize, Serialize};
+
+/// Energies of a state (J), as in `history.csv`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Energies {
+    pub kinetic: f64,
+    pub stored: f64,
+    pub electric: f64,
+    pub gravity: f64,
+    pub dissipated: f64,
+    /// Residual of the energy balance (see `docs/theory.md`).
+    pub energy_error: f64,
+}
+
+/// One accepted step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepRecord {
+    /// Time (s); pseudo-time in static stages.
+    pub time: f64,
+    pub stage: String,
+    /// Step number within the stage (0: the state the stage starts from).
+    pub step: usize,
+    /// Largest electrode voltage (by magnitude, V).
+    pub voltage: f64,
+    pub newton_iterations: usize,
+    /// Step size (s; the pseudo-time increment in static stages).
+    pub dt: f64,
+    pub energies: Energies,
+    /// Probe values in plan order.
+    pub probes: Vec<f64>,
+    /// Largest spatial electric field magnitude at a quadrature point (V/m).
+    pub max_electric_field: f64,
+}
+
+/// What a finished stage reports.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageSummary {
+    pub name: String,
+    pub kind: String,
+    pub steps: usize,
+    pub newton_iterations: usize,
+    pub wall_s: f64,
+    pub converged: bool,
+}
+
+/// Where a stage stood.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum StagePosition {
+    /// A static stage: the load ramp's position and the state the ramp started from (its
+    /// prescribed values at load factor 0).
+    Static {
+        ramp: RampPosition,
+        stage_start: Vec<f64>,
+        /// Load factor of the last recorded step (for the pseudo-time increment).
+        last_load: f64,
+    },
+    /// A dynamic stage: stage time, the next step size, the iterations so far, the step size of
+    /// the last attempted step, and where the reused matrices of the step and of the
+    /// electrostatic projection were factored.
+    Dynamic {
+        t: f64,
+        dt: f64,
+        iterations: usize,
+        last_h: f64,
+        step_factor: Option<FactorPoint>,
+        projection_factor: Option<Vec<f64>>,
+    },
+}
+
+/// Energy bookkeeping of the run's recorder.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct RecorderState {
+    pub prev_reactions: Vec<f64>,
+    pub prev_state: Vec<f64>,
+    pub boundary_work: f64,
+    pub initial_potential: Option<f64>,
+    pub external_factor: f64,
+    pub prev_factor: f64,
+    pub prev_external: Vec<f64>,
+    pub load_change_work: f64,
+    pub reference: Vec<f64>,
+    pub broken_down: Vec<bool>,
+    pub warnings: Vec<String>,
+}
+
+/// Everything needed to continue a run bit for bit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunState {
+    /// Accepted steps of the stages so far (pre-stretch steps excluded).
+    pub accepted: usize,
+    /// Index of the stage in progress and the global time at its start.
+    pub stage: usize,
+    pub stage_time: f64,
+    /// Step number of the last recorded step within the stage.
+    pub step_no: usize,
+    /// Pre-stretch steps and iterations recorded under the first stage.
+    pub first_step: usize,
+    pub prestretch_iterations: usize,
+    pub position: StagePosition,
+    /// State q, velocity, acceleration (4 per node).
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+    pub a: Vec<f64>,
+    /// Committed internal variables of the material points (empty for elastic materials).
+    pub points: Vec<f64>,
+    /// Energy dissipated so far (J, of the modelled part).
+    pub dissipated: f64,
+    /// The model's dead-load factor at the stage start.
+    pub dead_load_start: f64,
+    pub recorder: RecorderState,
+    /// Summaries of the completed stages and the run's warnings so far.
+    pub stages: Vec<StageSummary>,
+    pub warnings: Vec<String>,
+    /// Every recorded step so far (the rows of `history.csv`).
+    pub records: Vec<StepRecord>,
+    /// Wall time spent before this state was taken (s).
+    pub wall_s: f64,
+}

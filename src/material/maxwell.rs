@@ -1,0 +1,288 @@
+//! A small material with internal variables: one neo-Hookean Maxwell branch on the isochoric
+//! deformation in parallel with an elastic material,
+//!
+//! ```text
+//! Ψ = Ψ_eq(F, E₀) + (g/2)(tr(C̄ A) − 3),   C̄ = J^(−2/3) C,   Ȧ = (C̄⁻¹ − A)/τ,
+//! ```
+//!
+//! with A the inverse viscous right Cauchy–Green tensor (the evolution law of Linder, Tkachuk &
+//! Miehe, JMPS 59 (2011) 2134–2156). Backward Euler gives A_{n+1} = (A_n + k C̄⁻¹_{n+1})/(1 + k),
+//! k = Δt/τ, and since tr(C̄ C̄⁻¹) = 3 the branch stress of the step is the derivative of the
+//! incremental energy W_n(F) = g/(2(1 + k)) (tr(C̄ A_n) − 3): a hyperelastic-like energy with the
+//! committed A_n as a structure tensor, whose tangent is symmetric and exact. Under a held
+//! deformation A relaxes to C̄⁻¹ with the factor (1 + k)⁻ⁿ after n steps (e^(−t/τ) as Δt → 0),
+//! which is the closed form the tests check. The dissipation of a step is
+//! −∂Ψ/∂A : ΔA = (g k/2)(tr(C̄ A_{n+1}) − 3) per reference volume.
+//!
+//! It proves the material-point state path of the run (commit, roll-back, checkpoints); the VHB
+//! models build on the same interface.
+
+use super::{Mat3, Mat9, Material, MaterialError, PointHistory, Stress, Tangent, Vec3};
+
+/// An elastic material with one Maxwell branch (shear modulus `g` in Pa, relaxation time `tau`
+/// in s).
+#[derive(Debug, Clone)]
+pub struct MaxwellBranch<M> {
+    pub equilibrium: M,
+    pub g: f64,
+    pub tau: f64,
+}
+
+/// A from the 9 stored values (row-major).
+fn tensor(s: &[f64]) -> Mat3 {
+    Mat3::from_row_slice(s)
+}
+
+impl<M: Material> MaxwellBranch<M> {
+    /// The branch's incremental energy density, stress and (when asked) tangent at F for a step
+    /// of factor k from the committed A.
+    fn branch(
+        &self,
+        f: &Mat3,
+        a: &Mat3,
+        k: f64,
+        want_tangent: bool,
+    ) -> Result<(f64, Mat3, Option<Mat9>), MaterialError> {
+        let j = f.determinant();
+        if !(j > 0.0 && j.is_finite()) {
+            return Err(MaterialError::NonPositiveJ(j));
+        }
+        let c = self.g / (2.0 * (1.0 + k));
+        let alpha = j.powf(-2.0 / 3.0);
+        let fa = f * a;
+        let ia = (f.transpose() * fa).trace();
+        let fit = f
+            .try_inverse()
+            .ok_or(MaterialError::NonPositiveJ(j))?
+            .transpose();
+        let w = c * (alpha * ia - 3.0);
+        let p = (fa * 2.0 - fit * (2.0 / 3.0 * ia)) * (c * alpha);
+        let t = want_tangent.then(|| {
+            let mut t = Mat9::zeros();
+            for i in 0..3 {
+                for jj in 0..3 {
+                    for kk in 0..3 {
+                        for l in 0..3 {
+                            let mut v = -4.0 / 3.0 * fit[(kk, l)] * fa[(i, jj)]
+                                + 4.0 / 9.0 * ia * fit[(kk, l)] * fit[(i, jj)]
+                                - 4.0 / 3.0 * fa[(kk, l)] * fit[(i, jj)]
+                                + 2.0 / 3.0 * ia * fit[(i, l)] * fit[(kk, jj)];
+                            if i == kk {
+                                v += 2.0 * a[(l, jj)];
+                            }
+                            t[(i * 3 + jj, kk * 3 + l)] = c * alpha * v;
+                        }
+                    }
+                }
+            }
+            t
+        });
+        Ok((w, p, t))
+    }
+
+    fn committed(h: &PointHistory) -> Mat3 {
+        if h.state.len() == 9 {
+            tensor(h.state)
+        } else {
+            Mat3::identity()
+        }
+    }
+
+    fn k(&self, h: &PointHistory) -> f64 {
+        h.dt / self.tau
+    }
+}
+
+impl<M: Material> Material for MaxwellBranch<M> {
+    fn energy(&self, f: &Mat3, e0: &Vec3) -> Result<f64, MaterialError> {
+        self.energy_at(f, e0, PointHistory::NONE)
+    }
+
+    fn stress(&self, f: &Mat3, e0: &Vec3) -> Result<Stress, MaterialError> {
+        self.stress_at(f, e0, PointHistory::NONE)
+    }
+
+    fn tangent(&self, f: &Mat3, e0: &Vec3) -> Result<Tangent, MaterialError> {
+        self.tangent_at(f, e0, PointHistory::NONE)
+    }
+
+    /// The instantaneous modulus: equilibrium and branch.
+    fn shear_modulus(&self) -> f64 {
+        self.equilibrium.shear_modulus() + self.g
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        self.equilibrium.bulk_modulus()
+    }
+
+    fn permittivity(&self) -> f64 {
+        self.equilibrium.permittivity()
+    }
+
+    fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
+        self.energy_split_at(f, e0, &[])
+    }
+
+    fn state_size(&self) -> usize {
+        9
+    }
+
+    fn initial_state(&self, state: &mut [f64]) {
+        state.copy_from_slice(Mat3::identity().transpose().as_slice());
+    }
+
+    fn state_names(&self) -> Vec<String> {
+        ["xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"]
+            .iter()
+            .map(|c| format!("A_{c}"))
+            .collect()
+    }
+
+    fn energy_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<f64, MaterialError> {
+        let (w, _, _) = self.branch(f, &Self::committed(&h), self.k(&h), false)?;
+        Ok(self.equilibrium.energy(f, e0)? + w)
+    }
+
+    fn stress_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<Stress, MaterialError> {
+        let (w, p, _) = self.branch(f, &Self::committed(&h), self.k(&h), false)?;
+        let mut s = self.equilibrium.stress(f, e0)?;
+        s.energy += w;
+        s.p += p;
+        Ok(s)
+    }
+
+    fn tangent_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<Tangent, MaterialError> {
+        let (w, p, a) = self.branch(f, &Self::committed(&h), self.k(&h), true)?;
+        let mut t = self.equilibrium.tangent(f, e0)?;
+        t.energy += w;
+        t.p += p;
+        t.a += a.expect("asked for");
+        Ok(t)
+    }
+
+    fn energy_split_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        state: &[f64],
+    ) -> Result<(f64, f64), MaterialError> {
+        let (mech, elec) = self.equilibrium.energy_split(f, e0)?;
+        let h = PointHistory { state, dt: 0.0 };
+        let (w, _, _) = self.branch(f, &Self::committed(&h), 0.0, false)?;
+        Ok((mech + w, elec))
+    }
+
+    fn update_state(
+        &self,
+        f: &Mat3,
+        _e0: &Vec3,
+        h: PointHistory,
+        new: &mut [f64],
+    ) -> Result<f64, MaterialError> {
+        let j = f.determinant();
+        if !(j > 0.0 && j.is_finite()) {
+            return Err(MaterialError::NonPositiveJ(j));
+        }
+        let cbar = f.transpose() * f * j.powf(-2.0 / 3.0);
+        let cbar_inv = cbar.try_inverse().ok_or(MaterialError::NonPositiveJ(j))?;
+        let k = self.k(&h);
+        let a = (Self::committed(&h) + cbar_inv * k) / (1.0 + k);
+        // row-major, as `tensor` reads it
+        for r in 0..3 {
+            for c in 0..3 {
+                new[r * 3 + c] = a[(r, c)];
+            }
+        }
+        Ok(0.5 * self.g * k * ((cbar * a).trace() - 3.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::ElectroNeoHooke;
+
+    fn material() -> MaxwellBranch<ElectroNeoHooke> {
+        MaxwellBranch {
+            equilibrium: ElectroNeoHooke::new(1e5, 1e7, 4.7),
+            g: 3e5,
+            tau: 0.5,
+        }
+    }
+
+    /// P = ∂W/∂F and ∂P/∂F of the step's incremental energy against central differences, from
+    /// a committed state that is not the identity.
+    #[test]
+    fn step_stress_and_tangent_match_finite_differences() {
+        let m = material();
+        let f = Mat3::new(1.2, 0.1, -0.05, 0.02, 0.9, 0.1, 0.03, -0.04, 1.05);
+        let e0 = Vec3::new(1e5, -2e5, 3e6);
+        let mut a = [0.0; 9];
+        m.update_state(
+            &Mat3::new(1.1, 0.05, 0.0, 0.0, 0.95, 0.02, 0.01, 0.0, 0.97),
+            &e0,
+            PointHistory {
+                state: &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                dt: 0.3,
+            },
+            &mut a,
+        )
+        .unwrap();
+        let h = PointHistory { state: &a, dt: 0.2 };
+        let t = m.tangent_at(&f, &e0, h).unwrap();
+        let s = m.stress_at(&f, &e0, h).unwrap();
+        assert_eq!(s.p, t.p);
+        let eps = 1e-6;
+        for r in 0..9 {
+            let (i, jj) = (r / 3, r % 3);
+            let (mut fp, mut fm) = (f, f);
+            fp[(i, jj)] += eps;
+            fm[(i, jj)] -= eps;
+            let dw = (m.energy_at(&fp, &e0, h).unwrap() - m.energy_at(&fm, &e0, h).unwrap())
+                / (2.0 * eps);
+            assert!((dw - t.p[(i, jj)]).abs() < 1e-6 * t.p.norm(), "P {r}");
+            let dp = (m.stress_at(&fp, &e0, h).unwrap().p - m.stress_at(&fm, &e0, h).unwrap().p)
+                / (2.0 * eps);
+            for c in 0..9 {
+                let (k, l) = (c / 3, c % 3);
+                assert!(
+                    (dp[(k, l)] - t.a[(c, r)]).abs() < 1e-6 * t.a.norm(),
+                    "A ({c}, {r}): {} vs {}",
+                    dp[(k, l)],
+                    t.a[(c, r)]
+                );
+            }
+        }
+    }
+
+    /// Held after a step, A relaxes to C̄⁻¹ by the factor (1 + k)⁻ⁿ, and the branch stress with
+    /// it; the dissipation is positive.
+    #[test]
+    fn held_deformation_relaxes_geometrically() {
+        let m = material();
+        let f = Mat3::from_diagonal(&Vec3::new(1.3, 1.0, 1.0));
+        let j: f64 = 1.3;
+        let cbar_inv = (f.transpose() * f * j.powf(-2.0 / 3.0))
+            .try_inverse()
+            .unwrap();
+        let mut a = [0.0; 9];
+        m.initial_state(&mut a);
+        let dt = 0.05;
+        let k = dt / m.tau;
+        for n in 1..=20 {
+            let mut next = [0.0; 9];
+            let d = m
+                .update_state(
+                    &f,
+                    &Vec3::zeros(),
+                    PointHistory { state: &a, dt },
+                    &mut next,
+                )
+                .unwrap();
+            assert!(d > 0.0);
+            a = next;
+            let expect = cbar_inv + (Mat3::identity() - cbar_inv) * (1.0 + k).powi(-n);
+            assert!((tensor(&a) - expect).norm() < 1e-14, "step {n}");
+        }
+    }
+}
