@@ -49,9 +49,8 @@
 //!
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
-use crate::element::{
-    cell_energy, cell_energy_split, cell_residual_tangent, CellFields, PointFailure,
-};
+use crate::element::{CellFields, PointFailure};
+use crate::element::{CellHistory, CellKernel, MeanDilatationKernel, StandardKernel};
 use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES, MAX_QP};
 use crate::material::{Mat3, Mat9, Mat93, Material, MaterialError, Tangent, Vec3};
@@ -92,60 +91,26 @@ impl Formulation {
     /// The names [`Formulation::from_name`] documents, for messages.
     pub const NAMES: [&'static str; 2] = ["standard", "mean-dilatation"];
 
-    /// Local residual (and tangent) of a cell; same contract as
-    /// [`crate::element::cell_residual_tangent`].
-    pub fn residual_tangent(
-        self,
-        geom: &CellGeometry,
-        mat: &dyn Material,
-        local: &[f64],
-        r: &mut [f64],
-        k: Option<&mut [f64]>,
-    ) -> Result<f64, PointFailure> {
+    /// The cell kernel of this formulation.
+    pub fn kernel(self) -> &'static dyn CellKernel {
         match self {
-            Formulation::Standard => cell_residual_tangent(geom, mat, local, r, k),
-            Formulation::MeanDilatation => cell_residual_tangent_md(geom, mat, local, r, k),
+            Formulation::Standard => &StandardKernel,
+            Formulation::MeanDilatation => &MeanDilatationKernel,
         }
     }
+}
 
-    /// Cell energy ∫Ψ dV (J).
-    pub fn energy(
-        self,
-        geom: &CellGeometry,
-        mat: &dyn Material,
-        local: &[f64],
-    ) -> Result<f64, PointFailure> {
-        match self {
-            Formulation::Standard => cell_energy(geom, mat, local),
-            Formulation::MeanDilatation => cell_energy_md(geom, mat, local),
-        }
+/// The F̄ and E₀ a material sees at each quadrature point of a mean-dilatation cell.
+pub fn point_deformations_md(
+    geom: &CellGeometry,
+    local: &[f64],
+    out: &mut [(Mat3, Vec3)],
+) -> Result<(), PointFailure> {
+    let k = MdKinematics::new(geom, local)?;
+    for q in 0..geom.n_qp {
+        out[q] = (k.fbar[q], k.e0[q]);
     }
-
-    /// Mechanical and electric parts of the cell energy (J).
-    pub fn energy_split(
-        self,
-        geom: &CellGeometry,
-        mat: &dyn Material,
-        local: &[f64],
-    ) -> Result<(f64, f64), PointFailure> {
-        match self {
-            Formulation::Standard => cell_energy_split(geom, mat, local),
-            Formulation::MeanDilatation => cell_energy_split_md(geom, mat, local),
-        }
-    }
-
-    /// Output fields of a cell.
-    pub fn fields(
-        self,
-        geom: &CellGeometry,
-        mat: &dyn Material,
-        local: &[f64],
-    ) -> Result<CellFields, PointFailure> {
-        match self {
-            Formulation::Standard => crate::element::cell_fields(geom, mat, local),
-            Formulation::MeanDilatation => cell_fields_md(geom, mat, local),
-        }
-    }
+    Ok(())
 }
 
 /// Kinematics of a cell under the mean-dilatation formulation.
@@ -222,12 +187,16 @@ fn to9(m: &Mat3) -> Vec9 {
 pub fn cell_energy_md(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     local: &[f64],
 ) -> Result<f64, PointFailure> {
     let k = MdKinematics::new(geom, local)?;
     let mut e = 0.0;
     for q in 0..geom.n_qp {
-        e += geom.weights[q] * mat.energy(&k.fbar[q], &k.e0[q]).map_err(fail(q))?;
+        e += geom.weights[q]
+            * mat
+                .energy_at(&k.fbar[q], &k.e0[q], hist.at(q))
+                .map_err(fail(q))?;
     }
     Ok(e)
 }
@@ -237,12 +206,15 @@ pub fn cell_energy_md(
 pub fn cell_energy_split_md(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     local: &[f64],
 ) -> Result<(f64, f64), PointFailure> {
     let k = MdKinematics::new(geom, local)?;
     let (mut m, mut el) = (0.0, 0.0);
     for q in 0..geom.n_qp {
-        let (a, b) = mat.energy_split(&k.fbar[q], &k.e0[q]).map_err(fail(q))?;
+        let (a, b) = mat
+            .energy_split_at(&k.fbar[q], &k.e0[q], hist.at(q).state)
+            .map_err(fail(q))?;
         m += geom.weights[q] * a;
         el += geom.weights[q] * b;
     }
@@ -254,6 +226,7 @@ pub fn cell_energy_split_md(
 fn md_stresses(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     k: &MdKinematics,
 ) -> Result<([Mat3; MAX_QP], [Vec3; MAX_QP], f64), PointFailure> {
     let mut p = [Mat3::zeros(); MAX_QP];
@@ -262,7 +235,9 @@ fn md_stresses(
     let mut energy = 0.0;
     let mut h = 0.0;
     for q in 0..geom.n_qp {
-        let st = mat.stress(&k.fbar[q], &k.e0[q]).map_err(fail(q))?;
+        let st = mat
+            .stress_at(&k.fbar[q], &k.e0[q], hist.at(q))
+            .map_err(fail(q))?;
         energy += geom.weights[q] * st.energy;
         s[q] = st.p.dot(&k.fbar[q]);
         h += geom.weights[q] * s[q] / (3.0 * k.theta);
@@ -293,6 +268,7 @@ fn add_residual(g: &[[f64; 3]; MAX_NODES], n: usize, w: f64, p: &Mat3, d0: &Vec3
 pub fn cell_residual_tangent_md(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     local: &[f64],
     r: &mut [f64],
     k: Option<&mut [f64]>,
@@ -303,7 +279,7 @@ pub fn cell_residual_tangent_md(
     let kin = MdKinematics::new(geom, local)?;
     r[..nl].iter_mut().for_each(|v| *v = 0.0);
     let Some(k) = k else {
-        let (p, d0, energy) = md_stresses(geom, mat, &kin)?;
+        let (p, d0, energy) = md_stresses(geom, mat, hist, &kin)?;
         for q in 0..nq {
             add_residual(&geom.grad[q], n, geom.weights[q], &p[q], &d0[q], r);
         }
@@ -319,7 +295,9 @@ pub fn cell_residual_tangent_md(
     let mut energy = 0.0;
     let mut h = 0.0;
     for q in 0..nq {
-        let t = mat.tangent(&kin.fbar[q], &kin.e0[q]).map_err(fail(q))?;
+        let t = mat
+            .tangent_at(&kin.fbar[q], &kin.e0[q], hist.at(q))
+            .map_err(fail(q))?;
         energy += geom.weights[q] * t.energy;
         s[q] = t.p.dot(&kin.fbar[q]);
         h += geom.weights[q] * s[q] / (3.0 * theta);
@@ -422,10 +400,11 @@ pub fn cell_residual_tangent_md(
 pub fn cell_fields_md(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     local: &[f64],
 ) -> Result<CellFields, PointFailure> {
     let k = MdKinematics::new(geom, local)?;
-    let (p, _, _) = md_stresses(geom, mat, &k)?;
+    let (p, _, _) = md_stresses(geom, mat, hist, &k)?;
     let mut out = CellFields {
         e: [0.0; 3],
         sigma: [0.0; 9],
@@ -514,11 +493,17 @@ mod tests {
             let mat = mat.as_ref();
             let mut r = vec![0.0; 32];
             let mut k = vec![0.0; 32 * 32];
-            let e = cell_residual_tangent_md(&g, mat, &local, &mut r, Some(&mut k)).unwrap();
+            let e =
+                cell_residual_tangent_md(&g, mat, CellHistory::NONE, &local, &mut r, Some(&mut k))
+                    .unwrap();
             let mut r2 = vec![0.0; 32];
-            let e2 = cell_residual_tangent_md(&g, mat, &local, &mut r2, None).unwrap();
+            let e2 = cell_residual_tangent_md(&g, mat, CellHistory::NONE, &local, &mut r2, None)
+                .unwrap();
             assert_eq!(e, e2);
-            assert!((cell_energy_md(&g, mat, &local).unwrap() - e).abs() <= 1e-14 * e.abs());
+            assert!(
+                (cell_energy_md(&g, mat, CellHistory::NONE, &local).unwrap() - e).abs()
+                    <= 1e-14 * e.abs()
+            );
             for i in 0..32 {
                 assert!(
                     (r[i] - r2[i]).abs() <= 1e-12 * r.iter().fold(0.0f64, |m, v| m.max(v.abs()))
@@ -538,8 +523,10 @@ mod tests {
                 lp[j] += h;
                 lm[j] -= h;
                 let (mut rp, mut rm) = (vec![0.0; 32], vec![0.0; 32]);
-                let ep = cell_residual_tangent_md(&g, mat, &lp, &mut rp, None).unwrap();
-                let em = cell_residual_tangent_md(&g, mat, &lm, &mut rm, None).unwrap();
+                let ep = cell_residual_tangent_md(&g, mat, CellHistory::NONE, &lp, &mut rp, None)
+                    .unwrap();
+                let em = cell_residual_tangent_md(&g, mat, CellHistory::NONE, &lm, &mut rm, None)
+                    .unwrap();
                 worst_r = worst_r.max(((ep - em) / (2.0 * h) - r[j]).abs() * sc(j) / rmax);
                 for i in 0..32 {
                     let fd = (rp[i] - rm[i]) / (2.0 * h);
@@ -574,8 +561,17 @@ mod tests {
         for mat in materials() {
             let mat = mat.as_ref();
             let (mut r1, mut r2) = (vec![0.0; 32], vec![0.0; 32]);
-            let e1 = cell_residual_tangent(&g, mat, &local, &mut r1, None).unwrap();
-            let e2 = cell_residual_tangent_md(&g, mat, &local, &mut r2, None).unwrap();
+            let e1 = crate::element::cell_residual_tangent(
+                &g,
+                mat,
+                CellHistory::NONE,
+                &local,
+                &mut r1,
+                None,
+            )
+            .unwrap();
+            let e2 = cell_residual_tangent_md(&g, mat, CellHistory::NONE, &local, &mut r2, None)
+                .unwrap();
             assert!((e1 - e2).abs() <= 1e-12 * e1.abs());
             let rmax = r1.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             for i in 0..32 {
@@ -586,8 +582,8 @@ mod tests {
                     r2[i]
                 );
             }
-            let f1 = crate::element::cell_fields(&g, mat, &local).unwrap();
-            let f2 = cell_fields_md(&g, mat, &local).unwrap();
+            let f1 = crate::element::cell_fields(&g, mat, CellHistory::NONE, &local).unwrap();
+            let f2 = cell_fields_md(&g, mat, CellHistory::NONE, &local).unwrap();
             for i in 0..9 {
                 assert!((f1.sigma[i] - f2.sigma[i]).abs() <= 1e-9 * 1e5);
             }

@@ -6,3 +6,162 @@ pub mod standard;
 
 pub use mean_dilatation::Formulation;
 pub use standard::*;
+
+use crate::fem::CellGeometry;
+use crate::material::{Mat3, Material, Vec3};
+
+/// What a cell kernel reads of one cell: its reference geometry (computed once per mesh), its
+/// material with the committed point history, and its local values (u in m, Φ in V; four per
+/// node, node-major).
+#[derive(Clone, Copy)]
+pub struct CellInput<'a> {
+    pub geom: &'a CellGeometry,
+    pub mat: &'a dyn Material,
+    pub hist: CellHistory<'a>,
+    pub local: &'a [f64],
+}
+
+/// A cell kernel: turns a material and a cell's geometry into the cell's residual, tangent,
+/// energy and output fields, written into the caller's buffers (`r` with 4·n entries, `k`
+/// row-major 4n × 4n). The assembler calls it and knows no physics; a new element formulation or
+/// kinematics is a new kernel.
+pub trait CellKernel: Send + Sync {
+    /// Local residual ∂Π/∂x (and tangent when `k` is given); returns the cell energy (J).
+    fn residual_tangent(
+        &self,
+        cell: &CellInput,
+        r: &mut [f64],
+        k: Option<&mut [f64]>,
+    ) -> Result<f64, PointFailure>;
+    /// The cell energy ∫Ψ dV (J).
+    fn energy(&self, cell: &CellInput) -> Result<f64, PointFailure>;
+    /// `(mechanical, electric)` parts of the stored energy at the committed state (J).
+    fn energy_split(&self, cell: &CellInput) -> Result<(f64, f64), PointFailure>;
+    /// Output fields of the cell.
+    fn fields(&self, cell: &CellInput) -> Result<CellFields, PointFailure>;
+    /// The deformation gradient the material sees and E₀ at each quadrature point (where
+    /// internal variables are updated), into `out[..n_qp]`.
+    fn point_deformations(
+        &self,
+        cell: &CellInput,
+        out: &mut [(Mat3, Vec3)],
+    ) -> Result<(), PointFailure>;
+}
+
+/// The standard displacement kernel (full integration).
+#[derive(Debug, Clone, Copy)]
+pub struct StandardKernel;
+
+/// The mean-dilatation (Q1–P0) kernel for nearly incompressible materials.
+#[derive(Debug, Clone, Copy)]
+pub struct MeanDilatationKernel;
+
+impl CellKernel for StandardKernel {
+    fn residual_tangent(
+        &self,
+        c: &CellInput,
+        r: &mut [f64],
+        k: Option<&mut [f64]>,
+    ) -> Result<f64, PointFailure> {
+        cell_residual_tangent(c.geom, c.mat, c.hist, c.local, r, k)
+    }
+    fn energy(&self, c: &CellInput) -> Result<f64, PointFailure> {
+        cell_energy(c.geom, c.mat, c.hist, c.local)
+    }
+    fn energy_split(&self, c: &CellInput) -> Result<(f64, f64), PointFailure> {
+        cell_energy_split(c.geom, c.mat, c.hist, c.local)
+    }
+    fn fields(&self, c: &CellInput) -> Result<CellFields, PointFailure> {
+        cell_fields(c.geom, c.mat, c.hist, c.local)
+    }
+    fn point_deformations(
+        &self,
+        c: &CellInput,
+        out: &mut [(Mat3, Vec3)],
+    ) -> Result<(), PointFailure> {
+        standard::point_deformations(c.geom, c.local, out);
+        Ok(())
+    }
+}
+
+impl CellKernel for MeanDilatationKernel {
+    fn residual_tangent(
+        &self,
+        c: &CellInput,
+        r: &mut [f64],
+        k: Option<&mut [f64]>,
+    ) -> Result<f64, PointFailure> {
+        mean_dilatation::cell_residual_tangent_md(c.geom, c.mat, c.hist, c.local, r, k)
+    }
+    fn energy(&self, c: &CellInput) -> Result<f64, PointFailure> {
+        mean_dilatation::cell_energy_md(c.geom, c.mat, c.hist, c.local)
+    }
+    fn energy_split(&self, c: &CellInput) -> Result<(f64, f64), PointFailure> {
+        mean_dilatation::cell_energy_split_md(c.geom, c.mat, c.hist, c.local)
+    }
+    fn fields(&self, c: &CellInput) -> Result<CellFields, PointFailure> {
+        mean_dilatation::cell_fields_md(c.geom, c.mat, c.hist, c.local)
+    }
+    fn point_deformations(
+        &self,
+        c: &CellInput,
+        out: &mut [(Mat3, Vec3)],
+    ) -> Result<(), PointFailure> {
+        mean_dilatation::point_deformations_md(c.geom, c.local, out)
+    }
+}
+
+/// The Kelvin–Voigt viscous kernel: a rate-dependent force on top of an elastic kernel.
+#[derive(Debug, Clone, Copy)]
+pub struct KelvinVoigtKernel {
+    /// Viscosity η (Pa·s).
+    pub eta: f64,
+}
+
+impl KelvinVoigtKernel {
+    /// Adds the viscous forces at configuration `local` and nodal velocities `vel` to `r` (and
+    /// their velocity derivative to `kv`); returns the dissipation power (W). See
+    /// [`cell_viscous`].
+    pub fn forces(
+        &self,
+        geom: &CellGeometry,
+        local: &[f64],
+        vel: &[f64],
+        r: &mut [f64],
+        kv: Option<&mut [f64]>,
+    ) -> Result<f64, PointFailure> {
+        cell_viscous(geom, self.eta, local, vel, r, kv)
+    }
+}
+
+use crate::material::PointHistory;
+
+/// The committed internal variables of a cell's quadrature points (`size` values per point,
+/// point-major) and the time step of the state being evaluated. Empty for elastic materials.
+#[derive(Debug, Clone, Copy)]
+pub struct CellHistory<'a> {
+    pub state: &'a [f64],
+    pub size: usize,
+    pub dt: f64,
+}
+
+impl<'a> CellHistory<'a> {
+    /// No internal variables.
+    pub const NONE: CellHistory<'static> = CellHistory {
+        state: &[],
+        size: 0,
+        dt: 0.0,
+    };
+
+    /// The history of quadrature point `q`.
+    pub fn at(&self, q: usize) -> PointHistory<'a> {
+        PointHistory {
+            state: if self.size == 0 {
+                &[]
+            } else {
+                &self.state[q * self.size..(q + 1) * self.size]
+            },
+            dt: self.dt,
+        }
+    }
+}

@@ -5,6 +5,7 @@
 //! r_{a,i} = ∫ P_iJ ∂N_a/∂X_J dV and r_{a,Φ} = ∂Π/∂Φ_a = ∫ D₀_J ∂N_a/∂X_J dV.
 //! The tangent is their exact derivative, symmetric, with a negative-definite Φ–Φ block.
 
+use super::CellHistory;
 use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES};
 use crate::material::{Material, MaterialError};
@@ -37,6 +38,7 @@ fn split_local(n: usize, local: &[f64]) -> ([[f64; 3]; MAX_NODES], [f64; MAX_NOD
 pub fn cell_energy(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     local: &[f64],
 ) -> Result<f64, PointFailure> {
     let n = geom.n_nodes;
@@ -46,7 +48,7 @@ pub fn cell_energy(
         let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
         e += geom.weights[q]
             * mat
-                .energy(&f, &e0)
+                .energy_at(&f, &e0, hist.at(q))
                 .map_err(|error| PointFailure { qp: q, error })?;
     }
     Ok(e)
@@ -56,6 +58,7 @@ pub fn cell_energy(
 pub fn cell_energy_split(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     local: &[f64],
 ) -> Result<(f64, f64), PointFailure> {
     let n = geom.n_nodes;
@@ -64,7 +67,7 @@ pub fn cell_energy_split(
     for q in 0..geom.n_qp {
         let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
         let (a, b) = mat
-            .energy_split(&f, &e0)
+            .energy_split_at(&f, &e0, hist.at(q).state)
             .map_err(|error| PointFailure { qp: q, error })?;
         m += geom.weights[q] * a;
         el += geom.weights[q] * b;
@@ -77,6 +80,7 @@ pub fn cell_energy_split(
 pub fn cell_residual_tangent(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     local: &[f64],
     r: &mut [f64],
     mut k: Option<&mut [f64]>,
@@ -96,12 +100,12 @@ pub fn cell_residual_tangent(
         let fail = |error| PointFailure { qp: q, error };
         match k.as_deref_mut() {
             None => {
-                let s = mat.stress(&f, &e0).map_err(fail)?;
+                let s = mat.stress_at(&f, &e0, hist.at(q)).map_err(fail)?;
                 energy += w * s.energy;
                 add_residual(g, n, w, &s.p, &s.d0, r);
             }
             Some(k) => {
-                let t = mat.tangent(&f, &e0).map_err(fail)?;
+                let t = mat.tangent_at(&f, &e0, hist.at(q)).map_err(fail)?;
                 energy += w * t.energy;
                 add_residual(g, n, w, &t.p, &t.d0, r);
                 add_point_tangent(g, n, w, &t.a, &t.b, &t.g, k);
@@ -138,10 +142,24 @@ pub struct CellFields {
     pub e_max: f64,
 }
 
+/// F and E₀ at each quadrature point of a standard cell, into `out[..n_qp]`.
+pub fn point_deformations(
+    geom: &CellGeometry,
+    local: &[f64],
+    out: &mut [(crate::material::Mat3, crate::material::Vec3)],
+) {
+    let n = geom.n_nodes;
+    let (u, phi) = split_local(n, local);
+    for q in 0..geom.n_qp {
+        out[q] = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
+    }
+}
+
 /// Field values of a cell for output.
 pub fn cell_fields(
     geom: &CellGeometry,
     mat: &dyn Material,
+    hist: CellHistory,
     local: &[f64],
 ) -> Result<CellFields, PointFailure> {
     let n = geom.n_nodes;
@@ -156,7 +174,7 @@ pub fn cell_fields(
     for q in 0..geom.n_qp {
         let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
         let s = mat
-            .stress(&f, &e0)
+            .stress_at(&f, &e0, hist.at(q))
             .map_err(|error| PointFailure { qp: q, error })?;
         let w = geom.weights[q] / vol;
         let sigma = crate::material::cauchy_stress(&s.p, &f);

@@ -7,7 +7,8 @@ use super::run::{Energies, StepRecord};
 use super::state::RecorderState;
 use crate::element::CellFields;
 use crate::problem::dofs::FIELDS;
-use crate::problem::statics::{cell_fields, energies, nodal_reactions};
+use crate::problem::points::PointStates;
+use crate::problem::statics::{cell_fields_with, energies_with, nodal_reactions_with};
 
 /// Accumulates the work of the prescribed values and evaluates records.
 pub(super) struct Recorder<'p> {
@@ -38,6 +39,8 @@ pub(super) struct Recorder<'p> {
     /// Every record so far (kept for checkpoints only).
     pub(super) history: Vec<StepRecord>,
     pub(super) keep_history: bool,
+    /// Committed internal variables of the material points at the state being recorded.
+    pub(super) points: PointStates,
 }
 
 impl<'p> Recorder<'p> {
@@ -58,8 +61,8 @@ impl<'p> Recorder<'p> {
         dissipated: f64,
     ) -> Result<(StepRecord, Vec<CellFields>), String> {
         let model = &self.plan.model;
-        let reactions = nodal_reactions(model, state)?;
-        let (stored, electric) = energies(model, state)?;
+        let reactions = nodal_reactions_with(model, state, &self.points, 0.0)?;
+        let (stored, electric) = energies_with(model, state, &self.points)?;
         // work done on the body, by the trapezoidal rule: reactions at prescribed dofs
         // Σ ½(R₀ + R₁)·(x₁ − x₀) and external (traction) forces at free dofs
         let external: Vec<f64> = self
@@ -117,7 +120,7 @@ impl<'p> Recorder<'p> {
             .iter()
             .map(|v| v.1)
             .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
-        let fields = cell_fields(model, state)?;
+        let fields = cell_fields_with(model, state, &self.points)?;
         let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
         self.check_breakdown(&fields, time, stage);
         let input = ProbeInput {
@@ -284,6 +287,7 @@ impl<'p> Recorder<'p> {
             warnings: Vec::new(),
             history: Vec::new(),
             keep_history,
+            points: PointStates::default(),
         }
     }
 }

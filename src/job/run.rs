@@ -15,6 +15,7 @@ use super::statics::solve_static_from;
 use crate::element::CellFields;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::problem::model::Model;
+use crate::problem::points::PointStates;
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{RampPosition, StepControl};
 use crate::time::integrator::TimeLevel;
@@ -152,6 +153,8 @@ struct Job<'p, 'o> {
     started: Instant,
     /// The first failure to evaluate a record in the current stage.
     record_error: Option<String>,
+    /// Committed internal variables of the material points.
+    points: PointStates,
 }
 
 impl<'p, 'o> Job<'p, 'o> {
@@ -187,8 +190,16 @@ impl<'p, 'o> Job<'p, 'o> {
             wall_before: 0.0,
             started: Instant::now(),
             record_error: None,
+            points: PointStates::new(&plan.model),
         };
         crate::solve::interrupt::clear_local();
+        if !plan.solver.gives_inertia() {
+            job.summary.warnings.push(format!(
+                "stability not checked: the linear solver ({}) gives no inertia, so limit points \
+                 show only as Newton failures",
+                plan.solver.kind.name()
+            ));
+        }
         if let Some(s) = start {
             job.q.clone_from(&s.q);
             job.v.clone_from(&s.v);
@@ -202,6 +213,9 @@ impl<'p, 'o> Job<'p, 'o> {
             job.wall_before = s.wall_s;
             job.first_step = s.first_step;
             job.prestretch_iterations = s.prestretch_iterations;
+            if let Some(p) = PointStates::with_data(&plan.model, s.points.clone()) {
+                job.points = p;
+            }
             job.observer.resumed(plan, &s.records);
         }
         job
@@ -227,7 +241,7 @@ impl<'p, 'o> Job<'p, 'o> {
             q: q.to_vec(),
             v: self.v.clone(),
             a: self.a.clone(),
-            points: Vec::new(),
+            points: self.points.data.clone(),
             dissipated: self.dissipated,
             dead_load_start: model.dead_load_start,
             recorder: self.rec.state(),
@@ -480,15 +494,21 @@ impl<'p, 'o> Job<'p, 'o> {
         );
         let time = self.time;
         let model_ref: &Model = model;
+        let mut dissipated_before = 0.0;
         let outcome = solve_static_from(
             model_ref,
             &plan.solver,
             stage_start.clone(),
+            (stage.duration, self.points.clone()),
             resume_at,
             &control,
             self.newton,
             |p, acc| {
                 step_no += 1;
+                self.dissipated += p.dissipated - dissipated_before;
+                dissipated_before = p.dissipated;
+                self.points.clone_from(&p.points);
+                self.rec.points.clone_from(&p.points);
                 let t = time + acc.load * stage.duration;
                 let dt = (acc.load - last_load) * stage.duration;
                 last_load = acc.load;
@@ -538,6 +558,7 @@ impl<'p, 'o> Job<'p, 'o> {
             });
         }
         self.q = outcome.state;
+        self.points = outcome.points;
         summary.steps = step_no;
         match outcome.result {
             Ok(r) => {

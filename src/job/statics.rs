@@ -2,6 +2,7 @@
 //! stepping with Newton.
 
 use crate::problem::model::Model;
+use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
 use crate::problem::system::LoadedSystem;
 use crate::solve::linear::SolverSettings;
@@ -12,6 +13,8 @@ use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepCo
 #[derive(Debug)]
 pub struct StaticOutcome {
     pub state: Vec<f64>,
+    /// Committed internal variables of the material points at `state`.
+    pub points: PointStates,
     pub result: Result<RampReport, RampFailure>,
 }
 
@@ -32,27 +35,34 @@ pub fn solve_static(
     });
     StaticOutcome {
         state: problem.state,
+        points: problem.points,
         result,
     }
 }
 
 /// [`solve_static`] resumable: the ramp's prescribed values start from `stage_start`; with
 /// `resume = Some((state, position))` it continues from that converged state and ramp position.
+/// `history` is the stage's duration (s, for materials with internal variables: a load step Δs
+/// lasts Δs·duration) and the committed point states it starts from.
 /// The solver's factorisation after an accepted step is that of the converged state (Newton's
 /// stability test), which a resumed ramp factors again at its start: the two agree bit for bit.
+#[allow(clippy::too_many_arguments)]
 pub fn solve_static_from(
     model: &Model,
     solver: &SolverSettings,
     stage_start: Vec<f64>,
+    history: (f64, PointStates),
     resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
     control: &StepControl,
     newton: &NewtonSettings,
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, Some(stage_start));
+    (problem.duration, problem.points) = history;
     let position = resume.map(|(state, position)| {
         problem.state.copy_from_slice(&state);
         problem.set_load(position.load);
+        problem.accept_resumed(position.load);
         position
     });
     let mut solver = solver.build();
@@ -69,6 +79,7 @@ pub fn solve_static_from(
     );
     StaticOutcome {
         state: problem.state,
+        points: problem.points,
         result,
     }
 }

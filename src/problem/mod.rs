@@ -6,5 +6,6 @@ pub mod dofs;
 pub mod examples;
 pub mod loads;
 pub mod model;
+pub mod points;
 pub mod statics;
 pub mod system;

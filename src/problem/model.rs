@@ -13,8 +13,12 @@ use std::sync::Arc;
 /// Everything that defines the boundary value problem except the loading path.
 #[derive(Debug, Clone)]
 pub struct Model {
-    pub mesh: Mesh,
+    /// The mesh, shared (never copied) by the models of every stage.
+    pub mesh: Arc<Mesh>,
     pub reference: ReferenceElement,
+    /// Shape-function gradients and integration weights of every cell in the reference
+    /// configuration, computed once per mesh and shared.
+    pub geometry: Arc<Vec<CellGeometry>>,
     /// The distinct materials.
     pub materials: Vec<Arc<dyn Material>>,
     /// Material index of each cell.
@@ -57,9 +61,12 @@ impl Model {
     /// A model of one material on every cell, without conditions.
     pub fn new(mesh: Mesh, material: Arc<dyn Material>) -> Result<Self, ModelError> {
         let n = mesh.n_cells();
+        let reference = ReferenceElement::new(mesh.kind);
+        let geometry = Arc::new(Self::cell_geometries(&mesh, &reference)?);
         let model = Model {
-            reference: ReferenceElement::new(mesh.kind),
-            mesh,
+            reference,
+            geometry,
+            mesh: Arc::new(mesh),
             materials: vec![material],
             cell_material: vec![0; n],
             dirichlet: Vec::new(),
@@ -73,6 +80,26 @@ impl Model {
         };
         model.check_cells()?;
         Ok(model)
+    }
+
+    /// The reference geometry of every cell; fails on the first cell with a non-positive Jacobian.
+    fn cell_geometries(
+        mesh: &Mesh,
+        reference: &ReferenceElement,
+    ) -> Result<Vec<CellGeometry>, ModelError> {
+        let mut x = vec![[0.0; 3]; mesh.kind.nodes_per_cell()];
+        (0..mesh.n_cells())
+            .map(|c| {
+                mesh.cell_coords_into(c, &mut x);
+                reference
+                    .geometry(&x)
+                    .map_err(|e| ModelError::DegenerateCell {
+                        cell: c,
+                        qp: e.qp,
+                        det: e.det,
+                    })
+            })
+            .collect()
     }
 
     /// Fails on the first cell with a non-positive Jacobian.
@@ -181,21 +208,15 @@ impl Model {
         E: From<String>,
     {
         let npc = self.mesh.kind.nodes_per_cell();
-        let mut x = vec![[0.0; 3]; npc];
         let mut local = vec![0.0; npc * FIELDS];
         for c in 0..self.mesh.n_cells() {
-            self.mesh.cell_coords_into(c, &mut x);
             for (a, &node) in self.mesh.cell(c).iter().enumerate() {
                 local[a * FIELDS..(a + 1) * FIELDS]
                     .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
             }
-            let g = self
-                .reference
-                .geometry(&x)
-                .map_err(|e| E::from(format!("cell {c} is degenerate (Jacobian {:e})", e.det)))?;
             f(
                 c,
-                &g,
+                &self.geometry[c],
                 self.materials[self.cell_material[c]].as_ref(),
                 &local,
             )?;
@@ -205,14 +226,11 @@ impl Model {
 
     /// Mean cell size (m): the cube root of the mean cell volume.
     pub fn cell_size(&self) -> f64 {
-        let mut x = vec![[0.0; 3]; self.mesh.kind.nodes_per_cell()];
-        let mut v = 0.0;
-        for c in 0..self.mesh.n_cells() {
-            self.mesh.cell_coords_into(c, &mut x);
-            if let Ok(g) = self.reference.geometry(&x) {
-                v += g.weights[..g.n_qp].iter().sum::<f64>();
-            }
-        }
+        let v: f64 = self
+            .geometry
+            .iter()
+            .map(|g| g.weights[..g.n_qp].iter().sum::<f64>())
+            .sum();
         (v / self.mesh.n_cells().max(1) as f64).cbrt()
     }
 }

@@ -3,11 +3,12 @@
 //! and dead loads (tractions, body and point forces) scaled by the load factor. The cell kernel is the model's
 //! [`Formulation`](crate::problem::model::Formulation) (standard or mean-dilatation).
 
-use crate::element::CellFields;
+use crate::element::{CellFields, CellInput};
 use crate::problem::assembly::{Assembler, CsrMatrix};
 use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::loads::dead_load_forces;
 use crate::problem::model::Model;
+use crate::problem::points::PointStates;
 use crate::problem::system::{LoadedSystem, NonlinearSystem};
 
 /// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
@@ -38,6 +39,16 @@ pub struct StaticProblem<'m> {
     /// The state at which the solver last factored this problem's tangent (for a resumed run to
     /// factor the same matrix again).
     pub factored_at: Option<Vec<f64>>,
+    /// Committed internal variables of the material points.
+    pub points: PointStates,
+    /// Time (s) per unit of load factor: a load step Δs lasts Δs·`duration` for materials with
+    /// internal variables (0: the instantaneous response).
+    pub duration: f64,
+    /// Load factor of the committed state, and of the current one.
+    committed_load: f64,
+    s: f64,
+    /// Energy dissipated by the material points over the accepted steps (J).
+    pub dissipated: f64,
 }
 
 /// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
@@ -84,6 +95,11 @@ impl<'m> StaticProblem<'m> {
             load: model.dead_load_start,
             dead_load,
             factored_at: None,
+            points: PointStates::new(model),
+            duration: 0.0,
+            committed_load: 0.0,
+            s: 0.0,
+            dissipated: 0.0,
         }
     }
 
@@ -99,13 +115,25 @@ impl<'m> StaticProblem<'m> {
 
     /// Total stored energy split `(mechanical, electric)` (J) at the current state.
     pub fn energies(&self) -> Result<(f64, f64), String> {
-        energies(self.model, &self.state)
+        energies_with(self.model, &self.state, &self.points)
+    }
+
+    /// Marks the current state (a resumed run's, at load factor `s`) as the committed one, with the
+    /// point states already set.
+    pub fn accept_resumed(&mut self, s: f64) {
+        self.s = s;
+        self.committed_load = s;
+    }
+
+    /// Time step (s) from the committed state to the current one.
+    fn dt(&self) -> f64 {
+        (self.s - self.committed_load) * self.duration
     }
 
     /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ): internal forces minus the
     /// dead loads at the current load factor; zero at the free dofs of an equilibrium.
     pub fn nodal_reactions(&self) -> Result<Vec<f64>, String> {
-        let mut r = nodal_reactions(self.model, &self.state)?;
+        let mut r = nodal_reactions_with(self.model, &self.state, &self.points, self.dt())?;
         for (v, t) in r.iter_mut().zip(&self.dead_load) {
             *v -= self.load * t;
         }
@@ -113,13 +141,29 @@ impl<'m> StaticProblem<'m> {
     }
 }
 
-/// Mechanical strain energy and electric field energy (J) of a state.
+/// Mechanical strain energy and electric field energy (J) of a state (of elastic materials, or
+/// of the virgin point states).
 pub fn energies(model: &Model, state: &[f64]) -> Result<(f64, f64), String> {
+    energies_with(model, state, &PointStates::default())
+}
+
+/// [`energies`] with the committed point states (the branches' stored energy included).
+pub fn energies_with(
+    model: &Model,
+    state: &[f64],
+    points: &PointStates,
+) -> Result<(f64, f64), String> {
     let (mut mech, mut elec) = (0.0, 0.0);
     model.for_each_cell(state, |c, g, mat, local| {
         let (a, b) = model
             .formulation
-            .energy_split(g, mat, local)
+            .kernel()
+            .energy_split(&CellInput {
+                geom: g,
+                mat,
+                hist: points.cell(c, model.cell_material[c], 0.0),
+                local,
+            })
             .map_err(|e| format!("cell {c}: {}", e.error))?;
         mech += a;
         elec += b;
@@ -132,12 +176,33 @@ pub fn energies(model: &Model, state: &[f64]) -> Result<(f64, f64), String> {
 /// included: where one acts on a constrained node, subtract
 /// [`dead_load_forces`](crate::problem::loads::dead_load_forces) for its reaction.
 pub fn nodal_reactions(model: &Model, state: &[f64]) -> Result<Vec<f64>, String> {
+    nodal_reactions_with(model, state, &PointStates::default(), 0.0)
+}
+
+/// [`nodal_reactions`] of a step of `dt` from committed point states.
+pub fn nodal_reactions_with(
+    model: &Model,
+    state: &[f64],
+    points: &PointStates,
+    dt: f64,
+) -> Result<Vec<f64>, String> {
     let mut out = vec![0.0; state.len()];
     let mut r = vec![0.0; crate::element::MAX_LOCAL];
     model.for_each_cell(state, |c, g, mat, local| {
+        let h = points.cell(c, model.cell_material[c], dt);
         model
             .formulation
-            .residual_tangent(g, mat, local, &mut r, None)
+            .kernel()
+            .residual_tangent(
+                &CellInput {
+                    geom: g,
+                    mat,
+                    hist: h,
+                    local,
+                },
+                &mut r,
+                None,
+            )
             .map_err(|e| format!("cell {c}: {}", e.error))?;
         for (a, &node) in model.mesh.cell(c).iter().enumerate() {
             for f in 0..FIELDS {
@@ -151,12 +216,27 @@ pub fn nodal_reactions(model: &Model, state: &[f64]) -> Result<Vec<f64>, String>
 
 /// Per-cell output fields of a state.
 pub fn cell_fields(model: &Model, state: &[f64]) -> Result<Vec<CellFields>, String> {
+    cell_fields_with(model, state, &PointStates::default())
+}
+
+/// [`cell_fields`] at committed point states.
+pub fn cell_fields_with(
+    model: &Model,
+    state: &[f64],
+    points: &PointStates,
+) -> Result<Vec<CellFields>, String> {
     let mut out = Vec::with_capacity(model.mesh.n_cells());
     model.for_each_cell(state, |c, g, mat, local| {
         out.push(
             model
                 .formulation
-                .fields(g, mat, local)
+                .kernel()
+                .fields(&CellInput {
+                    geom: g,
+                    mat,
+                    hist: points.cell(c, model.cell_material[c], 0.0),
+                    local,
+                })
                 .map_err(|e| format!("cell {c}: {}", e.error))?,
         );
         Ok::<(), String>(())
@@ -171,16 +251,17 @@ impl NonlinearSystem for StaticProblem<'_> {
 
     fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
         let m = self.model;
-        let npc = m.mesh.kind.nodes_per_cell();
+        let (points, dt) = (&self.points, self.dt());
+        let cell_kernel = m.formulation.kernel();
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
-            let mut x = [[0.0; 3]; crate::fem::MAX_NODES];
-            m.mesh.cell_coords_into(c, &mut x[..npc]);
-            let g = m
-                .reference
-                .geometry(&x[..npc])
-                .map_err(|e| format!("degenerate cell (Jacobian {:e})", e.det))?;
-            m.formulation
-                .residual_tangent(&g, m.materials[m.cell_material[c]].as_ref(), local, rl, kl)
+            let input = CellInput {
+                geom: &m.geometry[c],
+                mat: m.materials[m.cell_material[c]].as_ref(),
+                hist: points.cell(c, m.cell_material[c], dt),
+                local,
+            };
+            cell_kernel
+                .residual_tangent(&input, rl, kl)
                 .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
         };
         self.assembler
@@ -213,9 +294,10 @@ impl NonlinearSystem for StaticProblem<'_> {
     /// The state followed by the dead-load factor (which the state does not carry, unlike
     /// the prescribed values).
     fn snapshot(&self) -> Vec<f64> {
-        let mut s = Vec::with_capacity(self.state.len() + 1);
+        let mut s = Vec::with_capacity(self.state.len() + 2);
         s.extend_from_slice(&self.state);
         s.push(self.load);
+        s.push(self.s);
         s
     }
 
@@ -225,6 +307,9 @@ impl NonlinearSystem for StaticProblem<'_> {
         self.state.copy_from_slice(&s[..n]);
         if let Some(&load) = s.get(n) {
             self.load = load;
+        }
+        if let Some(&factor) = s.get(n + 1) {
+            self.s = factor;
         }
     }
 
@@ -260,6 +345,7 @@ impl LoadedSystem for StaticProblem<'_> {
     /// Dirichlet values ramp linearly from the start state to the targets; dead loads ramp from
     /// `model.dead_load_start` (of their full value) to full.
     fn set_load(&mut self, s: f64) {
+        self.s = s;
         let t0 = self.model.dead_load_start;
         self.load = t0 + s * (1.0 - t0);
         let targets = &self.model.dirichlet;
@@ -271,5 +357,15 @@ impl LoadedSystem for StaticProblem<'_> {
                 self.state[d] = self.start[d] + s * (end[d] - self.start[d]);
             }
         }
+    }
+
+    /// Commits the material points' internal variables at the accepted state.
+    fn accept(&mut self) -> Result<(), String> {
+        if !self.points.is_empty() {
+            let dt = self.dt();
+            self.dissipated += self.points.commit(self.model, &self.state, dt)?;
+        }
+        self.committed_load = self.s;
+        Ok(())
     }
 }

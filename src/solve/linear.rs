@@ -39,7 +39,9 @@ pub enum LinearSolverError {
 /// A direct solver: factor once, solve many right-hand sides.
 pub trait LinearSolver: Send {
     /// Factors `a` (symmetric, full storage). The pattern must stay the same between calls.
-    fn factor(&mut self, a: &CsrMatrix) -> Result<Inertia, LinearSolverError>;
+    /// Returns the inertia when the solver can tell it (a direct LDLᵀ); `None` otherwise, and
+    /// Newton then reports the stability as not checked.
+    fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError>;
     /// Overwrites `b` with the solution of A x = b.
     fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError>;
     /// Short name for reports.
@@ -117,6 +119,14 @@ impl SolverSettings {
     pub fn build(&self) -> Box<dyn LinearSolver> {
         match self.kind {
             SolverKind::Direct => Box::new(FaerLdlt::with_ordering(self.ordering)),
+        }
+    }
+
+    /// Whether the solver gives the inertia of the tangent (the stability test of static stages:
+    /// without it, limit points show only as Newton failures).
+    pub fn gives_inertia(&self) -> bool {
+        match self.kind {
+            SolverKind::Direct => true,
         }
     }
 
@@ -227,7 +237,7 @@ impl FaerLdlt {
 }
 
 impl LinearSolver for FaerLdlt {
-    fn factor(&mut self, a: &CsrMatrix) -> Result<Inertia, LinearSolverError> {
+    fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
         self.factored = false;
         let mat = Self::matrix(a);
         if self.symbolic.is_none() {
@@ -298,7 +308,7 @@ impl LinearSolver for FaerLdlt {
             return Err(LinearSolverError::Singular(0));
         }
         self.factored = true;
-        Ok(inertia)
+        Ok(Some(inertia))
     }
 
     fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
@@ -379,7 +389,7 @@ mod tests {
         let n = 40;
         let a = saddle(n, 0.0);
         let mut s = FaerLdlt::new();
-        let inertia = s.factor(&a).unwrap();
+        let inertia = s.factor(&a).unwrap().unwrap();
         assert_eq!(inertia.negative, n);
         assert_eq!(inertia.positive, n);
         let x: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.37).sin()).collect();
@@ -391,7 +401,7 @@ mod tests {
         }
         // refactor with the same pattern but a shifted (indefinite) K block: one more negative pivot
         let shifted = saddle(n, 1.0);
-        let inertia = s.factor(&shifted).unwrap();
+        let inertia = s.factor(&shifted).unwrap().unwrap();
         assert!(inertia.negative > n, "{inertia:?}");
     }
 }

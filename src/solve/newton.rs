@@ -49,9 +49,11 @@ pub struct NewtonReport {
     pub iterations: usize,
     /// Residual norms, first to last.
     pub residuals: Vec<f64>,
-    /// Inertia of the tangent at the converged state (when checked).
+    /// Inertia of the tangent at the converged state (when checked); `None` also when the
+    /// linear solver cannot tell it: the stability was then not checked.
     pub inertia: Option<Inertia>,
-    /// False when the converged state has more negative pivots than potential unknowns.
+    /// False when the converged state has more negative pivots than potential unknowns (true
+    /// when the stability was not checked).
     pub stable: bool,
 }
 
@@ -262,10 +264,16 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                 .map_err(|message| NewtonError::Evaluation { iteration, message })?;
         }
         match solver.factor(k) {
-            Ok(i) => {
+            Ok(Some(i)) => {
                 system.factored();
                 stable = i.negative <= system.expected_negative_pivots();
                 inertia = Some(i);
+            }
+            Ok(None) => {
+                system.factored();
+                if settings.verbose {
+                    eprintln!("    stability not checked: the linear solver gives no inertia");
+                }
             }
             Err(LinearSolverError::Singular(_)) => stable = false,
             Err(e) => {
@@ -282,4 +290,92 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         inertia,
         stable,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solve::linear::FaerLdlt;
+
+    /// r(x) = x³ + x − 2 = 0 (root x = 1), one unknown.
+    struct Cubic(f64);
+
+    impl NonlinearSystem for Cubic {
+        fn n(&self) -> usize {
+            1
+        }
+        fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
+            r[0] = self.0.powi(3) + self.0 - 2.0;
+            if let Some(k) = k {
+                k.values[0] = 3.0 * self.0 * self.0 + 1.0;
+            }
+            Ok(())
+        }
+        fn increment(&mut self, dx: &[f64], alpha: f64) {
+            self.0 += alpha * dx[0];
+        }
+        fn snapshot(&self) -> Vec<f64> {
+            vec![self.0]
+        }
+        fn restore(&mut self, s: &[f64]) {
+            self.0 = s[0];
+        }
+        fn new_matrix(&self) -> CsrMatrix {
+            CsrMatrix {
+                n: 1,
+                row_ptr: vec![0, 1],
+                col_idx: vec![0],
+                values: vec![0.0],
+            }
+        }
+        fn expected_negative_pivots(&self) -> usize {
+            0
+        }
+        fn residual_floor(&self) -> f64 {
+            1e-14
+        }
+        fn groups(&self) -> Vec<u8> {
+            vec![0]
+        }
+    }
+
+    /// A solver that solves exactly but cannot tell the inertia (as a Krylov solver).
+    struct NoInertia(FaerLdlt);
+
+    impl LinearSolver for NoInertia {
+        fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
+            self.0.factor(a).map(|_| None)
+        }
+        fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
+            self.0.solve_in_place(b)
+        }
+        fn name(&self) -> &'static str {
+            "no inertia"
+        }
+    }
+
+    /// With a solver that gives the inertia the stability is checked; without, Newton converges
+    /// to the same root and reports the stability as not checked (no inertia, not unstable).
+    #[test]
+    fn inertia_is_optional() {
+        let settings = NewtonSettings::default();
+        let mut sys = Cubic(3.0);
+        let mut k = sys.new_matrix();
+        let rep = newton(&mut sys, &mut FaerLdlt::new(), &mut k, &settings).unwrap();
+        assert!((sys.0 - 1.0).abs() < 1e-8, "{}", sys.0);
+        assert_eq!(rep.inertia.map(|i| i.positive), Some(1));
+        assert!(rep.stable);
+        let mut sys2 = Cubic(3.0);
+        let rep2 = newton(
+            &mut sys2,
+            &mut NoInertia(FaerLdlt::new()),
+            &mut k,
+            &settings,
+        )
+        .unwrap();
+        assert_eq!(sys2.0, sys.0);
+        assert!(rep2.inertia.is_none());
+        assert!(rep2.stable);
+        assert_eq!(rep2.iterations, rep.iterations);
+    }
 }

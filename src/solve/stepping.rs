@@ -157,7 +157,7 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
         }
         let outcome = newton(system, solver, &mut k, settings);
         let failure = match outcome {
-            Ok(rep) if rep.stable => {
+            Ok(rep) if rep.stable && system.accept().is_ok() => {
                 have_factor = rep.iterations > 0 || rep.inertia.is_some();
                 report.newton_iterations += rep.iterations;
                 report.accepted_steps += 1;

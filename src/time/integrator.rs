@@ -14,7 +14,7 @@
 //!   R = βΔt²[M a_{n+1} + ∇V(q_{n+1}) + f_vis(q_{n+1}, v_{n+1}) − f_ext],
 //! tangent M + βΔt² K_T + γΔt ∂f_vis/∂v.
 
-use crate::element::{cell_viscous, MAX_LOCAL};
+use crate::element::{CellHistory, CellInput, KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::{Assembler, CsrMatrix};
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
@@ -229,7 +229,8 @@ impl<'m> TimeStep<'m> {
                 vel[a * FIELDS..(a + 1) * FIELDS]
                     .copy_from_slice(&vv[node * FIELDS..(node + 1) * FIELDS]);
             }
-            total += cell_viscous(g, eta, local, &vel[..local.len()], &mut r, None)
+            total += KelvinVoigtKernel { eta }
+                .forces(g, local, &vel[..local.len()], &mut r, None)
                 .map_err(|e| format!("cell {c}: {}", e.error))?;
             Ok(())
         })?;
@@ -249,7 +250,17 @@ impl<'m> TimeStep<'m> {
             let nl = local.len();
             model
                 .formulation
-                .residual_tangent(g, mat, local, &mut r, None)
+                .kernel()
+                .residual_tangent(
+                    &CellInput {
+                        geom: g,
+                        mat,
+                        hist: CellHistory::NONE,
+                        local,
+                    },
+                    &mut r,
+                    None,
+                )
                 .map_err(|e| format!("cell {c}: {}", e.error))?;
             let m = model.cell_material[c];
             let eta = self.viscosity[m];
@@ -259,7 +270,8 @@ impl<'m> TimeStep<'m> {
                     vel[a * FIELDS..(a + 1) * FIELDS]
                         .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
                 }
-                cell_viscous(g, eta, local, &vel[..nl], &mut rv, None)
+                KelvinVoigtKernel { eta }
+                    .forces(g, local, &vel[..nl], &mut rv, None)
                     .map_err(|e| format!("cell {c}: {}", e.error))?;
             }
             for (a, &node) in model.mesh.cell(c).iter().enumerate() {
@@ -334,21 +346,20 @@ impl NonlinearSystem for TimeStep<'_> {
         let npc = model.mesh.kind.nodes_per_cell();
         let (viscosity, vel_all) = (&self.viscosity, &self.work_v);
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
-            let mut x = [[0.0; 3]; crate::fem::MAX_NODES];
-            model.mesh.cell_coords_into(c, &mut x[..npc]);
-            let g = model
-                .reference
-                .geometry(&x[..npc])
-                .map_err(|e| format!("degenerate cell (Jacobian {:e})", e.det))?;
+            let g = &model.geometry[c];
             let mat = model.cell_material[c];
             let nl = npc * FIELDS;
             let mut kl = kl;
             let e = model
                 .formulation
+                .kernel()
                 .residual_tangent(
-                    &g,
-                    model.materials[mat].as_ref(),
-                    local,
+                    &CellInput {
+                        geom: g,
+                        mat: model.materials[mat].as_ref(),
+                        hist: CellHistory::NONE,
+                        local,
+                    },
                     rl,
                     kl.as_deref_mut(),
                 )
@@ -366,7 +377,8 @@ impl NonlinearSystem for TimeStep<'_> {
                 }
                 let mut rv = [0.0; MAX_LOCAL];
                 let mut kv = kl.as_ref().map(|_| vec![0.0; nl * nl]);
-                cell_viscous(&g, eta, local, &vel[..nl], &mut rv, kv.as_deref_mut())
+                KelvinVoigtKernel { eta }
+                    .forces(g, local, &vel[..nl], &mut rv, kv.as_deref_mut())
                     .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
                 for i in 0..nl {
                     rl[i] += f_r * rv[i];

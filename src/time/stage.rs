@@ -534,6 +534,17 @@ pub fn run_dynamic_from(
     resume: Option<DynamicResume>,
     on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
+    if model.materials.iter().any(|m| m.state_size() > 0) {
+        return Err((
+            start.clone(),
+            DynamicFailure {
+                t: start.t,
+                reason: "materials with internal variables are not supported in dynamic stages"
+                    .to_string(),
+                newton_iterations: 0,
+            },
+        ));
+    }
     let mut step_model = model.clone();
     for (nodes, w) in &inputs.electrodes {
         step_model.dirichlet.push(Dirichlet {

@@ -8,7 +8,7 @@
 //! q_{n+1} with the voltages at t_{n+1}). Symplectic and momentum preserving for η = 0.
 
 use super::mass::NodalMass;
-use crate::element::{cell_viscous, MAX_LOCAL};
+use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::{Assembler, CsrMatrix};
 use crate::problem::dofs::{Dirichlet, DofMap, Field, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
@@ -99,7 +99,8 @@ pub fn dissipation_power(
                 vel[a * FIELDS..(a + 1) * FIELDS]
                     .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
             }
-            total += cell_viscous(g, eta, local, &vel[..local.len()], &mut r, None)
+            total += KelvinVoigtKernel { eta }
+                .forces(g, local, &vel[..local.len()], &mut r, None)
                 .map_err(|e| format!("cell {c}: {}", e.error))?;
         }
         Ok::<(), String>(())
@@ -128,18 +129,14 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
             }
             let eta = viscosity[model.cell_material[c]];
             if eta > 0.0 {
-                let mut x = [[0.0; 3]; crate::fem::MAX_NODES];
-                model.mesh.cell_coords_into(c, &mut x[..npc]);
-                let g = model
-                    .reference
-                    .geometry(&x[..npc])
-                    .map_err(|e| format!("degenerate cell ({:e})", e.det))?;
+                let g = &model.geometry[c];
                 let mut vel = [0.0; MAX_LOCAL];
                 for (a, &node) in model.mesh.cell(c).iter().enumerate() {
                     vel[a * FIELDS..(a + 1) * FIELDS]
                         .copy_from_slice(&vbar[node * FIELDS..(node + 1) * FIELDS]);
                 }
-                cell_viscous(&g, eta, local, &vel[..nl], rl, kl.as_deref_mut())
+                KelvinVoigtKernel { eta }
+                    .forces(g, local, &vel[..nl], rl, kl.as_deref_mut())
                     .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
                 rl[..nl].iter_mut().for_each(|v| *v *= 0.5 * dt);
                 if let Some(kl) = kl {
