@@ -1,7 +1,7 @@
 //! Closed-form reference solutions used by tests and validation.
 //!
-//! The homogeneous film (PHYSICS.md §6.1): F = diag(λ, λ, t), referential field E₀ = Φ/H through the
-//! thickness, free lateral faces, energy of PHYSICS.md §1. Stationarity gives
+//! The homogeneous film (docs/theory.md): F = diag(λ, λ, t), referential field E₀ = Φ/H through the
+//! thickness, free lateral faces, the energy of docs/theory.md. Stationarity gives
 //!   μ(λ − 1/λ) + Λ ln J/λ − (ε/2)E₀² λ/t = 0,
 //!   μ(t − 1/t) + Λ ln J/t + 2c₂ t E₀² + (ε/2)E₀² λ²/t² = 0,   J = λ²t.
 //! The incompressible equibiaxial film (Zhao & Suo, APL 91 (2007) 061921): neo-Hooke
@@ -242,7 +242,7 @@ mod tests {
         (a - b).abs() / b.abs()
     }
 
-    /// PHYSICS.md §6.1 table (μ = 1): states to the 6 printed digits.
+    /// Table of homogeneous film states (μ = 1, own computation): states to the 6 printed digits.
     #[test]
     fn film_table() {
         let cases = [
@@ -288,7 +288,7 @@ mod tests {
         assert!(film.state(34e3 / h).is_none());
     }
 
-    /// PHYSICS.md §6.2: Zhao–Suo pull-in values.
+    /// Zhao & Suo, APL 91 (2007) 061921: pull-in values.
     #[test]
     fn incompressible_pull_in_values() {
         let (l, v) = incompressible_neo_hooke_pull_in();

@@ -26,7 +26,7 @@ pub enum Shape {
     /// Sine; unipolar is (1 − cos ωt)/2, starting at 0 like the other unipolar shapes.
     Sine { frequency: f64, bipolar: bool },
     /// Truncated Fourier series (first `terms` odd harmonics) of a unipolar or bipolar square
-    /// or triangle wave: the band-limited signal of a real generator (PHYSICS.md §5).
+    /// or triangle wave: the band-limited signal of a real generator (docs/lumped.md).
     Fourier {
         base: FourierBase,
         frequency: f64,
@@ -136,7 +136,7 @@ impl Waveform {
             } => {
                 let x = self.periodic_time(t, *frequency);
                 let w = 2.0 * PI * x;
-                // unipolar 0..1 series (PHYSICS.md §5), bipolar = 2·unipolar − 1
+                // unipolar 0..1 series (docs/lumped.md), bipolar = 2·unipolar − 1
                 let mut u = 0.5;
                 for k in 0..*terms {
                     let n = (2 * k + 1) as f64;

@@ -1,4 +1,4 @@
-//! The command line as a user and a script see it (INTERFACE.md): examples print, check and run;
+//! The command line as a user and a script see it: examples print, check and run;
 //! the film's history matches the closed form; bad input exits 2 with a message naming the problem;
 //! pull-in exits 1 with `converged: false`; VTU files read back with the expected arrays; `--set`
 //! changes what it names and rejects unknown paths.
@@ -380,7 +380,7 @@ fn bad_inputs_exit_2_with_a_message() {
 /// The `film-vibration` example: at least 500 steps over at least five periods of the breathing
 /// mode; undamped it oscillates about the static 20 kV state with kinetic + stored − electric
 /// conserved; with `--set materials.elastomer.viscosity=100` it settles on the static state
-/// (λ = 1.033231, PHYSICS.md §6.1) and dissipates energy.
+/// (λ = 1.033231, closed form of docs/theory.md) and dissipates energy.
 #[test]
 fn film_vibration_runs_undamped_and_damped() {
     let dir = tempdir("vibration");

@@ -1,4 +1,4 @@
-//! Determinism through the command line (issue #7, DESIGN.md "Deterministic results"): the same
+//! Determinism through the command line (docs/architecture.md, determinism): the same
 //! scenario on 1 and 2 rayon threads (`RAYON_NUM_THREADS`) gives the same history and probes to
 //! 1e-12 relative (round-off of the parallel factorisation), and two runs on the same thread
 //! count give byte-identical `history.csv` and `summary.json` (wall times aside).

@@ -1,4 +1,4 @@
-//! The circular actuator (issue #6): pre-stretched disc with a rigid pad carrying a mass.
+//! The circular actuator: pre-stretched disc with a rigid pad carrying a mass.
 //! Runs scenarios through the library (parse → build → run) on coarse meshes.
 
 mod common;
@@ -44,7 +44,7 @@ const COARSE: [&str; 2] = ["mesh.radial=8", "mesh.layers=1"];
 
 /// A small mass (1 g) on the pre-stretched neo-Hooke membrane, no membrane weight: the pad sinks
 /// by δ = m g ln(b/a) / (2π T₀), T₀ = σ₀h from the material's homogeneous equibiaxial state at λp
-/// (PHYSICS.md §5), within 2 %.
+/// (docs/theory.md, membrane statics), within 2 %.
 #[test]
 fn small_mass_matches_the_membrane_formula() {
     let text = example("diaphragm").unwrap();

@@ -1,4 +1,4 @@
-//! Dynamics: the midpoint variational integrator (PHYSICS.md §2) and the Newmark reference.
+//! Dynamics: the midpoint variational integrator (docs/theory.md) and the Newmark reference.
 //!
 //! References and tolerances are stated per test; all meshes are small so that 10⁴ steps run in
 //! seconds in a release build.

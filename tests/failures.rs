@@ -1,4 +1,4 @@
-//! Runs that cannot reach their end stop honestly (issue #7): `converged: false` in summary.json,
+//! Runs that cannot reach their end stop honestly: `converged: false` in summary.json,
 //! exit status 1, the reason and the time in the error, and only converged states in the outputs.
 //! (Pull-in is covered by `cli.rs::pull_in_example_exits_1_and_names_the_instability`.)
 

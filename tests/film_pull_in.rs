@@ -1,7 +1,7 @@
-//! The homogeneous film of PHYSICS.md §6.1 under a ramped voltage.
+//! The homogeneous film (docs/theory.md) under a ramped voltage.
 //!
 //! Reference: the closed-form compressible film state (`deasim::analytic::Film`), derived from the
-//! energy of PHYSICS.md §1; values checked against the table of §6.1. Hex8 and tet4 (linear)
+//! energy of docs/theory.md; values checked against the closed form of `deasim::analytic`. Hex8 and tet4 (linear)
 //! interpolations represent the homogeneous state exactly, so the computed stretches must match to
 //! the Newton tolerance: |Δλ| < 1e-8. Pull-in: ramped to 40 kV, the solver must stop with the last
 //! converged voltage within 0.5 % below the closed-form critical voltage 33.695 kV.

@@ -1,5 +1,5 @@
 //! Meshes written by Gmsh (examples/film.geo → tests/data/gmsh/, tet4, tet10 and hex8 in MSH 4.1
-//! ASCII, 4.1 binary and 2.2 ASCII) carry the film of PHYSICS.md §6.1.
+//! ASCII, 4.1 binary and 2.2 ASCII) carry the homogeneous film (docs/theory.md).
 //!
 //! Reference: the closed-form homogeneous film state (`deasim::analytic::Film`); at 20 kV across
 //! H = 1 mm (μ = 1e5 Pa, Λ = 1e7 Pa, εᵣ = 4.7) λ = 1.033231, t = 0.936966. All three kinds

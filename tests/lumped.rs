@@ -1,5 +1,5 @@
-//! The lumped models of PHYSICS.md §5 (`deasim::lumped`): the diaphragm Ritz model of the circular
-//! actuator (PHYSICS.md §4) and the dimensionless Gent membrane of DielectricElastomers.jl.
+//! The lumped models (docs/lumped.md; `deasim::lumped`): the diaphragm Ritz model of the circular
+//! actuator (docs/validation.md) and the dimensionless Gent membrane of DielectricElastomers.jl.
 //! Figures are printed (`cargo test --release --test lumped -- --nocapture`) and collected in
 //! docs/lumped.md.
 
@@ -46,7 +46,7 @@ fn unipolar(shape: Shape, amplitude: f64) -> Waveform {
 }
 
 /// As x → 0 the Ritz stiffness Π'' tends to the annular-membrane stiffness 2πT₀/ln(b/a)
-/// (PHYSICS.md §5), T₀ = σ₀h₀ the pre-tension. The log shape is that problem's exact solution and
+/// (docs/theory.md, membrane statics), T₀ = σ₀h₀ the pre-tension. The log shape is that problem's exact solution and
 /// its small-deflection integrand is constant in ln r, so only the O(x²) terms differ: at
 /// x = 1e-7 m they are ~1e-11; tolerance 1e-4 as asked.
 #[test]
@@ -389,7 +389,7 @@ fn jl_membrane() -> GentMembrane {
     }
 }
 
-/// DielectricElastomers.jl's example (PHYSICS.md §5): Jm = 100, P = 0.5, V_dc = 0.1, V_ac = 0 gives
+/// DielectricElastomers.jl's example (Sheng et al. 2014): Jm = 100, P = 0.5, V_dc = 0.1, V_ac = 0 gives
 /// λ = 1.149229 and small-oscillation frequency 1.6727, which is the *angular* frequency √k
 /// (dimensionless rad per unit time; √k/2π = 0.2662 would be the cyclic one). A free oscillation
 /// (amplitude 1e-4, undamped, Δt = T/400: midpoint phase error (ωΔt)²/24 ≈ 1e-5) has the period

@@ -1,4 +1,4 @@
-//! The multilayer stack actuator (issue #8): the `stack` generator through the scenario path
+//! The multilayer stack actuator: the `stack` generator through the scenario path
 //! (parse → build → run), checked against parallel plates, the homogeneous film and the Maxwell
 //! pressure, and the electrode-edge field concentration reported over three refinements.
 //!
@@ -221,7 +221,7 @@ fn edge_field_concentration_grows_with_refinement_interior_stays_nominal() {
 }
 
 /// Thickness contraction at the centre at low voltage (5 V/µm) against the homogeneous film
-/// (closed form of the compressible neo-Hooke film, PHYSICS.md §6.1): within 5 % for a narrow
+/// (closed form of the compressible neo-Hooke film, docs/theory.md): within 5 % for a narrow
 /// border (0.1 mm of 4 mm). The passive border is a frame that holds the active area back; a
 /// plane-stress estimate (circular inclusion with an eigenstrain in a frame, ν = ½) reduces the
 /// in-plane, hence the thickness, strain by (passive area fraction)/4: 2.4 % for this border, 9 %

@@ -1,5 +1,5 @@
 //! The commands of the `deasim` binary. `main.rs` only parses arguments and calls these; each
-//! returns the process exit status of INTERFACE.md: 0 success, 1 the solve failed, 2 bad input.
+//! returns the process exit status: 0 success, 1 the solve failed, 2 bad input.
 
 use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};

@@ -1,5 +1,5 @@
 //! Benchmarks of the static core (`deasim bench`, `cargo bench --bench core`): the film of
-//! PHYSICS.md §6.1 on hex8 meshes of increasing size. For each: dofs, one residual + tangent
+//! docs/theory.md (homogeneous film) on hex8 meshes of increasing size. For each: dofs, one residual + tangent
 //! assembly, the first factorisation (ordering + symbolic + numeric), a later numeric factorisation,
 //! one triangular solve, one Newton iteration (assembly + numeric factorisation + solve), a whole
 //! static solve to 20 kV in two load steps, Newton iterations, and the process's peak memory.

@@ -191,7 +191,7 @@ pub fn cell_fields(
     Ok(out)
 }
 
-/// Kelvin–Voigt viscosity (Wriggers' 3-D form, PHYSICS.md §2.3): P_vis = Jη d F⁻ᵀ with
+/// Kelvin–Voigt viscosity (Wriggers' 3-D form; docs/theory.md, Kelvin–Voigt viscosity): P_vis = Jη d F⁻ᵀ with
 /// d = sym(Ḟ F⁻¹), the derivative of the Rayleigh function R = (Jη/2) d:d with respect to Ḟ.
 /// With the spatial gradients h_a = F⁻ᵀ∇₀N_a: r_{a,i} = ∫ Jη (d h_a)_i dV and
 /// ∂r_{a,i}/∂v_{b,k} = ∫ (Jη/2)(δ_ik h_a·h_b + h_{b,i} h_{a,k}) dV (symmetric, positive semi-definite).

@@ -37,6 +37,8 @@ pub struct OutputWriter {
     last_flush: Instant,
     last_state: Option<(StepRecord, Vec<f64>, Vec<CellFields>)>,
     last_written_step: Option<usize>,
+    /// Cell means of the material points' internal variables for the next step (by name).
+    point_states: Vec<(String, Vec<f64>)>,
     /// I/O problems (reported in the summary's warnings).
     pub errors: Vec<String>,
 }
@@ -114,6 +116,7 @@ impl OutputWriter {
             last_flush: Instant::now(),
             last_state: None,
             last_written_step: None,
+            point_states: Vec::new(),
             errors: Vec::new(),
         })
     }
@@ -180,7 +183,7 @@ impl OutputWriter {
             ElementKind::Tet10 => CellType::Tet10,
         };
         let name = format!("step_{:05}.vtu", self.pvd.len());
-        let piece = VtuPiece {
+        let mut piece = VtuPiece {
             points: &mesh.nodes,
             cell_type,
             connectivity: &mesh.connectivity,
@@ -214,6 +217,13 @@ impl OutputWriter {
                 },
             ],
         };
+        for (n, values) in &self.point_states {
+            piece.cell_data.push(DataArray {
+                name: n,
+                components: 1,
+                values,
+            });
+        }
         match write_vtu(&self.dir.join("fields").join(&name), &piece) {
             Ok(()) => {
                 self.pvd.push((record.time, format!("fields/{name}")));
@@ -382,6 +392,10 @@ impl OutputWriter {
 }
 
 impl Observer for OutputWriter {
+    fn point_states(&mut self, _plan: &Plan, cell_means: &[(String, Vec<f64>)]) {
+        self.point_states = cell_means.to_vec();
+    }
+
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
         self.records.push(record.clone());
         let every = plan.output.fields_every;

@@ -47,6 +47,9 @@ pub trait Observer {
     /// The run resumes from a state; `records` are the steps recorded before it (no
     /// [`Observer::step`] is sent for them).
     fn resumed(&mut self, _plan: &Plan, _records: &[StepRecord]) {}
+    /// The cell means of the material points' internal variables at the state of the next
+    /// [`Observer::step`] (sent only when a material has internal variables).
+    fn point_states(&mut self, _plan: &Plan, _cell_means: &[(String, Vec<f64>)]) {}
     /// Whether this observer may ask for run states (the run then keeps its history).
     fn takes_states(&self) -> bool {
         false
@@ -79,6 +82,11 @@ impl Observer for Observers<'_, '_> {
     }
     fn resumed(&mut self, plan: &Plan, records: &[StepRecord]) {
         self.0.iter_mut().for_each(|o| o.resumed(plan, records));
+    }
+    fn point_states(&mut self, plan: &Plan, cell_means: &[(String, Vec<f64>)]) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.point_states(plan, cell_means));
     }
     fn takes_states(&self) -> bool {
         self.0.iter().any(|o| o.takes_states())
@@ -277,6 +285,10 @@ impl<'p, 'o> Job<'p, 'o> {
         dt: f64,
         kinetic: f64,
     ) {
+        if !self.points.is_empty() {
+            let means = self.points.cell_means(&self.plan.model);
+            self.observer.point_states(self.plan, &means);
+        }
         match self.rec.record(
             q,
             prescribed,
@@ -494,7 +506,6 @@ impl<'p, 'o> Job<'p, 'o> {
         );
         let time = self.time;
         let model_ref: &Model = model;
-        let mut dissipated_before = 0.0;
         let outcome = solve_static_from(
             model_ref,
             &plan.solver,
@@ -505,8 +516,7 @@ impl<'p, 'o> Job<'p, 'o> {
             self.newton,
             |p, acc| {
                 step_no += 1;
-                self.dissipated += p.dissipated - dissipated_before;
-                dissipated_before = p.dissipated;
+                self.dissipated += p.dissipated_step;
                 self.points.clone_from(&p.points);
                 self.rec.points.clone_from(&p.points);
                 let t = time + acc.load * stage.duration;

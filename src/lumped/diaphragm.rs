@@ -1,4 +1,4 @@
-//! The circular diaphragm actuator (PHYSICS.md §4) as a one-degree-of-freedom Ritz model.
+//! The circular diaphragm actuator (docs/validation.md) as a one-degree-of-freedom Ritz model.
 //!
 //! Geometry in the pre-stretched state: pad radius a, electrode radius c, clamped rim radius b
 //! (a < c ≤ b); reference thickness H, equibiaxial pre-stretch λp. The pad (r < a) is rigid and
@@ -79,7 +79,7 @@ pub struct DiaphragmParams {
 }
 
 impl DiaphragmParams {
-    /// The experimental study's actuator (PHYSICS.md §4): H = 1 mm, λp = 2, a = 7.5 mm, c = 15 mm,
+    /// The experimental study's actuator (docs/validation.md): H = 1 mm, λp = 2, a = 7.5 mm, c = 15 mm,
     /// b = 35 mm, m = 46.22 g, g = 9.81 m/s², ρ = 960 kg/m³; no viscosity (set it explicitly).
     pub fn reference_study() -> Self {
         DiaphragmParams {
@@ -301,7 +301,7 @@ impl Diaphragm {
         self.flat.p * self.params.thickness / self.params.prestretch
     }
 
-    /// Small-deflection membrane stiffness 2πT₀/ln(b/a) (N/m), PHYSICS.md §5.
+    /// Small-deflection membrane stiffness 2πT₀/ln(b/a) (N/m); docs/theory.md, membrane statics.
     pub fn membrane_stiffness(&self) -> f64 {
         2.0 * PI * self.prestress_tension() / self.log_ratio
     }

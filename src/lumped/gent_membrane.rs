@@ -1,5 +1,5 @@
 //! The dimensionless equibiaxial Gent membrane of DielectricElastomers.jl (Sheng et al. 2014;
-//! PHYSICS.md §5): a homogeneous, incompressible membrane with in-plane stretch λ under a dead
+//! docs/lumped.md): a homogeneous, incompressible membrane with in-plane stretch λ under a dead
 //! load P and a voltage,
 //!
 //! ```text

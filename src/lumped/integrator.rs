@@ -1,5 +1,5 @@
 //! Time integration of m ẍ + c(x) ẋ + f(x, t) = 0 by the variational midpoint rule, the scheme
-//! deasim's finite element dynamics uses (PHYSICS.md §2.1), here for one degree of freedom:
+//! deasim's finite element dynamics uses (docs/theory.md), here for one degree of freedom:
 //!
 //! ```text
 //! R(x₁) = m (x₁ − x₀)/Δt − p₀ + (Δt/2) [f(x½, t½) + c(x½) (x₁ − x₀)/Δt] = 0,   x½ = (x₀ + x₁)/2

@@ -1,5 +1,5 @@
 //! The linearised diaphragm: m_eff ξ̈ + c ξ̇ + k ξ = β V(t)², ξ = x − x₀ measured from the static
-//! equilibrium x₀ at V = 0 with gravity: the form of the experimental study (PHYSICS.md §5), with
+//! equilibrium x₀ at V = 0 with gravity: the form of the experimental study (docs/lumped.md), with
 //! its coefficients derived from the Ritz model instead of fitted. β = ½ dC/dx at x₀ is the
 //! voltage-dependent part of −Π' (the electrostatic force per V²); the softening of k by the
 //! voltage (−½V² C'') is left out, as in the study's form.

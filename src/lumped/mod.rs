@@ -1,6 +1,6 @@
-//! Lumped (one-degree-of-freedom) models of dielectric elastomer actuators, PHYSICS.md §5.
+//! Lumped (one-degree-of-freedom) models of dielectric elastomer actuators (docs/lumped.md).
 //!
-//! * [`Diaphragm`]: the circular actuator of the experimental study (PHYSICS.md §4) as a Ritz
+//! * [`Diaphragm`]: the circular actuator of the experimental study (docs/validation.md) as a Ritz
 //!   model: a pre-stretched annular membrane between a rigid, mass-carrying pad and a clamped rim,
 //!   deflecting with the logarithmic small-deflection shape; any [`crate::material::Material`].
 //!   Its linearisation about the loaded state is the study's m ẍ + c ẋ + k x = F(t)

@@ -6,7 +6,7 @@ use crate::problem::dofs::Field;
 use crate::problem::model::{Model, ModelError};
 use std::sync::Arc;
 
-/// Parameters of the `film` example (PHYSICS.md §6.1): a 10 × 10 × 1 mm quarter of a film.
+/// Parameters of the `film` example (docs/theory.md, homogeneous film): a 10 × 10 × 1 mm quarter of a film.
 pub const FILM_SIZE: [f64; 3] = [10e-3, 10e-3, 1e-3];
 /// Shear modulus μ (Pa) of the film.
 pub const FILM_MU: f64 = 1e5;

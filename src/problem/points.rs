@@ -77,6 +77,46 @@ impl PointStates {
         }
     }
 
+    /// Cell means of every internal variable, by name (the names of all materials, in order of
+    /// first appearance; 0 in cells whose material has no such variable): for field output.
+    pub fn cell_means(&self, model: &Model) -> Vec<(String, Vec<f64>)> {
+        if self.is_empty() {
+            return Vec::new();
+        }
+        let mut out: Vec<(String, Vec<f64>)> = Vec::new();
+        let n_cells = model.mesh.n_cells();
+        let mut columns: Vec<Vec<usize>> = Vec::new();
+        for mat in &model.materials {
+            let mut cols = Vec::new();
+            for name in mat.state_names() {
+                let i = match out.iter().position(|(n, _)| *n == name) {
+                    Some(i) => i,
+                    None => {
+                        out.push((name, vec![0.0; n_cells]));
+                        out.len() - 1
+                    }
+                };
+                cols.push(i);
+            }
+            columns.push(cols);
+        }
+        let n_qp = model.reference.n_qp;
+        for c in 0..n_cells {
+            let m = model.cell_material[c];
+            let s = self.sizes[m];
+            let weights = &model.geometry[c].weights[..n_qp];
+            let volume: f64 = weights.iter().sum();
+            for (v, &col) in columns[m].iter().enumerate().take(s) {
+                let mean: f64 = (0..n_qp)
+                    .map(|q| weights[q] * self.data[self.offsets[c] + q * s + v])
+                    .sum::<f64>()
+                    / volume;
+                out[col].1[c] = mean;
+            }
+        }
+        out
+    }
+
     /// Commits the state of an accepted step to `state` (u, Φ; `FIELDS` per node) over `dt`:
     /// every point's variables are updated from its deformation. Returns the energy dissipated
     /// (J).

@@ -47,8 +47,10 @@ pub struct StaticProblem<'m> {
     /// Load factor of the committed state, and of the current one.
     committed_load: f64,
     s: f64,
-    /// Energy dissipated by the material points over the accepted steps (J).
+    /// Energy dissipated by the material points over the accepted steps (J), and over the last
+    /// one.
     pub dissipated: f64,
+    pub dissipated_step: f64,
 }
 
 /// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
@@ -100,6 +102,7 @@ impl<'m> StaticProblem<'m> {
             committed_load: 0.0,
             s: 0.0,
             dissipated: 0.0,
+            dissipated_step: 0.0,
         }
     }
 
@@ -360,12 +363,14 @@ impl LoadedSystem for StaticProblem<'_> {
     }
 
     /// Commits the material points' internal variables at the accepted state.
-    fn accept(&mut self) -> Result<(), String> {
-        if !self.points.is_empty() {
+    fn accept(&mut self) -> Result<bool, String> {
+        let history = !self.points.is_empty();
+        if history {
             let dt = self.dt();
-            self.dissipated += self.points.commit(self.model, &self.state, dt)?;
+            self.dissipated_step = self.points.commit(self.model, &self.state, dt)?;
+            self.dissipated += self.dissipated_step;
         }
         self.committed_load = self.s;
-        Ok(())
+        Ok(history)
     }
 }

@@ -35,8 +35,9 @@ pub trait LoadedSystem: NonlinearSystem {
     /// Sets the prescribed values and loads for load factor `s`.
     fn set_load(&mut self, s: f64);
     /// The current state was accepted: commit what depends on the history (the material points'
-    /// internal variables). A state that is not accepted is never committed.
-    fn accept(&mut self) -> Result<(), String> {
-        Ok(())
+    /// internal variables). A state that is not accepted is never committed. Returns whether a
+    /// history was committed (the tangent at the state then changed).
+    fn accept(&mut self) -> Result<bool, String> {
+        Ok(false)
     }
 }

@@ -156,8 +156,12 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
             system.set_load(target);
         }
         let outcome = newton(system, solver, &mut k, settings);
-        let failure = match outcome {
-            Ok(rep) if rep.stable && system.accept().is_ok() => {
+        let accepted = match &outcome {
+            Ok(rep) if rep.stable => Some(system.accept()),
+            _ => None,
+        };
+        let failure = match (outcome, accepted) {
+            (Ok(rep), Some(Ok(history))) => {
                 have_factor = rep.iterations > 0 || rep.inertia.is_some();
                 report.newton_iterations += rep.iterations;
                 report.accepted_steps += 1;
@@ -182,13 +186,19 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
                         newton_iterations: report.newton_iterations,
                     },
                 };
-                if on_step(system, &step) {
+                // a committed history changes the tangent: the predictor's factorisation is that
+                // of the committed state (as a resumed ramp's first one)
+                if on_step(system, &step) || history {
                     have_factor = system.evaluate(&mut predictor_work, Some(&mut k)).is_ok()
                         && solver.factor(&k).is_ok();
                 }
                 continue;
             }
-            Ok(rep) => {
+            (Ok(rep), Some(Err(e))) => {
+                report.newton_iterations += rep.iterations;
+                format!("the accepted state could not be committed: {e}")
+            }
+            (Ok(rep), None) => {
                 report.newton_iterations += rep.iterations;
                 format!(
                     "converged state is unstable (tangent has {} negative pivots, {} expected)",
@@ -196,7 +206,7 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
                     system.expected_negative_pivots()
                 )
             }
-            Err(e) => {
+            (Err(e), _) => {
                 report.newton_iterations += match &e {
                     NewtonError::MaxIterations { iterations, .. } => *iterations,
                     NewtonError::Diverged { iteration, .. }

@@ -1,6 +1,6 @@
 //! One time step of the coupled problem, as a nonlinear system for Newton.
 //!
-//! **Midpoint variational integrator** (PHYSICS.md §2.1): the discrete Lagrangian
+//! **Midpoint variational integrator** (Marsden & West 2001; docs/theory.md): the discrete Lagrangian
 //! L_d = Δt·L(q_{n+½}, (q_{n+1} − q_n)/Δt) with Kelvin–Voigt forces through the discrete
 //! Lagrange–d'Alembert principle gives, in position–velocity form (p = M v),
 //!   R_u = M(v̄ − v_n) + (Δt/2)[∇_u V(q_{n+½}) − f_vis(q_{n+½}, v̄) − f_ext] = 0,   v̄ = (q_{n+1} − q_n)/Δt,

@@ -1,4 +1,4 @@
-//! The trapezoidal discrete Lagrangian (PHYSICS.md §2.2): L_d = (Δt/2)[L(q_n, v̄) + L(q_{n+1}, v̄)],
+//! The trapezoidal discrete Lagrangian (docs/theory.md): L_d = (Δt/2)[L(q_n, v̄) + L(q_{n+1}, v̄)],
 //! v̄ = (q_{n+1} − q_n)/Δt, with the reduced potential V(u, Φ*(u)) and Kelvin–Voigt forces
 //! f_d⁻ = (Δt/2) f_vis(q_n, v̄), f_d⁺ = (Δt/2) f_vis(q_{n+1}, v̄). In position–momentum form:
 //!   M v̄ = p_n − (Δt/2)[f(q_n) + f_vis-term at q_n],      p_{n+1} = M v̄ − (Δt/2) f(q_{n+1}, v̄),
