@@ -1,0 +1,690 @@
+//! `[mesh]`: the generators (`box`, `disc`, `stack`) and Gmsh files, the element kind, the
+//! formulation, the keys of one generator given to another, and the cell-count guard.
+
+use super::materials::Materials;
+use super::{Ctx, MAX_CELLS};
+use crate::element::mean_dilatation::Formulation;
+use crate::io::scenario::{closest, InputError, MeshSpec, Scenario};
+use crate::mesh::disc::{disc_mesh, DiscSpec};
+use crate::mesh::stack::{stack_mesh, StackSpec};
+use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
+use crate::problem::model::Model;
+use std::path::Path;
+
+/// The element kinds by scenario name.
+const ELEMENTS: [(&str, ElementKind); 3] = [
+    ("hex8", ElementKind::Hex8),
+    ("tet4", ElementKind::Tet4),
+    ("tet10", ElementKind::Tet10),
+];
+
+/// The generators by scenario name.
+const GENERATORS: [&str; 3] = ["box", "disc", "stack"];
+
+/// Keys of the `stack` generator (the other generators reject them).
+const STACK_KEYS: [&str; 6] = [
+    "side",
+    "films",
+    "film_thickness",
+    "border",
+    "layers_per_film",
+    "active_cells",
+];
+
+/// The mesh of a scenario, and warnings about it (cells the Gmsh import reoriented); refused when
+/// it would not fit in memory.
+pub(super) fn build_mesh(
+    ctx: &Ctx,
+    s: &Scenario,
+    base_dir: Option<&Path>,
+) -> Result<(Mesh, Vec<String>), InputError> {
+    let (mesh, warnings) = mesh_of(ctx, &s.mesh, base_dir)?;
+    crate::io::memory::check(mesh.n_nodes() as u64, mesh.n_cells() as u64, mesh.kind)
+        .map_err(|e| ctx.err("mesh", e))?;
+    Ok((mesh, warnings))
+}
+
+/// The model of the mesh with its materials, and the formulation of `mesh.formulation`.
+pub(super) fn build_model(
+    ctx: &Ctx,
+    s: &Scenario,
+    mesh: Mesh,
+    materials: Materials,
+) -> Result<Model, InputError> {
+    let mut model = Model::new(mesh, materials.materials[0].clone())
+        .map_err(|e| ctx.err("mesh", e.to_string()))?;
+    model.materials = materials.materials;
+    model.cell_material = materials.cell_material;
+    if let Some(f) = &s.mesh.formulation {
+        model.formulation = Formulation::from_name(f).ok_or_else(|| {
+            ctx.err(
+                "mesh.formulation",
+                format!("unknown formulation `{f}`: expected `standard` or `mean-dilatation`"),
+            )
+        })?;
+        if model.formulation == Formulation::MeanDilatation && model.mesh.kind == ElementKind::Tet10
+        {
+            return Err(ctx.err(
+                "mesh.formulation",
+                "`mean-dilatation` is the locking-free hex8 (Q1/P0); tet10 is used with the \
+                 `standard` formulation",
+            ));
+        }
+    }
+    Ok(model)
+}
+
+/// Copies of the meshed part that make the physical device: 4 for a quarter disc or stack.
+pub(super) fn symmetry_factor(m: &MeshSpec) -> f64 {
+    if matches!(m.generator.as_deref(), Some("disc" | "stack")) && m.quarter != Some(false) {
+        4.0
+    } else {
+        1.0
+    }
+}
+
+fn element_kind(ctx: &Ctx, name: &str) -> Result<ElementKind, InputError> {
+    ELEMENTS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, k)| *k)
+        .ok_or_else(|| {
+            let hint = closest(name, ELEMENTS.map(|e| e.0))
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            ctx.err(
+                "mesh.element",
+                format!("unknown element `{name}`: expected `hex8`, `tet4` or `tet10`{hint}"),
+            )
+        })
+}
+
+/// The mesh read from `mesh.file` or made by `mesh.generator`.
+fn mesh_of(
+    ctx: &Ctx,
+    m: &MeshSpec,
+    base_dir: Option<&Path>,
+) -> Result<(Mesh, Vec<String>), InputError> {
+    if let Some(file) = &m.file {
+        return build_file_mesh(ctx, m, file, base_dir);
+    }
+    if m.scale.is_some() {
+        return Err(ctx.err("mesh.scale", "applies to meshes read from a `file` only"));
+    }
+    let generator = generator(ctx, m)?;
+    reject_foreign_keys(ctx, m, generator)?;
+    let kind = element_kind(ctx, m.element.as_deref().unwrap_or("hex8"))?;
+    let mesh = match generator {
+        "disc" => build_disc(ctx, m, kind)?,
+        "stack" => build_stack(ctx, m, kind)?,
+        _ => build_box(ctx, m, kind)?,
+    };
+    Ok((mesh, Vec::new()))
+}
+
+/// `mesh.generator`, one of [`GENERATORS`].
+fn generator<'a>(ctx: &Ctx, m: &'a MeshSpec) -> Result<&'a str, InputError> {
+    let generator = m.generator.as_deref().ok_or_else(|| {
+        ctx.err(
+            "mesh.generator",
+            "missing: expected `box`, `disc` or `stack` (or a `file`)",
+        )
+    })?;
+    if !GENERATORS.contains(&generator) {
+        let hint = closest(generator, GENERATORS)
+            .map(|c| format!("; did you mean `{c}`?"))
+            .unwrap_or_default();
+        return Err(ctx.err(
+            "mesh.generator",
+            format!("unknown generator `{generator}`: expected `box`, `disc` or `stack`{hint}"),
+        ));
+    }
+    Ok(generator)
+}
+
+/// The `box` generator: `size` = [lx, ly, lz] in m, `divisions` = [nx, ny, nz] cells.
+fn build_box(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputError> {
+    let size = m
+        .size
+        .ok_or_else(|| ctx.err("mesh.size", "missing: expected [lx, ly, lz] in m"))?;
+    for (i, v) in size.iter().enumerate() {
+        ctx.positive(&format!("mesh.size.{i}"), Some(*v), "edge length in m")?;
+    }
+    let div = m.divisions.ok_or_else(|| {
+        ctx.err(
+            "mesh.divisions",
+            "missing: expected [nx, ny, nz], cells per direction",
+        )
+    })?;
+    if div.contains(&0) {
+        return Err(ctx.err("mesh.divisions", "every entry must be at least 1"));
+    }
+    let per_hex = if kind == ElementKind::Hex8 { 1 } else { 6 };
+    let cells = div
+        .iter()
+        .try_fold(per_hex as u64, |acc, &d| acc.checked_mul(d));
+    match cells {
+        Some(c) if c <= MAX_CELLS => {
+            // before generating it: the nodes of the box
+            let per_div = if kind == ElementKind::Tet10 { 2 } else { 1 };
+            let nodes: u64 = div.iter().map(|&d| per_div * d + 1).product();
+            crate::io::memory::check(nodes, c, kind).map_err(|e| ctx.err("mesh.divisions", e))?;
+        }
+        _ => {
+            return Err(ctx.err(
+                "mesh.divisions",
+                format!(
+                "{div:?} gives more than {MAX_CELLS} cells: too large for this machine's memory"
+            ),
+            ))
+        }
+    }
+    Ok(box_mesh(
+        size,
+        [div[0] as usize, div[1] as usize, div[2] as usize],
+        kind,
+    ))
+}
+
+/// Rejects a stack key given to `box` or `disc`, and a `box` or `disc` key given to `stack`.
+fn reject_foreign_keys(ctx: &Ctx, m: &MeshSpec, generator: &str) -> Result<(), InputError> {
+    let given = [
+        ("size", m.size.is_some()),
+        ("divisions", m.divisions.is_some()),
+        ("radius", m.radius.is_some()),
+        ("thickness", m.thickness.is_some()),
+        ("pad_radius", m.pad_radius.is_some()),
+        ("electrode_radius", m.electrode_radius.is_some()),
+        ("radial", m.radial.is_some()),
+        ("layers", m.layers.is_some()),
+        ("side", m.side.is_some()),
+        ("films", m.films.is_some()),
+        ("film_thickness", m.film_thickness.is_some()),
+        ("border", m.border.is_some()),
+        ("layers_per_film", m.layers_per_film.is_some()),
+        ("active_cells", m.active_cells.is_some()),
+    ];
+    for (key, is_given) in given {
+        let stack_key = STACK_KEYS.contains(&key);
+        if is_given && stack_key != (generator == "stack") {
+            let owner = if stack_key {
+                "`stack`"
+            } else {
+                "`box` or `disc`"
+            };
+            return Err(ctx.err(
+                format!("mesh.{key}"),
+                format!("applies to the {owner} generator, not to `generator = \"{generator}\"`"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Rejects a generator key given with `mesh.file`.
+fn reject_generator_keys(ctx: &Ctx, m: &MeshSpec, file: &str) -> Result<(), InputError> {
+    let generator_keys = [
+        ("generator", m.generator.is_some()),
+        ("size", m.size.is_some()),
+        ("divisions", m.divisions.is_some()),
+        ("radius", m.radius.is_some()),
+        ("thickness", m.thickness.is_some()),
+        ("pad_radius", m.pad_radius.is_some()),
+        ("electrode_radius", m.electrode_radius.is_some()),
+        ("radial", m.radial.is_some()),
+        ("layers", m.layers.is_some()),
+        ("quarter", m.quarter.is_some()),
+        ("grading", m.grading.is_some()),
+        ("side", m.side.is_some()),
+        ("films", m.films.is_some()),
+        ("film_thickness", m.film_thickness.is_some()),
+        ("border", m.border.is_some()),
+        ("layers_per_film", m.layers_per_film.is_some()),
+        ("active_cells", m.active_cells.is_some()),
+    ];
+    if let Some((k, _)) = generator_keys.iter().find(|(_, given)| *given) {
+        return Err(ctx.err(
+            format!("mesh.{k}"),
+            format!(
+                "applies to the mesh generators, not to a mesh read from `mesh.file = \"{file}\"`"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// `mesh.file`: a Gmsh mesh, its path relative to the scenario file.
+fn build_file_mesh(
+    ctx: &Ctx,
+    m: &MeshSpec,
+    file: &str,
+    base_dir: Option<&Path>,
+) -> Result<(Mesh, Vec<String>), InputError> {
+    reject_generator_keys(ctx, m, file)?;
+    let scale = match m.scale {
+        None => 1.0,
+        Some(v) => ctx.positive("mesh.scale", Some(v), "factor from file units to m")?,
+    };
+    let path = base_dir
+        .map(|d| d.join(file))
+        .unwrap_or_else(|| file.into());
+    let g = crate::mesh::gmsh::read_msh(&path, scale)
+        .map_err(|e| ctx.err("mesh.file", e.to_string()))?;
+    if let Some(name) = &m.element {
+        let want = element_kind(ctx, name)?;
+        if want != g.mesh.kind {
+            return Err(ctx.err(
+                "mesh.element",
+                format!(
+                    "`{name}` given, but `{}` holds {} cells",
+                    path.display(),
+                    g.mesh.kind.name()
+                ),
+            ));
+        }
+    }
+    if g.mesh.n_cells() as u64 > MAX_CELLS {
+        return Err(ctx.err(
+            "mesh.file",
+            format!(
+                "{} cells: too large for this machine's memory",
+                g.mesh.n_cells()
+            ),
+        ));
+    }
+    let mut warnings = Vec::new();
+    if g.reoriented > 0 {
+        warnings.push(format!(
+            "{}: {} inverted cells were reordered to a positive orientation",
+            path.display(),
+            g.reoriented
+        ));
+    }
+    Ok((g.mesh, warnings))
+}
+
+/// The `disc` generator: a circular membrane (O-grid) with sets `rim`, `top`, `bottom`, `pad`,
+/// `electrode_top`, `electrode_bottom` (and `symmetry_x`, `symmetry_y` for a quarter).
+fn build_disc(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputError> {
+    let radius = ctx.positive("mesh.radius", m.radius, "outer radius in m")?;
+    let thickness = ctx.positive("mesh.thickness", m.thickness, "thickness in m")?;
+    let pad_radius = ctx.positive("mesh.pad_radius", m.pad_radius, "pad radius in m")?;
+    let electrode_radius = ctx.positive(
+        "mesh.electrode_radius",
+        m.electrode_radius,
+        "electrode radius in m",
+    )?;
+    let radial = m.radial.unwrap_or(8);
+    let layers = m.layers.unwrap_or(1);
+    if !(2..=2000).contains(&radial) {
+        return Err(ctx.err(
+            "mesh.radial",
+            format!("must be between 2 and 2000; got {radial}"),
+        ));
+    }
+    if !(1..=200).contains(&layers) {
+        return Err(ctx.err(
+            "mesh.layers",
+            format!("must be between 1 and 200; got {layers}"),
+        ));
+    }
+    let spec = DiscSpec {
+        radius,
+        thickness,
+        pad_radius,
+        electrode_radius,
+        radial: radial as usize,
+        layers: layers as usize,
+        quarter: m.quarter.unwrap_or(true),
+        grading: m.grading.unwrap_or(1.0),
+        kind,
+    };
+    let layout = spec.layout().map_err(|e| ctx.err("mesh", e))?;
+    check_cell_count(ctx, "mesh.radial", layout.hexahedra, kind)?;
+    disc_mesh(&spec).map_err(|e| ctx.err("mesh", e))
+}
+
+/// Refuses a generated mesh of more than [`MAX_CELLS`] cells (`hexahedra` of the layout, six
+/// tetrahedra each for tet meshes), naming `key`, the parameter that sets the size.
+fn check_cell_count(
+    ctx: &Ctx,
+    key: &str,
+    hexahedra: usize,
+    kind: ElementKind,
+) -> Result<(), InputError> {
+    let cells = hexahedra as u64 * if kind == ElementKind::Hex8 { 1 } else { 6 };
+    if cells > MAX_CELLS {
+        return Err(ctx.err(
+            key,
+            format!("{cells} cells: too large for this machine's memory"),
+        ));
+    }
+    Ok(())
+}
+
+/// `mesh.side` of the `stack` generator: one side length or [lx, ly] in m.
+fn stack_side(ctx: &Ctx, m: &MeshSpec) -> Result<[f64; 2], InputError> {
+    let side = match m.side.as_ref().map(|s| s.to_vec()) {
+        None => {
+            return Err(ctx.err(
+                "mesh.side",
+                "missing: expected the side length in m, or [lx, ly]",
+            ))
+        }
+        Some(v) if v.len() == 1 => [v[0], v[0]],
+        Some(v) if v.len() == 2 => [v[0], v[1]],
+        Some(v) => {
+            return Err(ctx.err(
+                "mesh.side",
+                format!(
+                    "expected one side length or [lx, ly] in m; got {} values",
+                    v.len()
+                ),
+            ))
+        }
+    };
+    for (i, v) in side.iter().enumerate() {
+        ctx.positive(&format!("mesh.side.{i}"), Some(*v), "side length in m")?;
+    }
+    Ok(side)
+}
+
+/// The `stack` generator: `films` films with electrodes `electrode_0` … `electrode_N` on every
+/// interface, a passive `border`, cells graded toward the electrode edges (see
+/// [`crate::mesh::stack`]).
+fn build_stack(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputError> {
+    let side = stack_side(ctx, m)?;
+    let film_thickness = ctx.positive(
+        "mesh.film_thickness",
+        m.film_thickness,
+        "film thickness in m",
+    )?;
+    let films = m
+        .films
+        .ok_or_else(|| ctx.err("mesh.films", "missing: expected the number of films (≥ 1)"))?;
+    let border = m.border.ok_or_else(|| {
+        ctx.err(
+            "mesh.border",
+            "missing: expected the passive border width in m",
+        )
+    })?;
+    let half = 0.5 * side[0].min(side[1]);
+    if !(border.is_finite() && border >= 0.0 && border < half) {
+        return Err(ctx.err(
+            "mesh.border",
+            format!("must lie in [0, {half}) m (half the shorter side); got {border}"),
+        ));
+    }
+    for (key, value, range) in [
+        ("films", films, 1..=1000),
+        ("layers_per_film", m.layers_per_film.unwrap_or(2), 1..=100),
+        ("active_cells", m.active_cells.unwrap_or(8), 1..=2000),
+    ] {
+        if !range.contains(&value) {
+            return Err(ctx.err(
+                format!("mesh.{key}"),
+                format!(
+                    "must be between {} and {}; got {value}",
+                    range.start(),
+                    range.end()
+                ),
+            ));
+        }
+    }
+    let grading = m.grading.unwrap_or(1.0);
+    if !(grading.is_finite() && (1.0..=1e3).contains(&grading)) {
+        return Err(ctx.err(
+            "mesh.grading",
+            format!("expected a size ratio between 1 and 1000; got {grading}"),
+        ));
+    }
+    let spec = StackSpec {
+        side,
+        films: films as usize,
+        film_thickness,
+        border,
+        layers_per_film: m.layers_per_film.unwrap_or(2) as usize,
+        active_cells: m.active_cells.unwrap_or(8) as usize,
+        grading,
+        quarter: m.quarter.unwrap_or(true),
+        kind,
+    };
+    let layout = spec.layout().map_err(|e| ctx.err("mesh", e))?;
+    check_cell_count(ctx, "mesh.active_cells", layout.hexahedra, kind)?;
+    stack_mesh(&spec).map_err(|e| ctx.err("mesh", e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::{assert_names, assert_rejected, plan, scenario, CTX};
+    use super::*;
+
+    const DISC: &str = "[mesh]\ngenerator = \"disc\"\nradius = 17.5e-3\nthickness = 1e-3\n\
+                        pad_radius = 3.75e-3\nelectrode_radius = 7.5e-3\nradial = 6\nlayers = 1";
+    const STACK: &str = "[mesh]\ngenerator = \"stack\"\nside = 4e-3\nfilms = 2\n\
+                         film_thickness = 50e-6\nborder = 0.4e-3\nlayers_per_film = 2\n\
+                         active_cells = 2";
+
+    fn box_mesh_of(extra: &str) -> String {
+        format!(
+            "[mesh]\ngenerator = \"box\"\nsize = [0.01, 0.01, 0.001]\ndivisions = [2, 2, 1]\n{extra}"
+        )
+    }
+
+    fn mesh(section: &str) -> Result<(Mesh, Vec<String>), InputError> {
+        build_mesh(&CTX, &scenario(&[("mesh", section)]), None)
+    }
+
+    fn gmsh_dir() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gmsh")
+    }
+
+    #[test]
+    fn box_meshes_of_every_element_kind() {
+        let p = plan(&[]);
+        assert_eq!(p.model.mesh.kind, ElementKind::Hex8);
+        assert_eq!((p.model.mesh.n_cells(), p.model.mesh.n_nodes()), (4, 18));
+        let (m, _) = mesh(&box_mesh_of("element = \"tet4\"")).unwrap();
+        assert_eq!(
+            (m.kind, m.n_cells(), m.n_nodes()),
+            (ElementKind::Tet4, 24, 18)
+        );
+        let (m, _) = mesh(&box_mesh_of("element = \"tet10\"")).unwrap();
+        assert_eq!((m.kind, m.n_nodes()), (ElementKind::Tet10, 5 * 5 * 3));
+    }
+
+    #[test]
+    fn disc_and_stack_generators_with_their_sets_and_symmetry() {
+        let s = scenario(&[("mesh", DISC)]);
+        let (m, _) = build_mesh(&CTX, &s, None).unwrap();
+        for set in ["rim", "pad", "electrode_top", "symmetry_x"] {
+            assert!(m.set_nodes(set).is_some_and(|n| !n.is_empty()), "{set}");
+        }
+        assert_eq!(symmetry_factor(&s.mesh), 4.0);
+        let whole = format!("{DISC}\nquarter = false");
+        assert_eq!(symmetry_factor(&scenario(&[("mesh", &whole)]).mesh), 1.0);
+        let (m, _) = mesh(STACK).unwrap();
+        for set in ["electrode_0", "electrode_1", "electrode_2", "high_voltage"] {
+            assert!(m.set_nodes(set).is_some_and(|n| !n.is_empty()), "{set}");
+        }
+        assert!(m.set_nodes("electrode_3").is_none());
+    }
+
+    #[test]
+    fn the_formulation_is_set_on_the_model() {
+        let p = plan(&[("mesh", &box_mesh_of("formulation = \"mean-dilatation\""))]);
+        assert_eq!(p.model.formulation, Formulation::MeanDilatation);
+        let p = plan(&[]);
+        assert_eq!(p.model.formulation, Formulation::Standard);
+    }
+
+    #[test]
+    fn gmsh_files_are_read_relative_to_the_base_directory_and_scaled() {
+        let s = scenario(&[(
+            "mesh",
+            "[mesh]\nfile = \"film-hex8-msh22.msh\"\nscale = 1e-3\nelement = \"hex8\"",
+        )]);
+        let (m, _) = build_mesh(&CTX, &s, Some(&gmsh_dir())).unwrap();
+        assert_eq!(m.kind, ElementKind::Hex8);
+        // drawn in mm: 10 x 10 x 1 mm after scaling
+        let zmax = m.nodes.iter().map(|x| x[2]).fold(f64::MIN, f64::max);
+        assert!((zmax - 1e-3).abs() < 1e-12, "{zmax}");
+    }
+
+    #[test]
+    fn unknown_or_missing_generators_are_rejected() {
+        let e = mesh("[mesh]\ngenerator = \"bx\"").unwrap_err();
+        assert_names(&e, "mesh.generator", "unknown generator `bx`");
+        assert!(e.message.ends_with("did you mean `box`?"), "{e}");
+        let e = mesh("[mesh]\nsize = [1.0, 1.0, 1.0]").unwrap_err();
+        assert_names(
+            &e,
+            "mesh.generator",
+            "missing: expected `box`, `disc` or `stack`",
+        );
+        let e = mesh(&box_mesh_of("scale = 2.0")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.scale",
+            "applies to meshes read from a `file` only",
+        );
+    }
+
+    #[test]
+    fn bad_box_sizes_and_divisions_are_rejected() {
+        let bad_size =
+            "[mesh]\ngenerator = \"box\"\nsize = [0.01, -1.0, 0.001]\ndivisions = [2, 2, 1]";
+        assert_rejected(
+            &[("mesh", bad_size)],
+            "mesh.size.1",
+            "must be a positive finite number (edge length in m); got -1",
+        );
+        let zero = "[mesh]\ngenerator = \"box\"\nsize = [0.01, 0.01, 0.001]\ndivisions = [2, 0, 1]";
+        assert_rejected(
+            &[("mesh", zero)],
+            "mesh.divisions",
+            "every entry must be at least 1",
+        );
+        let huge =
+            "[mesh]\ngenerator = \"box\"\nsize = [0.01, 0.01, 0.001]\ndivisions = [2000, 2000, 1]";
+        assert_rejected(
+            &[("mesh", huge)],
+            "mesh.divisions",
+            "gives more than 2000000 cells: too large",
+        );
+        let missing = "[mesh]\ngenerator = \"box\"\nsize = [0.01, 0.01, 0.001]";
+        assert_rejected(
+            &[("mesh", missing)],
+            "mesh.divisions",
+            "missing: expected [nx, ny, nz]",
+        );
+    }
+
+    #[test]
+    fn keys_of_another_generator_are_rejected() {
+        let e = mesh(&box_mesh_of("films = 2")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.films",
+            "applies to the `stack` generator, not to `generator = \"box\"`",
+        );
+        let e = mesh(&format!("{STACK}\nradius = 1.0")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.radius",
+            "applies to the `box` or `disc` generator",
+        );
+        let e = build_mesh(
+            &CTX,
+            &scenario(&[("mesh", "[mesh]\nfile = \"film-hex8-msh22.msh\"\nradial = 4")]),
+            Some(&gmsh_dir()),
+        )
+        .unwrap_err();
+        assert_names(
+            &e,
+            "mesh.radial",
+            "applies to the mesh generators, not to a mesh read",
+        );
+    }
+
+    #[test]
+    fn bad_element_kinds_and_formulations_are_rejected() {
+        let e = mesh(&box_mesh_of("element = \"hex9\"")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.element",
+            "unknown element `hex9`: expected `hex8`, `tet4`",
+        );
+        assert!(e.message.ends_with("did you mean `hex8`?"), "{e}");
+        let both = box_mesh_of("element = \"tet10\"\nformulation = \"mean-dilatation\"");
+        assert_rejected(
+            &[("mesh", &both)],
+            "mesh.formulation",
+            "tet10 is used with the",
+        );
+        let unknown = box_mesh_of("formulation = \"b-bar\"");
+        assert_rejected(
+            &[("mesh", &unknown)],
+            "mesh.formulation",
+            "unknown formulation `b-bar`",
+        );
+        let e = build_mesh(
+            &CTX,
+            &scenario(&[(
+                "mesh",
+                "[mesh]\nfile = \"film-hex8-msh22.msh\"\nelement = \"tet4\"",
+            )]),
+            Some(&gmsh_dir()),
+        )
+        .unwrap_err();
+        assert_names(&e, "mesh.element", "`tet4` given, but");
+        assert!(e.message.ends_with("holds hex8 cells"), "{e}");
+    }
+
+    #[test]
+    fn bad_disc_and_stack_parameters_are_rejected() {
+        let e = mesh(&DISC.replace("radial = 6", "radial = 1")).unwrap_err();
+        assert_names(&e, "mesh.radial", "must be between 2 and 2000; got 1");
+        let e = mesh(&DISC.replace("thickness = 1e-3", "thickness = nan")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.thickness",
+            "positive finite number (thickness in m)",
+        );
+        let e = mesh(&STACK.replace("border = 0.4e-3", "border = 3e-3")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.border",
+            "must lie in [0, 0.002) m (half the shorter side)",
+        );
+        let e = mesh(&STACK.replace("side = 4e-3", "side = [1e-3, 2e-3, 3e-3]")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.side",
+            "expected one side length or [lx, ly] in m; got 3 values",
+        );
+        let e = mesh(&STACK.replace("films = 2", "films = 0")).unwrap_err();
+        assert_names(&e, "mesh.films", "must be between 1 and 1000; got 0");
+    }
+
+    #[test]
+    fn a_missing_gmsh_file_is_rejected() {
+        let e = build_mesh(
+            &CTX,
+            &scenario(&[("mesh", "[mesh]\nfile = \"no-such-file.msh\"")]),
+            Some(&gmsh_dir()),
+        )
+        .unwrap_err();
+        assert_names(&e, "mesh.file", "no-such-file.msh");
+        let e = build_mesh(
+            &CTX,
+            &scenario(&[(
+                "mesh",
+                "[mesh]\nfile = \"film-hex8-msh22.msh\"\nscale = 0.0",
+            )]),
+            Some(&gmsh_dir()),
+        )
+        .unwrap_err();
+        assert_names(&e, "mesh.scale", "factor from file units to m");
+    }
+}

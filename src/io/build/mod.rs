@@ -1,0 +1,345 @@
+//! Validation of a parsed [`Scenario`] and construction of what the analysis runs: the model, the
+//! electrodes with their waveforms, the stages and the probes. Every error names the file, the key
+//! and what was expected (type, range, unit).
+//!
+//! One file per concern: [`mesh`] (generators, Gmsh files, element kind, formulation),
+//! [`materials`] (models, presets, regions, density, viscosity, breakdown), [`loads`]
+//! (constraints, tractions, gravity, rigid regions, pre-stretch), [`electrodes`] (electrodes and
+//! their waveforms), [`stages`], [`probes`] and [`solver`]. [`build`] calls them in a fixed order,
+//! so that a scenario with several errors always reports the same one first.
+
+mod electrodes;
+mod loads;
+mod materials;
+mod mesh;
+mod probes;
+mod solver;
+mod stages;
+
+use super::scenario::{closest, InputError, OutputSpec, Scenario};
+pub use crate::job::plan::{Electrode, OutputPlan, Plan, Prestretch, Rigid, Stage, StageKind};
+use crate::mesh::Mesh;
+use std::path::Path;
+
+/// Fewest time steps per period of a periodic voltage before a warning.
+pub const MIN_STEPS_PER_PERIOD: f64 = 20.0;
+
+/// Largest number of cells a generated mesh may have (memory guard: ~5 GB of tangent).
+pub const MAX_CELLS: u64 = 2_000_000;
+
+/// Validates a scenario and builds its plan. `file` names the source in messages; `base_dir` is
+/// where relative file names point.
+pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, InputError> {
+    let ctx = Ctx { file };
+    check_name(&ctx, &s.name)?;
+    let (mesh, mut warnings) = mesh::build_mesh(&ctx, s, base_dir)?;
+    let materials = materials::build_materials(&ctx, s, &mesh, &mut warnings)?;
+    let mut model = mesh::build_model(&ctx, s, mesh, materials)?;
+    let symmetry_factor = mesh::symmetry_factor(&s.mesh);
+    let loads = loads::build_loads(&ctx, s, &mut model, symmetry_factor)?;
+    let (breakdown, stop_at_breakdown) = materials::build_breakdown(&ctx, s)?;
+    let electrodes = electrodes::build_electrodes(&ctx, s, &model.mesh, base_dir)?;
+    let mut supports = loads.supports;
+    supports.extend(electrodes::ground_without_electrodes(
+        &electrodes,
+        &model.mesh,
+    ));
+    let stages = stages::build_stages(&ctx, s)?;
+    let probes = probes::build_probes(&ctx, s, &model, &electrodes)?;
+    let output = build_output(&ctx, &s.output)?;
+    warnings.extend(stages::aliasing_warnings(&stages, &electrodes));
+    Ok(Plan {
+        name: s.name.clone(),
+        model,
+        supports,
+        electrodes,
+        stages,
+        probes,
+        output,
+        densities: materials::densities(s),
+        viscosities: materials::viscosities(s),
+        warnings,
+        rigid: loads.rigid,
+        material_names: s.materials.keys().cloned().collect(),
+        prestretch: loads.prestretch,
+        symmetry_factor,
+        breakdown,
+        stop_at_breakdown,
+        solver: solver::build_solver(&ctx, s)?,
+    })
+}
+
+/// `name`: it names the output directory.
+fn check_name(ctx: &Ctx, name: &str) -> Result<(), InputError> {
+    if name.trim().is_empty() || name.contains(['/', '\\']) || name.len() > 100 {
+        return Err(ctx.err(
+            "name",
+            "expected a non-empty name of at most 100 characters without slashes",
+        ));
+    }
+    Ok(())
+}
+
+/// `[output]` → the output settings.
+fn build_output(ctx: &Ctx, o: &OutputSpec) -> Result<OutputPlan, InputError> {
+    if !["png", "svg"].contains(&o.plot_format.as_str()) {
+        return Err(ctx.err(
+            "output.plot_format",
+            format!("expected `png` or `svg`; got `{}`", o.plot_format),
+        ));
+    }
+    Ok(OutputPlan {
+        fields_every: o.fields_every.min(usize::MAX as u64) as usize,
+        plots: o.plots,
+        plot_format: o.plot_format.clone(),
+    })
+}
+
+/// What every concern builder shares: the file name of the messages, and the common checks.
+struct Ctx<'a> {
+    file: &'a str,
+}
+
+impl Ctx<'_> {
+    fn err(&self, key: impl Into<String>, msg: impl Into<String>) -> InputError {
+        InputError::at_key(self.file, key, msg)
+    }
+
+    fn positive(&self, key: &str, v: Option<f64>, what: &str) -> Result<f64, InputError> {
+        match v {
+            None => Err(self.err(key, format!("missing: expected {what} (a positive number)"))),
+            Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+            Some(x) => Err(self.err(
+                key,
+                format!("must be a positive finite number ({what}); got {x}"),
+            )),
+        }
+    }
+
+    fn finite(&self, key: &str, v: f64, what: &str) -> Result<f64, InputError> {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(self.err(key, format!("must be a finite number ({what}); got {v}")))
+        }
+    }
+
+    fn set_nodes(&self, mesh: &Mesh, key: &str, name: &str) -> Result<Vec<usize>, InputError> {
+        match mesh.set_nodes(name) {
+            Some(n) if !n.is_empty() => Ok(n),
+            Some(_) => Err(self.err(key, format!("set `{name}` is empty"))),
+            None => {
+                let names = mesh.set_names();
+                let hint = closest(name, names.iter().map(|s| s.as_str()))
+                    .map(|c| format!("; did you mean `{c}`?"))
+                    .unwrap_or_default();
+                Err(self.err(
+                    key,
+                    format!(
+                        "unknown set `{name}` (the mesh has: {}){hint}",
+                        names.join(", ")
+                    ),
+                ))
+            }
+        }
+    }
+}
+
+/// Scenarios for the unit tests of the concern builders: a small valid scenario whose sections
+/// can be replaced or added to.
+#[cfg(test)]
+mod testing {
+    use super::{build, Ctx, Plan};
+    use crate::io::scenario::{parse, InputError, Scenario};
+
+    /// The file name of the test scenarios.
+    pub(super) const FILE: &str = "test.toml";
+
+    /// The context of the concern builders.
+    pub(super) const CTX: Ctx<'static> = Ctx { file: FILE };
+
+    /// A valid scenario by section: a 10 × 10 × 1 mm hex8 box of 2 × 2 × 1 cells (18 nodes, 9 on
+    /// each face z0 and z1), one neo-Hooke material, z0 held and grounded, 1 kV on z1, one static
+    /// stage of 2 steps.
+    const BASE: [(&str, &str); 6] = [
+        ("name", "name = \"t\""),
+        (
+            "mesh",
+            "[mesh]\ngenerator = \"box\"\nsize = [0.01, 0.01, 0.001]\ndivisions = [2, 2, 1]",
+        ),
+        (
+            "materials",
+            "[materials.gel]\nmodel = \"neo-hooke\"\nmu = 1e5\nlambda = 1e7\npermittivity = 4.7",
+        ),
+        (
+            "constraints",
+            "[[constraints]]\nset = \"z0\"\nfix = [\"x\", \"y\", \"z\"]",
+        ),
+        (
+            "electrodes",
+            "[electrodes.top]\nset = \"z1\"\nvoltage = 1000.0\n\
+             [electrodes.bottom]\nset = \"z0\"\nvoltage = 0.0",
+        ),
+        ("stages", "[[stages]]\nkind = \"static\"\nsteps = 2"),
+    ];
+
+    /// The text of the base scenario with the sections named in `with` replaced (an empty text
+    /// removes the section); sections not in the base (`probes`, `loads`, …) are appended.
+    pub(super) fn text(with: &[(&str, &str)]) -> String {
+        let pick = |name: &str, base: &'static str| {
+            with.iter()
+                .find(|(n, _)| *n == name)
+                .map_or(base.to_string(), |(_, t)| t.to_string())
+        };
+        let mut sections: Vec<String> = BASE.iter().map(|(n, t)| pick(n, t)).collect();
+        for (n, t) in with {
+            if !BASE.iter().any(|(b, _)| b == n) {
+                sections.push(t.to_string());
+            }
+        }
+        sections.join("\n") + "\n"
+    }
+
+    /// The parsed scenario of [`text`].
+    pub(super) fn scenario(with: &[(&str, &str)]) -> Scenario {
+        let text = text(with);
+        parse(&text, FILE, &[]).unwrap_or_else(|e| panic!("{e}\n{text}"))
+    }
+
+    /// The plan of [`text`], which must build.
+    pub(super) fn plan(with: &[(&str, &str)]) -> Plan {
+        build(&scenario(with), FILE, None).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// The error of [`text`], which must not build.
+    pub(super) fn error(with: &[(&str, &str)]) -> InputError {
+        build(&scenario(with), FILE, None).expect_err("the scenario must be rejected")
+    }
+
+    /// Asserts that `e` names the file and `key`, and says `expected`.
+    pub(super) fn assert_names(e: &InputError, key: &str, expected: &str) {
+        let msg = e.to_string();
+        assert_eq!(e.file, FILE, "{msg}");
+        assert_eq!(e.key.as_deref(), Some(key), "{msg}");
+        assert!(msg.starts_with(&format!("{FILE}: key `{key}`: ")), "{msg}");
+        assert!(msg.contains(expected), "`{expected}` not in: {msg}");
+    }
+
+    /// Asserts that the scenario of [`text`] is rejected at `key` with a message saying `expected`.
+    pub(super) fn assert_rejected(with: &[(&str, &str)], key: &str, expected: &str) {
+        assert_names(&error(with), key, expected);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::testing::{assert_names, assert_rejected, plan, text, CTX};
+    use crate::problem::dofs::Field;
+
+    #[test]
+    fn the_base_scenario_builds_with_the_defaults() {
+        let p = plan(&[]);
+        assert_eq!(p.name, "t");
+        assert_eq!(p.model.mesh.n_cells(), 4);
+        // three components held on z0, no ground: there are electrodes
+        assert_eq!(p.supports.len(), 3);
+        assert_eq!(p.electrodes.len(), 2);
+        assert_eq!(p.stages.len(), 1);
+        assert_eq!(p.output.fields_every, 1);
+        assert!(p.output.plots);
+        assert_eq!(p.output.plot_format, "png");
+        assert_eq!(p.symmetry_factor, 1.0);
+        assert_eq!(p.material_names, ["gel"]);
+        assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+    }
+
+    #[test]
+    fn output_settings_are_taken_over() {
+        let p = plan(&[(
+            "output",
+            "[output]\nfields_every = 5\nplots = false\nplot_format = \"svg\"",
+        )]);
+        assert_eq!(p.output.fields_every, 5);
+        assert!(!p.output.plots);
+        assert_eq!(p.output.plot_format, "svg");
+    }
+
+    #[test]
+    fn without_electrodes_the_potential_is_held_at_zero_everywhere() {
+        let p = plan(&[("electrodes", "")]);
+        assert!(p.electrodes.is_empty());
+        let ground = p.supports.last().unwrap();
+        assert_eq!(ground.field, Field::Phi);
+        assert_eq!(ground.value, 0.0);
+        assert_eq!(ground.nodes.len(), p.model.mesh.n_nodes());
+        assert_eq!(p.supports.len(), 4);
+    }
+
+    #[test]
+    fn ctx_accepts_positive_and_finite_numbers_and_known_sets() {
+        assert_eq!(CTX.positive("a.b", Some(2.5), "length in m").unwrap(), 2.5);
+        assert_eq!(CTX.finite("a.b", -3.0, "offset").unwrap(), -3.0);
+        let p = plan(&[]);
+        assert_eq!(CTX.set_nodes(&p.model.mesh, "k", "z1").unwrap().len(), 9);
+    }
+
+    #[test]
+    fn a_name_with_a_slash_is_rejected() {
+        let with = [("name", "name = \"a/b\"")];
+        assert_rejected(&with, "name", "without slashes");
+        assert_rejected(&[("name", "name = \"  \"")], "name", "non-empty name");
+    }
+
+    #[test]
+    fn an_unknown_plot_format_is_rejected() {
+        assert_rejected(
+            &[("output", "[output]\nplot_format = \"jpg\"")],
+            "output.plot_format",
+            "expected `png` or `svg`; got `jpg`",
+        );
+    }
+
+    #[test]
+    fn ctx_rejects_missing_non_positive_and_non_finite_numbers() {
+        let e = CTX
+            .positive("mesh.radius", None, "outer radius in m")
+            .unwrap_err();
+        assert_names(&e, "mesh.radius", "missing: expected outer radius in m");
+        let e = CTX.positive("x", Some(0.0), "length in m").unwrap_err();
+        assert_names(
+            &e,
+            "x",
+            "must be a positive finite number (length in m); got 0",
+        );
+        let e = CTX.finite("y", f64::NAN, "offset in V").unwrap_err();
+        assert_names(&e, "y", "must be a finite number (offset in V); got NaN");
+    }
+
+    #[test]
+    fn ctx_rejects_an_unknown_set_with_a_suggestion() {
+        let p = plan(&[]);
+        let e = CTX
+            .set_nodes(&p.model.mesh, "probes.a.set", "z2")
+            .unwrap_err();
+        assert_names(
+            &e,
+            "probes.a.set",
+            "unknown set `z2` (the mesh has: all, x0, x1",
+        );
+        assert!(e.message.ends_with("did you mean `z0`?"), "{e}");
+    }
+
+    #[test]
+    fn the_first_error_in_build_order_is_reported() {
+        // a bad mesh and a bad stage: the mesh is checked first
+        let with = [
+            (
+                "mesh",
+                "[mesh]\ngenerator = \"box\"\nsize = [0.01, 0.01, 0.001]\ndivisions = [0, 2, 1]",
+            ),
+            ("stages", "[[stages]]\nkind = \"statik\""),
+        ];
+        assert_rejected(&with, "mesh.divisions", "at least 1");
+        assert!(text(&with).contains("statik"));
+    }
+}

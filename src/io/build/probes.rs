@@ -1,0 +1,349 @@
+//! `[probes.<name>]`: the recorded quantities.
+
+use super::{Ctx, Electrode};
+use crate::io::scenario::{closest, InputError, ProbeSpec, Scenario};
+use crate::job::probes::{NodalQuantity, Probe, ProbeKind};
+use crate::problem::model::Model;
+
+/// The probe kinds by scenario name.
+const KINDS: [&str; 10] = [
+    "mean",
+    "max",
+    "min",
+    "point",
+    "charge",
+    "capacitance",
+    "reaction",
+    "energy",
+    "center_deflection",
+    "max_electric_field",
+];
+
+/// The nodal quantities by scenario name.
+const NODAL: [&str; 5] = ["ux", "uy", "uz", "u", "phi"];
+
+/// The probes in name order, with their names.
+pub(super) fn build_probes(
+    ctx: &Ctx,
+    s: &Scenario,
+    model: &Model,
+    electrodes: &[Electrode],
+) -> Result<Vec<(String, Probe)>, InputError> {
+    let mut probes = Vec::new();
+    for (name, p) in &s.probes {
+        let key = format!("probes.{name}");
+        probes.push((name.clone(), build_probe(ctx, &key, p, model, electrodes)?));
+    }
+    Ok(probes)
+}
+
+/// The probe at `key`: its kind, `scale` and `offset`.
+fn build_probe(
+    ctx: &Ctx,
+    key: &str,
+    p: &ProbeSpec,
+    model: &Model,
+    electrodes: &[Electrode],
+) -> Result<Probe, InputError> {
+    let kind = probe_kind(ctx, key, p, model, electrodes)?;
+    let scale = ctx.finite(&format!("{key}.scale"), p.scale.unwrap_or(1.0), "factor")?;
+    let offset = ctx.finite(&format!("{key}.offset"), p.offset.unwrap_or(0.0), "offset")?;
+    Ok(Probe {
+        kind,
+        scale,
+        offset,
+    })
+}
+
+/// What the probe measures, by `kind`.
+fn probe_kind(
+    ctx: &Ctx,
+    key: &str,
+    p: &ProbeSpec,
+    model: &Model,
+    electrodes: &[Electrode],
+) -> Result<ProbeKind, InputError> {
+    let need = |v: &Option<String>, what: &str| need(ctx, key, p, v, what);
+    let set = |name: &str| ctx.set_nodes(&model.mesh, &format!("{key}.set"), name);
+    let electrode = |name: &str| electrode_index(ctx, key, electrodes, name);
+    Ok(match p.kind.as_str() {
+        "mean" | "max" | "min" => {
+            let q = nodal(ctx, key, &need(&p.quantity, "quantity")?)?;
+            let nodes = set(&need(&p.set, "set")?)?;
+            match p.kind.as_str() {
+                "mean" => ProbeKind::Mean(q, nodes),
+                "max" => ProbeKind::Max(q, nodes),
+                _ => ProbeKind::Min(q, nodes),
+            }
+        }
+        "point" => {
+            let q = nodal(ctx, key, &need(&p.quantity, "quantity")?)?;
+            let at = p.at.ok_or_else(|| {
+                ctx.err(
+                    format!("{key}.at"),
+                    "missing: `point` probes need `at = [x, y, z]` in m",
+                )
+            })?;
+            if at.iter().any(|v| !v.is_finite()) {
+                return Err(ctx.err(format!("{key}.at"), "coordinates must be finite (m)"));
+            }
+            ProbeKind::Point(q, model.mesh.nearest_node(at))
+        }
+        "charge" => ProbeKind::Charge(electrode(&need(&p.electrode, "electrode")?)?),
+        "capacitance" => ProbeKind::Capacitance(electrode(&need(&p.electrode, "electrode")?)?),
+        "reaction" => {
+            let c = reaction_component(ctx, key, &need(&p.quantity, "quantity")?)?;
+            ProbeKind::Reaction(c, set(&need(&p.set, "set")?)?)
+        }
+        "energy" => match need(&p.quantity, "quantity")?.as_str() {
+            "stored" => ProbeKind::StoredEnergy,
+            "electric" => ProbeKind::ElectricEnergy,
+            o => {
+                return Err(ctx.err(
+                    format!("{key}.quantity"),
+                    format!("energy must be `stored` or `electric`; got `{o}`"),
+                ))
+            }
+        },
+        "center_deflection" => ProbeKind::Deflection(set(p.set.as_deref().unwrap_or("pad"))?),
+        "max_electric_field" => ProbeKind::MaxElectricField,
+        o => {
+            let hint = closest(o, KINDS)
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            return Err(ctx.err(
+                format!("{key}.kind"),
+                format!(
+                    "unknown probe kind `{o}` (known: {}){hint}",
+                    KINDS.join(", ")
+                ),
+            ));
+        }
+    })
+}
+
+/// The value of `what` (`quantity`, `set`, `electrode`), which probes of this kind need.
+fn need(
+    ctx: &Ctx,
+    key: &str,
+    p: &ProbeSpec,
+    v: &Option<String>,
+    what: &str,
+) -> Result<String, InputError> {
+    v.clone().ok_or_else(|| {
+        ctx.err(
+            format!("{key}.{what}"),
+            format!("missing: `{}` probes need `{what}`", p.kind),
+        )
+    })
+}
+
+/// A nodal quantity of [`NODAL`].
+fn nodal(ctx: &Ctx, key: &str, q: &str) -> Result<NodalQuantity, InputError> {
+    Ok(match q {
+        "ux" => NodalQuantity::Component(0),
+        "uy" => NodalQuantity::Component(1),
+        "uz" => NodalQuantity::Component(2),
+        "u" => NodalQuantity::Magnitude,
+        "phi" => NodalQuantity::Potential,
+        o => {
+            let hint = closest(o, NODAL)
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            return Err(ctx.err(
+                format!("{key}.quantity"),
+                format!(
+                    "unknown nodal quantity `{o}` (known: {}){hint}",
+                    NODAL.join(", ")
+                ),
+            ));
+        }
+    })
+}
+
+/// The component (0, 1, 2) of a reaction probe: `x`, `y` or `z`.
+fn reaction_component(ctx: &Ctx, key: &str, q: &str) -> Result<usize, InputError> {
+    match q {
+        "x" => Ok(0),
+        "y" => Ok(1),
+        "z" => Ok(2),
+        o => Err(ctx.err(
+            format!("{key}.quantity"),
+            format!("reaction component must be \"x\", \"y\" or \"z\"; got `{o}`"),
+        )),
+    }
+}
+
+/// The index of the electrode `name`.
+fn electrode_index(
+    ctx: &Ctx,
+    key: &str,
+    electrodes: &[Electrode],
+    name: &str,
+) -> Result<usize, InputError> {
+    electrodes
+        .iter()
+        .position(|e| e.name == name)
+        .ok_or_else(|| {
+            let names: Vec<&str> = electrodes.iter().map(|e| e.name.as_str()).collect();
+            ctx.err(
+                format!("{key}.electrode"),
+                format!(
+                    "unknown electrode `{name}` (electrodes: {})",
+                    names.join(", ")
+                ),
+            )
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::{assert_rejected, plan};
+    use super::*;
+
+    fn probes(text: &str) -> Vec<(String, Probe)> {
+        plan(&[("probes", text)]).probes
+    }
+
+    #[test]
+    fn nodal_probes_over_sets_and_at_points() {
+        let p = probes(
+            "[probes.a]\nkind = \"mean\"\nquantity = \"uz\"\nset = \"z1\"\nscale = 1000.0\n\
+             [probes.b]\nkind = \"point\"\nquantity = \"phi\"\nat = [0.0, 0.0, 0.001]\n\
+             [probes.c]\nkind = \"min\"\nquantity = \"u\"\nset = \"x0\"\noffset = 1.0",
+        );
+        assert_eq!(p.len(), 3);
+        let ProbeKind::Mean(q, nodes) = &p[0].1.kind else {
+            panic!("{:?}", p[0].1.kind)
+        };
+        assert_eq!((*q, nodes.len()), (NodalQuantity::Component(2), 9));
+        assert_eq!((p[0].1.scale, p[0].1.offset), (1000.0, 0.0));
+        let ProbeKind::Point(NodalQuantity::Potential, node) = p[1].1.kind else {
+            panic!("{:?}", p[1].1.kind)
+        };
+        let mesh = plan(&[]).model.mesh;
+        assert_eq!(mesh.nodes[node], [0.0, 0.0, 0.001]);
+        assert!(matches!(
+            p[2].1.kind,
+            ProbeKind::Min(NodalQuantity::Magnitude, _)
+        ));
+        assert_eq!((p[2].1.scale, p[2].1.offset), (1.0, 1.0));
+    }
+
+    #[test]
+    fn electrode_probes_refer_to_the_electrode_index() {
+        // electrodes in name order: bottom (0), top (1)
+        let p = probes(
+            "[probes.q]\nkind = \"charge\"\nelectrode = \"top\"\n\
+             [probes.c]\nkind = \"capacitance\"\nelectrode = \"bottom\"",
+        );
+        let kinds: Vec<(&str, &ProbeKind)> = p.iter().map(|(n, p)| (n.as_str(), &p.kind)).collect();
+        assert_eq!(
+            kinds,
+            [
+                ("c", &ProbeKind::Capacitance(0)),
+                ("q", &ProbeKind::Charge(1))
+            ]
+        );
+    }
+
+    #[test]
+    fn global_probes() {
+        let p = probes(
+            "[probes.e]\nkind = \"energy\"\nquantity = \"electric\"\n\
+             [probes.f]\nkind = \"max_electric_field\"\n\
+             [probes.r]\nkind = \"reaction\"\nquantity = \"y\"\nset = \"z0\"\n\
+             [probes.s]\nkind = \"center_deflection\"\nset = \"z1\"",
+        );
+        assert_eq!(p[0].1.kind, ProbeKind::ElectricEnergy);
+        assert_eq!(p[1].1.kind, ProbeKind::MaxElectricField);
+        assert!(matches!(&p[2].1.kind, ProbeKind::Reaction(1, n) if n.len() == 9));
+        assert!(matches!(&p[3].1.kind, ProbeKind::Deflection(n) if n.len() == 9));
+    }
+
+    #[test]
+    fn unknown_kinds_and_quantities_are_rejected() {
+        assert_rejected(
+            &[("probes", "[probes.a]\nkind = \"maximum\"")],
+            "probes.a.kind",
+            "unknown probe kind `maximum` (known: mean, max, min,",
+        );
+        assert_rejected(
+            &[(
+                "probes",
+                "[probes.a]\nkind = \"max\"\nquantity = \"uw\"\nset = \"z1\"",
+            )],
+            "probes.a.quantity",
+            "unknown nodal quantity `uw` (known: ux, uy, uz, u, phi); did you mean",
+        );
+        assert_rejected(
+            &[(
+                "probes",
+                "[probes.a]\nkind = \"reaction\"\nquantity = \"w\"\nset = \"z0\"",
+            )],
+            "probes.a.quantity",
+            "reaction component must be \"x\", \"y\" or \"z\"; got `w`",
+        );
+        assert_rejected(
+            &[(
+                "probes",
+                "[probes.a]\nkind = \"energy\"\nquantity = \"kinetic\"",
+            )],
+            "probes.a.quantity",
+            "energy must be `stored` or `electric`; got `kinetic`",
+        );
+    }
+
+    #[test]
+    fn missing_keys_are_rejected() {
+        assert_rejected(
+            &[("probes", "[probes.a]\nkind = \"mean\"\nquantity = \"ux\"")],
+            "probes.a.set",
+            "missing: `mean` probes need `set`",
+        );
+        assert_rejected(
+            &[("probes", "[probes.a]\nkind = \"point\"\nquantity = \"ux\"")],
+            "probes.a.at",
+            "missing: `point` probes need `at = [x, y, z]` in m",
+        );
+        assert_rejected(
+            &[("probes", "[probes.a]\nkind = \"charge\"")],
+            "probes.a.electrode",
+            "missing: `charge` probes need `electrode`",
+        );
+        // `center_deflection` defaults to the `pad` set, which a box has not
+        assert_rejected(
+            &[("probes", "[probes.a]\nkind = \"center_deflection\"")],
+            "probes.a.set",
+            "unknown set `pad`",
+        );
+    }
+
+    #[test]
+    fn bad_references_and_numbers_are_rejected() {
+        assert_rejected(
+            &[(
+                "probes",
+                "[probes.a]\nkind = \"capacitance\"\nelectrode = \"hv\"",
+            )],
+            "probes.a.electrode",
+            "unknown electrode `hv` (electrodes: bottom, top)",
+        );
+        assert_rejected(
+            &[(
+                "probes",
+                "[probes.a]\nkind = \"point\"\nquantity = \"ux\"\nat = [0.0, nan, 0.0]",
+            )],
+            "probes.a.at",
+            "coordinates must be finite (m)",
+        );
+        assert_rejected(
+            &[(
+                "probes",
+                "[probes.a]\nkind = \"max_electric_field\"\nscale = inf",
+            )],
+            "probes.a.scale",
+            "must be a finite number (factor); got inf",
+        );
+    }
+}

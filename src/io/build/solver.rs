@@ -1,0 +1,94 @@
+//! `[solver]`: the linear solver of every stage.
+
+use super::Ctx;
+use crate::io::scenario::{InputError, Scenario};
+use crate::solve::linear::{Ordering, SolverKind, SolverSettings};
+
+/// `[solver]` → the solver settings (the defaults without the table).
+pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, InputError> {
+    let mut out = SolverSettings::default();
+    let Some(spec) = &s.solver else {
+        return Ok(out);
+    };
+    if let Some(k) = &spec.kind {
+        out.kind = SolverKind::from_name(k).ok_or_else(|| {
+            ctx.err(
+                "solver.kind",
+                format!(
+                    "unknown solver `{k}`; expected one of: {}",
+                    SolverKind::NAMES.join(", ")
+                ),
+            )
+        })?;
+    }
+    if let Some(o) = &spec.ordering {
+        out.ordering = Ordering::from_name(o).ok_or_else(|| {
+            ctx.err(
+                "solver.ordering",
+                format!(
+                    "unknown ordering `{o}`; expected one of: {}",
+                    Ordering::NAMES.join(", ")
+                ),
+            )
+        })?;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::{assert_names, assert_rejected, plan, scenario, CTX};
+    use super::*;
+
+    fn solver(text: &str) -> Result<SolverSettings, InputError> {
+        build_solver(&CTX, &scenario(&[("solver", text)]))
+    }
+
+    #[test]
+    fn without_the_table_the_defaults() {
+        let s = plan(&[]).solver;
+        assert_eq!(s.kind, SolverKind::Direct);
+        assert_eq!(s.ordering, Ordering::NestedDissection);
+        assert_eq!(solver("[solver]").unwrap(), SolverSettings::default());
+    }
+
+    #[test]
+    fn the_amd_ordering() {
+        let s = plan(&[("solver", "[solver]\nkind = \"direct\"\nordering = \"amd\"")]).solver;
+        assert_eq!((s.kind, s.ordering), (SolverKind::Direct, Ordering::Amd));
+    }
+
+    #[test]
+    fn nested_dissection_by_name_and_by_its_alias() {
+        let s = solver("[solver]\nordering = \"nested-dissection\"").unwrap();
+        assert_eq!(s.ordering, Ordering::NestedDissection);
+        let s = solver("[solver]\nordering = \"metis\"").unwrap();
+        assert_eq!(s.ordering, Ordering::NestedDissection);
+    }
+
+    #[test]
+    fn an_unknown_solver_kind_is_rejected() {
+        assert_rejected(
+            &[("solver", "[solver]\nkind = \"cg\"")],
+            "solver.kind",
+            "unknown solver `cg`; expected one of: direct",
+        );
+    }
+
+    #[test]
+    fn an_unknown_ordering_is_rejected() {
+        assert_rejected(
+            &[("solver", "[solver]\nordering = \"rcm\"")],
+            "solver.ordering",
+            "unknown ordering `rcm`; expected one of: nested-dissection, amd",
+        );
+    }
+
+    #[test]
+    fn the_kind_is_checked_before_the_ordering() {
+        let e = solver("[solver]\nkind = \"iterative\"\nordering = \"rcm\"").unwrap_err();
+        assert_names(&e, "solver.kind", "unknown solver `iterative`");
+        let e = solver("[solver]\nkind = \"direct\"\nordering = \"AMD\"").unwrap_err();
+        assert_names(&e, "solver.ordering", "unknown ordering `AMD`");
+    }
+}

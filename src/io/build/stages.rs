@@ -1,0 +1,364 @@
+//! `[[stages]]`: static and dynamic stages (steps, duration, time step, integrator, mass matrix,
+//! `electrodes_on`), and the warning about a time step too long for a periodic voltage.
+
+use super::{Ctx, Electrode, Stage, StageKind, MIN_STEPS_PER_PERIOD};
+use crate::io::scenario::{closest, InputError, Scenario, StageSpec};
+use crate::time::mass::MassKind;
+use crate::time::stage::Method;
+
+/// The stages in order; at least one, with distinct names.
+pub(super) fn build_stages(ctx: &Ctx, s: &Scenario) -> Result<Vec<Stage>, InputError> {
+    if s.stages.is_empty() {
+        return Err(ctx.err("stages", "at least one stage is needed"));
+    }
+    let mut stages: Vec<Stage> = Vec::new();
+    for (i, st) in s.stages.iter().enumerate() {
+        let stage = build_stage(ctx, s, i, st)?;
+        if stages.iter().any(|s| s.name == stage.name) {
+            return Err(ctx.err(
+                format!("stages.{i}.name"),
+                format!("two stages are named `{}`", stage.name),
+            ));
+        }
+        stages.push(stage);
+    }
+    Ok(stages)
+}
+
+/// A time step that cannot resolve a periodic voltage aliases it (the midpoint rule samples the
+/// signal at t + Δt/2): say so rather than report a response to a signal never seen.
+pub(super) fn aliasing_warnings(stages: &[Stage], electrodes: &[Electrode]) -> Vec<String> {
+    let mut warnings = Vec::new();
+    for st in stages {
+        let StageKind::Dynamic { dt, .. } = st.kind else {
+            continue;
+        };
+        if !st.electrodes_on {
+            continue;
+        }
+        for e in electrodes {
+            if let Some(f) = e.voltage.frequency() {
+                let per_period = 1.0 / (f * dt);
+                if per_period < MIN_STEPS_PER_PERIOD {
+                    warnings.push(format!(
+                        "stage `{}`: dt = {dt:e} s gives only {per_period:.1} steps per period of \
+                         the {f} Hz voltage of electrode `{}` (at least {MIN_STEPS_PER_PERIOD} \
+                         are needed to resolve it; the response is aliased)",
+                        st.name, e.name
+                    ));
+                }
+            }
+        }
+    }
+    warnings
+}
+
+/// Stage `i` (`stages.<i>`).
+fn build_stage(ctx: &Ctx, s: &Scenario, i: usize, st: &StageSpec) -> Result<Stage, InputError> {
+    let key = format!("stages.{i}");
+    let name = st.name.clone().unwrap_or_else(|| format!("stage{i}"));
+    let duration = match st.duration {
+        Some(d) => ctx.positive(&format!("{key}.duration"), Some(d), "duration in s")?,
+        None => 1.0,
+    };
+    let kind = match st.kind.as_str() {
+        "static" => static_kind(ctx, &key, st)?,
+        "dynamic" => dynamic_kind(ctx, s, &key, &name, st)?,
+        o => {
+            let hint = closest(o, ["static", "dynamic"])
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            return Err(ctx.err(
+                format!("{key}.kind"),
+                format!("unknown stage kind `{o}`: expected `static` or `dynamic`{hint}"),
+            ));
+        }
+    };
+    Ok(Stage {
+        name,
+        kind,
+        duration,
+        electrodes_on: st.electrodes_on.unwrap_or(true),
+    })
+}
+
+/// `kind = "static"`: `steps` load steps; no dynamic keys.
+fn static_kind(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<StageKind, InputError> {
+    let steps = st.steps.unwrap_or(1);
+    if !(1..=1_000_000).contains(&steps) {
+        return Err(ctx.err(
+            format!("{key}.steps"),
+            format!("must be between 1 and 1000000; got {steps}"),
+        ));
+    }
+    for (k, v) in [
+        ("dt", st.dt.is_some()),
+        ("integrator", st.integrator.is_some()),
+        ("mass", st.mass.is_some()),
+    ] {
+        if v {
+            return Err(ctx.err(format!("{key}.{k}"), "applies to dynamic stages only"));
+        }
+    }
+    Ok(StageKind::Static {
+        steps: steps as usize,
+    })
+}
+
+/// `kind = "dynamic"`: `duration`, `dt`, `integrator` and `mass`; every material needs a density.
+fn dynamic_kind(
+    ctx: &Ctx,
+    s: &Scenario,
+    key: &str,
+    name: &str,
+    st: &StageSpec,
+) -> Result<StageKind, InputError> {
+    let duration = st.duration.ok_or_else(|| {
+        ctx.err(
+            format!("{key}.duration"),
+            "missing: dynamic stages need a duration in s",
+        )
+    })?;
+    let dt = ctx.positive(&format!("{key}.dt"), st.dt, "time step in s")?;
+    if dt > duration {
+        return Err(ctx.err(
+            format!("{key}.dt"),
+            format!("the time step {dt} s exceeds the stage duration {duration} s"),
+        ));
+    }
+    if duration / dt > 1e7 {
+        return Err(ctx.err(
+            format!("{key}.dt"),
+            format!("{duration} s in steps of {dt} s is more than 10⁷ steps"),
+        ));
+    }
+    if st.steps.is_some() {
+        return Err(ctx.err(
+            format!("{key}.steps"),
+            "applies to static stages only (dynamic stages use `dt`)",
+        ));
+    }
+    let scheme = integrator(ctx, key, st)?;
+    for (mname, m) in &s.materials {
+        if !m.density.is_some_and(|d| d > 0.0) {
+            return Err(ctx.err(
+                format!("materials.{mname}.density"),
+                format!("dynamic stage `{name}` needs a positive mass density in kg/m³"),
+            ));
+        }
+    }
+    let mass = match st.mass.as_deref().unwrap_or("consistent") {
+        "consistent" => MassKind::Consistent,
+        "lumped" => MassKind::Lumped,
+        o => {
+            return Err(ctx.err(
+                format!("{key}.mass"),
+                format!("expected `consistent` or `lumped`; got `{o}`"),
+            ))
+        }
+    };
+    Ok(StageKind::Dynamic { dt, scheme, mass })
+}
+
+/// `integrator`: `midpoint` (default), `trapezoidal` or `newmark` (β = 1/4, γ = 1/2).
+fn integrator(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<Method, InputError> {
+    Ok(match st.integrator.as_deref().unwrap_or("midpoint") {
+        "midpoint" => Method::Midpoint,
+        "trapezoidal" => Method::Trapezoidal,
+        "newmark" => Method::Newmark {
+            beta: 0.25,
+            gamma: 0.5,
+        },
+        o => {
+            let hint = closest(o, ["midpoint", "newmark", "trapezoidal"])
+                .map(|c| format!("; did you mean `{c}`?"))
+                .unwrap_or_default();
+            return Err(ctx.err(
+                format!("{key}.integrator"),
+                format!(
+                    "unknown integrator `{o}`: expected `midpoint`, `newmark` or `trapezoidal`{hint}"
+                ),
+            ));
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::{assert_rejected, plan};
+    use super::*;
+
+    const DENSE: &str = "[materials.gel]\nmodel = \"neo-hooke\"\nmu = 1e5\nlambda = 1e7\n\
+                         permittivity = 4.7\ndensity = 1000.0";
+
+    fn stages(text: &str) -> Vec<Stage> {
+        plan(&[("materials", DENSE), ("stages", text)]).stages
+    }
+
+    fn dynamic(extra: &str) -> String {
+        format!("[[stages]]\nkind = \"dynamic\"\nduration = 0.1\ndt = 0.01\n{extra}")
+    }
+
+    #[test]
+    fn static_stages_with_their_steps_names_and_durations() {
+        let st = stages(
+            "[[stages]]\nkind = \"static\"\nsteps = 5\nduration = 2.0\nelectrodes_on = false\n\
+             [[stages]]\nname = \"hold\"\nkind = \"static\"",
+        );
+        assert_eq!(st.len(), 2);
+        assert_eq!(st[0].name, "stage0");
+        assert_eq!(st[0].kind, StageKind::Static { steps: 5 });
+        assert_eq!((st[0].duration, st[0].electrodes_on), (2.0, false));
+        assert_eq!(st[1].name, "hold");
+        assert_eq!(st[1].kind.nominal_steps(st[1].duration), 1);
+        assert_eq!((st[1].duration, st[1].electrodes_on), (1.0, true));
+    }
+
+    #[test]
+    fn dynamic_stages_with_integrator_and_mass() {
+        let st = stages(&dynamic(""));
+        assert_eq!(
+            st[0].kind,
+            StageKind::Dynamic {
+                dt: 0.01,
+                scheme: Method::Midpoint,
+                mass: MassKind::Consistent
+            }
+        );
+        assert_eq!(st[0].kind.nominal_steps(st[0].duration), 10);
+        let st = stages(&dynamic("integrator = \"newmark\"\nmass = \"lumped\""));
+        assert_eq!(
+            st[0].kind,
+            StageKind::Dynamic {
+                dt: 0.01,
+                scheme: Method::Newmark {
+                    beta: 0.25,
+                    gamma: 0.5
+                },
+                mass: MassKind::Lumped
+            }
+        );
+        let st = stages(&dynamic("integrator = \"trapezoidal\""));
+        assert!(matches!(
+            st[0].kind,
+            StageKind::Dynamic {
+                scheme: Method::Trapezoidal,
+                ..
+            }
+        ));
+    }
+
+    #[test]
+    fn a_time_step_too_long_for_a_periodic_voltage_is_warned_about() {
+        let sine = "[electrodes.top]\nset = \"z1\"\n\
+                    voltage = { waveform = \"sine\", amplitude = 1.0, frequency = 10.0 }";
+        // 10 Hz in steps of 0.01 s: 10 steps per period
+        let p = plan(&[
+            ("materials", DENSE),
+            ("electrodes", sine),
+            ("stages", &dynamic("")),
+        ]);
+        assert_eq!(p.warnings.len(), 1, "{:?}", p.warnings);
+        assert!(p.warnings[0].contains("stage `stage0`: dt = 1e-2 s gives only 10.0 steps"));
+        assert!(p.warnings[0].contains("electrode `top`"));
+        // electrodes off, or a fine enough step: no warning
+        let off = dynamic("electrodes_on = false");
+        let p = plan(&[("materials", DENSE), ("electrodes", sine), ("stages", &off)]);
+        assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+        let fine = "[[stages]]\nkind = \"dynamic\"\nduration = 0.1\ndt = 0.001";
+        let p = plan(&[("materials", DENSE), ("electrodes", sine), ("stages", fine)]);
+        assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+    }
+
+    #[test]
+    fn bad_kinds_steps_and_names_are_rejected() {
+        let with = |t: &'static str| [("materials", DENSE), ("stages", t)];
+        assert_rejected(
+            &with("[[stages]]\nkind = \"statik\""),
+            "stages.0.kind",
+            "unknown stage kind `statik`: expected `static` or `dynamic`; did you mean `static`?",
+        );
+        assert_rejected(
+            &with("[[stages]]\nkind = \"static\"\nsteps = 0"),
+            "stages.0.steps",
+            "must be between 1 and 1000000; got 0",
+        );
+        assert_rejected(
+            &with("[[stages]]\nkind = \"static\"\ndt = 0.1"),
+            "stages.0.dt",
+            "applies to dynamic stages only",
+        );
+        assert_rejected(
+            &with("[[stages]]\nname = \"a\"\nkind = \"static\"\n[[stages]]\nname = \"a\"\nkind = \"static\""),
+            "stages.1.name",
+            "two stages are named `a`",
+        );
+        // `stages` is a top-level key: before the tables
+        let empty = [("name", "name = \"t\"\nstages = []"), ("stages", "")];
+        assert_rejected(&empty, "stages", "at least one stage is needed");
+    }
+
+    #[test]
+    fn bad_time_steps_and_durations_are_rejected() {
+        let with = |t: String| [("materials", DENSE.to_string()), ("stages", t)];
+        let check = |t: String, key: &str, expected: &str| {
+            let w = with(t);
+            let w: Vec<(&str, &str)> = w.iter().map(|(a, b)| (*a, b.as_str())).collect();
+            assert_rejected(&w, key, expected);
+        };
+        check(
+            "[[stages]]\nkind = \"dynamic\"\ndt = 0.01".into(),
+            "stages.0.duration",
+            "missing: dynamic stages need a duration in s",
+        );
+        check(
+            dynamic("").replace("dt = 0.01", ""),
+            "stages.0.dt",
+            "missing: expected time step in s (a positive number)",
+        );
+        check(
+            dynamic("").replace("dt = 0.01", "dt = 0.5"),
+            "stages.0.dt",
+            "the time step 0.5 s exceeds the stage duration 0.1 s",
+        );
+        check(
+            dynamic("").replace("dt = 0.01", "dt = 1e-9"),
+            "stages.0.dt",
+            "is more than 10⁷ steps",
+        );
+        check(
+            dynamic("steps = 4"),
+            "stages.0.steps",
+            "applies to static stages only (dynamic stages use `dt`)",
+        );
+        check(
+            dynamic("").replace("duration = 0.1", "duration = -0.1"),
+            "stages.0.duration",
+            "must be a positive finite number (duration in s); got -0.1",
+        );
+    }
+
+    #[test]
+    fn bad_integrators_masses_and_densities_are_rejected() {
+        let with = |t: &str| vec![("materials", DENSE.to_string()), ("stages", dynamic(t))];
+        let check = |w: Vec<(&str, String)>, key: &str, expected: &str| {
+            let w: Vec<(&str, &str)> = w.iter().map(|(a, b)| (*a, b.as_str())).collect();
+            assert_rejected(&w, key, expected);
+        };
+        check(
+            with("integrator = \"newmrk\""),
+            "stages.0.integrator",
+            "unknown integrator `newmrk`: expected `midpoint`, `newmark` or `trapezoidal`; did you mean `newmark`?",
+        );
+        check(
+            with("mass = \"diagonal\""),
+            "stages.0.mass",
+            "expected `consistent` or `lumped`; got `diagonal`",
+        );
+        check(
+            vec![("stages", dynamic(""))],
+            "materials.gel.density",
+            "dynamic stage `stage0` needs a positive mass density in kg/m³",
+        );
+    }
+}
