@@ -253,6 +253,17 @@ pub struct MaterialSpec {
     pub breakdown_field: Option<f64>,
     /// Stop the run at the first step whose true field exceeds `breakdown_field` (default false).
     pub stop_at_breakdown: Option<bool>,
+    /// Neo-Hookean Maxwell branches on the isochoric deformation (replace a preset's).
+    #[serde(default)]
+    pub branches: Option<Vec<BranchSpec>>,
+}
+
+/// One Maxwell branch: shear modulus `mu` (Pa) and relaxation time `tau` (s).
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BranchSpec {
+    pub mu: f64,
+    pub tau: f64,
 }
 
 /// One number or a list of numbers.

@@ -579,7 +579,11 @@ impl<'p, 'o> Job<'p, 'o> {
             }
             Err(f) => {
                 summary.newton_iterations = f.newton_iterations + self.prestretch_iterations;
-                let electric = start_voltages.iter().zip(&targets).any(|(a, b)| a != b);
+                // a limit point with a voltage on (ramped, or held while the material creeps)
+                let electric = start_voltages
+                    .iter()
+                    .zip(&targets)
+                    .any(|(a, b)| a != b || *b != 0.0);
                 let what = if f.limit_point && electric {
                     "electromechanical instability (pull-in)"
                 } else if f.limit_point {

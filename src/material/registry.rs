@@ -68,6 +68,9 @@ pub struct MaterialParams {
     pub c1: Option<f64>,
     /// Electrostrictive coefficient c₂ (F/m).
     pub c2: Option<f64>,
+    /// Neo-Hookean Maxwell branches (gᵢ in Pa, τᵢ in s) on the isochoric deformation, in
+    /// parallel with the model ([`crate::material::maxwell::Viscoelastic`]).
+    pub branches: Vec<(f64, f64)>,
 }
 
 impl MaterialParams {
@@ -141,6 +144,8 @@ pub const PRESETS: &[&str] = &[
     "vhb4910-gent",
     "vhb4910-gent-liu",
     "vhb4910-ab-wang",
+    "vhb4910-wang2016",
+    "vhb4910-hossain2012",
 ];
 
 const ELECTRIC: [&str; 3] = ["permittivity", "c1", "c2"];
@@ -420,7 +425,28 @@ pub fn build(
                 .map(|w| format!("model `{model}`: {w}")),
         );
     }
-    Ok((mat, warnings))
+    if p.branches.is_empty() {
+        return Ok((mat, warnings));
+    }
+    for (i, &(g, tau)) in p.branches.iter().enumerate() {
+        if !(g.is_finite() && g > 0.0) {
+            return Err(perr(
+                &format!("branches.{i}.mu"),
+                format!("must be a positive shear modulus in Pa; got {g}"),
+            ));
+        }
+        if !(tau.is_finite() && tau > 0.0) {
+            return Err(perr(
+                &format!("branches.{i}.tau"),
+                format!("must be a positive relaxation time in s; got {tau}"),
+            ));
+        }
+    }
+    let visco: Arc<dyn Material> = Arc::new(crate::material::maxwell::Viscoelastic {
+        equilibrium: mat,
+        branches: p.branches.clone(),
+    });
+    Ok((visco, warnings))
 }
 
 /// Warning for a Yeoh model with a negative D₂ or D₃: where the
@@ -537,6 +563,13 @@ pub fn drucker_check(mat: &dyn Material, max_stretch: f64) -> Vec<String> {
 ///   the *initial* shear modulus: the series coefficient is
 ///   μ = G₀ / (1 + 3/(5λ_m²) + …) ≈ 15.10 kPa, so that μ₀ = 15.36 kPa.
 ///   κ = 1000·G₀ is chosen here.
+/// * `vhb4910-wang2016` — the same equilibrium branch with the three
+///   neo-Hookean Maxwell branches of Wang, Decker, Henann & Chester, JMPS 96
+///   (2016): g = 26.06, 26.53, 10.83 kPa, τ = 0.6074, 6.56, 61.25 s.
+/// * `vhb4910-hossain2012` — Hossain, Vu & Steinmann, Comput. Mater. Sci. 59
+///   (2012): equilibrium μ = 13.7 kPa (the eight-chain model at small
+///   stretch, taken as neo-Hooke here), branches 56.4, 31.5, 19.8 kPa with
+///   τ = 0.82, 10.7, 500 s; εᵣ = 4.7 and κ = 1000·μ are chosen here.
 ///
 /// Mass densities of the sources are not part of the material energy and
 /// are not included.
@@ -594,6 +627,21 @@ pub fn preset(name: &str) -> Option<(&'static str, MaterialParams)> {
                 },
             )
         }
+        "vhb4910-wang2016" => {
+            let (model, mut p) = preset("vhb4910-ab-wang")?;
+            p.branches = vec![(26.06e3, 0.6074), (26.53e3, 6.56), (10.83e3, 61.25)];
+            (model, p)
+        }
+        "vhb4910-hossain2012" => (
+            "neo-hooke-split",
+            MaterialParams {
+                mu: vec![13.7e3],
+                kappa: Some(1000.0 * 13.7e3),
+                permittivity: Some(4.7),
+                branches: vec![(56.4e3, 0.82), (31.5e3, 10.7), (19.8e3, 500.0)],
+                ..Default::default()
+            },
+        ),
         _ => return None,
     };
     Some(p)

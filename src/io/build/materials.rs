@@ -216,6 +216,9 @@ fn model_and_preset(
 
 /// Parameters given in the scenario override the preset's.
 fn override_parameters(m: &MaterialSpec, p: &mut MaterialParams) {
+    if let Some(b) = &m.branches {
+        p.branches = b.iter().map(|b| (b.mu, b.tau)).collect();
+    }
     if let Some(mu) = &m.mu {
         p.mu = mu.to_vec();
     }
