@@ -136,3 +136,87 @@ fn voltage_between_the_limits_creeps_into_pull_in() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("pull-in") && err.contains("`ramp`"), "{err}");
 }
+
+/// A quasi-static stage: the electrodes follow their waveform in real time (a unipolar sine,
+/// up and down again), no inertia; for an elastic film every recorded step is the homogeneous
+/// closed-form state at the recorded voltage (to 1e-9).
+#[test]
+fn quasi_static_stage_follows_the_waveform() {
+    let dir = tempdir("quasi-static");
+    let text = r#"name = "qs"
+[mesh]
+generator = "box"
+size = [1e-3, 1e-3, 1e-3]
+divisions = [1, 1, 1]
+element = "hex8"
+[materials.film]
+model = "neo-hooke"
+mu = 1e5
+lambda = 1e7
+permittivity = 4.7
+[[constraints]]
+set = "x0"
+fix = ["x"]
+[[constraints]]
+set = "y0"
+fix = ["y"]
+[[constraints]]
+set = "z0"
+fix = ["z"]
+[electrodes.bottom]
+set = "z0"
+voltage = 0.0
+[electrodes.top]
+set = "z1"
+voltage = { waveform = "sine", amplitude = 25e3, frequency = 1.0 }
+[[stages]]
+name = "cycle"
+kind = "quasi-static"
+duration = 1.0
+dt = 0.05
+[probes.thickness_stretch]
+kind = "mean"
+quantity = "uz"
+set = "z1"
+scale = 1000.0
+offset = 1.0
+[output]
+fields_every = 0
+plots = false
+"#;
+    std::fs::write(dir.join("qs.toml"), text).unwrap();
+    let o = deasim(&["run", "qs.toml", "--out", "out"], &dir);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let h = std::fs::read_to_string(dir.join("out/history.csv")).unwrap();
+    let mut lines = h.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| head.iter().position(|h| *h == n).unwrap();
+    let (cv, ct, cs) = (col("voltage"), col("probe:thickness_stretch"), col("stage"));
+    let film = deasim::analytic::Film {
+        mu: 1e5,
+        lambda: 1e7,
+        eps: 4.7 * deasim::material::EPSILON_0,
+        c2: 0.0,
+    };
+    let mut volts = Vec::new();
+    for l in lines {
+        let v: Vec<&str> = l.split(',').collect();
+        if v[cs] != "cycle" {
+            continue;
+        }
+        let volt: f64 = v[cv].parse().unwrap();
+        let t: f64 = v[ct].parse().unwrap();
+        let expect = film.state(volt / 1e-3).unwrap().t;
+        assert!((t - expect).abs() < 1e-9, "V = {volt}: {t} vs {expect}");
+        volts.push(volt);
+    }
+    assert_eq!(volts.len(), 21, "{volts:?}");
+    let peak = volts.iter().cloned().fold(0.0, f64::max);
+    assert!(peak > 0.99 * 25e3, "{volts:?}");
+    assert!(volts.last().unwrap().abs() < 1e-6 * 25e3, "{volts:?}");
+}

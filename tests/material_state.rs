@@ -12,7 +12,7 @@
 //! ramped in one step with at most two Newton iterations is cut back, and its accepted states
 //! follow the closed form (bisection for the lateral stretch) along the accepted load factors.
 
-use deasim::job::statics::solve_static_from;
+use deasim::job::statics::{solve_static_from, StageTime};
 use deasim::material::maxwell::MaxwellBranch;
 use deasim::material::ElectroNeoHooke;
 use deasim::mesh::{generate::box_mesh, ElementKind};
@@ -92,7 +92,11 @@ fn run_stage(
         m,
         &SolverSettings::default(),
         start,
-        (duration, points),
+        StageTime {
+            duration,
+            points,
+            drive: Vec::new(),
+        },
         resume,
         &StepControl {
             steps,
@@ -303,7 +307,11 @@ fn resumed_ramp_with_point_states_is_bitwise() {
         &m,
         &SolverSettings::default(),
         vec![0.0; n],
-        (1.0, PointStates::new(&m)),
+        StageTime {
+            duration: 1.0,
+            points: PointStates::new(&m),
+            drive: Vec::new(),
+        },
         None,
         &StepControl {
             steps: 8,

@@ -10,7 +10,7 @@
 //! path (hex8, backward-Euler update, κ = 10⁴ G₀) converges to it at first order in Δt.
 
 use deasim::analytic::viscoelastic_uniaxial;
-use deasim::job::statics::solve_static_from;
+use deasim::job::statics::{solve_static_from, StageTime};
 use deasim::material::arruda_boyce::{ArrudaBoyce, AB_COEFFS};
 use deasim::material::maxwell::Viscoelastic;
 use deasim::material::{Electroelastic, Material};
@@ -146,7 +146,11 @@ fn fe(n: usize) -> [f64; 2] {
             &m,
             &SolverSettings::default(),
             state.clone(),
-            (duration, points.clone()),
+            StageTime {
+                duration,
+                points: points.clone(),
+                drive: Vec::new(),
+            },
             None,
             &StepControl {
                 steps,

@@ -317,7 +317,10 @@ fn prepare_resume(
     let stage = plan.stages.get(st.stage);
     let kinds_match = matches!(
         (stage.map(|s| &s.kind), &st.position),
-        (Some(StageKind::Static { .. }), StagePosition::Static { stage_start, .. })
+        (
+            Some(StageKind::Static { .. } | StageKind::QuasiStatic { .. }),
+            StagePosition::Static { stage_start, .. }
+        )
             if stage_start.len() == n
     ) || matches!(
         (stage.map(|s| &s.kind), &st.position),
@@ -468,6 +471,12 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
                     StageKind::Static { steps } => {
                         println!(
                             "stage {i} `{}`: static, {steps} steps, duration {} s",
+                            s.name, s.duration
+                        )
+                    }
+                    StageKind::QuasiStatic { steps } => {
+                        println!(
+                            "stage {i} `{}`: quasi-static, {steps} steps over {} s",
                             s.name, s.duration
                         )
                     }

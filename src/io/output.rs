@@ -341,7 +341,11 @@ impl OutputWriter {
         }
         // dynamic stages: every probe above the voltage, over the stage only
         for stage in &plan.stages {
-            if !matches!(stage.kind, crate::job::plan::StageKind::Dynamic { .. }) {
+            if !matches!(
+                stage.kind,
+                crate::job::plan::StageKind::Dynamic { .. }
+                    | crate::job::plan::StageKind::QuasiStatic { .. }
+            ) {
                 continue;
             }
             let rows: Vec<&StepRecord> = self

@@ -19,6 +19,9 @@ pub struct Electrode {
 /// The kind of a stage.
 #[derive(Debug, Clone, PartialEq)]
 pub enum StageKind {
+    /// Real time without inertia: `steps` equal steps over the duration, the electrodes at
+    /// their waveforms' values at each step's stage time, materials relax.
+    QuasiStatic { steps: usize },
     /// Load steps from the previous state to the targets at the end of the stage.
     Static { steps: usize },
     /// Time integration with nominal step `dt` (s).
@@ -33,7 +36,7 @@ impl StageKind {
     /// Nominal number of steps of a stage of this kind lasting `duration`.
     pub fn nominal_steps(&self, duration: f64) -> usize {
         match self {
-            StageKind::Static { steps } => *steps,
+            StageKind::Static { steps } | StageKind::QuasiStatic { steps } => *steps,
             StageKind::Dynamic { dt, .. } => (duration / dt - 1e-9).ceil().max(1.0) as usize,
         }
     }

@@ -11,7 +11,7 @@ use super::recorder::Recorder;
 pub use super::state::{
     Energies, RecorderState, RunState, StagePosition, StageSummary, StepRecord,
 };
-use super::statics::solve_static_from;
+use super::statics::{solve_static_from, StageTime};
 use crate::element::CellFields;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::problem::model::Model;
@@ -349,7 +349,7 @@ impl<'p, 'o> Job<'p, 'o> {
             converged: true,
         };
         let failure = match stage.kind {
-            StageKind::Static { steps } => {
+            StageKind::Static { steps } | StageKind::QuasiStatic { steps } => {
                 self.static_stage(si, model, steps, &prescribed, position, &mut summary)
             }
             StageKind::Dynamic { .. } => {
@@ -452,7 +452,13 @@ impl<'p, 'o> Job<'p, 'o> {
     ) -> Option<String> {
         let plan = self.plan;
         let stage = &plan.stages[si];
-        summary.kind = "static".into();
+        let quasi_static = matches!(stage.kind, StageKind::QuasiStatic { .. });
+        summary.kind = if quasi_static {
+            "quasi-static"
+        } else {
+            "static"
+        }
+        .into();
         self.v.iter_mut().for_each(|v| *v = 0.0);
         self.a.iter_mut().for_each(|v| *v = 0.0);
         let (stage_start, resume_at, mut step_no, mut last_load) = match position {
@@ -481,12 +487,36 @@ impl<'p, 'o> Job<'p, 'o> {
             .iter()
             .map(|e| stage_voltage(stage, &e.voltage, stage.duration))
             .collect();
-        let voltage_at = |s: f64| -> f64 {
-            start_voltages
+        // a quasi-static stage's electrodes follow their waveforms in stage time
+        let drive: Vec<(Vec<usize>, crate::waveform::Waveform)> = if quasi_static {
+            plan.electrodes
                 .iter()
-                .zip(&targets)
-                .map(|(a, b)| a + s * (b - a))
-                .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m })
+                .map(|e| {
+                    let w = if stage.electrodes_on {
+                        e.voltage.clone()
+                    } else {
+                        crate::waveform::Waveform::constant(0.0)
+                    };
+                    (e.nodes.clone(), w)
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let voltage_at = |s: f64| -> f64 {
+            let pick = |m: f64, v: f64| if v.abs() > m.abs() { v } else { m };
+            if quasi_static {
+                drive
+                    .iter()
+                    .map(|(_, w)| w.value(s * stage.duration))
+                    .fold(0.0, pick)
+            } else {
+                start_voltages
+                    .iter()
+                    .zip(&targets)
+                    .map(|(a, b)| a + s * (b - a))
+                    .fold(0.0, pick)
+            }
         };
         let control = StepControl {
             steps,
@@ -510,7 +540,11 @@ impl<'p, 'o> Job<'p, 'o> {
             model_ref,
             &plan.solver,
             stage_start.clone(),
-            (stage.duration, self.points.clone()),
+            StageTime {
+                duration: stage.duration,
+                points: self.points.clone(),
+                drive: drive.clone(),
+            },
             resume_at,
             &control,
             self.newton,
@@ -583,7 +617,8 @@ impl<'p, 'o> Job<'p, 'o> {
                 let electric = start_voltages
                     .iter()
                     .zip(&targets)
-                    .any(|(a, b)| a != b || *b != 0.0);
+                    .any(|(a, b)| a != b || *b != 0.0)
+                    || quasi_static;
                 let what = if f.limit_point && electric {
                     "electromechanical instability (pull-in)"
                 } else if f.limit_point {

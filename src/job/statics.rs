@@ -9,6 +9,16 @@ use crate::solve::linear::SolverSettings;
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepControl};
 
+/// What a static stage runs in time: its duration (s; a load step Δs lasts Δs·duration for
+/// materials with internal variables), the committed point states it starts from, and the
+/// electrodes that follow their waveforms in stage time (quasi-static stages).
+#[derive(Debug, Clone, Default)]
+pub struct StageTime {
+    pub duration: f64,
+    pub points: PointStates,
+    pub drive: Vec<(Vec<usize>, crate::waveform::Waveform)>,
+}
+
 /// Outcome of a static ramp.
 #[derive(Debug)]
 pub struct StaticOutcome {
@@ -42,8 +52,7 @@ pub fn solve_static(
 
 /// [`solve_static`] resumable: the ramp's prescribed values start from `stage_start`; with
 /// `resume = Some((state, position))` it continues from that converged state and ramp position.
-/// `history` is the stage's duration (s, for materials with internal variables: a load step Δs
-/// lasts Δs·duration) and the committed point states it starts from.
+/// `history` says how the stage runs in time ([`StageTime`]).
 /// The solver's factorisation after an accepted step is that of the converged state (Newton's
 /// stability test), which a resumed ramp factors again at its start: the two agree bit for bit.
 #[allow(clippy::too_many_arguments)]
@@ -51,14 +60,16 @@ pub fn solve_static_from(
     model: &Model,
     solver: &SolverSettings,
     stage_start: Vec<f64>,
-    history: (f64, PointStates),
+    history: StageTime,
     resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
     control: &StepControl,
     newton: &NewtonSettings,
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, Some(stage_start));
-    (problem.duration, problem.points) = history;
+    problem.duration = history.duration;
+    problem.points = history.points;
+    problem.drive = history.drive;
     let position = resume.map(|(state, position)| {
         problem.state.copy_from_slice(&state);
         problem.set_load(position.load);

@@ -47,6 +47,9 @@ pub struct StaticProblem<'m> {
     /// Load factor of the committed state, and of the current one.
     committed_load: f64,
     s: f64,
+    /// Electrodes that follow their waveforms in stage time (a quasi-static stage): at load
+    /// factor s, the potential of their nodes is w(s·`duration`).
+    pub drive: Vec<(Vec<usize>, crate::waveform::Waveform)>,
     /// Energy dissipated by the material points over the accepted steps (J), and over the last
     /// one.
     pub dissipated: f64,
@@ -101,6 +104,7 @@ impl<'m> StaticProblem<'m> {
             duration: 0.0,
             committed_load: 0.0,
             s: 0.0,
+            drive: Vec::new(),
             dissipated: 0.0,
             dissipated_step: 0.0,
         }
@@ -358,6 +362,12 @@ impl LoadedSystem for StaticProblem<'_> {
             for &n in &c.nodes {
                 let d = DofMap::dof(n, c.field.index());
                 self.state[d] = self.start[d] + s * (end[d] - self.start[d]);
+            }
+        }
+        for (nodes, w) in &self.drive {
+            let v = w.value(s * self.duration);
+            for &n in nodes {
+                self.state[DofMap::dof(n, PHI)] = v;
             }
         }
     }

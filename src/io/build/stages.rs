@@ -63,14 +63,17 @@ fn build_stage(ctx: &Ctx, s: &Scenario, i: usize, st: &StageSpec) -> Result<Stag
     };
     let kind = match st.kind.as_str() {
         "static" => static_kind(ctx, &key, st)?,
+        "quasi-static" => quasi_static_kind(ctx, &key, st, duration)?,
         "dynamic" => dynamic_kind(ctx, s, &key, &name, st)?,
         o => {
-            let hint = closest(o, ["static", "dynamic"])
+            let hint = closest(o, ["static", "quasi-static", "dynamic"])
                 .map(|c| format!("; did you mean `{c}`?"))
                 .unwrap_or_default();
             return Err(ctx.err(
                 format!("{key}.kind"),
-                format!("unknown stage kind `{o}`: expected `static` or `dynamic`{hint}"),
+                format!(
+                    "unknown stage kind `{o}`: expected `static`, `quasi-static` or `dynamic`{hint}"
+                ),
             ));
         }
     };
@@ -79,6 +82,52 @@ fn build_stage(ctx: &Ctx, s: &Scenario, i: usize, st: &StageSpec) -> Result<Stag
         kind,
         duration,
         electrodes_on: st.electrodes_on.unwrap_or(true),
+    })
+}
+
+/// `kind = "quasi-static"`: real time over `duration`, in `steps` steps or steps of `dt` (s);
+/// no inertia keys.
+fn quasi_static_kind(
+    ctx: &Ctx,
+    key: &str,
+    st: &StageSpec,
+    duration: f64,
+) -> Result<StageKind, InputError> {
+    for (k, v) in [
+        ("integrator", st.integrator.is_some()),
+        ("mass", st.mass.is_some()),
+    ] {
+        if v {
+            return Err(ctx.err(format!("{key}.{k}"), "applies to dynamic stages only"));
+        }
+    }
+    let steps = match (st.steps, st.dt) {
+        (Some(_), Some(_)) => {
+            return Err(ctx.err(
+                format!("{key}.dt"),
+                "give either `steps` or `dt` for a quasi-static stage, not both",
+            ))
+        }
+        (Some(n), None) => n,
+        (None, Some(dt)) => {
+            let dt = ctx.positive(&format!("{key}.dt"), Some(dt), "time step in s")?;
+            (duration / dt - 1e-9).ceil().max(1.0) as u64
+        }
+        (None, None) => {
+            return Err(ctx.err(
+                format!("{key}.dt"),
+                "missing: a quasi-static stage needs `dt` (s) or `steps`",
+            ))
+        }
+    };
+    if !(1..=1_000_000).contains(&steps) {
+        return Err(ctx.err(
+            format!("{key}.steps"),
+            format!("must be between 1 and 1000000; got {steps}"),
+        ));
+    }
+    Ok(StageKind::QuasiStatic {
+        steps: steps as usize,
     })
 }
 
@@ -215,6 +264,33 @@ mod tests {
     }
 
     #[test]
+    fn quasi_static_stages_by_dt_or_steps() {
+        let st = stages("[[stages]]\nkind = \"quasi-static\"\nduration = 2.0\ndt = 0.25");
+        assert_eq!(st[0].kind, StageKind::QuasiStatic { steps: 8 });
+        let st = stages("[[stages]]\nkind = \"quasi-static\"\nsteps = 3");
+        assert_eq!(st[0].kind, StageKind::QuasiStatic { steps: 3 });
+        for (body, key, expected) in [
+            ("", "stages.0.dt", "needs `dt` (s) or `steps`"),
+            ("dt = 0.1\nsteps = 2", "stages.0.dt", "not both"),
+            ("dt = -1.0", "stages.0.dt", "positive"),
+            (
+                "dt = 0.1\nintegrator = \"midpoint\"",
+                "stages.0.integrator",
+                "dynamic stages only",
+            ),
+        ] {
+            assert_rejected(
+                &[(
+                    "stages",
+                    &format!("[[stages]]\nkind = \"quasi-static\"\n{body}"),
+                )],
+                key,
+                expected,
+            );
+        }
+    }
+
+    #[test]
     fn dynamic_stages_with_integrator_and_mass() {
         let st = stages(&dynamic(""));
         assert_eq!(
@@ -276,7 +352,7 @@ mod tests {
         assert_rejected(
             &with("[[stages]]\nkind = \"statik\""),
             "stages.0.kind",
-            "unknown stage kind `statik`: expected `static` or `dynamic`; did you mean `static`?",
+            "unknown stage kind `statik`: expected `static`, `quasi-static` or `dynamic`; did you mean `static`?",
         );
         assert_rejected(
             &with("[[stages]]\nkind = \"static\"\nsteps = 0"),
