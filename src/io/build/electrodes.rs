@@ -273,7 +273,7 @@ mod tests {
         build_electrodes(&CTX, &s, &p.model.mesh, Some(base_dir))
     }
 
-    /// A fresh directory for the CSV files of one test.
+    /// A fresh directory for the CSV files of one test (the test removes it).
     fn dir(test: &str) -> std::path::PathBuf {
         let d = std::env::temp_dir().join(format!("deasim-build-{}-{test}", std::process::id()));
         std::fs::create_dir_all(&d).unwrap();
@@ -355,6 +355,7 @@ mod tests {
             &d,
         );
         assert_eq!(e.unwrap()[1].voltage.value(1.0), 200.0);
+        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]
@@ -455,5 +456,6 @@ mod tests {
             key,
             "back.csv: expected at least one row and strictly increasing",
         );
+        let _ = std::fs::remove_dir_all(&d);
     }
 }
