@@ -733,10 +733,21 @@ fn build_waveform(
 /// where relative file names point.
 pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, InputError> {
     let ctx = Ctx { file };
-    if s.name.trim().is_empty() || s.name.contains(['/', '\\']) || s.name.len() > 100 {
+    // the name is a directory under `deasim-out/`: one plain path component
+    if s.name.trim().is_empty()
+        || s.name.contains(['/', '\\', '\0'])
+        || s.name == "."
+        || s.name == ".."
+        || s.name.starts_with('-')
+        || s.name.len() > 100
+    {
         return Err(ctx.err(
             "name",
-            "expected a non-empty name of at most 100 characters without slashes",
+            format!(
+                "`{}` is not a plain directory name: expected a non-empty name of at most 100 \
+                 characters, not `.` or `..`, without `/` or `\\` and not starting with `-`",
+                s.name.escape_debug()
+            ),
         ));
     }
     let (mesh, mut warnings) = build_mesh(&ctx, s, base_dir)?;
