@@ -387,7 +387,7 @@ fn run_exports_checkpoints_and_resumes_point_states() {
         .map(|e| std::fs::read_to_string(e.path()).unwrap())
         .find(|t| t.contains("Name=\"A_xx\""));
     assert!(vtu.is_some(), "no field file carries A_xx");
-    let ck = latest(&full).unwrap();
+    let (ck, _, _) = latest(&full).unwrap();
     let n_points = plan.model.mesh.n_cells() * plan.model.reference.n_qp * 9;
     assert_eq!(ck.state.points.len(), n_points);
     assert!(ck

@@ -297,8 +297,10 @@ fn newmark_and_trapezoidal_resume_bitwise() {
     );
 }
 
-/// Corrupt, truncated, wrong-version, missing and mismatched checkpoints: exit 2, a message
-/// naming the problem, and the directory's files untouched.
+/// A corrupt newest checkpoint: the run continues from the older one kept for this case, with a
+/// warning naming the corrupt file and why, to the same results. All checkpoints corrupt, another
+/// format version, a mismatched scenario or overrides, a missing checkpoint: exit 2, a message
+/// naming the problem, the directory's files untouched. A finished run is not resumed.
 #[test]
 fn bad_checkpoints_are_refused() {
     let dir = tempdir("bad");
@@ -317,9 +319,17 @@ fn bad_checkpoints_are_refused() {
         &dir,
     );
     assert_eq!(full.status.code(), Some(0), "{}", text(&full));
+    // the run finished
+    let done = deasim(&["run", "--resume", "o"], &dir);
+    assert_eq!(done.status.code(), Some(2), "{}", text(&done));
+    assert!(text(&done).contains("already finished"), "{}", text(&done));
+    // from here on as after a kill -9 at the end: no summary.json
+    std::fs::remove_file(dir.join("o/summary.json")).unwrap();
     let ck = checkpoints(&dir.join("o"));
-    let newest = ck.last().unwrap().clone();
+    assert_eq!(ck.len(), 2);
+    let (older, newest) = (ck[0].clone(), ck[1].clone());
     let good = std::fs::read(&newest).unwrap();
+    let good_older = std::fs::read(&older).unwrap();
     let history = std::fs::read(dir.join("o/history.csv")).unwrap();
     let refuse = |bytes: &[u8], extra: &[&str], expect: &str| {
         std::fs::write(&newest, bytes).unwrap();
@@ -331,19 +341,50 @@ fn bad_checkpoints_are_refused() {
         assert!(!text(&out).contains("panicked"), "{}", text(&out));
         assert_eq!(std::fs::read(dir.join("o/history.csv")).unwrap(), history);
     };
+    let fall_back = |bytes: &[u8], expect: &str| {
+        std::fs::write(&newest, bytes).unwrap();
+        let out = deasim(&["run", "--resume", "o"], &dir);
+        assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+        let t = text(&out);
+        assert!(
+            t.contains("warning: skipping a corrupt checkpoint")
+                && t.contains(newest.file_name().unwrap().to_str().unwrap())
+                && t.contains(expect)
+                && t.contains(older.file_name().unwrap().to_str().unwrap()),
+            "{expect}: {t}"
+        );
+        assert!(!t.contains("panicked"), "{t}");
+        // resumed from the older checkpoint to the same results
+        assert_eq!(std::fs::read(dir.join("o/history.csv")).unwrap(), history);
+        std::fs::remove_file(dir.join("o/summary.json")).unwrap();
+        std::fs::write(&older, &good_older).unwrap();
+    };
     let mut flipped = good.clone();
     flipped[good.len() / 2] ^= 0x01;
-    refuse(&flipped, &[], "checksum");
-    refuse(&good[..good.len() - 7], &[], "truncated");
-    refuse(&good[..5], &[], "truncated");
+    fall_back(&flipped, "checksum");
+    fall_back(&good[..good.len() - 7], "truncated");
+    fall_back(&good[..5], "truncated");
+    fall_back(
+        b"not a checkpoint at all, just text",
+        "not a deasim checkpoint",
+    );
+    // every checkpoint corrupt: refused, listing them and saying how to start over
+    std::fs::write(&older, b"garbage").unwrap();
+    std::fs::write(&newest, &flipped).unwrap();
+    let out = deasim(&["run", "--resume", "o"], &dir);
+    std::fs::write(&older, &good_older).unwrap();
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(2), "{t}");
+    assert!(
+        t.contains("no valid checkpoint")
+            && t.contains(older.file_name().unwrap().to_str().unwrap())
+            && t.contains(newest.file_name().unwrap().to_str().unwrap())
+            && t.contains("without --resume"),
+        "{t}"
+    );
     let mut version = good.clone();
     version[8] = 99;
     refuse(&version, &[], "format version 99");
-    refuse(
-        b"not a checkpoint at all, just text",
-        &[],
-        "not a deasim checkpoint",
-    );
     // a different scenario or overrides given again
     let other = dir.join("other.toml");
     std::fs::write(&other, deasim(&["example", "film-pull-in"], &dir).stdout).unwrap();

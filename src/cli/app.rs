@@ -5,6 +5,7 @@ use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};
 use crate::io::checkpoint::{CheckpointWriter, ScenarioSource};
 use crate::io::examples::{example, DEFAULT, EXAMPLES};
+use crate::io::lock::DirLock;
 use crate::io::output::OutputWriter;
 use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
 use crate::job::run::{run_with, Observer, RunState, RunSummary, StepRecord};
@@ -199,6 +200,14 @@ pub fn cmd_run(
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(&plan.name));
+    // held until the run ends: a second run into the directory is refused meanwhile
+    let _lock = match DirLock::acquire(&dir) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
     if let Err(e) = OutputWriter::check_directory(&dir, &plan.name, overwrite) {
         eprintln!("error: {e}");
         return EXIT_BAD_INPUT;
@@ -242,6 +251,20 @@ pub fn cmd_resume(
     overrides: &[String],
     checkpoint_every: Option<usize>,
 ) -> i32 {
+    if !dir.is_dir() {
+        eprintln!(
+            "error: cannot resume from {}: no such directory",
+            dir.display()
+        );
+        return EXIT_BAD_INPUT;
+    }
+    let _lock = match DirLock::acquire(dir) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
     match prepare_resume(dir, scenario, overrides, checkpoint_every) {
         Ok((plan, checkpoint, state)) => {
             let writer = match OutputWriter::new(dir) {
@@ -269,7 +292,22 @@ fn prepare_resume(
 ) -> Result<(Plan, CheckpointWriter, RunState), String> {
     use crate::io::checkpoint::latest;
     use crate::job::state::StagePosition;
-    let ck = latest(dir).map_err(|e| e.to_string())?;
+    // a run that ended converged wrote its summary.json (a new run deletes the earlier one)
+    if let Ok(text) = std::fs::read_to_string(dir.join("summary.json")) {
+        let v = serde_json::from_str::<serde_json::Value>(&text).ok();
+        if v.is_some_and(|v| v.get("converged") == Some(&serde_json::Value::Bool(true))) {
+            return Err(format!(
+                "the run in {} already finished (its summary.json says converged): there is \
+                 nothing to resume; to run it again, use `deasim run SCENARIO --out {}`",
+                dir.display(),
+                dir.display()
+            ));
+        }
+    }
+    let (ck, _, skipped) = latest(dir).map_err(|e| e.to_string())?;
+    for w in &skipped {
+        eprintln!("warning: {w}");
+    }
     let src = &ck.source;
     let version = env!("CARGO_PKG_VERSION");
     if ck.deasim_version != version {
@@ -398,6 +436,16 @@ fn execute(
     let summary = run_with(plan, &NewtonSettings::default(), &mut observers, start);
     for e in &writer.errors {
         eprintln!("warning: {e}");
+    }
+    if let Some(f) = writer.write_failure() {
+        eprintln!(
+            "error: {f}; the other outputs in {} hold the last state written",
+            dir.display()
+        );
+        if summary.interrupted {
+            return EXIT_INTERRUPTED;
+        }
+        return EXIT_SOLVE_FAILED;
     }
     if summary.interrupted {
         eprintln!("interrupted: the outputs hold the last accepted step");

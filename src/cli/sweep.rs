@@ -226,6 +226,13 @@ pub fn cmd_sweep(
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(format!("{name}-sweep")));
+    let _lock = match crate::io::lock::DirLock::acquire(&dir) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
     if let Err(e) = std::fs::create_dir_all(dir.join("plots")) {
         eprintln!("error: cannot create {}: {e}", dir.display());
         return EXIT_BAD_INPUT;
@@ -326,11 +333,13 @@ fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan) -> Outcome {
         records: Vec::new(),
     };
     let summary = run(plan, &NewtonSettings::default(), &mut obs);
+    let figures = figures(plan, &obs.records);
+    let failure = writer.write_failure();
     Outcome {
         value,
-        converged: summary.converged,
-        error: summary.error,
-        figures: figures(plan, &obs.records),
+        converged: summary.converged && failure.is_none(),
+        error: summary.error.or(failure),
+        figures,
     }
 }
 

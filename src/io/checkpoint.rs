@@ -218,17 +218,48 @@ pub fn list(out_dir: &Path) -> Vec<PathBuf> {
     files.into_iter().map(|(_, p)| p).collect()
 }
 
-/// The newest checkpoint of an output directory. A newest file that fails its checks is an error
-/// (it is not silently skipped: the user decides whether to delete it).
-pub fn latest(out_dir: &Path) -> Result<Checkpoint, CheckpointError> {
+/// The newest valid checkpoint of an output directory, its file, and a warning for every newer
+/// file that was skipped because it is corrupt (bad magic, truncated, checksum, payload): the
+/// older checkpoint is kept for this case. A file of another format version is not skipped but
+/// refused. When no file is valid, the error lists them all and says how to start over.
+pub fn latest(out_dir: &Path) -> Result<(Checkpoint, PathBuf, Vec<String>), CheckpointError> {
     let files = list(out_dir);
-    let Some(path) = files.last() else {
+    if files.is_empty() {
         return Err(CheckpointError::Io(format!(
             "{}: no checkpoint (checkpoint-NNNNNNNNN.bin) found; was the run started with --checkpoint-every?",
             out_dir.join(SUBDIR).display()
         )));
-    };
-    Checkpoint::read(path)
+    }
+    let mut skipped = Vec::new();
+    for path in files.iter().rev() {
+        match Checkpoint::read(path) {
+            Ok(ck) => {
+                let warnings = skipped
+                    .iter()
+                    .map(|e: &CheckpointError| {
+                        format!(
+                            "skipping a corrupt checkpoint: {e}; resuming from {}",
+                            path.display()
+                        )
+                    })
+                    .collect();
+                return Ok((ck, path.clone(), warnings));
+            }
+            Err(e @ CheckpointError::Version { .. }) => return Err(e),
+            Err(e) => skipped.push(e),
+        }
+    }
+    Err(CheckpointError::Io(format!(
+        "no valid checkpoint in {}:\n  {}\nto start over, run the scenario again without --resume \
+         (`deasim run SCENARIO --out {}`), which replaces these files",
+        out_dir.join(SUBDIR).display(),
+        skipped
+            .iter()
+            .map(|e| e.to_string())
+            .collect::<Vec<_>>()
+            .join("\n  "),
+        out_dir.display()
+    )))
 }
 
 /// The observer that writes checkpoints: every `every` accepted steps and when the run stops on

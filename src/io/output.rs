@@ -4,8 +4,8 @@
 
 use super::atomic::write_atomic;
 use super::build::Plan;
-use super::plot::{line_plot, stacked_plot, PlotSpec, Series};
-use super::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuPiece};
+use super::plot::{line_plot, stacked_plot, PlotError, PlotSpec, Series};
+use super::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuError, VtuPiece};
 use crate::element::CellFields;
 use crate::job::run::{Observer, RunSummary, StepRecord};
 use crate::mesh::ElementKind;
@@ -39,8 +39,37 @@ pub struct OutputWriter {
     last_written_step: Option<usize>,
     /// Cell means of the material points' internal variables for the next step (by name).
     point_states: Vec<(String, Vec<f64>)>,
-    /// I/O problems (reported in the summary's warnings).
+    /// Problems that left an output out but are no write failure (a non-finite state, a plot
+    /// without finite values), reported in the summary's warnings.
     pub errors: Vec<String>,
+    /// The first file that could not be written (full disk, unwritable directory) and why.
+    failure: Option<String>,
+    /// Write failures after the first.
+    more_failures: usize,
+}
+
+/// Whether a file name is one deasim writes into `plots/`.
+fn is_plot(name: &str) -> bool {
+    name.ends_with(".png") || name.ends_with(".svg")
+}
+
+/// Whether a file name is a field file `step_NNNNN.vtu`.
+fn is_field_file(name: &str) -> bool {
+    name.strip_prefix("step_")
+        .and_then(|r| r.strip_suffix(".vtu"))
+        .is_some_and(|d| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// Removes a file; a missing one is fine.
+fn remove_if_present(path: &Path) -> Result<(), String> {
+    match std::fs::remove_file(path) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(format!(
+            "cannot remove {} of the earlier run: {e}",
+            path.display()
+        )),
+    }
 }
 
 fn csv_number(v: f64) -> String {
@@ -62,9 +91,10 @@ fn json_number(v: f64) -> Value {
 impl OutputWriter {
     /// Checks that `dir` may receive the results of scenario `name`: refused when it holds the
     /// results of a different scenario (its `summary.json` names another scenario) unless
-    /// `overwrite`. Results of the same scenario are replaced. Nothing is deleted except, when
-    /// replacing, deasim's own field files `fields/step_NNNNN.vtu` (so that no stale steps remain);
-    /// other files in the directory are left alone.
+    /// `overwrite`. Results of the same scenario are replaced: deasim's own files of the earlier
+    /// run are deleted (`summary.json`, `history.csv`, `fields.pvd`, `fields/step_NNNNN.vtu`,
+    /// `plots/*.png` and `plots/*.svg`), so that no stale step, plot or probe remains; other
+    /// files in the directory are left alone.
     pub fn check_directory(dir: &Path, name: &str, overwrite: bool) -> Result<(), String> {
         let summary = dir.join("summary.json");
         if let Ok(text) = std::fs::read_to_string(&summary) {
@@ -88,27 +118,30 @@ impl OutputWriter {
                 _ => {}
             }
         }
-        if let Ok(entries) = std::fs::read_dir(dir.join("fields")) {
-            for e in entries.flatten() {
-                let n = e.file_name().to_string_lossy().into_owned();
-                let ours = n
-                    .strip_prefix("step_")
-                    .and_then(|r| r.strip_suffix(".vtu"))
-                    .is_some_and(|d| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit()));
-                if ours {
-                    std::fs::remove_file(e.path())
-                        .map_err(|err| format!("{}: {err}", e.path().display()))?;
+        for (sub, ours) in [
+            ("fields", is_field_file as fn(&str) -> bool),
+            ("plots", is_plot),
+        ] {
+            if let Ok(entries) = std::fs::read_dir(dir.join(sub)) {
+                for e in entries.flatten() {
+                    let n = e.file_name().to_string_lossy().into_owned();
+                    if ours(&n) && e.file_type().is_ok_and(|t| t.is_file()) {
+                        remove_if_present(&e.path())?;
+                    }
                 }
             }
+        }
+        for f in ["fields.pvd", "history.csv", "summary.json"] {
+            remove_if_present(&dir.join(f))?;
         }
         Ok(())
     }
 
-    /// Creates the directory (and `fields/`, `plots/`).
+    /// Creates the directory (and `fields/`, `plots/`). A sub-directory that cannot be created
+    /// is a write failure ([`OutputWriter::write_failure`]); the run still writes the rest.
     pub fn new(dir: &Path) -> std::io::Result<Self> {
-        std::fs::create_dir_all(dir.join("fields"))?;
-        std::fs::create_dir_all(dir.join("plots"))?;
-        Ok(OutputWriter {
+        std::fs::create_dir_all(dir)?;
+        let mut w = OutputWriter {
             dir: dir.to_path_buf(),
             records: Vec::new(),
             pvd: Vec::new(),
@@ -118,7 +151,50 @@ impl OutputWriter {
             last_written_step: None,
             point_states: Vec::new(),
             errors: Vec::new(),
+            failure: None,
+            more_failures: 0,
+        };
+        for sub in ["fields", "plots"] {
+            let d = dir.join(sub);
+            if let Err(e) = std::fs::create_dir_all(&d) {
+                w.failed(format!("{}: cannot create the directory: {e}", d.display()));
+            }
+        }
+        Ok(w)
+    }
+
+    /// Records a file that could not be written.
+    fn failed(&mut self, what: String) {
+        if self.failure.is_none() {
+            self.failure = Some(what);
+        } else {
+            self.more_failures += 1;
+        }
+    }
+
+    /// When a file could not be written: the first such file and why, and how many more writes
+    /// failed. The outputs then lack something, and the run must not end with success.
+    pub fn write_failure(&self) -> Option<String> {
+        self.failure.as_ref().map(|f| match self.more_failures {
+            0 => format!("could not write {f}"),
+            n => format!("could not write {f} (and {n} later writes failed as well)"),
         })
+    }
+
+    fn vtu_error(&mut self, e: VtuError) {
+        match e {
+            VtuError::Io { .. } => self.failed(e.to_string()),
+            e => self.errors.push(e.to_string()),
+        }
+    }
+
+    fn plot_error(&mut self, e: PlotError) {
+        match e {
+            PlotError::NoData { .. }
+            | PlotError::Range { .. }
+            | PlotError::LengthMismatch { .. } => self.errors.push(e.to_string()),
+            e => self.failed(e.to_string()),
+        }
     }
 
     /// The history as CSV text.
@@ -154,7 +230,7 @@ impl OutputWriter {
     fn write_history(&mut self, plan: &Plan) {
         let text = Self::history_csv(plan, &self.records);
         if let Err(e) = write_atomic(&self.dir.join("history.csv"), text.as_bytes()) {
-            self.errors.push(format!("history.csv: {e}"));
+            self.failed(format!("{}: {e}", self.dir.join("history.csv").display()));
         }
         self.last_flush = Instant::now();
     }
@@ -228,11 +304,11 @@ impl OutputWriter {
             Ok(()) => {
                 self.pvd.push((record.time, format!("fields/{name}")));
                 if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
-                    self.errors.push(e.to_string());
+                    self.vtu_error(e);
                 }
                 self.last_written_step = Some(self.steps_seen);
             }
-            Err(e) => self.errors.push(e.to_string()),
+            Err(e) => self.vtu_error(e),
         }
     }
 
@@ -255,6 +331,7 @@ impl OutputWriter {
             .fold(0.0, f64::max);
         let mut warnings = summary.warnings.clone();
         warnings.extend(self.errors.iter().cloned());
+        warnings.extend(self.write_failure());
         let mut v = json!({
             "scenario": plan.name,
             "dofs": summary.dofs,
@@ -336,10 +413,11 @@ impl OutputWriter {
                 series: std::slice::from_ref(&series),
             };
             if let Err(e) = line_plot(&path, &spec) {
-                self.errors.push(e.to_string());
+                self.plot_error(e);
             }
         }
         // dynamic stages: every probe above the voltage, over the stage only
+        let mut stage_errors = Vec::new();
         for stage in &plan.stages {
             if !matches!(
                 stage.kind,
@@ -388,9 +466,12 @@ impl OutputWriter {
                     },
                 ];
                 if let Err(e) = stacked_plot(&path, &panels) {
-                    self.errors.push(e.to_string());
+                    stage_errors.push(e);
                 }
             }
+        }
+        for e in stage_errors {
+            self.plot_error(e);
         }
     }
 }
@@ -446,7 +527,7 @@ impl Observer for OutputWriter {
             }
         }
         if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
-            self.errors.push(e.to_string());
+            self.vtu_error(e);
         }
         self.write_history(plan);
     }
@@ -463,7 +544,7 @@ impl Observer for OutputWriter {
         let json = self.summary_json(plan, summary);
         let text = serde_json::to_string_pretty(&json).unwrap_or_else(|_| "{}".into());
         if let Err(e) = write_atomic(&self.dir.join("summary.json"), text.as_bytes()) {
-            self.errors.push(format!("summary.json: {e}"));
+            self.failed(format!("{}: {e}", self.dir.join("summary.json").display()));
         }
     }
 }

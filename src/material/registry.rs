@@ -564,8 +564,8 @@ pub fn drucker_check(mat: &dyn Material, max_stretch: f64) -> Vec<String> {
 ///   μ = G₀ / (1 + 3/(5λ_m²) + …) ≈ 15.10 kPa, so that μ₀ = 15.36 kPa.
 ///   κ = 1000·G₀ is chosen here.
 /// * `vhb4910-wang2016` — the same equilibrium branch with the three
-///   neo-Hookean Maxwell branches of Wang, Decker, Henann & Chester, JMPS 96
-///   (2016): g = 26.06, 26.53, 10.83 kPa, τ = 0.6074, 6.56, 61.25 s.
+///   neo-Hookean Maxwell branches of Wang, Decker, Henann & Chester,
+///   J. Mech. Phys. Solids (2016): g = 26.06, 26.53, 10.83 kPa, τ = 0.6074, 6.56, 61.25 s.
 /// * `vhb4910-hossain2012` — Hossain, Vu & Steinmann, Comput. Mater. Sci. 59
 ///   (2012): equilibrium μ = 13.7 kPa (the eight-chain model at small
 ///   stretch, taken as neo-Hooke here), branches 56.4, 31.5, 19.8 kPa with
@@ -749,7 +749,7 @@ mod tests {
 
     #[test]
     fn presets_build() {
-        assert_eq!(PRESETS.len(), 5);
+        assert_eq!(PRESETS.len(), 7);
         for &name in PRESETS {
             let (model, p) = preset(name).unwrap_or_else(|| panic!("{name}"));
             assert!(MODELS.contains(&model), "{name}: {model}");
@@ -773,6 +773,15 @@ mod tests {
         assert_eq!(mu0("vhb4910-gent-liu"), 43e3);
         // Arruda–Boyce: G₀ is the initial shear modulus.
         assert!((mu0("vhb4910-ab-wang") - 15.36e3).abs() < 1e-9 * 15.36e3);
+        // viscoelastic presets: the instantaneous modulus G_eq + Σ gᵢ, internal variables
+        assert!((mu0("vhb4910-wang2016") - (15.36e3 + 63.42e3)).abs() < 1e-6);
+        assert!((mu0("vhb4910-hossain2012") - (13.7e3 + 107.7e3)).abs() < 1e-6);
+        let (m, p) = preset("vhb4910-wang2016").unwrap();
+        assert_eq!(build(m, &p).unwrap().0.state_size(), 27);
+        let mut bad = p.clone();
+        bad.branches[1].1 = -1.0;
+        let e = build(m, &bad).err().unwrap();
+        assert_eq!(e.key, "branches.1.tau");
 
         let (m, p) = preset("vhb4910-gent-liu").unwrap();
         let (mat, warnings) = build(m, &p).unwrap();

@@ -109,6 +109,19 @@ enum Role {
 }
 
 /// (dimension, nodes, name, role) of a Gmsh element type.
+/// At most `max` bytes of `s`, cut at a character boundary (a message quotes the start of a
+/// token or line, which may hold multi-byte characters).
+fn clip(s: &str, max: usize) -> &str {
+    if s.len() <= max {
+        return s;
+    }
+    let mut end = max;
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    &s[..end]
+}
+
 fn element_type(t: i32) -> Option<(i32, usize, &'static str, Role)> {
     use Role::*;
     Some(match t {
@@ -405,7 +418,7 @@ impl<'a> Reader<'a> {
             let Some(section) = header.strip_prefix('$') else {
                 return Err(self.err_line(format!(
                     "expected a section header such as `$Nodes`, found `{}`",
-                    &header[..header.len().min(40)]
+                    clip(&header, 40)
                 )));
             };
             if raw.version.is_none() && section != "MeshFormat" && section != "Comments" {
@@ -517,7 +530,7 @@ impl<'a> Reader<'a> {
                 .ok_or_else(|| {
                     self.err_line(format!(
                         "expected a quoted physical name, found `{}`",
-                        &text[..text.len().min(40)]
+                        clip(text, 40)
                     ))
                 })?;
             raw.names.insert((dim, tag), name.to_string());
@@ -1265,5 +1278,83 @@ mod tests {
         assert!(ReferenceElement::new(ElementKind::Hex8)
             .geometry(&x)
             .is_ok());
+    }
+    /// Messages quote at most 40 bytes of a token or line: a cut inside a multi-byte character
+    /// (`é` straddling byte 40) is an error, not a panic; so are random bytes and random mixtures
+    /// of section headers, numbers and non-ASCII text (fixed seed; `DEASIM_MSH_CASES` sets the
+    /// count, default 4000).
+    #[test]
+    fn multibyte_cuts_and_random_bytes_are_errors() {
+        let long = format!("{}é{}", "x".repeat(39), "y".repeat(10));
+        assert!(!long.is_char_boundary(40));
+        let inputs = [
+            long.clone(),
+            format!("{long}\n$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"),
+            format!("${long}"),
+            format!(
+                "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n1\n2 7 {long}\n\
+                 $EndPhysicalNames\n"
+            ),
+            format!("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n{long}\n"),
+            format!("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n{long}\n$EndNodes\n"),
+            format!("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n0\n{long}\n"),
+        ];
+        for text in &inputs {
+            let e = parse(text).expect_err(text).to_string();
+            assert!(!e.is_empty());
+        }
+        let cases: usize = std::env::var("DEASIM_MSH_CASES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(4000);
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let words: [&[u8]; 16] = [
+            b"$MeshFormat\n",
+            b"2.2 0 8\n",
+            b"4.1 1 8\n",
+            b"$EndMeshFormat\n",
+            b"$PhysicalNames\n",
+            b"$EndPhysicalNames\n",
+            b"$Nodes\n",
+            b"$EndNodes\n",
+            b"$Elements\n",
+            b"$EndElements\n",
+            b"$Entities\n",
+            b"1 ",
+            b"3 ",
+            b"\"n\xc3\xa9\" ",
+            "xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxé".as_bytes(),
+            b"\n",
+        ];
+        for case in 0..cases {
+            let len = (next() % 300) as usize;
+            let mut d = Vec::with_capacity(len * 4);
+            if case % 2 == 0 {
+                // raw bytes
+                d.extend((0..len).map(|_| next() as u8));
+            } else {
+                // tokens, with the odd random byte
+                d.extend_from_slice(b"$MeshFormat\n2.2 0 8\n$EndMeshFormat\n");
+                for _ in 0..len / 4 {
+                    let r = next();
+                    if r % 7 == 0 {
+                        d.push((r >> 8) as u8);
+                    } else {
+                        d.extend_from_slice(words[(r >> 8) as usize % words.len()]);
+                    }
+                }
+            }
+            let r = std::panic::catch_unwind(|| parse_msh(&d, "r.msh", 1.0));
+            match r {
+                Ok(r) => assert!(r.is_err(), "case {case} read as a mesh"),
+                Err(_) => panic!("case {case} panicked on {:?}", String::from_utf8_lossy(&d)),
+            }
+        }
     }
 }

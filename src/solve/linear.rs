@@ -52,6 +52,10 @@ pub trait LinearSolver: Send {
     }
     /// Drops the held factorisation (the matrix changed, e.g. a new time step size).
     fn invalidate(&mut self) {}
+    /// Stored entries of the factor, for a direct solver (benchmarks).
+    fn factor_nnz(&self) -> Option<usize> {
+        None
+    }
 }
 
 /// Fill-reducing ordering of [`FaerLdlt`].
@@ -193,11 +197,6 @@ impl FaerLdlt {
         }
     }
 
-    /// Number of stored entries of the factor L (after the first factorisation).
-    pub fn factor_nnz(&self) -> usize {
-        self.l_values.len()
-    }
-
     fn matrix(a: &CsrMatrix) -> SparseColMatRef<'_, usize, f64> {
         // A symmetric matrix in CSR is the same matrix in CSC.
         let sym = SymbolicSparseColMatRef::new_checked(a.n, a.n, &a.row_ptr, None, &a.col_idx);
@@ -331,6 +330,10 @@ impl LinearSolver for FaerLdlt {
 
     fn is_factored(&self) -> bool {
         self.factored
+    }
+
+    fn factor_nnz(&self) -> Option<usize> {
+        Some(self.l_values.len())
     }
 
     fn invalidate(&mut self) {

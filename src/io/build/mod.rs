@@ -71,10 +71,21 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
 
 /// `name`: it names the output directory.
 fn check_name(ctx: &Ctx, name: &str) -> Result<(), InputError> {
-    if name.trim().is_empty() || name.contains(['/', '\\']) || name.len() > 100 {
+    // the name is a directory under `deasim-out/`: one plain path component
+    if name.trim().is_empty()
+        || name.contains(['/', '\\', '\0'])
+        || name == "."
+        || name == ".."
+        || name.starts_with('-')
+        || name.len() > 100
+    {
         return Err(ctx.err(
             "name",
-            "expected a non-empty name of at most 100 characters without slashes",
+            format!(
+                "`{}` is not a plain directory name: expected a non-empty name of at most 100 \
+                 characters, not `.` or `..`, without `/` or `\\` and not starting with `-`",
+                name.escape_debug()
+            ),
         ));
     }
     Ok(())
@@ -286,7 +297,8 @@ mod tests {
     #[test]
     fn a_name_with_a_slash_is_rejected() {
         let with = [("name", "name = \"a/b\"")];
-        assert_rejected(&with, "name", "without slashes");
+        assert_rejected(&with, "name", "without `/`");
+        assert_rejected(&[("name", "name = \"..\"")], "name", "not `.` or `..`");
         assert_rejected(&[("name", "name = \"  \"")], "name", "non-empty name");
     }
 

@@ -1,0 +1,241 @@
+//! The output directory is safe to use: the scenario name is one plain directory name, a
+//! directory is locked while a run writes there, a write failure ends the run with exit 1 and
+//! names the file once, a new run clears deasim's own files of the earlier one, and the README's
+//! checkpoint example works as written.
+
+mod common;
+
+use common::{deasim, tempdir};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn text(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned() + &String::from_utf8_lossy(&o.stdout)
+}
+
+fn example(dir: &Path, name: &str) -> PathBuf {
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, deasim(&["example", name], dir).stdout).unwrap();
+    p
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|r| {
+            r.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+/// `name = ".."` wrote into the current directory, `"."` into `deasim-out/` itself: refused.
+#[test]
+fn scenario_names_that_are_not_a_plain_directory_are_refused() {
+    let dir = tempdir("names");
+    example(&dir, "film");
+    for bad in ["..", ".", "a/b", "a\\\\b", "", "-rf", "../x"] {
+        let out = deasim(
+            &["run", "film.toml", "--set", &format!("name=\"{bad}\"")],
+            &dir,
+        );
+        assert_eq!(out.status.code(), Some(2), "{bad}: {}", text(&out));
+        assert!(text(&out).contains("name"), "{bad}: {}", text(&out));
+        assert!(!text(&out).contains("panicked"), "{}", text(&out));
+        assert!(!dir.join("summary.json").exists(), "{bad}");
+        assert!(!dir.join("deasim-out/summary.json").exists(), "{bad}");
+        let check = deasim(
+            &["check", "film.toml", "--set", &format!("name=\"{bad}\"")],
+            &dir,
+        );
+        assert_eq!(check.status.code(), Some(2), "{bad}: {}", text(&check));
+    }
+    assert!(!dir.join("history.csv").exists());
+}
+
+/// A live lock refuses a second run (exit 2, naming the directory and the process); a stale one
+/// is taken over with a warning and removed at the end; two real runs at once: the second is
+/// refused while the first writes.
+#[test]
+fn output_directory_is_locked_during_a_run() {
+    let dir = tempdir("lock");
+    example(&dir, "film");
+    std::fs::create_dir_all(dir.join("o")).unwrap();
+    let me = std::process::id().to_string();
+    std::fs::write(dir.join("o/.deasim.lock"), format!("{me}\n")).unwrap();
+    let out = deasim(&["run", "film.toml", "--out", "o"], &dir);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(
+        text(&out).contains("o is in use") && text(&out).contains(&format!("process {me}")),
+        "{}",
+        text(&out)
+    );
+    assert!(!dir.join("o/history.csv").exists());
+    let resume = deasim(&["run", "--resume", "o"], &dir);
+    assert_eq!(resume.status.code(), Some(2), "{}", text(&resume));
+    assert!(text(&resume).contains("in use"), "{}", text(&resume));
+    // a process id that cannot be running
+    std::fs::write(dir.join("o/.deasim.lock"), "2147483600\n").unwrap();
+    let out = deasim(&["run", "film.toml", "--out", "o"], &dir);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(text(&out).contains("stale lock"), "{}", text(&out));
+    assert!(!dir.join("o/.deasim.lock").exists());
+    // two runs at once
+    example(&dir, "film-vibration");
+    let mut first = Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args([
+            "run",
+            "film-vibration.toml",
+            "--out",
+            "v",
+            "--set",
+            "output.plots=false",
+        ])
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !dir.join("v/history.csv").exists() && start.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let running = first.try_wait().unwrap().is_none();
+    let second = deasim(
+        &[
+            "run",
+            "film-vibration.toml",
+            "--out",
+            "v",
+            "--set",
+            "output.plots=false",
+        ],
+        &dir,
+    );
+    let _ = first.kill();
+    let _ = first.wait();
+    if running {
+        assert_eq!(second.status.code(), Some(2), "{}", text(&second));
+        assert!(
+            text(&second).contains(&format!("process {}", first.id())),
+            "{}",
+            text(&second)
+        );
+    }
+}
+
+/// `fields/` is a regular file: every field write fails. The run ends with exit 1, the failure
+/// is named once (not a warning per step), and history.csv and summary.json are written.
+#[test]
+fn a_write_failure_ends_with_exit_1_and_names_the_file_once() {
+    let dir = tempdir("writefail");
+    example(&dir, "film");
+    std::fs::create_dir_all(dir.join("o")).unwrap();
+    std::fs::write(dir.join("o/fields"), "not a directory").unwrap();
+    let out = deasim(&["run", "film.toml", "--out", "o"], &dir);
+    let t = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{t}");
+    assert!(
+        t.contains("error: could not write") && t.contains("fields"),
+        "{t}"
+    );
+    assert_eq!(t.matches("could not write").count(), 1, "{t}");
+    assert!(!t.contains("warning: "), "{t}");
+    assert!(!t.contains("panicked"), "{t}");
+    let h = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
+    assert_eq!(h.lines().count(), 17, "header, initial state and 15 steps");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
+            .unwrap();
+    let w = s["warnings"].as_array().unwrap();
+    assert_eq!(
+        w.iter()
+            .filter(|w| w.as_str().unwrap().contains("could not write"))
+            .count(),
+        1,
+        "{s}"
+    );
+}
+
+/// A new run (same scenario with fewer probes, or another one with --overwrite) leaves none of
+/// the earlier run's plots, field files or results behind; other files stay.
+#[test]
+fn a_new_run_clears_the_earlier_runs_files() {
+    let dir = tempdir("clear");
+    example(&dir, "film");
+    example(&dir, "film-vibration");
+    let first = deasim(&["run", "film.toml", "--out", "o"], &dir);
+    assert_eq!(first.status.code(), Some(0), "{}", text(&first));
+    let plots_before = names(&dir.join("o/plots"));
+    assert!(plots_before.iter().any(|p| p.starts_with("voltage")));
+    std::fs::write(dir.join("o/plots/notes.txt"), "mine").unwrap();
+    let other = deasim(
+        &[
+            "run",
+            "film-vibration.toml",
+            "--out",
+            "o",
+            "--overwrite",
+            "--set",
+            "stages.0.duration=1e-4",
+            "--set",
+            "output.plots=false",
+            "--set",
+            "output.fields_every=0",
+        ],
+        &dir,
+    );
+    assert_eq!(other.status.code(), Some(0), "{}", text(&other));
+    assert_eq!(names(&dir.join("o/plots")), vec!["notes.txt".to_string()]);
+    assert_eq!(
+        names(&dir.join("o/fields")),
+        vec!["step_00000.vtu".to_string()]
+    );
+    let pvd = std::fs::read_to_string(dir.join("o/fields.pvd")).unwrap();
+    assert_eq!(pvd.matches("<DataSet").count(), 1, "{pvd}");
+}
+
+/// The README's checkpoint example, as written; `--resume` on the finished run says so.
+#[test]
+fn readme_checkpoint_example_works_as_written() {
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let line = |prefix: &str| -> Vec<String> {
+        let l = readme
+            .lines()
+            .find(|l| l.starts_with(prefix))
+            .unwrap_or_else(|| panic!("README has no line `{prefix}…`"));
+        let cmd = l.split('#').next().unwrap();
+        cmd.split_whitespace().skip(1).map(String::from).collect()
+    };
+    let run = line("deasim run film.toml --out out --checkpoint-every");
+    let resume = line("deasim run --resume out");
+    let dir = tempdir("readme");
+    example(&dir, "film");
+    let args: Vec<&str> = run.iter().map(String::as_str).collect();
+    let out = deasim(&args, &dir);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(
+        !names(&dir.join("out/checkpoint")).is_empty(),
+        "no checkpoint written by {run:?}"
+    );
+    // the run finished: resuming it says so
+    let args: Vec<&str> = resume.iter().map(String::as_str).collect();
+    let done = deasim(&args, &dir);
+    assert_eq!(done.status.code(), Some(2), "{}", text(&done));
+    assert!(text(&done).contains("already finished"), "{}", text(&done));
+    // a killed run (no summary yet, the last rows missing) continues to the same results
+    let history = std::fs::read_to_string(dir.join("out/history.csv")).unwrap();
+    std::fs::remove_file(dir.join("out/summary.json")).unwrap();
+    let cut: Vec<&str> = history.lines().take(5).collect();
+    std::fs::write(dir.join("out/history.csv"), cut.join("\n") + "\n").unwrap();
+    let resumed = deasim(&args, &dir);
+    assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed));
+    assert_eq!(
+        std::fs::read_to_string(dir.join("out/history.csv")).unwrap(),
+        history
+    );
+}
