@@ -488,18 +488,8 @@ impl<'p, 'o> Job<'p, 'o> {
             .map(|e| stage_voltage(stage, &e.voltage, stage.duration))
             .collect();
         // a quasi-static stage's electrodes follow their waveforms in stage time
-        let drive: Vec<(Vec<usize>, crate::waveform::Waveform)> = if quasi_static {
-            plan.electrodes
-                .iter()
-                .map(|e| {
-                    let w = if stage.electrodes_on {
-                        e.voltage.clone()
-                    } else {
-                        crate::waveform::Waveform::constant(0.0)
-                    };
-                    (e.nodes.clone(), w)
-                })
-                .collect()
+        let drive = if quasi_static {
+            stage_waveforms(plan, stage)
         } else {
             Vec::new()
         };
@@ -673,18 +663,7 @@ impl<'p, 'o> Job<'p, 'o> {
         let inputs = DynamicInputs {
             mass: &mass,
             viscosity: plan.viscosities.clone(),
-            electrodes: plan
-                .electrodes
-                .iter()
-                .map(|e| {
-                    let w = if stage.electrodes_on {
-                        e.voltage.clone()
-                    } else {
-                        crate::waveform::Waveform::constant(0.0)
-                    };
-                    (e.nodes.clone(), w)
-                })
-                .collect(),
+            electrodes: stage_waveforms(plan, stage),
         };
         let settings = DynamicSettings {
             duration: stage.duration,
@@ -840,6 +819,22 @@ fn dynamic_position(t: f64, r: DynamicResume) -> StagePosition {
         step_factor: r.step_factor,
         projection_factor: r.projection_factor,
     }
+}
+
+/// Every electrode's nodes with the waveform it follows in a stage (held at 0 V when the stage
+/// has its electrodes off).
+fn stage_waveforms(plan: &Plan, stage: &Stage) -> Vec<(Vec<usize>, crate::waveform::Waveform)> {
+    plan.electrodes
+        .iter()
+        .map(|e| {
+            let w = if stage.electrodes_on {
+                e.voltage.clone()
+            } else {
+                crate::waveform::Waveform::constant(0.0)
+            };
+            (e.nodes.clone(), w)
+        })
+        .collect()
 }
 
 /// The voltage of an electrode's waveform at stage time `t`: waveforms run on stage time (0 at the

@@ -54,6 +54,28 @@ impl Viscoelastic {
         }
     }
 
+    /// The branches' incremental energy, stress and (when asked) tangent, summed.
+    fn branches_sum(
+        &self,
+        f: &Mat3,
+        h: &PointHistory,
+        want_tangent: bool,
+    ) -> Result<(f64, Mat3, Mat9), MaterialError> {
+        let (mut w, mut p, mut a) = (0.0, Mat3::zeros(), Mat9::zeros());
+        for i in 0..self.branches.len() {
+            let b = self.branch(i);
+            let hi = Self::state_of(h, i);
+            let committed = MaxwellBranch::<&dyn Material>::committed(&hi);
+            let (wi, pi, ai) = b.branch(f, &committed, b.k(&hi), want_tangent)?;
+            w += wi;
+            p += pi;
+            if let Some(ai) = ai {
+                a += ai;
+            }
+        }
+        Ok((w, p, a))
+    }
+
     /// Instantaneous shear modulus G_eq + Σ gᵢ (Pa) and the relaxed one G_eq.
     pub fn moduli(&self) -> (f64, f64) {
         let eq = self.equilibrium.shear_modulus();
@@ -109,54 +131,24 @@ impl Material for Viscoelastic {
     }
 
     fn energy_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<f64, MaterialError> {
-        let mut w = self.equilibrium.energy(f, e0)?;
-        for i in 0..self.branches.len() {
-            let b = self.branch(i);
-            let hi = Self::state_of(&h, i);
-            w += b
-                .branch(
-                    f,
-                    &MaxwellBranch::<&dyn Material>::committed(&hi),
-                    b.k(&hi),
-                    false,
-                )?
-                .0;
-        }
-        Ok(w)
+        let (w, _, _) = self.branches_sum(f, &h, false)?;
+        Ok(self.equilibrium.energy(f, e0)? + w)
     }
 
     fn stress_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<Stress, MaterialError> {
         let mut s = self.equilibrium.stress(f, e0)?;
-        for i in 0..self.branches.len() {
-            let b = self.branch(i);
-            let hi = Self::state_of(&h, i);
-            let (w, p, _) = b.branch(
-                f,
-                &MaxwellBranch::<&dyn Material>::committed(&hi),
-                b.k(&hi),
-                false,
-            )?;
-            s.energy += w;
-            s.p += p;
-        }
+        let (w, p, _) = self.branches_sum(f, &h, false)?;
+        s.energy += w;
+        s.p += p;
         Ok(s)
     }
 
     fn tangent_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<Tangent, MaterialError> {
         let mut t = self.equilibrium.tangent(f, e0)?;
-        for i in 0..self.branches.len() {
-            let b = self.branch(i);
-            let hi = Self::state_of(&h, i);
-            let (w, p, a) = b.branch(
-                f,
-                &MaxwellBranch::<&dyn Material>::committed(&hi),
-                b.k(&hi),
-                true,
-            )?;
-            t.energy += w;
-            t.p += p;
-            t.a += a.expect("asked for");
-        }
+        let (w, p, a) = self.branches_sum(f, &h, true)?;
+        t.energy += w;
+        t.p += p;
+        t.a += a;
         Ok(t)
     }
 
