@@ -676,28 +676,7 @@ impl<'p, 'o> Job<'p, 'o> {
         };
         // the integrator runs on stage time; records get the global time
         let (t0, resume, mut step_no) = match position {
-            Some((
-                StagePosition::Dynamic {
-                    t,
-                    dt,
-                    iterations,
-                    last_h,
-                    step_factor,
-                    projection_factor,
-                },
-                step_no,
-            )) => (
-                t,
-                Some(DynamicResume {
-                    t_start: 0.0,
-                    dt,
-                    iterations,
-                    last_h,
-                    step_factor,
-                    projection_factor,
-                }),
-                step_no,
-            ),
+            Some((StagePosition::Dynamic { t, driver }, step_no)) => (t, Some(driver), step_no),
             _ => (0.0, None, self.first_step),
         };
         let start_level = TimeLevel {
@@ -752,7 +731,10 @@ impl<'p, 'o> Job<'p, 'o> {
                             model_ref,
                             si,
                             step_no,
-                            dynamic_position(level.t, r),
+                            StagePosition::Dynamic {
+                                t: level.t,
+                                driver: r,
+                            },
                             &level.q,
                         )
                     });
@@ -776,7 +758,10 @@ impl<'p, 'o> Job<'p, 'o> {
                             model_ref,
                             si,
                             step_no,
-                            dynamic_position(level.t, r),
+                            StagePosition::Dynamic {
+                                t: level.t,
+                                driver: r,
+                            },
                             &level.q,
                         )
                     });
@@ -806,18 +791,6 @@ impl<'p, 'o> Job<'p, 'o> {
         self.summary.interrupted = crate::solve::interrupt::requested() && !self.summary.converged;
         self.observer.finished(self.plan, &self.summary);
         self.summary
-    }
-}
-
-/// The position of a dynamic stage at stage time `t`.
-fn dynamic_position(t: f64, r: DynamicResume) -> StagePosition {
-    StagePosition::Dynamic {
-        t,
-        dt: r.dt,
-        iterations: r.iterations,
-        last_h: r.last_h,
-        step_factor: r.step_factor,
-        projection_factor: r.projection_factor,
     }
 }
 

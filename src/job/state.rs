@@ -4,6 +4,7 @@
 
 use crate::solve::stepping::RampPosition;
 pub use crate::time::integrator::FactorPoint;
+pub use crate::time::stage::DynamicResume;
 use serde::{Deserialize, Serialize};
 
 /// Energies of a state (J), as in `history.csv`.
@@ -60,17 +61,9 @@ pub enum StagePosition {
         /// Load factor of the last recorded step (for the pseudo-time increment).
         last_load: f64,
     },
-    /// A dynamic stage: stage time, the next step size, the iterations so far, the step size of
-    /// the last attempted step, and where the reused matrices of the step and of the
-    /// electrostatic projection were factored.
-    Dynamic {
-        t: f64,
-        dt: f64,
-        iterations: usize,
-        last_h: f64,
-        step_factor: Option<FactorPoint>,
-        projection_factor: Option<Vec<f64>>,
-    },
+    /// A dynamic stage at stage time `t`, and where its driver stands (next step size, Newton
+    /// iterations, last attempted step, where the reused matrices were factored).
+    Dynamic { t: f64, driver: DynamicResume },
 }
 
 /// Energy bookkeeping of the run's recorder.

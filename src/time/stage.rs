@@ -92,7 +92,7 @@ impl DynamicStepInfo<'_> {
 /// and the points where the reused matrices were factored (they are factored there again, so the
 /// resumed run continues bit for bit). The start-of-stage set-up (Newmark's consistent
 /// acceleration, the trapezoidal scheme's first projection) is skipped.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DynamicResume {
     /// Time of the stage start (the stage ends at `t_start + duration`).
     pub t_start: f64,
