@@ -154,3 +154,17 @@ fn dynamic_run_is_deterministic_across_thread_counts() {
 fn static_run_is_deterministic_across_thread_counts() {
     compare_threads("film", "film", &["mesh.divisions=[8, 8, 2]"]);
 }
+
+/// The film vibration with a fast Maxwell branch (the point states evolve in every step).
+#[test]
+fn viscoelastic_run_is_deterministic_across_thread_counts() {
+    compare_threads(
+        "visco",
+        "film-vibration",
+        &[
+            "stages.0.duration=0.002",
+            "mesh.divisions=[6, 6, 2]",
+            "materials.elastomer.branches=[{mu=5e4,tau=1e-3}]",
+        ],
+    );
+}

@@ -57,6 +57,7 @@ fn simulate(
             (bottom.to_vec(), Waveform::constant(0.0)),
             (top.to_vec(), Waveform::constant(volts)),
         ],
+        points: Default::default(),
     };
     let n = model.mesh.n_nodes() * FIELDS;
     let start = TimeLevel {

@@ -473,3 +473,26 @@ fn sigint_checkpoint_resumes_to_completion() {
     assert_eq!(s["converged"], true);
     assert!(s.get("error").is_none(), "{s}");
 }
+
+/// Materials with internal variables: the pull-in ramp of the film with a Maxwell branch (cut-backs
+/// near the rate-dependent limit point; the branches' state is part of the checkpoint) and the film
+/// vibration with a fast branch (the branches evolve in the dynamic stage) both resume bit for bit.
+#[test]
+fn viscoelastic_runs_resume_bitwise() {
+    let full = resume_from_older_checkpoint(
+        "visco-pullin",
+        "film-pull-in",
+        "3",
+        &["materials.elastomer.branches=[{mu=3e4,tau=0.1}]"],
+    );
+    assert_eq!(full.status.code(), Some(1), "{}", text(&full));
+    resume_from_older_checkpoint(
+        "visco-dynamic",
+        "film-vibration",
+        "40",
+        &[
+            "materials.elastomer.branches=[{mu=5e4,tau=1e-3}]",
+            "stages.0.duration=0.004",
+        ],
+    );
+}

@@ -165,6 +165,7 @@ pub fn bench_dynamic(
             (bottom, Waveform::constant(0.0)),
             (top, Waveform::constant(20e3)),
         ],
+        points: Default::default(),
     };
     let n = model.mesh.n_nodes() * 4;
     let start = TimeLevel {

@@ -664,6 +664,7 @@ impl<'p, 'o> Job<'p, 'o> {
             mass: &mass,
             viscosity: plan.viscosities.clone(),
             electrodes: stage_waveforms(plan, stage),
+            points: self.points.clone(),
         };
         let settings = DynamicSettings {
             duration: stage.duration,
@@ -706,6 +707,10 @@ impl<'p, 'o> Job<'p, 'o> {
             |level, info| {
                 step_no += 1;
                 self.dissipated += info.dissipated;
+                if let Some(p) = info.points {
+                    self.points.clone_from(p);
+                    self.rec.points.clone_from(p);
+                }
                 mass.mul(&level.v, &mut mv);
                 let kinetic = 0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
                 self.rec.external_factor = 1.0;

@@ -14,10 +14,11 @@
 //!   R = βΔt²[M a_{n+1} + ∇V(q_{n+1}) + f_vis(q_{n+1}, v_{n+1}) − f_ext],
 //! tangent M + βΔt² K_T + γΔt ∂f_vis/∂v.
 
-use crate::element::{CellHistory, CellInput, KelvinVoigtKernel, MAX_LOCAL};
+use crate::element::{CellInput, KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::{Assembler, CsrMatrix};
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
+use crate::problem::points::PointStates;
 use crate::problem::statics::discretize;
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
@@ -65,6 +66,9 @@ pub struct FactorPoint {
     pub q: Vec<f64>,
     /// The step size of the matrix.
     pub dt: f64,
+    /// The committed internal variables of the material points the matrix was evaluated with
+    /// (empty for elastic materials).
+    pub points: Vec<f64>,
 }
 
 /// One step from `prev` to `prev.t + dt`, the unknown being q_{n+1}.
@@ -94,6 +98,9 @@ pub struct TimeStep<'m> {
     /// Where the matrix the solver holds was factored (see [`FactorPoint`]); `None` when the
     /// driver dropped the factorisation.
     pub factor_point: Option<FactorPoint>,
+    /// Committed internal variables of the material points at `prev` (empty for elastic
+    /// materials). The step's stresses come from the update over Δt to the evaluation point.
+    pub points: PointStates,
 }
 
 impl<'m> TimeStep<'m> {
@@ -130,7 +137,22 @@ impl<'m> TimeStep<'m> {
             work_m: vec![0.0; n],
             cell_energy: Vec::new(),
             factor_point: None,
+            points: PointStates::default(),
         }
+    }
+
+    /// The material points' internal variables updated over the converged step at its
+    /// evaluation point (the midpoint configuration, or the end point for Newmark) — the same
+    /// update whose stresses entered the step's residual — and the energy they dissipated (J).
+    /// `self.points` is left as it was: the driver commits the result when it accepts the step.
+    pub fn updated_points(&mut self) -> Result<(PointStates, f64), String> {
+        if self.points.is_empty() {
+            return Ok((PointStates::default(), 0.0));
+        }
+        self.evaluation_point();
+        let mut points = self.points.clone();
+        let dissipated = points.commit(self.model, &self.work_q, self.dt)?;
+        Ok((points, dissipated))
     }
 
     /// Prepares the step to `prev.t + dt`: prescribed potentials `phi_d(t)` on the electrode nodes
@@ -239,13 +261,15 @@ impl<'m> TimeStep<'m> {
     }
 
     /// Internal, viscous and dead-load forces f_int + f_vis − f_ext at configuration `q` and
-    /// velocity `v` (N, 4 per node; potential entries are ∂Π/∂Φ), all dofs. Dead loads at full value.
+    /// velocity `v` (N, 4 per node; potential entries are ∂Π/∂Φ), all dofs, with the committed
+    /// internal variables (no relaxation). Dead loads at full value.
     pub fn forces_at(&mut self, q: &[f64], v: &[f64]) -> Result<Vec<f64>, String> {
         let model = self.model;
         let mut out = vec![0.0; q.len()];
         let mut r = vec![0.0; MAX_LOCAL];
         let mut rv = vec![0.0; MAX_LOCAL];
         let mut vel = vec![0.0; MAX_LOCAL];
+        let points = &self.points;
         model.for_each_cell(q, |c, g, mat, local| {
             let nl = local.len();
             model
@@ -255,7 +279,7 @@ impl<'m> TimeStep<'m> {
                     &CellInput {
                         geom: g,
                         mat,
-                        hist: CellHistory::NONE,
+                        hist: points.cell(c, model.cell_material[c], 0.0),
                         local,
                     },
                     &mut r,
@@ -311,6 +335,12 @@ impl<'m> TimeStep<'m> {
         );
         let q = std::mem::replace(&mut self.q, point.q.clone());
         let dt = std::mem::replace(&mut self.dt, point.dt);
+        let points = std::mem::take(&mut self.points.data);
+        self.points.data = if point.points.len() == points.len() {
+            point.points.clone()
+        } else {
+            points.clone()
+        };
         let mut r = vec![0.0; self.dofs.n_free];
         let result = self
             .evaluate(&mut r, Some(k))
@@ -318,6 +348,7 @@ impl<'m> TimeStep<'m> {
         self.prev = prev;
         self.q = q;
         self.dt = dt;
+        self.points.data = points;
         result?;
         self.factor_point = Some(point.clone());
         Ok(())
@@ -344,7 +375,7 @@ impl NonlinearSystem for TimeStep<'_> {
         };
         let model = self.model;
         let npc = model.mesh.kind.nodes_per_cell();
-        let (viscosity, vel_all) = (&self.viscosity, &self.work_v);
+        let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let g = &model.geometry[c];
             let mat = model.cell_material[c];
@@ -357,7 +388,7 @@ impl NonlinearSystem for TimeStep<'_> {
                     &CellInput {
                         geom: g,
                         mat: model.materials[mat].as_ref(),
-                        hist: CellHistory::NONE,
+                        hist: points.cell(c, mat, dt),
                         local,
                     },
                     rl,
@@ -509,6 +540,7 @@ impl NonlinearSystem for TimeStep<'_> {
             a_prev: self.prev.a.clone(),
             q: self.q.clone(),
             dt: self.dt,
+            points: self.points.data.clone(),
         });
     }
 }

@@ -9,6 +9,7 @@ use super::mass::NodalMass;
 use crate::problem::assembly::CsrMatrix;
 use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
+use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
 use crate::problem::system::NonlinearSystem;
 use crate::solve::linear::{LinearSolver, SolverSettings};
@@ -60,8 +61,11 @@ pub struct DynamicSettings {
 pub struct DynamicStepInfo<'a> {
     pub dt: f64,
     pub newton_iterations: usize,
-    /// Energy dissipated by viscosity during the step (J).
+    /// Energy dissipated during the step (J): Kelvin–Voigt viscosity, dashpots and the
+    /// materials' internal variables.
     pub dissipated: f64,
+    /// The materials' internal variables after the step (`None` for elastic materials).
+    pub points: Option<&'a PointStates>,
     /// The step size the next step will try (after the growth rule).
     pub next_dt: f64,
     /// Newton iterations of the stage so far, this step included.
@@ -117,6 +121,9 @@ pub struct DynamicInputs<'a> {
     pub mass: &'a NodalMass,
     pub viscosity: Vec<f64>,
     pub electrodes: Vec<(Vec<usize>, Waveform)>,
+    /// The committed internal variables of the material points at the start level (empty for
+    /// elastic materials).
+    pub points: PointStates,
 }
 
 /// Why an attempted step did not give a new level.
@@ -127,11 +134,13 @@ enum StepError {
     Fatal(String, usize),
 }
 
-/// An accepted attempt: the new level, Newton iterations, dissipated energy (J).
+/// An accepted attempt: the new level, Newton iterations, dissipated energy (J), and the
+/// updated internal variables (`None` for elastic materials).
 struct Attempt {
     level: TimeLevel,
     iterations: usize,
     dissipated: f64,
+    points: Option<PointStates>,
 }
 
 /// One time integration scheme as the adaptive loop sees it.
@@ -140,8 +149,8 @@ trait Stepper {
     fn level(&self) -> &TimeLevel;
     /// Tries one step of size `h` from the current level.
     fn attempt(&mut self, h: f64) -> Result<Attempt, StepError>;
-    /// Makes the level of the last successful attempt the current one.
-    fn accept(&mut self, level: TimeLevel);
+    /// Makes the level (and internal variables) of the last successful attempt the current one.
+    fn accept(&mut self, level: TimeLevel, points: Option<PointStates>);
     /// Whether the step size may double after an accepted step of `iterations` Newton iterations.
     fn easy(&self, iterations: usize, easy_iterations: usize) -> bool;
     /// Size of the last attempted step and the points of the held factorisations.
@@ -286,6 +295,19 @@ impl Stepper for ImplicitStepper<'_, '_> {
             Ok(p) => p * h,
             Err(e) => return Err(StepError::Fatal(e, rep.iterations)),
         };
+        // the internal variables follow the update whose stresses the step used; a failure here
+        // (an inadmissible evaluation point) is a step to retry smaller
+        let (points, dissipated) = if self.step.points.is_empty() {
+            (None, dissipated)
+        } else {
+            match self.step.updated_points() {
+                Ok((p, d)) => (Some(p), dissipated + d),
+                Err(e) => {
+                    self.step.q = self.step.prev.q.clone();
+                    return Err(StepError::Retry(e));
+                }
+            }
+        };
         let mut level = self.step.end_level();
         if self.scheme == Scheme::Midpoint {
             // Gauss's law at t_{n+1}: solve for the potential with u_{n+1} held
@@ -298,12 +320,16 @@ impl Stepper for ImplicitStepper<'_, '_> {
             level,
             iterations: rep.iterations,
             dissipated,
+            points,
         })
     }
 
-    fn accept(&mut self, level: TimeLevel) {
+    fn accept(&mut self, level: TimeLevel, points: Option<PointStates>) {
         self.step.q = level.q.clone();
         self.step.prev = level;
+        if let Some(p) = points {
+            self.step.points = p;
+        }
     }
 
     fn easy(&self, iterations: usize, easy_iterations: usize) -> bool {
@@ -407,13 +433,14 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
                     },
                     iterations,
                     dissipated,
+                    points: None,
                 })
             }
             Err(reason) => Err(StepError::Retry(reason)),
         }
     }
 
-    fn accept(&mut self, level: TimeLevel) {
+    fn accept(&mut self, level: TimeLevel, _points: Option<PointStates>) {
         self.level = level;
         std::mem::swap(&mut self.f_n, &mut self.f_next);
     }
@@ -461,6 +488,7 @@ fn step_loop(
                     dt: h,
                     newton_iterations: a.iterations,
                     dissipated: a.dissipated,
+                    points: a.points.as_ref(),
                     next_dt: dt,
                     total_iterations: total,
                     last_h,
@@ -468,7 +496,7 @@ fn step_loop(
                     projection_factor,
                 };
                 on_step(&a.level, &info);
-                stepper.accept(a.level);
+                stepper.accept(a.level, a.points);
             }
             Err(StepError::Fatal(reason, iterations)) => {
                 return Err((
@@ -534,12 +562,13 @@ pub fn run_dynamic_from(
     resume: Option<DynamicResume>,
     on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
-    if model.materials.iter().any(|m| m.state_size() > 0) {
+    if settings.scheme == Method::Trapezoidal && !inputs.points.is_empty() {
         return Err((
             start.clone(),
             DynamicFailure {
                 t: start.t,
-                reason: "materials with internal variables are not supported in dynamic stages"
+                reason: "the explicit trapezoidal scheme does not evolve materials with internal \
+                         variables (Maxwell branches); use scheme = \"midpoint\" or \"newmark\""
                     .to_string(),
                 newton_iterations: 0,
             },
@@ -637,19 +666,21 @@ pub fn run_dynamic_from(
             Scheme::Midpoint,
             start.clone(),
         );
+        probe.points = inputs.points.clone();
         let forces = probe
             .forces_at(&start.q, &start.v)
             .map_err(|e| fail(&start, e))?;
         let rhs: Vec<f64> = forces.iter().map(|f| -f).collect();
         start.a = inputs.mass.solve(&rhs, &probe.dofs, 1e-12);
     }
-    let step = TimeStep::new(
+    let mut step = TimeStep::new(
         &step_model,
         inputs.mass,
         inputs.viscosity.clone(),
         scheme,
         start,
     );
+    step.points = inputs.points.clone();
     let k = step.new_matrix();
     let mut stepper = ImplicitStepper {
         step,

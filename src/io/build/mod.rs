@@ -45,6 +45,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         &model.mesh,
     ));
     let stages = stages::build_stages(&ctx, s)?;
+    stages::check_internal_variables(&ctx, &stages, &model)?;
     let probes = probes::build_probes(&ctx, s, &model, &electrodes)?;
     let output = build_output(&ctx, &s.output)?;
     warnings.extend(stages::aliasing_warnings(&stages, &electrodes));

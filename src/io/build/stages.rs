@@ -209,6 +209,32 @@ fn dynamic_kind(
     Ok(StageKind::Dynamic { dt, scheme, mass })
 }
 
+/// The explicit trapezoidal integrator carries no internal variables: it refuses materials with
+/// Maxwell branches (the implicit integrators evolve them).
+pub(super) fn check_internal_variables(
+    ctx: &Ctx,
+    stages: &[Stage],
+    model: &crate::problem::model::Model,
+) -> Result<(), InputError> {
+    if model.materials.iter().all(|m| m.state_size() == 0) {
+        return Ok(());
+    }
+    for (i, st) in stages.iter().enumerate() {
+        if let StageKind::Dynamic {
+            scheme: Method::Trapezoidal,
+            ..
+        } = st.kind
+        {
+            return Err(ctx.err(
+                format!("stages.{i}.integrator"),
+                "the explicit `trapezoidal` integrator does not evolve materials with `branches`; \
+                 use `midpoint` or `newmark`",
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// `integrator`: `midpoint` (default), `trapezoidal` or `newmark` (β = 1/4, γ = 1/2).
 fn integrator(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<Method, InputError> {
     Ok(match st.integrator.as_deref().unwrap_or("midpoint") {
