@@ -326,3 +326,95 @@ plots = false
     assert!(dissipated > 0.0);
     assert!(e1 < 0.05 && e2 < 0.6 * e1, "{e1} {e2}");
 }
+
+/// A timed pre-stretch: the diaphragm's rim stretched to λ = 2 in 1 s and held 5 s with the
+/// `vhb4910-wang2016` material. The phase's steps are recorded at their times; during the hold
+/// the membrane relaxes at fixed stretch (stored energy falls, the branches dissipate, nothing
+/// moves the rim), and the first stage starts at t = 6 s. For an elastic material the timed
+/// phase ends in the same state as the instantaneous one (1e-9 of the stretch).
+#[test]
+fn timed_prestretch_relaxes_during_its_hold() {
+    let dir = tempdir("prestretch-hold");
+    std::fs::write(
+        dir.join("d.toml"),
+        deasim(&["example", "diaphragm"], &dir).stdout,
+    )
+    .unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            "d.toml",
+            "--out",
+            out,
+            "--set",
+            "mesh.radial=4",
+            "--set",
+            "mesh.layers=1",
+            "--set",
+            "stages.1.duration=0.002",
+            "--set",
+            "output.plots=false",
+            "--set",
+            "output.fields_every=0",
+        ];
+        args.extend_from_slice(extra);
+        let o = deasim(&args, &dir);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let h = std::fs::read_to_string(dir.join(out).join("history.csv")).unwrap();
+        let mut lines = h.lines();
+        let head: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+        let rows: Vec<Vec<String>> = lines
+            .map(|l| l.split(',').map(String::from).collect())
+            .collect();
+        (head, rows)
+    };
+    let timed = [
+        "--set",
+        "prestretch.duration=1.0",
+        "--set",
+        "prestretch.hold=5.0",
+        "--set",
+        "prestretch.hold_steps=5",
+    ];
+    let mut visco = timed.to_vec();
+    visco.extend(["--set", "materials.vhb.preset=\"vhb4910-wang2016\""]);
+    let (head, rows) = run("visco", &visco);
+    let col = |n: &str| head.iter().position(|h| h == n).unwrap();
+    let num = |r: &Vec<String>, c: usize| -> f64 { r[c].parse().unwrap() };
+    let (ct, cs, cd) = (col("time"), col("stored"), col("dissipated"));
+    // rows: the initial state, 4 stretch steps (t = 0.25 … 1), 5 hold steps (t = 2 … 6), then
+    // the load stage
+    let times: Vec<f64> = rows.iter().map(|r| num(r, ct)).collect();
+    let expect = [0.0, 0.25, 0.5, 0.75, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+    for (t, e) in times.iter().zip(expect) {
+        assert!((t - e).abs() < 1e-12, "{times:?}");
+    }
+    assert!(times[10] > 6.0, "{times:?}");
+    let hold = &rows[4..10];
+    for w in hold.windows(2) {
+        assert!(num(&w[1], cs) < num(&w[0], cs), "stored energy must relax");
+        assert!(
+            num(&w[1], cd) > num(&w[0], cd),
+            "the branches must dissipate"
+        );
+    }
+    // an elastic material: timed and instantaneous pre-stretch reach the same state
+    let (_, a) = run("elastic-timed", &timed);
+    let (_, b) = run("elastic", &[]);
+    // the last record of the phase: at t = 6 s (timed; its ramp may be cut back), at step 1
+    let end = |rows: &Vec<Vec<String>>, t: f64| {
+        num(
+            rows.iter()
+                .rfind(|r| (num(r, ct) - t).abs() < 1e-12)
+                .unwrap(),
+            cs,
+        )
+    };
+    let (x, y) = (end(&a, 6.0), num(&b[1], cs));
+    assert!((x - y).abs() < 1e-9 * y, "{x} vs {y}");
+}

@@ -323,6 +323,16 @@ pub struct PrestretchSpec {
     /// regions free and without the loads, and its steps are recorded under the first stage's name.
     #[serde(default)]
     pub steps: Option<u64>,
+    /// Real time (s) the stretch takes (default 0: instantaneous); with a positive duration or
+    /// hold the phase runs in time, so materials with internal variables relax during it.
+    #[serde(default)]
+    pub duration: Option<f64>,
+    /// Time (s) the stretch is held before the first stage (default 0).
+    #[serde(default)]
+    pub hold: Option<f64>,
+    /// Equal steps of the hold (default 20).
+    #[serde(default)]
+    pub hold_steps: Option<u64>,
 }
 
 fn rim() -> String {

@@ -133,8 +133,22 @@ impl Plan {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Prestretch {
     pub stretch: f64,
-    /// Load steps of the fallback ramp (when the homogeneous guess does not converge).
+    /// Load steps of the ramp: the fallback of an instantaneous pre-stretch (when the homogeneous
+    /// guess does not converge), the steps of a timed one.
     pub steps: usize,
+    /// Real time of the stretch (s); 0 is instantaneous.
+    pub duration: f64,
+    /// Real time the stretch is held before the first stage (s), in `hold_steps` equal steps.
+    pub hold: f64,
+    pub hold_steps: usize,
+}
+
+impl Prestretch {
+    /// Whether the phase runs in real time (its steps then relax materials with internal
+    /// variables, and the first stage starts at `duration + hold`).
+    pub fn timed(&self) -> bool {
+        self.duration > 0.0 || self.hold > 0.0
+    }
 }
 
 /// A rigid region of the plan.

@@ -3,8 +3,9 @@
 use super::plan::Plan;
 use super::recorder::Recorder;
 use super::run::Observer;
-use super::statics::solve_static;
+use super::statics::{solve_static, solve_static_from, StageTime};
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
+use crate::problem::points::PointStates;
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
 
@@ -15,18 +16,24 @@ use crate::solve::stepping::StepControl;
 /// membrane: one step, a few iterations); if that fails, the supports are ramped from the start
 /// in `steps` load steps. Steps are recorded under the first stage's name at time 0, deflections
 /// measured from the current state, and the energy balance starts afresh from the pre-stretched
-/// state. Returns the state, the number of recorded steps and the Newton iterations.
+/// state.
+///
+/// A **timed** pre-stretch (a `duration` or a `hold`) runs in real time instead: the supports are
+/// ramped in `steps` steps over `duration` seconds and then held for `hold` seconds in
+/// `hold_steps` steps, materials with internal variables relaxing throughout; its steps are
+/// recorded at their times, and the first stage starts at `duration + hold`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn prestretch(
     plan: &Plan,
     model: &crate::problem::model::Model,
     state: &[f64],
+    points: &PointStates,
     p: super::plan::Prestretch,
     newton: &NewtonSettings,
     rec: &mut Recorder,
     stage: &str,
     observer: &mut dyn Observer,
-) -> Result<(Vec<f64>, usize, usize), String> {
+) -> Result<PrestretchOutcome, String> {
     let mut pre = model.clone();
     pre.body_force.clear();
     pre.point_forces.clear();
@@ -47,29 +54,92 @@ pub(super) fn prestretch(
     let prescribed = constrained_flags(model.mesh.n_nodes(), &pre.dirichlet);
     let mut step_no = 0;
     let mut record_error = None;
-    let mut record = |rec: &mut Recorder, s: &[f64], iterations: usize| {
+    // (state, Newton iterations, time, step, energy dissipated so far)
+    let mut record = |rec: &mut Recorder, s: &[f64], iterations: usize, t: f64, dt: f64, d: f64| {
         step_no += 1;
         // the balance starts from the pre-stretched state (the last of these records)
         rec.restart_balance();
         rec.external_factor = 0.0;
         rec.reference = s.to_vec();
-        match rec.record(
-            s,
-            &prescribed,
-            0.0,
-            stage,
-            step_no,
-            iterations,
-            0.0,
-            0.0,
-            0.0,
-        ) {
+        match rec.record(s, &prescribed, t, stage, step_no, iterations, dt, 0.0, d) {
             Ok((r, f)) => observer.step(plan, &r, s, &f),
             Err(e) => {
                 record_error.get_or_insert(e);
             }
         }
     };
+    if p.timed() {
+        let mut outcome = PrestretchOutcome {
+            state: state.to_vec(),
+            steps: 0,
+            iterations: 0,
+            points: points.clone(),
+            time: 0.0,
+            dissipated: 0.0,
+        };
+        for (phase, duration, steps) in [
+            ("stretch", p.duration, p.steps),
+            ("hold", p.hold, p.hold_steps),
+        ] {
+            if phase == "hold" && duration == 0.0 {
+                continue;
+            }
+            let (t0, mut last) = (outcome.time, 0.0);
+            let mut dissipated = outcome.dissipated;
+            let control = StepControl {
+                steps,
+                ..Default::default()
+            };
+            let out = solve_static_from(
+                &pre,
+                &plan.solver,
+                outcome.state.clone(),
+                StageTime {
+                    duration,
+                    points: outcome.points.clone(),
+                    drive: Vec::new(),
+                },
+                None,
+                &control,
+                newton,
+                |q, acc| {
+                    dissipated += q.dissipated_step;
+                    rec.points.clone_from(&q.points);
+                    let dt = (acc.load - last) * duration;
+                    last = acc.load;
+                    record(
+                        rec,
+                        &q.state,
+                        acc.newton.iterations,
+                        t0 + acc.load * duration,
+                        dt,
+                        dissipated,
+                    );
+                },
+            );
+            match out.result {
+                Ok(r) => outcome.iterations += r.newton_iterations,
+                Err(f) => {
+                    return Err(format!(
+                        "pre-stretch ({phase}) failed at t = {:.6} s (last converged {:.6} s): {}",
+                        t0 + f.attempted * duration,
+                        t0 + f.last_converged * duration,
+                        f.reason
+                    ))
+                }
+            }
+            outcome.state = out.state;
+            outcome.points = out.points;
+            outcome.time = t0 + duration;
+            outcome.dissipated = dissipated;
+        }
+        if let Some(e) = record_error {
+            rec.warnings
+                .push(format!("pre-stretch: output evaluation failed: {e}"));
+        }
+        outcome.steps = step_no;
+        return Ok(outcome);
+    }
     // the homogeneous guess
     let thickness = crate::material::homogeneous::solve(
         model.materials[0].as_ref(),
@@ -93,7 +163,7 @@ pub(super) fn prestretch(
     let direct = solve_static(&pre, Some(guess), &one, newton, |_, _| {});
     let (final_state, iterations) = match direct.result {
         Ok(r) => {
-            record(rec, &direct.state, r.newton_iterations);
+            record(rec, &direct.state, r.newton_iterations, 0.0, 0.0, 0.0);
             (direct.state, r.newton_iterations)
         }
         Err(_) => {
@@ -102,7 +172,7 @@ pub(super) fn prestretch(
                 ..Default::default()
             };
             let ramped = solve_static(&pre, Some(state.to_vec()), &control, newton, |q, acc| {
-                record(rec, &q.state, acc.newton.iterations)
+                record(rec, &q.state, acc.newton.iterations, 0.0, 0.0, 0.0)
             });
             match ramped.result {
                 Ok(r) => (ramped.state, r.newton_iterations),
@@ -119,5 +189,26 @@ pub(super) fn prestretch(
         rec.warnings
             .push(format!("pre-stretch: output evaluation failed: {e}"));
     }
-    Ok((final_state, step_no, iterations))
+    Ok(PrestretchOutcome {
+        state: final_state,
+        steps: step_no,
+        iterations,
+        points: points.clone(),
+        time: 0.0,
+        dissipated: 0.0,
+    })
+}
+
+/// The pre-stretched state and what the phase took.
+pub(super) struct PrestretchOutcome {
+    pub state: Vec<f64>,
+    /// Recorded steps and Newton iterations.
+    pub steps: usize,
+    pub iterations: usize,
+    /// Committed internal variables of the material points at `state`.
+    pub points: PointStates,
+    /// Real time the phase took (s; 0 for an instantaneous pre-stretch).
+    pub time: f64,
+    /// Energy the material points dissipated (J).
+    pub dissipated: f64,
 }

@@ -411,17 +411,22 @@ impl<'p, 'o> Job<'p, 'o> {
             plan,
             model,
             &self.q,
+            &self.points,
             p,
             self.newton,
             &mut self.rec,
             &stage.name,
             &mut *self.observer,
         ) {
-            Ok((s, n, its)) => {
-                self.q = s;
-                self.first_step = n;
-                self.prestretch_iterations = its;
+            Ok(o) => {
+                self.q = o.state;
+                self.first_step = o.steps;
+                self.prestretch_iterations = o.iterations;
                 self.rec.reference = self.q.clone();
+                self.rec.points.clone_from(&o.points);
+                self.points = o.points;
+                self.dissipated += o.dissipated;
+                self.time += o.time;
                 true
             }
             Err(e) => {

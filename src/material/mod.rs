@@ -33,6 +33,7 @@ pub mod mooney_rivlin;
 pub mod neo_hooke;
 pub mod neo_hooke_split;
 pub mod ogden;
+pub mod point_history;
 pub mod registry;
 pub mod yeoh;
 

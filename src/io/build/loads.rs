@@ -128,9 +128,31 @@ fn build_prestretch(ctx: &Ctx, s: &Scenario) -> Result<Option<Prestretch>, Input
             format!("must be between 1 and 100000; got {n}"),
         ));
     }
+    let time = |key: &str, v: Option<f64>| -> Result<f64, InputError> {
+        match v {
+            None => Ok(0.0),
+            Some(x) if x.is_finite() && x >= 0.0 => Ok(x),
+            Some(x) => Err(ctx.err(
+                format!("prestretch.{key}"),
+                format!("must be a non-negative time in s; got {x}"),
+            )),
+        }
+    };
+    let duration = time("duration", p.duration)?;
+    let hold = time("hold", p.hold)?;
+    let hold_steps = p.hold_steps.unwrap_or(20);
+    if !(1..=1_000_000).contains(&hold_steps) {
+        return Err(ctx.err(
+            "prestretch.hold_steps",
+            format!("must be between 1 and 1000000; got {hold_steps}"),
+        ));
+    }
     Ok(Some(Prestretch {
         stretch: p.stretch,
         steps: n as usize,
+        duration,
+        hold,
+        hold_steps: hold_steps as usize,
     }))
 }
 
@@ -329,7 +351,10 @@ mod tests {
             p.prestretch,
             Some(Prestretch {
                 stretch: 1.5,
-                steps: 7
+                steps: 7,
+                duration: 0.0,
+                hold: 0.0,
+                hold_steps: 20,
             })
         );
         // 3 constraints, then ux and uy of the 6 nodes of x1 (x = 10 mm): ux = 0.5 x
