@@ -80,6 +80,47 @@ enum Command {
         #[arg(long)]
         jobs: Option<usize>,
     },
+    /// Homogeneous material-point tests of a preset or a scenario's material (same material
+    /// code as a run): ramps at stretch rates, load–unload cycles, relaxation, creep; CSV and plots.
+    Material {
+        /// A preset name (e.g. vhb4910-wang2016) or a scenario file holding the material.
+        material: String,
+        /// The material's name in a scenario file (default: its first material).
+        #[arg(long)]
+        name: Option<String>,
+        /// uniaxial | equibiaxial | pure-shear (ramps to --stretch at each --rate), cyclic
+        /// (load–unload between 1 and --stretch), relaxation (to --stretch in --ramp-time, held
+        /// --hold s) or creep (to --stress in --ramp-time, held --hold s).
+        #[arg(long, default_value = "uniaxial")]
+        test: String,
+        /// Deformation of cyclic, relaxation and creep tests: uniaxial | equibiaxial | pure-shear.
+        #[arg(long, default_value = "uniaxial")]
+        mode: String,
+        /// Largest or held stretch.
+        #[arg(long, default_value_t = 2.5)]
+        stretch: f64,
+        /// Stretch rates dλ/dt in 1/s, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "0.01,0.03,0.05")]
+        rate: Vec<f64>,
+        /// Held nominal stress of a creep test, Pa.
+        #[arg(long)]
+        stress: Option<f64>,
+        /// Time to reach the stretch or stress of relaxation and creep tests, s.
+        #[arg(long, default_value_t = 0.1)]
+        ramp_time: f64,
+        /// Hold time of relaxation and creep tests, s.
+        #[arg(long, default_value_t = 60.0)]
+        hold: f64,
+        /// Load–unload cycles of the cyclic test.
+        #[arg(long, default_value_t = 1)]
+        cycles: usize,
+        /// Time steps per segment (ramp, hold, half cycle).
+        #[arg(long, default_value_t = 200)]
+        steps: usize,
+        /// Output directory (default ./deasim-out/material-<name>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Run the verification cases and print a table.
     Validate,
     /// Run the benchmark scenarios and print timings and memory.
@@ -159,6 +200,33 @@ fn main() {
             log,
             jobs,
         ),
+        Command::Material {
+            material,
+            name,
+            test,
+            mode,
+            stretch,
+            rate,
+            stress,
+            ramp_time,
+            hold,
+            cycles,
+            steps,
+            out,
+        } => deasim::cli::material::cmd_material(&deasim::cli::material::MaterialTest {
+            material,
+            name,
+            test,
+            mode,
+            stretch,
+            rates: rate,
+            stress,
+            ramp_time,
+            hold,
+            cycles,
+            steps,
+            out,
+        }),
         Command::Validate => deasim::cli::validate::cmd_validate(),
         Command::Bench { large } => deasim::cli::bench::cmd_bench(large),
     };

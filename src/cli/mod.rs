@@ -3,5 +3,6 @@
 pub mod app;
 pub mod bench;
 pub mod lumped;
+pub mod material;
 pub mod sweep;
 pub mod validate;

@@ -1,0 +1,401 @@
+//! `deasim material`: homogeneous material-point tests of a preset or of a scenario's material,
+//! with the same material code as a device run — uniaxial, equibiaxial and pure-shear ramps at
+//! given stretch rates, load–unload cycles, relaxation and creep — written as CSV and plots, so
+//! that a user sees a material (its rate dependence, its relaxation) before running a device.
+
+use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
+use crate::io::atomic::write_atomic;
+use crate::io::plot::{line_plot, PlotSpec, Series};
+use crate::material::homogeneous::Mode;
+use crate::material::point_history::{run, Control, PointRecord};
+use crate::material::registry::{build, preset, PRESETS};
+use crate::material::Material;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The kinds of test.
+pub const TESTS: [&str; 6] = [
+    "uniaxial",
+    "equibiaxial",
+    "pure-shear",
+    "cyclic",
+    "relaxation",
+    "creep",
+];
+
+/// What to run (the command line's arguments).
+#[derive(Debug, Clone)]
+pub struct MaterialTest {
+    /// A preset name, or a scenario file (TOML) holding the material.
+    pub material: String,
+    /// The material's name in a scenario file (default: its only or first material).
+    pub name: Option<String>,
+    /// One of [`TESTS`].
+    pub test: String,
+    /// The deformation of `cyclic`, `relaxation` and `creep`: `uniaxial`, `equibiaxial` or
+    /// `pure-shear`.
+    pub mode: String,
+    /// Largest (ramps, cycles) or held (relaxation) stretch.
+    pub stretch: f64,
+    /// Stretch rates dλ/dt (1/s) of the ramps and cycles.
+    pub rates: Vec<f64>,
+    /// Held nominal stress of a creep test (Pa).
+    pub stress: Option<f64>,
+    /// Time (s) in which relaxation and creep tests reach their stretch or stress.
+    pub ramp_time: f64,
+    /// Hold time (s) of relaxation and creep tests.
+    pub hold: f64,
+    /// Load–unload cycles of the cyclic test.
+    pub cycles: usize,
+    /// Time steps per segment (ramp, hold, half cycle).
+    pub steps: usize,
+    pub out: Option<PathBuf>,
+}
+
+/// One curve of a test: its label (the rate) and its records.
+struct Curve {
+    label: String,
+    rate: f64,
+    records: Vec<PointRecord>,
+}
+
+/// Runs the command; returns the exit status.
+pub fn cmd_material(args: &MaterialTest) -> i32 {
+    let (label, mat) = match material(args) {
+        Ok(x) => x,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
+    if let Err(e) = check(args) {
+        eprintln!("error: {e}");
+        return EXIT_BAD_INPUT;
+    }
+    let dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("deasim-out").join(format!("material-{}", sanitize(&label))));
+    let curves = match curves(args, mat.as_ref()) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_SOLVE_FAILED;
+        }
+    };
+    match write(args, &label, &dir, &curves) {
+        Ok(()) => {
+            summary(args, &label, &curves);
+            println!("results in {}", dir.display());
+            EXIT_OK
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            EXIT_SOLVE_FAILED
+        }
+    }
+}
+
+/// The material: a preset by name, or a scenario file's material.
+fn material(args: &MaterialTest) -> Result<(String, Arc<dyn Material>), String> {
+    if let Some((model, p)) = preset(&args.material) {
+        if args.name.is_some() {
+            return Err(format!(
+                "--name selects a material of a scenario file; `{}` is a preset",
+                args.material
+            ));
+        }
+        let (m, _) = build(model, &p).map_err(|e| format!("preset `{}`: {e}", args.material))?;
+        return Ok((args.material.clone(), m));
+    }
+    let path = Path::new(&args.material);
+    if !path.exists() {
+        return Err(format!(
+            "`{}` is neither a preset ({}) nor a scenario file",
+            args.material,
+            PRESETS.join(", ")
+        ));
+    }
+    let (_, plan) = load_scenario(Some(path), &[]).map_err(|e| e.to_string())?;
+    let names = &plan.material_names;
+    let i = match &args.name {
+        Some(n) => names.iter().position(|m| m == n).ok_or_else(|| {
+            format!(
+                "{}: no material `{n}`; the scenario has {}",
+                args.material,
+                names.join(", ")
+            )
+        })?,
+        None => 0,
+    };
+    Ok((
+        format!("{}:{}", plan.name, names[i]),
+        plan.model.materials[i].clone(),
+    ))
+}
+
+fn mode(args: &MaterialTest) -> Result<Mode, String> {
+    let name = match args.test.as_str() {
+        "uniaxial" | "equibiaxial" | "pure-shear" => args.test.as_str(),
+        _ => args.mode.as_str(),
+    };
+    match name {
+        "uniaxial" => Ok(Mode::Uniaxial),
+        "equibiaxial" => Ok(Mode::Equibiaxial),
+        "pure-shear" => Ok(Mode::PureShear),
+        o => Err(format!(
+            "--mode: expected `uniaxial`, `equibiaxial` or `pure-shear`; got `{o}`"
+        )),
+    }
+}
+
+/// Validates the numbers of a test.
+fn check(args: &MaterialTest) -> Result<(), String> {
+    if !TESTS.contains(&args.test.as_str()) {
+        return Err(format!(
+            "--test: expected one of {}; got `{}`",
+            TESTS.join(", "),
+            args.test
+        ));
+    }
+    mode(args)?;
+    let positive = |what: &str, v: f64| {
+        if v.is_finite() && v > 0.0 {
+            Ok(())
+        } else {
+            Err(format!("{what}: must be a positive number; got {v}"))
+        }
+    };
+    positive("--stretch", args.stretch)?;
+    if (args.stretch - 1.0).abs() < 1e-12 && args.test != "creep" {
+        return Err("--stretch: 1 is the undeformed state; give the stretch to reach".into());
+    }
+    for r in &args.rates {
+        positive("--rate", *r)?;
+    }
+    if args.rates.is_empty() {
+        return Err("--rate: at least one stretch rate (1/s) is needed".into());
+    }
+    positive("--ramp-time", args.ramp_time)?;
+    if args.hold < 0.0 || !args.hold.is_finite() {
+        return Err(format!(
+            "--hold: must be a non-negative time in s; got {}",
+            args.hold
+        ));
+    }
+    if !(1..=1_000_000).contains(&args.steps) {
+        return Err(format!(
+            "--steps: must be between 1 and 1000000; got {}",
+            args.steps
+        ));
+    }
+    if !(1..=1000).contains(&args.cycles) {
+        return Err(format!(
+            "--cycles: must be between 1 and 1000; got {}",
+            args.cycles
+        ));
+    }
+    if args.test == "creep" {
+        match args.stress {
+            Some(s) if s.is_finite() && s != 0.0 => {}
+            Some(s) => {
+                return Err(format!(
+                    "--stress: must be a non-zero stress in Pa; got {s}"
+                ))
+            }
+            None => return Err("--stress: a creep test needs the held nominal stress in Pa".into()),
+        }
+    }
+    Ok(())
+}
+
+/// `steps` equal step ends over (a, b].
+fn segment(times: &mut Vec<f64>, a: f64, b: f64, steps: usize) {
+    times.extend((1..=steps).map(|i| a + (b - a) * i as f64 / steps as f64));
+}
+
+/// Runs the test's curves.
+fn curves(args: &MaterialTest, mat: &dyn Material) -> Result<Vec<Curve>, String> {
+    let mode = mode(args)?;
+    let (lmax, n) = (args.stretch, args.steps);
+    let failed = |label: &str, f: crate::material::point_history::PointFailure| {
+        format!(
+            "{} test, {label}: stopped at t = {:.6} s after {} steps: {}",
+            args.test,
+            f.t,
+            f.records.len(),
+            f.reason
+        )
+    };
+    match args.test.as_str() {
+        "uniaxial" | "equibiaxial" | "pure-shear" | "cyclic" => {
+            let cycles = if args.test == "cyclic" {
+                args.cycles
+            } else {
+                0
+            };
+            args.rates
+                .iter()
+                .map(|&rate| {
+                    let half = (lmax - 1.0).abs() / rate;
+                    let sign = (lmax - 1.0).signum();
+                    // a ramp to λmax, or triangles 1 → λmax → 1
+                    let l = move |t: f64| {
+                        if cycles == 0 {
+                            1.0 + sign * rate * t
+                        } else {
+                            let p = (t / half) % 2.0;
+                            let p = if p <= 1.0 { p } else { 2.0 - p };
+                            1.0 + sign * rate * half * p
+                        }
+                    };
+                    let mut times = Vec::new();
+                    for k in 0..(2 * cycles).max(1) {
+                        segment(&mut times, k as f64 * half, (k + 1) as f64 * half, n);
+                    }
+                    let label = format!("{rate} 1/s");
+                    run(mat, mode, &Control::Stretch(&l), &times)
+                        .map(|records| Curve {
+                            label: label.clone(),
+                            rate,
+                            records,
+                        })
+                        .map_err(|f| failed(&label, f))
+                })
+                .collect()
+        }
+        "relaxation" | "creep" => {
+            let ramp = args.ramp_time;
+            let mut times = Vec::new();
+            segment(&mut times, 0.0, ramp, n);
+            if args.hold > 0.0 {
+                segment(&mut times, ramp, ramp + args.hold, n);
+            }
+            let label = format!("ramp {ramp} s");
+            let result = if args.test == "relaxation" {
+                let l = |t: f64| 1.0 + (lmax - 1.0) * (t / ramp).min(1.0);
+                run(mat, mode, &Control::Stretch(&l), &times)
+            } else {
+                let s0 = args.stress.unwrap_or(0.0);
+                let s = |t: f64| s0 * (t / ramp).min(1.0);
+                run(mat, mode, &Control::Stress(&s), &times)
+            };
+            result
+                .map(|records| {
+                    vec![Curve {
+                        label: label.clone(),
+                        rate: 0.0,
+                        records,
+                    }]
+                })
+                .map_err(|f| failed(&label, f))
+        }
+        o => Err(format!("unknown test `{o}`")),
+    }
+}
+
+/// The CSV and the plots.
+fn write(args: &MaterialTest, label: &str, dir: &Path, curves: &[Curve]) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let mut csv = format!("# deasim material {label}, {} test\n", args.test);
+    csv.push_str(
+        "rate_per_s,time_s,stretch,lateral_stretch,nominal_stress_pa,cauchy_stress_pa,\
+         dissipated_j_per_m3\n",
+    );
+    for c in curves {
+        for r in &c.records {
+            let _ = writeln!(
+                csv,
+                "{},{},{},{},{},{},{}",
+                c.rate, r.t, r.stretch, r.lateral, r.nominal, r.cauchy, r.dissipated
+            );
+        }
+    }
+    let file = dir.join(format!("{}.csv", args.test));
+    write_atomic(&file, csv.as_bytes()).map_err(|e| format!("{}: {e}", file.display()))?;
+    let series = |x: fn(&PointRecord) -> f64, y: fn(&PointRecord) -> f64| -> Vec<Series> {
+        curves
+            .iter()
+            .map(|c| Series {
+                label: c.label.clone(),
+                x: c.records.iter().map(x).collect(),
+                y: c.records.iter().map(y).collect(),
+            })
+            .collect()
+    };
+    let title = format!("{label}: {} test", args.test);
+    let kpa = |r: &PointRecord| r.nominal / 1e3;
+    let plots: Vec<(String, &str, &str, Vec<Series>)> = if args.test == "creep" {
+        vec![(
+            "stretch_time".into(),
+            "time [s]",
+            "stretch λ",
+            series(|r| r.t, |r| r.stretch),
+        )]
+    } else {
+        vec![
+            (
+                "stress_stretch".into(),
+                "stretch λ",
+                "nominal stress P₁₁ [kPa]",
+                series(|r| r.stretch, kpa),
+            ),
+            (
+                "stress_time".into(),
+                "time [s]",
+                "nominal stress P₁₁ [kPa]",
+                series(|r| r.t, kpa),
+            ),
+        ]
+    };
+    for (name, x, y, s) in plots {
+        let path = dir.join(format!("{}_{name}.png", args.test));
+        line_plot(
+            &path,
+            &PlotSpec {
+                title: &title,
+                x_label: x,
+                y_label: y,
+                series: &s,
+            },
+        )
+        .map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// A few figures on the terminal.
+fn summary(args: &MaterialTest, label: &str, curves: &[Curve]) {
+    println!("{label}: {} test", args.test);
+    for c in curves {
+        let peak = c
+            .records
+            .iter()
+            .map(|r| r.nominal)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let last = c.records.last().expect("a test has steps");
+        println!(
+            "  {}: peak nominal stress {:.4} kPa; at t = {:.4} s: stretch {:.5}, stress {:.4} kPa, \
+             dissipated {:.4} kJ/m³",
+            c.label,
+            peak / 1e3,
+            last.t,
+            last.stretch,
+            last.nominal / 1e3,
+            last.dissipated / 1e3
+        );
+    }
+}
+
+fn sanitize(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
