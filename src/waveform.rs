@@ -66,7 +66,6 @@ impl Waveform {
         }
     }
 
-    /// Value at time `t` (s).
     /// Frequency (Hz) of a periodic shape; `None` for the others.
     pub fn frequency(&self) -> Option<f64> {
         match self.shape {
@@ -78,6 +77,7 @@ impl Waveform {
         }
     }
 
+    /// Value at time `t` (s).
     pub fn value(&self, t: f64) -> f64 {
         self.offset + self.amplitude * self.shape_value(t)
     }

@@ -139,7 +139,8 @@ fn voltage_between_the_limits_creeps_into_pull_in() {
 
 /// A quasi-static stage: the electrodes follow their waveform in real time (a unipolar sine,
 /// up and down again), no inertia; for an elastic film every recorded step is the homogeneous
-/// closed-form state at the recorded voltage (to 1e-9).
+/// closed-form state at the recorded voltage (to 1e-9). `periods.csv` holds the period's
+/// minimum, maximum and trapezoidal mean of the probe.
 #[test]
 fn quasi_static_stage_follows_the_waveform() {
     let dir = tempdir("quasi-static");
@@ -203,7 +204,7 @@ plots = false
         eps: 4.7 * deasim::material::EPSILON_0,
         c2: 0.0,
     };
-    let mut volts = Vec::new();
+    let (mut volts, mut thickness) = (Vec::new(), Vec::new());
     for l in lines {
         let v: Vec<&str> = l.split(',').collect();
         if v[cs] != "cycle" {
@@ -214,11 +215,38 @@ plots = false
         let expect = film.state(volt / 1e-3).unwrap().t;
         assert!((t - expect).abs() < 1e-9, "V = {volt}: {t} vs {expect}");
         volts.push(volt);
+        thickness.push(t);
     }
     assert_eq!(volts.len(), 21, "{volts:?}");
     let peak = volts.iter().cloned().fold(0.0, f64::max);
     assert!(peak > 0.99 * 25e3, "{volts:?}");
     assert!(volts.last().unwrap().abs() < 1e-6 * 25e3, "{volts:?}");
+    // periods.csv: the one full period of the 1 Hz drive, its statistics from the recorded steps
+    let p = std::fs::read_to_string(dir.join("out/periods.csv")).unwrap();
+    let mut lines = p.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 1, "{p}");
+    let get = |n: &str| -> f64 {
+        rows[0][head.iter().position(|h| *h == n).unwrap()]
+            .parse()
+            .unwrap()
+    };
+    assert_eq!(rows[0][0], "cycle");
+    assert_eq!((get("t_start"), get("t_end")), (0.0, 1.0));
+    let thinnest = film.state(peak / 1e-3).unwrap().t;
+    let (lo, hi) = (get("thickness_stretch:min"), get("thickness_stretch:max"));
+    assert!(
+        (lo - thinnest).abs() < 1e-9 && (hi - 1.0).abs() < 1e-9,
+        "{lo} {hi}"
+    );
+    assert!((get("thickness_stretch:peak_to_peak") - (hi - lo)).abs() < 1e-15);
+    // trapezoidal mean over the 20 equal steps
+    let n = thickness.len();
+    let trapezoid =
+        (thickness.iter().sum::<f64>() - 0.5 * (thickness[0] + thickness[n - 1])) / (n - 1) as f64;
+    let mean = get("thickness_stretch:mean");
+    assert!((mean - trapezoid).abs() < 1e-12, "{mean} vs {trapezoid}");
 }
 
 /// A film under a slow voltage ramp (to 10 kV in 1 s, held 2 s): in a quasi-static stage and in

@@ -13,6 +13,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../../scenarios/film-vibration.toml"),
     ),
     ("diaphragm", include_str!("../../scenarios/diaphragm.toml")),
+    (
+        "diaphragm-visco",
+        include_str!("../../scenarios/diaphragm-visco.toml"),
+    ),
     ("stack", include_str!("../../scenarios/stack.toml")),
     (
         "stack-blocked",

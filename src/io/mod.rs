@@ -7,6 +7,7 @@ pub mod examples;
 pub mod lock;
 pub mod memory;
 pub mod output;
+pub mod periods;
 pub mod plot;
 pub mod scenario;
 pub mod vtu;

@@ -92,7 +92,7 @@ impl OutputWriter {
     /// Checks that `dir` may receive the results of scenario `name`: refused when it holds the
     /// results of a different scenario (its `summary.json` names another scenario) unless
     /// `overwrite`. Results of the same scenario are replaced: deasim's own files of the earlier
-    /// run are deleted (`summary.json`, `history.csv`, `fields.pvd`, `fields/step_NNNNN.vtu`,
+    /// run are deleted (`summary.json`, `history.csv`, `periods.csv`, `fields.pvd`, `fields/step_NNNNN.vtu`,
     /// `plots/*.png` and `plots/*.svg`), so that no stale step, plot or probe remains; other
     /// files in the directory are left alone.
     pub fn check_directory(dir: &Path, name: &str, overwrite: bool) -> Result<(), String> {
@@ -131,7 +131,7 @@ impl OutputWriter {
                 }
             }
         }
-        for f in ["fields.pvd", "history.csv", "summary.json"] {
+        for f in ["fields.pvd", "history.csv", "periods.csv", "summary.json"] {
             remove_if_present(&dir.join(f))?;
         }
         Ok(())
@@ -540,6 +540,12 @@ impl Observer for OutputWriter {
             }
         }
         self.write_history(plan);
+        if let Some(text) = crate::io::periods::periods_csv(plan, &self.records) {
+            let path = self.dir.join("periods.csv");
+            if let Err(e) = write_atomic(&path, text.as_bytes()) {
+                self.failed(format!("{}: {e}", path.display()));
+            }
+        }
         self.write_plots(plan);
         let json = self.summary_json(plan, summary);
         let text = serde_json::to_string_pretty(&json).unwrap_or_else(|_| "{}".into());
