@@ -121,6 +121,22 @@ pub fn cmd_bench(large: bool) -> i32 {
     }
     println!();
     println!(
+        "material cost: the film ({:?} hex8) with VHB 4910, elastic (vhb4910-ab-wang) against three \
+         Maxwell branches (vhb4910-wang2016, a step of 0.5 s from the committed state); times in s",
+        MATERIAL_MESH
+    );
+    println!("{MATERIAL_HEADER}");
+    for preset in ["vhb4910-ab-wang", "vhb4910-wang2016"] {
+        match bench_material(MATERIAL_MESH, preset) {
+            Ok(row) => println!("{row}"),
+            Err(e) => {
+                eprintln!("error: {preset}: {e}");
+                return 1;
+            }
+        }
+    }
+    println!();
+    println!(
         "dynamic film: midpoint integrator, 20 kV step at t = 0, dt = 20 µs, time per step (s)"
     );
     println!("{DYNAMIC_HEADER}");
@@ -136,6 +152,54 @@ pub fn cmd_bench(large: bool) -> i32 {
         }
     }
     0
+}
+
+/// Mesh of [`bench_material`] in `deasim bench`.
+pub const MATERIAL_MESH: [usize; 3] = [25, 25, 4];
+
+/// Column titles of [`bench_material`]'s rows.
+pub const MATERIAL_HEADER: &str =
+    "            material  state/pt assem_s resid_s newton_s  (best of 5)";
+
+/// The cost of one material in the film's assembly: residual and tangent, residual alone, and a
+/// Newton iteration (assembly + numeric factorisation + solve), best of five, with the material's
+/// point states (a step of 0.5 s from the virgin state for materials with internal variables).
+pub fn bench_material(div: [usize; 3], preset: &str) -> Result<String, String> {
+    let (name, params) =
+        crate::material::registry::preset(preset).ok_or_else(|| format!("no preset {preset}"))?;
+    let (mat, _) = crate::material::registry::build(name, &params).map_err(|e| e.to_string())?;
+    let mut model = film(div, ElementKind::Hex8, 5e3).map_err(|e| e.to_string())?;
+    model.materials = vec![mat.clone()];
+    let mut p = StaticProblem::new(&model, None);
+    p.duration = 1.0;
+    p.set_load(0.5);
+    let n = p.n();
+    let mut k = p.new_matrix();
+    let mut r = vec![0.0; n];
+    let mut solver = SolverSettings::default().build();
+    p.evaluate(&mut r, Some(&mut k))?;
+    solver.factor(&k).map_err(|e| e.to_string())?;
+    let best = |f: &mut dyn FnMut() -> Result<(), String>| -> Result<f64, String> {
+        let mut best = f64::INFINITY;
+        for _ in 0..5 {
+            let t = Instant::now();
+            f()?;
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        Ok(best)
+    };
+    let assembly = best(&mut || p.evaluate(&mut r, Some(&mut k)))?;
+    let residual = best(&mut || p.evaluate(&mut r, None))?;
+    let newton = best(&mut || {
+        p.evaluate(&mut r, Some(&mut k))?;
+        solver.factor(&k).map_err(|e| e.to_string())?;
+        let mut dx: Vec<f64> = r.iter().map(|v| -v).collect();
+        solver.solve_in_place(&mut dx).map_err(|e| e.to_string())
+    })?;
+    Ok(format!(
+        "{preset:>20} {:>9} {assembly:>7.3} {residual:>7.3} {newton:>8.3}",
+        mat.state_size()
+    ))
 }
 
 /// Benchmarks the dynamic film (1000 kg/m³, 20 kV step, midpoint integrator): `steps` steps of
@@ -213,3 +277,18 @@ pub fn bench_dynamic(
 
 /// Column titles of [`bench_dynamic`]'s rows.
 pub const DYNAMIC_HEADER: &str = "      mesh     dofs  steps    newton   s/step  its/step peak_MiB";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The material benchmark runs for both presets and reports their point-state sizes.
+    #[test]
+    fn material_rows_name_the_state_size() {
+        let elastic = bench_material([2, 2, 1], "vhb4910-ab-wang").unwrap();
+        let visco = bench_material([2, 2, 1], "vhb4910-wang2016").unwrap();
+        assert_eq!(elastic.split_whitespace().nth(1), Some("0"), "{elastic}");
+        assert_eq!(visco.split_whitespace().nth(1), Some("27"), "{visco}");
+        assert!(bench_material([2, 2, 1], "nope").is_err());
+    }
+}
