@@ -1,7 +1,9 @@
 //! Time integration: the mass matrix, the step operators (midpoint variational integrator and the
-//! Newmark reference) and the driver of a dynamic stage with adaptive steps.
+//! Newmark reference), the driver of a dynamic stage with adaptive steps, and the small
+//! vibrations about a converged state (modes).
 
 pub mod integrator;
 pub mod mass;
+pub mod modal;
 pub mod stage;
 pub mod trapezoidal;

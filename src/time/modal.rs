@@ -1,0 +1,308 @@
+//! Small vibrations about a converged state: the natural frequencies and mode shapes of the
+//! coupled problem with the electrodes held at their voltages.
+//!
+//! Linearising the dynamic equations about an equilibrium (u₀, Φ₀) gives
+//! M ü + K_uu u + K_uΦ Φ = 0 and K_Φu u + K_ΦΦ Φ = 0 (Gauss's law has no inertia), so the potential
+//! is condensed: the displacement vibrates with the Schur complement S = K_uu − K_uΦ K_ΦΦ⁻¹ K_Φu of
+//! the coupled tangent, S φ = ω² M φ. The electric stiffness is in S: a voltage lowers the
+//! frequencies of a pre-stretched membrane. Rigid regions and supports act through the dof map
+//! (ties share one equation, supports have none).
+//!
+//! **Method**: shift-invert Lanczos in the M inner product (Ericsson & Ruhe, Math. Comp. 35 (1980);
+//! Grimes, Lewis & Simon, SIAM J. Matrix Anal. Appl. 15 (1994)). The coupled matrix K − σM (mass
+//! on the displacement rows only) is factored once by the symmetric indefinite LDLᵀ the solver
+//! uses; one solve (K − σM) y = M x gives in its displacement part (S − σM)⁻¹ M x with the
+//! potential condensed exactly, whose largest eigenvalues θ belong to the frequencies nearest to
+//! the shift: ω² = σ + 1/θ. The Lanczos vectors are fully re-orthogonalised (the spaces are small),
+//! and a Ritz pair is accepted when its residual is below the tolerance; the space grows until the
+//! requested modes have converged.
+
+use crate::problem::assembly::CsrMatrix;
+use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::model::Model;
+use crate::problem::statics::StaticProblem;
+use crate::problem::system::NonlinearSystem;
+use crate::solve::linear::{LinearSolver, SolverSettings};
+use crate::time::mass::NodalMass;
+
+/// One natural mode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mode {
+    /// Natural frequency (Hz).
+    pub frequency: f64,
+    /// ω² (rad²/s²): negative for an unstable state.
+    pub eigenvalue: f64,
+    /// Shape, `FIELDS` values per node (u in m, Φ in V; the potential is the condensed response),
+    /// normalised to unit modal mass φᵀMφ = 1 kg.
+    pub shape: Vec<f64>,
+    /// Relative residual ‖(S − σM)⁻¹Mφ − θφ‖_M / |θ| of the shift-inverted pair (θ = 1/(ω² − σ)),
+    /// computed by one more solve.
+    pub residual: f64,
+}
+
+/// Settings of [`modes`].
+#[derive(Debug, Clone, Copy)]
+pub struct ModeSettings {
+    /// Number of modes, the ones nearest to the shift.
+    pub count: usize,
+    /// Shift σ as a frequency (Hz): 0 gives the lowest modes.
+    pub shift_hz: f64,
+    /// Relative residual at which a Ritz pair is accepted.
+    pub tolerance: f64,
+}
+
+impl Default for ModeSettings {
+    fn default() -> Self {
+        ModeSettings {
+            count: 6,
+            shift_hz: 0.0,
+            tolerance: 1e-9,
+        }
+    }
+}
+
+/// The mass matrix in the equation space of `dofs`, on the pattern of `k` (zero elsewhere).
+fn mass_matrix(mass: &NodalMass, dofs: &DofMap, k: &CsrMatrix) -> CsrMatrix {
+    let mut m = k.clone();
+    m.values.iter_mut().for_each(|v| *v = 0.0);
+    for (pos, p) in mass.positions_in(dofs, k) {
+        m.values[pos] += mass.values[p];
+    }
+    m
+}
+
+/// The natural modes of `model` (its Dirichlet conditions hold the supports and the electrode
+/// voltages) about the equilibrium `state` (`FIELDS` values per node), with the mass `mass`.
+pub fn modes(
+    model: &Model,
+    state: &[f64],
+    mass: &NodalMass,
+    solver: &SolverSettings,
+    settings: &ModeSettings,
+) -> Result<Vec<Mode>, String> {
+    let mut problem = StaticProblem::new(model, Some(state.to_vec()));
+    let n = problem.n();
+    let mut k = problem.new_matrix();
+    let mut r = vec![0.0; n];
+    problem.evaluate(&mut r, Some(&mut k))?;
+    let dofs = &problem.dofs;
+    let m = mass_matrix(mass, dofs, &k);
+    let is_u: Vec<bool> = dofs.field_of_equation().iter().map(|&f| f != PHI).collect();
+    let n_u = is_u.iter().filter(|&&u| u).count();
+    if settings.count == 0 || settings.count > n_u {
+        return Err(format!(
+            "{} modes asked of a model with {n_u} free displacements",
+            settings.count
+        ));
+    }
+    let omega_s = 2.0 * std::f64::consts::PI * settings.shift_hz;
+    let sigma = omega_s * omega_s;
+    let mut a = k.clone();
+    for (v, mv) in a.values.iter_mut().zip(&m.values) {
+        *v -= sigma * mv;
+    }
+    let mut lin = solver.build();
+    lin.factor(&a).map_err(|e| {
+        format!(
+            "factoring K − σM at the shift {} Hz: {e}",
+            settings.shift_hz
+        )
+    })?;
+    let op = |x: &[f64], y: &mut [f64], lin: &mut Box<dyn LinearSolver>| -> Result<(), String> {
+        m.mul_vec(x, y);
+        lin.solve_in_place(y).map_err(|e| e.to_string())?;
+        // the potential part is the condensed response: the vectors live on the displacements
+        for (v, &u) in y.iter_mut().zip(&is_u) {
+            if !u {
+                *v = 0.0;
+            }
+        }
+        Ok(())
+    };
+    let m_dot = |x: &[f64], y: &[f64], work: &mut [f64]| -> f64 {
+        m.mul_vec(y, work);
+        x.iter().zip(work.iter()).map(|(a, b)| a * b).sum()
+    };
+    // deterministic start vector in the range of the operator
+    let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut start: Vec<f64> = (0..n)
+        .map(|i| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            if is_u[i] {
+                (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mut work = vec![0.0; n];
+    let mut v0 = vec![0.0; n];
+    op(&start, &mut v0, &mut lin)?;
+    start.clone_from(&v0);
+    let mut max_steps = (2 * settings.count + 20).min(n_u);
+    loop {
+        let result = lanczos(&op, &m_dot, &start, max_steps, &mut lin, &mut work)?;
+        let (basis, alpha, beta) = result;
+        let steps = alpha.len();
+        let t = nalgebra::DMatrix::from_fn(steps, steps, |i, j| {
+            if i == j {
+                alpha[i]
+            } else if i + 1 == j {
+                beta[i]
+            } else if j + 1 == i {
+                beta[j]
+            } else {
+                0.0
+            }
+        });
+        let eig = nalgebra::SymmetricEigen::new(t);
+        // θ by decreasing magnitude: nearest to the shift first
+        let mut order: Vec<usize> = (0..steps).collect();
+        order.sort_by(|&i, &j| {
+            eig.eigenvalues[j]
+                .abs()
+                .total_cmp(&eig.eigenvalues[i].abs())
+        });
+        let beta_last = beta.last().copied().unwrap_or(0.0);
+        let mut out = Vec::new();
+        for &i in order.iter().take(settings.count) {
+            let theta = eig.eigenvalues[i];
+            // Ritz residual of the shift-inverted problem: |β_m s_m|/|θ|
+            let residual = (beta_last * eig.eigenvectors[(steps - 1, i)]).abs() / theta.abs();
+            if residual > settings.tolerance && steps < n_u {
+                break;
+            }
+            let mut x = vec![0.0; n];
+            for (j, b) in basis.iter().enumerate() {
+                let s = eig.eigenvectors[(j, i)];
+                for (xe, be) in x.iter_mut().zip(b) {
+                    *xe += s * be;
+                }
+            }
+            let norm = m_dot(&x, &x, &mut work).sqrt();
+            x.iter_mut().for_each(|v| *v /= norm);
+            out.push((theta, x, residual));
+        }
+        if out.len() == settings.count {
+            let mut modes = out
+                .into_iter()
+                .map(|(theta, x, _)| {
+                    let eigenvalue = sigma + 1.0 / theta;
+                    let (shape, residual) = shape_of(dofs, &m, &x, theta, &mut lin)?;
+                    Ok(Mode {
+                        frequency: eigenvalue.max(0.0).sqrt() / (2.0 * std::f64::consts::PI),
+                        eigenvalue,
+                        shape,
+                        residual,
+                    })
+                })
+                .collect::<Result<Vec<Mode>, String>>()?;
+            modes.sort_by(|a, b| a.eigenvalue.total_cmp(&b.eigenvalue));
+            return Ok(modes);
+        }
+        if max_steps >= n_u {
+            return Err(format!(
+                "the Lanczos iteration did not converge {} modes in {max_steps} steps",
+                settings.count
+            ));
+        }
+        max_steps = (2 * max_steps).min(n_u);
+    }
+}
+
+/// The Lanczos process on the operator `op` in the `m_dot` inner product from `start`, with full
+/// re-orthogonalisation: the basis and the tridiagonal (α, β).
+#[allow(clippy::type_complexity)]
+fn lanczos(
+    op: &dyn Fn(&[f64], &mut [f64], &mut Box<dyn LinearSolver>) -> Result<(), String>,
+    m_dot: &dyn Fn(&[f64], &[f64], &mut [f64]) -> f64,
+    start: &[f64],
+    steps: usize,
+    lin: &mut Box<dyn LinearSolver>,
+    work: &mut [f64],
+) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<f64>), String> {
+    let n = start.len();
+    let norm = m_dot(start, start, work).sqrt();
+    if !(norm > 0.0 && norm.is_finite()) {
+        return Err("no free displacement carries mass".into());
+    }
+    let mut basis: Vec<Vec<f64>> = vec![start.iter().map(|v| v / norm).collect()];
+    let (mut alpha, mut beta) = (Vec::new(), Vec::new());
+    let mut w = vec![0.0; n];
+    for j in 0..steps {
+        op(&basis[j], &mut w, lin)?;
+        let a = m_dot(&basis[j], &w, work);
+        alpha.push(a);
+        // full re-orthogonalisation (twice, classical Gram–Schmidt in the M product)
+        for _ in 0..2 {
+            for b in &basis {
+                let c = m_dot(b, &w, work);
+                for (wi, bi) in w.iter_mut().zip(b) {
+                    *wi -= c * bi;
+                }
+            }
+        }
+        let bnorm = m_dot(&w, &w, work).sqrt();
+        if j + 1 == steps {
+            beta.push(bnorm);
+            break;
+        }
+        if bnorm <= 1e-14 * a.abs().max(f64::MIN_POSITIVE) {
+            // an invariant subspace: the Ritz values are exact
+            beta.push(0.0);
+            break;
+        }
+        beta.push(bnorm);
+        basis.push(w.iter().map(|v| v / bnorm).collect());
+    }
+    Ok((basis, alpha, beta))
+}
+
+/// The shape in dof space: the displacements of `x` (equation space, unit modal mass) and their
+/// condensed potential. The potential rows of one solve (K − σM) y = M x hold the potential in
+/// equilibrium with y's displacements, and y = θ x for a Ritz pair, so Φ(x) = y_Φ/θ. Also returns
+/// the true relative residual ‖y_u − θ x_u‖_M / |θ| of the pair.
+fn shape_of(
+    dofs: &DofMap,
+    m: &CsrMatrix,
+    x: &[f64],
+    theta: f64,
+    lin: &mut Box<dyn LinearSolver>,
+) -> Result<(Vec<f64>, f64), String> {
+    let mut y = vec![0.0; x.len()];
+    m.mul_vec(x, &mut y);
+    lin.solve_in_place(&mut y).map_err(|e| e.to_string())?;
+    let fields = dofs.field_of_equation();
+    let diff: Vec<f64> = (0..x.len())
+        .map(|e| {
+            if fields[e] == PHI {
+                0.0
+            } else {
+                y[e] - theta * x[e]
+            }
+        })
+        .collect();
+    let mut md = vec![0.0; x.len()];
+    m.mul_vec(&diff, &mut md);
+    let residual = diff
+        .iter()
+        .zip(&md)
+        .map(|(a, b)| a * b)
+        .sum::<f64>()
+        .max(0.0)
+        .sqrt()
+        / theta.abs();
+    let mut out = vec![0.0; dofs.eq.len()];
+    for (d, &e) in dofs.eq.iter().enumerate() {
+        if e != CONSTRAINED {
+            out[d] = if d % FIELDS == PHI {
+                y[e] / theta * dofs.scale[PHI]
+            } else {
+                x[e]
+            };
+        }
+    }
+    Ok((out, residual))
+}
