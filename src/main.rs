@@ -121,6 +121,24 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Natural modes about the loaded state (after the static stages before the first dynamic
+    /// one, electrodes held at their voltages there): a table, modes.csv and ParaView shapes.
+    Modes {
+        /// Scenario file (TOML; the embedded default when omitted).
+        scenario: Option<PathBuf>,
+        /// Number of modes.
+        #[arg(long, default_value_t = 6)]
+        count: usize,
+        /// The modes nearest to this frequency (Hz); 0 gives the lowest.
+        #[arg(long, default_value_t = 0.0)]
+        shift: f64,
+        /// Output directory (default ./deasim-out/<scenario name>-modes/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a value by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
     /// Run the verification cases and print a table.
     Validate,
     /// Run the benchmark scenarios and print timings and memory.
@@ -227,6 +245,13 @@ fn main() {
             steps,
             out,
         }),
+        Command::Modes {
+            scenario,
+            count,
+            shift,
+            out,
+            set,
+        } => deasim::cli::modes::cmd_modes(scenario.as_deref(), out.as_deref(), &set, count, shift),
         Command::Validate => deasim::cli::validate::cmd_validate(),
         Command::Bench { large } => deasim::cli::bench::cmd_bench(large),
     };

@@ -12,6 +12,7 @@
 //! from the tension (E the true field in the thinned film, from the homogeneous coupled state):
 //! the frequencies fall as √(T(V)/T(0)).
 
+mod common;
 use deasim::material::neo_hooke::ElectroNeoHooke;
 use deasim::material::{Material, Vec3};
 use deasim::mesh::{generate::box_mesh, ElementKind};
@@ -193,4 +194,68 @@ fn prestretched_membrane_frequencies_and_their_electric_softening() {
         "{} vs {expect}",
         fv / f0
     );
+}
+
+/// `deasim modes` on the coarse diaphragm: the table, `modes.csv` (ascending, the pad mode first,
+/// within 0.5 % of the lumped model's linearisation) and one readable VTU per mode with its shape
+/// normalised to a largest displacement of 1. Scenarios without a static stage first or without
+/// mass are refused with exit 2.
+#[test]
+fn modes_command_writes_the_table_and_the_shapes() {
+    use deasim::io::build::build;
+    use deasim::io::examples::example;
+    use deasim::io::scenario::parse;
+    let dir = common::tempdir("modes-cli");
+    let sets = ["mesh.radial=8", "mesh.layers=1"];
+    let mut args = vec!["modes", "--count", "4", "--out", "m"];
+    for s in &sets {
+        args.extend(["--set", s]);
+    }
+    let o = common::deasim(&args, &dir);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.join("m/modes.csv")).unwrap();
+    let f: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(f.len(), 4);
+    assert!(f.windows(2).all(|w| w[0] <= w[1]), "{f:?}");
+    let owned: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    let s = parse(example("diaphragm").unwrap(), "d.toml", &owned).unwrap();
+    let plan = build(&s, "d.toml", None).unwrap();
+    let lumped = deasim::lumped::setup::from_scenario(&s, &plan, "d.toml")
+        .unwrap()
+        .model
+        .linearise()
+        .unwrap()
+        .natural_frequency();
+    assert!((f[0] / lumped - 1.0).abs() < 5e-3, "{} vs {lumped}", f[0]);
+    for i in 1..=4 {
+        let v = deasim::io::vtu::read_vtu(&dir.join(format!("m/modes/mode_{i:02}.vtu"))).unwrap();
+        let (c, shape) = &v.point_data["mode_shape"];
+        assert_eq!(*c, 3);
+        let largest = shape
+            .chunks(3)
+            .map(|u| (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt())
+            .fold(0.0, f64::max);
+        assert!((largest - 1.0).abs() < 1e-12, "{largest}");
+    }
+    assert!(dir.join("m/modes.pvd").exists());
+    for (example, expect) in [
+        ("film-vibration", "starts with a dynamic stage"),
+        ("film", "no mass"),
+    ] {
+        let path = dir.join(format!("{example}.toml"));
+        std::fs::write(&path, common::deasim(&["example", example], &dir).stdout).unwrap();
+        let o = common::deasim(&["modes", path.to_str().unwrap()], &dir);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(expect), "{err}");
+    }
 }

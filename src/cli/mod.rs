@@ -4,5 +4,6 @@ pub mod app;
 pub mod bench;
 pub mod lumped;
 pub mod material;
+pub mod modes;
 pub mod sweep;
 pub mod validate;
