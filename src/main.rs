@@ -139,6 +139,36 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+    /// Frequency response of the probes to a small harmonic voltage on one electrode about its
+    /// DC bias (after the static stages before the first dynamic one): CSV and Bode plots.
+    Response {
+        /// Scenario file (TOML; the embedded default when omitted).
+        scenario: Option<PathBuf>,
+        /// The driven electrode (default: the first with a non-zero voltage).
+        #[arg(long)]
+        electrode: Option<String>,
+        /// DC voltage of the driven electrode, V (default: its voltage after the static stages).
+        #[arg(long)]
+        bias: Option<f64>,
+        /// Frequencies in Hz, comma-separated (else --from/--to/--points, log-spaced).
+        #[arg(long, value_delimiter = ',')]
+        frequencies: Vec<f64>,
+        /// Lowest frequency of the log range, Hz.
+        #[arg(long, default_value_t = 1.0)]
+        from: f64,
+        /// Highest frequency of the log range, Hz.
+        #[arg(long, default_value_t = 1e4)]
+        to: f64,
+        /// Frequencies of the log range.
+        #[arg(long, default_value_t = 200)]
+        points: usize,
+        /// Output directory (default ./deasim-out/<scenario name>-response/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a value by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
     /// Run the verification cases and print a table.
     Validate,
     /// Run the benchmark scenarios and print timings and memory.
@@ -252,6 +282,27 @@ fn main() {
             out,
             set,
         } => deasim::cli::modes::cmd_modes(scenario.as_deref(), out.as_deref(), &set, count, shift),
+        Command::Response {
+            scenario,
+            electrode,
+            bias,
+            frequencies,
+            from,
+            to,
+            points,
+            out,
+            set,
+        } => deasim::cli::response::cmd_response(&deasim::cli::response::ResponseArgs {
+            scenario,
+            overrides: set,
+            electrode,
+            bias,
+            frequencies,
+            from,
+            to,
+            points,
+            out,
+        }),
         Command::Validate => deasim::cli::validate::cmd_validate(),
         Command::Bench { large } => deasim::cli::bench::cmd_bench(large),
     };

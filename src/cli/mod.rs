@@ -5,5 +5,6 @@ pub mod bench;
 pub mod lumped;
 pub mod material;
 pub mod modes;
+pub mod response;
 pub mod sweep;
 pub mod validate;

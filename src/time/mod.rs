@@ -1,7 +1,8 @@
 //! Time integration: the mass matrix, the step operators (midpoint variational integrator and the
 //! Newmark reference), the driver of a dynamic stage with adaptive steps, and the small
-//! vibrations about a converged state (modes).
+//! vibrations about a converged state (modes, frequency response).
 
+pub mod frequency;
 pub mod integrator;
 pub mod mass;
 pub mod modal;

@@ -1,0 +1,233 @@
+//! Steady-state response to a small harmonic voltage about a biased equilibrium.
+//!
+//! About an equilibrium q₀ with the electrodes at their DC voltages, a small voltage
+//! ṽ e^{iωt} on one electrode drives the linearised system
+//!
+//! ```text
+//! (K − ω² M + iω C) x = −(∂r/∂V) ṽ,
+//! ```
+//!
+//! with K the coupled tangent (the potential rows carry no mass and no damping, so the potential
+//! is condensed by the solve itself), M the mass, C the Kelvin–Voigt tangent ∂f_vis/∂v and the
+//! dashpots, and ∂r/∂V the change of the residual with the driven electrode's voltage at fixed
+//! free unknowns. The residual is quadratic in the potential (the electric energy is quadratic in
+//! the field), so its central difference in V is exact up to round-off; the force is ∝ 2V_dc ṽ for
+//! the mechanical rows and vanishes at V_dc = 0 (a first-order response needs a bias).
+//!
+//! The complex system is solved in the real symmetric form
+//! [[A, B], [B, −A]] [x_r; −x_i] = [f; 0] (A = K − ω²M, B = ωC), factored by the same symmetric
+//! indefinite LDLᵀ as the static problem (the pattern, and with it the symbolic factorisation, is
+//! kept across frequencies).
+
+use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
+use crate::problem::assembly::CsrMatrix;
+use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::model::Model;
+use crate::problem::statics::StaticProblem;
+use crate::problem::system::NonlinearSystem;
+use crate::solve::linear::{LinearSolver, SolverSettings};
+use crate::time::mass::NodalMass;
+
+/// The linearised system about a biased state, in the equation space of its dof map.
+pub struct Linearisation {
+    pub dofs: DofMap,
+    pub k: CsrMatrix,
+    pub m: CsrMatrix,
+    pub c: CsrMatrix,
+    /// −∂r/∂V of the driven electrode, per volt (equation space, scaled rows).
+    pub force: Vec<f64>,
+    /// The driven electrode's nodes.
+    pub driven: Vec<usize>,
+    solver: Box<dyn LinearSolver>,
+    big: Option<CsrMatrix>,
+}
+
+/// Linearises `model` (its Dirichlet conditions hold the supports and every electrode at its DC
+/// voltage) about the equilibrium `state`; `driven` are the nodes of the electrode that carries
+/// the small voltage, `viscosity` the Kelvin–Voigt viscosity of each material (Pa·s).
+pub fn linearise(
+    model: &Model,
+    state: &[f64],
+    mass: &NodalMass,
+    viscosity: &[f64],
+    driven: &[usize],
+    solver: &SolverSettings,
+) -> Result<Linearisation, String> {
+    let mut problem = StaticProblem::new(model, Some(state.to_vec()));
+    let n = problem.n();
+    let mut k = problem.new_matrix();
+    let mut r = vec![0.0; n];
+    problem.evaluate(&mut r, Some(&mut k))?;
+    let dofs = problem.dofs.clone();
+    // mass on the pattern of K
+    let mut m = k.clone();
+    m.values.iter_mut().for_each(|v| *v = 0.0);
+    for (pos, p) in mass.positions_in(&dofs, &k) {
+        m.values[pos] += mass.values[p];
+    }
+    // Kelvin–Voigt tangent ∂f_vis/∂v at the state, and the dashpots
+    let mut c = k.clone();
+    let npc = model.mesh.kind.nodes_per_cell();
+    let nl = npc * FIELDS;
+    let kernel = |cell: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
+        rl[..nl].iter_mut().for_each(|v| *v = 0.0);
+        let eta = viscosity
+            .get(model.cell_material[cell])
+            .copied()
+            .unwrap_or(0.0);
+        if let Some(kl) = kl {
+            kl[..nl * nl].iter_mut().for_each(|v| *v = 0.0);
+            if eta > 0.0 {
+                let zero = [0.0; MAX_LOCAL];
+                let mut rv = [0.0; MAX_LOCAL];
+                KelvinVoigtKernel { eta }
+                    .forces(&model.geometry[cell], local, &zero[..nl], &mut rv, Some(kl))
+                    .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
+            }
+        }
+        Ok::<f64, String>(0.0)
+    };
+    let mut energy = Vec::new();
+    problem
+        .assembler()
+        .assemble(
+            &model.mesh,
+            &dofs,
+            state,
+            kernel,
+            &mut r,
+            Some(&mut c),
+            &mut energy,
+        )
+        .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+    for &(node, damping) in &model.point_dampers {
+        for i in 0..3 {
+            let e = dofs.eq[node * FIELDS + i];
+            if e != CONSTRAINED {
+                let pos = c.position(e, e).ok_or("dashpot outside the pattern")?;
+                c.values[pos] += damping;
+            }
+        }
+    }
+    // −∂r/∂V by a central difference (exact: r is quadratic in the potential)
+    let h = 1.0;
+    let mut plus = vec![0.0; n];
+    let mut minus = vec![0.0; n];
+    for (sign, out) in [(1.0, &mut plus), (-1.0, &mut minus)] {
+        let mut s = state.to_vec();
+        for &node in driven {
+            s[node * FIELDS + PHI] += sign * h;
+        }
+        problem.state.copy_from_slice(&s);
+        problem.evaluate(out, None)?;
+    }
+    let force: Vec<f64> = plus
+        .iter()
+        .zip(&minus)
+        .map(|(p, q)| -(p - q) / (2.0 * h))
+        .collect();
+    Ok(Linearisation {
+        dofs,
+        k,
+        m,
+        c,
+        force,
+        driven: driven.to_vec(),
+        solver: solver.build(),
+        big: None,
+    })
+}
+
+impl Linearisation {
+    /// Whether the drive reaches the mechanics to first order (false at zero DC bias).
+    pub fn drives_motion(&self) -> bool {
+        let fields = self.dofs.field_of_equation();
+        let scale = self
+            .force
+            .iter()
+            .zip(&fields)
+            .filter(|(_, &f)| f == PHI)
+            .map(|(v, _)| v.abs())
+            .fold(0.0, f64::max);
+        self.force
+            .iter()
+            .zip(&fields)
+            .filter(|(_, &f)| f != PHI)
+            .any(|(v, _)| v.abs() > 1e-12 * scale.max(f64::MIN_POSITIVE))
+    }
+
+    /// The complex response per volt at angular frequency `omega` (rad/s): (real, imaginary) parts
+    /// of the state perturbation, `FIELDS` values per node (u in m/V, Φ in V/V; the driven
+    /// electrode's nodes carry the applied 1 V in the real part).
+    pub fn response(&mut self, omega: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
+        let n = self.k.n;
+        let big = self.big.get_or_insert_with(|| symmetric_form(&self.k));
+        // values: A = K − ω²M in the diagonal blocks (−A below), B = ωC off the diagonal
+        for i in 0..n {
+            let (a, b) = (self.k.row_ptr[i], self.k.row_ptr[i + 1]);
+            let len = b - a;
+            let top = big.row_ptr[i];
+            let bottom = big.row_ptr[n + i];
+            for p in 0..len {
+                let kv = self.k.values[a + p] - omega * omega * self.m.values[a + p];
+                let cv = omega * self.c.values[a + p];
+                big.values[top + p] = kv;
+                big.values[top + len + p] = cv;
+                big.values[bottom + p] = cv;
+                big.values[bottom + len + p] = -kv;
+            }
+        }
+        self.solver.factor(big).map_err(|e| {
+            format!(
+                "factoring at {} Hz: {e}",
+                omega / (2.0 * std::f64::consts::PI)
+            )
+        })?;
+        let mut rhs = vec![0.0; 2 * n];
+        rhs[..n].copy_from_slice(&self.force);
+        self.solver
+            .solve_in_place(&mut rhs)
+            .map_err(|e| e.to_string())?;
+        let (xr, y) = rhs.split_at(n);
+        let xi: Vec<f64> = y.iter().map(|v| -v).collect();
+        Ok((self.to_dofs(xr, 1.0), self.to_dofs(&xi, 0.0)))
+    }
+
+    /// A vector of the equation space as dof values, with `volts` on the driven electrode.
+    fn to_dofs(&self, x: &[f64], volts: f64) -> Vec<f64> {
+        let mut out = vec![0.0; self.dofs.eq.len()];
+        for (d, &e) in self.dofs.eq.iter().enumerate() {
+            if e != CONSTRAINED {
+                out[d] = x[e] * self.dofs.scale[d % FIELDS];
+            }
+        }
+        for &node in &self.driven {
+            out[node * FIELDS + PHI] = volts;
+        }
+        out
+    }
+}
+
+/// The pattern of [[A, B], [B, −A]] for blocks with the pattern of `k`: row i holds k's columns
+/// of row i, then the same shifted by n.
+fn symmetric_form(k: &CsrMatrix) -> CsrMatrix {
+    let n = k.n;
+    let mut row_ptr = Vec::with_capacity(2 * n + 1);
+    let mut col_idx = Vec::with_capacity(4 * k.nnz());
+    row_ptr.push(0);
+    for block in 0..2 {
+        let _ = block;
+        for i in 0..n {
+            let cols = &k.col_idx[k.row_ptr[i]..k.row_ptr[i + 1]];
+            col_idx.extend_from_slice(cols);
+            col_idx.extend(cols.iter().map(|c| c + n));
+            row_ptr.push(col_idx.len());
+        }
+    }
+    CsrMatrix {
+        n: 2 * n,
+        row_ptr,
+        values: vec![0.0; col_idx.len()],
+        col_idx,
+    }
+}
