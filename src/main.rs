@@ -169,6 +169,31 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+    /// A reduced state-space model (A, B, C, D) of the first modes with a static correction about
+    /// a DC bias, for control: JSON and CSV matrices, its simulation of the first dynamic stage's
+    /// drive, and the overlay on a finite element run.
+    Reduce {
+        /// Scenario file (TOML; the embedded default when omitted).
+        scenario: Option<PathBuf>,
+        /// Modes kept (the model has twice as many states).
+        #[arg(long, default_value_t = 4)]
+        modes: usize,
+        /// The driven electrode (default: the first with a non-zero voltage).
+        #[arg(long)]
+        electrode: Option<String>,
+        /// DC voltage of the driven electrode, V (default: its voltage after the static stages).
+        #[arg(long)]
+        bias: Option<f64>,
+        /// Output directory of a finite element run of the scenario to overlay.
+        #[arg(long, value_name = "DIR")]
+        compare: Option<PathBuf>,
+        /// Output directory (default ./deasim-out/<scenario name>-reduced/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a value by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
     /// Run the verification cases and print a table.
     Validate,
     /// Run the benchmark scenarios and print timings and memory.
@@ -301,6 +326,23 @@ fn main() {
             from,
             to,
             points,
+            out,
+        }),
+        Command::Reduce {
+            scenario,
+            modes,
+            electrode,
+            bias,
+            compare,
+            out,
+            set,
+        } => deasim::cli::response::cmd_reduce(&deasim::cli::response::ReduceArgs {
+            scenario,
+            overrides: set,
+            electrode,
+            bias,
+            modes,
+            compare,
             out,
         }),
         Command::Validate => deasim::cli::validate::cmd_validate(),

@@ -14,10 +14,10 @@
 //! the field), so its central difference in V is exact up to round-off; the force is ∝ 2V_dc ṽ for
 //! the mechanical rows and vanishes at V_dc = 0 (a first-order response needs a bias).
 //!
-//! The complex system is solved in the real symmetric form
-//! [[A, B], [B, −A]] [x_r; −x_i] = [f; 0] (A = K − ω²M, B = ωC), factored by the same symmetric
-//! indefinite LDLᵀ as the static problem (the pattern, and with it the symbolic factorisation, is
-//! kept across frequencies).
+//! The complex symmetric system is factored by faer's sparse LU with partial pivoting (the
+//! symbolic analysis once, the numeric factorisation per frequency): a symmetric indefinite LDLᵀ
+//! without pivoting meets zero pivots where a diagonal entry of K − ω²M crosses zero, and an LU
+//! does not.
 
 use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::CsrMatrix;
@@ -25,8 +25,11 @@ use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
 use crate::problem::system::NonlinearSystem;
-use crate::solve::linear::{LinearSolver, SolverSettings};
 use crate::time::mass::NodalMass;
+use faer::c64;
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
 /// The linearised system about a biased state, in the equation space of its dof map.
 pub struct Linearisation {
@@ -38,8 +41,8 @@ pub struct Linearisation {
     pub force: Vec<f64>,
     /// The driven electrode's nodes.
     pub driven: Vec<usize>,
-    solver: Box<dyn LinearSolver>,
-    big: Option<CsrMatrix>,
+    /// The symbolic LU of the pattern, computed at the first frequency.
+    symbolic: Option<SymbolicLu<usize>>,
 }
 
 /// Linearises `model` (its Dirichlet conditions hold the supports and every electrode at its DC
@@ -51,7 +54,6 @@ pub fn linearise(
     mass: &NodalMass,
     viscosity: &[f64],
     driven: &[usize],
-    solver: &SolverSettings,
 ) -> Result<Linearisation, String> {
     let mut problem = StaticProblem::new(model, Some(state.to_vec()));
     let n = problem.n();
@@ -59,12 +61,7 @@ pub fn linearise(
     let mut r = vec![0.0; n];
     problem.evaluate(&mut r, Some(&mut k))?;
     let dofs = problem.dofs.clone();
-    // mass on the pattern of K
-    let mut m = k.clone();
-    m.values.iter_mut().for_each(|v| *v = 0.0);
-    for (pos, p) in mass.positions_in(&dofs, &k) {
-        m.values[pos] += mass.values[p];
-    }
+    let m = super::modal::mass_matrix(mass, &dofs, &k);
     // Kelvin–Voigt tangent ∂f_vis/∂v at the state, and the dashpots
     let mut c = k.clone();
     let npc = model.mesh.kind.nodes_per_cell();
@@ -133,8 +130,7 @@ pub fn linearise(
         c,
         force,
         driven: driven.to_vec(),
-        solver: solver.build(),
-        big: None,
+        symbolic: None,
     })
 }
 
@@ -161,36 +157,36 @@ impl Linearisation {
     /// electrode's nodes carry the applied 1 V in the real part).
     pub fn response(&mut self, omega: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
         let n = self.k.n;
-        let big = self.big.get_or_insert_with(|| symmetric_form(&self.k));
-        // values: A = K − ω²M in the diagonal blocks (−A below), B = ωC off the diagonal
-        for i in 0..n {
-            let (a, b) = (self.k.row_ptr[i], self.k.row_ptr[i + 1]);
-            let len = b - a;
-            let top = big.row_ptr[i];
-            let bottom = big.row_ptr[n + i];
-            for p in 0..len {
-                let kv = self.k.values[a + p] - omega * omega * self.m.values[a + p];
-                let cv = omega * self.c.values[a + p];
-                big.values[top + p] = kv;
-                big.values[top + len + p] = cv;
-                big.values[bottom + p] = cv;
-                big.values[bottom + len + p] = -kv;
-            }
+        let hz = omega / (2.0 * std::f64::consts::PI);
+        // K, M, C are symmetric with one pattern: their CSR arrays are also the CSC arrays
+        let pattern =
+            SymbolicSparseColMatRef::new_checked(n, n, &self.k.row_ptr, None, &self.k.col_idx);
+        if self.symbolic.is_none() {
+            self.symbolic =
+                Some(SymbolicLu::try_new(pattern).map_err(|e| format!("symbolic LU: {e:?}"))?);
         }
-        self.solver.factor(big).map_err(|e| {
-            format!(
-                "factoring at {} Hz: {e}",
-                omega / (2.0 * std::f64::consts::PI)
-            )
-        })?;
-        let mut rhs = vec![0.0; 2 * n];
-        rhs[..n].copy_from_slice(&self.force);
-        self.solver
-            .solve_in_place(&mut rhs)
-            .map_err(|e| e.to_string())?;
-        let (xr, y) = rhs.split_at(n);
-        let xi: Vec<f64> = y.iter().map(|v| -v).collect();
-        Ok((self.to_dofs(xr, 1.0), self.to_dofs(&xi, 0.0)))
+        let values: Vec<c64> = (0..self.k.values.len())
+            .map(|p| {
+                c64::new(
+                    self.k.values[p] - omega * omega * self.m.values[p],
+                    omega * self.c.values[p],
+                )
+            })
+            .collect();
+        let matrix = SparseColMatRef::new(pattern, &values);
+        let symbolic = self.symbolic.clone().expect("set above");
+        let lu = Lu::try_new_with_symbolic(symbolic, matrix)
+            .map_err(|e| format!("factoring K − ω²M + iωC at {hz} Hz: {e:?}"))?;
+        let mut rhs = faer::Mat::<c64>::from_fn(n, 1, |i, _| c64::new(self.force[i], 0.0));
+        lu.solve_in_place(rhs.as_mut());
+        let xr: Vec<f64> = (0..n).map(|i| rhs[(i, 0)].re).collect();
+        let xi: Vec<f64> = (0..n).map(|i| rhs[(i, 0)].im).collect();
+        if xr.iter().chain(&xi).any(|v| !v.is_finite()) {
+            return Err(format!(
+                "singular system at {hz} Hz (an undamped resonance?)"
+            ));
+        }
+        Ok((self.to_dofs(&xr, 1.0), self.to_dofs(&xi, 0.0)))
     }
 
     /// A vector of the equation space as dof values, with `volts` on the driven electrode.
@@ -205,29 +201,5 @@ impl Linearisation {
             out[node * FIELDS + PHI] = volts;
         }
         out
-    }
-}
-
-/// The pattern of [[A, B], [B, −A]] for blocks with the pattern of `k`: row i holds k's columns
-/// of row i, then the same shifted by n.
-fn symmetric_form(k: &CsrMatrix) -> CsrMatrix {
-    let n = k.n;
-    let mut row_ptr = Vec::with_capacity(2 * n + 1);
-    let mut col_idx = Vec::with_capacity(4 * k.nnz());
-    row_ptr.push(0);
-    for block in 0..2 {
-        let _ = block;
-        for i in 0..n {
-            let cols = &k.col_idx[k.row_ptr[i]..k.row_ptr[i + 1]];
-            col_idx.extend_from_slice(cols);
-            col_idx.extend(cols.iter().map(|c| c + n));
-            row_ptr.push(col_idx.len());
-        }
-    }
-    CsrMatrix {
-        n: 2 * n,
-        row_ptr,
-        values: vec![0.0; col_idx.len()],
-        col_idx,
     }
 }

@@ -6,5 +6,6 @@ pub mod frequency;
 pub mod integrator;
 pub mod mass;
 pub mod modal;
+pub mod reduced;
 pub mod stage;
 pub mod trapezoidal;

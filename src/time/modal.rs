@@ -62,7 +62,7 @@ impl Default for ModeSettings {
 }
 
 /// The mass matrix in the equation space of `dofs`, on the pattern of `k` (zero elsewhere).
-fn mass_matrix(mass: &NodalMass, dofs: &DofMap, k: &CsrMatrix) -> CsrMatrix {
+pub fn mass_matrix(mass: &NodalMass, dofs: &DofMap, k: &CsrMatrix) -> CsrMatrix {
     let mut m = k.clone();
     m.values.iter_mut().for_each(|v| *v = 0.0);
     for (pos, p) in mass.positions_in(dofs, k) {
@@ -85,8 +85,20 @@ pub fn modes(
     let mut k = problem.new_matrix();
     let mut r = vec![0.0; n];
     problem.evaluate(&mut r, Some(&mut k))?;
-    let dofs = &problem.dofs;
-    let m = mass_matrix(mass, dofs, &k);
+    let m = mass_matrix(mass, &problem.dofs, &k);
+    modes_of(&k, &m, &problem.dofs, solver, settings)
+}
+
+/// [`modes`] of an assembled coupled tangent `k` and mass `m` (same pattern, equation space of
+/// `dofs`).
+pub fn modes_of(
+    k: &CsrMatrix,
+    m: &CsrMatrix,
+    dofs: &DofMap,
+    solver: &SolverSettings,
+    settings: &ModeSettings,
+) -> Result<Vec<Mode>, String> {
+    let n = k.n;
     let is_u: Vec<bool> = dofs.field_of_equation().iter().map(|&f| f != PHI).collect();
     let n_u = is_u.iter().filter(|&&u| u).count();
     if settings.count == 0 || settings.count > n_u {
@@ -190,7 +202,7 @@ pub fn modes(
                 .into_iter()
                 .map(|(theta, x, _)| {
                     let eigenvalue = sigma + 1.0 / theta;
-                    let (shape, residual) = shape_of(dofs, &m, &x, theta, &mut lin)?;
+                    let (shape, residual) = shape_of(dofs, m, &x, theta, &mut lin)?;
                     Ok(Mode {
                         frequency: eigenvalue.max(0.0).sqrt() / (2.0 * std::f64::consts::PI),
                         eigenvalue,
