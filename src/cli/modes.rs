@@ -67,6 +67,13 @@ pub fn cmd_modes(
         eprintln!("error: the scenario has no mass: give `materials.<m>.density` (kg/m³)");
         return EXIT_BAD_INPUT;
     }
+    if plan.model.materials.iter().any(|m| m.state_size() > 0) {
+        eprintln!(
+            "error: materials with `branches` are not linearised yet (their relaxed state and \
+             complex modulus); use the elastic material or a dynamic stage"
+        );
+        return EXIT_BAD_INPUT;
+    }
     plan.stages.truncate(n_static);
     let dir: PathBuf = out
         .map(Path::to_path_buf)

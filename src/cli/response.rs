@@ -197,6 +197,13 @@ pub fn prepare(
             "the scenario has no mass: give `materials.<m>.density` (kg/m³)".into(),
         ));
     }
+    if plan.model.materials.iter().any(|m| m.state_size() > 0) {
+        return Err(bad(
+            "materials with `branches` are not linearised yet (their relaxed state and complex \
+             modulus); use the elastic material or a dynamic stage"
+                .into(),
+        ));
+    }
     let driven = match electrode {
         Some(name) => plan
             .electrodes
