@@ -802,3 +802,63 @@ fn prestretched_disc_is_homogeneous() {
     let text = String::from_utf8_lossy(&check.stdout);
     assert!(text.contains("electrode `top`"), "{text}");
 }
+
+/// `deasim sweep` with a value that pulls in and a breakdown warning: the failed run is marked
+/// (`converged` false, `status` naming pull-in) with empty value cells instead of its last
+/// converged state, the breakdown warning reaches `sweep.csv` and the console, every
+/// `runs/NNN/sweep-value.json` records its value, and the exit status is 1.
+#[test]
+fn sweep_marks_failed_runs_and_carries_warnings() {
+    let dir = tempdir("sweep-failures");
+    let film = deasim(&["example", "film"], &dir);
+    std::fs::write(dir.join("film.toml"), film.stdout).unwrap();
+    let o = deasim(
+        &[
+            "sweep",
+            "film.toml",
+            "--set-range",
+            "electrodes.top.voltage.amplitude=20e3,40e3",
+            "--set",
+            "mesh.divisions=[2, 2, 1]",
+            "--set",
+            "materials.elastomer.breakdown_field=1e7",
+            "--out",
+            "sw",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("pull-in") && err.contains("warning:"), "{err}");
+    let csv = std::fs::read_to_string(dir.join("sw/sweep.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert!(
+        lines[0].starts_with("electrodes.top.voltage.amplitude,converged,status,warnings,"),
+        "{}",
+        lines[0]
+    );
+    assert!(
+        lines[1].starts_with("2e4,true,\"converged\",\""),
+        "{}",
+        lines[1]
+    );
+    assert!(
+        lines[1].contains("breakdown") || lines[1].contains("dielectric"),
+        "{}",
+        lines[1]
+    );
+    assert!(lines[2].starts_with("4e4,false,\"failed: "), "{}", lines[2]);
+    assert!(lines[2].contains("pull-in"), "{}", lines[2]);
+    assert!(
+        lines[2].ends_with(",,,"),
+        "a failed run has no values: {}",
+        lines[2]
+    );
+    for (i, v) in [(0, 20e3), (1, 40e3)] {
+        let j: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.join(format!("sw/runs/{i:03}/sweep-value.json"))).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(j["electrodes.top.voltage.amplitude"].as_f64(), Some(v));
+    }
+}

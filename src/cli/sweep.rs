@@ -184,6 +184,8 @@ struct Outcome {
     value: f64,
     converged: bool,
     error: Option<String>,
+    /// The run's warnings (dielectric breakdown, aliasing, …).
+    warnings: Vec<String>,
     figures: Vec<ProbeFigures>,
 }
 
@@ -260,16 +262,26 @@ pub fn cmd_sweep(
                 else {
                     break;
                 };
-                let outcome = run_one(&dir, i, value, &plan);
+                let sets: Vec<(String, f64)> = ranges
+                    .iter()
+                    .map(|r| (r.path.clone(), r.values[i]))
+                    .collect();
+                let outcome = run_one(&dir, i, value, &plan, &sets);
                 eprintln!(
                     "  run {i}: {} = {value:e}: {}",
                     range.path,
                     if outcome.converged {
-                        "converged"
+                        "converged".to_string()
                     } else {
-                        "FAILED"
+                        format!(
+                            "FAILED ({})",
+                            outcome.error.as_deref().unwrap_or("no reason given")
+                        )
                     }
                 );
+                for w in &outcome.warnings {
+                    eprintln!("    warning: {w}");
+                }
                 if let Ok(mut r) = results.lock() {
                     r.push((i, outcome));
                 }
@@ -312,13 +324,15 @@ pub fn cmd_sweep(
     }
 }
 
-/// Runs the sweep's run `i` into `dir/runs/<i>/`.
-fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan) -> Outcome {
+/// Runs the sweep's run `i` into `dir/runs/<i>/`, which records its swept values
+/// (`sweep-value.json`: parameter path → value).
+fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan, sets: &[(String, f64)]) -> Outcome {
     let run_dir = dir.join(format!("runs/{i:03}"));
     let failed = |e: String| Outcome {
         value,
         converged: false,
         error: Some(e),
+        warnings: Vec::new(),
         figures: Vec::new(),
     };
     if let Err(e) = OutputWriter::check_directory(&run_dir, &plan.name, true) {
@@ -328,6 +342,17 @@ fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan) -> Outcome {
         Ok(w) => w,
         Err(e) => return failed(format!("{}: {e}", run_dir.display())),
     };
+    let values: serde_json::Map<String, serde_json::Value> = sets
+        .iter()
+        .map(|(k, v)| (k.clone(), serde_json::json!(v)))
+        .collect();
+    let json = serde_json::to_string_pretty(&values).unwrap_or_else(|_| "{}".into());
+    if let Err(e) = write_atomic(&run_dir.join("sweep-value.json"), json.as_bytes()) {
+        return failed(format!(
+            "{}: {e}",
+            run_dir.join("sweep-value.json").display()
+        ));
+    }
     let mut obs = Collect {
         writer: &mut writer,
         records: Vec::new(),
@@ -339,6 +364,7 @@ fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan) -> Outcome {
         value,
         converged: summary.converged && failure.is_none(),
         error: summary.error.or(failure),
+        warnings: summary.warnings,
         figures,
     }
 }
@@ -376,22 +402,39 @@ fn write_table(
     for r in ranges {
         let _ = write!(csv, "{},", r.path);
     }
-    csv.push_str("converged");
+    csv.push_str("converged,status,warnings");
     for (name, _) in &plan.probes {
         let _ = write!(csv, ",{name}:final,{name}:max,{name}:peak_to_peak");
     }
     csv.push('\n');
+    // a free text in one CSV field: quoted, inner quotes doubled
+    let quoted = |t: &str| format!("\"{}\"", t.replace('"', "\"\""));
     for (k, o) in outcomes.iter().enumerate() {
         for r in ranges {
             let _ = write!(csv, "{:e},", r.values[k]);
         }
-        let _ = write!(csv, "{}", o.converged);
+        let status = if o.converged {
+            "converged".to_string()
+        } else {
+            format!(
+                "failed: {}",
+                o.error.as_deref().unwrap_or("no reason given")
+            )
+        };
+        let _ = write!(
+            csv,
+            "{},{},{}",
+            o.converged,
+            quoted(&status),
+            quoted(&o.warnings.join("; "))
+        );
         for i in 0..plan.probes.len() {
-            match o.figures.get(i) {
+            // a failed run has no final value: its cells stay empty
+            match o.figures.get(i).filter(|_| o.converged) {
                 Some(f) => {
                     let _ = write!(csv, ",{:e},{:e},{:e}", f.last, f.max, f.peak_to_peak);
                 }
-                None => csv.push_str(",NaN,NaN,NaN"),
+                None => csv.push_str(",,,"),
             }
         }
         csv.push('\n');
@@ -410,10 +453,17 @@ fn write_table(
     };
     let ext = &plan.output.plot_format;
     for (i, (name, _)) in plan.probes.iter().enumerate() {
+        // failed runs are not drawn (NaN points are skipped)
         let pick = |f: fn(&ProbeFigures) -> f64| -> Vec<f64> {
             outcomes
                 .iter()
-                .map(|o| o.figures.get(i).map(f).unwrap_or(f64::NAN))
+                .map(|o| {
+                    o.figures
+                        .get(i)
+                        .filter(|_| o.converged)
+                        .map(f)
+                        .unwrap_or(f64::NAN)
+                })
                 .collect()
         };
         let mut series = vec![

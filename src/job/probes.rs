@@ -25,8 +25,10 @@ impl NodalQuantity {
 /// What a probe measures.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ProbeKind {
-    /// Mean of a nodal quantity over a node set.
-    Mean(NodalQuantity, Vec<usize>),
+    /// Weighted mean Σ wₐ qₐ / Σ wₐ of a nodal quantity over a set: the weights are the nodes'
+    /// shares ∫Nₐ dA of the reference area of a face set (the surface mean of the interpolated
+    /// quantity), or 1 each over a node set without faces.
+    Mean(NodalQuantity, Vec<usize>, Vec<f64>),
     Max(NodalQuantity, Vec<usize>),
     Min(NodalQuantity, Vec<usize>),
     /// Value at one node.
@@ -93,9 +95,13 @@ impl Probe {
     /// The probe's value.
     pub fn evaluate(&self, inp: &ProbeInput) -> f64 {
         let v = match &self.kind {
-            ProbeKind::Mean(q, nodes) => {
-                nodes.iter().map(|&n| q.value(inp.state, n)).sum::<f64>()
-                    / nodes.len().max(1) as f64
+            ProbeKind::Mean(q, nodes, weights) => {
+                nodes
+                    .iter()
+                    .zip(weights)
+                    .map(|(&n, w)| w * q.value(inp.state, n))
+                    .sum::<f64>()
+                    / weights.iter().sum::<f64>()
             }
             ProbeKind::Max(q, nodes) => nodes
                 .iter()

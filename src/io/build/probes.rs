@@ -55,6 +55,31 @@ fn build_probe(
     })
 }
 
+/// The weights of a `mean` over the set `name` with nodes `nodes`: each node's share ∫Nₐ dA of
+/// the reference area when the set has faces (a node set of the same name included), else 1.
+fn area_weights(mesh: &crate::mesh::Mesh, name: &str, nodes: &[usize]) -> Vec<f64> {
+    let Some(faces) = mesh.face_sets.get(name) else {
+        return vec![1.0; nodes.len()];
+    };
+    let mut by_node = std::collections::BTreeMap::new();
+    for &f in faces {
+        let (local, w) = crate::problem::loads::face_node_areas(mesh, f);
+        let cell = mesh.cell(f.cell);
+        for (i, &l) in local.iter().enumerate() {
+            *by_node.entry(cell[l]).or_insert(0.0) += w[i];
+        }
+    }
+    let weights: Vec<f64> = nodes
+        .iter()
+        .map(|n| by_node.get(n).copied().unwrap_or(0.0))
+        .collect();
+    if weights.iter().sum::<f64>() > 0.0 {
+        weights
+    } else {
+        vec![1.0; nodes.len()]
+    }
+}
+
 /// What the probe measures, by `kind`.
 fn probe_kind(
     ctx: &Ctx,
@@ -69,9 +94,13 @@ fn probe_kind(
     Ok(match p.kind.as_str() {
         "mean" | "max" | "min" => {
             let q = nodal(ctx, key, &need(&p.quantity, "quantity")?)?;
-            let nodes = set(&need(&p.set, "set")?)?;
+            let name = need(&p.set, "set")?;
+            let nodes = set(&name)?;
             match p.kind.as_str() {
-                "mean" => ProbeKind::Mean(q, nodes),
+                "mean" => {
+                    let weights = area_weights(&model.mesh, &name, &nodes);
+                    ProbeKind::Mean(q, nodes, weights)
+                }
                 "max" => ProbeKind::Max(q, nodes),
                 _ => ProbeKind::Min(q, nodes),
             }
@@ -205,6 +234,48 @@ mod tests {
         plan(&[("probes", text)]).probes
     }
 
+    /// `mean` over a face set is the surface mean ∫q dA / A of the interpolated quantity: on tet10
+    /// (quadratic faces) a quadratic field uz = x² averages to L²/3 exactly, where the arithmetic
+    /// mean of the nodal values does not.
+    #[test]
+    fn mean_over_a_face_set_is_the_area_weighted_mean() {
+        let plan = plan(&[
+            (
+                "mesh",
+                "[mesh]\ngenerator = \"box\"\nsize = [0.01, 0.01, 0.001]\ndivisions = [3, 2, 1]\n\
+                 element = \"tet10\"",
+            ),
+            (
+                "probes",
+                "[probes.a]\nkind = \"mean\"\nquantity = \"uz\"\nset = \"z1\"",
+            ),
+        ]);
+        let mesh = &plan.model.mesh;
+        let mut state = vec![0.0; mesh.n_nodes() * 4];
+        for (n, x) in mesh.nodes.iter().enumerate() {
+            state[n * 4 + 2] = x[0] * x[0];
+        }
+        let probe = &plan.probes[0].1;
+        let ProbeKind::Mean(_, nodes, _) = &probe.kind else {
+            panic!("{:?}", probe.kind)
+        };
+        let arithmetic = nodes.iter().map(|&n| state[n * 4 + 2]).sum::<f64>() / nodes.len() as f64;
+        let input = crate::job::probes::ProbeInput {
+            state: &state,
+            reactions: &state,
+            electrodes: &[],
+            stored: 0.0,
+            electric: 0.0,
+            reference: &state,
+            max_field: 0.0,
+            symmetry: 1.0,
+        };
+        let mean = probe.evaluate(&input);
+        let exact = 0.01f64 * 0.01 / 3.0;
+        assert!((mean - exact).abs() < 1e-12 * exact, "{mean} vs {exact}");
+        assert!((arithmetic - exact).abs() > 1e-3 * exact, "{arithmetic}");
+    }
+
     #[test]
     fn nodal_probes_over_sets_and_at_points() {
         let p = probes(
@@ -213,10 +284,13 @@ mod tests {
              [probes.c]\nkind = \"min\"\nquantity = \"u\"\nset = \"x0\"\noffset = 1.0",
         );
         assert_eq!(p.len(), 3);
-        let ProbeKind::Mean(q, nodes) = &p[0].1.kind else {
+        let ProbeKind::Mean(q, nodes, weights) = &p[0].1.kind else {
             panic!("{:?}", p[0].1.kind)
         };
         assert_eq!((*q, nodes.len()), (NodalQuantity::Component(2), 9));
+        // the top face's area shares: corners ¼, edges ½, the centre 1 of a cell's area
+        let area: f64 = weights.iter().sum();
+        assert!((area - 1e-4).abs() < 1e-18, "{area}");
         assert_eq!((p[0].1.scale, p[0].1.offset), (1000.0, 0.0));
         let ProbeKind::Point(NodalQuantity::Potential, node) = p[1].1.kind else {
             panic!("{:?}", p[1].1.kind)
