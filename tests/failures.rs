@@ -61,3 +61,57 @@ fn inverted_elements_stop_the_run_with_the_reason() {
         );
     }
 }
+
+/// Failures are named by their cause, and "pull-in" only for a limit point with a voltage on:
+/// a film without any support (a free rigid-body motion) stops at its first step with a
+/// singular tangent and says the body is not supported; the pull-in ramp still says pull-in.
+/// (The classification of every Newton failure is tested in `solve::stepping`.)
+#[test]
+fn failures_name_their_cause() {
+    let dir = tempdir("causes");
+    let film = String::from_utf8(deasim(&["example", "film"], &dir).stdout).unwrap();
+    let run = |name: &str, text: &str| -> String {
+        std::fs::write(dir.join(format!("{name}.toml")), text).unwrap();
+        let out = deasim(
+            &[
+                "run",
+                &format!("{name}.toml"),
+                "--out",
+                name,
+                "--set",
+                "output.plots=false",
+                "--set",
+                "mesh.divisions=[2, 2, 1]",
+            ],
+            &dir,
+        );
+        assert_eq!(out.status.code(), Some(1), "{name}");
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    // no constraints at all
+    let mut free = String::new();
+    let mut skip = false;
+    for line in film.lines() {
+        if line.starts_with("[[constraints]]") {
+            skip = true;
+            continue;
+        }
+        if skip && (line.starts_with('[') || line.is_empty()) {
+            skip = line.starts_with("set") || line.starts_with("fix");
+        }
+        if skip && (line.starts_with("set") || line.starts_with("fix")) {
+            continue;
+        }
+        skip = false;
+        free.push_str(line);
+        free.push('\n');
+    }
+    assert!(!free.contains("[[constraints]]"));
+    let err = run("free", &free);
+    assert!(err.contains("not fully supported"), "{err}");
+    assert!(!err.contains("pull-in"), "{err}");
+    // the pull-in example is still pull-in
+    let pull = String::from_utf8(deasim(&["example", "film-pull-in"], &dir).stdout).unwrap();
+    let err = run("pull", &pull);
+    assert!(err.contains("pull-in"), "{err}");
+}

@@ -614,14 +614,27 @@ impl<'p, 'o> Job<'p, 'o> {
                     .zip(&targets)
                     .any(|(a, b)| a != b || *b != 0.0)
                     || quasi_static;
-                let what = if f.limit_point && electric {
-                    "electromechanical instability (pull-in)"
-                } else if f.limit_point {
-                    "limit point (loss of stability)"
-                } else if f.reason == crate::solve::interrupt::MESSAGE {
-                    "interrupted by a signal (the last accepted step is in the outputs)"
-                } else {
-                    "solve failed"
+                use crate::solve::stepping::FailureCause;
+                let what = match &f.cause {
+                    FailureCause::Singular if f.last_converged == 0.0 => {
+                        "singular tangent at the start of the stage: the body is not fully \
+                         supported (a rigid-body motion is free; add constraints)"
+                            .to_string()
+                    }
+                    FailureCause::Singular => "singular tangent".to_string(),
+                    FailureCause::NonFinite => {
+                        "non-finite (NaN or infinite) residual or update".to_string()
+                    }
+                    FailureCause::Material(m) => format!("material limit ({m})"),
+                    _ if f.limit_point && electric => {
+                        "electromechanical instability (pull-in)".to_string()
+                    }
+                    _ if f.limit_point => "limit point (loss of stability)".to_string(),
+                    _ if f.reason == crate::solve::interrupt::MESSAGE => {
+                        "interrupted by a signal (the last accepted step is in the outputs)"
+                            .to_string()
+                    }
+                    _ => "solve failed".to_string(),
                 };
                 Some(format!(
                     "{what} in stage `{}` at t = {:.6} s: no stable equilibrium beyond load factor {:.6} \

@@ -60,11 +60,14 @@ pub struct NewtonReport {
 /// Why Newton stopped without convergence.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum NewtonError {
-    #[error("Newton did not converge in {iterations} iterations (residual {residual:e}, first {first:e})")]
+    #[error("Newton did not converge in {iterations} iterations (residual {residual:.3e}, first {first:.3e}){}", blocked.as_ref().map(|b| format!("; full steps were blocked: {b}")).unwrap_or_default())]
     MaxIterations {
         iterations: usize,
         residual: f64,
         first: f64,
+        /// Why the last full Newton step that could not be evaluated failed (e.g. a material
+        /// outside its domain): the iteration was held back by it.
+        blocked: Option<String>,
     },
     #[error("Newton diverged at iteration {iteration} (residual {residual:e})")]
     Diverged { iteration: usize, residual: f64 },
@@ -122,6 +125,8 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
     }
     let tol = (settings.rtol * r0).max(floor);
     let mut residuals = vec![r0];
+    // the last full step that could not be evaluated, for the report of a failure
+    let mut blocked: Option<String> = None;
     let mut rn = r0;
     if settings.verbose {
         eprintln!("    tolerance {tol:.3e} (floor {floor:.3e})");
@@ -148,6 +153,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                 iterations: iteration,
                 residual: rn,
                 first: r0,
+                blocked: blocked.take(),
             });
         }
         iteration += 1;
@@ -189,6 +195,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
             let evaluated = system.evaluate(&mut trial, None);
             if let (Err(m), true) = (&evaluated, alpha == 1.0) {
                 full_step_error = Some(m.clone());
+                blocked = Some(m.clone());
             }
             if evaluated.is_ok() {
                 let tn = norm(&trial);

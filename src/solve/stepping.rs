@@ -73,8 +73,63 @@ pub struct RampFailure {
     /// True when failures persisted down to the minimum increment, or the converged states
     /// became unstable: a limit point of the load path.
     pub limit_point: bool,
+    /// What the last failed attempt ran into.
+    pub cause: FailureCause,
     /// Total Newton iterations spent, failed attempts included.
     pub newton_iterations: usize,
+}
+
+/// What stopped the last attempt of a failed ramp: tells a limit point (an unstable state, or
+/// Newton failing as the increments shrink) from a singular tangent (e.g. a body free to move), a
+/// non-finite residual and a material pushed out of its domain (e.g. a locked Gent network).
+#[derive(Debug, Clone, PartialEq)]
+pub enum FailureCause {
+    /// Newton converged to a state whose tangent has too many negative pivots.
+    Unstable,
+    /// Newton did not converge (or diverged with a finite residual).
+    NoConvergence,
+    /// The tangent was singular.
+    Singular,
+    /// The residual or the update was not finite (NaN, ∞).
+    NonFinite,
+    /// A material could not be evaluated (the message names why).
+    Material(String),
+    /// Stopped by a signal, or anything else.
+    Other,
+}
+
+impl FailureCause {
+    /// The cause of a Newton failure.
+    pub fn of(e: &NewtonError) -> Self {
+        match e {
+            NewtonError::Singular { .. } => FailureCause::Singular,
+            NewtonError::Diverged { residual, .. }
+            | NewtonError::MaxIterations { residual, .. }
+                if !residual.is_finite() =>
+            {
+                FailureCause::NonFinite
+            }
+            // held back by a material outside its domain (e.g. a Gent network at its lock)
+            NewtonError::MaxIterations {
+                blocked: Some(m), ..
+            } if !m.contains("volume ratio") => FailureCause::Material(m.clone()),
+            NewtonError::Diverged { .. } | NewtonError::MaxIterations { .. } => {
+                FailureCause::NoConvergence
+            }
+            NewtonError::Evaluation { message, .. } => {
+                if message.contains("singular") || message.contains("pivot") {
+                    FailureCause::Singular
+                } else if message.contains("NaN") || message.contains("non-finite") {
+                    FailureCause::NonFinite
+                } else if message.contains("volume ratio") {
+                    // an inverted element: the step went too far, as near a limit point
+                    FailureCause::NoConvergence
+                } else {
+                    FailureCause::Material(message.clone())
+                }
+            }
+        }
+    }
 }
 
 /// Summary of a completed ramp.
@@ -131,6 +186,7 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
     let mut inc = start.increment;
     let mut next_nominal = start.next_nominal;
     let mut last_reason = String::new();
+    let mut last_cause;
     // the solver holds a factorisation of the tangent at (or next to) the current state
     let mut predictor_work = vec![0.0; system.n()];
     let mut have_factor =
@@ -142,6 +198,7 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
                 attempted: s,
                 reason,
                 limit_point: false,
+                cause: FailureCause::Other,
                 newton_iterations: report.newton_iterations,
             });
         }
@@ -196,10 +253,12 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
             }
             (Ok(rep), Some(Err(e))) => {
                 report.newton_iterations += rep.iterations;
+                last_cause = FailureCause::Material(e.clone());
                 format!("the accepted state could not be committed: {e}")
             }
             (Ok(rep), None) => {
                 report.newton_iterations += rep.iterations;
+                last_cause = FailureCause::Unstable;
                 format!(
                     "converged state is unstable (tangent has {} negative pivots, {} expected)",
                     rep.inertia.map(|i| i.negative).unwrap_or(0),
@@ -213,6 +272,7 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
                     | NewtonError::Singular { iteration }
                     | NewtonError::Evaluation { iteration, .. } => *iteration,
                 };
+                last_cause = FailureCause::of(&e);
                 e.to_string()
             }
         };
@@ -224,11 +284,18 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
         last_reason = failure;
         inc = (target - s) * 0.5;
         if inc < min_inc {
+            // a limit point: states that turn unstable, or Newton failing ever closer to a
+            // converged state; not a singular, non-finite or material failure
+            let limit_point = matches!(
+                last_cause,
+                FailureCause::Unstable | FailureCause::NoConvergence
+            );
             return Err(RampFailure {
                 last_converged: s,
                 attempted: target,
                 reason: last_reason,
-                limit_point: true,
+                limit_point,
+                cause: last_cause,
                 newton_iterations: report.newton_iterations,
             });
         }
@@ -278,5 +345,71 @@ fn predict<S: LoadedSystem + ?Sized>(
             // the predicted state is not admissible (e.g. J <= 0): start from the plain one
             system.restore(&before);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each Newton failure maps to its cause: a singular tangent or a solver's zero pivot, a
+    /// non-finite residual, a material outside its domain (directly, or as what held full steps
+    /// back), and plain non-convergence (inverted elements included: a step too long near a limit
+    /// point).
+    #[test]
+    fn newton_failures_are_classified() {
+        let eval = |m: &str| NewtonError::Evaluation {
+            iteration: 1,
+            message: m.into(),
+        };
+        let max = |residual: f64, blocked: Option<&str>| NewtonError::MaxIterations {
+            iterations: 25,
+            residual,
+            first: 1.0,
+            blocked: blocked.map(String::from),
+        };
+        assert_eq!(
+            FailureCause::of(&NewtonError::Singular { iteration: 0 }),
+            FailureCause::Singular
+        );
+        assert_eq!(
+            FailureCause::of(&eval("singular matrix (zero pivot at 3)")),
+            FailureCause::Singular
+        );
+        assert_eq!(
+            FailureCause::of(&max(f64::NAN, None)),
+            FailureCause::NonFinite
+        );
+        assert_eq!(
+            FailureCause::of(&NewtonError::Diverged {
+                iteration: 2,
+                residual: f64::INFINITY
+            }),
+            FailureCause::NonFinite
+        );
+        let gent = "cell 3: Gent model locked: Ī₁ − 3 = 0.51 ≥ J_m = 0.5 at quadrature point 1";
+        assert_eq!(
+            FailureCause::of(&eval(gent)),
+            FailureCause::Material(gent.into())
+        );
+        assert_eq!(
+            FailureCause::of(&max(1e-3, Some(gent))),
+            FailureCause::Material(gent.into())
+        );
+        assert_eq!(
+            FailureCause::of(&max(
+                1e-3,
+                Some("cell 0: non-positive volume ratio J = -1e-2")
+            )),
+            FailureCause::NoConvergence
+        );
+        assert_eq!(
+            FailureCause::of(&max(1e-3, None)),
+            FailureCause::NoConvergence
+        );
+        assert_eq!(
+            FailureCause::of(&eval("cell 0: non-positive volume ratio J = -1e-2")),
+            FailureCause::NoConvergence
+        );
     }
 }
