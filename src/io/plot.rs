@@ -281,6 +281,16 @@ fn padded((lo, hi): Range) -> Option<Range> {
     (a.is_finite() && b.is_finite() && b - a > 0.0 && (b - a).is_finite()).then_some((a, b))
 }
 
+/// A tick value with the round-off of the tick arithmetic removed: a value below 1e-9 of the axis
+/// span is zero (a tick at -5.67e-22 on an axis from -1 to 1 is the tick at 0).
+fn snap_tick(v: f64, span: f64) -> f64 {
+    if span.is_finite() && span > 0.0 && v.abs() <= 1e-9 * span {
+        0.0
+    } else {
+        v
+    }
+}
+
 /// Tick label: up to 10 significant digits, trailing zeros removed; exponent form outside
 /// [1e-3, 1e5) so SI values like 2.5e-6 m stay short.
 fn tick_label(v: &f64) -> String {
@@ -336,6 +346,8 @@ where
 {
     let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
     root.fill(&WHITE).map_err(e)?;
+    let x_tick = |v: &f64| tick_label(&snap_tick(*v, x1 - x0));
+    let y_tick = |v: &f64| tick_label(&snap_tick(*v, y1 - y0));
     let mut chart = ChartBuilder::on(&root)
         .caption(spec.title, ("sans-serif", 24))
         .margin(15)
@@ -349,8 +361,8 @@ where
         .y_desc(spec.y_label)
         .axis_desc_style(("sans-serif", 18))
         .label_style(("sans-serif", 14))
-        .x_label_formatter(&tick_label)
-        .y_label_formatter(&tick_label)
+        .x_label_formatter(&x_tick)
+        .y_label_formatter(&y_tick)
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
         .map_err(e)?;
@@ -609,5 +621,14 @@ mod tests {
         assert_eq!(tick_label(&2.5e-6), "2.5e-6");
         assert_eq!(tick_label(&1.0e6), "1e6");
         assert_eq!(tick_label(&1.000_000_1), "1.0000001");
+    }
+
+    #[test]
+    fn round_off_ticks_are_zero() {
+        assert_eq!(tick_label(&snap_tick(-5.67e-22, 2.0)), "0");
+        assert_eq!(tick_label(&snap_tick(3e-19, 1e-6)), "0");
+        // a genuinely small value on a small axis stays
+        assert_eq!(tick_label(&snap_tick(2.5e-6, 1e-5)), "2.5e-6");
+        assert_eq!(snap_tick(-5.67e-22, 0.0), -5.67e-22);
     }
 }
