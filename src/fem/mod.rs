@@ -1,5 +1,8 @@
 //! Reference elements: shape functions, Gauss quadrature and the geometry of a cell at its
-//! quadrature points; kinematics (F, E₀) at a quadrature point.
+//! quadrature points; kinematics (F, E₀) at a quadrature point. `axisymmetric`: the meridian
+//! elements and the axisymmetric kinematics.
+
+pub mod axisymmetric;
 
 use crate::material::{Mat3, Vec3};
 use crate::mesh::ElementKind;
@@ -12,7 +15,7 @@ pub const PHI: usize = 3;
 /// Largest number of nodes of a supported cell.
 pub const MAX_NODES: usize = 10;
 /// Largest number of quadrature points of a supported cell.
-pub const MAX_QP: usize = 8;
+pub const MAX_QP: usize = 9;
 
 /// Shape functions and quadrature of one element kind, evaluated once.
 #[derive(Debug, Clone)]
@@ -30,12 +33,18 @@ pub struct ReferenceElement {
 
 /// The geometry of one cell at its quadrature points: gradients of the shape functions with respect
 /// to the reference coordinates X, and the integration weights w·det(∂X/∂ξ) (m³).
+///
+/// A meridian (axisymmetric) cell stores ∇₀N_a = (∂N_a/∂R, ∂N_a/∂Z, 0), the weights
+/// 2πR·w·det(∂(R, Z)/∂ξ) of the whole ring, and the hoop row N_a/R in `hoop`; a 3-D cell has
+/// `hoop` zero (see [`axisymmetric`]).
 #[derive(Debug, Clone)]
 pub struct CellGeometry {
     pub n_nodes: usize,
     pub n_qp: usize,
     pub grad: [[[f64; 3]; MAX_NODES]; MAX_QP],
     pub weights: [f64; MAX_QP],
+    /// N_a/R at each quadrature point of a meridian cell (1/m); zero for a 3-D cell.
+    pub hoop: [[f64; MAX_NODES]; MAX_QP],
 }
 
 /// A cell whose Jacobian is not positive at a quadrature point (inverted or degenerate cell).
@@ -122,6 +131,7 @@ impl ReferenceElement {
             n_qp: self.n_qp,
             grad: [[[0.0; 3]; MAX_NODES]; MAX_QP],
             weights: [0.0; MAX_QP],
+            hoop: [[0.0; MAX_NODES]; MAX_QP],
         };
         for q in 0..self.n_qp {
             // jac[i][j] = ∂X_i/∂ξ_j

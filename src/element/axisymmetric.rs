@@ -1,0 +1,212 @@
+//! The axisymmetric (meridian) kernel: Π = ∫ Ψ(F, E₀) 2πR dR dZ with the kinematics of
+//! `fem::axisymmetric` (hoop stretch 1 + u_r/R).
+//!
+//! Local dofs are node-major (u_r, u_z, ·, Φ); slot 2 is neither read nor given a residual (it is
+//! held at zero). With the variation of F for the unknown (b, k), k ∈ {r, z}:
+//! δF = e_k ⊗ ∇₀N_b (in-plane) plus, for k = r, (N_b/R) e_Θ ⊗ e_Θ, the residual is
+//! r_{b,k} = ∫ P : δF dV, r_{b,Φ} = ∫ D₀·∇₀N_b dV, and the tangent their exact derivative
+//! (Zienkiewicz & Taylor, vol. 1, axisymmetric analysis; Henann, Chester & Bertoldi, Soft Matter
+//! 9 (2013) 6318, for the electro-elastic form).
+
+use super::{CellFields, CellHistory, CellInput, CellKernel, PointFailure};
+use crate::fem::axisymmetric::meridian_kinematics;
+use crate::fem::{CellGeometry, FIELDS, MAX_NODES};
+use crate::material::{Mat3, Material, Vec3};
+
+/// The axisymmetric kernel with full integration, for cells from
+/// `fem::axisymmetric::meridian_geometry`.
+#[derive(Debug, Clone, Copy)]
+pub struct AxisymmetricKernel;
+
+fn split(n: usize, local: &[f64]) -> ([[f64; 3]; MAX_NODES], [f64; MAX_NODES]) {
+    let mut u = [[0.0; 3]; MAX_NODES];
+    let mut phi = [0.0; MAX_NODES];
+    for a in 0..n {
+        u[a] = [local[a * 4], local[a * 4 + 1], 0.0];
+        phi[a] = local[a * 4 + 3];
+    }
+    (u, phi)
+}
+
+fn point(geom: &CellGeometry, q: usize, local: &[f64]) -> (Mat3, Vec3) {
+    let n = geom.n_nodes;
+    let (u, phi) = split(n, local);
+    meridian_kinematics(&geom.grad[q][..n], &geom.hoop[q][..n], &u[..n], &phi[..n])
+}
+
+/// δF of unknown (b, k), k ∈ {0, 1}: up to three (row-major index of F, value) pairs.
+fn delta_f(geom: &CellGeometry, q: usize, b: usize, k: usize) -> [(usize, f64); 3] {
+    let g = geom.grad[q][b];
+    let hoop = if k == 0 { geom.hoop[q][b] } else { 0.0 };
+    [(k * 3, g[0]), (k * 3 + 1, g[1]), (8, hoop)]
+}
+
+fn residual_tangent(
+    c: &CellInput,
+    r: &mut [f64],
+    mut k: Option<&mut [f64]>,
+) -> Result<f64, PointFailure> {
+    let geom = c.geom;
+    let n = geom.n_nodes;
+    let nl = n * FIELDS;
+    r[..nl].iter_mut().for_each(|v| *v = 0.0);
+    if let Some(k) = k.as_deref_mut() {
+        k[..nl * nl].iter_mut().for_each(|v| *v = 0.0);
+    }
+    let mut energy = 0.0;
+    for q in 0..geom.n_qp {
+        let w = geom.weights[q];
+        let (f, e0) = point(geom, q, c.local);
+        let fail = |error| PointFailure { qp: q, error };
+        let g = &geom.grad[q];
+        let (p, d0, tan) = match k {
+            None => {
+                let s = c.mat.stress_at(&f, &e0, c.hist.at(q)).map_err(fail)?;
+                energy += w * s.energy;
+                (s.p, s.d0, None)
+            }
+            Some(_) => {
+                let t = c.mat.tangent_at(&f, &e0, c.hist.at(q)).map_err(fail)?;
+                energy += w * t.energy;
+                (t.p, t.d0, Some(t))
+            }
+        };
+        let pv = |idx: usize| p[(idx / 3, idx % 3)];
+        for a in 0..n {
+            for i in 0..2 {
+                let s: f64 = delta_f(geom, q, a, i).iter().map(|&(m, v)| v * pv(m)).sum();
+                r[a * 4 + i] += w * s;
+            }
+            r[a * 4 + 3] += w * (d0[0] * g[a][0] + d0[1] * g[a][1]);
+        }
+        let (Some(t), Some(k)) = (tan, k.as_deref_mut()) else {
+            continue;
+        };
+        for a in 0..n {
+            for i in 0..2 {
+                let da = delta_f(geom, q, a, i);
+                // Σ δF_a : A and Σ δF_a : B
+                let mut ra = [0.0; 9];
+                let mut rb = [0.0; 3];
+                for &(m, v) in &da {
+                    for col in 0..9 {
+                        ra[col] += v * t.a[(m, col)];
+                    }
+                    for col in 0..3 {
+                        rb[col] += v * t.b[(m, col)];
+                    }
+                }
+                for b in 0..n {
+                    let row = (a * 4 + i) * nl + b * 4;
+                    for kk in 0..2 {
+                        let s: f64 = delta_f(geom, q, b, kk)
+                            .iter()
+                            .map(|&(m, v)| v * ra[m])
+                            .sum();
+                        k[row + kk] += w * s;
+                    }
+                    // ∂E₀/∂Φ_b = −∇₀N_b
+                    let kp = -w * (rb[0] * g[b][0] + rb[1] * g[b][1]);
+                    k[row + 3] += kp;
+                    k[(b * 4 + 3) * nl + a * 4 + i] += kp;
+                }
+            }
+            for b in 0..n {
+                let mut s = 0.0;
+                for jj in 0..2 {
+                    for kk in 0..2 {
+                        s += g[a][jj] * t.g[(jj, kk)] * g[b][kk];
+                    }
+                }
+                k[(a * 4 + 3) * nl + b * 4 + 3] += w * s;
+            }
+        }
+    }
+    Ok(energy)
+}
+
+impl CellKernel for AxisymmetricKernel {
+    fn residual_tangent(
+        &self,
+        c: &CellInput,
+        r: &mut [f64],
+        k: Option<&mut [f64]>,
+    ) -> Result<f64, PointFailure> {
+        residual_tangent(c, r, k)
+    }
+
+    fn energy(&self, c: &CellInput) -> Result<f64, PointFailure> {
+        let mut e = 0.0;
+        for q in 0..c.geom.n_qp {
+            let (f, e0) = point(c.geom, q, c.local);
+            e += c.geom.weights[q]
+                * c.mat
+                    .energy_at(&f, &e0, c.hist.at(q))
+                    .map_err(|error| PointFailure { qp: q, error })?;
+        }
+        Ok(e)
+    }
+
+    fn energy_split(&self, c: &CellInput) -> Result<(f64, f64), PointFailure> {
+        let (mut m, mut el) = (0.0, 0.0);
+        for q in 0..c.geom.n_qp {
+            let (f, e0) = point(c.geom, q, c.local);
+            let (a, b) = c
+                .mat
+                .energy_split_at(&f, &e0, c.hist.at(q).state)
+                .map_err(|error| PointFailure { qp: q, error })?;
+            m += c.geom.weights[q] * a;
+            el += c.geom.weights[q] * b;
+        }
+        Ok((m, el))
+    }
+
+    fn fields(&self, c: &CellInput) -> Result<CellFields, PointFailure> {
+        let geom = c.geom;
+        let mut out = CellFields {
+            e: [0.0; 3],
+            sigma: [0.0; 9],
+            j: 0.0,
+            e_max: 0.0,
+        };
+        let vol: f64 = geom.weights[..geom.n_qp].iter().sum();
+        for q in 0..geom.n_qp {
+            let (f, e0) = point(geom, q, c.local);
+            let s = mat_stress(c.mat, &f, &e0, c.hist, q)?;
+            let w = geom.weights[q] / vol;
+            let sigma = crate::material::cauchy_stress(&s.p, &f);
+            let e = crate::material::spatial_field(&f, &e0).unwrap_or_default();
+            for i in 0..3 {
+                out.e[i] += w * e[i];
+                for k in 0..3 {
+                    out.sigma[i * 3 + k] += w * sigma[(i, k)];
+                }
+            }
+            out.j += w * f.determinant();
+            out.e_max = out.e_max.max(e.norm());
+        }
+        Ok(out)
+    }
+
+    fn point_deformations(
+        &self,
+        c: &CellInput,
+        out: &mut [(Mat3, Vec3)],
+    ) -> Result<(), PointFailure> {
+        for (q, o) in out.iter_mut().enumerate().take(c.geom.n_qp) {
+            *o = point(c.geom, q, c.local);
+        }
+        Ok(())
+    }
+}
+
+fn mat_stress(
+    mat: &dyn Material,
+    f: &Mat3,
+    e0: &Vec3,
+    hist: CellHistory,
+    q: usize,
+) -> Result<crate::material::Stress, PointFailure> {
+    mat.stress_at(f, e0, hist.at(q))
+        .map_err(|error| PointFailure { qp: q, error })
+}
