@@ -39,6 +39,23 @@ fn probe(plan: &Plan, r: &StepRecord, name: &str) -> f64 {
     r.probes[i]
 }
 
+/// The ringing frequency (Hz) of the pad in `records`: upward crossings of the mean deflection,
+/// interpolated linearly between records.
+fn ringing_frequency(plan: &Plan, records: &[StepRecord]) -> f64 {
+    let act: Vec<(f64, f64)> = records
+        .iter()
+        .map(|r| (r.time, probe(plan, r, "center_deflection")))
+        .collect();
+    let mean = act.iter().map(|a| a.1).sum::<f64>() / act.len() as f64;
+    let ups: Vec<f64> = act
+        .windows(2)
+        .filter(|w| w[0].1 < mean && w[1].1 >= mean)
+        .map(|w| w[0].0 + (mean - w[0].1) / (w[1].1 - w[0].1) * (w[1].0 - w[0].0))
+        .collect();
+    assert!(ups.len() >= 4, "{} upward crossings", ups.len());
+    (ups.len() - 1) as f64 / (ups[ups.len() - 1] - ups[0])
+}
+
 /// A coarse diaphragm (fast): 8 radial cells, one layer.
 const COARSE: [&str; 2] = ["mesh.radial=8", "mesh.layers=1"];
 
@@ -213,18 +230,7 @@ fn lumped_model_agrees_with_finite_elements() {
     let (records, plan, _) = run_with(text, &sets);
     let load_end = records.iter().rposition(|r| r.stage == "load").unwrap();
     let fe_static = probe(&plan, &records[load_end], "center_deflection");
-    let act: Vec<(f64, f64)> = records[load_end + 1..]
-        .iter()
-        .map(|r| (r.time, probe(&plan, r, "center_deflection")))
-        .collect();
-    let mean = act.iter().map(|a| a.1).sum::<f64>() / act.len() as f64;
-    let ups: Vec<f64> = act
-        .windows(2)
-        .filter(|w| w[0].1 < mean && w[1].1 >= mean)
-        .map(|w| w[0].0 + (mean - w[0].1) / (w[1].1 - w[0].1) * (w[1].0 - w[0].0))
-        .collect();
-    assert!(ups.len() >= 4, "{} upward crossings", ups.len());
-    let fe_frequency = (ups.len() - 1) as f64 / (ups[ups.len() - 1] - ups[0]);
+    let fe_frequency = ringing_frequency(&plan, &records[load_end + 1..]);
 
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
     let scenario = parse(text, "t.toml", &sets).unwrap();
@@ -479,17 +485,7 @@ fn pad_mode_from_the_eigenproblem() {
     ];
     let (records, plan, _) = run_with(text, &sets);
     let load_end = records.iter().rposition(|r| r.stage == "load").unwrap();
-    let act: Vec<(f64, f64)> = records[load_end + 1..]
-        .iter()
-        .map(|r| (r.time, probe(&plan, r, "center_deflection")))
-        .collect();
-    let mean = act.iter().map(|a| a.1).sum::<f64>() / act.len() as f64;
-    let ups: Vec<f64> = act
-        .windows(2)
-        .filter(|w| w[0].1 < mean && w[1].1 >= mean)
-        .map(|w| w[0].0 + (mean - w[0].1) / (w[1].1 - w[0].1) * (w[1].0 - w[0].0))
-        .collect();
-    let measured = (ups.len() - 1) as f64 / (ups[ups.len() - 1] - ups[0]);
+    let measured = ringing_frequency(&plan, &records[load_end + 1..]);
     // the midpoint rule rings at ω_h = (2/Δt) atan(ωΔt/2): the frequency it stands for
     let dt = 1e-3;
     let ringing = (std::f64::consts::PI * measured * dt).tan() / (std::f64::consts::PI * dt);

@@ -63,7 +63,7 @@ fn response_equals_the_steady_state_of_time_domain_runs() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    let text = std::fs::read_to_string(dir.join("frf/response.csv")).unwrap();
+    let text = std::fs::read_to_string(dir.join("frf/frequency_response.csv")).unwrap();
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let head: Vec<&str> = lines.next().unwrap().split(',').collect();
     let (cr, ci) = (

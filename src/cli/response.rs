@@ -378,7 +378,7 @@ pub fn response(args: &ResponseArgs) -> Result<Outcome, (i32, String)> {
     Ok((dir, frequencies, out, p.bias, p.electrode))
 }
 
-/// `response.csv` and one Bode plot per probe.
+/// `frequency_response.csv` and one Bode plot per probe.
 fn write(
     dir: &Path,
     frequencies: &[f64],
@@ -406,7 +406,7 @@ fn write(
         }
         csv.push('\n');
     }
-    let path = dir.join("response.csv");
+    let path = dir.join("frequency_response.csv");
     write_atomic(&path, csv.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
     for p in probes {
         let mag = Series {
