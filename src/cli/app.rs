@@ -8,8 +8,10 @@ use crate::io::examples::{example, DEFAULT, EXAMPLES};
 use crate::io::lock::DirLock;
 use crate::io::output::OutputWriter;
 use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
+use crate::job::linear::{FrequencyResponse, ResponseMethod};
 use crate::job::run::{run_with, Observer, RunState, RunSummary, StepRecord};
 use crate::solve::newton::NewtonSettings;
+use crate::time::modal::Mode;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -124,7 +126,45 @@ impl Progress {
     }
 }
 
+impl Progress {
+    /// A line above the bar (or on stderr without one).
+    fn say(&self, line: &str) {
+        match &self.bar {
+            Some(b) => b.println(line),
+            None => eprintln!("{line}"),
+        }
+    }
+}
+
 impl Observer for Progress {
+    fn modes(&mut self, _plan: &Plan, stage: &str, _state: &[f64], modes: &[Mode]) {
+        let list: Vec<String> = modes
+            .iter()
+            .map(|m| format!("{:.4}", m.frequency))
+            .collect();
+        self.say(&format!(
+            "  {stage}: natural frequencies (Hz): {}",
+            list.join(", ")
+        ));
+    }
+
+    fn frequency_response(&mut self, _plan: &Plan, stage: &str, r: &FrequencyResponse) {
+        for (name, values) in &r.probes {
+            let (k, peak) = values
+                .iter()
+                .map(|(re, im)| re.hypot(*im))
+                .enumerate()
+                .fold((0, 0.0), |a, (i, m)| if m > a.1 { (i, m) } else { a });
+            self.say(&format!(
+                "  {stage}: {name}: largest |response| {peak:.4e} per volt at {:.4} Hz \
+                 (on `{}` about {} V)",
+                r.frequencies.get(k).copied().unwrap_or(f64::NAN),
+                r.electrode,
+                r.bias
+            ));
+        }
+    }
+
     fn stage_started(&mut self, index: usize, name: &str) {
         match &self.bar {
             Some(b) => b.set_message(format!("stage {name}")),
@@ -534,6 +574,28 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
                         scheme.name(),
                         s.duration,
                         s.kind.nominal_steps(s.duration)
+                    ),
+                    StageKind::Modes { count, shift_hz } => println!(
+                        "stage {i} `{}`: modes, {count} nearest to {shift_hz} Hz",
+                        s.name
+                    ),
+                    StageKind::FrequencyResponse {
+                        electrode,
+                        ref frequencies,
+                        method,
+                    } => println!(
+                        "stage {i} `{}`: frequency response to `{}`, {} frequencies from {} to \
+                         {} Hz ({})",
+                        s.name,
+                        plan.electrodes[electrode].name,
+                        frequencies.len(),
+                        frequencies.first().copied().unwrap_or(0.0),
+                        frequencies.last().copied().unwrap_or(0.0),
+                        match method {
+                            ResponseMethod::Direct => "direct solves".to_string(),
+                            ResponseMethod::Modal { count } =>
+                                format!("{count} modes with a static correction"),
+                        }
                     ),
                 }
             }

@@ -5,17 +5,14 @@
 
 use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
 use crate::element::CellFields;
-use crate::io::atomic::write_atomic;
 use crate::io::build::Plan;
-use crate::io::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuPiece};
+use crate::io::linear::write_modes;
+use crate::job::linear::{check_linearisable, modes_at};
 use crate::job::plan::StageKind;
 use crate::job::run::{run, Observer, RunSummary, StepRecord};
-use crate::mesh::ElementKind;
-use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
+use crate::problem::dofs::{FIELDS, PHI};
 use crate::solve::newton::NewtonSettings;
-use crate::time::mass::{MassKind, NodalMass};
-use crate::time::modal::{modes, Mode, ModeSettings};
-use std::fmt::Write as _;
+use crate::time::modal::ModeSettings;
 use std::path::{Path, PathBuf};
 
 /// Keeps the state of the last accepted step.
@@ -52,7 +49,7 @@ pub fn cmd_modes(
     let n_static = plan
         .stages
         .iter()
-        .take_while(|s| !matches!(s.kind, StageKind::Dynamic { .. }))
+        .take_while(|s| !matches!(s.kind, StageKind::Dynamic { .. }) && !s.kind.is_linearised())
         .count();
     if n_static == 0 {
         eprintln!(
@@ -63,15 +60,8 @@ pub fn cmd_modes(
         );
         return EXIT_BAD_INPUT;
     }
-    if plan.densities.iter().all(|&d| d <= 0.0) && plan.rigid.iter().all(|r| r.mass <= 0.0) {
-        eprintln!("error: the scenario has no mass: give `materials.<m>.density` (kg/m³)");
-        return EXIT_BAD_INPUT;
-    }
-    if plan.model.materials.iter().any(|m| m.state_size() > 0) {
-        eprintln!(
-            "error: materials with `branches` are not linearised yet (their relaxed state and \
-             complex modulus); use the elastic material or a dynamic stage"
-        );
+    if let Err(e) = check_linearisable(&plan) {
+        eprintln!("error: {e}");
         return EXIT_BAD_INPUT;
     }
     plan.stages.truncate(n_static);
@@ -88,30 +78,14 @@ pub fn cmd_modes(
         return EXIT_SOLVE_FAILED;
     }
     let state = last.0;
-    // supports, and every electrode held at the voltage it has in the loaded state
-    let mut model = plan.model.clone();
-    model.dirichlet = plan.supports.clone();
-    let mut bias = Vec::new();
-    for e in &plan.electrodes {
-        let v = state[e.nodes[0] * FIELDS + PHI];
-        bias.push((e.name.clone(), v));
-        model.dirichlet.push(Dirichlet {
-            nodes: e.nodes.clone(),
-            field: Field::Phi,
-            value: v,
-        });
-    }
-    let mut mass = NodalMass::new(&model, &plan.densities, MassKind::Consistent);
-    for r in &plan.rigid {
-        if r.mass > 0.0 {
-            mass.add_point_mass(r.nodes[0], r.mass);
-        }
-    }
-    let found = match modes(
-        &model,
+    let bias: Vec<(String, f64)> = plan
+        .electrodes
+        .iter()
+        .map(|e| (e.name.clone(), state[e.nodes[0] * FIELDS + PHI]))
+        .collect();
+    let found = match modes_at(
+        &plan,
         &state,
-        &mass,
-        &plan.solver,
         &ModeSettings {
             count,
             shift_hz,
@@ -143,7 +117,7 @@ pub fn cmd_modes(
     for (i, m) in found.iter().enumerate() {
         println!("  {:>4} {:>12.6} {:>12.1e}", i + 1, m.frequency, m.residual);
     }
-    match write(&plan, &dir, &state, &found) {
+    match write_modes(&plan, &dir, "modes", &state, &found) {
         Ok(()) => {
             println!("results in {}", dir.display());
             EXIT_OK
@@ -153,79 +127,4 @@ pub fn cmd_modes(
             EXIT_SOLVE_FAILED
         }
     }
-}
-
-/// `modes.csv`, `modes.pvd` and `modes/mode_NN.vtu`.
-fn write(plan: &Plan, dir: &Path, state: &[f64], found: &[Mode]) -> Result<(), String> {
-    std::fs::create_dir_all(dir.join("modes")).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let mut csv = String::from("mode,frequency_hz,eigenvalue_rad2_per_s2,residual\n");
-    for (i, m) in found.iter().enumerate() {
-        let _ = writeln!(
-            csv,
-            "{},{},{},{:e}",
-            i + 1,
-            m.frequency,
-            m.eigenvalue,
-            m.residual
-        );
-    }
-    let path = dir.join("modes.csv");
-    write_atomic(&path, csv.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mesh = &plan.model.mesh;
-    let n = mesh.n_nodes();
-    let disp: Vec<f64> = (0..n)
-        .flat_map(|a| state[a * FIELDS..a * FIELDS + 3].to_vec())
-        .collect();
-    let cell_type = match mesh.kind {
-        ElementKind::Hex8 => CellType::Hex8,
-        ElementKind::Tet4 => CellType::Tet4,
-        ElementKind::Tet10 => CellType::Tet10,
-    };
-    let mut entries = Vec::new();
-    for (i, m) in found.iter().enumerate() {
-        // shapes scaled to a largest displacement of 1 (dimensionless), potential alike
-        let largest = (0..n)
-            .map(|a| {
-                (0..3)
-                    .map(|c| m.shape[a * FIELDS + c].powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-            })
-            .fold(0.0, f64::max)
-            .max(f64::MIN_POSITIVE);
-        let shape: Vec<f64> = (0..n)
-            .flat_map(|a| (0..3).map(move |c| (a, c)))
-            .map(|(a, c)| m.shape[a * FIELDS + c] / largest)
-            .collect();
-        let phi: Vec<f64> = (0..n)
-            .map(|a| m.shape[a * FIELDS + PHI] / largest)
-            .collect();
-        let name = format!("mode_{:02}.vtu", i + 1);
-        let piece = VtuPiece {
-            points: &mesh.nodes,
-            cell_type,
-            connectivity: &mesh.connectivity,
-            point_data: vec![
-                DataArray {
-                    name: "displacement",
-                    components: 3,
-                    values: &disp,
-                },
-                DataArray {
-                    name: "mode_shape",
-                    components: 3,
-                    values: &shape,
-                },
-                DataArray {
-                    name: "mode_potential",
-                    components: 1,
-                    values: &phi,
-                },
-            ],
-            cell_data: Vec::new(),
-        };
-        write_vtu(&dir.join("modes").join(&name), &piece).map_err(|e| e.to_string())?;
-        entries.push((m.frequency, format!("modes/{name}")));
-    }
-    write_pvd(&dir.join("modes.pvd"), &entries).map_err(|e| e.to_string())
 }

@@ -5,18 +5,22 @@
 use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
 use crate::element::CellFields;
 use crate::io::atomic::write_atomic;
+use crate::io::build::log_range;
 use crate::io::build::Plan;
-use crate::io::plot::{stacked_plot, PlotSpec, Series};
+use crate::io::linear::write_response;
+use crate::io::plot::{PlotSpec, Series};
+use crate::job::linear::{
+    check_linearisable, device_mass, has_branches, held_model, linear_probes, response_values,
+    zero_bias_warning, FrequencyResponse, ProbeMap, ResponseMethod,
+};
 use crate::job::plan::StageKind;
-use crate::job::probes::{ProbeInput, ProbeKind};
 use crate::job::run::{run, Observer, RunSummary, StepRecord};
 use crate::job::statics::solve_static;
-use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
+use crate::problem::dofs::{FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
 use crate::time::frequency::linearise;
-use crate::time::mass::{MassKind, NodalMass};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -50,21 +54,17 @@ impl Observer for LastState {
     fn finished(&mut self, _: &Plan, _: &RunSummary) {}
 }
 
-/// The complex response of one probe per volt at each frequency.
-pub struct ProbeResponse {
-    pub name: String,
-    pub values: Vec<(f64, f64)>,
-}
-
 /// Runs the command; returns the exit status.
 pub fn cmd_response(args: &ResponseArgs) -> i32 {
     match response(args) {
-        Ok((dir, frequencies, probes, bias, electrode)) => {
+        Ok((dir, r)) => {
             println!(
-                "response of {} probe(s) to a small voltage on `{electrode}` about {bias:.3} V, \
-                 {} frequencies; results in {}",
-                probes.len(),
-                frequencies.len(),
+                "response of {} probe(s) per volt on `{}` about {:.3} V, {} frequencies; results \
+                 in {}",
+                r.probes.len(),
+                r.electrode,
+                r.bias,
+                r.frequencies.len(),
                 dir.display()
             );
             EXIT_OK
@@ -76,7 +76,7 @@ pub fn cmd_response(args: &ResponseArgs) -> i32 {
     }
 }
 
-type Outcome = (PathBuf, Vec<f64>, Vec<ProbeResponse>, f64, String);
+type Outcome = (PathBuf, FrequencyResponse);
 
 /// The biased state of a scenario and its linearisation, shared by `response` and `reduce`.
 pub struct Prepared {
@@ -113,59 +113,30 @@ impl Prepared {
             .collect())
     }
 
-    /// The probes' values (offsets removed) at a state.
-    pub fn probe_values(&self, s: &[f64]) -> Result<Vec<f64>, String> {
-        let plan = &self.plan;
-        let reactions = crate::problem::statics::nodal_reactions(&self.model, s)?;
-        let electrodes: Vec<(&[usize], f64)> = plan
-            .electrodes
-            .iter()
-            .map(|e| (e.nodes.as_slice(), s[e.nodes[0] * FIELDS + PHI]))
-            .collect();
-        let input = ProbeInput {
-            state: s,
-            reactions: &reactions,
-            electrodes: &electrodes,
-            stored: 0.0,
-            electric: 0.0,
+    /// The linearised probes about the biased state, deflections from the loaded state.
+    fn map(&self) -> ProbeMap<'_> {
+        ProbeMap {
+            plan: &self.plan,
+            model: &self.model,
+            state: &self.state,
             reference: &self.loaded,
-            max_field: f64::NAN,
-            symmetry: plan.symmetry_factor,
-        };
-        Ok(self
-            .probes
-            .iter()
-            .map(|&i| plan.probes[i].1.evaluate(&input) - plan.probes[i].1.offset)
-            .collect())
+            probes: self.probes.clone(),
+        }
     }
 
-    /// The probes' first-order change along the perturbation `dq` (`FIELDS` values per node), by
-    /// a central difference of step h·dq, h = min(1, 10 nm / largest displacement of dq): small
-    /// against any device, large against round-off (the probes are smooth in the state).
+    /// The probes' values (offsets removed) at a state.
+    pub fn probe_values(&self, s: &[f64]) -> Result<Vec<f64>, String> {
+        self.map().values(s)
+    }
+
+    /// The probes' first-order change along the perturbation `dq` (`FIELDS` values per node).
     pub fn gradient(&self, dq: &[f64]) -> Result<Vec<f64>, String> {
-        let largest = dq
-            .iter()
-            .enumerate()
-            .filter(|(d, _)| d % FIELDS != PHI)
-            .map(|(_, v)| v.abs())
-            .fold(0.0, f64::max);
-        let h = if largest > 0.0 {
-            (1e-8 / largest).min(1.0)
-        } else {
-            1.0
-        };
-        let plus: Vec<f64> = self.state.iter().zip(dq).map(|(s, d)| s + h * d).collect();
-        let minus: Vec<f64> = self.state.iter().zip(dq).map(|(s, d)| s - h * d).collect();
-        let (p, m) = (self.probe_values(&plus)?, self.probe_values(&minus)?);
-        Ok(p.iter().zip(&m).map(|(a, b)| (a - b) / (2.0 * h)).collect())
+        self.map().gradient(dq)
     }
 
     /// Names of the linearised probes.
     pub fn names(&self) -> Vec<String> {
-        self.probes
-            .iter()
-            .map(|&i| self.plan.probes[i].0.clone())
-            .collect()
+        self.map().names()
     }
 }
 
@@ -183,7 +154,7 @@ pub fn prepare(
     let n_static = plan
         .stages
         .iter()
-        .take_while(|s| !matches!(s.kind, StageKind::Dynamic { .. }))
+        .take_while(|s| !matches!(s.kind, StageKind::Dynamic { .. }) && !s.kind.is_linearised())
         .count();
     if n_static == 0 {
         return Err(bad(format!(
@@ -192,15 +163,11 @@ pub fn prepare(
             plan.name
         )));
     }
-    if plan.densities.iter().all(|&d| d <= 0.0) && plan.rigid.iter().all(|r| r.mass <= 0.0) {
+    check_linearisable(&plan).map_err(bad)?;
+    if has_branches(&plan) {
         return Err(bad(
-            "the scenario has no mass: give `materials.<m>.density` (kg/m³)".into(),
-        ));
-    }
-    if plan.model.materials.iter().any(|m| m.state_size() > 0) {
-        return Err(bad(
-            "materials with `branches` are not linearised yet (their relaxed state and complex \
-             modulus); use the elastic material or a dynamic stage"
+            "materials with `branches`: the command ramps to its bias without relaxing them; \
+             use a `frequency-response` stage (direct method) after a static stage instead"
                 .into(),
         ));
     }
@@ -246,20 +213,7 @@ pub fn prepare(
     if !bias.is_finite() {
         return Err(bad(format!("--bias: expected a voltage in V; got {bias}")));
     }
-    let mut model: Model = plan.model.clone();
-    model.dirichlet = plan.supports.clone();
-    for (i, e) in plan.electrodes.iter().enumerate() {
-        model.dirichlet.push(Dirichlet {
-            nodes: e.nodes.clone(),
-            field: Field::Phi,
-            value: if i == driven {
-                bias
-            } else {
-                state[e.nodes[0] * FIELDS + PHI]
-            },
-        });
-    }
-    model.dead_load_start = 1.0;
+    let model = held_model(&plan, &state, Some((driven, bias)));
     let biased = solve_static(
         &model,
         Some(state.clone()),
@@ -277,12 +231,7 @@ pub fn prepare(
         )));
     }
     state = biased.state;
-    let mut mass = NodalMass::new(&model, &plan.densities, MassKind::Consistent);
-    for r in &plan.rigid {
-        if r.mass > 0.0 {
-            mass.add_point_mass(r.nodes[0], r.mass);
-        }
-    }
+    let mass = device_mass(&plan, &model);
     let lin = linearise(
         &model,
         &state,
@@ -293,19 +242,11 @@ pub fn prepare(
     .map_err(failed)?;
     if !lin.drives_motion() {
         eprintln!(
-            "warning: `{}` is at {bias} V: the electrostatic force is ∝ 2 V_dc ṽ, so at zero bias \
-             a small voltage moves nothing to first order (only charge follows); give --bias",
-            plan.electrodes[driven].name
+            "warning: {} (--bias)",
+            zero_bias_warning(&plan.electrodes[driven].name, bias)
         );
     }
-    let probes: Vec<usize> = (0..plan.probes.len())
-        .filter(|&i| {
-            !matches!(
-                plan.probes[i].1.kind,
-                ProbeKind::MaxElectricField | ProbeKind::StoredEnergy | ProbeKind::ElectricEnergy
-            )
-        })
-        .collect();
+    let probes = linear_probes(&plan);
     let electrode = plan.electrodes[driven].name.clone();
     Ok(Prepared {
         plan,
@@ -331,10 +272,7 @@ pub fn response(args: &ResponseArgs) -> Result<Outcome, (i32, String)> {
                 args.from, args.to, args.points
             )));
         }
-        let (a, b) = (args.from.ln(), args.to.ln());
-        (0..args.points)
-            .map(|i| (a + (b - a) * i as f64 / (args.points - 1) as f64).exp())
-            .collect()
+        log_range(args.from, args.to, args.points)
     } else {
         args.frequencies.clone()
     };
@@ -349,109 +287,39 @@ pub fn response(args: &ResponseArgs) -> Result<Outcome, (i32, String)> {
         args.electrode.as_deref(),
         args.bias,
     )?;
-    let mut out: Vec<ProbeResponse> = p
-        .names()
-        .into_iter()
-        .map(|name| ProbeResponse {
-            name,
-            values: Vec::new(),
-        })
-        .collect();
-    for &f in &frequencies {
-        let (xr, xi) = p
-            .lin
-            .response(2.0 * std::f64::consts::PI * f)
-            .map_err(failed)?;
-        let (gr, gi) = (
-            p.gradient(&xr).map_err(failed)?,
-            p.gradient(&xi).map_err(failed)?,
-        );
-        for (j, r) in out.iter_mut().enumerate() {
-            r.values.push((gr[j], gi[j]));
-        }
-    }
+    let (electrode, bias) = (p.electrode.clone(), p.bias);
+    let values = {
+        let map = ProbeMap {
+            plan: &p.plan,
+            model: &p.model,
+            state: &p.state,
+            reference: &p.loaded,
+            probes: p.probes.clone(),
+        };
+        response_values(
+            &mut p.lin,
+            &map,
+            &frequencies,
+            ResponseMethod::Direct,
+            &electrode,
+            bias,
+        )
+        .map_err(failed)?
+    };
+    let r = FrequencyResponse {
+        electrode,
+        bias,
+        frequencies,
+        probes: p.names().into_iter().zip(values).collect(),
+        method: ResponseMethod::Direct,
+        warning: None,
+    };
     let dir: PathBuf = args
         .out
         .clone()
         .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-response", p.plan.name)));
-    write(&dir, &frequencies, &out, p.bias, &p.electrode).map_err(failed)?;
-    Ok((dir, frequencies, out, p.bias, p.electrode))
-}
-
-/// `frequency_response.csv` and one Bode plot per probe.
-fn write(
-    dir: &Path,
-    frequencies: &[f64],
-    probes: &[ProbeResponse],
-    bias: f64,
-    electrode: &str,
-) -> Result<(), String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let mut csv = format!("# per volt on `{electrode}` about {bias} V\nfrequency_hz");
-    for p in probes {
-        let n = &p.name;
-        let _ = write!(csv, ",{n}:magnitude,{n}:phase_deg,{n}:real,{n}:imag");
-    }
-    csv.push('\n');
-    for (i, f) in frequencies.iter().enumerate() {
-        let _ = write!(csv, "{f:e}");
-        for p in probes {
-            let (re, im) = p.values[i];
-            let _ = write!(
-                csv,
-                ",{:e},{:e},{re:e},{im:e}",
-                re.hypot(im),
-                im.atan2(re).to_degrees()
-            );
-        }
-        csv.push('\n');
-    }
-    let path = dir.join("frequency_response.csv");
-    write_atomic(&path, csv.as_bytes()).map_err(|e| format!("{}: {e}", path.display()))?;
-    for p in probes {
-        let mag = Series {
-            label: p.name.clone(),
-            x: frequencies.iter().map(|f| f.log10()).collect(),
-            y: p.values
-                .iter()
-                .map(|(re, im)| re.hypot(*im).max(f64::MIN_POSITIVE).log10())
-                .collect(),
-        };
-        // the phase unwrapped (continuous across ±180°) for the plot
-        let mut unwrapped: Vec<f64> = Vec::with_capacity(p.values.len());
-        for (re, im) in &p.values {
-            let mut ph = im.atan2(*re).to_degrees();
-            if let Some(&last) = unwrapped.last() {
-                ph += 360.0 * ((last - ph) / 360.0).round();
-            }
-            unwrapped.push(ph);
-        }
-        let phase = Series {
-            label: p.name.clone(),
-            x: mag.x.clone(),
-            y: unwrapped,
-        };
-        let path = dir.join(format!("bode_{}.png", p.name));
-        stacked_plot(
-            &path,
-            &[
-                PlotSpec {
-                    title: &format!("{}: per volt on {electrode} about {bias:.0} V", p.name),
-                    x_label: "log10 frequency [Hz]",
-                    y_label: "log10 |response| [probe unit / V]",
-                    series: std::slice::from_ref(&mag),
-                },
-                PlotSpec {
-                    title: "",
-                    x_label: "log10 frequency [Hz]",
-                    y_label: "phase [deg]",
-                    series: std::slice::from_ref(&phase),
-                },
-            ],
-        )
-        .map_err(|e| e.to_string())?;
-    }
-    Ok(())
+    write_response(&r, &dir, "frequency_response", Some((&dir, "png"))).map_err(failed)?;
+    Ok((dir, r))
 }
 
 /// Arguments of `deasim reduce`.

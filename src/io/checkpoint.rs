@@ -355,6 +355,7 @@ mod tests {
                     newton_iterations: 9,
                     wall_s: 0.1,
                     converged: true,
+                    modes_hz: vec![30.5],
                 }],
                 warnings: vec![],
                 records: vec![StepRecord {

@@ -12,7 +12,15 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "film-vibration",
         include_str!("../../scenarios/film-vibration.toml"),
     ),
+    (
+        "film-modes",
+        include_str!("../../scenarios/film-modes.toml"),
+    ),
     ("diaphragm", include_str!("../../scenarios/diaphragm.toml")),
+    (
+        "diaphragm-response",
+        include_str!("../../scenarios/diaphragm-response.toml"),
+    ),
     (
         "diaphragm-visco",
         include_str!("../../scenarios/diaphragm-visco.toml"),

@@ -4,6 +4,7 @@ pub mod atomic;
 pub mod build;
 pub mod checkpoint;
 pub mod examples;
+pub mod linear;
 pub mod lock;
 pub mod memory;
 pub mod output;

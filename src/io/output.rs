@@ -4,11 +4,14 @@
 
 use super::atomic::write_atomic;
 use super::build::Plan;
+use super::linear::{write_modes, write_response};
 use super::plot::{line_plot, stacked_plot, PlotError, PlotSpec, Series};
 use super::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuError, VtuPiece};
 use crate::element::CellFields;
+use crate::job::linear::FrequencyResponse;
 use crate::job::run::{Observer, RunSummary, StepRecord};
 use crate::mesh::ElementKind;
+use crate::time::modal::Mode;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -46,6 +49,10 @@ pub struct OutputWriter {
     failure: Option<String>,
     /// Write failures after the first.
     more_failures: usize,
+    /// The files of the small-signal stages so far: stage name and file stem.
+    linear_files: Vec<(String, String)>,
+    /// Per `frequency-response` stage: its name, the driven electrode and its bias (V).
+    responses: Vec<(String, String, f64)>,
 }
 
 /// Whether a file name is one deasim writes into `plots/`.
@@ -131,8 +138,24 @@ impl OutputWriter {
                 }
             }
         }
-        for f in ["fields.pvd", "history.csv", "periods.csv", "summary.json"] {
+        for f in [
+            "fields.pvd",
+            "history.csv",
+            "periods.csv",
+            "summary.json",
+            "modes.csv",
+            "modes.pvd",
+            "frequency_response.csv",
+        ] {
             remove_if_present(&dir.join(f))?;
+        }
+        if let Ok(entries) = std::fs::read_dir(dir.join("modes")) {
+            for e in entries.flatten() {
+                let n = e.file_name().to_string_lossy().into_owned();
+                if n.starts_with("mode_") && n.ends_with(".vtu") {
+                    remove_if_present(&e.path())?;
+                }
+            }
         }
         Ok(())
     }
@@ -153,6 +176,8 @@ impl OutputWriter {
             errors: Vec::new(),
             failure: None,
             more_failures: 0,
+            linear_files: Vec::new(),
+            responses: Vec::new(),
         };
         for sub in ["fields", "plots"] {
             let d = dir.join(sub);
@@ -352,6 +377,27 @@ impl OutputWriter {
             },
             "warnings": warnings,
         });
+        if let Some(last) = summary.stages.iter().rev().find(|s| s.kind == "modes") {
+            v["modes"] = json!(last
+                .modes_hz
+                .iter()
+                .map(|&f| json_number(f))
+                .collect::<Vec<_>>());
+        }
+        if !self.linear_files.is_empty() {
+            v["linear_files"] = json!(self
+                .linear_files
+                .iter()
+                .map(|(stage, stem)| json!({"stage": stage, "file": format!("{stem}.csv")}))
+                .collect::<Vec<_>>());
+        }
+        if !self.responses.is_empty() {
+            v["frequency_response"] = json!(self
+                .responses
+                .iter()
+                .map(|(stage, e, bias)| json!({"stage": stage, "electrode": e, "bias_v": bias}))
+                .collect::<Vec<_>>());
+        }
         if let Some(err) = &summary.error {
             v["error"] = json!(err);
         }
@@ -476,7 +522,53 @@ impl OutputWriter {
     }
 }
 
+impl OutputWriter {
+    /// The file stem of a small-signal stage's output: `base` for the first of its kind, then
+    /// `base-<stage>`.
+    fn linear_stem(&mut self, base: &str, stage: &str) -> String {
+        let taken = self.linear_files.iter().any(|(_, s)| s == base);
+        let stem = if taken {
+            let safe: String = stage
+                .chars()
+                .map(|c| {
+                    if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                        c
+                    } else {
+                        '_'
+                    }
+                })
+                .collect();
+            format!("{base}-{safe}")
+        } else {
+            base.to_string()
+        };
+        self.linear_files.push((stage.to_string(), stem.clone()));
+        stem
+    }
+}
+
 impl Observer for OutputWriter {
+    fn modes(&mut self, plan: &Plan, stage: &str, state: &[f64], modes: &[Mode]) {
+        let stem = self.linear_stem("modes", stage);
+        if let Err(e) = write_modes(plan, &self.dir, &stem, state, modes) {
+            self.failed(e);
+        }
+    }
+
+    fn frequency_response(&mut self, plan: &Plan, stage: &str, response: &FrequencyResponse) {
+        let stem = self.linear_stem("frequency_response", stage);
+        self.responses
+            .push((stage.to_string(), response.electrode.clone(), response.bias));
+        let plots = self.dir.join("plots");
+        let plots = plan
+            .output
+            .plots
+            .then_some((plots.as_path(), plan.output.plot_format.as_str()));
+        if let Err(e) = write_response(response, &self.dir, &stem, plots) {
+            self.failed(e);
+        }
+    }
+
     fn point_states(&mut self, _plan: &Plan, cell_means: &[(String, Vec<f64>)]) {
         self.point_states = cell_means.to_vec();
     }

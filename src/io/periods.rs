@@ -32,7 +32,10 @@ pub struct Period {
 pub fn periods(plan: &Plan, records: &[StepRecord]) -> Vec<Period> {
     let mut out = Vec::new();
     for stage in &plan.stages {
-        if matches!(stage.kind, StageKind::Static { .. }) || !stage.electrodes_on {
+        if matches!(stage.kind, StageKind::Static { .. })
+            || stage.kind.is_linearised()
+            || !stage.electrodes_on
+        {
             continue;
         }
         let Some(f) = plan

@@ -486,6 +486,30 @@ pub struct StageSpec {
     /// default `true`: the electrodes follow their waveforms, in stage time.
     #[serde(default)]
     pub electrodes_on: Option<bool>,
+    /// Number of modes of a `modes` stage (default 6), or of the modal method of a
+    /// `frequency-response` stage (default 10).
+    #[serde(default)]
+    pub count: Option<u64>,
+    /// `modes`: the modes nearest to this frequency (Hz, default 0: the lowest).
+    #[serde(default)]
+    pub shift: Option<f64>,
+    /// `frequency-response`: the electrode that carries the small voltage (default: the first
+    /// with a non-zero voltage).
+    #[serde(default)]
+    pub electrode: Option<String>,
+    /// `frequency-response`: the frequencies (Hz), or a log range `from`, `to` with `points`.
+    #[serde(default)]
+    pub frequencies: Option<Vec<f64>>,
+    #[serde(default)]
+    pub from: Option<f64>,
+    #[serde(default)]
+    pub to: Option<f64>,
+    #[serde(default)]
+    pub points: Option<u64>,
+    /// `frequency-response`: `direct` (a solve per frequency, default) or `modal` (`count` modes
+    /// with a static correction).
+    #[serde(default)]
+    pub method: Option<String>,
 }
 
 /// A recorded quantity.

@@ -1,6 +1,7 @@
 //! The plan of a run: the model, its electrodes and supports, the stages, probes and outputs —
 //! everything a run needs, validated (built from a scenario by `io::build`).
 
+use super::linear::ResponseMethod;
 use super::probes::Probe;
 use crate::problem::model::Model;
 use crate::solve::linear::SolverSettings;
@@ -30,6 +31,16 @@ pub enum StageKind {
         scheme: Method,
         mass: MassKind,
     },
+    /// The natural modes about the state the previous stage left: the `count` modes nearest to
+    /// `shift_hz` (Hz). Takes no time and changes no state.
+    Modes { count: usize, shift_hz: f64 },
+    /// The frequency response of the probes to a small voltage on electrode `electrode` (plan
+    /// index) about the state the previous stage left. Takes no time and changes no state.
+    FrequencyResponse {
+        electrode: usize,
+        frequencies: Vec<f64>,
+        method: ResponseMethod,
+    },
 }
 
 impl StageKind {
@@ -38,7 +49,16 @@ impl StageKind {
         match self {
             StageKind::Static { steps } | StageKind::QuasiStatic { steps } => *steps,
             StageKind::Dynamic { dt, .. } => (duration / dt - 1e-9).ceil().max(1.0) as usize,
+            StageKind::Modes { .. } | StageKind::FrequencyResponse { .. } => 0,
         }
+    }
+
+    /// Whether the stage is a small-signal analysis about the current state (no steps, no time).
+    pub fn is_linearised(&self) -> bool {
+        matches!(
+            self,
+            StageKind::Modes { .. } | StageKind::FrequencyResponse { .. }
+        )
     }
 }
 

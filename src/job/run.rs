@@ -5,6 +5,7 @@
 //! numbers, bit for bit, as one without, and a run resumed from a state continues exactly as the
 //! run that went on.
 
+use super::linear::{frequency_response_at, modes_at, FrequencyResponse};
 use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
 use super::recorder::Recorder;
@@ -20,6 +21,7 @@ use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{RampPosition, StepControl};
 use crate::time::integrator::TimeLevel;
 use crate::time::mass::NodalMass;
+use crate::time::modal::{Mode, ModeSettings};
 use crate::time::stage::{run_dynamic_from, DynamicInputs, DynamicResume, DynamicSettings};
 use std::time::Instant;
 
@@ -50,6 +52,10 @@ pub trait Observer {
     /// The cell means of the material points' internal variables at the state of the next
     /// [`Observer::step`] (sent only when a material has internal variables).
     fn point_states(&mut self, _plan: &Plan, _cell_means: &[(String, Vec<f64>)]) {}
+    /// A `modes` stage found these modes about `state`.
+    fn modes(&mut self, _plan: &Plan, _stage: &str, _state: &[f64], _modes: &[Mode]) {}
+    /// A `frequency-response` stage computed this response.
+    fn frequency_response(&mut self, _plan: &Plan, _stage: &str, _response: &FrequencyResponse) {}
     /// Whether this observer may ask for run states (the run then keeps its history).
     fn takes_states(&self) -> bool {
         false
@@ -87,6 +93,16 @@ impl Observer for Observers<'_, '_> {
         self.0
             .iter_mut()
             .for_each(|o| o.point_states(plan, cell_means));
+    }
+    fn modes(&mut self, plan: &Plan, stage: &str, state: &[f64], modes: &[Mode]) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.modes(plan, stage, state, modes));
+    }
+    fn frequency_response(&mut self, plan: &Plan, stage: &str, response: &FrequencyResponse) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.frequency_response(plan, stage, response));
     }
     fn takes_states(&self) -> bool {
         self.0.iter().any(|o| o.takes_states())
@@ -347,6 +363,7 @@ impl<'p, 'o> Job<'p, 'o> {
             newton_iterations: 0,
             wall_s: 0.0,
             converged: true,
+            modes_hz: Vec::new(),
         };
         let failure = match stage.kind {
             StageKind::Static { steps } | StageKind::QuasiStatic { steps } => {
@@ -354,6 +371,9 @@ impl<'p, 'o> Job<'p, 'o> {
             }
             StageKind::Dynamic { .. } => {
                 self.dynamic_stage(si, model, &prescribed, position, &mut summary)
+            }
+            StageKind::Modes { .. } | StageKind::FrequencyResponse { .. } => {
+                self.linearised_stage(stage, &mut summary)
             }
         };
         summary.wall_s = stage_start.elapsed().as_secs_f64();
@@ -375,6 +395,57 @@ impl<'p, 'o> Job<'p, 'o> {
         }
         self.time += stage.duration;
         true
+    }
+
+    /// A small-signal stage about the current state: modes or a frequency response, sent to
+    /// the observers. The state and the time do not change. Returns the failure, if any.
+    fn linearised_stage(&mut self, stage: &Stage, summary: &mut StageSummary) -> Option<String> {
+        let plan = self.plan;
+        match &stage.kind {
+            StageKind::Modes { count, shift_hz } => {
+                summary.kind = "modes".into();
+                let settings = ModeSettings {
+                    count: *count,
+                    shift_hz: *shift_hz,
+                    ..Default::default()
+                };
+                match modes_at(plan, &self.q, &settings) {
+                    Ok(found) => {
+                        summary.modes_hz = found.iter().map(|m| m.frequency).collect();
+                        self.observer.modes(plan, &stage.name, &self.q, &found);
+                        None
+                    }
+                    Err(e) => Some(format!("stage `{}`: modes: {e}", stage.name)),
+                }
+            }
+            StageKind::FrequencyResponse {
+                electrode,
+                frequencies,
+                method,
+            } => {
+                summary.kind = "frequency-response".into();
+                match frequency_response_at(
+                    plan,
+                    &self.q,
+                    &self.rec.reference,
+                    *electrode,
+                    frequencies,
+                    *method,
+                ) {
+                    Ok(r) => {
+                        if let Some(w) = &r.warning {
+                            self.summary
+                                .warnings
+                                .push(format!("stage `{}`: {w}", stage.name));
+                        }
+                        self.observer.frequency_response(plan, &stage.name, &r);
+                        None
+                    }
+                    Err(e) => Some(format!("stage `{}`: frequency response: {e}", stage.name)),
+                }
+            }
+            _ => None,
+        }
     }
 
     /// The initial record and the pre-stretch phase before the first stage; false on failure.
@@ -439,6 +510,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     newton_iterations: 0,
                     wall_s: started.elapsed().as_secs_f64(),
                     converged: false,
+                    modes_hz: Vec::new(),
                 });
                 false
             }

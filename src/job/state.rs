@@ -48,6 +48,9 @@ pub struct StageSummary {
     pub newton_iterations: usize,
     pub wall_s: f64,
     pub converged: bool,
+    /// Natural frequencies (Hz) found by a `modes` stage (empty for other kinds).
+    #[serde(default)]
+    pub modes_hz: Vec<f64>,
 }
 
 /// Where a stage stood.

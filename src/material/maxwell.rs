@@ -117,6 +117,14 @@ impl Material for Viscoelastic {
         9 * self.branches.len()
     }
 
+    fn relaxed(&self) -> Option<std::sync::Arc<dyn Material>> {
+        Some(self.equilibrium.clone())
+    }
+
+    fn maxwell_branches(&self) -> Vec<(f64, f64)> {
+        self.branches.clone()
+    }
+
     fn initial_state(&self, state: &mut [f64]) {
         for c in state.chunks_mut(9) {
             c.copy_from_slice(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);

@@ -152,6 +152,18 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     fn state_size(&self) -> usize {
         0
     }
+    /// The elastic material a point with internal variables relaxes to in the long-time limit
+    /// (`None`: elastic, or no such limit is known). The small-signal analyses linearise about
+    /// the relaxed state.
+    fn relaxed(&self) -> Option<std::sync::Arc<dyn Material>> {
+        None
+    }
+    /// The Maxwell branches `(shear modulus in Pa, relaxation time in s)` that
+    /// [`Material::relaxed`] drops: about the relaxed state their instantaneous tangents scale
+    /// with the moduli, which the frequency response uses (complex modulus).
+    fn maxwell_branches(&self) -> Vec<(f64, f64)> {
+        Vec::new()
+    }
     /// The internal variables of the virgin material.
     fn initial_state(&self, _state: &mut [f64]) {}
     /// Names of the internal variables (for field output).

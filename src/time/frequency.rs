@@ -41,13 +41,34 @@ pub struct Linearisation {
     pub force: Vec<f64>,
     /// The driven electrode's nodes.
     pub driven: Vec<usize>,
+    /// Maxwell branches: relaxation time τ (s) and the branch's instantaneous tangent about the
+    /// relaxed state (pattern of `k`); the stiffness at ω is K + Σ iωτ/(1 + iωτ) K_b.
+    pub branches: Vec<(f64, CsrMatrix)>,
     /// The symbolic LU of the pattern, computed at the first frequency.
     symbolic: Option<SymbolicLu<usize>>,
+}
+
+/// `model` with every material replaced by the elastic material it relaxes to (the same model
+/// when no material has internal variables).
+pub fn relaxed_model(model: &Model) -> Model {
+    let mut relaxed = model.clone();
+    for m in relaxed.materials.iter_mut() {
+        if let Some(r) = m.relaxed() {
+            *m = r;
+        }
+    }
+    relaxed
 }
 
 /// Linearises `model` (its Dirichlet conditions hold the supports and every electrode at its DC
 /// voltage) about the equilibrium `state`; `driven` are the nodes of the electrode that carries
 /// the small voltage, `viscosity` the Kelvin–Voigt viscosity of each material (Pa·s).
+///
+/// Materials with Maxwell branches are linearised about their relaxed state: `state` must be the
+/// equilibrium of [`relaxed_model`]. With the viscous variable A at C̄⁻¹ the branch stress
+/// vanishes for every F, so a small harmonic δF moves A by δA = (∂C̄⁻¹/∂F δF)/(1 + iωτ) and the
+/// branch stress by ∂S/∂F|_A (1 − 1/(1 + iωτ)) δF: the instantaneous branch tangent times
+/// iωτ/(1 + iωτ) (a standard linear solid per branch), exact to first order.
 pub fn linearise(
     model: &Model,
     state: &[f64],
@@ -55,7 +76,8 @@ pub fn linearise(
     viscosity: &[f64],
     driven: &[usize],
 ) -> Result<Linearisation, String> {
-    let mut problem = StaticProblem::new(model, Some(state.to_vec()));
+    let relaxed = relaxed_model(model);
+    let mut problem = StaticProblem::new(&relaxed, Some(state.to_vec()));
     let n = problem.n();
     let mut k = problem.new_matrix();
     let mut r = vec![0.0; n];
@@ -123,6 +145,7 @@ pub fn linearise(
         .zip(&minus)
         .map(|(p, q)| -(p - q) / (2.0 * h))
         .collect();
+    let branches = branch_tangents(model, &relaxed, state, &problem, &k)?;
     Ok(Linearisation {
         dofs,
         k,
@@ -130,8 +153,103 @@ pub fn linearise(
         c,
         force,
         driven: driven.to_vec(),
+        branches,
         symbolic: None,
     })
+}
+
+/// Per Maxwell branch of each material: its relaxation time and its instantaneous tangent about
+/// the relaxed state — the tangent of the material with every viscous variable at C̄⁻¹ (relaxed
+/// by one backward-Euler update of a step much longer than every τ) at Δt = 0, minus the relaxed
+/// material's, over the material's cells, shared among its branches by their moduli (each
+/// neo-Hookean branch's tangent is its modulus times the same tensor when A = C̄⁻¹).
+fn branch_tangents(
+    model: &Model,
+    relaxed: &Model,
+    state: &[f64],
+    problem: &StaticProblem,
+    k: &CsrMatrix,
+) -> Result<Vec<(f64, CsrMatrix)>, String> {
+    let mut out = Vec::new();
+    let longest = model
+        .materials
+        .iter()
+        .flat_map(|m| m.maxwell_branches())
+        .map(|b| b.1)
+        .fold(0.0, f64::max);
+    if longest <= 0.0 {
+        return Ok(out);
+    }
+    let mut points = crate::problem::points::PointStates::new(model);
+    points.commit(model, state, 1e30 * longest)?;
+    let n = k.n;
+    let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+    for (mi, material) in model.materials.iter().enumerate() {
+        let branches = material.maxwell_branches();
+        let total: f64 = branches.iter().map(|b| b.0).sum();
+        if branches.is_empty() || total <= 0.0 {
+            continue;
+        }
+        let kernel = model.formulation.kernel();
+        let cell_kernel = |cell: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
+            rl[..nl].iter_mut().for_each(|v| *v = 0.0);
+            let Some(kl) = kl else {
+                return Ok(0.0);
+            };
+            kl[..nl * nl].iter_mut().for_each(|v| *v = 0.0);
+            if model.cell_material[cell] != mi {
+                return Ok(0.0);
+            }
+            let fail = |e: crate::element::PointFailure| {
+                format!("{} at quadrature point {}", e.error, e.qp)
+            };
+            let mut r_tmp = [0.0; MAX_LOCAL];
+            let mut k_eq = vec![0.0; nl * nl];
+            let full = crate::element::CellInput {
+                geom: &model.geometry[cell],
+                mat: material.as_ref(),
+                hist: points.cell(cell, mi, 0.0),
+                local,
+            };
+            kernel
+                .residual_tangent(&full, &mut r_tmp, Some(&mut *kl))
+                .map_err(fail)?;
+            let eq = crate::element::CellInput {
+                geom: &model.geometry[cell],
+                mat: relaxed.materials[mi].as_ref(),
+                hist: crate::element::CellHistory::NONE,
+                local,
+            };
+            kernel
+                .residual_tangent(&eq, &mut r_tmp, Some(&mut k_eq))
+                .map_err(fail)?;
+            for (a, b) in kl[..nl * nl].iter_mut().zip(&k_eq) {
+                *a -= b;
+            }
+            Ok::<f64, String>(0.0)
+        };
+        let mut d = k.clone();
+        let mut r = vec![0.0; n];
+        let mut energy = Vec::new();
+        problem
+            .assembler()
+            .assemble(
+                &model.mesh,
+                &problem.dofs,
+                state,
+                cell_kernel,
+                &mut r,
+                Some(&mut d),
+                &mut energy,
+            )
+            .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        for &(g, tau) in &branches {
+            let mut kb = d.clone();
+            kb.values.iter_mut().for_each(|v| *v *= g / total);
+            out.push((tau, kb));
+        }
+    }
+    Ok(out)
 }
 
 impl Linearisation {
@@ -165,12 +283,26 @@ impl Linearisation {
             self.symbolic =
                 Some(SymbolicLu::try_new(pattern).map_err(|e| format!("symbolic LU: {e:?}"))?);
         }
+        // iωτ/(1 + iωτ) = (ω²τ² + iωτ)/(1 + ω²τ²) per branch
+        let factors: Vec<(f64, f64)> = self
+            .branches
+            .iter()
+            .map(|(tau, _)| {
+                let x = omega * tau;
+                (x * x / (1.0 + x * x), x / (1.0 + x * x))
+            })
+            .collect();
         let values: Vec<c64> = (0..self.k.values.len())
             .map(|p| {
-                c64::new(
+                let (mut re, mut im) = (
                     self.k.values[p] - omega * omega * self.m.values[p],
                     omega * self.c.values[p],
-                )
+                );
+                for ((_, kb), (fr, fi)) in self.branches.iter().zip(&factors) {
+                    re += fr * kb.values[p];
+                    im += fi * kb.values[p];
+                }
+                c64::new(re, im)
             })
             .collect();
         let matrix = SparseColMatRef::new(pattern, &values);

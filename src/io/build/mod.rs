@@ -19,6 +19,7 @@ mod stages;
 use super::scenario::{closest, InputError, OutputSpec, Scenario};
 pub use crate::job::plan::{Electrode, OutputPlan, Plan, Prestretch, Rigid, Stage, StageKind};
 use crate::mesh::Mesh;
+pub use stages::log_range;
 use std::path::Path;
 
 /// Fewest time steps per period of a periodic voltage before a warning.
@@ -44,7 +45,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         &electrodes,
         &model.mesh,
     ));
-    let stages = stages::build_stages(&ctx, s)?;
+    let stages = stages::build_stages(&ctx, s, &electrodes)?;
     stages::check_internal_variables(&ctx, &stages, &model)?;
     let probes = probes::build_probes(&ctx, s, &model, &electrodes)?;
     let output = build_output(&ctx, &s.output)?;

@@ -3,17 +3,22 @@
 
 use super::{Ctx, Electrode, Stage, StageKind, MIN_STEPS_PER_PERIOD};
 use crate::io::scenario::{closest, InputError, Scenario, StageSpec};
+use crate::job::linear::ResponseMethod;
 use crate::time::mass::MassKind;
 use crate::time::stage::Method;
 
 /// The stages in order; at least one, with distinct names.
-pub(super) fn build_stages(ctx: &Ctx, s: &Scenario) -> Result<Vec<Stage>, InputError> {
+pub(super) fn build_stages(
+    ctx: &Ctx,
+    s: &Scenario,
+    electrodes: &[Electrode],
+) -> Result<Vec<Stage>, InputError> {
     if s.stages.is_empty() {
         return Err(ctx.err("stages", "at least one stage is needed"));
     }
     let mut stages: Vec<Stage> = Vec::new();
     for (i, st) in s.stages.iter().enumerate() {
-        let stage = build_stage(ctx, s, i, st)?;
+        let stage = build_stage(ctx, s, i, st, electrodes)?;
         if stages.iter().any(|s| s.name == stage.name) {
             return Err(ctx.err(
                 format!("stages.{i}.name"),
@@ -54,9 +59,76 @@ pub(super) fn aliasing_warnings(stages: &[Stage], electrodes: &[Electrode]) -> V
 }
 
 /// Stage `i` (`stages.<i>`).
-fn build_stage(ctx: &Ctx, s: &Scenario, i: usize, st: &StageSpec) -> Result<Stage, InputError> {
+fn build_stage(
+    ctx: &Ctx,
+    s: &Scenario,
+    i: usize,
+    st: &StageSpec,
+    electrodes: &[Electrode],
+) -> Result<Stage, InputError> {
     let key = format!("stages.{i}");
     let name = st.name.clone().unwrap_or_else(|| format!("stage{i}"));
+    let linear_keys = [
+        ("count", st.count.is_some()),
+        ("shift", st.shift.is_some()),
+        ("electrode", st.electrode.is_some()),
+        ("frequencies", st.frequencies.is_some()),
+        ("from", st.from.is_some()),
+        ("to", st.to.is_some()),
+        ("points", st.points.is_some()),
+        ("method", st.method.is_some()),
+    ];
+    if matches!(st.kind.as_str(), "modes" | "frequency-response") {
+        for (k, v) in [
+            ("duration", st.duration.is_some()),
+            ("steps", st.steps.is_some()),
+            ("dt", st.dt.is_some()),
+            ("integrator", st.integrator.is_some()),
+            ("mass", st.mass.is_some()),
+            ("electrodes_on", st.electrodes_on.is_some()),
+        ] {
+            if v {
+                return Err(ctx.err(
+                    format!("{key}.{k}"),
+                    format!(
+                        "does not apply to a `{}` stage: it takes no time and holds every \
+                         electrode at the voltage the previous stage left",
+                        st.kind
+                    ),
+                ));
+            }
+        }
+        for (mname, m) in &s.materials {
+            if !m.density.is_some_and(|d| d > 0.0) {
+                return Err(ctx.err(
+                    format!("materials.{mname}.density"),
+                    format!(
+                        "`{}` stage `{name}` needs a positive mass density in kg/m³",
+                        st.kind
+                    ),
+                ));
+            }
+        }
+        let kind = if st.kind == "modes" {
+            modes_kind(ctx, &key, st)?
+        } else {
+            response_kind(ctx, &key, st, electrodes)?
+        };
+        return Ok(Stage {
+            name,
+            kind,
+            duration: 0.0,
+            electrodes_on: true,
+        });
+    }
+    for (k, v) in linear_keys {
+        if v {
+            return Err(ctx.err(
+                format!("{key}.{k}"),
+                "applies to `modes` and `frequency-response` stages only",
+            ));
+        }
+    }
     let duration = match st.duration {
         Some(d) => ctx.positive(&format!("{key}.duration"), Some(d), "duration in s")?,
         None => 1.0,
@@ -66,13 +138,23 @@ fn build_stage(ctx: &Ctx, s: &Scenario, i: usize, st: &StageSpec) -> Result<Stag
         "quasi-static" => quasi_static_kind(ctx, &key, st, duration)?,
         "dynamic" => dynamic_kind(ctx, s, &key, &name, st)?,
         o => {
-            let hint = closest(o, ["static", "quasi-static", "dynamic"])
-                .map(|c| format!("; did you mean `{c}`?"))
-                .unwrap_or_default();
+            let hint = closest(
+                o,
+                [
+                    "static",
+                    "quasi-static",
+                    "dynamic",
+                    "modes",
+                    "frequency-response",
+                ],
+            )
+            .map(|c| format!("; did you mean `{c}`?"))
+            .unwrap_or_default();
             return Err(ctx.err(
                 format!("{key}.kind"),
                 format!(
-                    "unknown stage kind `{o}`: expected `static`, `quasi-static` or `dynamic`{hint}"
+                    "unknown stage kind `{o}`: expected `static`, `quasi-static`, `dynamic`, \
+                     `modes` or `frequency-response`{hint}"
                 ),
             ));
         }
@@ -83,6 +165,160 @@ fn build_stage(ctx: &Ctx, s: &Scenario, i: usize, st: &StageSpec) -> Result<Stag
         duration,
         electrodes_on: st.electrodes_on.unwrap_or(true),
     })
+}
+
+/// `kind = "modes"`: `count` modes (default 6) nearest to `shift` (Hz, default 0).
+fn modes_kind(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<StageKind, InputError> {
+    let count = st.count.unwrap_or(6);
+    if !(1..=200).contains(&count) {
+        return Err(ctx.err(
+            format!("{key}.count"),
+            format!("expected a number of modes between 1 and 200; got {count}"),
+        ));
+    }
+    let shift_hz = st.shift.unwrap_or(0.0);
+    if !(shift_hz.is_finite() && shift_hz >= 0.0) {
+        return Err(ctx.err(
+            format!("{key}.shift"),
+            format!("expected a frequency ≥ 0 in Hz; got {shift_hz}"),
+        ));
+    }
+    Ok(StageKind::Modes {
+        count: count as usize,
+        shift_hz,
+    })
+}
+
+/// `kind = "frequency-response"`: the driven `electrode`, the `frequencies` (Hz) or a log range
+/// `from`–`to` with `points` (default 50), the `method` (`direct` or `modal` with `count` modes).
+fn response_kind(
+    ctx: &Ctx,
+    key: &str,
+    st: &StageSpec,
+    electrodes: &[Electrode],
+) -> Result<StageKind, InputError> {
+    let names = || {
+        electrodes
+            .iter()
+            .map(|e| format!("`{}`", e.name))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let electrode = match &st.electrode {
+        Some(n) => electrodes
+            .iter()
+            .position(|e| &e.name == n)
+            .ok_or_else(|| {
+                ctx.err(
+                    format!("{key}.electrode"),
+                    format!("no electrode `{n}`; the scenario has {}", names()),
+                )
+            })?,
+        None => electrodes
+            .iter()
+            .position(|e| e.voltage.amplitude != 0.0 || e.voltage.offset != 0.0)
+            .ok_or_else(|| {
+                ctx.err(
+                    format!("{key}.electrode"),
+                    "missing: no electrode carries a voltage; name the driven one",
+                )
+            })?,
+    };
+    let frequencies = match (&st.frequencies, st.from, st.to) {
+        (Some(_), Some(_), _) | (Some(_), _, Some(_)) => {
+            return Err(ctx.err(
+                format!("{key}.frequencies"),
+                "give either `frequencies` or `from`/`to`/`points`, not both",
+            ))
+        }
+        (Some(list), None, None) => {
+            if list.is_empty() {
+                return Err(ctx.err(
+                    format!("{key}.frequencies"),
+                    "expected at least one frequency in Hz",
+                ));
+            }
+            if let Some(f) = list.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
+                return Err(ctx.err(
+                    format!("{key}.frequencies"),
+                    format!("expected positive frequencies in Hz; got {f}"),
+                ));
+            }
+            list.clone()
+        }
+        (None, from, to) => {
+            let from = ctx.positive(&format!("{key}.from"), from, "lowest frequency in Hz")?;
+            let to = ctx.positive(&format!("{key}.to"), to, "highest frequency in Hz")?;
+            if to <= from {
+                return Err(ctx.err(
+                    format!("{key}.to"),
+                    format!("expected a frequency above `from` = {from} Hz; got {to}"),
+                ));
+            }
+            let points = st.points.unwrap_or(50);
+            if !(2..=100_000).contains(&points) {
+                return Err(ctx.err(
+                    format!("{key}.points"),
+                    format!("expected between 2 and 100000 frequencies; got {points}"),
+                ));
+            }
+            log_range(from, to, points as usize)
+        }
+    };
+    if st.points.is_some() && st.frequencies.is_some() {
+        return Err(ctx.err(
+            format!("{key}.points"),
+            "applies to a range `from`/`to` only, not to a list of `frequencies`",
+        ));
+    }
+    let method = match st.method.as_deref().unwrap_or("direct") {
+        "direct" => {
+            if st.count.is_some() {
+                return Err(ctx.err(
+                    format!("{key}.count"),
+                    "applies to `method = \"modal\"` only",
+                ));
+            }
+            ResponseMethod::Direct
+        }
+        "modal" => {
+            let count = st.count.unwrap_or(10);
+            if !(1..=200).contains(&count) {
+                return Err(ctx.err(
+                    format!("{key}.count"),
+                    format!("expected a number of modes between 1 and 200; got {count}"),
+                ));
+            }
+            ResponseMethod::Modal {
+                count: count as usize,
+            }
+        }
+        o => {
+            return Err(ctx.err(
+                format!("{key}.method"),
+                format!("expected `direct` or `modal`; got `{o}`"),
+            ))
+        }
+    };
+    Ok(StageKind::FrequencyResponse {
+        electrode,
+        frequencies,
+        method,
+    })
+}
+
+/// `points` frequencies spaced evenly in log from `from` to `to` (both included).
+pub fn log_range(from: f64, to: f64, points: usize) -> Vec<f64> {
+    let (a, b) = (from.ln(), to.ln());
+    (0..points)
+        .map(|i| {
+            if i + 1 == points {
+                to
+            } else {
+                (a + (b - a) * i as f64 / (points - 1) as f64).exp()
+            }
+        })
+        .collect()
 }
 
 /// `kind = "quasi-static"`: real time over `duration`, in `steps` steps or steps of `dt` (s);
@@ -220,6 +456,17 @@ pub(super) fn check_internal_variables(
         return Ok(());
     }
     for (i, st) in stages.iter().enumerate() {
+        if let StageKind::FrequencyResponse {
+            method: ResponseMethod::Modal { .. },
+            ..
+        } = st.kind
+        {
+            return Err(ctx.err(
+                format!("stages.{i}.method"),
+                "the modal method has no complex modulus for materials with `branches`; use \
+                 `direct`",
+            ));
+        }
         if let StageKind::Dynamic {
             scheme: Method::Trapezoidal,
             ..
@@ -378,7 +625,7 @@ mod tests {
         assert_rejected(
             &with("[[stages]]\nkind = \"statik\""),
             "stages.0.kind",
-            "unknown stage kind `statik`: expected `static`, `quasi-static` or `dynamic`; did you mean `static`?",
+            "unknown stage kind `statik`: expected `static`, `quasi-static`, `dynamic`, `modes` or `frequency-response`; did you mean `static`?",
         );
         assert_rejected(
             &with("[[stages]]\nkind = \"static\"\nsteps = 0"),

@@ -1,0 +1,306 @@
+//! Small-signal analyses about a converged state of a run: the natural modes and the frequency
+//! response of the probes to a small harmonic voltage on one electrode about its DC bias. The
+//! supports stay and every electrode is held at the voltage it has in the state (a DC bias
+//! softens the structure); the mass is the consistent one with the rigid regions' masses.
+//! Materials with Maxwell branches are linearised about their relaxed state at the same loads:
+//! the modes are those of the long-term stiffness, the frequency response carries each branch's
+//! complex modulus. Used by the `modes` and `frequency-response` stages and by the commands of
+//! the same purpose.
+
+use super::plan::Plan;
+use super::probes::{ProbeInput, ProbeKind};
+use super::statics::solve_static;
+use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
+use crate::problem::model::Model;
+use crate::solve::newton::NewtonSettings;
+use crate::solve::stepping::StepControl;
+use crate::time::frequency::{linearise, relaxed_model, Linearisation};
+use crate::time::mass::{MassKind, NodalMass};
+use crate::time::modal::{modes, Mode, ModeSettings};
+use crate::time::reduced::{Outputs, ReducedModel};
+
+/// The model with the plan's supports and every electrode held at its voltage in `state`, the
+/// electrode `drive.0` at `drive.1` V instead when given; the dead loads at full value.
+pub fn held_model(plan: &Plan, state: &[f64], drive: Option<(usize, f64)>) -> Model {
+    let mut model = plan.model.clone();
+    model.dirichlet = plan.supports.clone();
+    for (i, e) in plan.electrodes.iter().enumerate() {
+        let value = match drive {
+            Some((d, v)) if d == i => v,
+            _ => state[e.nodes[0] * FIELDS + PHI],
+        };
+        model.dirichlet.push(Dirichlet {
+            nodes: e.nodes.clone(),
+            field: Field::Phi,
+            value,
+        });
+    }
+    model.dead_load_start = 1.0;
+    model
+}
+
+/// The consistent mass of the body with the rigid regions' attached masses.
+pub fn device_mass(plan: &Plan, model: &Model) -> NodalMass {
+    let mut mass = NodalMass::new(model, &plan.densities, MassKind::Consistent);
+    for r in &plan.rigid {
+        if r.mass > 0.0 {
+            mass.add_point_mass(r.nodes[0], r.mass);
+        }
+    }
+    mass
+}
+
+/// Why a plan cannot be linearised (no mass, internal variables without a relaxed limit), if it
+/// cannot.
+pub fn check_linearisable(plan: &Plan) -> Result<(), String> {
+    if plan.densities.iter().all(|&d| d <= 0.0) && plan.rigid.iter().all(|r| r.mass <= 0.0) {
+        return Err("the scenario has no mass: give `materials.<m>.density` (kg/m³)".into());
+    }
+    if plan
+        .model
+        .materials
+        .iter()
+        .any(|m| m.state_size() > 0 && m.relaxed().is_none())
+    {
+        return Err(
+            "a material with internal variables has no relaxed limit to linearise about".into(),
+        );
+    }
+    Ok(())
+}
+
+/// Whether a material of the plan has Maxwell branches.
+pub fn has_branches(plan: &Plan) -> bool {
+    plan.model
+        .materials
+        .iter()
+        .any(|m| !m.maxwell_branches().is_empty())
+}
+
+/// The base of a linearisation: the held model and its equilibrium. With Maxwell branches, the
+/// relaxed equilibrium at the same loads and voltages (the long-time state), solved from `state`
+/// with the relaxed materials; else `state` itself.
+pub fn base_state(plan: &Plan, state: &[f64]) -> Result<(Model, Vec<f64>), String> {
+    let model = held_model(plan, state, None);
+    if !has_branches(plan) {
+        return Ok((model, state.to_vec()));
+    }
+    let relaxed = relaxed_model(&model);
+    let out = solve_static(
+        &relaxed,
+        Some(state.to_vec()),
+        &StepControl {
+            steps: 1,
+            ..Default::default()
+        },
+        &NewtonSettings::default(),
+        |_, _| {},
+    );
+    out.result
+        .map_err(|f| format!("the relaxed state was not reached: {}", f.reason))?;
+    Ok((model, out.state))
+}
+
+/// The natural modes about `state` (`FIELDS` values per node); with Maxwell branches, of the
+/// relaxed (long-term) stiffness about the relaxed state.
+pub fn modes_at(plan: &Plan, state: &[f64], settings: &ModeSettings) -> Result<Vec<Mode>, String> {
+    check_linearisable(plan)?;
+    let (model, base) = base_state(plan, state)?;
+    let relaxed = relaxed_model(&model);
+    let mass = device_mass(plan, &relaxed);
+    modes(&relaxed, &base, &mass, &plan.solver, settings)
+}
+
+/// The probes that have a linearisation (not the energies and the largest field), plan indices.
+pub fn linear_probes(plan: &Plan) -> Vec<usize> {
+    (0..plan.probes.len())
+        .filter(|&i| {
+            !matches!(
+                plan.probes[i].1.kind,
+                ProbeKind::MaxElectricField | ProbeKind::StoredEnergy | ProbeKind::ElectricEnergy
+            )
+        })
+        .collect()
+}
+
+/// The linearisable probes of a plan about a state of `model`.
+pub struct ProbeMap<'a> {
+    pub plan: &'a Plan,
+    pub model: &'a Model,
+    pub state: &'a [f64],
+    /// The state deflections are measured from.
+    pub reference: &'a [f64],
+    /// Plan indices of the probes.
+    pub probes: Vec<usize>,
+}
+
+impl ProbeMap<'_> {
+    /// The probes' values (offsets removed) at a state.
+    pub fn values(&self, s: &[f64]) -> Result<Vec<f64>, String> {
+        let plan = self.plan;
+        let reactions = crate::problem::statics::nodal_reactions(self.model, s)?;
+        let electrodes: Vec<(&[usize], f64)> = plan
+            .electrodes
+            .iter()
+            .map(|e| (e.nodes.as_slice(), s[e.nodes[0] * FIELDS + PHI]))
+            .collect();
+        let input = ProbeInput {
+            state: s,
+            reactions: &reactions,
+            electrodes: &electrodes,
+            stored: 0.0,
+            electric: 0.0,
+            reference: self.reference,
+            max_field: f64::NAN,
+            symmetry: plan.symmetry_factor,
+        };
+        Ok(self
+            .probes
+            .iter()
+            .map(|&i| plan.probes[i].1.evaluate(&input) - plan.probes[i].1.offset)
+            .collect())
+    }
+
+    /// The probes' first-order change along the perturbation `dq` (`FIELDS` values per node), by
+    /// a central difference of step h·dq, h = min(1, 10 nm / largest displacement of dq): small
+    /// against any device, large against round-off (the probes are smooth in the state).
+    pub fn gradient(&self, dq: &[f64]) -> Result<Vec<f64>, String> {
+        let largest = dq
+            .iter()
+            .enumerate()
+            .filter(|(d, _)| d % FIELDS != PHI)
+            .map(|(_, v)| v.abs())
+            .fold(0.0, f64::max);
+        let h = if largest > 0.0 {
+            (1e-8 / largest).min(1.0)
+        } else {
+            1.0
+        };
+        let plus: Vec<f64> = self.state.iter().zip(dq).map(|(s, d)| s + h * d).collect();
+        let minus: Vec<f64> = self.state.iter().zip(dq).map(|(s, d)| s - h * d).collect();
+        let (p, m) = (self.values(&plus)?, self.values(&minus)?);
+        Ok(p.iter().zip(&m).map(|(a, b)| (a - b) / (2.0 * h)).collect())
+    }
+
+    /// Names of the probes.
+    pub fn names(&self) -> Vec<String> {
+        self.probes
+            .iter()
+            .map(|&i| self.plan.probes[i].0.clone())
+            .collect()
+    }
+}
+
+/// How a frequency response is computed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ResponseMethod {
+    /// One complex sparse solve of the full linearised system per frequency (exact).
+    Direct,
+    /// The lowest `count` modes with a static correction (the reduced model's response): fast
+    /// for many frequencies, accurate below the highest kept mode.
+    Modal { count: usize },
+}
+
+/// The complex response of the probes per volt at each frequency.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrequencyResponse {
+    pub electrode: String,
+    /// DC voltage of the driven electrode (V).
+    pub bias: f64,
+    pub frequencies: Vec<f64>,
+    /// Per probe: its name and (real, imaginary) part per volt at each frequency.
+    pub probes: Vec<(String, Vec<(f64, f64)>)>,
+    pub method: ResponseMethod,
+    /// Set when the drive reaches no motion to first order (zero bias).
+    pub warning: Option<String>,
+}
+
+/// The frequency response about `state` (an equilibrium with every electrode at its voltage in
+/// it) to a small voltage on electrode `driven`; `reference` is the state deflection probes are
+/// measured from.
+pub fn frequency_response_at(
+    plan: &Plan,
+    state: &[f64],
+    reference: &[f64],
+    driven: usize,
+    frequencies: &[f64],
+    method: ResponseMethod,
+) -> Result<FrequencyResponse, String> {
+    check_linearisable(plan)?;
+    if has_branches(plan) && matches!(method, ResponseMethod::Modal { .. }) {
+        return Err(
+            "the modal method has no complex modulus for Maxwell branches; use `direct`".into(),
+        );
+    }
+    let (model, base) = base_state(plan, state)?;
+    let state = base.as_slice();
+    let relaxed = relaxed_model(&model);
+    let mass = device_mass(plan, &model);
+    let electrode = &plan.electrodes[driven];
+    let bias = state[electrode.nodes[0] * FIELDS + PHI];
+    let mut lin = linearise(&model, state, &mass, &plan.viscosities, &electrode.nodes)?;
+    let map = ProbeMap {
+        plan,
+        model: &relaxed,
+        state,
+        reference,
+        probes: linear_probes(plan),
+    };
+    let values = response_values(&mut lin, &map, frequencies, method, &electrode.name, bias)?;
+    let warning = (!lin.drives_motion()).then(|| zero_bias_warning(&electrode.name, bias));
+    Ok(FrequencyResponse {
+        electrode: electrode.name.clone(),
+        bias,
+        frequencies: frequencies.to_vec(),
+        probes: map.names().into_iter().zip(values).collect(),
+        method,
+        warning,
+    })
+}
+
+/// The warning of a drive about zero bias.
+pub fn zero_bias_warning(electrode: &str, bias: f64) -> String {
+    format!(
+        "`{electrode}` is at {bias} V: the electrostatic force is ∝ 2 V_dc ṽ, so at zero bias a \
+         small voltage moves nothing to first order (only the charge follows); give a DC bias"
+    )
+}
+
+/// The probes' complex responses per volt, probe by probe, by `method`.
+pub fn response_values(
+    lin: &mut Linearisation,
+    map: &ProbeMap,
+    frequencies: &[f64],
+    method: ResponseMethod,
+    electrode: &str,
+    bias: f64,
+) -> Result<Vec<Vec<(f64, f64)>>, String> {
+    let mut out = vec![Vec::with_capacity(frequencies.len()); map.probes.len()];
+    match method {
+        ResponseMethod::Direct => {
+            for &f in frequencies {
+                let (xr, xi) = lin.response(2.0 * std::f64::consts::PI * f)?;
+                let (gr, gi) = (map.gradient(&xr)?, map.gradient(&xi)?);
+                for (j, o) in out.iter_mut().enumerate() {
+                    o.push((gr[j], gi[j]));
+                }
+            }
+        }
+        ResponseMethod::Modal { count } => {
+            let gradient = |dq: &[f64]| map.gradient(dq);
+            let outputs = Outputs {
+                names: map.names(),
+                offsets: vec![0.0; map.probes.len()],
+                gradient: &gradient,
+            };
+            let rom = ReducedModel::build(lin, count, &map.plan.solver, &outputs, electrode, bias)?;
+            for &f in frequencies {
+                let y = rom.response(2.0 * std::f64::consts::PI * f);
+                for (o, v) in out.iter_mut().zip(y) {
+                    o.push(v);
+                }
+            }
+        }
+    }
+    Ok(out)
+}
