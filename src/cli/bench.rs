@@ -151,6 +151,19 @@ pub fn cmd_bench(large: bool) -> i32 {
             }
         }
     }
+    println!();
+    println!(
+        "small-signal analyses of the diaphragm (2928 dofs, 2 kV bias) against a time-domain \
+         sweep; times in s"
+    );
+    println!("{LINEAR_HEADER}");
+    match bench_linear(200) {
+        Ok(rows) => rows.iter().for_each(|r| println!("{r}")),
+        Err(e) => {
+            eprintln!("error: small-signal benchmark: {e}");
+            return 1;
+        }
+    }
     0
 }
 
@@ -278,9 +291,127 @@ pub fn bench_dynamic(
 /// Column titles of [`bench_dynamic`]'s rows.
 pub const DYNAMIC_HEADER: &str = "      mesh     dofs  steps    newton   s/step  its/step peak_MiB";
 
+/// Column titles of [`bench_linear`]'s rows.
+pub const LINEAR_HEADER: &str =
+    "                        analysis  count   total_s   per_item_s peak_MiB";
+
+/// The small-signal analyses of the diaphragm (`diaphragm-response` with `points` frequencies,
+/// 2 kV bias) against the time-domain sweep they replace: the `modes` stage (4 modes), the
+/// direct and the modal (20 modes) `frequency-response` stage, and one dynamic run of the
+/// diaphragm with a small 30 Hz sinusoid about 2 kV, 10 periods of 40 steps, whose time per step
+/// prices a sweep of `points` such runs (a lower bound: high frequencies need more periods for
+/// their transients to decay). Returns the rows.
+pub fn bench_linear(points: usize) -> Result<Vec<String>, String> {
+    use crate::io::build::build;
+    use crate::io::examples::example;
+    use crate::io::scenario::parse;
+    use crate::job::run::run;
+    struct Quiet;
+    impl crate::job::run::Observer for Quiet {
+        fn step(
+            &mut self,
+            _: &crate::job::plan::Plan,
+            _: &crate::job::run::StepRecord,
+            _: &[f64],
+            _: &[crate::element::CellFields],
+        ) {
+        }
+        fn finished(&mut self, _: &crate::job::plan::Plan, _: &crate::job::run::RunSummary) {}
+    }
+    let run_example = |name: &str, sets: &[String]| -> Result<Vec<(String, f64, usize)>, String> {
+        let text = example(name).ok_or_else(|| format!("no example {name}"))?;
+        let s = parse(text, name, sets).map_err(|e| e.to_string())?;
+        let plan = build(&s, name, None).map_err(|e| e.to_string())?;
+        let summary = run(&plan, &NewtonSettings::default(), &mut Quiet);
+        if !summary.converged {
+            return Err(summary.error.unwrap_or_default());
+        }
+        Ok(summary
+            .stages
+            .iter()
+            .map(|st| (st.name.clone(), st.wall_s, st.steps))
+            .collect())
+    };
+    let wall = |stages: &[(String, f64, usize)], name: &str| {
+        stages
+            .iter()
+            .find(|s| s.0 == name)
+            .map(|s| (s.1, s.2))
+            .unwrap_or((f64::NAN, 0))
+    };
+    let mut rows = Vec::new();
+    let row = |what: &str, count: usize, total: f64| {
+        format!(
+            "{what:>32} {count:>6} {total:>9.3} {:>12.5} {:>8.0}",
+            total / count.max(1) as f64,
+            peak_memory_mib()
+        )
+    };
+    let direct = run_example("diaphragm-response", &[format!("stages.3.points={points}")])?;
+    rows.push(row("modes stage (4 modes)", 4, wall(&direct, "modes").0));
+    rows.push(row(
+        "frequency response, direct",
+        points,
+        wall(&direct, "response").0,
+    ));
+    let modal = run_example(
+        "diaphragm-response",
+        &[
+            format!("stages.3.points={points}"),
+            "stages.3.method=\"modal\"".into(),
+            "stages.3.count=20".into(),
+        ],
+    )?;
+    rows.push(row(
+        "frequency response, modal (20)",
+        points,
+        wall(&modal, "response").0,
+    ));
+    let f = 30.0;
+    let time_domain = run_example(
+        "diaphragm",
+        &[
+            "electrodes.top.voltage.waveform=\"sine\"".into(),
+            "electrodes.top.voltage.polarity=\"bipolar\"".into(),
+            "electrodes.top.voltage.amplitude=10.0".into(),
+            "electrodes.top.voltage.offset=2000.0".into(),
+            format!("electrodes.top.voltage.frequency={f}"),
+            format!("stages.1.duration={}", 10.0 / f),
+            format!("stages.1.dt={}", 1.0 / (40.0 * f)),
+        ],
+    )?;
+    let (t, steps) = wall(&time_domain, "actuate");
+    rows.push(row("time domain, one frequency", steps, t));
+    rows.push(format!(
+        "{:>32} {points:>6} {:>9.1} {:>12.5}   (estimate: {points} runs of {steps} steps)",
+        "time-domain sweep it replaces",
+        t * points as f64,
+        t
+    ));
+    Ok(rows)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The small-signal benchmark runs every analysis and prices the sweep from a measured run.
+    #[test]
+    fn linear_rows_cover_every_analysis() {
+        let rows = bench_linear(3).unwrap();
+        assert_eq!(rows.len(), 5, "{rows:?}");
+        rows.iter().for_each(|r| println!("{r}"));
+        for r in &rows {
+            let total: f64 = r
+                .split_whitespace()
+                .rev()
+                .nth(if r.contains("estimate") { 7 } else { 2 })
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(f64::NAN);
+            assert!(total.is_finite() && total > 0.0, "{r}");
+        }
+        assert!(rows[3].contains(" 400 "), "{}", rows[3]);
+    }
 
     /// The material benchmark runs for both presets and reports their point-state sizes.
     #[test]
