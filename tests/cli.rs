@@ -48,8 +48,17 @@ fn every_example_prints_checks_and_the_small_ones_run() {
         std::fs::write(&file, &out.stdout).unwrap();
         let check = deasim(&["check", file.to_str().unwrap()], &dir);
         assert!(check.status.success(), "{name}: {}", stderr(&check));
-        assert!(String::from_utf8_lossy(&check.stdout).contains("problems: none"));
+        let said = String::from_utf8_lossy(&check.stdout);
+        assert!(said.contains("problems: none"), "{said}");
+        assert!(said.contains("extents: x "), "{said}");
     }
+    let film = String::from_utf8_lossy(&deasim(&["check", "film.toml"], &dir).stdout).into_owned();
+    assert!(
+        film.contains(
+            "extents: x 0.0000e0 … 1.0000e-2 m, y 0.0000e0 … 1.0000e-2 m, z 0.0000e0 … 1.0000e-3 m"
+        ),
+        "{film}"
+    );
     let unknown = deasim(&["example", "flim"], &dir);
     assert_eq!(unknown.status.code(), Some(2));
     assert!(

@@ -314,6 +314,30 @@ fn run_and_lumped_commands_on_the_diaphragm() {
     assert!(dir
         .join("lumped/plots/lumped_center_deflection.png")
         .exists());
+    assert!(
+        !String::from_utf8_lossy(&out.stderr).contains("warning"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // another voltage than the FE run's: warned of, naming both override lists
+    let mut args = vec!["lumped", "--out", "lumped2", "--compare", "fe"];
+    args.extend_from_slice(&sets);
+    args.extend(["--set", "electrodes.top.voltage.amplitude=2000"]);
+    let out = deasim(&args, &dir);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("warning: --compare") && err.contains("amplitude=2000"),
+        "{err}"
+    );
+    // a directory without a run is refused before any simulation, exit 2
+    let out = deasim(
+        &["lumped", "--out", "lumped3", "--compare", "nowhere"],
+        &dir,
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("holds no history.csv"));
+    assert!(!dir.join("lumped3").exists());
     // a scenario the lumped model does not describe is refused with exit 2
     let film = deasim(&["lumped", "--set", "mesh.generator=box"], &dir);
     assert_eq!(film.status.code(), Some(2));

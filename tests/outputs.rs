@@ -239,3 +239,75 @@ fn readme_checkpoint_example_works_as_written() {
         history
     );
 }
+
+/// `summary.json` carries the version, the overrides, the solver and per probe `final`, `min`,
+/// `max` and, under a periodic drive, the `mean` and `peak_to_peak` of the last full period — the
+/// last row of `periods.csv` and the extremes of `history.csv`.
+#[test]
+fn summary_states_probe_statistics_version_overrides_and_solver() {
+    let dir = tempdir("summary-stats");
+    let path = example(&dir, "film-vibration");
+    let scenario = std::fs::read_to_string(&path).unwrap().replace(
+        "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
+        "voltage = { waveform = \"sine\", amplitude = 20e3, frequency = 400.0 }",
+    );
+    std::fs::write(&path, scenario).unwrap();
+    let o = deasim(
+        &[
+            "run",
+            "film-vibration.toml",
+            "--out",
+            "o",
+            "--set",
+            "output.plots=false",
+        ],
+        &dir,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["version"], env!("CARGO_PKG_VERSION"));
+    assert_eq!(summary["overrides"][0], "output.plots=false");
+    assert!(summary["solver"].as_str().is_some_and(|s| !s.is_empty()));
+    let history = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
+    let mut lines = history.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = head
+        .iter()
+        .position(|h| *h == "probe:thickness_stretch")
+        .unwrap();
+    let values: Vec<f64> = lines
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect();
+    let stats = &summary["probe_stats"]["thickness_stretch"];
+    let get = |k: &str| {
+        stats[k]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{k} in {stats}"))
+    };
+    assert_eq!(get("final"), *values.last().unwrap());
+    assert_eq!(get("final"), summary["probes"]["thickness_stretch"]);
+    assert_eq!(
+        get("min"),
+        values.iter().copied().fold(f64::INFINITY, f64::min)
+    );
+    assert_eq!(
+        get("max"),
+        values.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+    );
+    let periods = std::fs::read_to_string(dir.join("o/periods.csv")).unwrap();
+    let mut rows = periods.lines();
+    let phead: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let last: Vec<&str> = rows.last().unwrap().split(',').collect();
+    let at = |name: &str| -> f64 {
+        let i = phead.iter().position(|h| *h == name).unwrap();
+        last[i].parse().unwrap()
+    };
+    assert!((get("mean") - at("thickness_stretch:mean")).abs() <= 1e-12 * get("mean").abs());
+    assert!(
+        (get("peak_to_peak") - at("thickness_stretch:peak_to_peak")).abs()
+            <= 1e-9 * get("peak_to_peak").abs()
+    );
+    assert!(get("peak_to_peak") > 0.0);
+}

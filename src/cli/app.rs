@@ -259,7 +259,7 @@ pub fn cmd_run(
             return EXIT_BAD_INPUT;
         }
     }
-    let writer = match OutputWriter::new(&dir) {
+    let mut writer = match OutputWriter::new(&dir) {
         Ok(w) => w,
         Err(e) => {
             eprintln!(
@@ -269,6 +269,7 @@ pub fn cmd_run(
             return EXIT_BAD_INPUT;
         }
     };
+    writer.overrides = overrides.to_vec();
     let checkpoint = checkpoint_every.map(|every| CheckpointWriter {
         dir: dir.clone(),
         every,
@@ -307,13 +308,14 @@ pub fn cmd_resume(
     };
     match prepare_resume(dir, scenario, overrides, checkpoint_every) {
         Ok((plan, checkpoint, state)) => {
-            let writer = match OutputWriter::new(dir) {
+            let mut writer = match OutputWriter::new(dir) {
                 Ok(w) => w,
                 Err(e) => {
                     eprintln!("error: {}: {e}", dir.display());
                     return EXIT_BAD_INPUT;
                 }
             };
+            writer.overrides.clone_from(&checkpoint.source.overrides);
             execute(&plan, dir, writer, Some(checkpoint), Some(state))
         }
         Err(e) => {
@@ -513,6 +515,11 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
                 m.n_nodes(),
                 m.n_cells(),
                 m.kind.name()
+            );
+            let (lo, hi) = m.extents();
+            println!(
+                "extents: x {:.4e} … {:.4e} m, y {:.4e} … {:.4e} m, z {:.4e} … {:.4e} m",
+                lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
             );
             println!("dofs: {} ({} per node)", m.n_nodes() * 4, 4);
             println!("materials: {}", plan.model.materials.len());

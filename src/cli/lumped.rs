@@ -38,6 +38,17 @@ pub fn cmd_lumped(
             return EXIT_BAD_INPUT;
         }
     };
+    if let Some(fe_dir) = compare {
+        match check_compare(fe_dir, &plan.name, overrides) {
+            Ok(warnings) => warnings
+                .iter()
+                .for_each(|w| eprintln!("warning: --compare: {w}")),
+            Err(e) => {
+                eprintln!("error: --compare: {e}");
+                return EXIT_BAD_INPUT;
+            }
+        }
+    }
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-lumped", plan.name)));
@@ -48,6 +59,55 @@ pub fn cmd_lumped(
             EXIT_SOLVE_FAILED
         }
     }
+}
+
+/// Checks, before simulating, that `fe_dir` holds a finite element run to compare with: its
+/// `history.csv` and `summary.json` must be readable (else the error); a run of another scenario,
+/// with other `--set` overrides, or one that did not finish gives warnings.
+fn check_compare(fe_dir: &Path, name: &str, overrides: &[String]) -> Result<Vec<String>, String> {
+    let history = fe_dir.join("history.csv");
+    if !history.is_file() {
+        return Err(format!(
+            "{} holds no history.csv: give the output directory of a `deasim run`",
+            fe_dir.display()
+        ));
+    }
+    let path = fe_dir.join("summary.json");
+    let summary: serde_json::Value = std::fs::read_to_string(&path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))
+        .and_then(|t| {
+            serde_json::from_str(&t).map_err(|e| format!("{}: not JSON: {e}", path.display()))
+        })?;
+    let mut warnings = Vec::new();
+    match summary["scenario"].as_str() {
+        Some(s) if s == name => {}
+        other => warnings.push(format!(
+            "{} holds a run of scenario `{}`, not of `{name}`",
+            fe_dir.display(),
+            other.unwrap_or("?")
+        )),
+    }
+    if summary["converged"] != serde_json::Value::Bool(true) {
+        warnings.push(format!(
+            "the run in {} did not finish ({}): the comparison covers its recorded part only",
+            fe_dir.display(),
+            summary["error"].as_str().unwrap_or("interrupted")
+        ));
+    }
+    if let Some(list) = summary["overrides"].as_array() {
+        let theirs: Vec<&str> = list.iter().filter_map(|v| v.as_str()).collect();
+        let ours: Vec<&str> = overrides.iter().map(String::as_str).collect();
+        if theirs != ours {
+            warnings.push(format!(
+                "the run in {} had the overrides [{}], this model [{}]: they may differ in \
+                 voltage, material or geometry",
+                fe_dir.display(),
+                theirs.join(", "),
+                ours.join(", ")
+            ));
+        }
+    }
+    Ok(warnings)
 }
 
 /// Names of the scenario's probes of the kinds the lumped model computes (FE names where the

@@ -342,6 +342,7 @@ fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan, sets: &[(String, f64)]
         Ok(w) => w,
         Err(e) => return failed(format!("{}: {e}", run_dir.display())),
     };
+    writer.overrides = sets.iter().map(|(k, v)| format!("{k}={v}")).collect();
     let values: serde_json::Map<String, serde_json::Value> = sets
         .iter()
         .map(|(k, v)| (k.clone(), serde_json::json!(v)))

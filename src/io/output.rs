@@ -53,6 +53,8 @@ pub struct OutputWriter {
     linear_files: Vec<(String, String)>,
     /// Per `frequency-response` stage: its name, the driven electrode and its bias (V).
     responses: Vec<(String, String, f64)>,
+    /// The `--set` overrides of the run, for the summary.
+    pub overrides: Vec<String>,
 }
 
 /// Whether a file name is one deasim writes into `plots/`.
@@ -178,6 +180,7 @@ impl OutputWriter {
             more_failures: 0,
             linear_files: Vec::new(),
             responses: Vec::new(),
+            overrides: Vec::new(),
         };
         for sub in ["fields", "plots"] {
             let d = dir.join(sub);
@@ -377,6 +380,10 @@ impl OutputWriter {
             },
             "warnings": warnings,
         });
+        v["version"] = json!(env!("CARGO_PKG_VERSION"));
+        v["overrides"] = json!(self.overrides);
+        v["solver"] = json!(plan.solver.kind.name());
+        v["probe_stats"] = self.probe_stats(plan);
         if let Some(last) = summary.stages.iter().rev().find(|s| s.kind == "modes") {
             v["modes"] = json!(last
                 .modes_hz
@@ -402,6 +409,34 @@ impl OutputWriter {
             v["error"] = json!(err);
         }
         v
+    }
+
+    /// Per probe: `final`, `min` and `max` over every record (finite values), and with a
+    /// periodic drive `mean` and `peak_to_peak` over its last full period.
+    fn probe_stats(&self, plan: &Plan) -> Value {
+        let last_period = crate::io::periods::periods(plan, &self.records).pop();
+        let mut stats = serde_json::Map::new();
+        for (i, (name, _)) in plan.probes.iter().enumerate() {
+            let values = || {
+                self.records
+                    .iter()
+                    .map(|r| r.probes[i])
+                    .filter(|v| v.is_finite())
+            };
+            let mut o = json!({
+                "final": self.records.last().map(|r| json_number(r.probes[i])).unwrap_or(Value::Null),
+                "min": values().reduce(f64::min).map(json_number).unwrap_or(Value::Null),
+                "max": values().reduce(f64::max).map(json_number).unwrap_or(Value::Null),
+            });
+            if let Some(p) = &last_period {
+                let s = p.probes[i];
+                o["mean"] = json_number(s.mean);
+                o["peak_to_peak"] = json_number(s.max - s.min);
+                o["period"] = json!({"stage": p.stage, "t_start": p.t_start, "t_end": p.t_end});
+            }
+            stats.insert(name.clone(), o);
+        }
+        Value::Object(stats)
     }
 
     fn write_plots(&mut self, plan: &Plan) {

@@ -170,6 +170,20 @@ impl Mesh {
     }
 
     /// Node index nearest to a point (ties: the lowest index).
+    /// The bounding box of the nodes: lower and upper corner (m).
+    pub fn extents(&self) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for x in &self.nodes {
+            for c in 0..3 {
+                lo[c] = lo[c].min(x[c]);
+                hi[c] = hi[c].max(x[c]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// The node nearest to `p`.
     pub fn nearest_node(&self, p: [f64; 3]) -> usize {
         let mut best = (f64::INFINITY, 0);
         for (i, x) in self.nodes.iter().enumerate() {

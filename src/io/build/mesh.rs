@@ -300,6 +300,15 @@ fn build_file_mesh(
             g.reoriented
         ));
     }
+    let (lo, hi) = g.mesh.extents();
+    let size = (0..3).map(|c| hi[c] - lo[c]).fold(0.0, f64::max);
+    if m.scale.is_none() && size > 1.0 {
+        warnings.push(format!(
+            "{}: the mesh is {size:.4} m across (read in m); if it was drawn in mm, give \
+             `mesh.scale = 1e-3`",
+            path.display()
+        ));
+    }
     Ok((g.mesh, warnings))
 }
 
@@ -524,11 +533,21 @@ mod tests {
             "mesh",
             "[mesh]\nfile = \"film-hex8-msh22.msh\"\nscale = 1e-3\nelement = \"hex8\"",
         )]);
-        let (m, _) = build_mesh(&CTX, &s, Some(&gmsh_dir())).unwrap();
+        let (m, warnings) = build_mesh(&CTX, &s, Some(&gmsh_dir())).unwrap();
         assert_eq!(m.kind, ElementKind::Hex8);
+        assert!(warnings.is_empty(), "{warnings:?}");
         // drawn in mm: 10 x 10 x 1 mm after scaling
         let zmax = m.nodes.iter().map(|x| x[2]).fold(f64::MIN, f64::max);
         assert!((zmax - 1e-3).abs() < 1e-12, "{zmax}");
+        // without the scale it would be a 10 m device: said, with the way out
+        let s = scenario(&[("mesh", "[mesh]\nfile = \"film-hex8-msh22.msh\"")]);
+        let (_, warnings) = build_mesh(&CTX, &s, Some(&gmsh_dir())).unwrap();
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains("m across") && w.contains("mesh.scale = 1e-3")),
+            "{warnings:?}"
+        );
     }
 
     #[test]

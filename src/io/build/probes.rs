@@ -116,7 +116,27 @@ fn probe_kind(
             if at.iter().any(|v| !v.is_finite()) {
                 return Err(ctx.err(format!("{key}.at"), "coordinates must be finite (m)"));
             }
-            ProbeKind::Point(q, model.mesh.nearest_node(at))
+            let node = model.mesh.nearest_node(at);
+            let (lo, hi) = model.mesh.extents();
+            let diagonal = (0..3).map(|c| (hi[c] - lo[c]).powi(2)).sum::<f64>().sqrt();
+            let outside = (0..3)
+                .map(|c| (lo[c] - at[c]).max(at[c] - hi[c]).max(0.0).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            if outside > 0.01 * diagonal {
+                let x = model.mesh.nodes[node];
+                let distance = (0..3).map(|c| (x[c] - at[c]).powi(2)).sum::<f64>().sqrt();
+                return Err(ctx.err(
+                    format!("{key}.at"),
+                    format!(
+                        "[{}, {}, {}] m lies {outside:.3e} m outside the mesh, which spans \
+                         x {:.4e}…{:.4e}, y {:.4e}…{:.4e}, z {:.4e}…{:.4e} m (the nearest node \
+                         is {distance:.3e} m away); coordinates are in m, not mm",
+                        at[0], at[1], at[2], lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+                    ),
+                ));
+            }
+            ProbeKind::Point(q, node)
         }
         "charge" => ProbeKind::Charge(electrode(&need(&p.electrode, "electrode")?)?),
         "capacitance" => ProbeKind::Capacitance(electrode(&need(&p.electrode, "electrode")?)?),
