@@ -35,6 +35,7 @@ fn summary(out: &Path) -> serde_json::Value {
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     v.as_object_mut().unwrap().remove("wall_s");
+    v.as_object_mut().unwrap().remove("date");
     for s in v["stages"].as_array_mut().unwrap() {
         s.as_object_mut().unwrap().remove("wall_s");
     }

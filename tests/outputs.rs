@@ -270,6 +270,16 @@ fn summary_states_probe_statistics_version_overrides_and_solver() {
     assert_eq!(summary["version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(summary["overrides"][0], "output.plots=false");
     assert!(summary["solver"].as_str().is_some_and(|s| !s.is_empty()));
+    let date = summary["date"].as_str().unwrap();
+    assert!(
+        date.len() == 20 && date.ends_with('Z') && &date[10..11] == "T",
+        "{date}"
+    );
+    let hash = summary["scenario_hash"].as_str().unwrap();
+    assert!(
+        hash.len() == 16 && hash.bytes().all(|b| b.is_ascii_hexdigit()),
+        "{hash}"
+    );
     let history = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
     let mut lines = history.lines();
     let head: Vec<&str> = lines.next().unwrap().split(',').collect();

@@ -55,6 +55,7 @@ fn summary(out: &Path) -> serde_json::Value {
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     v.as_object_mut().unwrap().remove("wall_s");
+    v.as_object_mut().unwrap().remove("date");
     for s in v["stages"].as_array_mut().unwrap() {
         s.as_object_mut().unwrap().remove("wall_s");
     }
@@ -215,6 +216,12 @@ fn checkpoints_change_no_number() {
 fn resume_from_older_checkpoint(name: &str, scenario: &str, k: &str, sets: &[&str]) -> Output {
     let dir = tempdir(name);
     let path = example(&dir, scenario);
+    resume_older(&dir, &path, k, sets)
+}
+
+/// [`resume_from_older_checkpoint`] of the scenario file `path` in `dir`.
+fn resume_older(dir: &Path, path: &Path, k: &str, sets: &[&str]) -> Output {
+    let dir = dir.to_path_buf();
     let mut args = vec![
         "run",
         path.to_str().unwrap(),
@@ -258,6 +265,40 @@ fn resume_from_older_checkpoint(name: &str, scenario: &str, k: &str, sets: &[&st
     );
     assert_same_results(&dir.join("full"), &copy);
     full
+}
+
+/// Two static stages (a ramp, then a hold) resumed from the checkpoint taken at the end of the
+/// first: the field files hold the state at the end of every stage (here the 4th record, which
+/// `fields_every = 3` alone would skip) in the uninterrupted and in the resumed run alike.
+#[test]
+fn stage_ends_are_in_the_field_files_also_after_a_resume() {
+    let dir = tempdir("stage-ends");
+    let path = example(&dir, "film");
+    let scenario = std::fs::read_to_string(&path).unwrap().replace(
+        "name = \"charge\"\nkind = \"static\"\nsteps = 15\n",
+        "name = \"charge\"\nkind = \"static\"\nsteps = 4\n\n[[stages]]\nname = \"hold\"\n\
+         kind = \"static\"\nsteps = 4\n",
+    );
+    assert!(scenario.contains("name = \"hold\""));
+    std::fs::write(&path, scenario).unwrap();
+    let full = resume_older(&dir, &path, "4", &["output.fields_every=3"]);
+    assert_eq!(full.status.code(), Some(0), "{}", text(&full));
+    let pvd = std::fs::read_to_string(dir.join("full/fields.pvd")).unwrap();
+    let history = std::fs::read_to_string(dir.join("full/history.csv")).unwrap();
+    let times: Vec<&str> = history
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(times.len(), 9, "{history}");
+    // records 0, 3, 6 by `fields_every`, 4 and 8 as stage ends
+    let entries = pvd.matches("<DataSet").count();
+    assert_eq!(entries, 5, "{pvd}");
+    let t4: f64 = times[4].parse().unwrap();
+    assert!(
+        pvd.contains(&format!("timestep=\"{t4}\"")),
+        "no entry at the end of the first stage (t = {t4}): {pvd}"
+    );
 }
 
 /// Static ramp of the film (15 load steps), resumed from the checkpoint at step 8.

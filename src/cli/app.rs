@@ -198,7 +198,7 @@ impl Observer for Progress {
         }
     }
 
-    fn resumed(&mut self, _plan: &Plan, records: &[StepRecord]) {
+    fn resumed(&mut self, _plan: &Plan, records: &[StepRecord], _: &[f64], _: &[CellFields]) {
         self.done = records.iter().filter(|r| r.step > 0).count() as u64;
         if let Some(b) = &self.bar {
             b.set_position(self.done.min(self.total_steps));

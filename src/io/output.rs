@@ -381,6 +381,9 @@ impl OutputWriter {
             "warnings": warnings,
         });
         v["version"] = json!(env!("CARGO_PKG_VERSION"));
+        v["date"] =
+            json!(humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string());
+        v["scenario_hash"] = json!(format!("{:016x}", plan.fingerprint()));
         v["overrides"] = json!(self.overrides);
         v["solver"] = json!(plan.solver.kind.name());
         v["probe_stats"] = self.probe_stats(plan);
@@ -609,8 +612,19 @@ impl Observer for OutputWriter {
     }
 
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
-        self.records.push(record.clone());
         let every = plan.output.fields_every;
+        // a new stage begins: the state its predecessor ended in is in the field files too
+        let stage_ended = self
+            .records
+            .last()
+            .is_some_and(|prev| prev.stage != record.stage);
+        if every > 0 && stage_ended && self.last_written_step != Some(self.steps_seen - 1) {
+            if let Some((r, s, f)) = self.last_state.take() {
+                self.write_fields(plan, &r, &s, &f);
+                self.last_written_step = Some(self.steps_seen - 1);
+            }
+        }
+        self.records.push(record.clone());
         if every > 0 && self.steps_seen.is_multiple_of(every) {
             self.write_fields(plan, record, state, fields);
         }
@@ -625,14 +639,25 @@ impl Observer for OutputWriter {
     /// field files written for them, deletes deasim's own field files beyond it (written by the
     /// killed run after the checkpoint) and rewrites `history.csv` and `fields.pvd`, so that no
     /// row or entry is duplicated.
-    fn resumed(&mut self, plan: &Plan, records: &[StepRecord]) {
+    fn resumed(
+        &mut self,
+        plan: &Plan,
+        records: &[StepRecord],
+        state: &[f64],
+        fields: &[CellFields],
+    ) {
         self.records = records.to_vec();
         self.steps_seen = records.len();
         self.pvd.clear();
         self.last_written_step = None;
+        if let Some(last) = records.last() {
+            self.last_state = Some((last.clone(), state.to_vec(), fields.to_vec()));
+        }
         let every = plan.output.fields_every;
         for (i, r) in records.iter().enumerate() {
-            if every > 0 && i.is_multiple_of(every) {
+            // as `step` wrote them: every `every`-th record and the last of each finished stage
+            let stage_end = records.get(i + 1).is_some_and(|n| n.stage != r.stage);
+            if every > 0 && (i.is_multiple_of(every) || stage_end) {
                 self.pvd
                     .push((r.time, format!("fields/step_{:05}.vtu", self.pvd.len())));
                 self.last_written_step = Some(i);

@@ -195,10 +195,28 @@ where
     Ok(())
 }
 
-/// A series reduced to its finite points.
+/// A series reduced to its finite points, in runs separated where a point is not finite (a
+/// gap is left open rather than bridged by a straight line).
 struct Curve<'s> {
     label: &'s str,
     points: Vec<(f64, f64)>,
+    /// Start index in `points` of every run after the first.
+    breaks: Vec<usize>,
+}
+
+impl Curve<'_> {
+    /// The runs of consecutive finite points.
+    fn runs(&self) -> impl Iterator<Item = &[(f64, f64)]> {
+        let mut bounds = vec![0];
+        bounds.extend(&self.breaks);
+        bounds.push(self.points.len());
+        bounds
+            .windows(2)
+            .map(|w| &self.points[w[0]..w[1]])
+            .filter(|r| !r.is_empty())
+            .collect::<Vec<_>>()
+            .into_iter()
+    }
 }
 
 fn prepare<'s>(path: &Path, spec: &PlotSpec<'s>) -> Result<Vec<Curve<'s>>, PlotError> {
@@ -224,15 +242,24 @@ fn prepare<'s>(path: &Path, spec: &PlotSpec<'s>) -> Result<Vec<Curve<'s>>, PlotE
                 reason: format!("series '{}' is empty", s.label),
             });
         }
-        let points =
-            s.x.iter()
-                .zip(&s.y)
-                .filter(|(x, y)| x.is_finite() && y.is_finite())
-                .map(|(&x, &y)| (x, y))
-                .collect();
+        let mut points = Vec::with_capacity(s.x.len());
+        let mut breaks = Vec::new();
+        let mut gap = false;
+        for (&x, &y) in s.x.iter().zip(&s.y) {
+            if x.is_finite() && y.is_finite() {
+                if gap && !points.is_empty() {
+                    breaks.push(points.len());
+                }
+                gap = false;
+                points.push((x, y));
+            } else {
+                gap = true;
+            }
+        }
         curves.push(Curve {
             label: &s.label,
             points,
+            breaks,
         });
     }
     if curves.iter().all(|c| c.points.is_empty()) {
@@ -375,13 +402,22 @@ where
         } else {
             color.stroke_width(2)
         };
-        let marker = if single { 4 } else { 0 };
-        let series = LineSeries::new(curve.points.iter().copied(), style).point_size(marker);
-        chart
-            .draw_series(series)
-            .map_err(e)?
-            .label(curve.label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+        for (k, run) in curve.runs().enumerate() {
+            // an isolated point between gaps is drawn as a marker
+            let marker = if single || run.len() == 1 { 4 } else { 0 };
+            let style = if run.len() == 1 {
+                color.filled().stroke_width(2)
+            } else {
+                style
+            };
+            let series = LineSeries::new(run.iter().copied(), style).point_size(marker);
+            let drawn = chart.draw_series(series).map_err(e)?;
+            if k == 0 {
+                drawn
+                    .label(curve.label)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+            }
+        }
     }
     if curves.len() > 1 {
         chart
@@ -401,6 +437,32 @@ mod tests {
     use super::*;
     use std::fs;
     use std::sync::atomic::{AtomicU64, Ordering};
+
+    /// A non-finite value splits a curve into runs: the gap is not bridged by a line.
+    #[test]
+    fn gaps_split_curves_into_runs() {
+        let series = [Series {
+            label: "s".to_string(),
+            x: vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+            y: vec![1.0, 2.0, f64::NAN, 3.0, f64::NAN, f64::NAN, 4.0],
+        }];
+        let spec = PlotSpec {
+            title: "t",
+            x_label: "x",
+            y_label: "y",
+            series: &series,
+        };
+        let curves = prepare(Path::new("p.png"), &spec).unwrap();
+        let runs: Vec<Vec<(f64, f64)>> = curves[0].runs().map(<[_]>::to_vec).collect();
+        assert_eq!(
+            runs,
+            vec![
+                vec![(0.0, 1.0), (1.0, 2.0)],
+                vec![(3.0, 3.0)],
+                vec![(6.0, 4.0)]
+            ]
+        );
+    }
 
     static COUNTER: AtomicU64 = AtomicU64::new(0);
 

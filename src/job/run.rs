@@ -47,8 +47,15 @@ pub trait Observer {
     /// The run ended (converged or not).
     fn finished(&mut self, plan: &Plan, summary: &RunSummary);
     /// The run resumes from a state; `records` are the steps recorded before it (no
-    /// [`Observer::step`] is sent for them).
-    fn resumed(&mut self, _plan: &Plan, _records: &[StepRecord]) {}
+    /// [`Observer::step`] is sent for them); `state` and `fields` are those of the last record.
+    fn resumed(
+        &mut self,
+        _plan: &Plan,
+        _records: &[StepRecord],
+        _state: &[f64],
+        _fields: &[CellFields],
+    ) {
+    }
     /// The cell means of the material points' internal variables at the state of the next
     /// [`Observer::step`] (sent only when a material has internal variables).
     fn point_states(&mut self, _plan: &Plan, _cell_means: &[(String, Vec<f64>)]) {}
@@ -86,8 +93,16 @@ impl Observer for Observers<'_, '_> {
     fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
         self.0.iter_mut().for_each(|o| o.finished(plan, summary));
     }
-    fn resumed(&mut self, plan: &Plan, records: &[StepRecord]) {
-        self.0.iter_mut().for_each(|o| o.resumed(plan, records));
+    fn resumed(
+        &mut self,
+        plan: &Plan,
+        records: &[StepRecord],
+        state: &[f64],
+        fields: &[CellFields],
+    ) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.resumed(plan, records, state, fields));
     }
     fn point_states(&mut self, plan: &Plan, cell_means: &[(String, Vec<f64>)]) {
         self.0
@@ -240,7 +255,10 @@ impl<'p, 'o> Job<'p, 'o> {
             if let Some(p) = PointStates::with_data(&plan.model, s.points.clone()) {
                 job.points = p;
             }
-            job.observer.resumed(plan, &s.records);
+            // the fields of the last recorded state, for writers that complete a stage's files
+            let fields = crate::problem::statics::cell_fields_with(&plan.model, &s.q, &job.points)
+                .unwrap_or_default();
+            job.observer.resumed(plan, &s.records, &s.q, &fields);
         }
         job
     }
