@@ -17,8 +17,14 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run a scenario (the embedded default when no file is given).
+    #[command(
+        after_help = "Exit status: 0 success; 1 the solve failed (the reason is in summary.json) \
+or an output could not be written; 2 bad input; 130 stopped by Ctrl-C/SIGTERM (the outputs hold \
+the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEWTON_VERBOSE=1 \
+(every Newton iteration on stderr)."
+    )]
     Run {
-        /// Scenario file (TOML).
+        /// Scenario file (TOML), the name of an embedded example, or - for standard input.
         scenario: Option<PathBuf>,
         /// Output directory (default ./deasim-out/<scenario name>/).
         #[arg(long)]
@@ -36,17 +42,26 @@ enum Command {
         #[arg(long, value_name = "DIR", conflicts_with_all = ["out", "overwrite"])]
         resume: Option<PathBuf>,
     },
-    /// Validate a scenario without solving.
+    /// Validate a scenario without solving; print its mesh, extents, stages and probes.
+    #[command(
+        after_help = "Exit status: 0 valid; 2 invalid (every problem is listed with the file and key)."
+    )]
     Check {
+        /// Scenario file (TOML), the name of an embedded example, or - for standard input.
         scenario: PathBuf,
+        /// Override a value by its dotted path before checking (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
     /// List the embedded examples, or print one as TOML.
-    Example { name: Option<String> },
+    Example {
+        /// The example to print (omit it for the list).
+        name: Option<String>,
+    },
     /// The lumped (one-degree-of-freedom) model of a diaphragm scenario: seconds instead of minutes.
     Lumped {
-        /// Scenario file (TOML; the embedded default when omitted).
+        /// Scenario file (TOML), an embedded example's name or - for standard input; the
+        /// embedded default when omitted.
         scenario: Option<PathBuf>,
         /// Output directory (default ./deasim-out/<scenario name>-lumped/).
         #[arg(long)]
@@ -61,7 +76,8 @@ enum Command {
     /// Run a scenario for every value of one parameter; tabulate and plot every probe's final
     /// value, maximum and steady peak-to-peak against it.
     Sweep {
-        /// Scenario file (TOML; the embedded default when omitted).
+        /// Scenario file (TOML), an embedded example's name or - for standard input; the
+        /// embedded default when omitted.
         scenario: Option<PathBuf>,
         /// The swept parameter: PATH=START:STOP:N (N values) or PATH=v1,v2,...; repeat it for
         /// parameters that move along with the first (same N), e.g. a time step.
@@ -124,7 +140,8 @@ enum Command {
     /// Natural modes about the loaded state (after the static stages before the first dynamic
     /// one, electrodes held at their voltages there): a table, modes.csv and ParaView shapes.
     Modes {
-        /// Scenario file (TOML; the embedded default when omitted).
+        /// Scenario file (TOML), an embedded example's name or - for standard input; the
+        /// embedded default when omitted.
         scenario: Option<PathBuf>,
         /// Number of modes.
         #[arg(long, default_value_t = 6)]
@@ -142,7 +159,8 @@ enum Command {
     /// Frequency response of the probes to a small harmonic voltage on one electrode about its
     /// DC bias (after the static stages before the first dynamic one): CSV and Bode plots.
     Response {
-        /// Scenario file (TOML; the embedded default when omitted).
+        /// Scenario file (TOML), an embedded example's name or - for standard input; the
+        /// embedded default when omitted.
         scenario: Option<PathBuf>,
         /// The driven electrode (default: the first with a non-zero voltage).
         #[arg(long)]
@@ -173,7 +191,8 @@ enum Command {
     /// a DC bias, for control: JSON and CSV matrices, its simulation of the first dynamic stage's
     /// drive, and the overlay on a finite element run.
     Reduce {
-        /// Scenario file (TOML; the embedded default when omitted).
+        /// Scenario file (TOML), an embedded example's name or - for standard input; the
+        /// embedded default when omitted.
         scenario: Option<PathBuf>,
         /// Modes kept (the model has twice as many states).
         #[arg(long, default_value_t = 4)]

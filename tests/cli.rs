@@ -59,6 +59,24 @@ fn every_example_prints_checks_and_the_small_ones_run() {
         ),
         "{film}"
     );
+    // an example's name and standard input are scenarios too
+    let by_name = deasim(&["check", "film-modes"], &dir);
+    assert!(by_name.status.success(), "{}", stderr(&by_name));
+    assert!(String::from_utf8_lossy(&by_name.stdout).contains("scenario `film-modes` is valid"));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args(["check", "-"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Write as _;
+        let text = std::fs::read(dir.join("film.toml")).unwrap();
+        child.stdin.take().unwrap().write_all(&text).unwrap();
+    }
+    let piped = child.wait_with_output().unwrap();
+    assert!(piped.status.success());
+    assert!(String::from_utf8_lossy(&piped.stdout).contains("scenario `film` is valid"));
     let unknown = deasim(&["example", "flim"], &dir);
     assert_eq!(unknown.status.code(), Some(2));
     assert!(

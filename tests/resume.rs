@@ -500,9 +500,20 @@ fn sigint_checkpoint_resumes_to_completion() {
     assert!(killed.success());
     let out = child.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(130), "{}", text(&out));
+    let said = text(&out);
+    assert!(
+        said.contains("stopped on request") && !said.contains("FAILED"),
+        "{said}"
+    );
     assert_eq!(checkpoints(&dir.join("o")).len(), 1);
     let resumed = deasim(&["run", "--resume", "o"], &dir);
     assert_eq!(resumed.status.code(), Some(0), "{}", text(&resumed));
+    // a log (not a terminal) shows the position, the share done and the time left
+    let log = text(&resumed);
+    assert!(
+        log.contains(" steps, ") && log.contains(" %") && log.contains("ETA"),
+        "{log}"
+    );
     let h = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
     let steps: Vec<usize> = h
         .lines()

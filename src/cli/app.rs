@@ -52,6 +52,42 @@ pub fn read_scenario(path: Option<&Path>) -> Result<(String, String, Option<Path
             format!("<embedded {DEFAULT}>"),
             None,
         ),
+        // `-`: the scenario from standard input
+        Some(p) if p.as_os_str() == "-" => {
+            use std::io::Read as _;
+            let mut bytes = Vec::new();
+            let read = std::io::stdin()
+                .take(MAX_SCENARIO_BYTES as u64 + 1)
+                .read_to_end(&mut bytes);
+            let fail = |message: String| InputError {
+                file: "<stdin>".into(),
+                position: None,
+                key: None,
+                message,
+            };
+            read.map_err(|e| fail(format!("cannot read the scenario: {e}")))?;
+            if bytes.len() > MAX_SCENARIO_BYTES {
+                return Err(fail(format!(
+                    "input too large (more than {MAX_SCENARIO_BYTES} bytes)"
+                )));
+            }
+            let text = String::from_utf8(bytes).map_err(|e| {
+                fail(format!(
+                    "not UTF-8 text (invalid byte at offset {}): expected TOML",
+                    e.utf8_error().valid_up_to()
+                ))
+            })?;
+            (text, "<stdin>".into(), None)
+        }
+        // the name of an embedded example, when no such file exists
+        Some(p) if !p.exists() && p.to_str().and_then(example).is_some() => {
+            let name = p.to_str().unwrap_or_default();
+            (
+                example(name).unwrap_or_default().to_string(),
+                format!("<embedded {name}>"),
+                None,
+            )
+        }
         Some(p) => {
             let name = p.display().to_string();
             let meta = std::fs::metadata(p).map_err(|e| InputError {
@@ -98,9 +134,32 @@ struct Progress {
     done: u64,
     /// When the last plain line was printed (plain lines: at most one a second).
     last_line: Option<std::time::Instant>,
+    /// When the progress started, and the steps already done then (a resumed run).
+    started: std::time::Instant,
+    done_at_start: u64,
 }
 
 impl Progress {
+    /// `n/N steps, p %, ETA …` for a log line: the remaining nominal steps at the mean rate so
+    /// far (steps cut back make the total grow; the ETA is then omitted past the nominal end).
+    fn position(&self) -> String {
+        let total = self.total_steps.max(1);
+        let pct = (100.0 * self.done as f64 / total as f64).min(100.0);
+        let run = self.done.saturating_sub(self.done_at_start);
+        let elapsed = self.started.elapsed().as_secs_f64();
+        let eta = if run > 0 && self.done < total {
+            let s = elapsed / run as f64 * (total - self.done) as f64;
+            if s >= 60.0 {
+                format!(", ETA {}m{:02}s", (s / 60.0).floor(), (s % 60.0).floor())
+            } else {
+                format!(", ETA {s:.0} s")
+            }
+        } else {
+            String::new()
+        };
+        format!("{}/{} steps, {pct:.0} %{eta}", self.done, self.total_steps)
+    }
+
     fn new(plan: &Plan) -> Self {
         let total: u64 = plan
             .stages
@@ -122,6 +181,8 @@ impl Progress {
             total_steps: total,
             done: 0,
             last_line: None,
+            started: std::time::Instant::now(),
+            done_at_start: 0,
         }
     }
 }
@@ -191,7 +252,7 @@ impl Observer for Progress {
                     .last_line
                     .is_none_or(|t| t.elapsed().as_secs_f64() >= 1.0)
                 {
-                    eprintln!("  {} step {}: {msg}", r.stage, r.step);
+                    eprintln!("  {} step {}: {msg} [{}]", r.stage, r.step, self.position());
                     self.last_line = Some(std::time::Instant::now());
                 }
             }
@@ -200,6 +261,8 @@ impl Observer for Progress {
 
     fn resumed(&mut self, _plan: &Plan, records: &[StepRecord], _: &[f64], _: &[CellFields]) {
         self.done = records.iter().filter(|r| r.step > 0).count() as u64;
+        self.done_at_start = self.done;
+        self.started = std::time::Instant::now();
         if let Some(b) = &self.bar {
             b.set_position(self.done.min(self.total_steps));
         }
@@ -211,7 +274,13 @@ impl Observer for Progress {
         }
         eprintln!(
             "{} in {:.2} s",
-            if s.converged { "finished" } else { "FAILED" },
+            if s.interrupted {
+                "stopped on request"
+            } else if s.converged {
+                "finished"
+            } else {
+                "FAILED"
+            },
             s.wall_s
         );
     }
