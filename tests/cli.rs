@@ -199,6 +199,42 @@ fn film_run_matches_the_closed_form_and_writes_every_output() {
             "{c:?}"
         );
     }
+    // the two parts: the Maxwell stress of the ideal dielectric ε(e⊗e − ½|e|²I), and the
+    // mechanical stress that balances it (total = mechanical + Maxwell)
+    let eps = FILM_EPS_R * EPSILON_0;
+    let cell = |name: &str| {
+        last.cell_data[name]
+            .1
+            .chunks(9)
+            .map(<[f64]>::to_vec)
+            .collect::<Vec<_>>()
+    };
+    let (total, mech, mw) = (
+        cell("cauchy_stress"),
+        cell("mechanical_stress"),
+        cell("maxwell_stress"),
+    );
+    for (k, e) in last.cell_data["electric_field"].1.chunks(3).enumerate() {
+        let e2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+        for i in 0..3 {
+            for j in 0..3 {
+                let expected = eps * (e[i] * e[j] - if i == j { 0.5 * e2 } else { 0.0 });
+                let a = i * 3 + j;
+                assert!(
+                    (mw[k][a] - expected).abs() < 1e-9 * maxwell,
+                    "{k} {a}: {} vs {expected}",
+                    mw[k][a]
+                );
+                assert!((total[k][a] - mech[k][a] - mw[k][a]).abs() < 1e-9 * maxwell);
+            }
+        }
+        // through the thickness the film is pressed by ½εe²: the mechanical stress carries it
+        assert!(
+            (mech[k][8] + 0.5 * eps * e2).abs() < 1e-6 * maxwell,
+            "{:?}",
+            mech[k]
+        );
+    }
     for plot in [
         "thickness_stretch.png",
         "inplane_stretch.png",

@@ -163,27 +163,22 @@ impl CellKernel for AxisymmetricKernel {
 
     fn fields(&self, c: &CellInput) -> Result<CellFields, PointFailure> {
         let geom = c.geom;
-        let mut out = CellFields {
-            e: [0.0; 3],
-            sigma: [0.0; 9],
-            j: 0.0,
-            e_max: 0.0,
-        };
+        let mut out = CellFields::zero();
         let vol: f64 = geom.weights[..geom.n_qp].iter().sum();
         for q in 0..geom.n_qp {
             let (f, e0) = point(geom, q, c.local);
             let s = mat_stress(c.mat, &f, &e0, c.hist, q)?;
-            let w = geom.weights[q] / vol;
+            let s_mech = mat_stress(c.mat, &f, &Vec3::zeros(), c.hist, q)?;
             let sigma = crate::material::cauchy_stress(&s.p, &f);
+            let sigma_mech = crate::material::cauchy_stress(&s_mech.p, &f);
             let e = crate::material::spatial_field(&f, &e0).unwrap_or_default();
-            for i in 0..3 {
-                out.e[i] += w * e[i];
-                for k in 0..3 {
-                    out.sigma[i * 3 + k] += w * sigma[(i, k)];
-                }
-            }
-            out.j += w * f.determinant();
-            out.e_max = out.e_max.max(e.norm());
+            out.add_point(
+                geom.weights[q] / vol,
+                &e,
+                &sigma,
+                &sigma_mech,
+                f.determinant(),
+            );
         }
         Ok(out)
     }

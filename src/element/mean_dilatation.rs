@@ -405,24 +405,16 @@ pub fn cell_fields_md(
 ) -> Result<CellFields, PointFailure> {
     let k = MdKinematics::new(geom, local)?;
     let (p, _, _) = md_stresses(geom, mat, hist, &k)?;
-    let mut out = CellFields {
-        e: [0.0; 3],
-        sigma: [0.0; 9],
-        j: 0.0,
-        e_max: 0.0,
-    };
+    // the mechanical part: the same kinematics at zero field
+    let mut k0 = MdKinematics::new(geom, local)?;
+    k0.e0 = [Vec3::zeros(); MAX_QP];
+    let (p_mech, _, _) = md_stresses(geom, mat, hist, &k0)?;
+    let mut out = CellFields::zero();
     for q in 0..geom.n_qp {
-        let w = geom.weights[q] / k.volume;
         let sigma = p[q] * k.f[q].transpose() / k.j[q];
+        let sigma_mech = p_mech[q] * k.f[q].transpose() / k.j[q];
         let e = k.finv_t[q] * k.e0[q];
-        for i in 0..3 {
-            out.e[i] += w * e[i];
-            for m in 0..3 {
-                out.sigma[i * 3 + m] += w * sigma[(i, m)];
-            }
-        }
-        out.j += w * k.j[q];
-        out.e_max = out.e_max.max(e.norm());
+        out.add_point(geom.weights[q] / k.volume, &e, &sigma, &sigma_mech, k.j[q]);
     }
     Ok(out)
 }

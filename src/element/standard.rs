@@ -137,9 +137,47 @@ fn add_residual(
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CellFields {
     pub e: [f64; 3],
+    /// Total Cauchy stress (Pa), row-major: the mechanical stress plus the Maxwell stress.
     pub sigma: [f64; 9],
+    /// Mechanical Cauchy stress (Pa): that of the energy at zero field, Ψ(F, 0). The Maxwell
+    /// stress is `sigma − sigma_mech` (zero total stress in a free film hides both).
+    pub sigma_mech: [f64; 9],
     pub j: f64,
     pub e_max: f64,
+}
+
+impl CellFields {
+    /// No fields (zero), to accumulate the quadrature points' contributions into.
+    pub fn zero() -> Self {
+        CellFields {
+            e: [0.0; 3],
+            sigma: [0.0; 9],
+            sigma_mech: [0.0; 9],
+            j: 0.0,
+            e_max: 0.0,
+        }
+    }
+
+    /// Adds the weight-`w` contribution of one point: its true field `e`, total and mechanical
+    /// Cauchy stress, and J.
+    pub fn add_point(
+        &mut self,
+        w: f64,
+        e: &crate::material::Vec3,
+        sigma: &crate::material::Mat3,
+        sigma_mech: &crate::material::Mat3,
+        j: f64,
+    ) {
+        for i in 0..3 {
+            self.e[i] += w * e[i];
+            for k in 0..3 {
+                self.sigma[i * 3 + k] += w * sigma[(i, k)];
+                self.sigma_mech[i * 3 + k] += w * sigma_mech[(i, k)];
+            }
+        }
+        self.j += w * j;
+        self.e_max = self.e_max.max(e.norm());
+    }
 }
 
 /// F and E₀ at each quadrature point of a standard cell, into `out[..n_qp]`.
@@ -164,29 +202,25 @@ pub fn cell_fields(
 ) -> Result<CellFields, PointFailure> {
     let n = geom.n_nodes;
     let (u, phi) = split_local(n, local);
-    let mut out = CellFields {
-        e: [0.0; 3],
-        sigma: [0.0; 9],
-        j: 0.0,
-        e_max: 0.0,
-    };
+    let mut out = CellFields::zero();
     let vol: f64 = geom.weights[..geom.n_qp].iter().sum();
     for q in 0..geom.n_qp {
         let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
-        let s = mat
-            .stress_at(&f, &e0, hist.at(q))
-            .map_err(|error| PointFailure { qp: q, error })?;
-        let w = geom.weights[q] / vol;
+        let stress = |e0: &crate::material::Vec3| {
+            mat.stress_at(&f, e0, hist.at(q))
+                .map_err(|error| PointFailure { qp: q, error })
+        };
+        let (s, s_mech) = (stress(&e0)?, stress(&crate::material::Vec3::zeros())?);
         let sigma = crate::material::cauchy_stress(&s.p, &f);
+        let sigma_mech = crate::material::cauchy_stress(&s_mech.p, &f);
         let e = crate::material::spatial_field(&f, &e0).unwrap_or_default();
-        for i in 0..3 {
-            out.e[i] += w * e[i];
-            for k in 0..3 {
-                out.sigma[i * 3 + k] += w * sigma[(i, k)];
-            }
-        }
-        out.j += w * f.determinant();
-        out.e_max = out.e_max.max(e.norm());
+        out.add_point(
+            geom.weights[q] / vol,
+            &e,
+            &sigma,
+            &sigma_mech,
+            f.determinant(),
+        );
     }
     Ok(out)
 }

@@ -280,6 +280,8 @@ impl OutputWriter {
         }
         let e: Vec<f64> = fields.iter().flat_map(|f| f.e).collect();
         let sigma: Vec<f64> = fields.iter().flat_map(|f| f.sigma).collect();
+        let sigma_mech: Vec<f64> = fields.iter().flat_map(|f| f.sigma_mech).collect();
+        let maxwell: Vec<f64> = sigma.iter().zip(&sigma_mech).map(|(t, m)| t - m).collect();
         let j: Vec<f64> = fields.iter().map(|f| f.j).collect();
         let cell_type = match mesh.kind {
             ElementKind::Hex8 => CellType::Hex8,
@@ -313,6 +315,16 @@ impl OutputWriter {
                     name: "cauchy_stress",
                     components: 9,
                     values: &sigma,
+                },
+                DataArray {
+                    name: "mechanical_stress",
+                    components: 9,
+                    values: &sigma_mech,
+                },
+                DataArray {
+                    name: "maxwell_stress",
+                    components: 9,
+                    values: &maxwell,
                 },
                 DataArray {
                     name: "J",
