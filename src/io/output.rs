@@ -6,7 +6,7 @@ use super::atomic::write_atomic;
 use super::build::Plan;
 use super::linear::{write_modes, write_response};
 use super::plot::{line_plot, stacked_plot, PlotError, PlotSpec, Series};
-use super::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuError, VtuPiece};
+use super::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuError, VtuPiece};
 use crate::element::CellFields;
 use crate::job::linear::FrequencyResponse;
 use crate::job::run::{Observer, RunSummary, StepRecord};
@@ -340,7 +340,12 @@ impl OutputWriter {
                 values,
             });
         }
-        match write_vtu(&self.dir.join("fields").join(&name), &piece) {
+        let encoding = if plan.output.fields_ascii {
+            Encoding::Ascii
+        } else {
+            Encoding::Binary
+        };
+        match write_vtu_as(&self.dir.join("fields").join(&name), &piece, encoding) {
             Ok(()) => {
                 self.pvd.push((record.time, format!("fields/{name}")));
                 if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {

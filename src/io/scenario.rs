@@ -552,6 +552,9 @@ pub struct OutputSpec {
     /// `png` or `svg`.
     #[serde(default = "png")]
     pub plot_format: String,
+    /// Encoding of the `.vtu` field files: `binary` (default) or `ascii`.
+    #[serde(default)]
+    pub vtu_format: Option<String>,
 }
 
 fn one() -> u64 {
@@ -570,6 +573,7 @@ impl Default for OutputSpec {
             fields_every: 1,
             plots: true,
             plot_format: png(),
+            vtu_format: None,
         }
     }
 }

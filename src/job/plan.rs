@@ -79,6 +79,8 @@ pub struct OutputPlan {
     pub fields_every: usize,
     pub plots: bool,
     pub plot_format: String,
+    /// Field files with ASCII arrays instead of binary (base64) ones.
+    pub fields_ascii: bool,
 }
 
 /// Everything needed to run a scenario.

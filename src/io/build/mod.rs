@@ -101,10 +101,21 @@ fn build_output(ctx: &Ctx, o: &OutputSpec) -> Result<OutputPlan, InputError> {
             format!("expected `png` or `svg`; got `{}`", o.plot_format),
         ));
     }
+    let fields_ascii = match o.vtu_format.as_deref().unwrap_or("binary") {
+        "binary" => false,
+        "ascii" => true,
+        other => {
+            return Err(ctx.err(
+                "output.vtu_format",
+                format!("expected `binary` or `ascii`; got `{other}`"),
+            ))
+        }
+    };
     Ok(OutputPlan {
         fields_every: o.fields_every.min(usize::MAX as u64) as usize,
         plots: o.plots,
         plot_format: o.plot_format.clone(),
+        fields_ascii,
     })
 }
 
@@ -302,6 +313,18 @@ mod tests {
         assert_rejected(&with, "name", "without `/`");
         assert_rejected(&[("name", "name = \"..\"")], "name", "not `.` or `..`");
         assert_rejected(&[("name", "name = \"  \"")], "name", "non-empty name");
+    }
+
+    #[test]
+    fn vtu_format_is_binary_or_ascii() {
+        assert!(!plan(&[]).output.fields_ascii);
+        let p = plan(&[("output", "[output]\nvtu_format = \"ascii\"")]);
+        assert!(p.output.fields_ascii);
+        assert_rejected(
+            &[("output", "[output]\nvtu_format = \"hdf5\"")],
+            "output.vtu_format",
+            "expected `binary` or `ascii`; got `hdf5`",
+        );
     }
 
     #[test]
