@@ -925,3 +925,47 @@ fn sweep_marks_failed_runs_and_carries_warnings() {
         assert_eq!(j["electrodes.top.voltage.amplitude"].as_f64(), Some(v));
     }
 }
+
+/// `current` and `power` probes: the current is the backward difference of the electrode's charge
+/// over each step (at the first step of a slow sinusoid from 0 V the film is still a parallel-plate
+/// capacitor, I = ε₀εᵣA/h · ΔV/Δt), the power is the voltage times the current.
+#[test]
+fn current_and_power_probes_follow_the_charge() {
+    let dir = tempdir("current");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/film-current.toml"),
+        dir.join("c.toml"),
+    )
+    .unwrap();
+    let out = deasim(&["run", "c.toml", "--out", "o"], &dir);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let (header, rows) = history(&dir.join("o"));
+    let rows: Vec<Vec<f64>> = rows
+        .iter()
+        .map(|r| r.iter().map(|x| x.parse().unwrap_or(f64::NAN)).collect())
+        .collect();
+    let col = |n: &str| header.iter().position(|h| h == n).unwrap();
+    let (t, v, q, i, p) = (
+        col("time"),
+        col("voltage"),
+        col("probe:charge"),
+        col("probe:current"),
+        col("probe:power"),
+    );
+    assert_eq!(rows[0][i], 0.0);
+    for w in rows.windows(2) {
+        let expected = (w[1][q] - w[0][q]) / (w[1][t] - w[0][t]);
+        assert!(
+            (w[1][i] - expected).abs() <= 1e-9 * expected.abs().max(1e-12),
+            "{w:?}"
+        );
+        assert!((w[1][p] - w[1][v] * w[1][i]).abs() <= 1e-12 * w[1][p].abs().max(1e-30));
+    }
+    let c0 = FILM_EPS_R * EPSILON_0 * 1e-4 / 1e-3;
+    let first = c0 * rows[1][v] / (rows[1][t] - rows[0][t]);
+    assert!(
+        (rows[1][i] / first - 1.0).abs() < 1e-6,
+        "{} vs {first}",
+        rows[1][i]
+    );
+}

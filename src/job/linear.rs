@@ -117,7 +117,11 @@ pub fn linear_probes(plan: &Plan) -> Vec<usize> {
         .filter(|&i| {
             !matches!(
                 plan.probes[i].1.kind,
-                ProbeKind::MaxElectricField | ProbeKind::StoredEnergy | ProbeKind::ElectricEnergy
+                ProbeKind::MaxElectricField
+                    | ProbeKind::StoredEnergy
+                    | ProbeKind::ElectricEnergy
+                    | ProbeKind::Current(_)
+                    | ProbeKind::Power(_)
             )
         })
         .collect()
@@ -153,6 +157,7 @@ impl ProbeMap<'_> {
             reference: self.reference,
             max_field: f64::NAN,
             symmetry: plan.symmetry_factor,
+            previous: (&[], 0.0),
         };
         Ok(self
             .probes

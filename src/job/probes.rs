@@ -48,6 +48,11 @@ pub enum ProbeKind {
     Deflection(Vec<usize>),
     /// Largest true (spatial) electric field magnitude at a quadrature point (V/m).
     MaxElectricField,
+    /// Current (A) into the electrode with this index: the change of its charge over the last
+    /// step divided by the step's time (backward difference; 0 at the first record).
+    Current(usize),
+    /// Electrical power (W) delivered to the electrode: its voltage times its current.
+    Power(usize),
 }
 
 impl ProbeKind {
@@ -56,6 +61,8 @@ impl ProbeKind {
         matches!(
             self,
             ProbeKind::Charge(_)
+                | ProbeKind::Current(_)
+                | ProbeKind::Power(_)
                 | ProbeKind::Capacitance(_)
                 | ProbeKind::Reaction(..)
                 | ProbeKind::StoredEnergy
@@ -89,6 +96,8 @@ pub struct ProbeInput<'a> {
     pub max_field: f64,
     /// Copies of the meshed part in the device (4 for a quarter model).
     pub symmetry: f64,
+    /// The reactions of the previous record (empty at the first) and the time since it (s).
+    pub previous: (&'a [f64], f64),
 }
 
 impl Probe {
@@ -132,6 +141,8 @@ impl Probe {
                     / nodes.len().max(1) as f64
             }
             ProbeKind::MaxElectricField => inp.max_field,
+            ProbeKind::Current(e) => current(inp, *e),
+            ProbeKind::Power(e) => inp.electrodes[*e].1 * current(inp, *e),
         };
         let v = if self.kind.is_global() {
             v * inp.symmetry
@@ -149,4 +160,18 @@ fn charge(inp: &ProbeInput, e: usize) -> f64 {
         .iter()
         .map(|&n| inp.reactions[n * 4 + 3])
         .sum::<f64>()
+}
+
+/// Current into an electrode: (Q − Q_prev)/Δt over the last step, 0 without one.
+fn current(inp: &ProbeInput, e: usize) -> f64 {
+    let (prev, dt) = inp.previous;
+    if prev.is_empty() || dt <= 0.0 {
+        return 0.0;
+    }
+    let before = -inp.electrodes[e]
+        .0
+        .iter()
+        .map(|&n| prev[n * 4 + 3])
+        .sum::<f64>();
+    (charge(inp, e) - before) / dt
 }

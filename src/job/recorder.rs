@@ -132,6 +132,7 @@ impl<'p> Recorder<'p> {
             reference: &self.reference,
             max_field: max_electric_field,
             symmetry: self.plan.symmetry_factor,
+            previous: (&self.prev_reactions, dt),
         };
         let probes = self
             .plan

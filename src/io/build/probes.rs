@@ -6,7 +6,7 @@ use crate::job::probes::{NodalQuantity, Probe, ProbeKind};
 use crate::problem::model::Model;
 
 /// The probe kinds by scenario name.
-const KINDS: [&str; 10] = [
+const KINDS: [&str; 12] = [
     "mean",
     "max",
     "min",
@@ -17,6 +17,8 @@ const KINDS: [&str; 10] = [
     "energy",
     "center_deflection",
     "max_electric_field",
+    "current",
+    "power",
 ];
 
 /// The nodal quantities by scenario name.
@@ -140,6 +142,8 @@ fn probe_kind(
         }
         "charge" => ProbeKind::Charge(electrode(&need(&p.electrode, "electrode")?)?),
         "capacitance" => ProbeKind::Capacitance(electrode(&need(&p.electrode, "electrode")?)?),
+        "current" => ProbeKind::Current(electrode(&need(&p.electrode, "electrode")?)?),
+        "power" => ProbeKind::Power(electrode(&need(&p.electrode, "electrode")?)?),
         "reaction" => {
             let c = reaction_component(ctx, key, &need(&p.quantity, "quantity")?)?;
             ProbeKind::Reaction(c, set(&need(&p.set, "set")?)?)
@@ -289,6 +293,7 @@ mod tests {
             reference: &state,
             max_field: 0.0,
             symmetry: 1.0,
+            previous: (&[], 0.0),
         };
         let mean = probe.evaluate(&input);
         let exact = 0.01f64 * 0.01 / 3.0;
