@@ -8,10 +8,10 @@
 //! (Zienkiewicz & Taylor, vol. 1, axisymmetric analysis; Henann, Chester & Bertoldi, Soft Matter
 //! 9 (2013) 6318, for the electro-elastic form).
 
-use super::{CellFields, CellHistory, CellInput, CellKernel, PointFailure};
+use super::{CellFields, CellInput, CellKernel, PointFailure};
 use crate::fem::axisymmetric::meridian_kinematics;
 use crate::fem::{CellGeometry, FIELDS, MAX_NODES};
-use crate::material::{Mat3, Material, Vec3};
+use crate::material::{Mat3, Vec3};
 
 /// The axisymmetric kernel with full integration, for cells from
 /// `fem::axisymmetric::meridian_geometry`.
@@ -167,18 +167,8 @@ impl CellKernel for AxisymmetricKernel {
         let vol: f64 = geom.weights[..geom.n_qp].iter().sum();
         for q in 0..geom.n_qp {
             let (f, e0) = point(geom, q, c.local);
-            let s = mat_stress(c.mat, &f, &e0, c.hist, q)?;
-            let s_mech = mat_stress(c.mat, &f, &Vec3::zeros(), c.hist, q)?;
-            let sigma = crate::material::cauchy_stress(&s.p, &f);
-            let sigma_mech = crate::material::cauchy_stress(&s_mech.p, &f);
-            let e = crate::material::spatial_field(&f, &e0).unwrap_or_default();
-            out.add_point(
-                geom.weights[q] / vol,
-                &e,
-                &sigma,
-                &sigma_mech,
-                f.determinant(),
-            );
+            out.add_material_point(geom.weights[q] / vol, c.mat, &f, &e0, c.hist.at(q))
+                .map_err(|error| PointFailure { qp: q, error })?;
         }
         Ok(out)
     }
@@ -193,15 +183,4 @@ impl CellKernel for AxisymmetricKernel {
         }
         Ok(())
     }
-}
-
-fn mat_stress(
-    mat: &dyn Material,
-    f: &Mat3,
-    e0: &Vec3,
-    hist: CellHistory,
-    q: usize,
-) -> Result<crate::material::Stress, PointFailure> {
-    mat.stress_at(f, e0, hist.at(q))
-        .map_err(|error| PointFailure { qp: q, error })
 }

@@ -158,6 +158,25 @@ impl CellFields {
         }
     }
 
+    /// Adds the weight-`w` contribution of a material point at (F, E₀) with history `h`: its
+    /// total stress, the mechanical one (the same point at zero field), its true field and J.
+    pub fn add_material_point(
+        &mut self,
+        w: f64,
+        mat: &dyn Material,
+        f: &crate::material::Mat3,
+        e0: &crate::material::Vec3,
+        h: crate::material::PointHistory,
+    ) -> Result<(), crate::material::MaterialError> {
+        let s = mat.stress_at(f, e0, h)?;
+        let s_mech = mat.stress_at(f, &crate::material::Vec3::zeros(), h)?;
+        let sigma = crate::material::cauchy_stress(&s.p, f);
+        let sigma_mech = crate::material::cauchy_stress(&s_mech.p, f);
+        let e = crate::material::spatial_field(f, e0).unwrap_or_default();
+        self.add_point(w, &e, &sigma, &sigma_mech, f.determinant());
+        Ok(())
+    }
+
     /// Adds the weight-`w` contribution of one point: its true field `e`, total and mechanical
     /// Cauchy stress, and J.
     pub fn add_point(
@@ -206,21 +225,8 @@ pub fn cell_fields(
     let vol: f64 = geom.weights[..geom.n_qp].iter().sum();
     for q in 0..geom.n_qp {
         let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
-        let stress = |e0: &crate::material::Vec3| {
-            mat.stress_at(&f, e0, hist.at(q))
-                .map_err(|error| PointFailure { qp: q, error })
-        };
-        let (s, s_mech) = (stress(&e0)?, stress(&crate::material::Vec3::zeros())?);
-        let sigma = crate::material::cauchy_stress(&s.p, &f);
-        let sigma_mech = crate::material::cauchy_stress(&s_mech.p, &f);
-        let e = crate::material::spatial_field(&f, &e0).unwrap_or_default();
-        out.add_point(
-            geom.weights[q] / vol,
-            &e,
-            &sigma,
-            &sigma_mech,
-            f.determinant(),
-        );
+        out.add_material_point(geom.weights[q] / vol, mat, &f, &e0, hist.at(q))
+            .map_err(|error| PointFailure { qp: q, error })?;
     }
     Ok(out)
 }

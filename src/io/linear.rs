@@ -7,7 +7,6 @@ use crate::io::plot::{stacked_plot, PlotSpec, Series};
 use crate::io::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuPiece};
 use crate::job::linear::FrequencyResponse;
 use crate::job::plan::Plan;
-use crate::mesh::ElementKind;
 use crate::problem::dofs::{FIELDS, PHI};
 use crate::time::modal::Mode;
 use std::fmt::Write as _;
@@ -42,11 +41,7 @@ pub fn write_modes(
     let disp: Vec<f64> = (0..n)
         .flat_map(|a| state[a * FIELDS..a * FIELDS + 3].to_vec())
         .collect();
-    let cell_type = match mesh.kind {
-        ElementKind::Hex8 => CellType::Hex8,
-        ElementKind::Tet4 => CellType::Tet4,
-        ElementKind::Tet10 => CellType::Tet10,
-    };
+    let cell_type = CellType::from(mesh.kind);
     let mut entries = Vec::new();
     for (i, m) in found.iter().enumerate() {
         let largest = (0..n)

@@ -10,7 +10,6 @@ use super::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuErro
 use crate::element::CellFields;
 use crate::job::linear::FrequencyResponse;
 use crate::job::run::{Observer, RunSummary, StepRecord};
-use crate::mesh::ElementKind;
 use crate::time::modal::Mode;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -283,11 +282,7 @@ impl OutputWriter {
         let sigma_mech: Vec<f64> = fields.iter().flat_map(|f| f.sigma_mech).collect();
         let maxwell: Vec<f64> = sigma.iter().zip(&sigma_mech).map(|(t, m)| t - m).collect();
         let j: Vec<f64> = fields.iter().map(|f| f.j).collect();
-        let cell_type = match mesh.kind {
-            ElementKind::Hex8 => CellType::Hex8,
-            ElementKind::Tet4 => CellType::Tet4,
-            ElementKind::Tet10 => CellType::Tet10,
-        };
+        let cell_type = CellType::from(mesh.kind);
         let name = format!("step_{:05}.vtu", self.pvd.len());
         let mut piece = VtuPiece {
             points: &mesh.nodes,

@@ -30,6 +30,16 @@ pub enum CellType {
     Tet10,
 }
 
+impl From<crate::mesh::ElementKind> for CellType {
+    fn from(kind: crate::mesh::ElementKind) -> Self {
+        match kind {
+            crate::mesh::ElementKind::Hex8 => CellType::Hex8,
+            crate::mesh::ElementKind::Tet4 => CellType::Tet4,
+            crate::mesh::ElementKind::Tet10 => CellType::Tet10,
+        }
+    }
+}
+
 impl CellType {
     /// The VTK cell type id.
     pub fn vtk_id(self) -> u8 {
