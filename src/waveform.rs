@@ -77,6 +77,15 @@ impl Waveform {
         }
     }
 
+    /// Whether the signal has no jumps (a square wave or an instant step has).
+    pub fn is_continuous(&self) -> bool {
+        match self.shape {
+            Shape::Square { .. } => false,
+            Shape::Step { rise_time, .. } => rise_time > 0.0,
+            _ => true,
+        }
+    }
+
     /// Value at time `t` (s).
     pub fn value(&self, t: f64) -> f64 {
         self.offset + self.amplitude * self.shape_value(t)

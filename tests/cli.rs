@@ -969,3 +969,48 @@ fn current_and_power_probes_follow_the_charge() {
         rows[1][i]
     );
 }
+
+/// `area_strain` of an electrode (or its face set) on the homogeneous film: A/A₀ − 1 = λ² − 1 with
+/// λ the in-plane stretch of the corner, for linear (hex8) and quadratic (tet10) faces.
+#[test]
+fn area_strain_probe_is_the_square_of_the_inplane_stretch() {
+    let dir = tempdir("area-strain");
+    let scenario = format!(
+        "{}\n[probes.area]\nkind = \"area_strain\"\nelectrode = \"top\"\n\
+         [probes.area_set]\nkind = \"area_strain\"\nset = \"z1\"\n",
+        deasim::io::examples::example("film").unwrap()
+    );
+    std::fs::write(dir.join("a.toml"), scenario).unwrap();
+    for element in ["hex8", "tet10"] {
+        let out = deasim(
+            &[
+                "run",
+                "a.toml",
+                "--out",
+                element,
+                "--set",
+                &format!("mesh.element=\"{element}\""),
+            ],
+            &dir,
+        );
+        assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+        let (header, rows) = history(&dir.join(element));
+        let col = |n: &str| header.iter().position(|h| h == n).unwrap();
+        let (l, a, b) = (
+            col("probe:inplane_stretch"),
+            col("probe:area"),
+            col("probe:area_set"),
+        );
+        let last = rows.last().unwrap();
+        let v = |c: usize| last[c].parse::<f64>().unwrap();
+        let expected = v(l) * v(l) - 1.0;
+        assert!(expected > 0.1, "{element}: the film spreads ({expected})");
+        assert!(
+            (v(a) - expected).abs() < 1e-10,
+            "{element}: {} vs {expected}",
+            v(a)
+        );
+        assert_eq!(v(a), v(b));
+        assert_eq!(rows[0][a].parse::<f64>().unwrap(), 0.0);
+    }
+}

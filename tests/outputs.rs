@@ -321,3 +321,62 @@ fn summary_states_probe_statistics_version_overrides_and_solver() {
     );
     assert!(get("peak_to_peak") > 0.0);
 }
+
+/// Plot axes carry units with metric prefixes and the probe's meaning; a static ramp is drawn
+/// against its load factor; a probe is drawn against the voltage only when the voltage moves
+/// continuously (under a square wave it jumps, and such a plot would be vertical lines).
+#[test]
+fn plots_name_units_prefixes_and_the_load_factor() {
+    let dir = tempdir("plot-axes");
+    example(&dir, "film");
+    let set = |k: &str| vec!["--set".to_string(), k.to_string()];
+    let run = |out: &str, extra: &[String]| {
+        let mut args: Vec<String> = ["run", "film.toml", "--out", out]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        args.extend(set("output.plot_format=\"svg\""));
+        args.extend(extra.iter().cloned());
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = deasim(&args, &dir);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    };
+    let svg = |out: &str, name: &str| {
+        std::fs::read_to_string(dir.join(out).join("plots").join(name)).unwrap_or_default()
+    };
+    run("ramp", &[]);
+    let v = svg("ramp", "voltage.svg");
+    assert!(v.contains("load factor [-]"), "{v}");
+    assert!(v.contains("voltage [kV]"));
+    let t = svg("ramp", "thickness_stretch.svg");
+    assert!(t.contains("thickness_stretch: 1 + 1000 × mean uz over z1"));
+    assert!(t.contains("thickness_stretch [-]"));
+    let q = svg("ramp", "charge_vs_voltage.svg");
+    assert!(
+        q.contains("charge [nC]") && q.contains("voltage [kV]"),
+        "{q}"
+    );
+    assert!(svg("ramp", "capacitance.svg").contains("capacitance [pF]"));
+
+    // the same film driven in real time: a sine (continuous), then a square wave
+    let mut drive = set("stages.0.kind=\"quasi-static\"");
+    drive.extend(set("stages.0.duration=0.05"));
+    let mut sine = drive.clone();
+    sine.extend(set(
+        "electrodes.top.voltage={waveform=\"sine\",amplitude=20e3,frequency=20.0}",
+    ));
+    run("sine", &sine);
+    assert!(svg("sine", "voltage.svg").contains("time [ms]"));
+    assert!(dir.join("sine/plots/charge_vs_voltage.svg").exists());
+    let mut square = drive;
+    square.extend(set(
+        "electrodes.top.voltage={waveform=\"square\",amplitude=20e3,frequency=20.0}",
+    ));
+    run("square", &square);
+    let plots = names(&dir.join("square/plots"));
+    assert!(plots.contains(&"charge.svg".to_string()), "{plots:?}");
+    assert!(
+        !plots.iter().any(|p| p.contains("_vs_voltage")),
+        "{plots:?}"
+    );
+}

@@ -325,27 +325,27 @@ fn write(args: &MaterialTest, label: &str, dir: &Path, curves: &[Curve]) -> Resu
             .collect()
     };
     let title = format!("{label}: {} test", args.test);
-    let kpa = |r: &PointRecord| r.nominal / 1e3;
+    let stress = |r: &PointRecord| r.nominal;
     let plots: Vec<(String, &str, &str, Vec<Series>)> = if args.test == "creep" {
         vec![(
             "stretch_time".into(),
             "time [s]",
-            "stretch λ",
+            "stretch λ [-]",
             series(|r| r.t, |r| r.stretch),
         )]
     } else {
         vec![
             (
                 "stress_stretch".into(),
-                "stretch λ",
-                "nominal stress P₁₁ [kPa]",
-                series(|r| r.stretch, kpa),
+                "stretch λ [-]",
+                "nominal stress P₁₁ [Pa]",
+                series(|r| r.stretch, stress),
             ),
             (
                 "stress_time".into(),
                 "time [s]",
-                "nominal stress P₁₁ [kPa]",
-                series(|r| r.t, kpa),
+                "nominal stress P₁₁ [Pa]",
+                series(|r| r.t, stress),
             ),
         ]
     };

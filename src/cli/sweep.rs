@@ -7,7 +7,7 @@ use crate::element::CellFields;
 use crate::io::atomic::write_atomic;
 use crate::io::build::{Plan, StageKind};
 use crate::io::output::OutputWriter;
-use crate::io::plot::{line_plot, PlotSpec, Series};
+use crate::io::plot::{stacked_plot, PlotSpec, Series};
 use crate::job::run::{run, Observer, RunSummary, StepRecord};
 use crate::solve::newton::NewtonSettings;
 use std::fmt::Write as _;
@@ -447,10 +447,12 @@ fn write_table(
         .iter()
         .map(|o| if log { o.value.log10() } else { o.value })
         .collect();
-    let x_label = if log {
-        format!("log10 {}", range.path)
-    } else {
-        range.path.clone()
+    let unit = parameter_unit(&range.path);
+    let x_label = match (log, unit) {
+        (true, Some(u)) => format!("log10 {} (in {u})", range.path),
+        (true, None) => format!("log10 {}", range.path),
+        (false, Some(u)) => format!("{} [{u}]", range.path),
+        (false, None) => range.path.clone(),
     };
     let ext = &plan.output.plot_format;
     for (i, (name, _)) in plan.probes.iter().enumerate() {
@@ -467,41 +469,67 @@ fn write_table(
                 })
                 .collect()
         };
-        let mut series = vec![
-            Series {
-                label: "final".into(),
-                x: x.clone(),
-                y: pick(|f| f.last),
-            },
-            Series {
-                label: "maximum".into(),
-                x: x.clone(),
-                y: pick(|f| f.max),
-            },
+        let mut panels = vec![
+            ("final value", "final", pick(|f| f.last)),
+            ("maximum", "maximum", pick(|f| f.max)),
         ];
         let pp = pick(|f| f.peak_to_peak);
         if pp.iter().any(|v| v.is_finite()) {
-            series.push(Series {
-                label: "steady peak-to-peak".into(),
-                x: x.clone(),
-                y: pp,
-            });
+            panels.push(("steady peak-to-peak (last period)", "peak-to-peak", pp));
         }
+        let series: Vec<Series> = panels
+            .iter()
+            .map(|(_, label, y)| Series {
+                label: label.to_string(),
+                x: x.clone(),
+                y: y.clone(),
+            })
+            .collect();
         let path = dir.join(format!("plots/sweep_{name}.{ext}"));
-        let title = format!("{name} against {}", range.path);
-        if let Err(e) = line_plot(
-            &path,
-            &PlotSpec {
-                title: &title,
+        let y_label = match plan.probes[i].1.unit.as_str() {
+            "" => name.clone(),
+            u => format!("{name} [{u}]"),
+        };
+        let titles: Vec<String> = panels
+            .iter()
+            .map(|(what, ..)| format!("{name}: {what} against {}", range.path))
+            .collect();
+        // one panel per statistic: their magnitudes differ (a peak-to-peak is small beside a
+        // final value), so one shared axis would flatten some of them
+        let specs: Vec<PlotSpec> = series
+            .iter()
+            .zip(&titles)
+            .map(|(s, title)| PlotSpec {
+                title,
                 x_label: &x_label,
-                y_label: name,
-                series: &series,
-            },
-        ) {
+                y_label: &y_label,
+                series: std::slice::from_ref(s),
+            })
+            .collect();
+        if let Err(e) = stacked_plot(&path, &specs) {
             eprintln!("warning: {e}");
         }
     }
     Ok(())
+}
+
+/// The SI unit of a swept scenario value, by its key, when the key says it.
+fn parameter_unit(path: &str) -> Option<&'static str> {
+    let key = path.rsplit('.').next().unwrap_or(path);
+    let in_voltage = path.split('.').any(|k| k == "voltage");
+    Some(match key {
+        "voltage" => "V",
+        "amplitude" | "offset" if in_voltage => "V",
+        "frequency" | "shift_hz" => "Hz",
+        "duration" | "dt" | "rise_time" | "at" | "hold" => "s",
+        "mass" => "kg",
+        "density" => "kg/m³",
+        "mu" | "kappa" | "lambda" | "c10" | "c01" | "c20" | "c30" => "Pa",
+        "stretch" | "permittivity" | "jm" | "duty" => "-",
+        "viscosity" => "Pa·s",
+        "breakdown_field" => "V/m",
+        _ => return None,
+    })
 }
 
 #[cfg(test)]

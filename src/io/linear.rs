@@ -159,13 +159,13 @@ pub fn write_response(
             &[
                 PlotSpec {
                     title: &format!("{name}: per volt on {} about {:.0} V", r.electrode, r.bias),
-                    x_label: "log10 frequency [Hz]",
-                    y_label: "log10 |response| [probe unit / V]",
+                    x_label: "log10(frequency / Hz)",
+                    y_label: "log10(|response| per volt)",
                     series: std::slice::from_ref(&mag),
                 },
                 PlotSpec {
                     title: "",
-                    x_label: "log10 frequency [Hz]",
+                    x_label: "log10(frequency / Hz)",
                     y_label: "phase [deg]",
                     series: std::slice::from_ref(&phase),
                 },

@@ -459,7 +459,7 @@ impl OutputWriter {
             return;
         }
         let ext = &plan.output.plot_format;
-        let t: Vec<f64> = self.records.iter().map(|r| r.time).collect();
+        let (t, x_label) = self.x_axis(plan);
         let v: Vec<f64> = self.records.iter().map(|r| r.voltage).collect();
         let mut plots: Vec<(String, String, String, Series, String)> = vec![(
             "voltage".into(),
@@ -470,27 +470,39 @@ impl OutputWriter {
                 x: t.clone(),
                 y: v.clone(),
             },
-            "time [s]".into(),
+            x_label.clone(),
         )];
+        // against the voltage only when it varies and moves continuously (a square wave's jumps
+        // would draw vertical lines)
         let voltage_varies = v.iter().any(|&x| x != v[0]);
-        for (i, (name, _)) in plan.probes.iter().enumerate() {
+        let continuous = plan.stages.iter().all(|s| {
+            !s.electrodes_on
+                || !matches!(
+                    s.kind,
+                    crate::job::plan::StageKind::Dynamic { .. }
+                        | crate::job::plan::StageKind::QuasiStatic { .. }
+                )
+                || plan.electrodes.iter().all(|e| e.voltage.is_continuous())
+        });
+        for (i, (name, probe)) in plan.probes.iter().enumerate() {
             let y: Vec<f64> = self.records.iter().map(|r| r.probes[i]).collect();
+            let y_label = probe_axis(name, probe);
             plots.push((
                 name.clone(),
-                format!("probe {name}"),
-                name.clone(),
+                format!("{name}: {}", probe.description),
+                y_label.clone(),
                 Series {
                     label: name.clone(),
                     x: t.clone(),
                     y: y.clone(),
                 },
-                "time [s]".into(),
+                x_label.clone(),
             ));
-            if voltage_varies {
+            if voltage_varies && continuous {
                 plots.push((
                     format!("{name}_vs_voltage"),
-                    format!("probe {name} against voltage"),
-                    name.clone(),
+                    format!("{name} against the voltage"),
+                    y_label,
                     Series {
                         label: name.clone(),
                         x: v.clone(),
@@ -536,7 +548,7 @@ impl OutputWriter {
                 x: t.clone(),
                 y: rows.iter().map(|r| r.voltage).collect(),
             };
-            for (i, (name, _)) in plan.probes.iter().enumerate() {
+            for (i, name) in plan.probes.iter().map(|p| &p.0).enumerate() {
                 let probe = Series {
                     label: name.clone(),
                     x: t.clone(),
@@ -547,11 +559,12 @@ impl OutputWriter {
                     .dir
                     .join("plots")
                     .join(format!("{}_{name}_and_voltage.{ext}", stage.name));
+                let y_label = probe_axis(name, &plan.probes[i].1);
                 let panels = [
                     PlotSpec {
                         title: &title,
                         x_label: "time [s]",
-                        y_label: name,
+                        y_label: &y_label,
                         series: std::slice::from_ref(&probe),
                     },
                     PlotSpec {
@@ -569,6 +582,70 @@ impl OutputWriter {
         for e in stage_errors {
             self.plot_error(e);
         }
+    }
+}
+
+/// A probe's axis title: `name [unit]`, or the name alone when its unit is unknown.
+fn probe_axis(name: &str, probe: &crate::job::probes::Probe) -> String {
+    if probe.unit.is_empty() {
+        name.to_string()
+    } else {
+        format!("{name} [{}]", probe.unit)
+    }
+}
+
+impl OutputWriter {
+    /// The abscissa of the run's plots and its title: the load factor when every recorded stage
+    /// is a load ramp in pseudo-time (static stages of elastic materials; one unit per stage),
+    /// else the time.
+    fn x_axis(&self, plan: &Plan) -> (Vec<f64>, String) {
+        use crate::job::plan::StageKind;
+        let time = || {
+            let t = self.records.iter().map(|r| r.time).collect();
+            (t, "time [s]".to_string())
+        };
+        let pseudo = plan
+            .model
+            .materials
+            .iter()
+            .all(|m| m.state_size() == 0 && m.maxwell_branches().is_empty());
+        let recorded: Vec<&crate::job::plan::Stage> = plan
+            .stages
+            .iter()
+            .filter(|s| self.records.iter().any(|r| r.stage == s.name))
+            .collect();
+        if !pseudo
+            || recorded.is_empty()
+            || recorded
+                .iter()
+                .any(|s| !matches!(s.kind, StageKind::Static { .. }))
+        {
+            return time();
+        }
+        // stage k runs from the sum of the earlier durations; its load factor is the fraction
+        let mut start = std::collections::HashMap::new();
+        let (mut t0, mut k) = (0.0, 0.0);
+        for s in &plan.stages {
+            if matches!(s.kind, StageKind::Static { .. }) {
+                start.insert(s.name.as_str(), (t0, s.duration, k));
+                k += 1.0;
+            }
+            t0 += s.duration;
+        }
+        let x = self
+            .records
+            .iter()
+            .map(|r| match start.get(r.stage.as_str()) {
+                Some(&(t0, d, k)) if d > 0.0 => k + (r.time - t0) / d,
+                _ => f64::NAN,
+            })
+            .collect();
+        let label = if recorded.len() == 1 {
+            "load factor [-]"
+        } else {
+            "load factor, stage by stage [-]"
+        };
+        (x, label.to_string())
     }
 }
 

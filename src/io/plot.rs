@@ -121,16 +121,53 @@ pub fn stacked_plot(path: &Path, specs: &[PlotSpec]) -> Result<(), PlotError> {
             reason: "no panel".to_string(),
         });
     }
-    let mut panels = Vec::with_capacity(specs.len());
+    let mut prepared = Vec::with_capacity(specs.len());
     for spec in specs {
-        let curves = prepare(path, spec)?;
-        let r = ranges(path, &curves)?;
-        panels.push((spec, curves, r));
+        prepared.push(prepare(path, spec)?);
     }
+    // one x prefix for all panels (they share the x range), one y prefix per panel
+    let x_scale = prefix_scale(
+        specs[0].x_label,
+        prepared
+            .iter()
+            .flatten()
+            .flat_map(|c| c.points.iter().map(|p| p.0)),
+    );
+    let mut labels = Vec::with_capacity(specs.len());
+    let mut panels = Vec::with_capacity(specs.len());
+    for (spec, mut curves) in specs.iter().zip(prepared) {
+        let y_scale = prefix_scale(
+            spec.y_label,
+            curves.iter().flat_map(|c| c.points.iter().map(|p| p.1)),
+        );
+        for c in &mut curves {
+            for p in &mut c.points {
+                *p = (p.0 * x_scale.factor, p.1 * y_scale.factor);
+            }
+        }
+        labels.push((
+            scaled_label(spec.x_label, &x_scale),
+            scaled_label(spec.y_label, &y_scale),
+        ));
+        let r = ranges(path, &curves)?;
+        panels.push((curves, r));
+    }
+    let panels: Vec<Panel> = panels
+        .into_iter()
+        .zip(specs)
+        .zip(&labels)
+        .map(|(((curves, r), spec), (x, y))| Panel {
+            title: spec.title,
+            x_label: x,
+            y_label: y,
+            curves,
+            ranges: r,
+        })
+        .collect();
     let x_range = panels
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
-            (a.0.min(p.2 .0 .0), a.1.max(p.2 .0 .1))
+            (a.0.min(p.ranges.0 .0), a.1.max(p.ranges.0 .1))
         });
     ensure_font().map_err(|reason| PlotError::Font {
         path: path.to_path_buf(),
@@ -159,14 +196,25 @@ pub fn stacked_plot(path: &Path, specs: &[PlotSpec]) -> Result<(), PlotError> {
                 path: path.to_path_buf(),
                 source,
             })?;
-            let drawn = {
-                let root = BitMapBackend::new(&tmp, (WIDTH, height)).into_drawing_area();
-                draw_panels(root, &panels, x_range)
-                // The backend is dropped here; on failure its drop may still save a file.
-            };
-            if let Err(reason) = drawn {
+            // drawn at SUPERSAMPLE× the size and averaged down: anti-aliased lines and text
+            let (w, h) = (WIDTH * SUPERSAMPLE, height * SUPERSAMPLE);
+            let mut big = vec![255u8; (w * h * 3) as usize];
+            {
+                let root = BitMapBackend::with_buffer(&mut big, (w, h)).into_drawing_area();
+                draw_panels(root, &panels, x_range).map_err(drawing_err)?;
+            }
+            let small = downsample(&big, WIDTH, height, SUPERSAMPLE);
+            let saved = image::save_buffer_with_format(
+                &tmp,
+                &small,
+                WIDTH,
+                height,
+                image::ColorType::Rgb8,
+                image::ImageFormat::Png,
+            );
+            if let Err(err) = saved {
                 let _ = std::fs::remove_file(&tmp);
-                return Err(drawing_err(reason));
+                return Err(drawing_err(err.to_string()));
             }
             persist_temp(&tmp, path).map_err(|source| PlotError::Io {
                 path: path.to_path_buf(),
@@ -176,8 +224,15 @@ pub fn stacked_plot(path: &Path, specs: &[PlotSpec]) -> Result<(), PlotError> {
     }
 }
 
-/// A panel: its spec, its curves and its (x, y) ranges.
-type Panel<'a, 's> = (&'a PlotSpec<'s>, Vec<Curve<'s>>, (Range, Range));
+/// A panel ready to draw: title, axis titles with the units' prefixes, curves in those units and
+/// their (x, y) ranges.
+struct Panel<'a, 's> {
+    title: &'a str,
+    x_label: &'a str,
+    y_label: &'a str,
+    curves: Vec<Curve<'s>>,
+    ranges: (Range, Range),
+}
 
 /// Draws the panels top to bottom on the common x range.
 fn draw_panels<DB: DrawingBackend>(
@@ -188,9 +243,10 @@ fn draw_panels<DB: DrawingBackend>(
 where
     DB::ErrorType: 'static,
 {
+    let k = root.dim_in_pixel().0 / WIDTH;
     let areas = root.split_evenly((panels.len(), 1));
-    for (area, (spec, curves, (_, y_range))) in areas.into_iter().zip(panels) {
-        draw(area, spec, curves, x_range, *y_range)?;
+    for (area, panel) in areas.into_iter().zip(panels) {
+        draw(area, panel, x_range, k.max(1))?;
     }
     Ok(())
 }
@@ -363,73 +419,164 @@ fn ensure_font() -> Result<(), String> {
 
 fn draw<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
-    spec: &PlotSpec,
-    curves: &[Curve],
+    panel: &Panel,
     (x0, x1): Range,
-    (y0, y1): Range,
+    k: u32,
 ) -> Result<(), String>
 where
     DB::ErrorType: 'static,
 {
     let e = |err: DrawingAreaErrorKind<DB::ErrorType>| err.to_string();
+    let px = |v: u32| v * k;
+    let font = |size: u32| ("sans-serif", f64::from(size * k));
+    let (y0, y1) = panel.ranges.1;
     root.fill(&WHITE).map_err(e)?;
     let x_tick = |v: &f64| tick_label(&snap_tick(*v, x1 - x0));
     let y_tick = |v: &f64| tick_label(&snap_tick(*v, y1 - y0));
     let mut chart = ChartBuilder::on(&root)
-        .caption(spec.title, ("sans-serif", 24))
-        .margin(15)
-        .x_label_area_size(50)
-        .y_label_area_size(85)
+        .caption(panel.title, font(22))
+        .margin(px(15))
+        .x_label_area_size(px(50))
+        .y_label_area_size(px(85))
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(e)?;
     chart
         .configure_mesh()
-        .x_desc(spec.x_label)
-        .y_desc(spec.y_label)
-        .axis_desc_style(("sans-serif", 18))
-        .label_style(("sans-serif", 14))
+        .x_desc(panel.x_label)
+        .y_desc(panel.y_label)
+        .axis_desc_style(font(17))
+        .label_style(font(14))
         .x_label_formatter(&x_tick)
         .y_label_formatter(&y_tick)
+        .x_labels(8)
+        .y_labels(8)
         .light_line_style(RGBColor(235, 235, 235))
+        .bold_line_style(RGBColor(215, 215, 215).stroke_width(k))
+        .axis_style(BLACK.stroke_width(k))
         .draw()
         .map_err(e)?;
 
-    for (i, curve) in curves.iter().enumerate() {
+    for (i, curve) in panel.curves.iter().enumerate() {
         let color = COLORS[i % COLORS.len()];
         let single = curve.points.len() == 1;
         let style = if single {
-            color.filled().stroke_width(2)
+            color.filled().stroke_width(px(2))
         } else {
-            color.stroke_width(2)
+            color.stroke_width(px(2))
         };
-        for (k, run) in curve.runs().enumerate() {
+        for (n, run) in curve.runs().enumerate() {
             // an isolated point between gaps is drawn as a marker
-            let marker = if single || run.len() == 1 { 4 } else { 0 };
+            let marker = if single || run.len() == 1 { px(4) } else { 0 };
             let style = if run.len() == 1 {
-                color.filled().stroke_width(2)
+                color.filled().stroke_width(px(2))
             } else {
                 style
             };
             let series = LineSeries::new(run.iter().copied(), style).point_size(marker);
             let drawn = chart.draw_series(series).map_err(e)?;
-            if k == 0 {
+            if n == 0 {
+                let len = px(20) as i32;
                 drawn
                     .label(curve.label)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + len, y)], style));
             }
         }
     }
-    if curves.len() > 1 {
+    if panel.curves.len() > 1 {
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)
-            .label_font(("sans-serif", 14))
+            .label_font(font(14))
+            .margin(px(8))
+            .legend_area_size(px(28))
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .draw()
             .map_err(e)?;
     }
     root.present().map_err(e)
+}
+
+/// Linear size factor of the PNG rendering before it is averaged down (anti-aliasing).
+const SUPERSAMPLE: u32 = 3;
+
+/// Averages `k`×`k` blocks of an RGB image `k·width` × `k·height` into one `width` × `height`.
+fn downsample(big: &[u8], width: u32, height: u32, k: u32) -> Vec<u8> {
+    let (w, h, k) = (width as usize, height as usize, k as usize);
+    let stride = w * k * 3;
+    let mut out = vec![0u8; w * h * 3];
+    for y in 0..h {
+        for x in 0..w {
+            for c in 0..3 {
+                let mut sum = 0u32;
+                for dy in 0..k {
+                    let row = (y * k + dy) * stride;
+                    for dx in 0..k {
+                        sum += u32::from(big[row + (x * k + dx) * 3 + c]);
+                    }
+                }
+                out[(y * w + x) * 3 + c] = ((sum + (k * k / 2) as u32) / (k * k) as u32) as u8;
+            }
+        }
+    }
+    out
+}
+
+/// A metric prefix chosen for an axis: the factor its values are multiplied by and the prefix.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Prefix {
+    factor: f64,
+    symbol: &'static str,
+}
+
+const NO_PREFIX: Prefix = Prefix {
+    factor: 1.0,
+    symbol: "",
+};
+
+/// Units written after a metric prefix on plot axes (SI units and their quotients).
+const PREFIXABLE: [&str; 15] = [
+    "m", "s", "V", "A", "C", "F", "N", "Pa", "J", "W", "Hz", "V/m", "N/m", "C/m²", "Ω",
+];
+
+/// The unit in the trailing `[…]` of an axis title, if any.
+fn label_unit(label: &str) -> Option<&str> {
+    let inner = label.strip_suffix(']')?;
+    let open = inner.rfind('[')?;
+    Some(&inner[open + 1..])
+}
+
+/// The metric prefix (f … T) that brings the largest magnitude of `values` into [1, 1000) when
+/// the axis title ends in a prefixable unit such as `[V]`; no prefix otherwise.
+fn prefix_scale(label: &str, values: impl Iterator<Item = f64>) -> Prefix {
+    if !label_unit(label).is_some_and(|u| PREFIXABLE.contains(&u)) {
+        return NO_PREFIX;
+    }
+    let largest = values
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    if largest == 0.0 {
+        return NO_PREFIX;
+    }
+    const SYMBOLS: [&str; 10] = ["f", "p", "n", "µ", "m", "", "k", "M", "G", "T"];
+    // a hair below a power of 1000 (round-off) still takes the larger prefix
+    let e3 = ((largest * (1.0 + 1e-12)).log10() / 3.0).floor() as i32;
+    let e3 = e3.clamp(-5, 4);
+    Prefix {
+        factor: 10f64.powi(-3 * e3),
+        symbol: SYMBOLS[(e3 + 5) as usize],
+    }
+}
+
+/// `label` with its unit given the prefix: "voltage [V]" → "voltage [kV]".
+fn scaled_label(label: &str, prefix: &Prefix) -> String {
+    match label_unit(label) {
+        Some(unit) if !prefix.symbol.is_empty() => {
+            let head = &label[..label.len() - unit.len() - 2];
+            format!("{head}[{}{unit}]", prefix.symbol)
+        }
+        _ => label.to_string(),
+    }
 }
 
 #[cfg(test)]
@@ -532,7 +679,8 @@ mod tests {
         assert!(svg.starts_with("<svg"), "{}", &svg[..svg.len().min(100)]);
         for text in [
             "Stretch versus voltage",
-            "voltage [V]",
+            // 0 … 5000 V is drawn in kV
+            "voltage [kV]",
             "stretch λ [-]",
             "FEM",
             "analytic",
@@ -683,6 +831,51 @@ mod tests {
         assert_eq!(tick_label(&2.5e-6), "2.5e-6");
         assert_eq!(tick_label(&1.0e6), "1e6");
         assert_eq!(tick_label(&1.000_000_1), "1.0000001");
+    }
+
+    #[test]
+    fn axes_take_the_metric_prefix_of_their_largest_value() {
+        let pick = |label: &str, v: &[f64]| {
+            let p = prefix_scale(label, v.iter().copied());
+            (scaled_label(label, &p), p.factor)
+        };
+        assert_eq!(
+            pick("voltage [V]", &[0.0, 2500.0]),
+            ("voltage [kV]".into(), 1e-3)
+        );
+        assert_eq!(pick("deflection [m]", &[-3e-4, 1e-5]).0, "deflection [µm]");
+        assert_eq!(pick("deflection [m]", &[1e-3]).0, "deflection [mm]");
+        assert_eq!(
+            pick("capacitance [F]", &[4e-11, f64::NAN]).0,
+            "capacitance [pF]"
+        );
+        assert_eq!(pick("field [V/m]", &[6e7]).0, "field [MV/m]");
+        assert_eq!(pick("stress [Pa]", &[999.0]), ("stress [Pa]".into(), 1.0));
+        // a value a hair below 1000 by round-off takes the larger prefix
+        assert_eq!(
+            pick("voltage [V]", &[999.999_999_999_999_9]).0,
+            "voltage [kV]"
+        );
+        // dimensionless, unknown units, zero data and titles without a unit stay as they are
+        assert_eq!(pick("stretch [-]", &[1e-6]), ("stretch [-]".into(), 1.0));
+        assert_eq!(pick("x [furlong]", &[1e6]).0, "x [furlong]");
+        assert_eq!(pick("voltage [V]", &[0.0, 0.0]).0, "voltage [V]");
+        assert_eq!(
+            pick("log10(frequency / Hz)", &[0.001]).0,
+            "log10(frequency / Hz)"
+        );
+        // out of the prefix range: the nearest prefix
+        assert_eq!(pick("charge [C]", &[1e-20]).0, "charge [fC]");
+    }
+
+    #[test]
+    fn png_is_averaged_down_from_the_supersampled_drawing() {
+        // 2×2 blocks of a 4×2 RGB image: black/white halves average to grey
+        let big = [
+            0, 0, 0, 255, 255, 255, 10, 10, 10, 10, 10, 10, //
+            255, 255, 255, 0, 0, 0, 10, 10, 10, 10, 10, 10,
+        ];
+        assert_eq!(downsample(&big, 2, 1, 2), vec![128, 128, 128, 10, 10, 10]);
     }
 
     #[test]

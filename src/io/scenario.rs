@@ -519,7 +519,8 @@ pub struct ProbeSpec {
     /// `mean`, `max`, `min` (of a nodal quantity over a set), `point` (at the node nearest to
     /// `at`), `charge`, `capacitance` (of an electrode), `reaction` (force on a set), `energy`,
     /// `center_deflection` (downward displacement of `set`, default `pad`, from the pre-stretched
-    /// state), `max_electric_field` (largest true field).
+    /// state), `max_electric_field` (largest true field), `current`, `power` (of an electrode),
+    /// `area_strain` (of an electrode's or a set's faces, from the pre-stretched state).
     pub kind: String,
     /// Nodal quantity: `ux`, `uy`, `uz`, `u` (magnitude), `phi`; energy: `stored`, `electric`,
     /// `kinetic`; reaction: component `x`, `y`, `z`.
@@ -537,6 +538,10 @@ pub struct ProbeSpec {
     pub scale: Option<f64>,
     #[serde(default)]
     pub offset: Option<f64>,
+    /// Unit of the recorded value in plots (`-` for a ratio); the quantity's SI unit by default,
+    /// none when `scale` is given without it.
+    #[serde(default)]
+    pub unit: Option<String>,
 }
 
 /// What to write.

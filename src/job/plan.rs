@@ -104,6 +104,8 @@ pub struct Plan {
     pub rigid: Vec<Rigid>,
     /// Names of the materials, in `model.materials` order.
     pub material_names: Vec<String>,
+    /// The resolved parameters of each material (a preset's values included), one line each.
+    pub material_parameters: Vec<Vec<String>>,
     /// The pre-stretch phase that runs before the first stage, if any.
     pub prestretch: Option<Prestretch>,
     /// Copies of the meshed part that make the physical device (4 for a quarter disc or stack): global

@@ -53,6 +53,29 @@ pub enum ProbeKind {
     Current(usize),
     /// Electrical power (W) delivered to the electrode: its voltage times its current.
     Power(usize),
+    /// Area strain A/A_ref − 1 of a face set (an electrode) against the reference state (the
+    /// pre-stretched one), from its faces' current and reference areas.
+    AreaStrain(Vec<ProbeFace>),
+}
+
+/// A face of a surface probe: its nodes and their positions (m) in the mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProbeFace {
+    pub nodes: Vec<usize>,
+    pub positions: Vec<[f64; 3]>,
+}
+
+impl ProbeFace {
+    /// The face's area (m²) with the displacements of `state` (4 values per node).
+    fn area(&self, state: &[f64]) -> f64 {
+        let p: Vec<[f64; 3]> = self
+            .nodes
+            .iter()
+            .zip(&self.positions)
+            .map(|(&n, x)| std::array::from_fn(|i| x[i] + state[n * 4 + i]))
+            .collect();
+        crate::problem::loads::face_point_areas(&p).iter().sum()
+    }
 }
 
 impl ProbeKind {
@@ -77,6 +100,39 @@ pub struct Probe {
     pub kind: ProbeKind,
     pub scale: f64,
     pub offset: f64,
+    /// Unit of the recorded value for plots and tables (`-` dimensionless, empty when unknown).
+    pub unit: String,
+    /// What the probe measures, in words (plot titles).
+    pub description: String,
+}
+
+impl ProbeKind {
+    /// SI unit of the quantity before `scale` and `offset`.
+    pub fn unit(&self) -> &'static str {
+        match self {
+            ProbeKind::Mean(q, ..) | ProbeKind::Max(q, _) | ProbeKind::Min(q, _) => q.unit(),
+            ProbeKind::Point(q, _) => q.unit(),
+            ProbeKind::Charge(_) => "C",
+            ProbeKind::Capacitance(_) => "F",
+            ProbeKind::Reaction(..) => "N",
+            ProbeKind::StoredEnergy | ProbeKind::ElectricEnergy => "J",
+            ProbeKind::Deflection(_) => "m",
+            ProbeKind::MaxElectricField => "V/m",
+            ProbeKind::Current(_) => "A",
+            ProbeKind::Power(_) => "W",
+            ProbeKind::AreaStrain(_) => "-",
+        }
+    }
+}
+
+impl NodalQuantity {
+    /// SI unit of the quantity.
+    pub fn unit(self) -> &'static str {
+        match self {
+            NodalQuantity::Potential => "V",
+            _ => "m",
+        }
+    }
 }
 
 /// What probes read.
@@ -143,6 +199,10 @@ impl Probe {
             ProbeKind::MaxElectricField => inp.max_field,
             ProbeKind::Current(e) => current(inp, *e),
             ProbeKind::Power(e) => inp.electrodes[*e].1 * current(inp, *e),
+            ProbeKind::AreaStrain(faces) => {
+                let area = |state: &[f64]| faces.iter().map(|f| f.area(state)).sum::<f64>();
+                area(inp.state) / area(inp.reference) - 1.0
+            }
         };
         let v = if self.kind.is_global() {
             v * inp.symmetry

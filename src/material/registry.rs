@@ -108,6 +108,41 @@ impl MaterialParams {
     }
 }
 
+/// One line per parameter that is set, with its unit: `mu = 25400 Pa`, the Maxwell branches as
+/// `branch 1: g = 26060 Pa, tau = 0.6074 s`; and the small-strain moduli of the model built from
+/// them (what a preset resolves to).
+pub fn describe(model: &str, p: &MaterialParams) -> Vec<String> {
+    let unit = |k: &str| match k {
+        "mu" | "lambda" | "kappa" | "c10" | "c20" | "c30" | "c01" => " Pa",
+        "d1" | "d2" | "d3" => " 1/Pa",
+        "c1" | "c2" => " F/m",
+        _ => "",
+    };
+    let mut out = vec![format!("model = {model}")];
+    for (k, v) in p.given() {
+        let values: Vec<String> = v.iter().map(|x| format!("{x}")).collect();
+        let value = if v.len() == 1 {
+            values[0].clone()
+        } else {
+            format!("[{}]", values.join(", "))
+        };
+        out.push(format!("{k} = {value}{}", unit(k)));
+    }
+    for (i, (g, tau)) in p.branches.iter().enumerate() {
+        out.push(format!("branch {}: g = {g} Pa, tau = {tau} s", i + 1));
+    }
+    if let Ok((mat, _)) = build(model, p) {
+        out.push(format!(
+            "small-strain shear modulus {:.6e} Pa (instantaneous), bulk modulus {:.6e} Pa, relative \
+             permittivity {:.6}",
+            mat.shear_modulus(),
+            mat.bulk_modulus(),
+            mat.permittivity() / EPSILON_0
+        ));
+    }
+    out
+}
+
 /// A rejected parameter.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{key}: {message}")]

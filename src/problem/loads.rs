@@ -25,8 +25,14 @@ pub fn face_node_areas(mesh: &Mesh, face: FaceRef) -> (&'static [usize], [f64; 6
     let local = mesh.kind.faces()[face.face];
     let cell = mesh.cell(face.cell);
     let p: Vec<[f64; 3]> = local.iter().map(|&l| mesh.nodes[cell[l]]).collect();
+    (local, face_point_areas(&p))
+}
+
+/// ∫ N_a dA (m²) of each node of a face with node positions `p` (3, 4 or 6 nodes, in the order
+/// of [`crate::mesh::ElementKind::faces`]); their sum is the face's area.
+pub fn face_point_areas(p: &[[f64; 3]]) -> [f64; 6] {
     let mut out = [0.0; 6];
-    match local.len() {
+    match p.len() {
         6 => {
             // Dunavant's degree-4 rule: (weight, a) for the orbits (a, a, 1 − 2a)
             const ORBITS: [(f64, f64); 2] = [
@@ -98,7 +104,7 @@ pub fn face_node_areas(mesh: &Mesh, face: FaceRef) -> (&'static [usize], [f64; 6
         }
         k => unreachable!("faces have 3, 4 or 6 nodes, not {k}"),
     }
-    (local, out)
+    out
 }
 
 /// Calls `f(node, force)` with the consistent force ∫ N_a t₀ dA (N) of every node of every loaded

@@ -15,6 +15,8 @@ pub(super) struct Materials {
     pub materials: Vec<Arc<dyn Material>>,
     /// The index in `materials` of each cell's material.
     pub cell_material: Vec<usize>,
+    /// The resolved parameters of each material, one line each ([`registry::describe`]).
+    pub parameters: Vec<Vec<String>>,
 }
 
 /// The materials and the material of every cell; the warnings of the material checks go to
@@ -30,14 +32,18 @@ pub(super) fn build_materials(
     }
     let mut mats: Vec<Arc<dyn Material>> = Vec::new();
     let mut index: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut parameters = Vec::new();
     for (name, m) in &s.materials {
         index.insert(name, mats.len());
-        mats.push(build_material(ctx, name, m, warnings)?);
+        let (mat, described) = build_material(ctx, name, m, warnings)?;
+        mats.push(mat);
+        parameters.push(described);
     }
     let cell_material = cell_materials(ctx, s, mesh, &index)?;
     Ok(Materials {
         materials: mats,
         cell_material,
+        parameters,
     })
 }
 
@@ -138,7 +144,7 @@ fn build_material(
     name: &str,
     m: &MaterialSpec,
     warnings: &mut Vec<String>,
-) -> Result<Arc<dyn Material>, InputError> {
+) -> Result<(Arc<dyn Material>, Vec<String>), InputError> {
     let key = |k: &str| format!("materials.{name}.{k}");
     let (model, mut p) = model_and_preset(ctx, name, m)?;
     if !registry::MODELS.contains(&model.as_str()) {
@@ -169,7 +175,7 @@ fn build_material(
     }
     let (mat, w) = registry::build(&model, &p).map_err(|e| ctx.err(key(&e.key), e.message))?;
     warnings.extend(w.into_iter().map(|w| format!("material `{name}`: {w}")));
-    Ok(mat)
+    Ok((mat, registry::describe(&model, &p)))
 }
 
 /// The model name and the parameters of the preset (defaults without a preset).

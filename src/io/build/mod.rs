@@ -34,7 +34,8 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     let ctx = Ctx { file };
     check_name(&ctx, &s.name)?;
     let (mesh, mut warnings) = mesh::build_mesh(&ctx, s, base_dir)?;
-    let materials = materials::build_materials(&ctx, s, &mesh, &mut warnings)?;
+    let mut materials = materials::build_materials(&ctx, s, &mesh, &mut warnings)?;
+    let material_parameters = std::mem::take(&mut materials.parameters);
     let mut model = mesh::build_model(&ctx, s, mesh, materials)?;
     let symmetry_factor = mesh::symmetry_factor(&s.mesh);
     let loads = loads::build_loads(&ctx, s, &mut model, symmetry_factor)?;
@@ -63,6 +64,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         warnings,
         rigid: loads.rigid,
         material_names: s.materials.keys().cloned().collect(),
+        material_parameters,
         prestretch: loads.prestretch,
         symmetry_factor,
         breakdown,

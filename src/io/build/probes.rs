@@ -2,11 +2,11 @@
 
 use super::{Ctx, Electrode};
 use crate::io::scenario::{closest, InputError, ProbeSpec, Scenario};
-use crate::job::probes::{NodalQuantity, Probe, ProbeKind};
+use crate::job::probes::{NodalQuantity, Probe, ProbeFace, ProbeKind};
 use crate::problem::model::Model;
 
 /// The probe kinds by scenario name.
-const KINDS: [&str; 12] = [
+const KINDS: [&str; 13] = [
     "mean",
     "max",
     "min",
@@ -19,6 +19,7 @@ const KINDS: [&str; 12] = [
     "max_electric_field",
     "current",
     "power",
+    "area_strain",
 ];
 
 /// The nodal quantities by scenario name.
@@ -34,27 +35,89 @@ pub(super) fn build_probes(
     let mut probes = Vec::new();
     for (name, p) in &s.probes {
         let key = format!("probes.{name}");
-        probes.push((name.clone(), build_probe(ctx, &key, p, model, electrodes)?));
+        probes.push((
+            name.clone(),
+            build_probe(ctx, &key, p, s, model, electrodes)?,
+        ));
     }
     Ok(probes)
 }
 
-/// The probe at `key`: its kind, `scale` and `offset`.
+/// The probe at `key`: its kind, `scale`, `offset`, unit and description.
 fn build_probe(
     ctx: &Ctx,
     key: &str,
     p: &ProbeSpec,
+    s: &Scenario,
     model: &Model,
     electrodes: &[Electrode],
 ) -> Result<Probe, InputError> {
-    let kind = probe_kind(ctx, key, p, model, electrodes)?;
+    let kind = probe_kind(ctx, key, p, s, model, electrodes)?;
     let scale = ctx.finite(&format!("{key}.scale"), p.scale.unwrap_or(1.0), "factor")?;
     let offset = ctx.finite(&format!("{key}.offset"), p.offset.unwrap_or(0.0), "offset")?;
+    let unit = match &p.unit {
+        Some(u) => {
+            let bad = u.is_empty()
+                || u.chars().count() > 16
+                || u.chars().any(|c| c.is_control() || "[]\"".contains(c));
+            if bad {
+                return Err(ctx.err(
+                    format!("{key}.unit"),
+                    format!(
+                        "expected a short unit such as `-`, `mm` or `kPa` (1 to 16 characters, \
+                         no brackets or quotes); got `{}`",
+                        u.escape_debug()
+                    ),
+                ));
+            }
+            u.clone()
+        }
+        // a scaled quantity has a unit only the user knows
+        None if scale == 1.0 => kind.unit().to_string(),
+        None => String::new(),
+    };
     Ok(Probe {
         kind,
         scale,
         offset,
+        unit,
+        description: describe(p, scale, offset),
     })
+}
+
+/// What a probe measures, in words: `1 + 1000 × mean uz over z1`.
+fn describe(p: &ProbeSpec, scale: f64, offset: f64) -> String {
+    let q = p.quantity.as_deref().unwrap_or("?");
+    let set = p.set.as_deref().unwrap_or("?");
+    let electrode = p.electrode.as_deref().unwrap_or("?");
+    let base = match p.kind.as_str() {
+        "mean" | "max" | "min" => format!("{} {q} over {set}", p.kind),
+        "point" => {
+            let at = p.at.unwrap_or([f64::NAN; 3]);
+            format!("{q} at ({}, {}, {}) m", at[0], at[1], at[2])
+        }
+        "charge" | "capacitance" | "current" | "power" => {
+            format!("{} of electrode {electrode}", p.kind)
+        }
+        "reaction" => format!("reaction force {q} on {set}"),
+        "energy" => format!("{q} energy"),
+        "center_deflection" => format!(
+            "downward deflection of {}",
+            p.set.as_deref().unwrap_or("pad")
+        ),
+        "max_electric_field" => "largest true electric field".to_string(),
+        "area_strain" => match &p.electrode {
+            Some(e) => format!("area strain of electrode {e}"),
+            None => format!("area strain of {set}"),
+        },
+        other => other.to_string(),
+    };
+    match (offset != 0.0, scale != 1.0) {
+        (false, false) => base,
+        (false, true) => format!("{scale} × {base}"),
+        (true, false) => format!("{offset} + {base}"),
+        (true, true) => format!("{offset} + {scale} × {base}"),
+    }
 }
 
 /// The weights of a `mean` over the set `name` with nodes `nodes`: each node's share ∫Nₐ dA of
@@ -87,6 +150,7 @@ fn probe_kind(
     ctx: &Ctx,
     key: &str,
     p: &ProbeSpec,
+    s: &Scenario,
     model: &Model,
     electrodes: &[Electrode],
 ) -> Result<ProbeKind, InputError> {
@@ -160,6 +224,22 @@ fn probe_kind(
         },
         "center_deflection" => ProbeKind::Deflection(set(p.set.as_deref().unwrap_or("pad"))?),
         "max_electric_field" => ProbeKind::MaxElectricField,
+        "area_strain" => {
+            let (set_key, name) = match (&p.electrode, &p.set) {
+                (Some(e), None) => {
+                    electrode(e)?;
+                    (format!("{key}.electrode"), s.electrodes[e].set.clone())
+                }
+                (None, Some(set)) => (format!("{key}.set"), set.clone()),
+                _ => {
+                    return Err(ctx.err(
+                        key.to_string(),
+                        "`area_strain` probes need either `electrode` or `set` (a face set)",
+                    ))
+                }
+            };
+            ProbeKind::AreaStrain(surface(ctx, &set_key, &model.mesh, &name)?)
+        }
         o => {
             let hint = closest(o, KINDS)
                 .map(|c| format!("; did you mean `{c}`?"))
@@ -173,6 +253,39 @@ fn probe_kind(
             ));
         }
     })
+}
+
+/// The faces of the face set `name` with their nodes and positions.
+fn surface(
+    ctx: &Ctx,
+    key: &str,
+    mesh: &crate::mesh::Mesh,
+    name: &str,
+) -> Result<Vec<ProbeFace>, InputError> {
+    let faces = match mesh.face_sets.get(name) {
+        Some(f) if !f.is_empty() => f,
+        _ => {
+            let mut names: Vec<&str> = mesh.face_sets.keys().map(String::as_str).collect();
+            names.sort_unstable();
+            return Err(ctx.err(
+                key.to_string(),
+                format!(
+                    "`{name}` is not a face set of the mesh (face sets: {}); an area strain needs \
+                     the faces of a surface",
+                    names.join(", ")
+                ),
+            ));
+        }
+    };
+    Ok(faces
+        .iter()
+        .map(|f| {
+            let cell = mesh.cell(f.cell);
+            let nodes: Vec<usize> = mesh.kind.faces()[f.face].iter().map(|&l| cell[l]).collect();
+            let positions = nodes.iter().map(|&n| mesh.nodes[n]).collect();
+            ProbeFace { nodes, positions }
+        })
+        .collect())
 }
 
 /// The value of `what` (`quantity`, `set`, `electrode`), which probes of this kind need.
