@@ -3,7 +3,7 @@
 //! equations are the stationarity conditions of one energy Π(u, Φ) = ∫Ψ(F, E₀) dV − W_ext.
 //!
 //! Modules depend one way (`docs/architecture.md`; checked by `tests/architecture.rs`):
-//! mesh, fem, material, waveform, analytic → element → problem → solve, time → job → io →
+//! units, mesh, fem, material, waveform, analytic → element → problem → solve, time → job → io →
 //! lumped → cli.
 
 pub mod analytic;
@@ -18,4 +18,5 @@ pub mod mesh;
 pub mod problem;
 pub mod solve;
 pub mod time;
+pub mod units;
 pub mod waveform;

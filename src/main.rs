@@ -42,7 +42,9 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         #[arg(long, value_name = "DIR", conflicts_with_all = ["out", "overwrite"])]
         resume: Option<PathBuf>,
     },
-    /// Validate a scenario without solving; print its mesh, extents, stages and probes.
+    /// Validate a scenario; print its mesh, extents, materials (with the resolved parameters of
+    /// presets), stages and probes, and estimate the run time and disk use from a trial of the
+    /// first steps.
     #[command(
         after_help = "Exit status: 0 valid; 2 invalid (every problem is listed with the file and key)."
     )]
@@ -52,6 +54,9 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Override a value by its dotted path before checking (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Skip the trial of the first steps that estimates the run's time and disk use.
+        #[arg(long)]
+        no_trial: bool,
     },
     /// List the embedded examples, or print one as TOML.
     Example {
@@ -95,6 +100,12 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Runs at a time (default: the cores, as memory allows).
         #[arg(long)]
         jobs: Option<usize>,
+    },
+    /// The material models with their parameters, and the presets; with a name, that preset's
+    /// resolved parameters (the values a scenario's `preset = NAME` uses).
+    Materials {
+        /// A preset or a model name.
+        name: Option<String>,
     },
     /// Homogeneous material-point tests of a preset or a scenario's material (same material
     /// code as a run): ramps at stretch rates, load–unload cycles, relaxation, creep; CSV and plots.
@@ -264,7 +275,11 @@ fn main() {
                 ),
             }
         }
-        Command::Check { scenario, set } => deasim::cli::app::cmd_check(&scenario, &set),
+        Command::Check {
+            scenario,
+            set,
+            no_trial,
+        } => deasim::cli::app::cmd_check(&scenario, &set, !no_trial),
         Command::Example { name } => deasim::cli::app::cmd_example(name.as_deref()),
         Command::Lumped {
             scenario,
@@ -292,6 +307,7 @@ fn main() {
             log,
             jobs,
         ),
+        Command::Materials { name } => deasim::cli::material::cmd_materials(name.as_deref()),
         Command::Material {
             material,
             name,

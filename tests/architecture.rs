@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 /// The layers, lowest first: a module may use the modules of lower layers, and those of its own
 /// layer only as listed in [`SAME_LAYER`].
 const LAYERS: &[&[&str]] = &[
+    &["units"],
     &["mesh", "fem", "material", "waveform", "analytic"],
     &["element"],
     &["problem"],

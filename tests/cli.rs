@@ -51,7 +51,19 @@ fn every_example_prints_checks_and_the_small_ones_run() {
         let said = String::from_utf8_lossy(&check.stdout);
         assert!(said.contains("problems: none"), "{said}");
         assert!(said.contains("extents: x "), "{said}");
+        // the resolved material parameters and the trial's time and disk estimate
+        assert!(said.contains("small-strain shear modulus"), "{said}");
+        assert!(
+            said.contains(" on disk: ") && said.contains(" steps (each stage's steps"),
+            "{name}: {said}"
+        );
     }
+    // a preset's parameters are shown resolved
+    let visco =
+        String::from_utf8_lossy(&deasim(&["check", "diaphragm-visco", "--no-trial"], &dir).stdout)
+            .into_owned();
+    assert!(visco.contains("branch 1: g = "), "{visco}");
+    assert!(!visco.contains("estimate:"), "{visco}");
     let film = String::from_utf8_lossy(&deasim(&["check", "film.toml"], &dir).stdout).into_owned();
     assert!(
         film.contains(
@@ -1013,4 +1025,26 @@ fn area_strain_probe_is_the_square_of_the_inplane_stretch() {
         assert_eq!(v(a), v(b));
         assert_eq!(rows[0][a].parse::<f64>().unwrap(), 0.0);
     }
+}
+
+/// An error caused by a `--set` names the override; key paths have one style (`stages.0.steps`)
+/// whether the error comes from the file or from an override.
+#[test]
+fn errors_name_the_override_and_use_one_key_style() {
+    let dir = tempdir("blame");
+    let out = deasim(&["check", "film", "--set", "stages.0.steps=0"], &dir);
+    assert_eq!(out.status.code(), Some(2));
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.contains("key `stages.0.steps`")
+            && said.contains("(the value comes from `--set stages.0.steps=0`)"),
+        "{said}"
+    );
+    let text = String::from_utf8_lossy(&deasim(&["example", "film"], &dir).stdout)
+        .replace("steps = 15", "steps = 15\nstepz = 3");
+    std::fs::write(dir.join("f.toml"), text).unwrap();
+    let out = deasim(&["check", "f.toml"], &dir);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("key `stages.0.stepz`"), "{said}");
+    assert!(!said.contains("[0]") && !said.contains("--set"), "{said}");
 }

@@ -208,3 +208,36 @@ fn bad_arguments_are_refused() {
         assert!(err.contains(expect), "{args:?}: {err}");
     }
 }
+
+/// `deasim materials` lists the models and presets; with a preset's name it prints the resolved
+/// values (the branches included); an unknown name is exit 2 with a suggestion.
+#[test]
+fn materials_command_lists_and_resolves_presets() {
+    let dir = common::tempdir("materials-cmd");
+    let list = common::deasim(&["materials"], &dir);
+    assert_eq!(list.status.code(), Some(0));
+    let text = String::from_utf8_lossy(&list.stdout);
+    assert!(
+        text.contains("gent") && text.contains("vhb4910-wang2016"),
+        "{text}"
+    );
+    let one = common::deasim(&["materials", "vhb4910-gent"], &dir);
+    let text = String::from_utf8_lossy(&one.stdout);
+    assert!(
+        text.contains("mu = 25400 Pa") && text.contains("jm = 120"),
+        "{text}"
+    );
+    assert!(
+        text.contains("small-strain shear modulus 2.540000e4 Pa"),
+        "{text}"
+    );
+    let visco = common::deasim(&["materials", "vhb4910-wang2016"], &dir);
+    let text = String::from_utf8_lossy(&visco.stdout);
+    assert!(
+        text.contains("branch 3: g = 10830 Pa, tau = 61.25 s"),
+        "{text}"
+    );
+    let bad = common::deasim(&["materials", "vhb4910-wang"], &dir);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("did you mean `vhb4910-ab-wang`?"));
+}

@@ -36,8 +36,9 @@ pub fn load_scenario(
     overrides: &[String],
 ) -> Result<(crate::io::scenario::Scenario, Plan), InputError> {
     let (text, name, base) = read_scenario(path)?;
-    let scenario = parse(&text, &name, overrides)?;
-    let plan = build(&scenario, &name, base.as_deref())?;
+    let blame = |e| crate::io::scenario::blame_override(e, overrides);
+    let scenario = parse(&text, &name, overrides).map_err(blame)?;
+    let plan = build(&scenario, &name, base.as_deref()).map_err(blame)?;
     Ok((scenario, plan))
 }
 
@@ -573,8 +574,8 @@ fn execute(
     }
 }
 
-/// `deasim check`.
-pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
+/// `deasim check`; with `trial`, the first steps are solved to estimate the run's time and disk use.
+pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
     match load(Some(scenario), overrides) {
         Ok(plan) => {
             let m = &plan.model.mesh;
@@ -591,7 +592,12 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
                 lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
             );
             println!("dofs: {} ({} per node)", m.n_nodes() * 4, 4);
-            println!("materials: {}", plan.model.materials.len());
+            for (name, lines) in plan.material_names.iter().zip(&plan.material_parameters) {
+                println!("material `{name}`:");
+                for l in lines {
+                    println!("  {l}");
+                }
+            }
             for e in &plan.electrodes {
                 println!("electrode `{}`: {} nodes", e.name, e.nodes.len());
             }
@@ -684,9 +690,13 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
                     .join(", ")
             );
             println!("problems: none");
-            if !plan.warnings.is_empty() {
+            let mut warnings = plan.warnings.clone();
+            if trial {
+                warnings.extend(print_estimate(&plan));
+            }
+            if !warnings.is_empty() {
                 println!("warnings:");
-                for w in &plan.warnings {
+                for w in &warnings {
                     println!("  {w}");
                 }
             }
@@ -697,6 +707,47 @@ pub fn cmd_check(scenario: &Path, overrides: &[String]) -> i32 {
             EXIT_BAD_INPUT
         }
     }
+}
+
+/// Prints the estimate of a short trial run; returns the warnings of a long run or large output.
+fn print_estimate(plan: &Plan) -> Vec<String> {
+    use super::estimate::{estimate, human_bytes, human_duration, LARGE_OUTPUT_BYTES, LONG_RUN_S};
+    let mut warnings = Vec::new();
+    match estimate(plan) {
+        Ok(e) => {
+            println!(
+                "estimate: {} for {} steps (each stage's steps at the rate of a trial of its \
+                 first steps, {} steps in {} stage(s); cut-back steps and slower convergence \
+                 later in a stage take longer)",
+                human_duration(e.run_s),
+                e.steps,
+                e.trial_steps,
+                e.stages_timed
+            );
+            println!(
+                "estimate: {} on disk: {} field files of {} and the history",
+                human_bytes(e.disk_bytes()),
+                e.field_files,
+                human_bytes(e.field_file_bytes as f64)
+            );
+            if e.run_s > LONG_RUN_S {
+                warnings.push(format!(
+                    "the run may take {}: a coarser mesh, fewer steps or a larger time step \
+                     shorten it",
+                    human_duration(e.run_s)
+                ));
+            }
+            if e.disk_bytes() > LARGE_OUTPUT_BYTES {
+                warnings.push(format!(
+                    "the outputs may take {}: a larger `output.fields_every` writes fewer \
+                     field files",
+                    human_bytes(e.disk_bytes())
+                ));
+            }
+        }
+        Err(e) => println!("estimate: none ({e})"),
+    }
+    warnings
 }
 
 /// `deasim example [NAME]`.

@@ -399,3 +399,50 @@ fn sanitize(s: &str) -> String {
         })
         .collect()
 }
+
+/// `deasim materials [NAME]`: the models and presets, or one of them.
+pub fn cmd_materials(name: Option<&str>) -> i32 {
+    use crate::material::registry::{describe, parameter_names, preset, MODELS, PRESETS};
+    match name {
+        None => {
+            println!("models (parameters):");
+            for m in MODELS {
+                let names = parameter_names(m).unwrap_or(&[]);
+                println!("  {m:<18} {}", names.join(", "));
+            }
+            println!("presets (`deasim materials NAME` shows the values):");
+            for p in PRESETS {
+                let model = preset(p).map(|(m, _)| m).unwrap_or("?");
+                println!("  {p:<26} {model}");
+            }
+            println!(
+                "every model also takes `permittivity` (relative), `c1`, `c2` (electrostriction, \
+                 F/m) and `branches = [{{ mu, tau }}, …]` (Maxwell branches, Pa and s)"
+            );
+            0
+        }
+        Some(n) => {
+            if let Some((model, params)) = preset(n) {
+                println!("preset `{n}`:");
+                for line in describe(model, &params) {
+                    println!("  {line}");
+                }
+                0
+            } else if let Some(names) = parameter_names(n) {
+                println!("model `{n}`: parameters {}", names.join(", "));
+                0
+            } else {
+                let all = MODELS.iter().chain(PRESETS).copied();
+                let hint = crate::io::scenario::closest(n, all)
+                    .map(|c| format!("; did you mean `{c}`?"))
+                    .unwrap_or_default();
+                eprintln!(
+                    "error: no material model or preset named `{n}` (models: {}; presets: {}){hint}",
+                    MODELS.join(", "),
+                    PRESETS.join(", ")
+                );
+                2
+            }
+        }
+    }
+}

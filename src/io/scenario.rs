@@ -697,7 +697,7 @@ pub fn parse(text: &str, file: &str, overrides: &[String]) -> Result<Scenario, I
         let de = toml::Deserializer::parse(text)
             .map_err(|e| err(None, None, e.message().to_string()))?;
         serde_path_to_error::deserialize::<_, Scenario>(de).map_err(|e| {
-            let key = e.path().to_string();
+            let key = dotted(&e.path().to_string());
             let inner = e.into_inner();
             let pos = inner.span().map(|s| line_col(text, s.start));
             err(
@@ -709,7 +709,7 @@ pub fn parse(text: &str, file: &str, overrides: &[String]) -> Result<Scenario, I
     } else {
         let value = toml::Value::Table(table);
         serde_path_to_error::deserialize::<_, Scenario>(value).map_err(|e| {
-            let key = e.path().to_string();
+            let key = dotted(&e.path().to_string());
             let inner = e.into_inner();
             err(
                 None,
@@ -718,6 +718,30 @@ pub fn parse(text: &str, file: &str, overrides: &[String]) -> Result<Scenario, I
             )
         })
     }
+}
+
+/// A key path in the one style of `--set` and of every message: `stages.0.steps`, not serde's
+/// `stages[0].steps`.
+fn dotted(path: &str) -> String {
+    path.replace('[', ".").replace(']', "")
+}
+
+/// `e` with the `--set` override that gave its key (or a table above or below it) named: the
+/// value that is wrong is not in the file.
+pub fn blame_override(mut e: InputError, overrides: &[String]) -> InputError {
+    let Some(key) = e.key.clone() else {
+        return e;
+    };
+    let hit = overrides.iter().find(|o| {
+        let path = o.split_once('=').map_or(o.as_str(), |(p, _)| p).trim();
+        path == key || key.starts_with(&format!("{path}.")) || path.starts_with(&format!("{key}."))
+    });
+    if let Some(o) = hit {
+        if e.file != "--set" {
+            e.message = format!("{} (the value comes from `--set {o}`)", e.message);
+        }
+    }
+    e
 }
 
 /// Parses the value of a `--set` (TOML syntax: numbers, strings, arrays, booleans; a bare word is a

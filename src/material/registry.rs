@@ -120,7 +120,10 @@ pub fn describe(model: &str, p: &MaterialParams) -> Vec<String> {
     };
     let mut out = vec![format!("model = {model}")];
     for (k, v) in p.given() {
-        let values: Vec<String> = v.iter().map(|x| format!("{x}")).collect();
+        let values: Vec<String> = v
+            .iter()
+            .map(|&x| crate::units::Short(x).to_string())
+            .collect();
         let value = if v.len() == 1 {
             values[0].clone()
         } else {
@@ -129,7 +132,12 @@ pub fn describe(model: &str, p: &MaterialParams) -> Vec<String> {
         out.push(format!("{k} = {value}{}", unit(k)));
     }
     for (i, (g, tau)) in p.branches.iter().enumerate() {
-        out.push(format!("branch {}: g = {g} Pa, tau = {tau} s", i + 1));
+        out.push(format!(
+            "branch {}: g = {} Pa, tau = {} s",
+            i + 1,
+            crate::units::Short(*g),
+            crate::units::Short(*tau)
+        ));
     }
     if let Ok((mat, _)) = build(model, p) {
         out.push(format!(
@@ -209,7 +217,10 @@ fn req(key: &str, v: Option<f64>, what: &str) -> Result<f64, ParamError> {
     } else {
         Err(perr(
             key,
-            format!("must be a finite number ({what}); got {x}"),
+            format!(
+                "must be a finite number ({what}); got {}",
+                crate::units::Short(x)
+            ),
         ))
     }
 }
@@ -220,7 +231,10 @@ fn req_pos(key: &str, v: Option<f64>, what: &str) -> Result<f64, ParamError> {
     if x > 0.0 {
         Ok(x)
     } else {
-        Err(perr(key, format!("must be positive ({what}); got {x}")))
+        Err(perr(
+            key,
+            format!("must be positive ({what}); got {}", crate::units::Short(x)),
+        ))
     }
 }
 
@@ -248,7 +262,10 @@ fn electric_part(p: &MaterialParams) -> Result<ElectricPart, ParamError> {
     if eps_r < 1.0 {
         return Err(perr(
             "permittivity",
-            format!("relative permittivity εᵣ must be ≥ 1 (dimensionless); got {eps_r}"),
+            format!(
+                "relative permittivity εᵣ must be ≥ 1 (dimensionless); got {}",
+                crate::units::Short(eps_r)
+            ),
         ));
     }
     let c1 = req(
@@ -307,7 +324,10 @@ pub fn build(
             ));
         }
         if let Some(x) = values.iter().find(|x| !x.is_finite()) {
-            return Err(perr(key, format!("must be finite; got {x}")));
+            return Err(perr(
+                key,
+                format!("must be finite; got {}", crate::units::Short(*x)),
+            ));
         }
     }
     let elec = electric_part(p)?;
@@ -430,7 +450,10 @@ pub fn build(
             if lambda_m <= 1.0 {
                 return Err(perr(
                     "lambda_m",
-                    format!("locking stretch λ_m must be > 1 (dimensionless); got {lambda_m}"),
+                    format!(
+                        "locking stretch λ_m must be > 1 (dimensionless); got {}",
+                        crate::units::Short(lambda_m)
+                    ),
                 ));
             }
             let kappa = req_pos("kappa", p.kappa, "bulk modulus κ in Pa")?;
@@ -467,13 +490,19 @@ pub fn build(
         if !(g.is_finite() && g > 0.0) {
             return Err(perr(
                 &format!("branches.{i}.mu"),
-                format!("must be a positive shear modulus in Pa; got {g}"),
+                format!(
+                    "must be a positive shear modulus in Pa; got {}",
+                    crate::units::Short(g)
+                ),
             ));
         }
         if !(tau.is_finite() && tau > 0.0) {
             return Err(perr(
                 &format!("branches.{i}.tau"),
-                format!("must be a positive relaxation time in s; got {tau}"),
+                format!(
+                    "must be a positive relaxation time in s; got {}",
+                    crate::units::Short(tau)
+                ),
             ));
         }
     }

@@ -122,7 +122,10 @@ fn build_shape(ctx: &Ctx, key: &str, w: &WaveformSpec, bipolar: bool) -> Result<
             if !(duty > 0.0 && duty < 1.0) {
                 return Err(ctx.err(
                     k("duty"),
-                    format!("must lie strictly between 0 and 1; got {duty}"),
+                    format!(
+                        "must lie strictly between 0 and 1; got {}",
+                        crate::units::Short(duty)
+                    ),
                 ));
             }
             Shape::Square {
@@ -167,10 +170,16 @@ fn build_fourier(
         Some("square") => FourierBase::Square,
         Some("triangle") => FourierBase::Triangle,
         Some("sine") => FourierBase::Sine,
-        o => {
+        Some(o) => {
             return Err(ctx.err(
                 k("base"),
-                format!("expected `square` or `triangle`; got {o:?}"),
+                format!("expected `square`, `triangle` or `sine`; got `{o}`"),
+            ))
+        }
+        None => {
+            return Err(ctx.err(
+                k("base"),
+                "missing: a `fourier` waveform needs `base` = `square`, `triangle` or `sine`",
             ))
         }
     };
@@ -410,7 +419,12 @@ mod tests {
             (
                 "{ waveform = \"fourier\", amplitude = 1.0, frequency = 1.0 }",
                 "base",
-                "expected `square` or `triangle`; got None",
+                "missing: a `fourier` waveform needs `base` = `square`, `triangle` or `sine`",
+            ),
+            (
+                "{ waveform = \"fourier\", base = \"saw\", amplitude = 1.0, frequency = 1.0 }",
+                "base",
+                "expected `square`, `triangle` or `sine`; got `saw`",
             ),
             (
                 "{ waveform = \"fourier\", base = \"sine\", amplitude = 1.0, terms = 0 }",

@@ -99,7 +99,10 @@ fn prestretch_supports(ctx: &Ctx, s: &Scenario, mesh: &Mesh) -> Result<Vec<Diric
     if !(0.1..=20.0).contains(&l) {
         return Err(ctx.err(
             "prestretch.stretch",
-            format!("expected a stretch between 0.1 and 20; got {l}"),
+            format!(
+                "expected a stretch between 0.1 and 20; got {}",
+                crate::units::Short(l)
+            ),
         ));
     }
     let mut supports = Vec::new();
@@ -134,7 +137,10 @@ fn build_prestretch(ctx: &Ctx, s: &Scenario) -> Result<Option<Prestretch>, Input
             Some(x) if x.is_finite() && x >= 0.0 => Ok(x),
             Some(x) => Err(ctx.err(
                 format!("prestretch.{key}"),
-                format!("must be a non-negative time in s; got {x}"),
+                format!(
+                    "must be a non-negative time in s; got {}",
+                    crate::units::Short(x)
+                ),
             )),
         }
     };

@@ -168,7 +168,10 @@ fn build_material(
             if !(x.is_finite() && x >= 0.0) {
                 return Err(ctx.err(
                     key(k),
-                    format!("must be a finite number ≥ 0 in {unit}; got {x}"),
+                    format!(
+                        "must be a finite number ≥ 0 in {unit}; got {}",
+                        crate::units::Short(x)
+                    ),
                 ));
             }
         }

@@ -421,7 +421,10 @@ fn build_stack(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, Input
     if !(border.is_finite() && border >= 0.0 && border < half) {
         return Err(ctx.err(
             "mesh.border",
-            format!("must lie in [0, {half}) m (half the shorter side); got {border}"),
+            format!(
+                "must lie in [0, {half}) m (half the shorter side); got {}",
+                crate::units::Short(border)
+            ),
         ));
     }
     for (key, value, range) in [
@@ -444,7 +447,10 @@ fn build_stack(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, Input
     if !(grading.is_finite() && (1.0..=1e3).contains(&grading)) {
         return Err(ctx.err(
             "mesh.grading",
-            format!("expected a size ratio between 1 and 1000; got {grading}"),
+            format!(
+                "expected a size ratio between 1 and 1000; got {}",
+                crate::units::Short(grading)
+            ),
         ));
     }
     let spec = StackSpec {

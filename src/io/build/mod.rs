@@ -137,7 +137,10 @@ impl Ctx<'_> {
             Some(x) if x.is_finite() && x > 0.0 => Ok(x),
             Some(x) => Err(self.err(
                 key,
-                format!("must be a positive finite number ({what}); got {x}"),
+                format!(
+                    "must be a positive finite number ({what}); got {}",
+                    crate::units::Short(x)
+                ),
             )),
         }
     }
@@ -146,7 +149,13 @@ impl Ctx<'_> {
         if v.is_finite() {
             Ok(v)
         } else {
-            Err(self.err(key, format!("must be a finite number ({what}); got {v}")))
+            Err(self.err(
+                key,
+                format!(
+                    "must be a finite number ({what}); got {}",
+                    crate::units::Short(v)
+                ),
+            ))
         }
     }
 

@@ -180,7 +180,10 @@ fn modes_kind(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<StageKind, InputEr
     if !(shift_hz.is_finite() && shift_hz >= 0.0) {
         return Err(ctx.err(
             format!("{key}.shift"),
-            format!("expected a frequency ≥ 0 in Hz; got {shift_hz}"),
+            format!(
+                "expected a frequency ≥ 0 in Hz; got {}",
+                crate::units::Short(shift_hz)
+            ),
         ));
     }
     Ok(StageKind::Modes {
@@ -241,7 +244,10 @@ fn response_kind(
             if let Some(f) = list.iter().find(|f| !(f.is_finite() && **f > 0.0)) {
                 return Err(ctx.err(
                     format!("{key}.frequencies"),
-                    format!("expected positive frequencies in Hz; got {f}"),
+                    format!(
+                        "expected positive frequencies in Hz; got {}",
+                        crate::units::Short(*f)
+                    ),
                 ));
             }
             list.clone()
@@ -252,7 +258,10 @@ fn response_kind(
             if to <= from {
                 return Err(ctx.err(
                     format!("{key}.to"),
-                    format!("expected a frequency above `from` = {from} Hz; got {to}"),
+                    format!(
+                        "expected a frequency above `from` = {from} Hz; got {}",
+                        crate::units::Short(to)
+                    ),
                 ));
             }
             let points = st.points.unwrap_or(50);
