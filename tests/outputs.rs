@@ -380,3 +380,40 @@ fn plots_name_units_prefixes_and_the_load_factor() {
         "{plots:?}"
     );
 }
+
+/// A run writes `summary.json` with `status = "running"` from its first step on, so that a killed
+/// run (SIGKILL: no chance to write the final summary) leaves one that says it did not finish;
+/// a finished run's summary says `finished`.
+#[test]
+fn a_killed_run_leaves_a_summary_that_says_running() {
+    let dir = tempdir("killed");
+    example(&dir, "diaphragm");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args(["run", "diaphragm.toml", "--out", "d"])
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let path = dir.join("d/summary.json");
+    let start = Instant::now();
+    while !path.exists() && start.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    assert_eq!(v["status"], "running", "{v}");
+    assert_eq!(v["converged"], false);
+    assert!(v["error"].as_str().unwrap().contains("has not finished"));
+    assert_eq!(v["scenario"], "diaphragm");
+    // the film finishes: its summary says so
+    example(&dir, "film");
+    let out = deasim(&["run", "film.toml", "--out", "f"], &dir);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("f/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(v["status"], "finished");
+}

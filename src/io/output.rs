@@ -37,6 +37,8 @@ pub struct OutputWriter {
     pvd: Vec<(f64, String)>,
     steps_seen: usize,
     last_flush: Instant,
+    /// When the writer was created (the provisional summary's wall time).
+    started: Instant,
     last_state: Option<(StepRecord, Vec<f64>, Vec<CellFields>)>,
     last_written_step: Option<usize>,
     /// Cell means of the material points' internal variables for the next step (by name).
@@ -171,6 +173,7 @@ impl OutputWriter {
             pvd: Vec::new(),
             steps_seen: 0,
             last_flush: Instant::now(),
+            started: Instant::now(),
             last_state: None,
             last_written_step: None,
             point_states: Vec::new(),
@@ -377,6 +380,13 @@ impl OutputWriter {
             "dofs": summary.dofs,
             "nodes": plan.model.mesh.n_nodes(),
             "elements": plan.model.mesh.n_cells(),
+            "status": if summary.converged {
+                "finished"
+            } else if summary.interrupted {
+                "interrupted"
+            } else {
+                "failed"
+            },
             "converged": summary.converged,
             "wall_s": summary.wall_s,
             "stages": summary.stages.iter().map(|s| json!({
@@ -719,8 +729,9 @@ impl Observer for OutputWriter {
         }
         self.steps_seen += 1;
         self.last_state = Some((record.clone(), state.to_vec(), fields.to_vec()));
-        if self.last_flush.elapsed().as_secs_f64() > 2.0 {
+        if self.steps_seen == 1 || self.last_flush.elapsed().as_secs_f64() > 2.0 {
             self.write_history(plan);
+            self.write_running_summary(plan);
         }
     }
 
@@ -774,6 +785,32 @@ impl Observer for OutputWriter {
     }
 
     fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
+        self.finished_summary(plan, summary);
+    }
+}
+
+impl OutputWriter {
+    /// A `summary.json` with `status = "running"` and the records so far: a run that is killed
+    /// (no chance to write its summary) still leaves one that says it did not finish.
+    fn write_running_summary(&mut self, plan: &Plan) {
+        let provisional = RunSummary {
+            converged: false,
+            error: Some("the run has not finished (it is running, or it was killed)".into()),
+            stages: Vec::new(),
+            wall_s: self.started.elapsed().as_secs_f64(),
+            dofs: plan.model.mesh.n_nodes() * crate::fem::FIELDS,
+            warnings: Vec::new(),
+            interrupted: false,
+        };
+        let mut json = self.summary_json(plan, &provisional);
+        json["status"] = serde_json::json!("running");
+        let text = serde_json::to_string_pretty(&json).unwrap_or_else(|_| "{}".into());
+        if let Err(e) = write_atomic(&self.dir.join("summary.json"), text.as_bytes()) {
+            self.failed(format!("{}: {e}", self.dir.join("summary.json").display()));
+        }
+    }
+
+    fn finished_summary(&mut self, plan: &Plan, summary: &RunSummary) {
         // the last converged state is always in the field files
         if self.last_written_step != Some(self.steps_seen.saturating_sub(1)) {
             if let Some((r, s, f)) = self.last_state.take() {
