@@ -492,7 +492,7 @@ fn write_table(
         };
         let titles: Vec<String> = panels
             .iter()
-            .map(|(what, ..)| format!("{name}: {what} against {}", range.path))
+            .map(|(what, ..)| format!("{name}: {what}"))
             .collect();
         // one panel per statistic: their magnitudes differ (a peak-to-peak is small beside a
         // final value), so one shared axis would flatten some of them
