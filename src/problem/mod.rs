@@ -7,5 +7,6 @@ pub mod examples;
 pub mod loads;
 pub mod model;
 pub mod points;
+pub mod pressure;
 pub mod statics;
 pub mod system;

@@ -1,0 +1,462 @@
+//! Follower pressure on a face set and the volume the faces enclose.
+//!
+//! A pressure p on the faces of a cavity (or the inside of a membrane) does the work p·V, V the
+//! volume the faces enclose, V = −⅓ ∮ x·n da with n the body's outward normal (pointing into the
+//! cavity). Written as the potential −p·V(x) of the current positions, the load follows the
+//! deforming surface (its force on a face is −p n da) and its stiffness −p ∂²V/∂x∂x is symmetric,
+//! so the symmetric solvers keep working. On a closed surface, or on an open one whose boundary
+//! is held (a membrane clamped at its rim), V differs from the true enclosed volume by a constant,
+//! so forces and stiffness are exact; the volume is exact when the faces close the cavity or
+//! meet at symmetry planes through the origin (x·n = 0 there).
+//!
+//! Per face, with x(ξ, η) = Σ N_a x_a on the reference face,
+//! v = ∫ x·(x_ξ × x_η) dξdη (oriented by the body's normal),
+//! ∂v/∂x_a = ∫ N_a (x_ξ × x_η) + N_a,ξ (x_η × x) + N_a,η (x × x_ξ),
+//! and the second derivative follows by differentiating each cross product once more. The
+//! integrand is a polynomial of the face's shape functions: 2×2 Gauss points (quad4), 3 points
+//! (tri3) and the 6-point degree-4 rule (tri6) integrate it exactly.
+
+use crate::mesh::{FaceRef, Mesh};
+use crate::problem::dofs::FIELDS;
+
+/// A pressure (Pa, positive pushing the faces away from the cavity) on faces of the mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pressure {
+    pub faces: Vec<SurfaceFace>,
+    pub value: f64,
+}
+
+/// Shape functions and their (ξ, η) derivatives of a face with `n` nodes (3, 4 or 6) at a point.
+fn shape(n: usize, xi: f64, eta: f64) -> ([f64; 6], [[f64; 2]; 6]) {
+    let mut s = [0.0; 6];
+    let mut d = [[0.0; 2]; 6];
+    match n {
+        4 => {
+            const C: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+            for a in 0..4 {
+                s[a] = 0.25 * (1.0 + C[a][0] * xi) * (1.0 + C[a][1] * eta);
+                d[a] = [
+                    0.25 * C[a][0] * (1.0 + C[a][1] * eta),
+                    0.25 * (1.0 + C[a][0] * xi) * C[a][1],
+                ];
+            }
+        }
+        3 | 6 => {
+            let l = [1.0 - xi - eta, xi, eta];
+            let dl = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
+            if n == 3 {
+                s[..3].copy_from_slice(&l);
+                d[..3].copy_from_slice(&dl);
+            } else {
+                for i in 0..3 {
+                    s[i] = l[i] * (2.0 * l[i] - 1.0);
+                    d[i] = dl[i].map(|v| (4.0 * l[i] - 1.0) * v);
+                    let j = (i + 1) % 3;
+                    s[3 + i] = 4.0 * l[i] * l[j];
+                    for c in 0..2 {
+                        d[3 + i][c] = 4.0 * (dl[i][c] * l[j] + l[i] * dl[j][c]);
+                    }
+                }
+            }
+        }
+        k => unreachable!("faces have 3, 4 or 6 nodes, not {k}"),
+    }
+    (s, d)
+}
+
+/// Quadrature points (ξ, η, weight) of a face with `n` nodes, exact for the volume integrand.
+fn points(n: usize) -> Vec<(f64, f64, f64)> {
+    match n {
+        4 => {
+            let g = 1.0 / 3f64.sqrt();
+            vec![(-g, -g, 1.0), (g, -g, 1.0), (g, g, 1.0), (-g, g, 1.0)]
+        }
+        3 => vec![
+            (1.0 / 6.0, 1.0 / 6.0, 1.0 / 6.0),
+            (2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0),
+            (1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0),
+        ],
+        _ => {
+            // Dunavant's degree-4 rule; weights sum to 1, times the reference area ½
+            const ORBITS: [(f64, f64); 2] = [
+                (0.223_381_589_678_011, 0.445_948_490_915_965),
+                (0.109_951_743_655_322, 0.091_576_213_509_771),
+            ];
+            let mut p = Vec::new();
+            for (w, a) in ORBITS {
+                let b = 1.0 - 2.0 * a;
+                for (x, y) in [(a, a), (b, a), (a, b)] {
+                    p.push((x, y, 0.5 * w));
+                }
+            }
+            p
+        }
+    }
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The skew matrix [a]× with [a]× b = a × b.
+fn skew(a: [f64; 3]) -> [[f64; 3]; 3] {
+    [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]]
+}
+
+/// A face of a loaded or measured surface: its global nodes, their reference positions (m) and
+/// the sign that turns (x_ξ × x_η) into the body's outward normal.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceFace {
+    pub nodes: Vec<usize>,
+    pub reference: Vec<[f64; 3]>,
+    pub sign: f64,
+}
+
+/// The faces with their orientation, taken from the reference geometry: the body's outward
+/// normal points away from the cell's centroid.
+pub fn surface(mesh: &Mesh, list: &[FaceRef]) -> Vec<SurfaceFace> {
+    list.iter()
+        .map(|f| {
+            let cell = mesh.cell(f.cell);
+            let local = mesh.kind.faces()[f.face];
+            let nodes: Vec<usize> = local.iter().map(|&l| cell[l]).collect();
+            let x: Vec<[f64; 3]> = nodes.iter().map(|&n| mesh.nodes[n]).collect();
+            let centroid = |pts: &mut dyn Iterator<Item = [f64; 3]>| {
+                let (mut c, mut k) = ([0.0; 3], 0.0);
+                for p in pts {
+                    (0..3).for_each(|i| c[i] += p[i]);
+                    k += 1.0;
+                }
+                c.map(|v| v / k)
+            };
+            let cc = centroid(&mut cell.iter().map(|&n| mesh.nodes[n]));
+            let fc = centroid(&mut x.iter().copied());
+            let (xi, eta) = if nodes.len() == 4 {
+                (0.0, 0.0)
+            } else {
+                (1.0 / 3.0, 1.0 / 3.0)
+            };
+            let (_, d) = shape(nodes.len(), xi, eta);
+            let (mut t1, mut t2) = ([0.0; 3], [0.0; 3]);
+            for (a, p) in x.iter().enumerate() {
+                for i in 0..3 {
+                    t1[i] += d[a][0] * p[i];
+                    t2[i] += d[a][1] * p[i];
+                }
+            }
+            let out = [fc[0] - cc[0], fc[1] - cc[1], fc[2] - cc[2]];
+            let sign = if dot(cross(t1, t2), out) >= 0.0 {
+                1.0
+            } else {
+                -1.0
+            };
+            SurfaceFace {
+                nodes,
+                reference: x,
+                sign,
+            }
+        })
+        .collect()
+}
+
+/// Current positions X + u of the nodes of a face (state: `FIELDS` values per node).
+fn positions(f: &SurfaceFace, state: &[f64]) -> Vec<[f64; 3]> {
+    f.nodes
+        .iter()
+        .zip(&f.reference)
+        .map(|(&n, x)| std::array::from_fn(|i| x[i] + state[n * FIELDS + i]))
+        .collect()
+}
+
+/// The volume (m³) the faces enclose in the state (`FIELDS` values per node): −⅓ ∮ x·n da.
+pub fn enclosed_volume(faces: &[SurfaceFace], state: &[f64]) -> f64 {
+    let mut v = 0.0;
+    for f in faces {
+        let x = positions(f, state);
+        for (xi, eta, w) in points(f.nodes.len()) {
+            let (s, d) = shape(f.nodes.len(), xi, eta);
+            let (mut p, mut t1, mut t2) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+            for (a, xa) in x.iter().enumerate() {
+                for i in 0..3 {
+                    p[i] += s[a] * xa[i];
+                    t1[i] += d[a][0] * xa[i];
+                    t2[i] += d[a][1] * xa[i];
+                }
+            }
+            v -= f.sign * w * dot(p, cross(t1, t2)) / 3.0;
+        }
+    }
+    v
+}
+
+/// Adds the pressure's contribution to the residual (−p ∂V/∂x, the negative of its nodal forces)
+/// and, with `tangent`, calls `tangent(row_dof, col_dof, value)` with its stiffness −p ∂²V/∂x∂x
+/// (symmetric) for every pair of displacement dofs of a face. `factor` scales the pressure (the
+/// load factor).
+pub fn add_pressure(
+    load: &Pressure,
+    factor: f64,
+    state: &[f64],
+    residual: &mut [f64],
+    mut tangent: Option<&mut dyn FnMut(usize, usize, f64)>,
+) {
+    let p = factor * load.value;
+    for f in &load.faces {
+        let n = f.nodes.len();
+        let x = positions(f, state);
+        // ∂V/∂x = −(s/3) ∂v/∂x; the residual gets −p ∂V/∂x = p s/3 ∂v/∂x
+        let c = p * f.sign / 3.0;
+        let mut k = vec![[[0.0; 3]; 3]; n * n];
+        for (xi, eta, w) in points(n) {
+            let (s, d) = shape(n, xi, eta);
+            let (mut q, mut t1, mut t2) = ([0.0; 3], [0.0; 3], [0.0; 3]);
+            for (a, xa) in x.iter().enumerate() {
+                for i in 0..3 {
+                    q[i] += s[a] * xa[i];
+                    t1[i] += d[a][0] * xa[i];
+                    t2[i] += d[a][1] * xa[i];
+                }
+            }
+            let (n12, n2q, nq1) = (cross(t1, t2), cross(t2, q), cross(q, t1));
+            for a in 0..n {
+                let base = f.nodes[a] * FIELDS;
+                for i in 0..3 {
+                    residual[base + i] +=
+                        c * w * (s[a] * n12[i] + d[a][0] * n2q[i] + d[a][1] * nq1[i]);
+                }
+            }
+            if tangent.is_some() {
+                let (k1, k2, kq) = (skew(t1), skew(t2), skew(q));
+                for a in 0..n {
+                    for b in 0..n {
+                        let m = &mut k[a * n + b];
+                        for i in 0..3 {
+                            for j in 0..3 {
+                                // ∂/∂x_b of N_a (t1 × t2) + N_a,ξ (t2 × q) + N_a,η (q × t1)
+                                let v = s[a] * (-d[b][0] * k2[i][j] + d[b][1] * k1[i][j])
+                                    + d[a][0] * (s[b] * k2[i][j] - d[b][1] * kq[i][j])
+                                    + d[a][1] * (d[b][0] * kq[i][j] - s[b] * k1[i][j]);
+                                m[i][j] += c * w * v;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(t) = tangent.as_deref_mut() {
+            for a in 0..n {
+                for b in 0..n {
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            t(
+                                f.nodes[a] * FIELDS + i,
+                                f.nodes[b] * FIELDS + j,
+                                k[a * n + b][i][j],
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::generate::box_mesh;
+    use crate::mesh::ElementKind;
+
+    /// Every outer face of a box mesh.
+    fn outer(mesh: &Mesh) -> Vec<FaceRef> {
+        ["x0", "x1", "y0", "y1", "z0", "z1"]
+            .iter()
+            .flat_map(|s| mesh.face_sets[*s].iter().copied())
+            .collect()
+    }
+
+    /// A pseudo-random displacement field (a fixed linear congruential sequence) of size `amp`.
+    fn wiggle(mesh: &Mesh, amp: f64) -> Vec<f64> {
+        let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
+        let mut state = vec![0.0; mesh.n_nodes() * FIELDS];
+        for (i, v) in state.iter_mut().enumerate() {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            if i % FIELDS < 3 {
+                *v = amp * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
+            }
+        }
+        state
+    }
+
+    fn kinds() -> [ElementKind; 3] {
+        [ElementKind::Hex8, ElementKind::Tet4, ElementKind::Tet10]
+    }
+
+    /// The outward normals of a solid box make its "enclosed" volume minus its volume; under an
+    /// affine deformation x = F X the volume is det F times that, for every face kind.
+    #[test]
+    fn volume_of_a_box_and_of_its_affine_image() {
+        let f = [[1.2, 0.1, -0.05], [0.02, 0.9, 0.1], [0.03, -0.04, 1.1]];
+        let det = f[0][0] * (f[1][1] * f[2][2] - f[1][2] * f[2][1])
+            - f[0][1] * (f[1][0] * f[2][2] - f[1][2] * f[2][0])
+            + f[0][2] * (f[1][0] * f[2][1] - f[1][1] * f[2][0]);
+        for kind in kinds() {
+            let mesh = box_mesh([2e-3, 3e-3, 1e-3], [2, 3, 2], kind);
+            let faces = surface(&mesh, &outer(&mesh));
+            let zero = vec![0.0; mesh.n_nodes() * FIELDS];
+            let v0 = enclosed_volume(&faces, &zero);
+            assert!((v0 + 6e-9).abs() < 1e-12 * 6e-9, "{kind:?}: {v0}");
+            let mut state = zero.clone();
+            for (n, x) in mesh.nodes.iter().enumerate() {
+                for i in 0..3 {
+                    let y: f64 = (0..3).map(|j| f[i][j] * x[j]).sum();
+                    state[n * FIELDS + i] = y - x[i];
+                }
+            }
+            let v = enclosed_volume(&faces, &state);
+            assert!((v + det * 6e-9).abs() < 1e-12 * 6e-9, "{kind:?}: {v}");
+        }
+    }
+
+    /// A tet4 mesh with every node moved at random: the enclosed volume of its outer faces is
+    /// minus the sum of its tetrahedra's volumes (the faces are exactly the cells' boundary).
+    #[test]
+    fn volume_of_a_distorted_mesh_is_the_sum_of_its_cells() {
+        let mesh = box_mesh([1.0, 1.0, 1.0], [3, 2, 2], ElementKind::Tet4);
+        let state = wiggle(&mesh, 0.1);
+        let x = |n: usize| -> [f64; 3] {
+            std::array::from_fn(|i| mesh.nodes[n][i] + state[n * FIELDS + i])
+        };
+        let mut cells = 0.0;
+        for c in 0..mesh.n_cells() {
+            let n = mesh.cell(c);
+            let (a, b, cc, d) = (x(n[0]), x(n[1]), x(n[2]), x(n[3]));
+            let e = |p: [f64; 3]| [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
+            cells += dot(e(b), cross(e(cc), e(d))).abs() / 6.0;
+        }
+        let v = enclosed_volume(&surface(&mesh, &outer(&mesh)), &state);
+        assert!((v + cells).abs() < 1e-13, "{v} vs {cells}");
+    }
+
+    /// The residual is −p ∂V/∂x and the stiffness its derivative (symmetric): central differences
+    /// of the volume and of the residual, on an open face set of a distorted mesh of every kind.
+    #[test]
+    fn residual_and_stiffness_match_finite_differences() {
+        for kind in kinds() {
+            let mesh = box_mesh([1e-2, 1e-2, 2e-3], [2, 2, 1], kind);
+            let load = Pressure {
+                faces: surface(&mesh, &mesh.face_sets["z1"]),
+                value: 3e3,
+            };
+            let state = wiggle(&mesh, 1e-3);
+            let n = state.len();
+            let mut r = vec![0.0; n];
+            let mut k = vec![0.0; n * n];
+            let mut put = |i: usize, j: usize, v: f64| k[i * n + j] += v;
+            add_pressure(&load, 0.5, &state, &mut r, Some(&mut put));
+            let p = 0.5 * load.value;
+            let h = 1e-7;
+            let scale_r = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let scale_k = k.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale_r > 0.0 && scale_k > 0.0);
+            for d in (0..n).filter(|d| d % FIELDS < 3) {
+                let (mut plus, mut minus) = (state.clone(), state.clone());
+                plus[d] += h;
+                minus[d] -= h;
+                let dv = (enclosed_volume(&load.faces, &plus)
+                    - enclosed_volume(&load.faces, &minus))
+                    / (2.0 * h);
+                assert!(
+                    (r[d] + p * dv).abs() < 1e-6 * scale_r,
+                    "{kind:?} dof {d}: {} vs {}",
+                    r[d],
+                    -p * dv
+                );
+                let (mut rp, mut rm) = (vec![0.0; n], vec![0.0; n]);
+                add_pressure(&load, 0.5, &plus, &mut rp, None);
+                add_pressure(&load, 0.5, &minus, &mut rm, None);
+                for i in 0..n {
+                    let fd = (rp[i] - rm[i]) / (2.0 * h);
+                    assert!(
+                        (k[i * n + d] - fd).abs() < 1e-6 * scale_k,
+                        "{kind:?} K[{i}][{d}] = {} vs {fd}",
+                        k[i * n + d]
+                    );
+                    assert!((k[i * n + d] - k[d * n + i]).abs() < 1e-9 * scale_k);
+                }
+            }
+        }
+    }
+
+    /// Away from the edge of the face set the potential's forces are the follower forces
+    /// −p ∫ N_a n da of the deformed surface (the edge terms of neighbouring faces cancel).
+    #[test]
+    fn forces_inside_the_set_are_the_follower_forces() {
+        for kind in kinds() {
+            let mesh = box_mesh([1e-2, 1e-2, 2e-3], [3, 3, 1], kind);
+            let load = Pressure {
+                faces: surface(&mesh, &mesh.face_sets["z1"]),
+                value: 2e3,
+            };
+            let state = wiggle(&mesh, 1e-3);
+            let mut r = vec![0.0; state.len()];
+            add_pressure(&load, 1.0, &state, &mut r, None);
+            let mut follower = vec![0.0; state.len()];
+            for f in &load.faces {
+                let x = positions(f, &state);
+                for (xi, eta, w) in points(f.nodes.len()) {
+                    let (s, d) = shape(f.nodes.len(), xi, eta);
+                    let (mut t1, mut t2) = ([0.0; 3], [0.0; 3]);
+                    for (a, xa) in x.iter().enumerate() {
+                        for i in 0..3 {
+                            t1[i] += d[a][0] * xa[i];
+                            t2[i] += d[a][1] * xa[i];
+                        }
+                    }
+                    let nda = cross(t1, t2);
+                    for (a, &node) in f.nodes.iter().enumerate() {
+                        for i in 0..3 {
+                            // residual = −(force) = +p ∫ N_a n da
+                            follower[node * FIELDS + i] += load.value * f.sign * w * s[a] * nda[i];
+                        }
+                    }
+                }
+            }
+            let (lo, hi) = (1e-9, 1e-2 - 1e-9);
+            let inside: Vec<usize> = load
+                .faces
+                .iter()
+                .flat_map(|f| f.nodes.clone())
+                .collect::<std::collections::BTreeSet<_>>()
+                .into_iter()
+                .filter(|&n| {
+                    let p = mesh.nodes[n];
+                    p[0] > lo && p[0] < hi && p[1] > lo && p[1] < hi
+                })
+                .collect();
+            assert!(!inside.is_empty());
+            let scale = follower.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for n in inside {
+                for i in 0..3 {
+                    let d = n * FIELDS + i;
+                    assert!(
+                        (r[d] - follower[d]).abs() < 1e-9 * scale,
+                        "{kind:?} node {n}: {} vs {}",
+                        r[d],
+                        follower[d]
+                    );
+                }
+            }
+        }
+    }
+}
