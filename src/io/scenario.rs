@@ -85,6 +85,10 @@ pub struct Scenario {
     /// static stages.
     #[serde(default)]
     pub tractions: Vec<TractionSpec>,
+    /// Follower pressures (Pa) on face sets, ramped with the load factor of static stages like
+    /// the tractions.
+    #[serde(default)]
+    pub pressures: Vec<PressureSpec>,
     /// Gravity and rigid regions with attached masses.
     #[serde(default)]
     pub loads: Option<LoadsSpec>,
@@ -347,6 +351,17 @@ pub struct TractionSpec {
     pub set: String,
     /// Traction vector (Pa, force per reference area).
     pub value: [f64; 3],
+}
+
+/// A follower pressure on a face set.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PressureSpec {
+    /// A face set.
+    pub set: String,
+    /// Pressure (Pa): positive pushes the faces along −n, n the body's outward normal (it
+    /// inflates a cavity whose walls the faces are, and compresses a solid it surrounds).
+    pub value: f64,
 }
 
 /// Fixed displacement components on a set.

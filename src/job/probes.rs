@@ -56,6 +56,9 @@ pub enum ProbeKind {
     /// Area strain A/A_ref − 1 of a face set (an electrode) against the reference state (the
     /// pre-stretched one), from its faces' current and reference areas.
     AreaStrain(Vec<ProbeFace>),
+    /// Volume (m³) enclosed by a face set, −⅓ ∮ x·n da with n the body's outward normal: the
+    /// cavity a pressure inflates, or minus a solid's volume for its outer faces.
+    Volume(Vec<crate::problem::pressure::SurfaceFace>),
 }
 
 /// A face of a surface probe: its nodes and their positions (m) in the mesh.
@@ -90,6 +93,7 @@ impl ProbeKind {
                 | ProbeKind::Reaction(..)
                 | ProbeKind::StoredEnergy
                 | ProbeKind::ElectricEnergy
+                | ProbeKind::Volume(_)
         )
     }
 }
@@ -121,6 +125,7 @@ impl ProbeKind {
             ProbeKind::Current(_) => "A",
             ProbeKind::Power(_) => "W",
             ProbeKind::AreaStrain(_) => "-",
+            ProbeKind::Volume(_) => "m³",
         }
     }
 }
@@ -199,6 +204,7 @@ impl Probe {
             ProbeKind::MaxElectricField => inp.max_field,
             ProbeKind::Current(e) => current(inp, *e),
             ProbeKind::Power(e) => inp.electrodes[*e].1 * current(inp, *e),
+            ProbeKind::Volume(faces) => crate::problem::pressure::enclosed_volume(faces, inp.state),
             ProbeKind::AreaStrain(faces) => {
                 let area = |state: &[f64]| faces.iter().map(|f| f.area(state)).sum::<f64>();
                 area(inp.state) / area(inp.reference) - 1.0

@@ -44,6 +44,9 @@ pub struct Model {
     /// Linear dashpots (node, N·s/m) on the translations of a node (of a rigid region: the
     /// damping of the attached mass by air and fixture); dynamics only.
     pub point_dampers: Vec<(usize, f64)>,
+    /// Follower pressures on face sets; statics scales them by the load factor like the dead
+    /// loads (from `dead_load_start`).
+    pub pressures: Vec<crate::problem::pressure::Pressure>,
 }
 
 /// Problems found while building a model.
@@ -77,6 +80,7 @@ impl Model {
             dead_load_start: 0.0,
             ties: Vec::new(),
             point_dampers: Vec::new(),
+            pressures: Vec::new(),
         };
         model.check_cells()?;
         Ok(model)

@@ -144,7 +144,46 @@ impl<'m> StaticProblem<'m> {
         for (v, t) in r.iter_mut().zip(&self.dead_load) {
             *v -= self.load * t;
         }
+        for p in &self.model.pressures {
+            crate::problem::pressure::add_pressure(p, self.load, &self.state, &mut r, None);
+        }
         Ok(r)
+    }
+}
+
+/// Adds the pressures at load factor `load` to the scaled residual of the free equations and,
+/// with `k`, their stiffness (scaled like the cells' entries).
+fn add_pressures(
+    m: &Model,
+    load: f64,
+    state: &[f64],
+    dofs: &crate::problem::dofs::DofMap,
+    r: &mut [f64],
+    mut k: Option<&mut CsrMatrix>,
+) {
+    let mut full = vec![0.0; state.len()];
+    for p in &m.pressures {
+        match k.as_deref_mut() {
+            Some(k) => {
+                let mut put = |i: usize, j: usize, v: f64| {
+                    let (ei, ej) = (dofs.eq[i], dofs.eq[j]);
+                    if ei == CONSTRAINED || ej == CONSTRAINED {
+                        return;
+                    }
+                    if let Some(at) = k.position(ei, ej) {
+                        k.values[at] += dofs.scale[i % FIELDS] * dofs.scale[j % FIELDS] * v;
+                    }
+                };
+                crate::problem::pressure::add_pressure(p, load, state, &mut full, Some(&mut put));
+            }
+            None => crate::problem::pressure::add_pressure(p, load, state, &mut full, None),
+        }
+    }
+    for (d, v) in full.iter().enumerate() {
+        let e = dofs.eq[d];
+        if e != CONSTRAINED && *v != 0.0 {
+            r[e] += dofs.scale[d % FIELDS] * v;
+        }
     }
 }
 
@@ -256,7 +295,7 @@ impl NonlinearSystem for StaticProblem<'_> {
         self.dofs.n_free
     }
 
-    fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
+    fn evaluate(&mut self, r: &mut [f64], mut k: Option<&mut CsrMatrix>) -> Result<(), String> {
         let m = self.model;
         let (points, dt) = (&self.points, self.dt());
         let cell_kernel = m.formulation.kernel();
@@ -278,7 +317,7 @@ impl NonlinearSystem for StaticProblem<'_> {
                 &self.state,
                 kernel,
                 r,
-                k,
+                k.as_deref_mut(),
                 &mut self.cell_energy,
             )
             .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
@@ -290,6 +329,9 @@ impl NonlinearSystem for StaticProblem<'_> {
                     r[e] -= self.dofs.scale[d % FIELDS] * self.load * t;
                 }
             }
+        }
+        if self.load != 0.0 && !m.pressures.is_empty() {
+            add_pressures(m, self.load, &self.state, &self.dofs, r, k);
         }
         Ok(())
     }

@@ -24,6 +24,7 @@ pub(super) fn build_loads(
     symmetry_factor: f64,
 ) -> Result<Loads, InputError> {
     build_tractions(ctx, s, model)?;
+    build_pressures(ctx, s, model)?;
     let mut supports = build_constraints(ctx, s, &model.mesh)?;
     supports.extend(prestretch_supports(ctx, s, &model.mesh)?);
     let rigid = match &s.loads {
@@ -50,6 +51,34 @@ fn build_tractions(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), Inp
         model
             .add_traction(&t.set, t.value)
             .map_err(|e| ctx.err(format!("tractions.{i}.set"), e.to_string()))?;
+    }
+    Ok(())
+}
+
+/// `[[pressures]]`: follower pressures (Pa) on face sets.
+fn build_pressures(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), InputError> {
+    for (i, p) in s.pressures.iter().enumerate() {
+        let value = ctx.finite(&format!("pressures.{i}.value"), p.value, "pressure in Pa")?;
+        let faces = match model.mesh.face_sets.get(&p.set) {
+            Some(f) if !f.is_empty() => f.clone(),
+            _ => {
+                let mut names: Vec<&str> =
+                    model.mesh.face_sets.keys().map(String::as_str).collect();
+                names.sort_unstable();
+                return Err(ctx.err(
+                    format!("pressures.{i}.set"),
+                    format!(
+                        "`{}` is not a face set of the mesh (face sets: {})",
+                        p.set,
+                        names.join(", ")
+                    ),
+                ));
+            }
+        };
+        let faces = crate::problem::pressure::surface(&model.mesh, &faces);
+        model
+            .pressures
+            .push(crate::problem::pressure::Pressure { faces, value });
     }
     Ok(())
 }

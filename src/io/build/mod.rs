@@ -48,6 +48,21 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     ));
     let stages = stages::build_stages(&ctx, s, &electrodes)?;
     stages::check_internal_variables(&ctx, &stages, &model)?;
+    if !model.pressures.is_empty() {
+        if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
+            !matches!(
+                st.kind,
+                crate::job::plan::StageKind::Static { .. }
+                    | crate::job::plan::StageKind::QuasiStatic { .. }
+            )
+        }) {
+            return Err(ctx.err(
+                format!("stages.{i}.kind"),
+                "pressure loads act in static and quasi-static stages only: dynamic and \
+                 small-signal stages do not include their follower stiffness yet",
+            ));
+        }
+    }
     let probes = probes::build_probes(&ctx, s, &model, &electrodes)?;
     let output = build_output(&ctx, &s.output)?;
     warnings.extend(stages::aliasing_warnings(&stages, &electrodes));

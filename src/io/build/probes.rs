@@ -6,7 +6,7 @@ use crate::job::probes::{NodalQuantity, Probe, ProbeFace, ProbeKind};
 use crate::problem::model::Model;
 
 /// The probe kinds by scenario name.
-const KINDS: [&str; 13] = [
+const KINDS: [&str; 14] = [
     "mean",
     "max",
     "min",
@@ -20,6 +20,7 @@ const KINDS: [&str; 13] = [
     "current",
     "power",
     "area_strain",
+    "volume",
 ];
 
 /// The nodal quantities by scenario name.
@@ -106,6 +107,7 @@ fn describe(p: &ProbeSpec, scale: f64, offset: f64) -> String {
             p.set.as_deref().unwrap_or("pad")
         ),
         "max_electric_field" => "largest true electric field".to_string(),
+        "volume" => format!("volume enclosed by {set}"),
         "area_strain" => match &p.electrode {
             Some(e) => format!("area strain of electrode {e}"),
             None => format!("area strain of {set}"),
@@ -224,6 +226,14 @@ fn probe_kind(
         },
         "center_deflection" => ProbeKind::Deflection(set(p.set.as_deref().unwrap_or("pad"))?),
         "max_electric_field" => ProbeKind::MaxElectricField,
+        "volume" => {
+            let name = need(&p.set, "set")?;
+            let key = format!("{key}.set");
+            // the same face-set check as the area strain's
+            surface(ctx, &key, &model.mesh, &name)?;
+            let faces = model.mesh.face_sets[&name].clone();
+            ProbeKind::Volume(crate::problem::pressure::surface(&model.mesh, &faces))
+        }
         "area_strain" => {
             let (set_key, name) = match (&p.electrode, &p.set) {
                 (Some(e), None) => {
@@ -270,7 +280,7 @@ fn surface(
             return Err(ctx.err(
                 key.to_string(),
                 format!(
-                    "`{name}` is not a face set of the mesh (face sets: {}); an area strain needs \
+                    "`{name}` is not a face set of the mesh (face sets: {}); this probe needs \
                      the faces of a surface",
                     names.join(", ")
                 ),

@@ -1,0 +1,138 @@
+//! Follower pressure loads in a run: an eighth of a neo-Hooke cube (symmetry planes x0, y0, z0)
+//! under a pressure on its three outer faces is compressed homogeneously, σ = −p I, with
+//! λ from μ(λ² − 1) + Λ ln λ³ = −p λ³ (to Newton's tolerance, for hex8, tet4 and tet10); the
+//! `volume` probe of the top face reads −⅓ λ³ a³ (x·n vanishes on the symmetry planes through the
+//! origin, the two side faces hold the other two thirds). Stages that cannot carry a pressure
+//! refuse it with exit 2.
+
+mod common;
+
+use common::{deasim, tempdir};
+
+const MU: f64 = 1e5;
+const LAMBDA: f64 = 1e7;
+const A: f64 = 1e-3;
+const P: f64 = 1e6;
+
+fn scenario(element: &str, extra: &str) -> String {
+    format!(
+        r#"name = "cube"
+[mesh]
+generator = "box"
+size = [{A}, {A}, {A}]
+divisions = [2, 2, 2]
+element = "{element}"
+[materials.rubber]
+model = "neo-hooke"
+mu = {MU}
+lambda = {LAMBDA}
+permittivity = 4.7
+[[constraints]]
+set = "x0"
+fix = ["x"]
+[[constraints]]
+set = "y0"
+fix = ["y"]
+[[constraints]]
+set = "z0"
+fix = ["z"]
+[[pressures]]
+set = "x1"
+value = {P}
+[[pressures]]
+set = "y1"
+value = {P}
+[[pressures]]
+set = "z1"
+value = {P}
+{extra}
+[probes.stretch]
+kind = "mean"
+quantity = "uz"
+set = "z1"
+scale = {s}
+offset = 1.0
+unit = "-"
+[probes.volume_z1]
+kind = "volume"
+set = "z1"
+[output]
+fields_every = 0
+plots = false
+"#,
+        s = 1.0 / A
+    )
+}
+
+/// λ of the homogeneous state under the pressure, by bisection on the Cauchy stress.
+fn closed_form() -> f64 {
+    let sigma = |l: f64| (MU * (l * l - 1.0) + LAMBDA * 3.0 * l.ln()) / l.powi(3);
+    let (mut lo, mut hi) = (0.5, 1.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if sigma(mid) < -P {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+fn last_row(dir: &std::path::Path) -> std::collections::HashMap<String, f64> {
+    let text = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let last: Vec<&str> = lines.last().unwrap().split(',').collect();
+    header
+        .iter()
+        .zip(last)
+        .map(|(h, v)| (h.to_string(), v.parse().unwrap_or(f64::NAN)))
+        .collect()
+}
+
+#[test]
+fn hydrostatic_pressure_on_a_cube_matches_the_closed_form() {
+    let dir = tempdir("pressure-cube");
+    let l = closed_form();
+    assert!(l < 0.98, "the pressure compresses visibly ({l})");
+    for element in ["hex8", "tet4", "tet10"] {
+        let stage = "[[stages]]\nname = \"squeeze\"\nkind = \"static\"\nsteps = 4\n";
+        std::fs::write(dir.join("c.toml"), scenario(element, stage)).unwrap();
+        let out = deasim(&["run", "c.toml", "--out", element], &dir);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let row = last_row(&dir.join(element));
+        let stretch = row["probe:stretch"];
+        assert!(
+            (stretch - l).abs() < 1e-9,
+            "{element}: λ = {stretch} vs {l}"
+        );
+        let v = row["probe:volume_z1"];
+        let expected = -(l * A).powi(3) / 3.0;
+        assert!(
+            (v - expected).abs() < 1e-8 * expected.abs(),
+            "{element}: {v} vs {expected}"
+        );
+    }
+}
+
+#[test]
+fn stages_without_the_follower_stiffness_refuse_a_pressure() {
+    let dir = tempdir("pressure-refused");
+    let stage = "[[stages]]\nname = \"shake\"\nkind = \"dynamic\"\nduration = 1e-3\ndt = 1e-4\n";
+    let text = scenario("hex8", stage)
+        .replace("permittivity = 4.7", "permittivity = 4.7\ndensity = 1000.0");
+    std::fs::write(dir.join("c.toml"), text).unwrap();
+    let out = deasim(&["check", "c.toml"], &dir);
+    assert_eq!(out.status.code(), Some(2));
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.contains("key `stages.0.kind`") && said.contains("pressure loads act in static"),
+        "{said}"
+    );
+}
