@@ -62,6 +62,20 @@ impl Film {
         self.mu * (l * l - t * t) * t / (self.eps * l * l)
     }
 
+    /// The point of the solution curve (c₂ = 0) with thickness stretch `t`: the state and the
+    /// nominal field E₀ ≥ 0 (V/m). Past the pull-in point (t below its) the curve goes on with a
+    /// falling field: the states charge control reaches.
+    pub fn on_curve(&self, t: f64) -> (FilmState, f64) {
+        assert!(self.c2 == 0.0, "on_curve is derived for c2 = 0");
+        (
+            FilmState {
+                lambda: self.lambda_of_t(t),
+                t,
+            },
+            self.field_sq_of_t(t).max(0.0).sqrt(),
+        )
+    }
+
     /// The pull-in point: the largest field E₀ (V/m) with an equilibrium, and the state there
     /// (maximum of E₀(t) along the solution curve, c₂ = 0).
     pub fn pull_in(&self) -> (f64, FilmState) {

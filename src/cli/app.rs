@@ -599,7 +599,15 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                 }
             }
             for e in &plan.electrodes {
-                println!("electrode `{}`: {} nodes", e.name, e.nodes.len());
+                match e.charge {
+                    None => println!("electrode `{}`: {} nodes", e.name, e.nodes.len()),
+                    Some(q) => println!(
+                        "electrode `{}`: {} nodes, charge-controlled: {q:e} C (its voltage is an \
+                         unknown)",
+                        e.name,
+                        e.nodes.len()
+                    ),
+                }
             }
             if let Some(p) = plan.prestretch {
                 println!(

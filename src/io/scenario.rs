@@ -382,6 +382,10 @@ pub struct ConstraintSpec {
 #[serde(deny_unknown_fields)]
 pub struct ElectrodeSpec {
     pub set: String,
+    /// Charge control: the total free charge (C, of the whole device) the electrode carries; its
+    /// voltage becomes an unknown (0: a floating electrode). Excludes `voltage`.
+    #[serde(default)]
+    pub charge: Option<f64>,
     /// Volts: a number (constant) or a waveform table. 0 = grounded.
     #[serde(default)]
     pub voltage: VoltageSpec,

@@ -15,6 +15,9 @@ pub struct Electrode {
     pub name: String,
     pub nodes: Vec<usize>,
     pub voltage: Waveform,
+    /// Charge control: the electrode's total free charge (C, whole device); its potential is
+    /// then one unknown shared by its nodes and `voltage` is unused. `None`: voltage control.
+    pub charge: Option<f64>,
 }
 
 /// The kind of a stage.

@@ -266,10 +266,19 @@ impl<'p> Recorder<'p> {
             prev_state: Vec::new(),
             boundary_work: 0.0,
             initial_potential: None,
-            traction: if plan.model.tractions.is_empty() {
+            traction: if plan.model.tractions.is_empty() && plan.model.point_charges.is_empty() {
                 Vec::new()
             } else {
-                crate::problem::loads::traction_forces(&plan.model.mesh, &plan.model.tractions, 1.0)
+                let mut f = crate::problem::loads::traction_forces(
+                    &plan.model.mesh,
+                    &plan.model.tractions,
+                    1.0,
+                );
+                // a charge −Q on a potential equation works like a force: −Q·ΔΦ
+                for &(node, q) in &plan.model.point_charges {
+                    f[node * FIELDS + 3] -= q;
+                }
+                f
             },
             weight: if plan.model.point_forces.is_empty()
                 && plan.model.body_force.iter().all(|b| *b == [0.0; 3])

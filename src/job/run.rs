@@ -344,7 +344,7 @@ impl<'p, 'o> Job<'p, 'o> {
     /// The prescribed values of a stage's end: supports and electrodes at their end voltages.
     fn stage_conditions(&self, model: &mut Model, stage: &Stage) -> Vec<bool> {
         model.dirichlet = self.plan.supports.clone();
-        for e in &self.plan.electrodes {
+        for e in self.plan.electrodes.iter().filter(|e| e.charge.is_none()) {
             model.dirichlet.push(Dirichlet {
                 nodes: e.nodes.clone(),
                 field: Field::Phi,
@@ -575,11 +575,13 @@ impl<'p, 'o> Job<'p, 'o> {
         let start_voltages: Vec<f64> = plan
             .electrodes
             .iter()
+            .filter(|e| e.charge.is_none())
             .map(|e| stage_start[e.nodes[0] * FIELDS + 3])
             .collect();
         let targets: Vec<f64> = plan
             .electrodes
             .iter()
+            .filter(|e| e.charge.is_none())
             .map(|e| stage_voltage(stage, &e.voltage, stage.duration))
             .collect();
         // a quasi-static stage's electrodes follow their waveforms in stage time
@@ -912,6 +914,7 @@ impl<'p, 'o> Job<'p, 'o> {
 fn stage_waveforms(plan: &Plan, stage: &Stage) -> Vec<(Vec<usize>, crate::waveform::Waveform)> {
     plan.electrodes
         .iter()
+        .filter(|e| e.charge.is_none())
         .map(|e| {
             let w = if stage.electrodes_on {
                 e.voltage.clone()

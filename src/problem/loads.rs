@@ -142,6 +142,9 @@ pub fn traction_forces(mesh: &Mesh, tractions: &[Traction], factor: f64) -> Vec<
 /// quadrature, exact for constant b₀ on affine cells) and point forces.
 pub fn dead_load_forces(model: &Model) -> Vec<f64> {
     let mut out = traction_forces(&model.mesh, &model.tractions, 1.0);
+    for &(node, q) in &model.point_charges {
+        out[node * FIELDS + crate::problem::dofs::PHI] -= q;
+    }
     for (o, g) in out.iter_mut().zip(weight_forces(model)) {
         *o += g;
     }

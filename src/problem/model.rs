@@ -47,6 +47,9 @@ pub struct Model {
     /// Follower pressures on face sets; statics scales them by the load factor like the dead
     /// loads (from `dead_load_start`).
     pub pressures: Vec<crate::problem::pressure::Pressure>,
+    /// Free charges (node, C) on the potential of tied (charge-controlled) electrodes: dead
+    /// loads −Q on the potential equations, ramped like the forces.
+    pub point_charges: Vec<(usize, f64)>,
 }
 
 /// Problems found while building a model.
@@ -81,6 +84,7 @@ impl Model {
             ties: Vec::new(),
             point_dampers: Vec::new(),
             pressures: Vec::new(),
+            point_charges: Vec::new(),
         };
         model.check_cells()?;
         Ok(model)
@@ -178,6 +182,7 @@ impl Model {
     pub fn has_dead_loads(&self) -> bool {
         !self.tractions.is_empty()
             || !self.point_forces.is_empty()
+            || !self.point_charges.is_empty()
             || self.body_force.iter().any(|b| *b != [0.0; 3])
     }
 

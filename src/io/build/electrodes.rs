@@ -25,10 +25,21 @@ pub(super) fn build_electrodes(
         let key = format!("electrodes.{name}");
         let nodes = ctx.set_nodes(mesh, &format!("{key}.set"), &e.set)?;
         let voltage = build_waveform(ctx, &format!("{key}.voltage"), &e.voltage, base_dir)?;
+        let charge = match e.charge {
+            None => None,
+            Some(_) if e.voltage != VoltageSpec::default() => {
+                return Err(ctx.err(
+                    format!("{key}.charge"),
+                    "an electrode is held at a `voltage` or carries a `charge`, not both",
+                ))
+            }
+            Some(q) => Some(ctx.finite(&format!("{key}.charge"), q, "charge in C")?),
+        };
         electrodes.push(Electrode {
             name: name.clone(),
             nodes,
             voltage,
+            charge,
         });
     }
     for (i, a) in electrodes.iter().enumerate() {
@@ -44,7 +55,33 @@ pub(super) fn build_electrodes(
             }
         }
     }
+    if !electrodes.is_empty() && electrodes.iter().all(|e| e.charge.is_some()) {
+        return Err(ctx.err(
+            "electrodes",
+            "charge-controlled electrodes need a voltage-controlled one (e.g. grounded, \
+             `voltage = 0`) as the reference of the potential",
+        ));
+    }
     Ok(electrodes)
+}
+
+/// Charge-controlled electrodes: each one's potential is one unknown (a tie of its nodes'
+/// potentials) loaded by minus its charge (the potential equations' residual is ∂Π/∂Φ + Q), the
+/// charge of the meshed part (the device's over the symmetry factor).
+pub(super) fn charge_electrodes(
+    electrodes: &[Electrode],
+    model: &mut crate::problem::model::Model,
+    symmetry: f64,
+) {
+    for e in electrodes {
+        if let Some(q) = e.charge {
+            model.ties.push(crate::problem::dofs::Tie {
+                nodes: e.nodes.clone(),
+                field: Field::Phi,
+            });
+            model.point_charges.push((e.nodes[0], q / symmetry));
+        }
+    }
 }
 
 /// Without electrodes (a purely mechanical problem) the potential would be defined only up to a

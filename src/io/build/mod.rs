@@ -41,6 +41,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     let loads = loads::build_loads(&ctx, s, &mut model, symmetry_factor)?;
     let (breakdown, stop_at_breakdown) = materials::build_breakdown(&ctx, s)?;
     let electrodes = electrodes::build_electrodes(&ctx, s, &model.mesh, base_dir)?;
+    electrodes::charge_electrodes(&electrodes, &mut model, symmetry_factor);
     let mut supports = loads.supports;
     supports.extend(electrodes::ground_without_electrodes(
         &electrodes,
@@ -48,6 +49,22 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     ));
     let stages = stages::build_stages(&ctx, s, &electrodes)?;
     stages::check_internal_variables(&ctx, &stages, &model)?;
+    if let Some(e) = electrodes.iter().find(|e| e.charge.is_some()) {
+        if let Some((i, _)) = stages
+            .iter()
+            .enumerate()
+            .find(|(_, st)| !matches!(st.kind, crate::job::plan::StageKind::Static { .. }))
+        {
+            return Err(ctx.err(
+                format!("stages.{i}.kind"),
+                format!(
+                    "electrode `{}` is charge-controlled: such electrodes act in static stages \
+                     only for now",
+                    e.name
+                ),
+            ));
+        }
+    }
     if !model.pressures.is_empty() {
         if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
             !matches!(

@@ -1,0 +1,154 @@
+//! Charge-controlled electrodes: the film of the `film` example, its top electrode carrying a
+//! prescribed charge instead of a voltage, follows the homogeneous closed form past the voltage
+//! maximum (the pull-in point of voltage control) to λ ≈ 2.6: at every accepted step the in-plane
+//! stretch and the electrode's voltage lie on the closed-form curve at the computed thickness
+//! stretch, to 1e-6 (one cell: the inhomogeneous modes that make states past the maximum unstable
+//! with an equipotential electrode — coexistent thin and thick regions — need more cells). The
+//! charge probe reads the prescribed charge; a charge with a voltage, and charge control without a
+//! voltage-controlled reference electrode or outside static stages, are refused.
+
+mod common;
+
+use common::{deasim, tempdir};
+use deasim::analytic::Film;
+use deasim::material::EPSILON_0;
+use deasim::problem::examples::{FILM_EPS_R, FILM_LAMBDA, FILM_MU};
+
+const Q: f64 = 3.6e-6;
+
+fn film_with_charge(dir: &std::path::Path, line: &str) -> std::path::PathBuf {
+    let text = String::from_utf8_lossy(&deasim(&["example", "film"], dir).stdout).into_owned();
+    let lines: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("voltage = { waveform = \"ramp\"") {
+                line.to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    assert!(lines.iter().any(|l| l == line), "the example changed");
+    let path = dir.join("q.toml");
+    std::fs::write(&path, lines.join("\n")).unwrap();
+    path
+}
+
+#[test]
+fn charge_controlled_film_follows_the_closed_form_past_the_voltage_maximum() {
+    let dir = tempdir("charge-film");
+    film_with_charge(&dir, &format!("charge = {Q}"));
+    let out = deasim(
+        &[
+            "run",
+            "q.toml",
+            "--out",
+            "o",
+            "--set",
+            "stages.0.steps=40",
+            "--set",
+            "mesh.divisions=[1,1,1]",
+        ],
+        &dir,
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (c_t, c_v, c_l, c_h, c_q) = (
+        col("time"),
+        col("voltage"),
+        col("probe:inplane_stretch"),
+        col("probe:thickness_stretch"),
+        col("probe:charge"),
+    );
+    let film = Film {
+        mu: FILM_MU,
+        lambda: FILM_LAMBDA,
+        eps: FILM_EPS_R * EPSILON_0,
+        c2: 0.0,
+    };
+    let (peak_field, peak) = film.pull_in();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    let mut beyond = 0;
+    let mut highest: f64 = 0.0;
+    for r in &rows[1..] {
+        let (state, e0) = film.on_curve(r[c_h]);
+        assert!(
+            (r[c_l] - state.lambda).abs() < 1e-6 * state.lambda,
+            "λ {} vs {} at t = {}",
+            r[c_l],
+            state.lambda,
+            r[c_h]
+        );
+        let v = e0 * 1e-3;
+        assert!(
+            (r[c_v] - v).abs() < 1e-6 * v,
+            "V {} vs {v} at t = {}",
+            r[c_v],
+            r[c_h]
+        );
+        // the charge probe reads the prescribed charge at the step's load factor
+        assert!(
+            (r[c_q] - r[c_t] * Q).abs() < 1e-9 * Q,
+            "{} vs {}",
+            r[c_q],
+            r[c_t] * Q
+        );
+        highest = highest.max(r[c_v]);
+        if r[c_h] < peak.t {
+            beyond += 1;
+        }
+    }
+    let last = rows.last().unwrap();
+    assert!(last[c_l] > 2.5, "λ reaches {}", last[c_l]);
+    assert!(beyond > 20, "{beyond} steps past the maximum");
+    // the voltage rose to the pull-in voltage and fell after it
+    assert!(
+        (highest / (peak_field * 1e-3) - 1.0).abs() < 1e-3,
+        "{highest}"
+    );
+    assert!(last[c_v] < 0.6 * highest);
+}
+
+#[test]
+fn charge_control_is_refused_where_it_cannot_act() {
+    let dir = tempdir("charge-refused");
+    let check = |extra: &[&str]| {
+        let mut args = vec!["check", "q.toml", "--no-trial"];
+        args.extend_from_slice(extra);
+        let out = deasim(&args, &dir);
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+        )
+    };
+    film_with_charge(&dir, "charge = 1e-7\nvoltage = 100.0");
+    let (code, said) = check(&[]);
+    assert_eq!(code, Some(2));
+    assert!(
+        said.contains("key `electrodes.top.charge`") && said.contains("not both"),
+        "{said}"
+    );
+    film_with_charge(&dir, "charge = 1e-7");
+    let (code, said) = check(&["--set", "electrodes.bottom.charge=0.0"]);
+    assert_eq!(code, Some(2));
+    assert!(said.contains("need a voltage-controlled one"), "{said}");
+    let (code, said) = check(&["--set", "stages.0.kind=\"quasi-static\""]);
+    assert_eq!(code, Some(2));
+    assert!(said.contains("is charge-controlled"), "{said}");
+    let (code, _) = check(&[]);
+    assert_eq!(code, Some(0));
+}
