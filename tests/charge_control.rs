@@ -4,7 +4,8 @@
 //! stretch and the electrode's voltage lie on the closed-form curve at the computed thickness
 //! stretch, to 1e-6 (one cell: the inhomogeneous modes that make states past the maximum unstable
 //! with an equipotential electrode — coexistent thin and thick regions — need more cells). The
-//! charge probe reads the prescribed charge; a charge with a voltage, and charge control without a
+//! charge probe reads the prescribed charge. Floating electrodes (zero charge) in a stack take the
+//! capacitive divider's potentials to 1e-10. A charge with a voltage, and charge control without a
 //! voltage-controlled reference electrode or outside static stages, are refused.
 
 mod common;
@@ -151,4 +152,96 @@ fn charge_control_is_refused_where_it_cannot_act() {
     assert!(said.contains("is charge-controlled"), "{said}");
     let (code, _) = check(&[]);
     assert_eq!(code, Some(0));
+}
+
+/// Two floating electrodes (zero charge) between a grounded and a driven one in a stack of three
+/// equal films with full-area electrodes take the capacitive divider's potentials V/3 and 2V/3
+/// (the material is so stiff that the films do not deform measurably).
+#[test]
+fn floating_electrodes_take_the_capacitive_divider_potentials() {
+    let dir = tempdir("floating");
+    let v = 1000.0;
+    let text = format!(
+        r#"name = "divider"
+[mesh]
+generator = "stack"
+side = 2e-3
+films = 3
+film_thickness = 50e-6
+border = 0.0
+layers_per_film = 2
+active_cells = 2
+quarter = true
+element = "hex8"
+[materials.stiff]
+model = "neo-hooke"
+mu = 1e12
+lambda = 1e12
+permittivity = 3.0
+[[constraints]]
+set = "symmetry_x"
+fix = ["x"]
+[[constraints]]
+set = "symmetry_y"
+fix = ["y"]
+[[constraints]]
+set = "bottom"
+fix = ["z"]
+[electrodes.ground]
+set = "electrode_0"
+voltage = 0.0
+[electrodes.first]
+set = "electrode_1"
+charge = 0.0
+[electrodes.second]
+set = "electrode_2"
+charge = 0.0
+[electrodes.drive]
+set = "electrode_3"
+voltage = {v}
+[[stages]]
+name = "on"
+kind = "static"
+steps = 1
+[probes.first]
+kind = "mean"
+quantity = "phi"
+set = "electrode_1"
+[probes.second]
+kind = "mean"
+quantity = "phi"
+set = "electrode_2"
+[output]
+fields_every = 0
+plots = false
+"#
+    );
+    std::fs::write(dir.join("d.toml"), text).unwrap();
+    let out = deasim(&["run", "d.toml", "--out", "o"], &dir);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let last: Vec<f64> = text
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap_or(f64::NAN))
+        .collect();
+    let col = |n: &str| last[header.iter().position(|h| *h == n).unwrap()];
+    assert!(
+        (col("probe:first") - v / 3.0).abs() < 1e-10 * v,
+        "{}",
+        col("probe:first")
+    );
+    assert!(
+        (col("probe:second") - 2.0 * v / 3.0).abs() < 1e-10 * v,
+        "{}",
+        col("probe:second")
+    );
 }
