@@ -5,6 +5,10 @@
 pub const EXAMPLES: &[(&str, &str)] = &[
     ("film", include_str!("../../scenarios/film.toml")),
     (
+        "film-charge",
+        include_str!("../../scenarios/film-charge.toml"),
+    ),
+    (
         "film-pull-in",
         include_str!("../../scenarios/film-pull-in.toml"),
     ),
