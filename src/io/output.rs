@@ -338,10 +338,10 @@ impl OutputWriter {
                 values,
             });
         }
-        let encoding = if plan.output.fields_ascii {
-            Encoding::Ascii
-        } else {
-            Encoding::Binary
+        let encoding = match plan.output.fields_format {
+            crate::job::plan::FieldFormat::Ascii => Encoding::Ascii,
+            crate::job::plan::FieldFormat::Binary => Encoding::Binary,
+            crate::job::plan::FieldFormat::Compressed => Encoding::Compressed,
         };
         match write_vtu_as(&self.dir.join("fields").join(&name), &piece, encoding) {
             Ok(()) => {

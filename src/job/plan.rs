@@ -82,8 +82,20 @@ pub struct OutputPlan {
     pub fields_every: usize,
     pub plots: bool,
     pub plot_format: String,
-    /// Field files with ASCII arrays instead of binary (base64) ones.
-    pub fields_ascii: bool,
+    /// How the arrays of the field files are written.
+    pub fields_format: FieldFormat,
+}
+
+/// The encoding of the field files' arrays (`output.vtu_format`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FieldFormat {
+    /// base64 of the raw values.
+    #[default]
+    Binary,
+    /// base64 of zlib-compressed blocks.
+    Compressed,
+    /// Text.
+    Ascii,
 }
 
 /// Everything needed to run a scenario.

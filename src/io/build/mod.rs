@@ -135,13 +135,15 @@ fn build_output(ctx: &Ctx, o: &OutputSpec) -> Result<OutputPlan, InputError> {
             format!("expected `png` or `svg`; got `{}`", o.plot_format),
         ));
     }
-    let fields_ascii = match o.vtu_format.as_deref().unwrap_or("binary") {
-        "binary" => false,
-        "ascii" => true,
+    use crate::job::plan::FieldFormat;
+    let fields_format = match o.vtu_format.as_deref().unwrap_or("binary") {
+        "binary" => FieldFormat::Binary,
+        "compressed" => FieldFormat::Compressed,
+        "ascii" => FieldFormat::Ascii,
         other => {
             return Err(ctx.err(
                 "output.vtu_format",
-                format!("expected `binary` or `ascii`; got `{other}`"),
+                format!("expected `binary`, `compressed` or `ascii`; got `{other}`"),
             ))
         }
     };
@@ -149,7 +151,7 @@ fn build_output(ctx: &Ctx, o: &OutputSpec) -> Result<OutputPlan, InputError> {
         fields_every: o.fields_every.min(usize::MAX as u64) as usize,
         plots: o.plots,
         plot_format: o.plot_format.clone(),
-        fields_ascii,
+        fields_format,
     })
 }
 
@@ -359,14 +361,20 @@ mod tests {
     }
 
     #[test]
-    fn vtu_format_is_binary_or_ascii() {
-        assert!(!plan(&[]).output.fields_ascii);
-        let p = plan(&[("output", "[output]\nvtu_format = \"ascii\"")]);
-        assert!(p.output.fields_ascii);
+    fn vtu_format_is_binary_compressed_or_ascii() {
+        use crate::job::plan::FieldFormat;
+        assert_eq!(plan(&[]).output.fields_format, FieldFormat::Binary);
+        for (name, format) in [
+            ("ascii", FieldFormat::Ascii),
+            ("compressed", FieldFormat::Compressed),
+        ] {
+            let p = plan(&[("output", &format!("[output]\nvtu_format = \"{name}\""))]);
+            assert_eq!(p.output.fields_format, format);
+        }
         assert_rejected(
             &[("output", "[output]\nvtu_format = \"hdf5\"")],
             "output.vtu_format",
-            "expected `binary` or `ascii`; got `hdf5`",
+            "expected `binary`, `compressed` or `ascii`; got `hdf5`",
         );
     }
 
