@@ -31,80 +31,7 @@ pub fn face_node_areas(mesh: &Mesh, face: FaceRef) -> (&'static [usize], [f64; 6
 /// ∫ N_a dA (m²) of each node of a face with node positions `p` (3, 4 or 6 nodes, in the order
 /// of [`crate::mesh::ElementKind::faces`]); their sum is the face's area.
 pub fn face_point_areas(p: &[[f64; 3]]) -> [f64; 6] {
-    let mut out = [0.0; 6];
-    match p.len() {
-        6 => {
-            // Dunavant's degree-4 rule: (weight, a) for the orbits (a, a, 1 − 2a)
-            const ORBITS: [(f64, f64); 2] = [
-                (0.223_381_589_678_011, 0.445_948_490_915_965),
-                (0.109_951_743_655_322, 0.091_576_213_509_771),
-            ];
-            for (w, a) in ORBITS {
-                for k in 0..3 {
-                    let mut l = [a; 3];
-                    l[k] = 1.0 - 2.0 * a;
-                    // L = (1 − s − t, s, t); derivatives with respect to s and t
-                    let dl = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
-                    let mut n = [0.0; 6];
-                    let mut dn = [[0.0; 2]; 6];
-                    for i in 0..3 {
-                        n[i] = l[i] * (2.0 * l[i] - 1.0);
-                        dn[i] = dl[i].map(|d| (4.0 * l[i] - 1.0) * d);
-                        let j = (i + 1) % 3;
-                        n[3 + i] = 4.0 * l[i] * l[j];
-                        for c in 0..2 {
-                            dn[3 + i][c] = 4.0 * (dl[i][c] * l[j] + l[i] * dl[j][c]);
-                        }
-                    }
-                    let mut ds = [0.0; 3];
-                    let mut dt = [0.0; 3];
-                    for a in 0..6 {
-                        for i in 0..3 {
-                            ds[i] += dn[a][0] * p[a][i];
-                            dt[i] += dn[a][1] * p[a][i];
-                        }
-                    }
-                    let da = 0.5 * w * norm(cross(ds, dt));
-                    for a in 0..6 {
-                        out[a] += n[a] * da;
-                    }
-                }
-            }
-        }
-        3 => {
-            let a = sub(p[1], p[0]);
-            let b = sub(p[2], p[0]);
-            let area = 0.5 * norm(cross(a, b));
-            out[..3].iter_mut().for_each(|v| *v = area / 3.0);
-        }
-        4 => {
-            // bilinear quad on [−1, 1]², corners (−1,−1), (1,−1), (1,1), (−1,1)
-            const C: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-            let gp = 1.0 / 3f64.sqrt();
-            for &xi in &[-gp, gp] {
-                for &eta in &[-gp, gp] {
-                    let mut dxi = [0.0; 3];
-                    let mut deta = [0.0; 3];
-                    let mut n = [0.0; 4];
-                    for a in 0..4 {
-                        n[a] = 0.25 * (1.0 + C[a][0] * xi) * (1.0 + C[a][1] * eta);
-                        let dn_dxi = 0.25 * C[a][0] * (1.0 + C[a][1] * eta);
-                        let dn_deta = 0.25 * (1.0 + C[a][0] * xi) * C[a][1];
-                        for i in 0..3 {
-                            dxi[i] += dn_dxi * p[a][i];
-                            deta[i] += dn_deta * p[a][i];
-                        }
-                    }
-                    let da = norm(cross(dxi, deta));
-                    for a in 0..4 {
-                        out[a] += n[a] * da;
-                    }
-                }
-            }
-        }
-        k => unreachable!("faces have 3, 4 or 6 nodes, not {k}"),
-    }
-    out
+    crate::problem::faces::node_areas(p)
 }
 
 /// Calls `f(node, force)` with the consistent force ∫ N_a t₀ dA (N) of every node of every loaded
@@ -186,26 +113,11 @@ pub fn weight_forces(model: &Model) -> Vec<f64> {
     out
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::mesh::{generate::box_mesh, ElementKind};
+    use crate::problem::faces::{cross, norm};
 
     /// The total force is t₀ × reference area, on a box and on a sheared, tapered box whose x1 face
     /// is a non-planar (warped) quadrilateral; the first moment ∫X dA is reproduced as well.

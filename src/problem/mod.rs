@@ -4,6 +4,7 @@
 pub mod assembly;
 pub mod dofs;
 pub mod examples;
+pub mod faces;
 pub mod loads;
 pub mod model;
 pub mod points;

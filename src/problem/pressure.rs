@@ -18,92 +18,13 @@
 
 use crate::mesh::{FaceRef, Mesh};
 use crate::problem::dofs::FIELDS;
+use crate::problem::faces::{cross, dot, points, shape};
 
 /// A pressure (Pa, positive pushing the faces away from the cavity) on faces of the mesh.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pressure {
     pub faces: Vec<SurfaceFace>,
     pub value: f64,
-}
-
-/// Shape functions and their (ξ, η) derivatives of a face with `n` nodes (3, 4 or 6) at a point.
-fn shape(n: usize, xi: f64, eta: f64) -> ([f64; 6], [[f64; 2]; 6]) {
-    let mut s = [0.0; 6];
-    let mut d = [[0.0; 2]; 6];
-    match n {
-        4 => {
-            const C: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-            for a in 0..4 {
-                s[a] = 0.25 * (1.0 + C[a][0] * xi) * (1.0 + C[a][1] * eta);
-                d[a] = [
-                    0.25 * C[a][0] * (1.0 + C[a][1] * eta),
-                    0.25 * (1.0 + C[a][0] * xi) * C[a][1],
-                ];
-            }
-        }
-        3 | 6 => {
-            let l = [1.0 - xi - eta, xi, eta];
-            let dl = [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]];
-            if n == 3 {
-                s[..3].copy_from_slice(&l);
-                d[..3].copy_from_slice(&dl);
-            } else {
-                for i in 0..3 {
-                    s[i] = l[i] * (2.0 * l[i] - 1.0);
-                    d[i] = dl[i].map(|v| (4.0 * l[i] - 1.0) * v);
-                    let j = (i + 1) % 3;
-                    s[3 + i] = 4.0 * l[i] * l[j];
-                    for c in 0..2 {
-                        d[3 + i][c] = 4.0 * (dl[i][c] * l[j] + l[i] * dl[j][c]);
-                    }
-                }
-            }
-        }
-        k => unreachable!("faces have 3, 4 or 6 nodes, not {k}"),
-    }
-    (s, d)
-}
-
-/// Quadrature points (ξ, η, weight) of a face with `n` nodes, exact for the volume integrand.
-fn points(n: usize) -> Vec<(f64, f64, f64)> {
-    match n {
-        4 => {
-            let g = 1.0 / 3f64.sqrt();
-            vec![(-g, -g, 1.0), (g, -g, 1.0), (g, g, 1.0), (-g, g, 1.0)]
-        }
-        3 => vec![
-            (1.0 / 6.0, 1.0 / 6.0, 1.0 / 6.0),
-            (2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0),
-            (1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0),
-        ],
-        _ => {
-            // Dunavant's degree-4 rule; weights sum to 1, times the reference area ½
-            const ORBITS: [(f64, f64); 2] = [
-                (0.223_381_589_678_011, 0.445_948_490_915_965),
-                (0.109_951_743_655_322, 0.091_576_213_509_771),
-            ];
-            let mut p = Vec::new();
-            for (w, a) in ORBITS {
-                let b = 1.0 - 2.0 * a;
-                for (x, y) in [(a, a), (b, a), (a, b)] {
-                    p.push((x, y, 0.5 * w));
-                }
-            }
-            p
-        }
-    }
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// The skew matrix [a]× with [a]× b = a × b.
