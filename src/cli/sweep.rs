@@ -486,10 +486,7 @@ fn write_table(
             })
             .collect();
         let path = dir.join(format!("plots/sweep_{name}.{ext}"));
-        let y_label = match plan.probes[i].1.unit.as_str() {
-            "" => name.clone(),
-            u => format!("{name} [{u}]"),
-        };
+        let y_label = crate::io::output::probe_axis(name, &plan.probes[i].1);
         let titles: Vec<String> = panels
             .iter()
             .map(|(what, ..)| format!("{name}: {what}"))

@@ -596,7 +596,7 @@ impl OutputWriter {
 }
 
 /// A probe's axis title: `name [unit]`, or the name alone when its unit is unknown.
-fn probe_axis(name: &str, probe: &crate::job::probes::Probe) -> String {
+pub fn probe_axis(name: &str, probe: &crate::job::probes::Probe) -> String {
     if probe.unit.is_empty() {
         name.to_string()
     } else {
