@@ -224,8 +224,14 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
-    /// Run the verification cases and print a table.
-    Validate,
+    /// Run the verification manual: every family against closed forms and published values,
+    /// printed as one table (docs/validation.md).
+    Validate {
+        /// Only this family (materials, cook, film, dynamics, viscoelasticity, axisymmetric,
+        /// small-signal).
+        #[arg(long)]
+        family: Option<String>,
+    },
     /// Run the benchmark scenarios and print timings and memory.
     Bench {
         /// Also run the ~400k-dof mesh (minutes, several GB).
@@ -380,7 +386,7 @@ fn main() {
             compare,
             out,
         }),
-        Command::Validate => deasim::cli::validate::cmd_validate(),
+        Command::Validate { family } => deasim::cli::validate::cmd_validate(family.as_deref()),
         Command::Bench { large } => deasim::cli::bench::cmd_bench(large),
     };
     std::process::exit(code);

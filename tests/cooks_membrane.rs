@@ -32,11 +32,12 @@
 mod common;
 
 use common::{distort, tangent_fd_error, Rng};
+use deasim::cli::validate::cook::{tip, GALLERY_Q1, GALLERY_Q2, MD_4999_N64};
 use deasim::job::statics::solve_static;
-use deasim::material::registry::build;
-use deasim::material::{ElectroNeoHooke, MaterialParams, EPSILON_0};
+use deasim::material::{ElectroNeoHooke, EPSILON_0};
 use deasim::mesh::{generate::box_mesh, ElementKind};
 use deasim::problem::dofs::{Dirichlet, Field};
+use deasim::problem::examples::Thickness;
 use deasim::problem::model::{Formulation, Model};
 use deasim::problem::statics::StaticProblem;
 use deasim::solve::newton::{NewtonSettings, NonlinearSystem};
@@ -180,96 +181,11 @@ fn mean_dilatation_patch_test() {
     }
 }
 
-/// Shear modulus of the Cook benchmark (Pa).
-const COOK_MU: f64 = 422.5e3;
-/// Total shear force on the right edge (N) over its 16 mm × 1 mm reference area.
-const COOK_TRACTION: f64 = 1.0 / (16e-3 * 1e-3);
-/// Converged tip deflection of the gallery (Q2 elements, ν = 0.3, free thickness), mm.
-const COOK_Q2: f64 = 14.33;
-/// Tip deflection (mm) in plane strain at ν = 0.4999 of the mean-dilatation hex8 with n = 64,
-/// computed once with this code (35 s; `cargo test --release -- --ignored` recomputes it).
-const COOK_MD_4999_N64: f64 = 11.465;
-
-/// The through-thickness condition.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Thickness {
-    /// u_z = 0 everywhere.
-    PlaneStrain,
-    /// u_z free except on the clamped edge (what the gallery program computes).
-    Free,
-}
-
-/// Cook's membrane with `n` hex8 cells per edge and one through the thickness: a unit box mapped
-/// bilinearly, x = 48ξ, y = (1 − ξ)·44η + ξ·(44 + 16η) (mm). The box's sets x0 (left edge nodes)
-/// and x1 (right edge faces) are the clamped edge and the loaded edge of the mapped plate. No
-/// electric field: Φ = 0 on every node.
-fn cook_model(n: usize, nu: f64, formulation: Formulation, thickness: Thickness) -> Model {
-    let mut mesh = box_mesh([1.0, 1.0, 1e-3], [n, n, 1], ElementKind::Hex8);
-    for x in &mut mesh.nodes {
-        let (xi, eta) = (x[0], x[1]);
-        x[0] = 48e-3 * xi;
-        x[1] = (1.0 - xi) * 44e-3 * eta + xi * (44e-3 + 16e-3 * eta);
-    }
-    let kappa = 2.0 * COOK_MU * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu));
-    let params = MaterialParams {
-        mu: vec![COOK_MU],
-        kappa: Some(kappa),
-        permittivity: Some(1.0),
-        ..Default::default()
-    };
-    let (mat, _warnings) = build("neo-hooke-split", &params).expect("valid parameters");
-    let mut model = Model::new(mesh, mat).expect("valid mesh");
-    model.formulation = formulation;
-    let all: Vec<usize> = (0..model.mesh.n_nodes()).collect();
-    let left = model.set_nodes("x0").unwrap();
-    for field in [Field::Ux, Field::Uy, Field::Uz] {
-        model.dirichlet.push(Dirichlet {
-            nodes: left.clone(),
-            field,
-            value: 0.0,
-        });
-    }
-    if thickness == Thickness::PlaneStrain {
-        model.dirichlet.push(Dirichlet {
-            nodes: all.clone(),
-            field: Field::Uz,
-            value: 0.0,
-        });
-    }
-    model.dirichlet.push(Dirichlet {
-        nodes: all,
-        field: Field::Phi,
-        value: 0.0,
-    });
-    model.add_traction("x1", [0.0, COOK_TRACTION, 0.0]).unwrap();
-    model
-}
-
 /// Vertical displacement (mm) of the corner (48, 60) mm after ramping the traction in 5 steps
-/// (Newton converges in ≤ 5 iterations per step at ν = 0.3; the ramp cuts back by itself when a
-/// step is too large at ν = 0.4999).
+/// (`deasim::cli::validate::cook::tip`; Newton converges in ≤ 5 iterations per step at ν = 0.3;
+/// the ramp cuts back by itself when a step is too large at ν = 0.4999).
 fn cook_tip(n: usize, nu: f64, formulation: Formulation, thickness: Thickness) -> f64 {
-    let model = cook_model(n, nu, formulation, thickness);
-    let newton = NewtonSettings {
-        // the free-thickness state is the gallery's symmetric, laterally unstable branch
-        check_stability: thickness == Thickness::PlaneStrain,
-        ..Default::default()
-    };
-    let out = solve_static(
-        &model,
-        None,
-        &StepControl {
-            steps: 5,
-            ..Default::default()
-        },
-        &newton,
-        |_, _| {},
-    );
-    out.result
-        .unwrap_or_else(|e| panic!("Cook n = {n}, ν = {nu}, {formulation:?}, {thickness:?}: {e}"));
-    let a = model.mesh.nearest_node([48e-3, 60e-3, 0.0]);
-    let b = model.mesh.nearest_node([48e-3, 60e-3, 1e-3]);
-    0.5 * (out.state[a * 4 + 1] + out.state[b * 4 + 1]) * 1e3
+    tip(n, nu, formulation, thickness).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Richardson extrapolation of three values on meshes refined by 2, with the observed order.
@@ -289,16 +205,8 @@ fn richardson(coarse: f64, mid: f64, fine: f64) -> (f64, f64) {
 #[test]
 fn cook_membrane_reproduces_gallery_table() {
     let t0 = Instant::now();
-    let table = [
-        (1, 5.15),
-        (2, 8.72),
-        (4, 12.02),
-        (8, 13.61),
-        (16, 14.13),
-        (32, 14.28),
-    ];
     let mut last = 0.0;
-    for (n, expected) in table {
+    for (n, expected) in GALLERY_Q1 {
         let tip = cook_tip(n, 0.3, Formulation::Standard, Thickness::Free);
         let err = (tip - expected) / expected;
         eprintln!(
@@ -307,7 +215,7 @@ fn cook_membrane_reproduces_gallery_table() {
         );
         assert!(err.abs() < 1e-3, "n = {n}: {tip} vs {expected}");
         assert!(
-            tip > last && tip < COOK_Q2,
+            tip > last && tip < GALLERY_Q2,
             "monotone convergence from below"
         );
         last = tip;
@@ -316,10 +224,10 @@ fn cook_membrane_reproduces_gallery_table() {
     for n in [2, 4, 8, 16, 32] {
         let tip = cook_tip(n, 0.3, Formulation::MeanDilatation, Thickness::Free);
         eprintln!("ν = 0.3, u_z free, mean-dilatation, n = {n:2}: {tip:.3} mm");
-        assert!(tip > last_md && tip < COOK_Q2);
+        assert!(tip > last_md && tip < GALLERY_Q2);
         last_md = tip;
     }
-    assert!((COOK_Q2 - last_md) / COOK_Q2 < 0.002, "{last_md}");
+    assert!((GALLERY_Q2 - last_md) / GALLERY_Q2 < 0.002, "{last_md}");
     eprintln!("gallery table: {:.1} s", t0.elapsed().as_secs_f64());
 }
 
@@ -350,7 +258,7 @@ fn cook_membrane_plane_strain_compressible() {
     let (md32, md_lim) = limits[1];
     assert!((std32 - md32).abs() / md32 < 0.005);
     assert!((std_lim - md_lim).abs() / md_lim < 0.005);
-    assert!(md_lim < 0.98 * COOK_Q2 && md_lim > 0.94 * COOK_Q2);
+    assert!(md_lim < 0.98 * GALLERY_Q2 && md_lim > 0.94 * GALLERY_Q2);
     eprintln!("plane strain ν = 0.3: {:.1} s", t0.elapsed().as_secs_f64());
 }
 
@@ -364,7 +272,7 @@ fn cook_membrane_plane_strain_compressible() {
 fn cook_membrane_nearly_incompressible_locking_and_mean_dilatation() {
     let nu = 0.4999;
     let t0 = Instant::now();
-    let reference = COOK_MD_4999_N64;
+    let reference = MD_4999_N64;
     for n in [4, 8, 16] {
         let tip = cook_tip(n, nu, Formulation::Standard, Thickness::PlaneStrain);
         eprintln!(
@@ -405,5 +313,5 @@ fn cook_membrane_nearly_incompressible_fine_reference() {
         Thickness::PlaneStrain,
     );
     eprintln!("ν = 0.4999, plane strain, mean-dilatation, n = 64: {tip:.4} mm");
-    assert!((tip - COOK_MD_4999_N64).abs() < 1e-3, "{tip}");
+    assert!((tip - MD_4999_N64).abs() < 1e-3, "{tip}");
 }

@@ -3,40 +3,16 @@
 //! References and tolerances are stated per test; all meshes are small so that 10⁴ steps run in
 //! seconds in a release build.
 
-use deasim::material::ElectroNeoHooke;
-use deasim::mesh::{generate::box_mesh, ElementKind};
-use deasim::problem::dofs::{Dirichlet, Field, FIELDS};
+use deasim::cli::validate::dynamics::{
+    self, bar_frequency, energy_band, free_body, grounded_block, momenta, trend, Run, RHO,
+};
+use deasim::problem::dofs::FIELDS;
 use deasim::problem::model::Model;
-use deasim::solve::newton::NewtonSettings;
 use deasim::time::integrator::TimeLevel;
-use deasim::time::mass::{MassKind, NodalMass};
-use deasim::time::stage::{run_dynamic, DynamicInputs, DynamicSettings, Method};
+use deasim::time::stage::Method;
 use deasim::waveform::{Shape, Waveform};
-use std::sync::Arc;
 
-const RHO: f64 = 1000.0;
-
-/// A small film block (2 × 2 × 1 mm quarter, 2×2×1 hex8) with μ = 1e5, Λ = 4e5 Pa, εᵣ = 4.7,
-/// supports on the symmetry planes and the bottom (unless `free`), electrodes z0 (0 V) and z1.
-fn block(free: bool) -> (Model, Vec<usize>, Vec<usize>) {
-    let mesh = box_mesh([2e-3, 2e-3, 1e-3], [2, 2, 1], ElementKind::Hex8);
-    let mut model = Model::new(mesh, Arc::new(ElectroNeoHooke::new(1e5, 4e5, 4.7))).unwrap();
-    if !free {
-        model.fix("x0", Field::Ux, 0.0).unwrap();
-        model.fix("y0", Field::Uy, 0.0).unwrap();
-        model.fix("z0", Field::Uz, 0.0).unwrap();
-    }
-    let bottom = model.mesh.node_sets["z0"].clone();
-    let top = model.mesh.node_sets["z1"].clone();
-    (model, bottom, top)
-}
-
-struct Run {
-    levels: Vec<TimeLevel>,
-    energy: Vec<f64>,
-    dissipated: Vec<f64>,
-}
-
+/// `validate::dynamics::simulate`, which must succeed.
 #[allow(clippy::too_many_arguments)]
 fn simulate(
     model: &Model,
@@ -49,74 +25,14 @@ fn simulate(
     steps: usize,
     v0: Option<Vec<f64>>,
 ) -> Run {
-    let mass = NodalMass::new(model, &[RHO], MassKind::Consistent);
-    let inputs = DynamicInputs {
-        mass: &mass,
-        viscosity: vec![eta],
-        electrodes: vec![
-            (bottom.to_vec(), Waveform::constant(0.0)),
-            (top.to_vec(), Waveform::constant(volts)),
-        ],
-        points: Default::default(),
-    };
-    let n = model.mesh.n_nodes() * FIELDS;
-    let start = TimeLevel {
-        t: 0.0,
-        q: vec![0.0; n],
-        v: v0.unwrap_or(vec![0.0; n]),
-        a: vec![0.0; n],
-    };
-    let settings = DynamicSettings {
-        duration: dt * steps as f64,
-        dt,
-        scheme,
-        min_fraction: 1.0 / 64.0,
-        easy_iterations: 100,
-        reuse_factorization: true,
-        solver: Default::default(),
-    };
-    let mut run = Run {
-        levels: Vec::new(),
-        energy: Vec::new(),
-        dissipated: Vec::new(),
-    };
-    let mut mv = vec![0.0; n];
-    let mut dissipated = 0.0;
-    let newton = NewtonSettings {
-        rtol: 1e-12,
-        check_stability: false,
-        ..Default::default()
-    };
-    run_dynamic(model, &inputs, start, &settings, &newton, |level, info| {
-        mass.mul(&level.v, &mut mv);
-        let kinetic = 0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
-        let (stored, electric) = deasim::problem::statics::energies(model, &level.q).unwrap();
-        dissipated += info.dissipated;
-        run.energy.push(kinetic + stored - electric);
-        run.dissipated.push(dissipated);
-        run.levels.push(level.clone());
-    })
-    .map_err(|(_, f)| f.reason)
-    .unwrap();
-    run
-}
-
-/// Largest deviation of the conserved quantity from its value after the first step (the voltage
-/// is switched on at t = 0, so the energy of the first level is the reference).
-fn energy_band(e: &[f64]) -> f64 {
-    e.iter().map(|v| (v - e[0]).abs()).fold(0.0, f64::max)
+    dynamics::simulate(model, top, bottom, volts, eta, scheme, dt, steps, v0).unwrap()
 }
 
 /// Undamped, constant voltage: kinetic + stored − electric is conserved without drift over 10⁴
 /// steps; its oscillation is O(Δt²) (the band shrinks ≈4× when Δt is halved).
 #[test]
 fn energy_is_conserved_without_drift() {
-    let (mut model, bottom, top) = block(false);
-    model.dirichlet.push(Dirichlet {
-        nodes: bottom.clone(),
-        field: Field::Phi,
-        value: 0.0,
-    });
+    let (model, bottom, top) = grounded_block().unwrap();
     let dt = 2e-6;
     let run = simulate(
         &model,
@@ -138,15 +54,7 @@ fn energy_is_conserved_without_drift() {
         .map(|v| (v - e[0]).abs())
         .fold(0.0, f64::max);
     // least-squares trend of the energy over the 10⁴ steps
-    let n = e.len() as f64;
-    let mean_i = (n - 1.0) / 2.0;
-    let mean_e = e.iter().sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (i, v) in e.iter().enumerate() {
-        sxy += (i as f64 - mean_i) * (v - mean_e);
-        sxx += (i as f64 - mean_i).powi(2);
-    }
-    let drift = sxy / sxx * n;
+    let drift = trend(e);
     eprintln!(
         "energy {scale:.3e} J; oscillation band {band:.3e} J (first 1000 steps {first:.3e}, last 1000 {last:.3e}); trend over 10⁴ steps {drift:.3e} J"
     );
@@ -188,73 +96,21 @@ fn energy_is_conserved_without_drift() {
 /// p = Σ M v, L = Σ x × M v stay constant to round-off (10⁻¹⁰ relative: the Newton tolerance).
 #[test]
 fn free_body_conserves_linear_and_angular_momentum() {
-    let (model, bottom, top) = block(true);
-    let n_nodes = model.mesh.n_nodes();
-    let mut v0 = vec![0.0; n_nodes * FIELDS];
-    let omega = [30.0, -20.0, 50.0]; // rad/s
-    for (a, x) in model.mesh.nodes.iter().enumerate() {
-        let w = [
-            omega[1] * x[2] - omega[2] * x[1],
-            omega[2] * x[0] - omega[0] * x[2],
-            omega[0] * x[1] - omega[1] * x[0],
-        ];
-        for i in 0..3 {
-            v0[a * FIELDS + i] = [0.1, 0.05, -0.02][i] + w[i];
-        }
-    }
-    let mut model = model;
-    model.dirichlet.push(Dirichlet {
-        nodes: bottom.clone(),
-        field: Field::Phi,
-        value: 0.0,
-    });
-    let mass = NodalMass::new(&model, &[RHO], MassKind::Consistent);
-    let run = simulate(
-        &model,
-        &top,
-        &bottom,
-        20e3,
-        0.0,
-        Method::Midpoint,
-        1e-6,
-        500,
-        Some(v0.clone()),
-    );
-    let momenta = |level: &TimeLevel| {
-        let mut mv = vec![0.0; level.v.len()];
-        mass.mul(&level.v, &mut mv);
-        let (mut p, mut l) = ([0.0; 3], [0.0; 3]);
-        for (a, x0) in model.mesh.nodes.iter().enumerate() {
-            let x: Vec<f64> = (0..3).map(|i| x0[i] + level.q[a * FIELDS + i]).collect();
-            let m = &mv[a * FIELDS..a * FIELDS + 3];
-            for i in 0..3 {
-                p[i] += m[i];
-            }
-            l[0] += x[1] * m[2] - x[2] * m[1];
-            l[1] += x[2] * m[0] - x[0] * m[2];
-            l[2] += x[0] * m[1] - x[1] * m[0];
-        }
-        (p, l)
-    };
-    let start = TimeLevel {
-        t: 0.0,
-        q: vec![0.0; v0.len()],
-        v: v0,
-        a: vec![],
-    };
-    let (p0, l0) = momenta(&start);
+    let body = free_body().unwrap();
+    let of = |level: &TimeLevel| momenta(&body.model.mesh, &body.mass, level);
+    let (p0, l0) = of(&body.start);
     let pn = p0.iter().map(|v| v * v).sum::<f64>().sqrt();
     let ln = l0.iter().map(|v| v * v).sum::<f64>().sqrt();
     let mut worst: (f64, f64) = (0.0, 0.0);
-    for level in &run.levels {
-        let (p, l) = momenta(level);
+    for level in &body.run.levels {
+        let (p, l) = of(level);
         for i in 0..3 {
             worst.0 = worst.0.max((p[i] - p0[i]).abs() / pn);
             worst.1 = worst.1.max((l[i] - l0[i]).abs() / ln);
         }
     }
     // the body really deformed and rotated
-    let last = run.levels.last().unwrap();
+    let last = body.run.levels.last().unwrap();
     assert!(last.q.iter().map(|v| v.abs()).fold(0.0, f64::max) > 1e-5);
     eprintln!(
         "momentum drift over 500 steps: linear {:.2e}, angular {:.2e}",
@@ -267,12 +123,7 @@ fn free_body_conserves_linear_and_angular_momentum() {
 /// against Δt/64; the error falls ≈4× per halving (midpoint and Newmark).
 #[test]
 fn trajectory_converges_at_second_order() {
-    let (mut model, bottom, top) = block(false);
-    model.dirichlet.push(Dirichlet {
-        nodes: bottom.clone(),
-        field: Field::Phi,
-        value: 0.0,
-    });
+    let (model, bottom, top) = grounded_block().unwrap();
     let corner = model.mesh.nearest_node([2e-3, 2e-3, 1e-3]);
     for scheme in [
         Method::Midpoint,
@@ -314,55 +165,10 @@ fn trajectory_converges_at_second_order() {
 #[test]
 fn slender_bar_axial_frequency() {
     let (l, mu) = (1.0, 1e5);
-    let mesh = box_mesh([l, 0.02, 0.02], [40, 1, 1], ElementKind::Hex8);
-    let mut model = Model::new(mesh, Arc::new(ElectroNeoHooke::new(mu, 0.0, 1.0))).unwrap();
-    for f in [Field::Ux, Field::Uy, Field::Uz, Field::Phi] {
-        model.fix("x0", f, 0.0).unwrap();
-    }
-    let all: Vec<usize> = (0..model.mesh.n_nodes()).collect();
-    model.dirichlet.push(Dirichlet {
-        nodes: all.clone(),
-        field: Field::Phi,
-        value: 0.0,
-    });
     let f1 = (2.0 * mu / RHO).sqrt() / (4.0 * l);
-    let period = 1.0 / f1;
-    let dt = period / 100.0;
-    let mut v0 = vec![0.0; model.mesh.n_nodes() * FIELDS];
-    for (a, x) in model.mesh.nodes.iter().enumerate() {
-        v0[a * FIELDS] = 1e-4 * (std::f64::consts::PI * x[0] / (2.0 * l)).sin();
-    }
-    let run = simulate(
-        &model,
-        &[],
-        &[],
-        0.0,
-        0.0,
-        Method::Midpoint,
-        dt,
-        500,
-        Some(v0),
-    );
-    let tip = model.mesh.nearest_node([l, 0.0, 0.0]);
-    let v: Vec<(f64, f64)> = run
-        .levels
-        .iter()
-        .map(|lv| (lv.t, lv.v[tip * FIELDS]))
-        .collect();
-    let mut crossings = Vec::new();
-    for w in v.windows(2) {
-        if w[0].1 > 0.0 && w[1].1 <= 0.0 {
-            let t = w[0].0 + (w[1].0 - w[0].0) * w[0].1 / (w[0].1 - w[1].1);
-            crossings.push(t);
-        }
-    }
-    assert!(crossings.len() >= 4, "{crossings:?}");
-    let measured = (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
-    let rel = (1.0 / measured - f1).abs() / f1;
-    eprintln!(
-        "bar: f1 = {f1:.4} Hz analytic, {:.4} Hz computed, rel. error {rel:.2e}",
-        1.0 / measured
-    );
+    let computed = bar_frequency(l, mu, 1.0 / f1).unwrap();
+    let rel = (computed - f1).abs() / f1;
+    eprintln!("bar: f1 = {f1:.4} Hz analytic, {computed:.4} Hz computed, rel. error {rel:.2e}");
     assert!(rel < 0.01);
 }
 
@@ -371,12 +177,7 @@ fn slender_bar_axial_frequency() {
 /// deviation falls ≈4× when Δt is halved.
 #[test]
 fn viscous_vibration_decays_and_balances_energy() {
-    let (mut model, bottom, top) = block(false);
-    model.dirichlet.push(Dirichlet {
-        nodes: bottom.clone(),
-        field: Field::Phi,
-        value: 0.0,
-    });
+    let (model, bottom, top) = grounded_block().unwrap();
     let eta = 5.0; // Pa·s
     let dt = 2e-6;
     let run = simulate(
@@ -515,12 +316,7 @@ fn waveforms_match_their_formulas() {
 /// closes at O(Δt²). Δt is kept below its stability limit (≈2e-5 s for this mesh).
 #[test]
 fn trapezoidal_integrator_conserves_momenta_and_energy() {
-    let (mut model, bottom, top) = block(false);
-    model.dirichlet.push(Dirichlet {
-        nodes: bottom.clone(),
-        field: Field::Phi,
-        value: 0.0,
-    });
+    let (model, bottom, top) = grounded_block().unwrap();
     let band = |dt: f64, steps: usize, eta: f64| {
         let r = simulate(
             &model,

@@ -6,28 +6,17 @@
 //! the Newton tolerance: |Δλ| < 1e-8. Pull-in: ramped to 40 kV, the solver must stop with the last
 //! converged voltage within 0.5 % below the closed-form critical voltage 33.695 kV.
 
-use deasim::analytic::Film;
 use deasim::job::statics::solve_static;
-use deasim::material::EPSILON_0;
 use deasim::mesh::ElementKind;
-use deasim::problem::examples::{film, FILM_EPS_R, FILM_LAMBDA, FILM_MU, FILM_SIZE};
+use deasim::problem::examples::{film, film_closed_form, FILM_SIZE};
 use deasim::solve::newton::NewtonSettings;
 use deasim::solve::stepping::StepControl;
-
-fn closed_form() -> Film {
-    Film {
-        mu: FILM_MU,
-        lambda: FILM_LAMBDA,
-        eps: FILM_EPS_R * EPSILON_0,
-        c2: 0.0,
-    }
-}
 
 /// Largest deviation of the computed stretches from the closed form over all load steps.
 fn film_ramp_error(kind: ElementKind, threads: usize) -> (f64, usize) {
     let voltage = 30e3;
     let model = film([3, 3, 2], kind, voltage).unwrap();
-    let reference = closed_form();
+    let reference = film_closed_form();
     let mut worst: f64 = 0.0;
     let mut steps = 0;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -89,7 +78,7 @@ fn film_matches_closed_form_hex8_and_tet4_on_1_and_2_threads() {
 #[test]
 fn ramp_to_40kv_stops_at_pull_in() {
     let model = film([2, 2, 1], ElementKind::Hex8, 40e3).unwrap();
-    let (ec, _) = closed_form().pull_in();
+    let (ec, _) = film_closed_form().pull_in();
     let v_crit = ec * FILM_SIZE[2];
     let outcome = solve_static(
         &model,

@@ -1,4 +1,6 @@
-//! Natural modes of a pre-stretched rectangular membrane clamped on its edges (`time::modal`).
+//! Natural modes of a pre-stretched rectangular membrane clamped on its edges (`time::modal`;
+//! the model is `examples::membrane`, the solve and the filter of flexural modes
+//! `validate::small_signal`, shared with `deasim validate`).
 //!
 //! Reference: a membrane of tension T (N/m) and mass per area ρ_A vibrates out of plane at
 //! f_mn = ½ √(T/ρ_A) √(m²/L² + n²/W²) (L, W the stretched sides). A square film of neo-Hooke
@@ -13,150 +15,22 @@
 //! the frequencies fall as √(T(V)/T(0)).
 
 mod common;
-use deasim::material::neo_hooke::ElectroNeoHooke;
-use deasim::material::{Material, Vec3};
-use deasim::mesh::{generate::box_mesh, ElementKind};
-use deasim::problem::dofs::{Dirichlet, Field};
-use deasim::problem::model::Model;
-use deasim::solve::newton::NewtonSettings;
-use deasim::solve::stepping::StepControl;
-use deasim::time::mass::{MassKind, NodalMass};
-use deasim::time::modal::{modes, ModeSettings};
-use std::sync::Arc;
+use deasim::cli::validate::small_signal::{flexural, homogeneous};
+use deasim::problem::examples::{MEMBRANE_SIDE, MEMBRANE_STRETCH};
 
-const L0: f64 = 10e-3;
-const H0: f64 = 0.1e-3;
-const STRETCH: f64 = 1.5;
-const RHO: f64 = 1000.0;
-
-fn material() -> ElectroNeoHooke {
-    ElectroNeoHooke::new(1e5, 1e7, 4.7)
-}
-
-/// The membrane on an n × n × 1 mesh, sides held at the stretched position, the bottom face
-/// grounded and the top face at `volts`.
-fn membrane(n: usize, volts: f64) -> Model {
-    let mesh = box_mesh([L0, L0, H0], [n, n, 1], ElementKind::Hex8);
-    let mut m = Model::new(mesh, Arc::new(material())).unwrap();
-    let mut sides: Vec<usize> = Vec::new();
-    for s in ["x0", "x1", "y0", "y1"] {
-        sides.extend(&m.mesh.node_sets[s]);
-    }
-    sides.sort_unstable();
-    sides.dedup();
-    for &node in &sides {
-        let x = m.mesh.nodes[node];
-        // in plane: the stretched position; out of plane: the bottom edge (the film thins freely)
-        for (field, v) in [
-            (Field::Ux, (STRETCH - 1.0) * x[0]),
-            (Field::Uy, (STRETCH - 1.0) * x[1]),
-            (Field::Uz, 0.0),
-        ] {
-            if field == Field::Uz && x[2] > 0.0 {
-                continue;
-            }
-            m.dirichlet.push(Dirichlet {
-                nodes: vec![node],
-                field,
-                value: v,
-            });
-        }
-    }
-    m.fix("z0", Field::Phi, 0.0).unwrap();
-    m.fix("z1", Field::Phi, volts).unwrap();
-    m
-}
-
-/// The homogeneous state F = diag(λ, λ, t) with P₃₃ = 0 under the nominal field V/H₀: the
-/// thickness stretch t and T/ρ_A (m²/s²) of the membrane.
-fn homogeneous(volts: f64) -> (f64, f64) {
-    let mat = material();
-    let e0 = Vec3::new(0.0, 0.0, volts / H0);
-    let f = |t: f64| deasim::material::Mat3::from_diagonal(&Vec3::new(STRETCH, STRETCH, t));
-    let mut t = 1.0 / (STRETCH * STRETCH);
-    for _ in 0..50 {
-        let tan = mat.tangent(&f(t), &e0).unwrap();
-        let dt = -tan.p[(2, 2)] / tan.a[(8, 8)];
-        t += dt;
-        if dt.abs() < 1e-15 {
-            break;
-        }
-    }
-    let s = mat.stress(&f(t), &e0).unwrap();
-    // Cauchy σ₁₁ = P₁₁ F₁₁ / J, T = σ₁₁ t H₀, ρ_A = ρ₀ H₀ / λ²
-    let sigma = s.p[(0, 0)] * STRETCH / (STRETCH * STRETCH * t);
-    (t, sigma * t * STRETCH * STRETCH / RHO)
-}
-
+/// T/ρ_A (m²/s²) of the homogeneous state at `volts`.
 fn tension_over_density(volts: f64) -> f64 {
     homogeneous(volts).1
-}
-
-/// The lowest flexural frequencies (modes whose kinetic energy is mostly out of plane).
-fn flexural(n: usize, volts: f64, count: usize) -> Vec<f64> {
-    let m = membrane(n, volts);
-    // the homogeneous state is the equilibrium (one Newton solve from it)
-    let t = homogeneous(volts).0;
-    let mut guess = vec![0.0; m.mesh.n_nodes() * 4];
-    for (node, x) in m.mesh.nodes.iter().enumerate() {
-        guess[node * 4] = (STRETCH - 1.0) * x[0];
-        guess[node * 4 + 1] = (STRETCH - 1.0) * x[1];
-        guess[node * 4 + 2] = (t - 1.0) * x[2];
-        guess[node * 4 + 3] = volts * x[2] / H0;
-    }
-    let out = deasim::job::statics::solve_static(
-        &m,
-        Some(guess),
-        &StepControl {
-            steps: 1,
-            ..Default::default()
-        },
-        &NewtonSettings::default(),
-        |_, _| {},
-    );
-    out.result.unwrap();
-    let mass = NodalMass::new(&m, &[RHO], MassKind::Consistent);
-    let found = modes(
-        &m,
-        &out.state,
-        &mass,
-        &Default::default(),
-        &ModeSettings {
-            count,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    found
-        .iter()
-        .filter(|mode| {
-            let (mut z, mut all) = (0.0, 0.0);
-            for node in 0..m.mesh.n_nodes() {
-                for i in 0..3 {
-                    let v = mode.shape[node * 4 + i].powi(2);
-                    all += v;
-                    if i == 2 {
-                        z += v;
-                    }
-                }
-            }
-            z > 0.9 * all
-        })
-        .map(|mode| {
-            assert!(mode.residual < 1e-8, "{}", mode.residual);
-            mode.frequency
-        })
-        .collect()
 }
 
 #[test]
 fn prestretched_membrane_frequencies_and_their_electric_softening() {
     let c2 = tension_over_density(0.0);
-    let l = STRETCH * L0;
+    let l = MEMBRANE_STRETCH * MEMBRANE_SIDE;
     let f_mn = |m: f64, n: f64| 0.5 * c2.sqrt() * (m * m + n * n).sqrt() / l;
     let mut errors = Vec::new();
     for n in [8, 16] {
-        let f = flexural(n, 0.0, 12);
+        let f = flexural(n, 0.0, 12).unwrap();
         assert!(f.len() >= 3, "{f:?}");
         let e11 = f[0] / f_mn(1.0, 1.0) - 1.0;
         // (1, 2) and (2, 1) are degenerate
@@ -181,7 +55,10 @@ fn prestretched_membrane_frequencies_and_their_electric_softening() {
     // a voltage lowers the frequencies as the tension it takes away
     let volts = 2000.0;
     let expect = (tension_over_density(volts) / c2).sqrt();
-    let (f0, fv) = (flexural(16, 0.0, 4)[0], flexural(16, volts, 4)[0]);
+    let (f0, fv) = (
+        flexural(16, 0.0, 4).unwrap()[0],
+        flexural(16, volts, 4).unwrap()[0],
+    );
     println!(
         "{volts} V: f11 {fv:.4} Hz against {f0:.4} Hz at 0 V, ratio {:.6}, membrane {expect:.6}",
         fv / f0
