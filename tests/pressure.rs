@@ -36,13 +36,13 @@ fix = ["y"]
 [[constraints]]
 set = "z0"
 fix = ["z"]
-[[pressures]]
+[[loads.pressure]]
 set = "x1"
 value = {P}
-[[pressures]]
+[[loads.pressure]]
 set = "y1"
 value = {P}
-[[pressures]]
+[[loads.pressure]]
 set = "z1"
 value = {P}
 {extra}

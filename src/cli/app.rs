@@ -227,6 +227,25 @@ impl Observer for Progress {
         }
     }
 
+    fn limit_point(&mut self, plan: &Plan, l: &crate::job::run::LimitRecord) {
+        let (name, unit) = plan
+            .stages
+            .iter()
+            .find(|s| s.name == l.stage)
+            .and_then(|s| match &s.kind {
+                StageKind::Continuation { parameter, .. } => Some(parameter.column(plan)),
+                _ => None,
+            })
+            .unwrap_or_else(|| ("parameter".into(), "-"));
+        self.say(&format!(
+            "  {}: limit point: {} of {name} = {:.6e} {unit} at load factor {:.6}",
+            l.stage,
+            if l.maximum { "maximum" } else { "minimum" },
+            l.parameter,
+            l.load_factor
+        ));
+    }
+
     fn stage_started(&mut self, index: usize, name: &str) {
         match &self.bar {
             Some(b) => b.set_message(format!("stage {name}")),
@@ -668,6 +687,25 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                     StageKind::Modes { count, shift_hz } => println!(
                         "stage {i} `{}`: modes, {count} nearest to {shift_hz} Hz",
                         s.name
+                    ),
+                    StageKind::Continuation {
+                        steps,
+                        ref parameter,
+                        ref target,
+                        max_points,
+                    } => println!(
+                        "stage {i} `{}`: continuation (arc length) in `{}`, first load step \
+                         1/{steps}, until {}",
+                        s.name,
+                        parameter.column(&plan).0,
+                        match target {
+                            crate::job::plan::PathTarget::Load(l) =>
+                                format!("load factor {l} (at most {max_points} points)"),
+                            crate::job::plan::PathTarget::Probe { name, value } => format!(
+                                "probe `{name}` reaches {value} (at most {max_points} points)"
+                            ),
+                            crate::job::plan::PathTarget::Points => format!("{max_points} points"),
+                        }
                     ),
                     StageKind::FrequencyResponse {
                         electrode,

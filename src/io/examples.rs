@@ -4,6 +4,7 @@
 /// (name, TOML text) of every example.
 pub const EXAMPLES: &[(&str, &str)] = &[
     ("film", include_str!("../../scenarios/film.toml")),
+    ("film-arc", include_str!("../../scenarios/film-arc.toml")),
     (
         "film-charge",
         include_str!("../../scenarios/film-charge.toml"),

@@ -9,7 +9,7 @@ use super::plot::{line_plot, stacked_plot, PlotError, PlotSpec, Series};
 use super::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuError, VtuPiece};
 use crate::element::CellFields;
 use crate::job::linear::FrequencyResponse;
-use crate::job::run::{Observer, RunSummary, StepRecord};
+use crate::job::run::{LimitRecord, Observer, PathRecord, RunSummary, StepRecord};
 use crate::time::modal::Mode;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -56,6 +56,23 @@ pub struct OutputWriter {
     responses: Vec<(String, String, f64)>,
     /// The `--set` overrides of the run, for the summary.
     pub overrides: Vec<String>,
+    /// The points and limit points of the continuation stages.
+    path: Vec<PathRecord>,
+    limits: Vec<LimitRecord>,
+}
+
+/// Name and SI unit of the parameter of continuation stage `stage`.
+fn path_parameter(plan: &Plan, stage: &str) -> (String, &'static str) {
+    plan.stages
+        .iter()
+        .find(|s| s.name == stage)
+        .and_then(|s| match &s.kind {
+            crate::job::plan::StageKind::Continuation { parameter, .. } => {
+                Some(parameter.column(plan))
+            }
+            _ => None,
+        })
+        .unwrap_or_else(|| ("parameter".into(), "-"))
 }
 
 /// Whether a file name is one deasim writes into `plots/`.
@@ -148,6 +165,7 @@ impl OutputWriter {
             "summary.json",
             "modes.csv",
             "modes.pvd",
+            "path.csv",
             "frequency_response.csv",
         ] {
             remove_if_present(&dir.join(f))?;
@@ -183,6 +201,8 @@ impl OutputWriter {
             linear_files: Vec::new(),
             responses: Vec::new(),
             overrides: Vec::new(),
+            path: Vec::new(),
+            limits: Vec::new(),
         };
         for sub in ["fields", "plots"] {
             let d = dir.join(sub);
@@ -251,6 +271,42 @@ impl OutputWriter {
             ];
             row.extend(r.probes.iter().map(|&v| csv_number(v)));
             row.push(csv_number(r.dt));
+            s.push_str(&row.join(","));
+            s.push('\n');
+        }
+        s
+    }
+
+    /// The continuation points as CSV text: stage, point, load factor, the parameter's name
+    /// (with its unit) and value, arc length, negative pivots of the tangent and of a stable
+    /// state, stability under control of the parameter, then the probes.
+    pub fn path_csv(plan: &Plan, points: &[PathRecord]) -> String {
+        let mut s = String::from(
+            "stage,point,load_factor,parameter_name,parameter,arc_length,negative_pivots,\
+             stable_negative_pivots,stable",
+        );
+        for (name, _) in &plan.probes {
+            s.push_str(&format!(",probe:{name}"));
+        }
+        s.push('\n');
+        for p in points {
+            let (name, unit) = path_parameter(plan, &p.stage);
+            let (neg, expected) = match p.negative_pivots {
+                Some((n, e)) => (n.to_string(), e.to_string()),
+                None => (String::new(), String::new()),
+            };
+            let mut row = vec![
+                p.stage.clone(),
+                p.point.to_string(),
+                csv_number(p.load_factor),
+                format!("{name} [{unit}]"),
+                csv_number(p.parameter),
+                csv_number(p.arc_length),
+                neg,
+                expected,
+                p.stable.to_string(),
+            ];
+            row.extend(p.probes.iter().map(|&v| csv_number(v)));
             s.push_str(&row.join(","));
             s.push('\n');
         }
@@ -428,6 +484,30 @@ impl OutputWriter {
                 .responses
                 .iter()
                 .map(|(stage, e, bias)| json!({"stage": stage, "electrode": e, "bias_v": bias}))
+                .collect::<Vec<_>>());
+        }
+        if !self.limits.is_empty() {
+            v["limit_points"] = json!(self
+                .limits
+                .iter()
+                .map(|l| {
+                    let (name, unit) = path_parameter(plan, &l.stage);
+                    let probes: serde_json::Map<String, Value> = plan
+                        .probes
+                        .iter()
+                        .zip(&l.probes)
+                        .map(|((n, _), &x)| (n.clone(), json_number(x)))
+                        .collect();
+                    json!({
+                        "stage": l.stage,
+                        "kind": if l.maximum { "maximum" } else { "minimum" },
+                        "parameter": name,
+                        "unit": unit,
+                        "value": json_number(l.parameter),
+                        "load_factor": json_number(l.load_factor),
+                        "probes": probes,
+                    })
+                })
                 .collect::<Vec<_>>());
         }
         if let Some(err) = &summary.error {
@@ -710,6 +790,14 @@ impl Observer for OutputWriter {
         self.point_states = cell_means.to_vec();
     }
 
+    fn path_point(&mut self, _plan: &Plan, point: &PathRecord) {
+        self.path.push(point.clone());
+    }
+
+    fn limit_point(&mut self, _plan: &Plan, limit: &LimitRecord) {
+        self.limits.push(limit.clone());
+    }
+
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
         let every = plan.output.fields_every;
         // a new stage begins: the state its predecessor ended in is in the field files too
@@ -818,6 +906,13 @@ impl OutputWriter {
             }
         }
         self.write_history(plan);
+        if !self.path.is_empty() {
+            let path = self.dir.join("path.csv");
+            let text = Self::path_csv(plan, &self.path);
+            if let Err(e) = write_atomic(&path, text.as_bytes()) {
+                self.failed(format!("{}: {e}", path.display()));
+            }
+        }
         if let Some(text) = crate::io::periods::periods_csv(plan, &self.records) {
             let path = self.dir.join("periods.csv");
             if let Err(e) = write_atomic(&path, text.as_bytes()) {

@@ -85,10 +85,6 @@ pub struct Scenario {
     /// static stages.
     #[serde(default)]
     pub tractions: Vec<TractionSpec>,
-    /// Follower pressures (Pa) on face sets, ramped with the load factor of static stages like
-    /// the tractions.
-    #[serde(default)]
-    pub pressures: Vec<PressureSpec>,
     /// Gravity and rigid regions with attached masses.
     #[serde(default)]
     pub loads: Option<LoadsSpec>,
@@ -119,6 +115,10 @@ pub struct LoadsSpec {
     /// Rigid regions: every node of the set moves by one common translation.
     #[serde(default)]
     pub rigid: Vec<RigidSpec>,
+    /// Follower pressures (Pa) on face sets, ramped with the load factor of static stages like
+    /// the tractions.
+    #[serde(default)]
+    pub pressure: Vec<PressureSpec>,
 }
 
 /// A rigid region (all three translations shared, rotations suppressed) with an attached mass.
@@ -529,6 +529,32 @@ pub struct StageSpec {
     /// with a static correction).
     #[serde(default)]
     pub method: Option<String>,
+    /// `continuation`: the load followed, `voltage`, `charge` (of `electrode`) or `pressure`.
+    #[serde(default)]
+    pub parameter: Option<String>,
+    /// `continuation`: where the path ends.
+    #[serde(default)]
+    pub target: Option<TargetSpec>,
+    /// `continuation`: the largest number of points (default 500).
+    #[serde(default)]
+    pub max_points: Option<u64>,
+}
+
+/// The end of a continuation stage: a load factor, a probe value, or a number of points.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct TargetSpec {
+    /// Load factor (1: the stage's end values of the loads).
+    #[serde(default)]
+    pub load: Option<f64>,
+    /// A probe's name, with the `value` it must reach.
+    #[serde(default)]
+    pub probe: Option<String>,
+    #[serde(default)]
+    pub value: Option<f64>,
+    /// A number of points.
+    #[serde(default)]
+    pub points: Option<u64>,
 }
 
 /// A recorded quantity.

@@ -44,13 +44,61 @@ pub enum StageKind {
         frequencies: Vec<f64>,
         method: ResponseMethod,
     },
+    /// Arc-length continuation: a static stage whose load factor is an unknown, so that the
+    /// path goes on through limit points. Its first step (and largest load step) is 1/`steps`.
+    Continuation {
+        steps: usize,
+        parameter: PathParameter,
+        target: PathTarget,
+        max_points: usize,
+    },
+}
+
+/// The load a continuation stage follows (all loads that change in the stage move with the
+/// load factor; this one is reported as the path's abscissa and at its limit points).
+#[derive(Debug, Clone, PartialEq)]
+pub enum PathParameter {
+    /// The voltage (V) of electrode `electrode` (plan index).
+    Voltage { electrode: usize },
+    /// The charge (C, whole device) of a charge-controlled electrode.
+    Charge { electrode: usize },
+    /// The follower pressure (Pa) of `model.pressures[index]`.
+    Pressure { index: usize },
+}
+
+impl PathParameter {
+    /// Column name and SI unit of the parameter, e.g. (`voltage_top`, `V`).
+    pub fn column(&self, plan: &Plan) -> (String, &'static str) {
+        match self {
+            PathParameter::Voltage { electrode } => {
+                (format!("voltage_{}", plan.electrodes[*electrode].name), "V")
+            }
+            PathParameter::Charge { electrode } => {
+                (format!("charge_{}", plan.electrodes[*electrode].name), "C")
+            }
+            PathParameter::Pressure { index } => (format!("pressure_{index}"), "Pa"),
+        }
+    }
+}
+
+/// Where a continuation stage ends.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PathTarget {
+    /// At this load factor (1: the stage's targets), landed on exactly.
+    Load(f64),
+    /// Where the probe named `name` first reaches `value`.
+    Probe { name: String, value: f64 },
+    /// After `max_points` points.
+    Points,
 }
 
 impl StageKind {
     /// Nominal number of steps of a stage of this kind lasting `duration`.
     pub fn nominal_steps(&self, duration: f64) -> usize {
         match self {
-            StageKind::Static { steps } | StageKind::QuasiStatic { steps } => *steps,
+            StageKind::Static { steps }
+            | StageKind::QuasiStatic { steps }
+            | StageKind::Continuation { steps, .. } => *steps,
             StageKind::Dynamic { dt, .. } => (duration / dt - 1e-9).ceil().max(1.0) as usize,
             StageKind::Modes { .. } | StageKind::FrequencyResponse { .. } => 0,
         }

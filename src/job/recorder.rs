@@ -110,36 +110,22 @@ impl<'p> Recorder<'p> {
             }
         };
         let energy_error = total - initial - self.boundary_work - self.load_change_work;
-        let voltages: Vec<(&[usize], f64)> = self
+        let voltage = self
             .plan
             .electrodes
             .iter()
-            .map(|e| (e.nodes.as_slice(), state[e.nodes[0] * FIELDS + 3]))
-            .collect();
-        let voltage = voltages
-            .iter()
-            .map(|v| v.1)
+            .map(|e| state[e.nodes[0] * FIELDS + 3])
             .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
         let fields = cell_fields_with(model, state, &self.points)?;
         let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
         self.check_breakdown(&fields, time, stage);
-        let input = ProbeInput {
+        let probes = self.probe_values(
             state,
-            reactions: &reactions,
-            electrodes: &voltages,
-            stored,
-            electric,
-            reference: &self.reference,
-            max_field: max_electric_field,
-            symmetry: self.plan.symmetry_factor,
-            previous: (&self.prev_reactions, dt),
-        };
-        let probes = self
-            .plan
-            .probes
-            .iter()
-            .map(|(_, p)| p.evaluate(&input))
-            .collect();
+            &reactions,
+            (stored, electric),
+            max_electric_field,
+            (&self.prev_reactions, dt),
+        );
         self.prev_reactions = reactions;
         self.prev_external = external;
         self.prev_state = state.to_vec();
@@ -166,6 +152,51 @@ impl<'p> Recorder<'p> {
             self.history.push(record.clone());
         }
         Ok((record, fields))
+    }
+
+    /// The probes at a state with its reactions, energies (mechanical, electric), largest field
+    /// and the previous record's reactions with the time since it (for rate probes).
+    fn probe_values(
+        &self,
+        state: &[f64],
+        reactions: &[f64],
+        (stored, electric): (f64, f64),
+        max_field: f64,
+        previous: (&[f64], f64),
+    ) -> Vec<f64> {
+        let voltages: Vec<(&[usize], f64)> = self
+            .plan
+            .electrodes
+            .iter()
+            .map(|e| (e.nodes.as_slice(), state[e.nodes[0] * FIELDS + 3]))
+            .collect();
+        let input = ProbeInput {
+            state,
+            reactions,
+            electrodes: &voltages,
+            stored,
+            electric,
+            reference: &self.reference,
+            max_field,
+            symmetry: self.plan.symmetry_factor,
+            previous,
+        };
+        self.plan
+            .probes
+            .iter()
+            .map(|(_, p)| p.evaluate(&input))
+            .collect()
+    }
+
+    /// The probes at a state that is not recorded (a located limit point): nothing is
+    /// accumulated; rate probes (current, power) have no previous record and read 0.
+    pub(super) fn probes_at(&self, state: &[f64]) -> Result<Vec<f64>, String> {
+        let model = &self.plan.model;
+        let reactions = nodal_reactions_with(model, state, &self.points, 0.0)?;
+        let energies = energies_with(model, state, &self.points)?;
+        let fields = cell_fields_with(model, state, &self.points)?;
+        let max_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
+        Ok(self.probe_values(state, &reactions, energies, max_field, (&[], f64::NAN)))
     }
 
     /// The bookkeeping for a checkpoint.

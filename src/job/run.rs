@@ -10,13 +10,16 @@ use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
 use super::recorder::Recorder;
 pub use super::state::{
-    Energies, RecorderState, RunState, StagePosition, StageSummary, StepRecord,
+    Energies, LimitRecord, PathRecord, RecorderState, RunState, StagePosition, StageSummary,
+    StepRecord,
 };
 use super::statics::{solve_static_from, StageTime};
 use crate::element::CellFields;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
+use crate::problem::statics::StaticProblem;
+use crate::problem::system::NonlinearSystem;
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{RampPosition, StepControl};
 use crate::time::integrator::TimeLevel;
@@ -63,6 +66,10 @@ pub trait Observer {
     fn modes(&mut self, _plan: &Plan, _stage: &str, _state: &[f64], _modes: &[Mode]) {}
     /// A `frequency-response` stage computed this response.
     fn frequency_response(&mut self, _plan: &Plan, _stage: &str, _response: &FrequencyResponse) {}
+    /// A continuation stage converged at a point of its path (after its [`Observer::step`]).
+    fn path_point(&mut self, _plan: &Plan, _point: &PathRecord) {}
+    /// A continuation stage located a limit point of its parameter.
+    fn limit_point(&mut self, _plan: &Plan, _limit: &LimitRecord) {}
     /// Whether this observer may ask for run states (the run then keeps its history).
     fn takes_states(&self) -> bool {
         false
@@ -118,6 +125,12 @@ impl Observer for Observers<'_, '_> {
         self.0
             .iter_mut()
             .for_each(|o| o.frequency_response(plan, stage, response));
+    }
+    fn path_point(&mut self, plan: &Plan, point: &PathRecord) {
+        self.0.iter_mut().for_each(|o| o.path_point(plan, point));
+    }
+    fn limit_point(&mut self, plan: &Plan, limit: &LimitRecord) {
+        self.0.iter_mut().for_each(|o| o.limit_point(plan, limit));
     }
     fn takes_states(&self) -> bool {
         self.0.iter().any(|o| o.takes_states())
@@ -318,7 +331,7 @@ impl<'p, 'o> Job<'p, 'o> {
         iterations: usize,
         dt: f64,
         kinetic: f64,
-    ) {
+    ) -> Option<StepRecord> {
         if !self.points.is_empty() {
             let means = self.points.cell_means(&self.plan.model);
             self.observer.point_states(self.plan, &means);
@@ -334,9 +347,13 @@ impl<'p, 'o> Job<'p, 'o> {
             kinetic,
             self.dissipated,
         ) {
-            Ok((r, f)) => self.observer.step(self.plan, &r, q, &f),
+            Ok((r, f)) => {
+                self.observer.step(self.plan, &r, q, &f);
+                Some(r)
+            }
             Err(e) => {
                 self.record_error.get_or_insert(e);
+                None
             }
         }
     }
@@ -392,6 +409,9 @@ impl<'p, 'o> Job<'p, 'o> {
             }
             StageKind::Modes { .. } | StageKind::FrequencyResponse { .. } => {
                 self.linearised_stage(stage, &mut summary)
+            }
+            StageKind::Continuation { .. } => {
+                self.continuation_stage(si, model, &prescribed, &mut summary)
             }
         };
         summary.wall_s = stage_start.elapsed().as_secs_f64();
@@ -737,6 +757,210 @@ impl<'p, 'o> Job<'p, 'o> {
                     f.attempted,
                     voltage_at(f.last_converged),
                     voltage_at(f.attempted),
+                    f.reason
+                ))
+            }
+        }
+    }
+
+    /// A continuation stage: the equilibrium path of the stage's loads by arc length, through
+    /// limit points, to its target. Every point is recorded as a step (its pseudo-time is
+    /// load factor × duration, so it runs back where the load does) and sent as a path point
+    /// with its stability; located limit points go to the observers. Returns the failure, if any.
+    fn continuation_stage(
+        &mut self,
+        si: usize,
+        model: &mut Model,
+        prescribed: &[bool],
+        summary: &mut StageSummary,
+    ) -> Option<String> {
+        use crate::job::plan::{PathParameter, PathTarget};
+        use crate::solve::continuation::{
+            continuation, ContinuationSettings, Next, PathEnd, PathEvent,
+        };
+        let plan = self.plan;
+        let stage = &plan.stages[si];
+        let StageKind::Continuation {
+            steps,
+            ref parameter,
+            ref target,
+            max_points,
+        } = stage.kind
+        else {
+            unreachable!("a continuation stage")
+        };
+        summary.kind = "continuation".into();
+        self.v.iter_mut().for_each(|v| *v = 0.0);
+        self.a.iter_mut().for_each(|v| *v = 0.0);
+        let stage_start = self.q.clone();
+        let t0 = model.dead_load_start;
+        let (column, unit) = parameter.column(plan);
+        // the parameter at the stage's start and end (load factor 0 and 1)
+        let (p0, p1) = match parameter {
+            PathParameter::Voltage { electrode } => {
+                let e = &plan.electrodes[*electrode];
+                (
+                    stage_start[e.nodes[0] * FIELDS + 3],
+                    stage_voltage(stage, &e.voltage, stage.duration),
+                )
+            }
+            PathParameter::Charge { electrode } => {
+                let q = plan.electrodes[*electrode].charge.unwrap_or(0.0);
+                (q * t0, q)
+            }
+            PathParameter::Pressure { index } => {
+                let p = model.pressures[*index].value;
+                (p * t0, p)
+            }
+        };
+        if p0 == p1 {
+            return Some(format!(
+                "stage `{}`: the parameter `{column}` is {} {unit} at the start and at the end \
+                 of the stage: a continuation follows a load that its stage changes",
+                stage.name,
+                crate::units::Short(p0)
+            ));
+        }
+        let parameter_at = |s: f64| p0 + s * (p1 - p0);
+        let probe_target = match target {
+            PathTarget::Probe { name, value } => plan
+                .probes
+                .iter()
+                .position(|(n, _)| n == name)
+                .map(|i| (i, *value)),
+            _ => None,
+        };
+        let settings = ContinuationSettings {
+            increment: 1.0 / steps.max(1) as f64,
+            max_points,
+            target_load: match target {
+                PathTarget::Load(l) => Some(*l),
+                _ => None,
+            },
+            ..Default::default()
+        };
+        let time = self.time;
+        let model_ref: &Model = model;
+        let mut problem = StaticProblem::new(model_ref, Some(stage_start));
+        problem.duration = stage.duration;
+        problem.points = self.points.clone();
+        let mut solver = plan.solver.build();
+        let mut step_no = self.first_step;
+        let mut last_load = 0.0;
+        let mut previous_probe: Option<f64> = None;
+        let mut reached = false;
+        let mut limit_error = None;
+        let result = continuation(
+            &mut problem,
+            solver.as_mut(),
+            self.newton,
+            &settings,
+            0.0,
+            |p, event| match event {
+                PathEvent::Point(pt) => {
+                    step_no += 1;
+                    self.rec.sudden_loads = false;
+                    self.rec.external_factor = t0 + pt.load * (1.0 - t0);
+                    let dt = (pt.load - last_load) * stage.duration;
+                    last_load = pt.load;
+                    let record = self.record(
+                        &p.state,
+                        prescribed,
+                        time + pt.load * stage.duration,
+                        &stage.name,
+                        step_no,
+                        pt.iterations,
+                        dt,
+                        0.0,
+                    );
+                    self.accepted += 1;
+                    let probes = record.map(|r| r.probes).unwrap_or_default();
+                    let expected = p.expected_negative_pivots();
+                    self.observer.path_point(
+                        plan,
+                        &PathRecord {
+                            stage: stage.name.clone(),
+                            point: pt.index,
+                            load_factor: pt.load,
+                            parameter: parameter_at(pt.load),
+                            arc_length: pt.arc,
+                            negative_pivots: pt.inertia.map(|i| (i.negative, expected)),
+                            stable: pt.stable,
+                            probes: probes.clone(),
+                        },
+                    );
+                    if let (Some((i, target)), Some(&x)) =
+                        (probe_target, probe_target.and_then(|(i, _)| probes.get(i)))
+                    {
+                        let _ = i;
+                        let crossed = previous_probe
+                            .is_some_and(|prev| (prev - target) * (x - target) <= 0.0);
+                        previous_probe = Some(x);
+                        if crossed || x == target {
+                            reached = true;
+                            return Next::Stop;
+                        }
+                    }
+                    Next::Continue
+                }
+                PathEvent::Limit(l) => {
+                    match self.rec.probes_at(&p.state) {
+                        Ok(probes) => self.observer.limit_point(
+                            plan,
+                            &LimitRecord {
+                                stage: stage.name.clone(),
+                                maximum: l.maximum,
+                                load_factor: l.load,
+                                parameter: parameter_at(l.load),
+                                probes,
+                            },
+                        ),
+                        Err(e) => limit_error = Some(e),
+                    }
+                    Next::Continue
+                }
+            },
+        );
+        if let Some(e) = limit_error {
+            self.summary.warnings.push(format!(
+                "stage `{}`: the probes at a limit point could not be evaluated: {e}",
+                stage.name
+            ));
+        }
+        self.q = problem.state;
+        self.points = problem.points;
+        summary.steps = step_no;
+        match result {
+            Ok(report) => {
+                summary.newton_iterations = report.iterations + self.prestretch_iterations;
+                // later stages start from the dead loads where the path ended
+                model.dead_load_start = t0 + last_load * (1.0 - t0);
+                let missed = match (target, &report.end) {
+                    (PathTarget::Points, _) | (PathTarget::Load(_), PathEnd::TargetLoad) => false,
+                    (PathTarget::Probe { .. }, _) => !reached,
+                    _ => true,
+                };
+                missed.then(|| {
+                    format!(
+                        "continuation in stage `{}`: the target was not reached in {} points \
+                         (last point: load factor {:.6}, {column} = {} {unit}); raise \
+                         `max_points` or check the target",
+                        stage.name,
+                        report.points,
+                        last_load,
+                        crate::units::Short(parameter_at(last_load))
+                    )
+                })
+            }
+            Err(f) => {
+                summary.newton_iterations = f.iterations + self.prestretch_iterations;
+                Some(format!(
+                    "continuation in stage `{}` stopped after {} points at load factor {:.6} \
+                     ({column} = {} {unit}): {}",
+                    stage.name,
+                    f.points,
+                    f.last_load,
+                    crate::units::Short(parameter_at(f.last_load)),
                     f.reason
                 ))
             }

@@ -39,6 +39,38 @@ pub struct StepRecord {
     pub max_electric_field: f64,
 }
 
+/// A converged point of a continuation stage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PathRecord {
+    pub stage: String,
+    /// 1 for the first point after the stage's start.
+    pub point: usize,
+    pub load_factor: f64,
+    /// The stage's parameter (V, C or Pa; `PathParameter::column`).
+    pub parameter: f64,
+    /// Arc length from the stage's start (scaled unknowns).
+    pub arc_length: f64,
+    /// Negative pivots of the tangent at fixed load, and how many a stable state has (`None`
+    /// when the solver cannot tell).
+    pub negative_pivots: Option<(usize, usize)>,
+    /// Stable under control of the parameter (no more negative pivots than a stable state).
+    pub stable: bool,
+    /// Probe values, in plan order.
+    pub probes: Vec<f64>,
+}
+
+/// A limit point of the parameter located on a continuation path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LimitRecord {
+    pub stage: String,
+    /// A maximum of the parameter (else a minimum).
+    pub maximum: bool,
+    pub load_factor: f64,
+    pub parameter: f64,
+    /// Probe values at the interpolated state, in plan order (rate probes read 0).
+    pub probes: Vec<f64>,
+}
+
 /// What a finished stage reports.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StageSummary {

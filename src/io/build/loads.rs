@@ -55,10 +55,15 @@ fn build_tractions(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), Inp
     Ok(())
 }
 
-/// `[[pressures]]`: follower pressures (Pa) on face sets.
+/// `[[loads.pressure]]`: follower pressures (Pa) on face sets.
 fn build_pressures(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), InputError> {
-    for (i, p) in s.pressures.iter().enumerate() {
-        let value = ctx.finite(&format!("pressures.{i}.value"), p.value, "pressure in Pa")?;
+    let pressures = s.loads.as_ref().map_or(&[][..], |l| l.pressure.as_slice());
+    for (i, p) in pressures.iter().enumerate() {
+        let value = ctx.finite(
+            &format!("loads.pressure.{i}.value"),
+            p.value,
+            "pressure in Pa",
+        )?;
         let faces = match model.mesh.face_sets.get(&p.set) {
             Some(f) if !f.is_empty() => f.clone(),
             _ => {
@@ -66,7 +71,7 @@ fn build_pressures(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), Inp
                     model.mesh.face_sets.keys().map(String::as_str).collect();
                 names.sort_unstable();
                 return Err(ctx.err(
-                    format!("pressures.{i}.set"),
+                    format!("loads.pressure.{i}.set"),
                     format!(
                         "`{}` is not a face set of the mesh (face sets: {})",
                         p.set,

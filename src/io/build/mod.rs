@@ -50,11 +50,13 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     let stages = stages::build_stages(&ctx, s, &electrodes)?;
     stages::check_internal_variables(&ctx, &stages, &model)?;
     if let Some(e) = electrodes.iter().find(|e| e.charge.is_some()) {
-        if let Some((i, _)) = stages
-            .iter()
-            .enumerate()
-            .find(|(_, st)| !matches!(st.kind, crate::job::plan::StageKind::Static { .. }))
-        {
+        if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
+            !matches!(
+                st.kind,
+                crate::job::plan::StageKind::Static { .. }
+                    | crate::job::plan::StageKind::Continuation { .. }
+            )
+        }) {
             return Err(ctx.err(
                 format!("stages.{i}.kind"),
                 format!(
@@ -71,6 +73,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
                 st.kind,
                 crate::job::plan::StageKind::Static { .. }
                     | crate::job::plan::StageKind::QuasiStatic { .. }
+                    | crate::job::plan::StageKind::Continuation { .. }
             )
         }) {
             return Err(ctx.err(

@@ -4,6 +4,7 @@
 use super::{Ctx, Electrode, Stage, StageKind, MIN_STEPS_PER_PERIOD};
 use crate::io::scenario::{closest, InputError, Scenario, StageSpec};
 use crate::job::linear::ResponseMethod;
+use crate::job::plan::{PathParameter, PathTarget};
 use crate::time::mass::MassKind;
 use crate::time::stage::Method;
 
@@ -122,11 +123,25 @@ fn build_stage(
         });
     }
     for (k, v) in linear_keys {
-        if v {
+        if v && !(k == "electrode" && st.kind == "continuation") {
             return Err(ctx.err(
                 format!("{key}.{k}"),
                 "applies to `modes` and `frequency-response` stages only",
             ));
+        }
+    }
+    if st.kind != "continuation" {
+        for (k, v) in [
+            ("parameter", st.parameter.is_some()),
+            ("target", st.target.is_some()),
+            ("max_points", st.max_points.is_some()),
+        ] {
+            if v {
+                return Err(ctx.err(
+                    format!("{key}.{k}"),
+                    "applies to `continuation` stages only",
+                ));
+            }
         }
     }
     let duration = match st.duration {
@@ -137,6 +152,7 @@ fn build_stage(
         "static" => static_kind(ctx, &key, st)?,
         "quasi-static" => quasi_static_kind(ctx, &key, st, duration)?,
         "dynamic" => dynamic_kind(ctx, s, &key, &name, st)?,
+        "continuation" => continuation_kind(ctx, s, &key, st, electrodes)?,
         o => {
             let hint = closest(
                 o,
@@ -146,6 +162,7 @@ fn build_stage(
                     "dynamic",
                     "modes",
                     "frequency-response",
+                    "continuation",
                 ],
             )
             .map(|c| format!("; did you mean `{c}`?"))
@@ -154,7 +171,7 @@ fn build_stage(
                 format!("{key}.kind"),
                 format!(
                     "unknown stage kind `{o}`: expected `static`, `quasi-static`, `dynamic`, \
-                     `modes` or `frequency-response`{hint}"
+                     `continuation`, `modes` or `frequency-response`{hint}"
                 ),
             ));
         }
@@ -399,6 +416,176 @@ fn static_kind(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<StageKind, InputE
     })
 }
 
+/// `kind = "continuation"`: `steps` (the first load step is 1/`steps`), the `parameter`
+/// (`voltage` or `charge` of `electrode`, or `pressure`), the `target` (`load`, `probe` with
+/// `value`, or `points`) and `max_points` (default 500).
+fn continuation_kind(
+    ctx: &Ctx,
+    s: &Scenario,
+    key: &str,
+    st: &StageSpec,
+    electrodes: &[Electrode],
+) -> Result<StageKind, InputError> {
+    let StageKind::Static { steps } = static_kind(ctx, key, st)? else {
+        unreachable!("static_kind gives a static stage")
+    };
+    let steps = if st.steps.is_none() { 20 } else { steps };
+    let parameter = match st.parameter.as_deref() {
+        Some(p @ ("voltage" | "charge")) => {
+            let charged = p == "charge";
+            let candidates: Vec<usize> = electrodes
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| e.charge.is_some() == charged)
+                // a grounded electrode is no parameter
+                .filter(|(_, e)| charged || e.voltage != crate::waveform::Waveform::constant(0.0))
+                .map(|(i, _)| i)
+                .collect();
+            let electrode = match &st.electrode {
+                Some(name) => {
+                    let Some(i) = electrodes.iter().position(|e| &e.name == name) else {
+                        return Err(ctx.err(
+                            format!("{key}.electrode"),
+                            format!("no electrode is named `{name}`"),
+                        ));
+                    };
+                    if electrodes[i].charge.is_some() != charged {
+                        return Err(ctx.err(
+                            format!("{key}.electrode"),
+                            format!(
+                                "electrode `{name}` is {}-controlled; parameter `{p}` needs a \
+                                 {p}-controlled electrode",
+                                if charged { "voltage" } else { "charge" }
+                            ),
+                        ));
+                    }
+                    i
+                }
+                None if candidates.len() == 1 => candidates[0],
+                None if candidates.is_empty() => {
+                    return Err(ctx.err(
+                        format!("{key}.parameter"),
+                        if charged {
+                            "`charge` needs a charge-controlled electrode (`charge = …`)"
+                        } else {
+                            "`voltage` needs an electrode whose voltage is not 0"
+                        },
+                    ))
+                }
+                None => {
+                    return Err(ctx.err(
+                        format!("{key}.electrode"),
+                        format!(
+                            "name the electrode whose {p} is the parameter ({} candidates)",
+                            candidates.len()
+                        ),
+                    ))
+                }
+            };
+            if charged {
+                PathParameter::Charge { electrode }
+            } else {
+                PathParameter::Voltage { electrode }
+            }
+        }
+        Some("pressure") => {
+            let n = s.loads.as_ref().map_or(0, |l| l.pressure.len());
+            if n == 0 {
+                return Err(ctx.err(
+                    format!("{key}.parameter"),
+                    "`pressure` needs a pressure load (`[[loads.pressure]]`)",
+                ));
+            }
+            if st.electrode.is_some() {
+                return Err(ctx.err(
+                    format!("{key}.electrode"),
+                    "applies to the parameters `voltage` and `charge` only",
+                ));
+            }
+            PathParameter::Pressure { index: 0 }
+        }
+        Some(o) => {
+            return Err(ctx.err(
+                format!("{key}.parameter"),
+                format!("unknown parameter `{o}`: expected `voltage`, `charge` or `pressure`"),
+            ))
+        }
+        None => {
+            return Err(ctx.err(
+                format!("{key}.parameter"),
+                "a continuation stage needs the load it follows: `voltage`, `charge` or \
+                 `pressure`",
+            ))
+        }
+    };
+    let max_points = st.max_points.unwrap_or(500);
+    if !(1..=100_000).contains(&max_points) {
+        return Err(ctx.err(
+            format!("{key}.max_points"),
+            format!("must be between 1 and 100000; got {max_points}"),
+        ));
+    }
+    let t = st.target.clone().unwrap_or_default();
+    let given = [t.load.is_some(), t.probe.is_some(), t.points.is_some()];
+    if given.iter().filter(|g| **g).count() != 1 {
+        return Err(ctx.err(
+            format!("{key}.target"),
+            "give one target: `{ load = 1.0 }` (a load factor), `{ probe = \"NAME\", value = X }` \
+             or `{ points = N }`",
+        ));
+    }
+    let (target, max_points) = if let Some(load) = t.load {
+        if !load.is_finite() || load == 0.0 {
+            return Err(ctx.err(
+                format!("{key}.target.load"),
+                format!(
+                    "expected a non-zero load factor (1: the stage's end values); got {}",
+                    crate::units::Short(load)
+                ),
+            ));
+        }
+        (PathTarget::Load(load), max_points as usize)
+    } else if let Some(probe) = t.probe {
+        if !s.probes.contains_key(&probe) {
+            return Err(ctx.err(
+                format!("{key}.target.probe"),
+                format!("no probe is named `{probe}`"),
+            ));
+        }
+        let Some(value) = t.value.filter(|v| v.is_finite()) else {
+            return Err(ctx.err(
+                format!("{key}.target.value"),
+                "a probe target needs the finite `value` the probe must reach",
+            ));
+        };
+        (
+            PathTarget::Probe { name: probe, value },
+            max_points as usize,
+        )
+    } else {
+        let n = t.points.unwrap_or(0);
+        if !(1..=100_000).contains(&n) {
+            return Err(ctx.err(
+                format!("{key}.target.points"),
+                format!("must be between 1 and 100000; got {n}"),
+            ));
+        }
+        (PathTarget::Points, n as usize)
+    };
+    if t.value.is_some() && matches!(target, PathTarget::Load(_) | PathTarget::Points) {
+        return Err(ctx.err(
+            format!("{key}.target.value"),
+            "applies to a probe target only",
+        ));
+    }
+    Ok(StageKind::Continuation {
+        steps,
+        parameter,
+        target,
+        max_points,
+    })
+}
+
 /// `kind = "dynamic"`: `duration`, `dt`, `integrator` and `mass`; every material needs a density.
 fn dynamic_kind(
     ctx: &Ctx,
@@ -465,6 +652,13 @@ pub(super) fn check_internal_variables(
         return Ok(());
     }
     for (i, st) in stages.iter().enumerate() {
+        if let StageKind::Continuation { .. } = st.kind {
+            return Err(ctx.err(
+                format!("stages.{i}.kind"),
+                "a continuation stage moves the load back and forth, which has no meaning in time \
+                 for materials with `branches`; use a static or quasi-static stage",
+            ));
+        }
         if let StageKind::FrequencyResponse {
             method: ResponseMethod::Modal { .. },
             ..
@@ -634,7 +828,7 @@ mod tests {
         assert_rejected(
             &with("[[stages]]\nkind = \"statik\""),
             "stages.0.kind",
-            "unknown stage kind `statik`: expected `static`, `quasi-static`, `dynamic`, `modes` or `frequency-response`; did you mean `static`?",
+            "unknown stage kind `statik`: expected `static`, `quasi-static`, `dynamic`, `continuation`, `modes` or `frequency-response`; did you mean `static`?",
         );
         assert_rejected(
             &with("[[stages]]\nkind = \"static\"\nsteps = 0"),
