@@ -97,6 +97,15 @@ impl<'p> Recorder<'p> {
             };
             self.load_change_work -= (self.external_factor - self.prev_factor) * at;
         }
+        // follower pressures: their work ∫ p dV, by the trapezoidal rule in (p, V)
+        if !self.prev_state.is_empty() {
+            for pr in &model.pressures {
+                let v0 = crate::problem::pressure::enclosed_volume(&pr.faces, &self.prev_state);
+                let v1 = crate::problem::pressure::enclosed_volume(&pr.faces, state);
+                let (p0, p1) = (pr.value * self.prev_factor, pr.value * self.external_factor);
+                self.boundary_work += 0.5 * (p0 + p1) * (v1 - v0);
+            }
+        }
         self.prev_factor = self.external_factor;
         let total = kinetic + stored - electric + gravity + dissipated;
         // the first record of a balance is its origin: the work up to it does not count
