@@ -242,6 +242,7 @@ pub fn bench_dynamic(
             (bottom, Waveform::constant(0.0)),
             (top, Waveform::constant(20e3)),
         ],
+        circuits: Vec::new(),
         points: Default::default(),
     };
     let n = model.mesh.n_nodes() * 4;

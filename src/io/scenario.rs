@@ -389,6 +389,20 @@ pub struct ElectrodeSpec {
     /// Volts: a number (constant) or a waveform table. 0 = grounded.
     #[serde(default)]
     pub voltage: VoltageSpec,
+    /// Circuit control: the electrode is driven by a `source` (V, a number or a waveform)
+    /// through a series `resistance` (Ω, of the whole device). Excludes `voltage` and `charge`.
+    #[serde(default)]
+    pub circuit: Option<CircuitSpec>,
+}
+
+/// A source behind a series resistance.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CircuitSpec {
+    /// The source voltage (V): a number or a waveform table.
+    pub source: VoltageSpec,
+    /// The series resistance (Ω) of the whole device.
+    pub resistance: f64,
 }
 
 /// A voltage: constant or a waveform.

@@ -158,6 +158,7 @@ impl ProbeMap<'_> {
             max_field: f64::NAN,
             symmetry: plan.symmetry_factor,
             previous: (&[], 0.0),
+            circuit_energy: &[],
         };
         Ok(self
             .probes

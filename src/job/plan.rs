@@ -18,6 +18,18 @@ pub struct Electrode {
     /// Charge control: the electrode's total free charge (C, whole device); its potential is
     /// then one unknown shared by its nodes and `voltage` is unused. `None`: voltage control.
     pub charge: Option<f64>,
+    /// Circuit control: the series resistance (Ω, whole device) between the source `voltage`
+    /// and the electrode, whose potential is then one unknown shared by its nodes. `None`: the
+    /// electrode is at `voltage` (or under charge control).
+    pub resistance: Option<f64>,
+}
+
+impl Electrode {
+    /// Whether the stage prescribes the electrode's potential: voltage control, and circuits in
+    /// static stages (their DC limit, no current: the electrode at the source's voltage).
+    pub fn prescribed(&self, dynamic: bool) -> bool {
+        self.charge.is_none() && !(dynamic && self.resistance.is_some())
+    }
 }
 
 /// The kind of a stage.

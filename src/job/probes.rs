@@ -53,6 +53,11 @@ pub enum ProbeKind {
     Current(usize),
     /// Electrical power (W) delivered to the electrode: its voltage times its current.
     Power(usize),
+    /// Energy delivered by the source of the circuit-driven electrode with this index (J, whole
+    /// device): ∫ V_s I dt over the dynamic stages.
+    SourceEnergy(usize),
+    /// Energy lost in that circuit's series resistance (J, whole device): ∫ R I² dt.
+    ResistorLoss(usize),
     /// Area strain A/A_ref − 1 of a face set (an electrode) against the reference state (the
     /// pre-stretched one), from its faces' current and reference areas.
     AreaStrain(Vec<ProbeFace>),
@@ -124,6 +129,7 @@ impl ProbeKind {
             ProbeKind::MaxElectricField => "V/m",
             ProbeKind::Current(_) => "A",
             ProbeKind::Power(_) => "W",
+            ProbeKind::SourceEnergy(_) | ProbeKind::ResistorLoss(_) => "J",
             ProbeKind::AreaStrain(_) => "-",
             ProbeKind::Volume(_) => "m³",
         }
@@ -159,6 +165,9 @@ pub struct ProbeInput<'a> {
     pub symmetry: f64,
     /// The reactions of the previous record (empty at the first) and the time since it (s).
     pub previous: (&'a [f64], f64),
+    /// Per electrode (plan order): energy delivered by its circuit's source and lost in its
+    /// resistance so far (J, whole device; zero without a circuit).
+    pub circuit_energy: &'a [(f64, f64)],
 }
 
 impl Probe {
@@ -204,6 +213,8 @@ impl Probe {
             ProbeKind::MaxElectricField => inp.max_field,
             ProbeKind::Current(e) => current(inp, *e),
             ProbeKind::Power(e) => inp.electrodes[*e].1 * current(inp, *e),
+            ProbeKind::SourceEnergy(e) => inp.circuit_energy.get(*e).map_or(0.0, |c| c.0),
+            ProbeKind::ResistorLoss(e) => inp.circuit_energy.get(*e).map_or(0.0, |c| c.1),
             ProbeKind::Volume(faces) => crate::problem::pressure::enclosed_volume(faces, inp.state),
             ProbeKind::AreaStrain(faces) => {
                 let area = |state: &[f64]| faces.iter().map(|f| f.area(state)).sum::<f64>();

@@ -36,6 +36,12 @@ pub(super) struct Recorder<'p> {
     pub(super) broken_down: Vec<bool>,
     /// Warnings raised while recording (breakdown).
     pub(super) warnings: Vec<String>,
+    /// Per electrode: energy delivered by its circuit's source and lost in its resistance (J,
+    /// whole device).
+    pub(super) circuit_energy: Vec<(f64, f64)>,
+    /// Whether the records are time steps of a dynamic stage, where circuits carry current
+    /// (static stages hold them at their source's voltage).
+    pub(super) circuit_current: bool,
     /// Every record so far (kept for checkpoints only).
     pub(super) history: Vec<StepRecord>,
     pub(super) keep_history: bool,
@@ -107,6 +113,27 @@ impl<'p> Recorder<'p> {
             }
         }
         self.prev_factor = self.external_factor;
+        // circuits: the source delivers ½(V_n + V_{n+1})ΔQ to the electrode and R ΔQ²/Δt to the
+        // resistance (I = ΔQ/Δt, the step's mean current)
+        if self.circuit_current && !self.prev_state.is_empty() && dt > 0.0 {
+            let symmetry = self.plan.symmetry_factor;
+            for (i, e) in self.plan.electrodes.iter().enumerate() {
+                let Some(r) = e.resistance else { continue };
+                let charge = |reactions: &[f64]| {
+                    -symmetry
+                        * e.nodes
+                            .iter()
+                            .map(|&n| reactions[n * FIELDS + 3])
+                            .sum::<f64>()
+                };
+                let dq = charge(&reactions) - charge(&self.prev_reactions);
+                let v = 0.5
+                    * (state[e.nodes[0] * FIELDS + 3] + self.prev_state[e.nodes[0] * FIELDS + 3]);
+                let loss = r * dq * dq / dt;
+                self.circuit_energy[i].0 += v * dq + loss;
+                self.circuit_energy[i].1 += loss;
+            }
+        }
         let total = kinetic + stored - electric + gravity + dissipated;
         // the first record of a balance is its origin: the work up to it does not count
         let initial = match self.initial_potential {
@@ -189,6 +216,7 @@ impl<'p> Recorder<'p> {
             max_field,
             symmetry: self.plan.symmetry_factor,
             previous,
+            circuit_energy: &self.circuit_energy,
         };
         self.plan
             .probes
@@ -222,6 +250,7 @@ impl<'p> Recorder<'p> {
             reference: self.reference.clone(),
             broken_down: self.broken_down.clone(),
             warnings: self.warnings.clone(),
+            circuit_energy: self.circuit_energy.clone(),
         }
     }
 
@@ -238,6 +267,9 @@ impl<'p> Recorder<'p> {
         self.reference = s.reference.clone();
         self.broken_down = s.broken_down.clone();
         self.warnings = s.warnings.clone();
+        if s.circuit_energy.len() == self.circuit_energy.len() {
+            self.circuit_energy = s.circuit_energy.clone();
+        }
         self.history = history.to_vec();
     }
 }
@@ -333,6 +365,8 @@ impl<'p> Recorder<'p> {
             prev_external: Vec::new(),
             load_change_work: 0.0,
             reference: vec![0.0; n_nodes * FIELDS],
+            circuit_energy: vec![(0.0, 0.0); plan.electrodes.len()],
+            circuit_current: false,
             broken_down: vec![false; plan.model.materials.len()],
             warnings: Vec::new(),
             history: Vec::new(),

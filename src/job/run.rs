@@ -359,16 +359,35 @@ impl<'p, 'o> Job<'p, 'o> {
     }
 
     /// The prescribed values of a stage's end: supports and electrodes at their end voltages.
+    /// In dynamic stages a circuit's electrode is free, but its potential counts as prescribed in
+    /// the flags: the circuit does work −Q·ΔV on the body, like a voltage electrode.
     fn stage_conditions(&self, model: &mut Model, stage: &Stage) -> Vec<bool> {
+        let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
         model.dirichlet = self.plan.supports.clone();
-        for e in self.plan.electrodes.iter().filter(|e| e.charge.is_none()) {
+        for e in self
+            .plan
+            .electrodes
+            .iter()
+            .filter(|e| e.prescribed(dynamic))
+        {
             model.dirichlet.push(Dirichlet {
                 nodes: e.nodes.clone(),
                 field: Field::Phi,
                 value: stage_voltage(stage, &e.voltage, stage.duration),
             });
         }
-        constrained_flags(model.mesh.n_nodes(), &model.dirichlet)
+        let mut flags = constrained_flags(model.mesh.n_nodes(), &model.dirichlet);
+        for e in self
+            .plan
+            .electrodes
+            .iter()
+            .filter(|e| e.resistance.is_some())
+        {
+            for &n in &e.nodes {
+                flags[n * FIELDS + 3] = true;
+            }
+        }
+        flags
     }
 
     /// Runs stage `si` (from `position` when resuming inside it); false when the run stops.
@@ -664,6 +683,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 let dt = (acc.load - last_load) * stage.duration;
                 last_load = acc.load;
                 self.rec.sudden_loads = false;
+                self.rec.circuit_current = false;
                 self.rec.external_factor =
                     model_ref.dead_load_start + acc.load * (1.0 - model_ref.dead_load_start);
                 self.record(
@@ -860,6 +880,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 PathEvent::Point(pt) => {
                     step_no += 1;
                     self.rec.sudden_loads = false;
+                    self.rec.circuit_current = false;
                     self.rec.external_factor = t0 + pt.load * (1.0 - t0);
                     let dt = (pt.load - last_load) * stage.duration;
                     last_load = pt.load;
@@ -998,6 +1019,18 @@ impl<'p, 'o> Job<'p, 'o> {
             mass: &mass,
             viscosity: plan.viscosities.clone(),
             electrodes: stage_waveforms(plan, stage),
+            circuits: plan
+                .electrodes
+                .iter()
+                .filter(|e| e.resistance.is_some())
+                .map(|e| {
+                    if stage.electrodes_on {
+                        e.voltage.clone()
+                    } else {
+                        crate::waveform::Waveform::constant(0.0)
+                    }
+                })
+                .collect(),
             points: self.points.clone(),
         };
         let settings = DynamicSettings {
@@ -1049,6 +1082,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 let kinetic = 0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
                 self.rec.external_factor = 1.0;
                 self.rec.sudden_loads = true;
+                self.rec.circuit_current = true;
                 self.record(
                     &level.q,
                     prescribed,
@@ -1136,9 +1170,10 @@ impl<'p, 'o> Job<'p, 'o> {
 /// Every electrode's nodes with the waveform it follows in a stage (held at 0 V when the stage
 /// has its electrodes off).
 fn stage_waveforms(plan: &Plan, stage: &Stage) -> Vec<(Vec<usize>, crate::waveform::Waveform)> {
+    let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
     plan.electrodes
         .iter()
-        .filter(|e| e.charge.is_none())
+        .filter(|e| e.prescribed(dynamic))
         .map(|e| {
             let w = if stage.electrodes_on {
                 e.voltage.clone()

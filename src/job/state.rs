@@ -115,6 +115,9 @@ pub struct RecorderState {
     pub reference: Vec<f64>,
     pub broken_down: Vec<bool>,
     pub warnings: Vec<String>,
+    /// Per electrode: circuit source energy and resistor loss (J); empty in older checkpoints.
+    #[serde(default)]
+    pub circuit_energy: Vec<(f64, f64)>,
 }
 
 /// Everything needed to continue a run bit for bit.

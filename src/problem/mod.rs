@@ -2,6 +2,7 @@
 //! formulation, loads), assembly of residual and tangent, and the static problem.
 
 pub mod assembly;
+pub mod circuit;
 pub mod dofs;
 pub mod examples;
 pub mod faces;

@@ -50,6 +50,8 @@ pub struct Model {
     /// Free charges (node, C) on the potential of tied (charge-controlled) electrodes: dead
     /// loads −Q on the potential equations, ramped like the forces.
     pub point_charges: Vec<(usize, f64)>,
+    /// Electrodes driven through a series resistance (dynamic stages).
+    pub circuits: Vec<crate::problem::circuit::Circuit>,
 }
 
 /// Problems found while building a model.
@@ -85,6 +87,7 @@ impl Model {
             point_dampers: Vec::new(),
             pressures: Vec::new(),
             point_charges: Vec::new(),
+            circuits: Vec::new(),
         };
         model.check_cells()?;
         Ok(model)

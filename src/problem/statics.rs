@@ -54,6 +54,10 @@ pub struct StaticProblem<'m> {
     /// one.
     pub dissipated: f64,
     pub dissipated_step: f64,
+    /// Free charges (node of an electrode's potential unknown, C) held on potential equations
+    /// whatever the load factor: the circuits' charges in the electrostatic projection of a
+    /// dynamic step.
+    pub extra_charges: Vec<(usize, f64)>,
 }
 
 /// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
@@ -107,6 +111,7 @@ impl<'m> StaticProblem<'m> {
             drive: Vec::new(),
             dissipated: 0.0,
             dissipated_step: 0.0,
+            extra_charges: Vec::new(),
         }
     }
 
@@ -328,6 +333,12 @@ impl NonlinearSystem for StaticProblem<'_> {
                 if e != CONSTRAINED && t != 0.0 {
                     r[e] -= self.dofs.scale[d % FIELDS] * self.load * t;
                 }
+            }
+        }
+        for &(node, q) in &self.extra_charges {
+            let e = self.dofs.eq[node * FIELDS + PHI];
+            if e != CONSTRAINED {
+                r[e] += self.dofs.scale[PHI] * q;
             }
         }
         if self.load != 0.0 && !m.pressures.is_empty() {

@@ -16,6 +16,7 @@
 
 use crate::element::{CellInput, KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::{Assembler, CsrMatrix};
+use crate::problem::circuit::CircuitStep;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
@@ -101,6 +102,8 @@ pub struct TimeStep<'m> {
     /// Committed internal variables of the material points at `prev` (empty for elastic
     /// materials). The step's stresses come from the update over Δt to the evaluation point.
     pub points: PointStates,
+    /// The model's circuits over this step (set by [`TimeStep::begin_circuits`]).
+    pub circuits: Vec<CircuitStep>,
 }
 
 impl<'m> TimeStep<'m> {
@@ -138,6 +141,7 @@ impl<'m> TimeStep<'m> {
             cell_energy: Vec::new(),
             factor_point: None,
             points: PointStates::default(),
+            circuits: Vec::new(),
         }
     }
 
@@ -182,6 +186,51 @@ impl<'m> TimeStep<'m> {
                 };
             }
         }
+    }
+
+    /// The circuits' state at the start of the step to `prev.t + dt` with their sources at
+    /// t_n, t_{n+½} and t_{n+1}: each electrode's charge from Gauss's law at the start level,
+    /// Q_n = −Σ ∂Π/∂Φ over its nodes (which the previous step enforced).
+    pub fn begin_circuits(&mut self, sources: &[[f64; 3]]) -> Result<(), String> {
+        self.circuits.clear();
+        if self.model.circuits.is_empty() {
+            return Ok(());
+        }
+        let zero = vec![0.0; self.prev.q.len()];
+        let prev = self.prev.q.clone();
+        let forces = self.forces_at(&prev, &zero)?;
+        for (c, source) in self.model.circuits.iter().zip(sources) {
+            let charge = -c
+                .nodes
+                .iter()
+                .map(|&n| forces[n * FIELDS + PHI])
+                .sum::<f64>();
+            self.circuits.push(CircuitStep {
+                charge,
+                voltage: prev[c.nodes[0] * FIELDS + PHI],
+                source: *source,
+            });
+        }
+        Ok(())
+    }
+
+    /// The circuits' charges at t_{n+1} of the converged step, with the node of each electrode's
+    /// potential unknown.
+    pub fn end_charges(&mut self) -> Vec<(usize, f64)> {
+        self.evaluation_point();
+        let midpoint = self.scheme == Scheme::Midpoint;
+        self.model
+            .circuits
+            .iter()
+            .zip(&self.circuits)
+            .map(|(c, st)| {
+                let v = self.work_q[c.nodes[0] * FIELDS + PHI];
+                (
+                    c.nodes[0],
+                    st.end_charge(midpoint, self.dt, c.resistance, v),
+                )
+            })
+            .collect()
     }
 
     /// The time level reached by the converged iterate (potential not yet re-projected).
@@ -440,6 +489,23 @@ impl NonlinearSystem for TimeStep<'_> {
             let e = eq[d];
             if e != CONSTRAINED && f != 0.0 {
                 r[e] -= scale[d % FIELDS] * f_r * f;
+            }
+        }
+        // circuits: the charge at the evaluation point on the electrode's Gauss equation
+        let midpoint = self.scheme == Scheme::Midpoint;
+        for (c, st) in model.circuits.iter().zip(&self.circuits) {
+            let d = c.nodes[0] * FIELDS + PHI;
+            let e = eq[d];
+            if e == CONSTRAINED {
+                continue;
+            }
+            let (q, dq) = st.charge_at(midpoint, dt, c.resistance, self.work_q[d]);
+            r[e] += scale[PHI] * f_r * q;
+            if let Some(k) = k.as_deref_mut() {
+                // ∂V_eval/∂V_{n+1}: ½ at the midpoint, 1 at the end point
+                let dv = if midpoint { 0.5 } else { 1.0 };
+                let pos = k.position(e, e).expect("the pattern holds the diagonal");
+                k.values[pos] += scale[PHI] * scale[PHI] * f_r * dq * dv;
             }
         }
         // dashpots c·v at the evaluation velocity, like the viscous forces

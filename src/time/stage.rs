@@ -121,6 +121,8 @@ pub struct DynamicInputs<'a> {
     pub mass: &'a NodalMass,
     pub viscosity: Vec<f64>,
     pub electrodes: Vec<(Vec<usize>, Waveform)>,
+    /// The source of each of the model's circuits (`model.circuits` order).
+    pub circuits: Vec<Waveform>,
     /// The committed internal variables of the material points at the start level (empty for
     /// elastic materials).
     pub points: PointStates,
@@ -222,8 +224,16 @@ impl<'m> Projector<'m> {
 
     /// Puts the potential of `q` into electrostatic equilibrium at fixed displacements, with the
     /// electrodes at their voltages at time `t`.
-    fn project(&mut self, q: &mut [f64], inputs: &DynamicInputs, t: f64) -> Result<(), String> {
+    /// `charges`: the circuits' charges at `t` (node of the potential unknown, C).
+    fn project(
+        &mut self,
+        q: &mut [f64],
+        inputs: &DynamicInputs,
+        t: f64,
+        charges: Vec<(usize, f64)>,
+    ) -> Result<(), String> {
         let p = &mut self.problem;
+        p.extra_charges = charges;
         p.state.copy_from_slice(q);
         for (nodes, w) in &inputs.electrodes {
             let v = w.value(t);
@@ -274,6 +284,15 @@ impl Stepper for ImplicitStepper<'_, '_> {
             .map(|(n, w)| (n.as_slice(), w.value(t0 + 0.5 * h), w.value(t0 + h)))
             .collect();
         self.step.begin(h, &voltages);
+        let sources: Vec<[f64; 3]> = self
+            .inputs
+            .circuits
+            .iter()
+            .map(|w| [w.value(t0), w.value(t0 + 0.5 * h), w.value(t0 + h)])
+            .collect();
+        if let Err(e) = self.step.begin_circuits(&sources) {
+            return Err(StepError::Fatal(e, 0));
+        }
         if h != self.last_h {
             // the iteration matrix M/Δt + (Δt/4)K depends on the step size
             self.solver.invalidate();
@@ -312,8 +331,9 @@ impl Stepper for ImplicitStepper<'_, '_> {
         if self.scheme == Scheme::Midpoint {
             // Gauss's law at t_{n+1}: solve for the potential with u_{n+1} held
             let t1 = level.t;
+            let charges = self.step.end_charges();
             self.projector
-                .project(&mut level.q, self.inputs, t1)
+                .project(&mut level.q, self.inputs, t1, charges)
                 .map_err(|e| StepError::Fatal(e, rep.iterations))?;
         }
         Ok(Attempt {
@@ -404,7 +424,7 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
                     .map(|(a, b)| (a - b) / h)
                     .collect();
                 let mut q1 = trap.q.clone();
-                projector.project(&mut q1, inputs, t0 + h)?;
+                projector.project(&mut q1, inputs, t0 + h, Vec::new())?;
                 let f1 = forces.forces_at(&q1, &vbar)?;
                 let mut mv = vec![0.0; vbar.len()];
                 inputs.mass.mul(&vbar, &mut mv);
@@ -610,8 +630,9 @@ pub fn run_dynamic_from(
         Method::Trapezoidal => {
             if resume.is_none() {
                 let t = start.t;
+                // circuits are refused with this scheme
                 projector
-                    .project(&mut start.q, inputs, t)
+                    .project(&mut start.q, inputs, t, Vec::new())
                     .map_err(|e| fail(&start, e))?;
             }
             let mut forces = TimeStep::new(
@@ -656,8 +677,31 @@ pub fn run_dynamic_from(
     if let (Scheme::Newmark { .. }, None) = (scheme, &resume) {
         // consistent initial state: Φ in equilibrium at t₀ and M a₀ = f_ext − f_int − f_vis
         let t = start.t;
+        // the circuits keep the charges the start state holds
+        let charges = {
+            let mut probe = TimeStep::new(
+                &step_model,
+                inputs.mass,
+                inputs.viscosity.clone(),
+                Scheme::Newmark {
+                    beta: 0.25,
+                    gamma: 0.5,
+                },
+                start.clone(),
+            );
+            probe.points = inputs.points.clone();
+            probe
+                .begin_circuits(&vec![[0.0; 3]; step_model.circuits.len()])
+                .map_err(|e| fail(&start, e))?;
+            step_model
+                .circuits
+                .iter()
+                .zip(&probe.circuits)
+                .map(|(c, st)| (c.nodes[0], st.charge))
+                .collect()
+        };
         projector
-            .project(&mut start.q, inputs, t)
+            .project(&mut start.q, inputs, t, charges)
             .map_err(|e| fail(&start, e))?;
         let mut probe = TimeStep::new(
             &step_model,

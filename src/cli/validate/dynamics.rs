@@ -48,6 +48,7 @@ pub fn simulate(
             (bottom.to_vec(), Waveform::constant(0.0)),
             (top.to_vec(), Waveform::constant(volts)),
         ],
+        circuits: Vec::new(),
         points: Default::default(),
     };
     let n = model.mesh.n_nodes() * FIELDS;

@@ -24,7 +24,23 @@ pub(super) fn build_electrodes(
     for (name, e) in &s.electrodes {
         let key = format!("electrodes.{name}");
         let nodes = ctx.set_nodes(mesh, &format!("{key}.set"), &e.set)?;
-        let voltage = build_waveform(ctx, &format!("{key}.voltage"), &e.voltage, base_dir)?;
+        let mut voltage = build_waveform(ctx, &format!("{key}.voltage"), &e.voltage, base_dir)?;
+        let mut resistance = None;
+        if let Some(c) = &e.circuit {
+            if e.voltage != VoltageSpec::default() || e.charge.is_some() {
+                return Err(ctx.err(
+                    format!("{key}.circuit"),
+                    "an electrode is held at a `voltage`, carries a `charge` or is driven through a \
+                     `circuit`: one of the three",
+                ));
+            }
+            voltage = build_waveform(ctx, &format!("{key}.circuit.source"), &c.source, base_dir)?;
+            resistance = Some(ctx.positive(
+                &format!("{key}.circuit.resistance"),
+                Some(c.resistance),
+                "series resistance in Ω",
+            )?);
+        }
         let charge = match e.charge {
             None => None,
             Some(_) if e.voltage != VoltageSpec::default() => {
@@ -40,6 +56,7 @@ pub(super) fn build_electrodes(
             nodes,
             voltage,
             charge,
+            resistance,
         });
     }
     for (i, a) in electrodes.iter().enumerate() {
@@ -55,11 +72,15 @@ pub(super) fn build_electrodes(
             }
         }
     }
-    if !electrodes.is_empty() && electrodes.iter().all(|e| e.charge.is_some()) {
+    if !electrodes.is_empty()
+        && electrodes
+            .iter()
+            .all(|e| e.charge.is_some() || e.resistance.is_some())
+    {
         return Err(ctx.err(
             "electrodes",
-            "charge-controlled electrodes need a voltage-controlled one (e.g. grounded, \
-             `voltage = 0`) as the reference of the potential",
+            "charge-controlled and circuit-driven electrodes need a voltage-controlled one (e.g. \
+             grounded, `voltage = 0`) as the reference of the potential",
         ));
     }
     Ok(electrodes)
@@ -80,6 +101,18 @@ pub(super) fn charge_electrodes(
                 field: Field::Phi,
             });
             model.point_charges.push((e.nodes[0], q / symmetry));
+        }
+        if let Some(r) = e.resistance {
+            // one potential unknown; static stages hold it at the source's voltage
+            model.ties.push(crate::problem::dofs::Tie {
+                nodes: e.nodes.clone(),
+                field: Field::Phi,
+            });
+            // the meshed part draws 1/symmetry of the current through the same voltage drop
+            model.circuits.push(crate::problem::circuit::Circuit {
+                nodes: e.nodes.clone(),
+                resistance: r * symmetry,
+            });
         }
     }
 }

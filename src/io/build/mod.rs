@@ -67,6 +67,23 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             ));
         }
     }
+    if !model.circuits.is_empty() {
+        if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
+            matches!(
+                st.kind,
+                crate::job::plan::StageKind::Dynamic {
+                    scheme: crate::time::stage::Method::Trapezoidal,
+                    ..
+                }
+            )
+        }) {
+            return Err(ctx.err(
+                format!("stages.{i}.integrator"),
+                "circuit-driven electrodes need the `midpoint` or `newmark` integrator: the \
+                 explicit `trapezoidal` one does not integrate the circuit",
+            ));
+        }
+    }
     if !model.pressures.is_empty() {
         if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
             !matches!(

@@ -6,7 +6,7 @@ use crate::job::probes::{NodalQuantity, Probe, ProbeFace, ProbeKind};
 use crate::problem::model::Model;
 
 /// The probe kinds by scenario name.
-const KINDS: [&str; 14] = [
+const KINDS: [&str; 16] = [
     "mean",
     "max",
     "min",
@@ -19,6 +19,8 @@ const KINDS: [&str; 14] = [
     "max_electric_field",
     "current",
     "power",
+    "source_energy",
+    "resistor_loss",
     "area_strain",
     "volume",
 ];
@@ -100,6 +102,8 @@ fn describe(p: &ProbeSpec, scale: f64, offset: f64) -> String {
         "charge" | "capacitance" | "current" | "power" => {
             format!("{} of electrode {electrode}", p.kind)
         }
+        "source_energy" => format!("energy delivered by the source of electrode {electrode}"),
+        "resistor_loss" => format!("energy lost in the resistance of electrode {electrode}"),
         "reaction" => format!("reaction force {q} on {set}"),
         "energy" => format!("{q} energy"),
         "center_deflection" => format!(
@@ -210,6 +214,24 @@ fn probe_kind(
         "capacitance" => ProbeKind::Capacitance(electrode(&need(&p.electrode, "electrode")?)?),
         "current" => ProbeKind::Current(electrode(&need(&p.electrode, "electrode")?)?),
         "power" => ProbeKind::Power(electrode(&need(&p.electrode, "electrode")?)?),
+        "source_energy" | "resistor_loss" => {
+            let e = electrode(&need(&p.electrode, "electrode")?)?;
+            if electrodes[e].resistance.is_none() {
+                return Err(ctx.err(
+                    format!("{key}.electrode"),
+                    format!(
+                        "`{}` is not driven through a circuit: `{}` needs an electrode with \
+                         `circuit = {{ source = …, resistance = … }}`",
+                        electrodes[e].name, p.kind
+                    ),
+                ));
+            }
+            if p.kind == "source_energy" {
+                ProbeKind::SourceEnergy(e)
+            } else {
+                ProbeKind::ResistorLoss(e)
+            }
+        }
         "reaction" => {
             let c = reaction_component(ctx, key, &need(&p.quantity, "quantity")?)?;
             ProbeKind::Reaction(c, set(&need(&p.set, "set")?)?)
@@ -417,6 +439,7 @@ mod tests {
             max_field: 0.0,
             symmetry: 1.0,
             previous: (&[], 0.0),
+            circuit_energy: &[],
         };
         let mean = probe.evaluate(&input);
         let exact = 0.01f64 * 0.01 / 3.0;
