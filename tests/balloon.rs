@@ -130,10 +130,7 @@ fn inflate(
     let faces = surface(&model.mesh, &model.mesh.face_sets["inner"]);
     // the thin sphere's peak is near 1.24 μH/R: the load factor runs to about 0.6
     let p_ref = 2.0 * MU * H / R;
-    model.pressures.push(Pressure {
-        faces,
-        value: p_ref,
-    });
+    model.pressures.push(Pressure::new(faces, p_ref));
     let mut problem = StaticProblem::new(&model, start);
     let mut solver = SolverSettings::default().build();
     let settings = ContinuationSettings {

@@ -144,3 +144,98 @@ fn stages_without_the_follower_stiffness_refuse_a_pressure() {
         "{said}"
     );
 }
+
+/// Rows of history.csv as maps from column to value (the stage column by name).
+fn rows(dir: &std::path::Path) -> Vec<(String, std::collections::HashMap<String, f64>)> {
+    let text = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let stage = header.iter().position(|h| *h == "stage").unwrap();
+    lines
+        .map(|l| {
+            let v: Vec<&str> = l.split(',').collect();
+            let map = header
+                .iter()
+                .zip(&v)
+                .map(|(h, x)| (h.to_string(), x.parse().unwrap_or(f64::NAN)))
+                .collect();
+            (v[stage].to_string(), map)
+        })
+        .collect()
+}
+
+#[test]
+fn a_pressure_acts_in_its_stages_and_is_ramped_off_after_them() {
+    let dir = tempdir("pressure-stages");
+    let l = closed_form();
+    let stages = "[[stages]]\nname = \"squeeze\"\nkind = \"static\"\nsteps = 16\n\
+                  [[stages]]\nname = \"hold\"\nkind = \"static\"\nsteps = 2\n\
+                  [[stages]]\nname = \"release\"\nkind = \"static\"\nsteps = 16\n";
+    let text = scenario("hex8", stages).replace(
+        &format!("value = {P}\n"),
+        &format!("value = {P}\nstages = [\"squeeze\", \"hold\"]\n"),
+    );
+    std::fs::write(dir.join("c.toml"), &text).unwrap();
+    let out = deasim(&["run", "c.toml", "--out", "o"], &dir);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = rows(&dir.join("o"));
+    let last_of = |name: &str| &rows.iter().rfind(|(s, _)| s == name).unwrap().1;
+    for name in ["squeeze", "hold"] {
+        let stretch = last_of(name)["probe:stretch"];
+        assert!((stretch - l).abs() < 1e-9, "{name}: λ = {stretch} vs {l}");
+    }
+    // released: back to the reference state, and the work done on the way down is returned
+    let end = last_of("release");
+    assert!(
+        (end["probe:stretch"] - 1.0).abs() < 1e-9,
+        "released: λ = {}",
+        end["probe:stretch"]
+    );
+    let peak = last_of("hold")["stored"];
+    assert!(
+        end["stored"].abs() < 1e-12 * peak.max(1.0),
+        "{}",
+        end["stored"]
+    );
+    assert!(
+        end["energy_error"].abs() < 1e-3 * peak,
+        "{} of {peak}",
+        end["energy_error"]
+    );
+    // the stage halfway down holds half the pressure: the ramp is linear in the load factor
+    let mid = &rows
+        .iter()
+        .filter(|(s, _)| s == "release")
+        .nth(7)
+        .unwrap()
+        .1;
+    assert!(mid["probe:stretch"] > l && mid["probe:stretch"] < 1.0);
+
+    // a stage name the pressure does not know is refused, naming the key
+    let bad = text.replace("\"hold\"]", "\"hodl\"]");
+    std::fs::write(dir.join("bad.toml"), bad).unwrap();
+    let out = deasim(&["check", "bad.toml"], &dir);
+    assert_eq!(out.status.code(), Some(2));
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.contains("loads.pressure.0.stages") && said.contains("hodl"),
+        "{said}"
+    );
+
+    // a dynamic stage after the pressure's stages is accepted (the pressure is off there)
+    let shake = "[[stages]]\nname = \"shake\"\nkind = \"dynamic\"\nduration = 1e-4\ndt = 1e-5\n";
+    let text = text.replace("permittivity = 4.7", "permittivity = 4.7\ndensity = 1000.0") + shake;
+    std::fs::write(dir.join("d.toml"), text).unwrap();
+    let out = deasim(&["check", "d.toml"], &dir);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+}

@@ -362,6 +362,9 @@ pub struct PressureSpec {
     /// Pressure (Pa): positive pushes the faces along −n, n the body's outward normal (it
     /// inflates a cavity whose walls the faces are, and compresses a solid it surrounds).
     pub value: f64,
+    /// The names of the stages in which it acts (default: every stage).
+    #[serde(default)]
+    pub stages: Option<Vec<String>>,
 }
 
 /// Fixed displacement components on a set.

@@ -192,6 +192,20 @@ pub struct Plan {
     pub stop_at_breakdown: bool,
     /// The linear solver of every stage.
     pub solver: SolverSettings,
+    /// Per pressure of `model.pressures`, per stage: whether it acts in the stage (a static stage
+    /// ramps it on or off, later stages hold it).
+    pub pressure_stages: Vec<Vec<bool>>,
+}
+
+impl Plan {
+    /// The fraction of each pressure at the end of stage `si` when the stage ends at its load
+    /// factor 1: 1 where it acts.
+    pub fn pressure_targets(&self, si: usize) -> Vec<f64> {
+        self.pressure_stages
+            .iter()
+            .map(|on| if on[si] { 1.0 } else { 0.0 })
+            .collect()
+    }
 }
 
 impl Plan {

@@ -42,6 +42,9 @@ pub(super) struct Recorder<'p> {
     /// Whether the records are time steps of a dynamic stage, where circuits carry current
     /// (static stages hold them at their source's voltage).
     pub(super) circuit_current: bool,
+    /// The fraction of each pressure at the state being recorded, and at the previous record.
+    pub(super) pressure_now: Vec<f64>,
+    pub(super) prev_pressure: Vec<f64>,
     /// Every record so far (kept for checkpoints only).
     pub(super) history: Vec<StepRecord>,
     pub(super) keep_history: bool,
@@ -105,13 +108,21 @@ impl<'p> Recorder<'p> {
         }
         // follower pressures: their work ∫ p dV, by the trapezoidal rule in (p, V)
         if !self.prev_state.is_empty() {
-            for pr in &model.pressures {
+            for (i, pr) in model.pressures.iter().enumerate() {
                 let v0 = crate::problem::pressure::enclosed_volume(&pr.faces, &self.prev_state);
                 let v1 = crate::problem::pressure::enclosed_volume(&pr.faces, state);
-                let (p0, p1) = (pr.value * self.prev_factor, pr.value * self.external_factor);
+                let fraction = |f: &[f64]| f.get(i).copied().unwrap_or(0.0);
+                let p1 = pr.value * fraction(&self.pressure_now);
+                // a ramp changes p along with V; a sudden change acts at the start of the step
+                let p0 = if self.sudden_loads {
+                    p1
+                } else {
+                    pr.value * fraction(&self.prev_pressure)
+                };
                 self.boundary_work += 0.5 * (p0 + p1) * (v1 - v0);
             }
         }
+        self.prev_pressure.clone_from(&self.pressure_now);
         self.prev_factor = self.external_factor;
         // circuits: the source delivers ½(V_n + V_{n+1})ΔQ to the electrode and R ΔQ²/Δt to the
         // resistance (I = ΔQ/Δt, the step's mean current)
@@ -251,6 +262,7 @@ impl<'p> Recorder<'p> {
             broken_down: self.broken_down.clone(),
             warnings: self.warnings.clone(),
             circuit_energy: self.circuit_energy.clone(),
+            prev_pressure: self.prev_pressure.clone(),
         }
     }
 
@@ -267,6 +279,7 @@ impl<'p> Recorder<'p> {
         self.reference = s.reference.clone();
         self.broken_down = s.broken_down.clone();
         self.warnings = s.warnings.clone();
+        self.prev_pressure = s.prev_pressure.clone();
         if s.circuit_energy.len() == self.circuit_energy.len() {
             self.circuit_energy = s.circuit_energy.clone();
         }
@@ -366,6 +379,8 @@ impl<'p> Recorder<'p> {
             load_change_work: 0.0,
             reference: vec![0.0; n_nodes * FIELDS],
             circuit_energy: vec![(0.0, 0.0); plan.electrodes.len()],
+            pressure_now: Vec::new(),
+            prev_pressure: Vec::new(),
             circuit_current: false,
             broken_down: vec![false; plan.model.materials.len()],
             warnings: Vec::new(),

@@ -207,6 +207,10 @@ struct Job<'p, 'o> {
     record_error: Option<String>,
     /// Committed internal variables of the material points.
     points: PointStates,
+    /// The fraction of each pressure acting at the start of the current stage.
+    pressure_fraction: Vec<f64>,
+    /// The load factor at which the last continuation stage ended.
+    path_end: f64,
 }
 
 impl<'p, 'o> Job<'p, 'o> {
@@ -243,6 +247,8 @@ impl<'p, 'o> Job<'p, 'o> {
             started: Instant::now(),
             record_error: None,
             points: PointStates::new(&plan.model),
+            pressure_fraction: vec![0.0; plan.model.pressures.len()],
+            path_end: 1.0,
         };
         crate::solve::interrupt::clear_local();
         if !plan.solver.gives_inertia() {
@@ -253,6 +259,9 @@ impl<'p, 'o> Job<'p, 'o> {
             ));
         }
         if let Some(s) = start {
+            if s.stage > 0 {
+                job.pressure_fraction = plan.pressure_targets(s.stage - 1);
+            }
             job.q.clone_from(&s.q);
             job.v.clone_from(&s.v);
             job.a.clone_from(&s.a);
@@ -402,6 +411,16 @@ impl<'p, 'o> Job<'p, 'o> {
         self.observer.stage_started(si, &stage.name);
         let stage_start = Instant::now();
         let prescribed = self.stage_conditions(model, stage);
+        // each pressure ramps from where the last stage left it to on (1) or off (0)
+        let targets = plan.pressure_targets(si);
+        for ((p, &from), &to) in model
+            .pressures
+            .iter_mut()
+            .zip(&self.pressure_fraction)
+            .zip(&targets)
+        {
+            p.ramp = [from, to];
+        }
         if position.is_none() {
             self.first_step = 0;
             self.prestretch_iterations = 0;
@@ -450,6 +469,13 @@ impl<'p, 'o> Job<'p, 'o> {
         if !self.summary.converged {
             return false;
         }
+        // where the stage left the pressures (a continuation's path may end short of 1)
+        let end = if matches!(stage.kind, StageKind::Continuation { .. }) {
+            self.path_end
+        } else {
+            1.0
+        };
+        self.pressure_fraction = model.pressures.iter().map(|p| p.fraction(end)).collect();
         self.time += stage.duration;
         true
     }
@@ -686,6 +712,11 @@ impl<'p, 'o> Job<'p, 'o> {
                 self.rec.circuit_current = false;
                 self.rec.external_factor =
                     model_ref.dead_load_start + acc.load * (1.0 - model_ref.dead_load_start);
+                self.rec.pressure_now = model_ref
+                    .pressures
+                    .iter()
+                    .map(|p| p.fraction(acc.load))
+                    .collect();
                 self.record(
                     &p.state,
                     prescribed,
@@ -829,8 +860,8 @@ impl<'p, 'o> Job<'p, 'o> {
                 (q * t0, q)
             }
             PathParameter::Pressure { index } => {
-                let p = model.pressures[*index].value;
-                (p * t0, p)
+                let p = &model.pressures[*index];
+                (p.value * p.ramp[0], p.value * p.ramp[1])
             }
         };
         if p0 == p1 {
@@ -882,6 +913,12 @@ impl<'p, 'o> Job<'p, 'o> {
                     self.rec.sudden_loads = false;
                     self.rec.circuit_current = false;
                     self.rec.external_factor = t0 + pt.load * (1.0 - t0);
+                    self.rec.pressure_now = p
+                        .model
+                        .pressures
+                        .iter()
+                        .map(|x| x.fraction(pt.load))
+                        .collect();
                     let dt = (pt.load - last_load) * stage.duration;
                     last_load = pt.load;
                     let record = self.record(
@@ -956,6 +993,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 summary.newton_iterations = report.iterations + self.prestretch_iterations;
                 // later stages start from the dead loads where the path ended
                 model.dead_load_start = t0 + last_load * (1.0 - t0);
+                self.path_end = last_load;
                 let missed = match (target, &report.end) {
                     (PathTarget::Points, _) | (PathTarget::Load(_), PathEnd::TargetLoad) => false,
                     (PathTarget::Probe { .. }, _) => !reached,
@@ -1081,6 +1119,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 mass.mul(&level.v, &mut mv);
                 let kinetic = 0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
                 self.rec.external_factor = 1.0;
+                self.rec.pressure_now = vec![0.0; plan.model.pressures.len()];
                 self.rec.sudden_loads = true;
                 self.rec.circuit_current = true;
                 self.record(

@@ -118,6 +118,9 @@ pub struct RecorderState {
     /// Per electrode: circuit source energy and resistor loss (J); empty in older checkpoints.
     #[serde(default)]
     pub circuit_energy: Vec<(f64, f64)>,
+    /// The fraction of each pressure at the previous record; empty in older checkpoints.
+    #[serde(default)]
+    pub prev_pressure: Vec<f64>,
 }
 
 /// Everything needed to continue a run bit for bit.

@@ -25,6 +25,25 @@ use crate::problem::faces::{cross, dot, points, shape};
 pub struct Pressure {
     pub faces: Vec<SurfaceFace>,
     pub value: f64,
+    /// The fraction of `value` acting at load factor 0 and 1 of the current stage: [0, 1] while
+    /// a static stage ramps it on, [1, 1] when held, [1, 0] when a stage releases it.
+    pub ramp: [f64; 2],
+}
+
+impl Pressure {
+    /// A pressure of `value` (Pa) on `faces`, ramped on from 0 by the first stage.
+    pub fn new(faces: Vec<SurfaceFace>, value: f64) -> Self {
+        Pressure {
+            faces,
+            value,
+            ramp: [0.0, 1.0],
+        }
+    }
+
+    /// The fraction of the pressure at load factor `s` of the current stage.
+    pub fn fraction(&self, s: f64) -> f64 {
+        self.ramp[0] + s * (self.ramp[1] - self.ramp[0])
+    }
 }
 
 /// The skew matrix [a]× with [a]× b = a × b.
@@ -275,10 +294,7 @@ mod tests {
     fn residual_and_stiffness_match_finite_differences() {
         for kind in kinds() {
             let mesh = box_mesh([1e-2, 1e-2, 2e-3], [2, 2, 1], kind);
-            let load = Pressure {
-                faces: surface(&mesh, &mesh.face_sets["z1"]),
-                value: 3e3,
-            };
+            let load = Pressure::new(surface(&mesh, &mesh.face_sets["z1"]), 3e3);
             let state = wiggle(&mesh, 1e-3);
             let n = state.len();
             let mut r = vec![0.0; n];
@@ -325,10 +341,7 @@ mod tests {
     fn forces_inside_the_set_are_the_follower_forces() {
         for kind in kinds() {
             let mesh = box_mesh([1e-2, 1e-2, 2e-3], [3, 3, 1], kind);
-            let load = Pressure {
-                faces: surface(&mesh, &mesh.face_sets["z1"]),
-                value: 2e3,
-            };
+            let load = Pressure::new(surface(&mesh, &mesh.face_sets["z1"]), 2e3);
             let state = wiggle(&mesh, 1e-3);
             let mut r = vec![0.0; state.len()];
             add_pressure(&load, 1.0, &state, &mut r, None);

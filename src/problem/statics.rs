@@ -150,17 +150,18 @@ impl<'m> StaticProblem<'m> {
             *v -= self.load * t;
         }
         for p in &self.model.pressures {
-            crate::problem::pressure::add_pressure(p, self.load, &self.state, &mut r, None);
+            let f = p.fraction(self.s);
+            crate::problem::pressure::add_pressure(p, f, &self.state, &mut r, None);
         }
         Ok(r)
     }
 }
 
-/// Adds the pressures at load factor `load` to the scaled residual of the free equations and,
-/// with `k`, their stiffness (scaled like the cells' entries).
+/// Adds the pressures at load factor `s` of the stage to the scaled residual of the free
+/// equations and, with `k`, their stiffness (scaled like the cells' entries).
 fn add_pressures(
     m: &Model,
-    load: f64,
+    s: f64,
     state: &[f64],
     dofs: &crate::problem::dofs::DofMap,
     r: &mut [f64],
@@ -168,6 +169,10 @@ fn add_pressures(
 ) {
     let mut full = vec![0.0; state.len()];
     for p in &m.pressures {
+        let load = p.fraction(s);
+        if load == 0.0 {
+            continue;
+        }
         match k.as_deref_mut() {
             Some(k) => {
                 let mut put = |i: usize, j: usize, v: f64| {
@@ -341,8 +346,8 @@ impl NonlinearSystem for StaticProblem<'_> {
                 r[e] += self.dofs.scale[PHI] * q;
             }
         }
-        if self.load != 0.0 && !m.pressures.is_empty() {
-            add_pressures(m, self.load, &self.state, &self.dofs, r, k);
+        if !m.pressures.is_empty() {
+            add_pressures(m, self.s, &self.state, &self.dofs, r, k);
         }
         Ok(())
     }

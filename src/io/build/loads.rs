@@ -83,7 +83,7 @@ fn build_pressures(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), Inp
         let faces = crate::problem::pressure::surface(&model.mesh, &faces);
         model
             .pressures
-            .push(crate::problem::pressure::Pressure { faces, value });
+            .push(crate::problem::pressure::Pressure::new(faces, value));
     }
     Ok(())
 }
@@ -340,6 +340,37 @@ fn check_damping(ctx: &Ctx, s: &Scenario, key: &str, r: &RigidSpec) -> Result<()
         }
     }
     Ok(())
+}
+
+/// Per `[[loads.pressure]]`, per stage: whether it acts there (`stages`, default every stage).
+pub(super) fn pressure_stages(
+    ctx: &Ctx,
+    s: &Scenario,
+    stages: &[crate::job::plan::Stage],
+) -> Result<Vec<Vec<bool>>, InputError> {
+    let pressures = s.loads.as_ref().map_or(&[][..], |l| l.pressure.as_slice());
+    let mut out = Vec::new();
+    for (i, p) in pressures.iter().enumerate() {
+        let Some(names) = &p.stages else {
+            out.push(vec![true; stages.len()]);
+            continue;
+        };
+        let mut on = vec![false; stages.len()];
+        for name in names {
+            match stages.iter().position(|st| &st.name == name) {
+                Some(k) => on[k] = true,
+                None => {
+                    let known: Vec<&str> = stages.iter().map(|st| st.name.as_str()).collect();
+                    return Err(ctx.err(
+                        format!("loads.pressure.{i}.stages"),
+                        format!("no stage is named `{name}` (stages: {})", known.join(", ")),
+                    ));
+                }
+            }
+        }
+        out.push(on);
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

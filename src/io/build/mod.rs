@@ -84,19 +84,22 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
             ));
         }
     }
-    if !model.pressures.is_empty() {
-        if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
-            !matches!(
-                st.kind,
-                crate::job::plan::StageKind::Static { .. }
-                    | crate::job::plan::StageKind::QuasiStatic { .. }
-                    | crate::job::plan::StageKind::Continuation { .. }
-            )
+    let pressure_stages = loads::pressure_stages(&ctx, s, &stages)?;
+    for on in &pressure_stages {
+        if let Some((i, _)) = stages.iter().enumerate().find(|(i, st)| {
+            on[*i]
+                && !matches!(
+                    st.kind,
+                    crate::job::plan::StageKind::Static { .. }
+                        | crate::job::plan::StageKind::QuasiStatic { .. }
+                        | crate::job::plan::StageKind::Continuation { .. }
+                )
         }) {
             return Err(ctx.err(
                 format!("stages.{i}.kind"),
-                "pressure loads act in static and quasi-static stages only: dynamic and \
-                 small-signal stages do not include their follower stiffness yet",
+                "pressure loads act in static, quasi-static and continuation stages only: dynamic \
+                 and small-signal stages do not include their follower stiffness yet (list the \
+                 stages a pressure acts in with its `stages` key)",
             ));
         }
     }
@@ -122,6 +125,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         breakdown,
         stop_at_breakdown,
         solver: solver::build_solver(&ctx, s)?,
+        pressure_stages,
     })
 }
 
