@@ -15,6 +15,10 @@
 //!   closed-form maximum.
 //! - Gent (J_m = 30): through the maximum and the minimum to the rising branch.
 //! - With 5 kV on the electrodes, the peak pressure falls as the closed form says.
+//! - The `balloon` example (the `sphere` generator, a Gent wall at 5 kV, a pressure acting in its
+//!   continuation stage only) reports both limit points at the closed form's values.
+
+mod common;
 
 use deasim::material::registry::{build, MaterialParams};
 use deasim::material::EPSILON_0;
@@ -269,4 +273,63 @@ fn a_voltage_lowers_the_peak_pressure_as_the_closed_form_says() {
     assert!(e < 5e-3, "{e}");
     assert_eq!(limits.len(), 1);
     assert!((limits[0].1 - pv).abs() < 5e-3 * pv, "{limits:?} vs {pv}");
+}
+
+#[test]
+fn the_balloon_example_finds_both_limit_points_of_the_closed_form() {
+    let dir = common::tempdir("balloon-example");
+    let out = common::deasim(&["run", "balloon", "--out", "b"], &dir);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let jm = Some(30.0);
+    let (l_max, p_max) = extremum(jm, 5000.0, 1.0, 2.0, true);
+    let (l_min, p_min) = extremum(jm, 5000.0, 2.0, 4.0, false);
+    let text = std::fs::read_to_string(dir.join("b/summary.json")).unwrap();
+    let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let limits = summary["limit_points"].as_array().unwrap();
+    assert_eq!(limits.len(), 2, "{limits:?}");
+    // measured with 6 cells per patch edge: 5730.25 Pa at λ 1.44001, 4680.18 Pa at 2.51268
+    for (lp, kind, l, p) in [
+        (&limits[0], "maximum", l_max, p_max),
+        (&limits[1], "minimum", l_min, p_min),
+    ] {
+        let value = lp["value"].as_f64().unwrap();
+        let stretch = lp["probes"]["stretch"].as_f64().unwrap();
+        eprintln!("{kind}: {value:.2} Pa at λ {stretch:.5}; closed form {p:.2} Pa at {l:.5}");
+        assert_eq!(lp["kind"], kind);
+        assert_eq!(lp["unit"], "Pa");
+        assert!((value - p).abs() < 3e-3 * p_max, "{kind}: {value} vs {p}");
+        assert!((stretch - l).abs() < 5e-3 * l, "{kind}: λ {stretch} vs {l}");
+        // the whole balloon's cavity, to the faceting of the inner face
+        let volume = lp["probes"]["volume"].as_f64().unwrap();
+        let sphere = 4.0 / 3.0 * std::f64::consts::PI * (stretch * R).powi(3);
+        assert!(
+            (volume / sphere - 1.0).abs() < 0.015,
+            "{volume} vs {sphere}"
+        );
+    }
+    // between the two, the path is unstable under pressure control; beyond, stable again
+    let path = std::fs::read_to_string(dir.join("b/path.csv")).unwrap();
+    let mut lines = path.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (stable, stretch) = (col("stable"), col("probe:stretch"));
+    let rows: Vec<(bool, f64)> = lines
+        .map(|l| {
+            let v: Vec<&str> = l.split(',').collect();
+            (v[stable] == "true", v[stretch].parse().unwrap())
+        })
+        .collect();
+    for &(st, l) in &rows {
+        if l < l_max - 0.02 || l > l_min + 0.02 {
+            assert!(st, "λ {l} should be stable");
+        } else if l > l_max + 0.02 && l < l_min - 0.02 {
+            assert!(!st, "λ {l} should be unstable");
+        }
+    }
+    assert!(rows.last().unwrap().1 >= 3.2);
 }

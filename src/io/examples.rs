@@ -30,6 +30,7 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "diaphragm-visco",
         include_str!("../../scenarios/diaphragm-visco.toml"),
     ),
+    ("balloon", include_str!("../../scenarios/balloon.toml")),
     ("stack", include_str!("../../scenarios/stack.toml")),
     (
         "stack-blocked",

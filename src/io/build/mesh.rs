@@ -1,4 +1,4 @@
-//! `[mesh]`: the generators (`box`, `disc`, `stack`) and Gmsh files, the element kind, the
+//! `[mesh]`: the generators (`box`, `disc`, `stack`, `sphere`) and Gmsh files, the element kind, the
 //! formulation, the keys of one generator given to another, and the cell-count guard.
 
 use super::materials::Materials;
@@ -19,16 +19,34 @@ const ELEMENTS: [(&str, ElementKind); 3] = [
 ];
 
 /// The generators by scenario name.
-const GENERATORS: [&str; 3] = ["box", "disc", "stack"];
+const GENERATORS: [&str; 4] = ["box", "disc", "stack", "sphere"];
 
-/// Keys of the `stack` generator (the other generators reject them).
-const STACK_KEYS: [&str; 6] = [
-    "side",
-    "films",
-    "film_thickness",
-    "border",
-    "layers_per_film",
-    "active_cells",
+/// The size keys of each generator (the others reject them).
+const GENERATOR_KEYS: [(&str, &[&str]); 4] = [
+    ("box", &["size", "divisions"]),
+    (
+        "disc",
+        &[
+            "radius",
+            "thickness",
+            "pad_radius",
+            "electrode_radius",
+            "radial",
+            "layers",
+        ],
+    ),
+    (
+        "stack",
+        &[
+            "side",
+            "films",
+            "film_thickness",
+            "border",
+            "layers_per_film",
+            "active_cells",
+        ],
+    ),
+    ("sphere", &["radius", "thickness", "radial", "layers"]),
 ];
 
 /// The mesh of a scenario, and warnings about it (cells the Gmsh import reoriented); refused when
@@ -74,12 +92,13 @@ pub(super) fn build_model(
     Ok(model)
 }
 
-/// Copies of the meshed part that make the physical device: 4 for a quarter disc or stack.
+/// Copies of the meshed part that make the physical device: 4 for a quarter disc or stack, 8 for
+/// the octant of a sphere.
 pub(super) fn symmetry_factor(m: &MeshSpec) -> f64 {
-    if matches!(m.generator.as_deref(), Some("disc" | "stack")) && m.quarter != Some(false) {
-        4.0
-    } else {
-        1.0
+    match m.generator.as_deref() {
+        Some("disc" | "stack") if m.quarter != Some(false) => 4.0,
+        Some("sphere") => 8.0,
+        _ => 1.0,
     }
 }
 
@@ -117,6 +136,7 @@ fn mesh_of(
     let mesh = match generator {
         "disc" => build_disc(ctx, m, kind)?,
         "stack" => build_stack(ctx, m, kind)?,
+        "sphere" => build_sphere(ctx, m, kind)?,
         _ => build_box(ctx, m, kind)?,
     };
     Ok((mesh, Vec::new()))
@@ -136,7 +156,10 @@ fn generator<'a>(ctx: &Ctx, m: &'a MeshSpec) -> Result<&'a str, InputError> {
             .unwrap_or_default();
         return Err(ctx.err(
             "mesh.generator",
-            format!("unknown generator `{generator}`: expected `box`, `disc` or `stack`{hint}"),
+            format!(
+                "unknown generator `{generator}`: expected `box`, `disc`, `stack` or \
+                     `sphere`{hint}"
+            ),
         ));
     }
     Ok(generator)
@@ -186,7 +209,7 @@ fn build_box(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputEr
     ))
 }
 
-/// Rejects a stack key given to `box` or `disc`, and a `box` or `disc` key given to `stack`.
+/// Rejects a size key of another generator (`size` given to `disc`, `films` to `sphere`, …).
 fn reject_foreign_keys(ctx: &Ctx, m: &MeshSpec, generator: &str) -> Result<(), InputError> {
     let given = [
         ("size", m.size.is_some()),
@@ -204,17 +227,23 @@ fn reject_foreign_keys(ctx: &Ctx, m: &MeshSpec, generator: &str) -> Result<(), I
         ("layers_per_film", m.layers_per_film.is_some()),
         ("active_cells", m.active_cells.is_some()),
     ];
+    let owners = |key: &str| -> Vec<&str> {
+        GENERATOR_KEYS
+            .iter()
+            .filter(|(_, keys)| keys.contains(&key))
+            .map(|(g, _)| *g)
+            .collect()
+    };
     for (key, is_given) in given {
-        let stack_key = STACK_KEYS.contains(&key);
-        if is_given && stack_key != (generator == "stack") {
-            let owner = if stack_key {
-                "`stack`"
-            } else {
-                "`box` or `disc`"
-            };
+        let owned_by = owners(key);
+        if is_given && !owned_by.contains(&generator) {
+            let list: Vec<String> = owned_by.iter().map(|g| format!("`{g}`")).collect();
             return Err(ctx.err(
                 format!("mesh.{key}"),
-                format!("applies to the {owner} generator, not to `generator = \"{generator}\"`"),
+                format!(
+                    "applies to the {} generator, not to `generator = \"{generator}\"`",
+                    list.join(" or ")
+                ),
             ));
         }
     }
@@ -353,6 +382,47 @@ fn build_disc(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputE
     disc_mesh(&spec).map_err(|e| ctx.err("mesh", e))
 }
 
+/// The `sphere` generator: the octant (x, y, z ≥ 0) of a spherical shell of inner radius `radius`
+/// and wall `thickness`, `radial` cells along each edge of its three patches and `layers` through
+/// the wall; sets `inner`, `outer` and the symmetry planes `x0`, `y0`, `z0`.
+fn build_sphere(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputError> {
+    let radius = ctx.positive("mesh.radius", m.radius, "inner radius in m")?;
+    let thickness = ctx.positive("mesh.thickness", m.thickness, "wall thickness in m")?;
+    if kind != ElementKind::Hex8 {
+        return Err(ctx.err(
+            "mesh.element",
+            "the `sphere` generator makes hex8 cells; give `element = \"hex8\"` (with \
+             `formulation = \"mean-dilatation\"` for a nearly incompressible wall)",
+        ));
+    }
+    let radial = m.radial.unwrap_or(6);
+    let layers = m.layers.unwrap_or(2);
+    if !(1..=1000).contains(&radial) {
+        return Err(ctx.err(
+            "mesh.radial",
+            format!("must be between 1 and 1000; got {radial}"),
+        ));
+    }
+    if !(1..=200).contains(&layers) {
+        return Err(ctx.err(
+            "mesh.layers",
+            format!("must be between 1 and 200; got {layers}"),
+        ));
+    }
+    check_cell_count(
+        ctx,
+        "mesh.radial",
+        (3 * radial * radial * layers) as usize,
+        kind,
+    )?;
+    Ok(crate::mesh::sphere::sphere_octant(
+        radius,
+        radius + thickness,
+        radial as usize,
+        layers as usize,
+    ))
+}
+
 /// Refuses a generated mesh of more than [`MAX_CELLS`] cells (`hexahedra` of the layout, six
 /// tetrahedra each for tet meshes), naming `key`, the parameter that sets the size.
 fn check_cell_count(
@@ -476,6 +546,8 @@ mod tests {
 
     const DISC: &str = "[mesh]\ngenerator = \"disc\"\nradius = 17.5e-3\nthickness = 1e-3\n\
                         pad_radius = 3.75e-3\nelectrode_radius = 7.5e-3\nradial = 6\nlayers = 1";
+    const SPHERE: &str =
+        "[mesh]\ngenerator = \"sphere\"\nradius = 0.01\nthickness = 0.5e-3\nradial = 3\nlayers = 2";
     const STACK: &str = "[mesh]\ngenerator = \"stack\"\nside = 4e-3\nfilms = 2\n\
                          film_thickness = 50e-6\nborder = 0.4e-3\nlayers_per_film = 2\n\
                          active_cells = 2";
@@ -523,6 +595,33 @@ mod tests {
             assert!(m.set_nodes(set).is_some_and(|n| !n.is_empty()), "{set}");
         }
         assert!(m.set_nodes("electrode_3").is_none());
+        let s = scenario(&[("mesh", SPHERE)]);
+        let (m, _) = build_mesh(&CTX, &s, None).unwrap();
+        assert_eq!(m.n_cells(), 3 * 3 * 3 * 2);
+        for set in ["inner", "outer", "x0", "y0", "z0"] {
+            assert!(m.set_nodes(set).is_some_and(|n| !n.is_empty()), "{set}");
+        }
+        // inner radius `radius`, outer `radius + thickness`
+        let r = |n: usize| m.nodes[n].iter().map(|c| c * c).sum::<f64>().sqrt();
+        assert!(m
+            .set_nodes("inner")
+            .unwrap()
+            .iter()
+            .all(|&n| (r(n) - 0.01).abs() < 1e-12));
+        assert!(m
+            .set_nodes("outer")
+            .unwrap()
+            .iter()
+            .all(|&n| (r(n) - 0.0105).abs() < 1e-12));
+        assert_eq!(symmetry_factor(&s.mesh), 8.0);
+        let e = mesh(&format!("{SPHERE}\nelement = \"tet4\"")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.element",
+            "the `sphere` generator makes hex8 cells",
+        );
+        let e = mesh(&SPHERE.replace("radius = 0.01", "")).unwrap_err();
+        assert_names(&e, "mesh.radius", "inner radius in m");
     }
 
     #[test]
@@ -617,7 +716,15 @@ mod tests {
         assert_names(
             &e,
             "mesh.radius",
-            "applies to the `box` or `disc` generator",
+            "applies to the `disc` or `sphere` generator, not to `generator = \"stack\"`",
+        );
+        let e = mesh(&box_mesh_of("radius = 1.0")).unwrap_err();
+        assert_names(&e, "mesh.radius", "not to `generator = \"box\"`");
+        let e = mesh(&format!("{SPHERE}\npad_radius = 1.0")).unwrap_err();
+        assert_names(
+            &e,
+            "mesh.pad_radius",
+            "applies to the `disc` generator, not to `generator = \"sphere\"`",
         );
         let e = build_mesh(
             &CTX,
