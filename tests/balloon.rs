@@ -15,8 +15,12 @@
 //!   closed-form maximum.
 //! - Gent (J_m = 30): through the maximum and the minimum to the rising branch.
 //! - With 5 kV on the electrodes, the peak pressure falls as the closed form says.
+//! - Under volume control (the pressure an unknown that makes the cavity reach a volume) the
+//!   same curve is followed by a plain load ramp, every state stable, through the maximum.
 //! - The `balloon` example (the `sphere` generator, a Gent wall at 5 kV, a pressure acting in its
-//!   continuation stage only) reports both limit points at the closed form's values.
+//!   continuation stage only) reports both limit points at the closed form's values, and
+//!   `balloon-volume` (its volume prescribed, the pressure recorded by a `pressure` probe)
+//!   follows the same curve with a static ramp to the prescribed volume.
 
 mod common;
 
@@ -332,4 +336,145 @@ fn the_balloon_example_finds_both_limit_points_of_the_closed_form() {
         }
     }
     assert!(rows.last().unwrap().1 >= 3.2);
+}
+
+#[test]
+fn volume_control_ramps_through_the_pressure_maximum_with_every_state_stable() {
+    let mesh = sphere_octant(R, R + H, 4, 2);
+    let params = MaterialParams {
+        mu: vec![MU],
+        kappa: Some(1e4 * MU),
+        permittivity: Some(EPS_R),
+        ..Default::default()
+    };
+    let (material, _) = build("neo-hooke-split", &params).unwrap();
+    let mut model = Model::new(mesh, material).unwrap();
+    model.formulation = Formulation::MeanDilatation;
+    model.fix("x0", Field::Ux, 0.0).unwrap();
+    model.fix("y0", Field::Uy, 0.0).unwrap();
+    model.fix("z0", Field::Uz, 0.0).unwrap();
+    model.dirichlet.push(Dirichlet {
+        nodes: (0..model.mesh.n_nodes()).collect(),
+        field: Field::Phi,
+        value: 0.0,
+    });
+    let faces = surface(&model.mesh, &model.mesh.face_sets["inner"]);
+    let v0 = deasim::problem::pressure::enclosed_volume(
+        &faces,
+        &vec![0.0; model.mesh.n_nodes() * FIELDS],
+    );
+    // the pressure is an unknown (fraction of 1 Pa): the cavity grows to 2³ times its volume
+    let mut pressure = Pressure::new(faces, 1.0);
+    pressure.volume = Some(8.0 * v0);
+    pressure.ramp = [0.0, 0.0];
+    model.pressures.push(pressure);
+    let inner = model.mesh.node_sets["inner"].clone();
+    let stretch = |state: &[f64]| {
+        inner
+            .iter()
+            .map(|&a| {
+                let x = model.mesh.nodes[a];
+                let r2: f64 = (0..3).map(|i| (x[i] + state[a * FIELDS + i]).powi(2)).sum();
+                r2.sqrt() / R
+            })
+            .sum::<f64>()
+            / inner.len() as f64
+    };
+    let mut problem = StaticProblem::new(&model, None);
+    let mut solver = SolverSettings::default().build();
+    let control = deasim::solve::stepping::StepControl {
+        steps: 20,
+        ..Default::default()
+    };
+    let mut points: Vec<Point> = Vec::new();
+    // negative pivots of the tangent at fixed pressure, per step
+    let mut negatives = Vec::new();
+    let report = deasim::solve::stepping::ramp(
+        &mut problem,
+        solver.as_mut(),
+        &NewtonSettings::default(),
+        &control,
+        |p, step| {
+            let level = p.volume_control.as_ref().unwrap().level;
+            points.push((stretch(&p.state), level, step.newton.stable));
+            negatives.push(step.newton.inertia.map(|i| i.negative));
+        },
+    )
+    .unwrap();
+    let (l_peak, p_peak) = extremum(None, 0.0, 1.0, 2.0, true);
+    let e = worst(&points, None, 0.0, p_peak);
+    let top = points.iter().map(|p| p.1).fold(0.0, f64::max);
+    eprintln!(
+        "volume control: {} steps, {} Newton iterations; largest error {e:.2e} of the peak; \
+         highest pressure {top:.2} Pa vs closed-form peak {p_peak:.2} Pa at λ {l_peak:.4}",
+        points.len(),
+        report.newton_iterations
+    );
+    // within the n = 4 discretisation error of the pressure-controlled path
+    assert!(e < 1e-2, "{e}");
+    assert!(
+        points.iter().all(|p| p.2),
+        "every state stable under volume control"
+    );
+    let last = points.last().unwrap();
+    assert!((last.0 - 2.0).abs() < 0.02, "λ_i {}", last.0);
+    // through the maximum: the pressure rose to the peak and fell past it
+    assert!((top - p_peak).abs() < 1e-2 * p_peak, "{top} vs {p_peak}");
+    assert!(last.1 < 0.95 * top);
+    let volume =
+        deasim::problem::pressure::enclosed_volume(&model.pressures[0].faces, &problem.state);
+    assert!(
+        (volume / (8.0 * v0) - 1.0).abs() < 1e-9,
+        "{volume} vs {}",
+        8.0 * v0
+    );
+}
+
+#[test]
+fn the_volume_controlled_balloon_example_follows_the_closed_form_through_both_extrema() {
+    let dir = common::tempdir("balloon-volume");
+    let out = common::deasim(&["run", "balloon-volume", "--out", "v"], &dir);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("v/history.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (stage, stretch, pressure_col, volume) = (
+        col("stage"),
+        col("probe:stretch"),
+        col("probe:pressure"),
+        col("probe:volume"),
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let inflate: Vec<(f64, f64, f64)> = rows
+        .iter()
+        .filter(|r| r[stage] == "inflate")
+        .map(|r| {
+            let v = |i: usize| r[i].parse::<f64>().unwrap();
+            (v(stretch), v(pressure_col), v(volume))
+        })
+        .collect();
+    assert_eq!(inflate.len(), 40, "a plain ramp: no cut-backs");
+    let jm = Some(30.0);
+    let (_, p_max) = extremum(jm, 5000.0, 1.0, 2.0, true);
+    let (_, p_min) = extremum(jm, 5000.0, 2.0, 4.0, false);
+    let mut worst = 0.0f64;
+    for &(l, p, _) in &inflate {
+        worst = worst.max((p - pressure(jm, l, 5000.0)).abs() / p_max);
+    }
+    eprintln!("balloon-volume: largest pressure error {worst:.2e} of the peak over 40 steps");
+    assert!(worst < 3e-3, "{worst}");
+    // the path rose past the maximum, fell to the minimum and rose again
+    let falling = inflate.windows(2).filter(|w| w[1].1 < w[0].1).count();
+    assert!(falling > 5 && inflate.last().unwrap().1 > p_min);
+    let top = inflate.iter().map(|x| x.1).fold(0.0, f64::max);
+    assert!(top > 0.99 * p_max, "{top} vs {p_max}");
+    // the prescribed volume, whole balloon, at the end
+    let last = inflate.last().unwrap();
+    assert!((last.2 / 1.3724e-4 - 1.0).abs() < 1e-9, "{}", last.2);
 }

@@ -239,3 +239,64 @@ fn a_pressure_acts_in_its_stages_and_is_ramped_off_after_them() {
         String::from_utf8_lossy(&out.stdout)
     );
 }
+
+#[test]
+fn volume_control_inputs_are_checked() {
+    let dir = tempdir("pressure-volume-inputs");
+    let stage = "[[stages]]\nname = \"squeeze\"\nkind = \"static\"\nsteps = 4\n";
+    let base = scenario("hex8", stage);
+    let cases = [
+        (
+            base.replacen(
+                &format!("value = {P}\n"),
+                &format!("value = {P}\nvolume = 1e-9\n"),
+                1,
+            ),
+            "loads.pressure.0.volume",
+            "not both",
+        ),
+        (
+            base.replacen(&format!("value = {P}\n"), "", 1),
+            "loads.pressure.0",
+            "`value` (the pressure, Pa) or `volume`",
+        ),
+        (
+            base.replacen(&format!("value = {P}\n"), "volume = -1e-9\n", 1),
+            "loads.pressure.0.volume",
+            "positive",
+        ),
+        (
+            base.replacen(&format!("value = {P}\n"), "volume = 1e-9\n", 2),
+            "loads.pressure.1.volume",
+            "only one pressure",
+        ),
+        (
+            base.replace("kind = \"volume\"", "kind = \"pressure\"")
+                .replace("set = \"z1\"\n[output]", "set = \"top\"\n[output]"),
+            "probes.volume_z1.set",
+            "no `[[loads.pressure]]` acts on `top`",
+        ),
+    ];
+    for (i, (text, key, words)) in cases.iter().enumerate() {
+        std::fs::write(dir.join(format!("c{i}.toml")), text).unwrap();
+        let out = deasim(&["check", &format!("c{i}.toml")], &dir);
+        let said = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(out.status.code(), Some(2), "case {i}: {said}");
+        assert!(
+            said.contains(&format!("key `{key}`")) && said.contains(words),
+            "case {i}: {said}"
+        );
+    }
+    // a continuation stage in which a volume-controlled pressure acts is refused
+    let arc = "[[stages]]\nname = \"arc\"\nkind = \"continuation\"\nparameter = \"pressure\"\n\
+               steps = 4\ntarget = { points = 3 }\n";
+    let text = scenario("hex8", arc).replacen(&format!("value = {P}\n"), "volume = 1e-9\n", 1);
+    std::fs::write(dir.join("arc.toml"), text).unwrap();
+    let out = deasim(&["check", "arc.toml"], &dir);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(2), "{said}");
+    assert!(
+        said.contains("key `stages.0.kind`") && said.contains("volume-controlled pressure"),
+        "{said}"
+    );
+}

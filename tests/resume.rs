@@ -310,6 +310,13 @@ fn static_ramp_resumes_bitwise() {
     assert_eq!(full.status.code(), Some(0), "{}", text(&full));
 }
 
+/// A volume-controlled ramp: the pressure (the bordering unknown) continues from the checkpoint.
+#[test]
+fn volume_controlled_ramp_resumes_bitwise() {
+    let full = resume_from_older_checkpoint("volume", "balloon-volume", "20", &[]);
+    assert_eq!(full.status.code(), Some(0), "{}", text(&full));
+}
+
 /// The pull-in ramp (cut-backs near the limit point, ends with exit 1) resumed from a checkpoint
 /// taken after cut-backs: the reduced increment is part of the checkpoint.
 #[test]

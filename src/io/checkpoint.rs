@@ -323,6 +323,7 @@ mod tests {
                 stage: 1,
                 stage_time: 0.5,
                 step_no: 7,
+                pressure_start: vec![0.25],
                 first_step: 0,
                 prestretch_iterations: 0,
                 position: StagePosition::Dynamic {

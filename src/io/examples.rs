@@ -31,6 +31,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../../scenarios/diaphragm-visco.toml"),
     ),
     ("balloon", include_str!("../../scenarios/balloon.toml")),
+    (
+        "balloon-volume",
+        include_str!("../../scenarios/balloon-volume.toml"),
+    ),
     ("stack", include_str!("../../scenarios/stack.toml")),
     (
         "stack-blocked",

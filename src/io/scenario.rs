@@ -361,7 +361,10 @@ pub struct PressureSpec {
     pub set: String,
     /// Pressure (Pa): positive pushes the faces along −n, n the body's outward normal (it
     /// inflates a cavity whose walls the faces are, and compresses a solid it surrounds).
-    pub value: f64,
+    pub value: Option<f64>,
+    /// Instead of `value`: the volume (m³, whole device) the faces enclose at the end of every
+    /// stage it acts in; the pressure is then an unknown (volume control).
+    pub volume: Option<f64>,
     /// The names of the stages in which it acts (default: every stage).
     #[serde(default)]
     pub stages: Option<Vec<String>>,

@@ -159,6 +159,7 @@ impl ProbeMap<'_> {
             symmetry: plan.symmetry_factor,
             previous: (&[], 0.0),
             circuit_energy: &[],
+            pressures: &[],
         };
         Ok(self
             .probes

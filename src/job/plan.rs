@@ -195,6 +195,9 @@ pub struct Plan {
     /// Per pressure of `model.pressures`, per stage: whether it acts in the stage (a static stage
     /// ramps it on or off, later stages hold it).
     pub pressure_stages: Vec<Vec<bool>>,
+    /// Per pressure: the volume (m³, meshed part) it holds under volume control in the stages it
+    /// acts in (its fraction of `value` is then an unknown), or `None` (pressure control).
+    pub pressure_volumes: Vec<Option<f64>>,
 }
 
 impl Plan {

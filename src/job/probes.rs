@@ -64,6 +64,9 @@ pub enum ProbeKind {
     /// Volume (m³) enclosed by a face set, −⅓ ∮ x·n da with n the body's outward normal: the
     /// cavity a pressure inflates, or minus a solid's volume for its outer faces.
     Volume(Vec<crate::problem::pressure::SurfaceFace>),
+    /// The pressure (Pa) of `model.pressures[i]` acting now: its ramped value, or under volume
+    /// control the unknown that holds the volume.
+    Pressure(usize),
 }
 
 /// A face of a surface probe: its nodes and their positions (m) in the mesh.
@@ -132,6 +135,7 @@ impl ProbeKind {
             ProbeKind::SourceEnergy(_) | ProbeKind::ResistorLoss(_) => "J",
             ProbeKind::AreaStrain(_) => "-",
             ProbeKind::Volume(_) => "m³",
+            ProbeKind::Pressure(_) => "Pa",
         }
     }
 }
@@ -168,6 +172,8 @@ pub struct ProbeInput<'a> {
     /// Per electrode (plan order): energy delivered by its circuit's source and lost in its
     /// resistance so far (J, whole device; zero without a circuit).
     pub circuit_energy: &'a [(f64, f64)],
+    /// Per pressure of the model: the pressure acting (Pa); empty where not known (0).
+    pub pressures: &'a [f64],
 }
 
 impl Probe {
@@ -216,6 +222,7 @@ impl Probe {
             ProbeKind::SourceEnergy(e) => inp.circuit_energy.get(*e).map_or(0.0, |c| c.0),
             ProbeKind::ResistorLoss(e) => inp.circuit_energy.get(*e).map_or(0.0, |c| c.1),
             ProbeKind::Volume(faces) => crate::problem::pressure::enclosed_volume(faces, inp.state),
+            ProbeKind::Pressure(i) => inp.pressures.get(*i).copied().unwrap_or(0.0),
             ProbeKind::AreaStrain(faces) => {
                 let area = |state: &[f64]| faces.iter().map(|f| f.area(state)).sum::<f64>();
                 area(inp.state) / area(inp.reference) - 1.0

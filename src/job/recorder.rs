@@ -217,7 +217,16 @@ impl<'p> Recorder<'p> {
             .iter()
             .map(|e| (e.nodes.as_slice(), state[e.nodes[0] * FIELDS + 3]))
             .collect();
+        let pressures: Vec<f64> = self
+            .plan
+            .model
+            .pressures
+            .iter()
+            .zip(&self.pressure_now)
+            .map(|(p, f)| p.value * f)
+            .collect();
         let input = ProbeInput {
+            pressures: &pressures,
             state,
             reactions,
             electrodes: &voltages,
@@ -280,6 +289,7 @@ impl<'p> Recorder<'p> {
         self.broken_down = s.broken_down.clone();
         self.warnings = s.warnings.clone();
         self.prev_pressure = s.prev_pressure.clone();
+        self.pressure_now = s.prev_pressure.clone();
         if s.circuit_energy.len() == self.circuit_energy.len() {
             self.circuit_energy = s.circuit_energy.clone();
         }

@@ -209,8 +209,6 @@ struct Job<'p, 'o> {
     points: PointStates,
     /// The fraction of each pressure acting at the start of the current stage.
     pressure_fraction: Vec<f64>,
-    /// The load factor at which the last continuation stage ended.
-    path_end: f64,
 }
 
 impl<'p, 'o> Job<'p, 'o> {
@@ -248,7 +246,6 @@ impl<'p, 'o> Job<'p, 'o> {
             record_error: None,
             points: PointStates::new(&plan.model),
             pressure_fraction: vec![0.0; plan.model.pressures.len()],
-            path_end: 1.0,
         };
         crate::solve::interrupt::clear_local();
         if !plan.solver.gives_inertia() {
@@ -259,7 +256,9 @@ impl<'p, 'o> Job<'p, 'o> {
             ));
         }
         if let Some(s) = start {
-            if s.stage > 0 {
+            if s.pressure_start.len() == job.pressure_fraction.len() {
+                job.pressure_fraction.clone_from(&s.pressure_start);
+            } else if s.stage > 0 {
                 job.pressure_fraction = plan.pressure_targets(s.stage - 1);
             }
             job.q.clone_from(&s.q);
@@ -308,6 +307,7 @@ impl<'p, 'o> Job<'p, 'o> {
             points: self.points.data.clone(),
             dissipated: self.dissipated,
             dead_load_start: model.dead_load_start,
+            pressure_start: self.pressure_fraction.clone(),
             recorder: self.rec.state(),
             stages: self.summary.stages.clone(),
             warnings: self.summary.warnings.clone(),
@@ -411,15 +411,17 @@ impl<'p, 'o> Job<'p, 'o> {
         self.observer.stage_started(si, &stage.name);
         let stage_start = Instant::now();
         let prescribed = self.stage_conditions(model, stage);
-        // each pressure ramps from where the last stage left it to on (1) or off (0)
+        // each pressure ramps from where the last stage left it to on (1) or off (0); a
+        // volume-controlled one acting here starts from there and is an unknown
         let targets = plan.pressure_targets(si);
-        for ((p, &from), &to) in model
-            .pressures
-            .iter_mut()
-            .zip(&self.pressure_fraction)
-            .zip(&targets)
-        {
-            p.ramp = [from, to];
+        for (i, p) in model.pressures.iter_mut().enumerate() {
+            let (from, to) = (self.pressure_fraction[i], targets[i]);
+            p.volume = plan.pressure_volumes[i].filter(|_| to != 0.0);
+            p.ramp = if p.volume.is_some() {
+                [from, from]
+            } else {
+                [from, to]
+            };
         }
         if position.is_none() {
             self.first_step = 0;
@@ -469,13 +471,11 @@ impl<'p, 'o> Job<'p, 'o> {
         if !self.summary.converged {
             return false;
         }
-        // where the stage left the pressures (a continuation's path may end short of 1)
-        let end = if matches!(stage.kind, StageKind::Continuation { .. }) {
-            self.path_end
-        } else {
-            1.0
-        };
-        self.pressure_fraction = model.pressures.iter().map(|p| p.fraction(end)).collect();
+        // where the stage left the pressures: at the last record (a continuation's path may end
+        // short of its load 1, a volume-controlled pressure where its volume needed it)
+        if self.rec.pressure_now.len() == model.pressures.len() {
+            self.pressure_fraction.clone_from(&self.rec.pressure_now);
+        }
         self.time += stage.duration;
         true
     }
@@ -686,6 +686,14 @@ impl<'p, 'o> Job<'p, 'o> {
             },
             |r| r.1,
         );
+        // a resumed volume-controlled pressure continues from its level at the last record
+        if resume_at.is_some() {
+            for (p, &level) in model.pressures.iter_mut().zip(&self.rec.prev_pressure) {
+                if p.volume.is_some() {
+                    p.ramp = [level, level];
+                }
+            }
+        }
         let time = self.time;
         let model_ref: &Model = model;
         let outcome = solve_static_from(
@@ -712,11 +720,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 self.rec.circuit_current = false;
                 self.rec.external_factor =
                     model_ref.dead_load_start + acc.load * (1.0 - model_ref.dead_load_start);
-                self.rec.pressure_now = model_ref
-                    .pressures
-                    .iter()
-                    .map(|p| p.fraction(acc.load))
-                    .collect();
+                self.rec.pressure_now = p.pressure_fractions();
                 self.record(
                     &p.state,
                     prescribed,
@@ -993,7 +997,6 @@ impl<'p, 'o> Job<'p, 'o> {
                 summary.newton_iterations = report.iterations + self.prestretch_iterations;
                 // later stages start from the dead loads where the path ended
                 model.dead_load_start = t0 + last_load * (1.0 - t0);
-                self.path_end = last_load;
                 let missed = match (target, &report.end) {
                     (PathTarget::Points, _) | (PathTarget::Load(_), PathEnd::TargetLoad) => false,
                     (PathTarget::Probe { .. }, _) => !reached,

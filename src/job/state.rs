@@ -147,6 +147,9 @@ pub struct RunState {
     pub dissipated: f64,
     /// The model's dead-load factor at the stage start.
     pub dead_load_start: f64,
+    /// The fraction of each pressure's value at the stage start; empty in older checkpoints.
+    #[serde(default)]
+    pub pressure_start: Vec<f64>,
     pub recorder: RecorderState,
     /// Summaries of the completed stages and the run's warnings so far.
     pub stages: Vec<StageSummary>,

@@ -28,6 +28,10 @@ pub struct Pressure {
     /// The fraction of `value` acting at load factor 0 and 1 of the current stage: [0, 1] while
     /// a static stage ramps it on, [1, 1] when held, [1, 0] when a stage releases it.
     pub ramp: [f64; 2],
+    /// Volume control: the volume (m³, of the meshed part) the faces enclose at the end of the
+    /// current stage, reached linearly from the stage's start; the pressure's fraction is then an
+    /// unknown of the static problem (`None`: the pressure follows `ramp`).
+    pub volume: Option<f64>,
 }
 
 impl Pressure {
@@ -37,6 +41,7 @@ impl Pressure {
             faces,
             value,
             ramp: [0.0, 1.0],
+            volume: None,
         }
     }
 

@@ -58,6 +58,20 @@ pub struct StaticProblem<'m> {
     /// whatever the load factor: the circuits' charges in the electrostatic projection of a
     /// dynamic step.
     pub extra_charges: Vec<(usize, f64)>,
+    /// The pressure under volume control, if any (the bordering unknown of the Newton solve).
+    pub volume_control: Option<VolumeControl>,
+}
+
+/// A pressure whose fraction is the unknown that makes its faces enclose a prescribed volume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumeControl {
+    /// Index in `model.pressures`.
+    pub pressure: usize,
+    /// Enclosed volume (m³, meshed part) at load factor 0 and 1 of the stage.
+    pub start: f64,
+    pub target: f64,
+    /// The pressure's current fraction of its `value` (the unknown).
+    pub level: f64,
 }
 
 /// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
@@ -93,6 +107,14 @@ impl<'m> StaticProblem<'m> {
         } else {
             Vec::new()
         };
+        let volume_control = model.pressures.iter().enumerate().find_map(|(i, p)| {
+            p.volume.map(|target| VolumeControl {
+                pressure: i,
+                start: crate::problem::pressure::enclosed_volume(&p.faces, &state),
+                target,
+                level: p.ramp[0],
+            })
+        });
         StaticProblem {
             model,
             dofs,
@@ -112,7 +134,23 @@ impl<'m> StaticProblem<'m> {
             dissipated: 0.0,
             dissipated_step: 0.0,
             extra_charges: Vec::new(),
+            volume_control,
         }
+    }
+
+    /// The fraction of each pressure's value acting at the current state: its ramp at the load
+    /// factor, or the unknown level of the volume-controlled one.
+    pub fn pressure_fractions(&self) -> Vec<f64> {
+        let mut f: Vec<f64> = self
+            .model
+            .pressures
+            .iter()
+            .map(|p| p.fraction(self.s))
+            .collect();
+        if let Some(c) = &self.volume_control {
+            f[c.pressure] = c.level;
+        }
+        f
     }
 
     /// Current load factor of the dead loads.
@@ -149,27 +187,25 @@ impl<'m> StaticProblem<'m> {
         for (v, t) in r.iter_mut().zip(&self.dead_load) {
             *v -= self.load * t;
         }
-        for p in &self.model.pressures {
-            let f = p.fraction(self.s);
+        for (p, f) in self.model.pressures.iter().zip(self.pressure_fractions()) {
             crate::problem::pressure::add_pressure(p, f, &self.state, &mut r, None);
         }
         Ok(r)
     }
 }
 
-/// Adds the pressures at load factor `s` of the stage to the scaled residual of the free
+/// Adds the pressures at their `fractions` of their values to the scaled residual of the free
 /// equations and, with `k`, their stiffness (scaled like the cells' entries).
 fn add_pressures(
     m: &Model,
-    s: f64,
+    fractions: &[f64],
     state: &[f64],
     dofs: &crate::problem::dofs::DofMap,
     r: &mut [f64],
     mut k: Option<&mut CsrMatrix>,
 ) {
     let mut full = vec![0.0; state.len()];
-    for p in &m.pressures {
-        let load = p.fraction(s);
+    for (p, &load) in m.pressures.iter().zip(fractions) {
         if load == 0.0 {
             continue;
         }
@@ -347,7 +383,8 @@ impl NonlinearSystem for StaticProblem<'_> {
             }
         }
         if !m.pressures.is_empty() {
-            add_pressures(m, self.s, &self.state, &self.dofs, r, k);
+            let fractions = self.pressure_fractions();
+            add_pressures(m, &fractions, &self.state, &self.dofs, r, k);
         }
         Ok(())
     }
@@ -359,10 +396,13 @@ impl NonlinearSystem for StaticProblem<'_> {
     /// The state followed by the dead-load factor (which the state does not carry, unlike
     /// the prescribed values).
     fn snapshot(&self) -> Vec<f64> {
-        let mut s = Vec::with_capacity(self.state.len() + 2);
+        let mut s = Vec::with_capacity(self.state.len() + 3);
         s.extend_from_slice(&self.state);
         s.push(self.load);
         s.push(self.s);
+        if let Some(c) = &self.volume_control {
+            s.push(c.level);
+        }
         s
     }
 
@@ -375,6 +415,41 @@ impl NonlinearSystem for StaticProblem<'_> {
         }
         if let Some(&factor) = s.get(n + 1) {
             self.s = factor;
+        }
+        if let (Some(&level), Some(c)) = (s.get(n + 2), self.volume_control.as_mut()) {
+            c.level = level;
+        }
+    }
+
+    /// Volume control: μ the pressure's fraction, g = V(x) − V̄(s) with V̄ linear in the load
+    /// factor from the stage's start volume to the target; b = ∂r/∂μ is the pressure's load
+    /// vector per unit fraction, −∂V/∂x scaled by its value, so c = ∂V/∂x = −b / value.
+    fn border(&self) -> Option<crate::problem::system::Border> {
+        let c = self.volume_control.as_ref()?;
+        let p = &self.model.pressures[c.pressure];
+        let mut full = vec![0.0; self.state.len()];
+        crate::problem::pressure::add_pressure(p, 1.0, &self.state, &mut full, None);
+        let mut b = vec![0.0; self.dofs.n_free];
+        for (d, v) in full.iter().enumerate() {
+            let e = self.dofs.eq[d];
+            if e != CONSTRAINED && *v != 0.0 {
+                b[e] += self.dofs.scale[d % FIELDS] * v;
+            }
+        }
+        let cvec = b.iter().map(|v| -v / p.value).collect();
+        let target = c.start + self.s * (c.target - c.start);
+        let volume = crate::problem::pressure::enclosed_volume(&p.faces, &self.state);
+        Some(crate::problem::system::Border {
+            b,
+            c: cvec,
+            g: volume - target,
+            tol: 1e-11 * c.start.abs().max(c.target.abs()),
+        })
+    }
+
+    fn increment_border(&mut self, delta: f64) {
+        if let Some(c) = self.volume_control.as_mut() {
+            c.level += delta;
         }
     }
 

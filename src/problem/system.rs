@@ -4,6 +4,21 @@
 
 use super::assembly::CsrMatrix;
 
+/// One extra scalar unknown μ of a system, closed by one scalar equation g(x, μ) = 0: Newton
+/// solves the bordered system [K b; cᵀ 0] [δx; δμ] = −[r; g] (a pressure held at the value that
+/// gives a prescribed volume, with μ the pressure and g the volume's error).
+#[derive(Debug, Clone)]
+pub struct Border {
+    /// ∂r/∂μ over the free unknowns.
+    pub b: Vec<f64>,
+    /// ∂g/∂x over the free unknowns.
+    pub c: Vec<f64>,
+    /// g at the current state.
+    pub g: f64,
+    /// |g| at or below which the equation counts as satisfied.
+    pub tol: f64,
+}
+
 /// A nonlinear system R(x) = 0 with a symmetric tangent.
 pub trait NonlinearSystem {
     /// Number of unknowns.
@@ -28,6 +43,13 @@ pub trait NonlinearSystem {
     /// factorisation is reused (modified Newton) records here where that was, so that a resumed
     /// run can factor the same matrix again.
     fn factored(&mut self) {}
+    /// The bordering unknown's column, row and equation at the current state (`None`: the
+    /// system has none).
+    fn border(&self) -> Option<Border> {
+        None
+    }
+    /// μ ← μ + δ (the snapshot holds μ).
+    fn increment_border(&mut self, _delta: f64) {}
 }
 
 /// A nonlinear system driven by a load factor s ∈ [0, 1].

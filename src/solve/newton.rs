@@ -1,12 +1,17 @@
 //! Newton–Raphson with a backtracking line search on the residual norm.
 //!
 //! Works on any [`NonlinearSystem`]: the system owns its state and evaluates the scaled residual
-//! and tangent over its free unknowns; Newton only sees vectors and a sparse matrix.
+//! and tangent over its free unknowns; Newton only sees vectors and a sparse matrix. A system
+//! with a [`Border`] (one extra unknown μ and its equation g = 0) is solved by block elimination
+//! with the same factorisation: K δxᵣ = −r, K z = −b, δμ = −(g + c·δxᵣ)/(c·z), δx = δxᵣ + δμ z.
+//! Its line search takes the longest admissible step, and divergence is judged against the first
+//! residual with g in residual units, ‖b‖·|g|/|c·z| (the residual that the change of μ removing
+//! g would cause).
 
 use super::linear::{Inertia, LinearSolver, LinearSolverError};
 use crate::problem::assembly::CsrMatrix;
 
-pub use crate::problem::system::NonlinearSystem;
+pub use crate::problem::system::{Border, NonlinearSystem};
 
 /// Newton settings.
 #[derive(Debug, Clone)]
@@ -27,7 +32,9 @@ pub struct NewtonSettings {
 }
 
 /// Residuals up to this multiple of the system's floor count as converged once they stagnate.
-const ROUNDOFF_BAND: f64 = 100.0;
+/// The floor is estimated in the reference configuration; a nearly incompressible wall stretched
+/// 2.5 times (an inflated balloon) carries round-off in its forces about 130 times that estimate.
+const ROUNDOFF_BAND: f64 = 1000.0;
 
 impl Default for NewtonSettings {
     fn default() -> Self {
@@ -141,11 +148,18 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
     }
     let mut iteration = 0;
     let mut refactor = !reuse || !solver.is_factored();
-    while rn > tol {
+    let mut border = system.border();
+    let mut reference = r0.max(floor);
+    let border_open = |b: &Option<Border>| b.as_ref().is_some_and(|b| b.g.abs() > b.tol);
+    while rn > tol || border_open(&border) {
         // round-off plateau: within ROUNDOFF_BAND of the floor and no longer halving over two
         // iterations; the floor's round-off estimate is a few times off on distorted meshes
         let n_res = residuals.len();
-        if n_res >= 3 && rn <= ROUNDOFF_BAND * floor && rn > 0.5 * residuals[n_res - 3] {
+        if n_res >= 3
+            && rn <= ROUNDOFF_BAND * floor
+            && rn > 0.5 * residuals[n_res - 3]
+            && !border_open(&border)
+        {
             break;
         }
         if iteration >= settings.max_iterations {
@@ -182,6 +196,40 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         if dx.iter().any(|v| !v.is_finite()) {
             return Err(NewtonError::Singular { iteration });
         }
+        // the bordering unknown: its step, and the weight of g in the merit
+        let (mut dmu, mut weight) = (0.0, 0.0);
+        if let Some(bd) = &border {
+            let mut z: Vec<f64> = bd.b.iter().map(|v| -v).collect();
+            solver
+                .solve_in_place(&mut z)
+                .map_err(|e| NewtonError::Evaluation {
+                    iteration,
+                    message: e.to_string(),
+                })?;
+            let cz: f64 = bd.c.iter().zip(&z).map(|(a, b)| a * b).sum();
+            let cx: f64 = bd.c.iter().zip(&dx).map(|(a, b)| a * b).sum();
+            if cz == 0.0 || !cz.is_finite() {
+                return Err(NewtonError::Singular { iteration });
+            }
+            dmu = -(bd.g + cx) / cz;
+            dx.iter_mut().zip(&z).for_each(|(d, zi)| *d += dmu * zi);
+            weight = norm(&bd.b) / cz.abs();
+            if settings.verbose {
+                eprintln!(
+                    "    border: g {:.3e}, dmu {dmu:.3e}, weight {weight:.3e}, |b| {:.3e}",
+                    bd.g,
+                    norm(&bd.b)
+                );
+            }
+        }
+        let m0 = match &border {
+            Some(b) => (rn * rn + (weight * b.g).powi(2)).sqrt(),
+            None => rn,
+        };
+        // the scale divergence is judged against: the first merit
+        if iteration == 1 {
+            reference = reference.max(m0);
+        }
         // Backtracking: accept the first step that lowers the residual norm; if none does, take the
         // full step when it can be evaluated (plain Newton), else fail.
         let start = system.snapshot();
@@ -192,6 +240,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         let mut full_step_error: Option<String> = None;
         for _ in 0..=settings.max_backtracks {
             system.increment(&dx, alpha);
+            system.increment_border(alpha * dmu);
             let evaluated = system.evaluate(&mut trial, None);
             if let (Err(m), true) = (&evaluated, alpha == 1.0) {
                 full_step_error = Some(m.clone());
@@ -202,7 +251,11 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                 if alpha == 1.0 && tn.is_finite() {
                     full_step_ok = true;
                 }
-                if tn.is_finite() && tn <= (1.0 - 1e-4 * alpha) * rn {
+                // a bordered system takes the longest admissible step: its merit mixes a
+                // constraint with forces, and a nearly incompressible body's forces grow far
+                // beyond the weighted constraint over a step that is still converging
+                let descent = border.is_some() || tn <= (1.0 - 1e-4 * alpha) * m0;
+                if tn.is_finite() && descent {
                     accepted = true;
                     break;
                 }
@@ -225,6 +278,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
             }
             alpha = 1.0;
             system.increment(&dx, alpha);
+            system.increment_border(dmu);
         }
         if reuse && accepted {
             // the line search already evaluated the residual here
@@ -238,6 +292,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         }
         let previous = rn;
         rn = norm(&r);
+        border = system.border();
         refactor = !reuse || rn > 0.1 * previous;
         residuals.push(rn);
         if settings.verbose {
@@ -255,7 +310,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                 alpha
             );
         }
-        if !rn.is_finite() || rn > 1e8 * r0.max(floor) {
+        if !rn.is_finite() || rn > 1e8 * reference {
             return Err(NewtonError::Diverged {
                 iteration,
                 residual: rn,
@@ -273,7 +328,24 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         match solver.factor(k) {
             Ok(Some(i)) => {
                 system.factored();
-                stable = i.negative <= system.expected_negative_pivots();
+                // with a border, stability is that of K on the constrained directions c·δx = 0:
+                // one negative pivot fewer when cᵀK⁻¹c < 0 (Haynsworth's inertia additivity
+                // for the bordered matrix)
+                let mut negative = i.negative;
+                if let Some(bd) = system.border() {
+                    let mut z = bd.c.clone();
+                    solver
+                        .solve_in_place(&mut z)
+                        .map_err(|e| NewtonError::Evaluation {
+                            iteration,
+                            message: e.to_string(),
+                        })?;
+                    let q: f64 = bd.c.iter().zip(&z).map(|(a, b)| a * b).sum();
+                    if q < 0.0 {
+                        negative = negative.saturating_sub(1);
+                    }
+                }
+                stable = negative <= system.expected_negative_pivots();
                 inertia = Some(i);
             }
             Ok(None) => {
@@ -344,6 +416,79 @@ mod tests {
         fn groups(&self) -> Vec<u8> {
             vec![0]
         }
+    }
+
+    /// A double well E = x⁴/4 − x²/2 pulled by a force μ, with x held at `target` by the border
+    /// g = x − target: r = x³ − x − μ.
+    struct HeldWell {
+        x: f64,
+        mu: f64,
+        target: f64,
+    }
+
+    impl NonlinearSystem for HeldWell {
+        fn n(&self) -> usize {
+            1
+        }
+        fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
+            r[0] = self.x.powi(3) - self.x - self.mu;
+            if let Some(k) = k {
+                k.values[0] = 3.0 * self.x * self.x - 1.0;
+            }
+            Ok(())
+        }
+        fn increment(&mut self, dx: &[f64], alpha: f64) {
+            self.x += alpha * dx[0];
+        }
+        fn snapshot(&self) -> Vec<f64> {
+            vec![self.x, self.mu]
+        }
+        fn restore(&mut self, s: &[f64]) {
+            self.x = s[0];
+            self.mu = s[1];
+        }
+        fn new_matrix(&self) -> CsrMatrix {
+            Cubic(0.0).new_matrix()
+        }
+        fn expected_negative_pivots(&self) -> usize {
+            0
+        }
+        fn residual_floor(&self) -> f64 {
+            1e-14
+        }
+        fn groups(&self) -> Vec<u8> {
+            vec![0]
+        }
+        fn border(&self) -> Option<Border> {
+            Some(Border {
+                b: vec![-1.0],
+                c: vec![1.0],
+                g: self.x - self.target,
+                tol: 1e-14,
+            })
+        }
+        fn increment_border(&mut self, delta: f64) {
+            self.mu += delta;
+        }
+    }
+
+    /// The border holds x where the well's tangent is negative: Newton finds the force that
+    /// holds it there (μ = x³ − x), and the state counts as stable, since the constraint leaves
+    /// no free direction, although K itself has a negative pivot.
+    #[test]
+    fn a_bordered_system_solves_for_its_extra_unknown_and_is_stable_under_its_constraint() {
+        let settings = NewtonSettings::default();
+        let mut sys = HeldWell {
+            x: 1.2,
+            mu: 0.0,
+            target: 0.5,
+        };
+        let mut k = sys.new_matrix();
+        let rep = newton(&mut sys, &mut FaerLdlt::new(), &mut k, &settings).unwrap();
+        assert!((sys.x - 0.5).abs() < 1e-14, "{}", sys.x);
+        assert!((sys.mu - (0.125 - 0.5)).abs() < 1e-13, "{}", sys.mu);
+        assert_eq!(rep.inertia.map(|i| i.negative), Some(1));
+        assert!(rep.stable);
     }
 
     /// A solver that solves exactly but cannot tell the inertia (as a Krylov solver).

@@ -59,11 +59,26 @@ fn build_tractions(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), Inp
 fn build_pressures(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), InputError> {
     let pressures = s.loads.as_ref().map_or(&[][..], |l| l.pressure.as_slice());
     for (i, p) in pressures.iter().enumerate() {
-        let value = ctx.finite(
-            &format!("loads.pressure.{i}.value"),
-            p.value,
-            "pressure in Pa",
-        )?;
+        // under volume control the unknown is the pressure in Pa: a fraction of 1 Pa
+        let value =
+            match (p.value, p.volume) {
+                (Some(v), None) => {
+                    ctx.finite(&format!("loads.pressure.{i}.value"), v, "pressure in Pa")?
+                }
+                (None, Some(_)) => 1.0,
+                (Some(_), Some(_)) => return Err(ctx.err(
+                    format!("loads.pressure.{i}.volume"),
+                    "give either `value` (the pressure, Pa) or `volume` (the enclosed volume, m³, \
+                     with the pressure an unknown), not both",
+                )),
+                (None, None) => {
+                    return Err(ctx.err(
+                        format!("loads.pressure.{i}"),
+                        "missing: expected `value` (the pressure, Pa) or `volume` (the enclosed \
+                     volume, m³, with the pressure an unknown)",
+                    ))
+                }
+            };
         let faces = match model.mesh.face_sets.get(&p.set) {
             Some(f) if !f.is_empty() => f.clone(),
             _ => {
@@ -340,6 +355,34 @@ fn check_damping(ctx: &Ctx, s: &Scenario, key: &str, r: &RigidSpec) -> Result<()
         }
     }
     Ok(())
+}
+
+/// Per `[[loads.pressure]]`: the volume (m³, of the meshed part: the whole device's divided by
+/// `symmetry_factor`) it holds under volume control, checked positive; at most one of them.
+pub(super) fn pressure_volumes(
+    ctx: &Ctx,
+    s: &Scenario,
+    symmetry_factor: f64,
+) -> Result<Vec<Option<f64>>, InputError> {
+    let pressures = s.loads.as_ref().map_or(&[][..], |l| l.pressure.as_slice());
+    let mut out = Vec::new();
+    for (i, p) in pressures.iter().enumerate() {
+        let key = format!("loads.pressure.{i}.volume");
+        let v = match p.volume {
+            Some(v) => {
+                Some(ctx.positive(&key, Some(v), "enclosed volume in m³")? / symmetry_factor)
+            }
+            None => None,
+        };
+        if v.is_some() && out.iter().any(Option::is_some) {
+            return Err(ctx.err(
+                key,
+                "only one pressure can be volume-controlled (the others give a `value`)",
+            ));
+        }
+        out.push(v);
+    }
+    Ok(out)
 }
 
 /// Per `[[loads.pressure]]`, per stage: whether it acts there (`stages`, default every stage).

@@ -85,6 +85,22 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         }
     }
     let pressure_stages = loads::pressure_stages(&ctx, s, &stages)?;
+    let pressure_volumes = loads::pressure_volumes(&ctx, s, symmetry_factor)?;
+    for (on, volume) in pressure_stages.iter().zip(&pressure_volumes) {
+        if volume.is_none() {
+            continue;
+        }
+        if let Some((i, _)) = stages.iter().enumerate().find(|(i, st)| {
+            on[*i] && matches!(st.kind, crate::job::plan::StageKind::Continuation { .. })
+        }) {
+            return Err(ctx.err(
+                format!("stages.{i}.kind"),
+                "a volume-controlled pressure acts in static and quasi-static stages (its volume \
+                 already passes the limit points a continuation would follow); leave this stage \
+                 out of its `stages`",
+            ));
+        }
+    }
     for on in &pressure_stages {
         if let Some((i, _)) = stages.iter().enumerate().find(|(i, st)| {
             on[*i]
@@ -126,6 +142,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         stop_at_breakdown,
         solver: solver::build_solver(&ctx, s)?,
         pressure_stages,
+        pressure_volumes,
     })
 }
 

@@ -6,7 +6,7 @@ use crate::job::probes::{NodalQuantity, Probe, ProbeFace, ProbeKind};
 use crate::problem::model::Model;
 
 /// The probe kinds by scenario name.
-const KINDS: [&str; 16] = [
+const KINDS: [&str; 17] = [
     "mean",
     "max",
     "min",
@@ -23,6 +23,7 @@ const KINDS: [&str; 16] = [
     "resistor_loss",
     "area_strain",
     "volume",
+    "pressure",
 ];
 
 /// The nodal quantities by scenario name.
@@ -112,6 +113,7 @@ fn describe(p: &ProbeSpec, scale: f64, offset: f64) -> String {
         ),
         "max_electric_field" => "largest true electric field".to_string(),
         "volume" => format!("volume enclosed by {set}"),
+        "pressure" => format!("pressure on {set}"),
         "area_strain" => match &p.electrode {
             Some(e) => format!("area strain of electrode {e}"),
             None => format!("area strain of {set}"),
@@ -248,6 +250,19 @@ fn probe_kind(
         },
         "center_deflection" => ProbeKind::Deflection(set(p.set.as_deref().unwrap_or("pad"))?),
         "max_electric_field" => ProbeKind::MaxElectricField,
+        "pressure" => {
+            let name = need(&p.set, "set")?;
+            let pressures = s.loads.as_ref().map_or(&[][..], |l| l.pressure.as_slice());
+            match pressures.iter().position(|q| q.set == name) {
+                Some(i) => ProbeKind::Pressure(i),
+                None => {
+                    return Err(ctx.err(
+                        format!("{key}.set"),
+                        format!("no `[[loads.pressure]]` acts on `{name}`"),
+                    ))
+                }
+            }
+        }
         "volume" => {
             let name = need(&p.set, "set")?;
             let key = format!("{key}.set");
@@ -440,6 +455,7 @@ mod tests {
             symmetry: 1.0,
             previous: (&[], 0.0),
             circuit_energy: &[],
+            pressures: &[],
         };
         let mean = probe.evaluate(&input);
         let exact = 0.01f64 * 0.01 / 3.0;
