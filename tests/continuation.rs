@@ -7,6 +7,8 @@
 //!   those past it unstable under voltage control (one more negative pivot).
 //! - In charge, the same curve has no limit point of the charge, and every point is stable.
 //!   A load-factor target is landed on exactly.
+//! - In force (the dead loads' factor), the film under a voltage and a dead equibiaxial tension
+//!   that grow together passes their combined limit point, located at the closed form's.
 //! - Bad stage definitions are refused with exit 2, naming the key.
 
 mod common;
@@ -242,6 +244,10 @@ fn bad_continuation_stages_are_refused() {
             "parameter = \"pressure\"\ntarget = { load = 1.0 }",
             "needs a pressure load",
         ),
+        (
+            "parameter = \"force\"\ntarget = { load = 1.0 }",
+            "`force` needs dead loads",
+        ),
     ];
     for (keys, expect) in cases {
         scenario(
@@ -271,4 +277,134 @@ fn bad_continuation_stages_are_refused() {
         err.contains("a continuation follows a load that its stage changes"),
         "{err}"
     );
+}
+
+/// The film under proportional loading: at load factor s its top electrode holds s·V̄ and its
+/// lateral faces x1, y1 carry the dead nominal traction s·P̄. The path in the dead-load factor has a
+/// maximum where the film pulls in under the combined load. Closed form: for each λ the two
+/// stationarity conditions μ(λ − 1/λ) + Λ ln J/λ − (ε/2)E₀²λ/t = sP̄ and
+/// μ(t − 1/t) + Λ ln J/t + (ε/2)E₀²λ²/t² = 0, E₀ = sV̄/H, give (t, s).
+#[test]
+fn force_path_passes_the_combined_limit_of_voltage_and_dead_tension() {
+    let dir = tempdir("arc-force");
+    let (v_bar, p_bar) = (30e3, 2e4);
+    scenario(
+        &dir,
+        &format!("voltage = {v_bar}"),
+        &format!(
+            "[[tractions]]\nset = \"x1\"\nvalue = [{p_bar}, 0.0, 0.0]\n\
+             [[tractions]]\nset = \"y1\"\nvalue = [0.0, {p_bar}, 0.0]\n\
+             [[stages]]\nname = \"path\"\nkind = \"continuation\"\nparameter = \"force\"\n\
+             steps = 40\ntarget = {{ probe = \"inplane_stretch\", value = 1.8 }}\n"
+        ),
+    );
+    let (code, err) = run(&dir);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("limit point: maximum of dead_load_factor"),
+        "{err}"
+    );
+    // the closed form: (t, s) at λ by Newton, continued in λ
+    let f = film();
+    let h = 1e-3;
+    let residual = |l: f64, t: f64, s: f64| {
+        let lnj = (l * l * t).ln();
+        let e2 = (s * v_bar / h).powi(2);
+        [
+            f.mu * (l - 1.0 / l) + f.lambda * lnj / l - 0.5 * f.eps * e2 * l / t - s * p_bar,
+            f.mu * (t - 1.0 / t) + f.lambda * lnj / t + 0.5 * f.eps * e2 * l * l / (t * t),
+        ]
+    };
+    // (t, s) at λ by Newton from `start`
+    let solve = |l: f64, start: (f64, f64)| -> (f64, f64) {
+        let (mut t, mut s) = start;
+        for _ in 0..100 {
+            let r = residual(l, t, s);
+            let d = 1e-8;
+            let rt = residual(l, t + d, s);
+            let rs = residual(l, t, s + d);
+            let j = [
+                [(rt[0] - r[0]) / d, (rs[0] - r[0]) / d],
+                [(rt[1] - r[1]) / d, (rs[1] - r[1]) / d],
+            ];
+            let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+            let dt = (r[0] * j[1][1] - r[1] * j[0][1]) / det;
+            let ds = (j[0][0] * r[1] - j[1][0] * r[0]) / det;
+            t -= dt;
+            s -= ds;
+            if dt.abs() < 1e-15 && ds.abs() < 1e-15 {
+                break;
+            }
+        }
+        (t, s)
+    };
+    // the curve from λ = 1 in steps of 10⁻³ (each solve starts from the previous point)
+    let mut curve = vec![(1.0, (1.0, 0.0))];
+    while curve.last().unwrap().0 < 1.8 {
+        let (l, start) = *curve.last().unwrap();
+        curve.push((l + 1e-3, solve(l + 1e-3, start)));
+    }
+    let near = |l: f64| {
+        curve
+            .iter()
+            .min_by(|a, b| (a.0 - l).abs().total_cmp(&(b.0 - l).abs()))
+            .unwrap()
+            .1
+    };
+    let at = |l: f64| solve(l, near(l)).1;
+    // the maximum of s(λ): golden section around the best point of the curve
+    let best = curve
+        .iter()
+        .max_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
+        .unwrap()
+        .0;
+    let (mut a, mut b) = (best - 2e-3, best + 2e-3);
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    while b - a > 1e-10 {
+        let (x1, x2) = (b - g * (b - a), a + g * (b - a));
+        if at(x1) > at(x2) {
+            b = x2;
+        } else {
+            a = x1;
+        }
+    }
+    let (l_max, s_max) = (0.5 * (a + b), at(0.5 * (a + b)));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
+            .unwrap();
+    let limits = summary["limit_points"].as_array().unwrap();
+    assert_eq!(limits.len(), 1, "{limits:?}");
+    let lp = &limits[0];
+    let (value, stretch) = (
+        lp["value"].as_f64().unwrap(),
+        lp["probes"]["inplane_stretch"].as_f64().unwrap(),
+    );
+    eprintln!(
+        "force: limit at dead-load factor {value:.8} (λ {stretch:.5}); closed form {s_max:.8} at \
+         λ {l_max:.5}"
+    );
+    assert_eq!(lp["parameter"], "dead_load_factor");
+    assert_eq!(lp["kind"], "maximum");
+    assert!((value / s_max - 1.0).abs() < 1e-5, "{value} vs {s_max}");
+    assert!(
+        (stretch - l_max).abs() < 1e-3 * l_max,
+        "{stretch} vs {l_max}"
+    );
+    // every point on the closed form; stable before the maximum, unstable after
+    let (hd, rows) = path_rows(&dir);
+    let (c_s, c_l, c_stable) = (
+        col(&hd, "parameter"),
+        col(&hd, "probe:inplane_stretch"),
+        col(&hd, "stable"),
+    );
+    for r in &rows {
+        let (s, lam) = (
+            r[c_s].parse::<f64>().unwrap(),
+            r[c_l].parse::<f64>().unwrap(),
+        );
+        let s_cf = at(lam);
+        assert!((s - s_cf).abs() < 1e-6, "λ {lam}: {s} vs {s_cf}");
+        assert_eq!(r[c_stable] == "true", lam < l_max, "λ {lam}");
+    }
+    assert!(rows.len() > 5);
 }

@@ -76,6 +76,9 @@ pub enum PathParameter {
     Charge { electrode: usize },
     /// The follower pressure (Pa) of `model.pressures[index]`.
     Pressure { index: usize },
+    /// The dead loads (tractions, gravity, the weights of attached masses): the fraction of
+    /// their full values applied, the load proportionality factor of Riks's method.
+    Force,
 }
 
 impl PathParameter {
@@ -89,6 +92,7 @@ impl PathParameter {
                 (format!("charge_{}", plan.electrodes[*electrode].name), "C")
             }
             PathParameter::Pressure { index } => (format!("pressure_{index}"), "Pa"),
+            PathParameter::Force => ("dead_load_factor".into(), "-"),
         }
     }
 }

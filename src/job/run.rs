@@ -867,6 +867,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 let p = &model.pressures[*index];
                 (p.value * p.ramp[0], p.value * p.ramp[1])
             }
+            PathParameter::Force => (t0, 1.0),
         };
         if p0 == p1 {
             return Some(format!(

@@ -417,7 +417,7 @@ fn static_kind(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<StageKind, InputE
 }
 
 /// `kind = "continuation"`: `steps` (the first load step is 1/`steps`), the `parameter`
-/// (`voltage` or `charge` of `electrode`, or `pressure`), the `target` (`load`, `probe` with
+/// (`voltage` or `charge` of `electrode`, `pressure`, or `force`: the dead loads), the `target` (`load`, `probe` with
 /// `value`, or `points`) and `max_points` (default 500).
 fn continuation_kind(
     ctx: &Ctx,
@@ -504,17 +504,35 @@ fn continuation_kind(
             }
             PathParameter::Pressure { index: 0 }
         }
+        Some("force") => {
+            let gravity = s.loads.as_ref().and_then(|l| l.gravity).is_some();
+            if s.tractions.is_empty() && !gravity {
+                return Err(ctx.err(
+                    format!("{key}.parameter"),
+                    "`force` needs dead loads (`[[tractions]]` or `loads.gravity`)",
+                ));
+            }
+            if st.electrode.is_some() {
+                return Err(ctx.err(
+                    format!("{key}.electrode"),
+                    "applies to the parameters `voltage` and `charge` only",
+                ));
+            }
+            PathParameter::Force
+        }
         Some(o) => {
             return Err(ctx.err(
                 format!("{key}.parameter"),
-                format!("unknown parameter `{o}`: expected `voltage`, `charge` or `pressure`"),
+                format!(
+                    "unknown parameter `{o}`: expected `voltage`, `charge`, `pressure` or `force`"
+                ),
             ))
         }
         None => {
             return Err(ctx.err(
                 format!("{key}.parameter"),
-                "a continuation stage needs the load it follows: `voltage`, `charge` or \
-                 `pressure`",
+                "a continuation stage needs the load it follows: `voltage`, `charge`, \
+                 `pressure` or `force`",
             ))
         }
     };
