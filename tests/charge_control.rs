@@ -147,20 +147,205 @@ fn charge_control_is_refused_where_it_cannot_act() {
     let (code, said) = check(&["--set", "electrodes.bottom.charge=0.0"]);
     assert_eq!(code, Some(2));
     assert!(said.contains("need a voltage-controlled one"), "{said}");
+    // quasi-static and dynamic stages hold the charge; the explicit integrator and the
+    // small-signal stages (which hold every electrode at its voltage) are refused
     let (code, said) = check(&["--set", "stages.0.kind=\"quasi-static\""]);
-    assert_eq!(code, Some(2));
-    assert!(said.contains("is charge-controlled"), "{said}");
-    let (code, _) = check(&[]);
-    assert_eq!(code, Some(0));
+    assert_eq!(code, Some(0), "{said}");
+    film_with_charge(&dir, "charge = 1e-7");
+    let text = std::fs::read_to_string(dir.join("q.toml")).unwrap();
+    // a stage put before the film's static one, with a density for the inertia
+    let with = |stage: &str| {
+        text.replace("[[stages]]", &format!("{stage}\n[[stages]]"))
+            .replace("permittivity = 4.7", "permittivity = 4.7\ndensity = 1000.0")
+    };
+    let dynamic = |integrator: &str| {
+        with(&format!(
+            "[[stages]]\nname = \"shake\"\nkind = \"dynamic\"\nduration = 1e-4\ndt = 1e-5\n\
+             integrator = \"{integrator}\""
+        ))
+    };
+    std::fs::write(dir.join("q.toml"), dynamic("midpoint")).unwrap();
+    let (code, said) = check(&[]);
+    assert_eq!(code, Some(0), "{said}");
+    std::fs::write(dir.join("q.toml"), dynamic("trapezoidal")).unwrap();
+    let (code, said) = check(&[]);
+    assert_eq!(code, Some(2), "{said}");
+    assert!(
+        said.contains("key `stages.0.integrator`") && said.contains("is charge-controlled"),
+        "{said}"
+    );
+    std::fs::write(
+        dir.join("q.toml"),
+        with("[[stages]]\nname = \"m\"\nkind = \"modes\"\ncount = 2"),
+    )
+    .unwrap();
+    let (code, said) = check(&[]);
+    assert_eq!(code, Some(2), "{said}");
+    assert!(
+        said.contains("key `stages.0.kind`") && said.contains("small-signal stages"),
+        "{said}"
+    );
+}
+
+/// The film of `film-vibration` with its top electrode under charge control (8·10⁻⁸ C put on at
+/// t = 0) and Kelvin–Voigt damping: the charge stays put at every step (midpoint and Newmark), the
+/// film rings down onto the static charge-controlled state (the same charge in a static stage).
+#[test]
+fn a_charged_film_rings_down_onto_the_static_charge_controlled_state() {
+    let dir = tempdir("charge-dynamic");
+    let q = 8e-8;
+    let text =
+        String::from_utf8_lossy(&deasim(&["example", "film-vibration"], &dir).stdout).into_owned();
+    let step_line = "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    assert!(text.contains(step_line), "the example changed");
+    let text = text
+        .lines()
+        .map(|l| {
+            if l.starts_with(step_line) {
+                format!("charge = {q}")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(dir.join("d.toml"), &text).unwrap();
+    let last = |out: &str| -> std::collections::HashMap<String, f64> {
+        let t = std::fs::read_to_string(dir.join(out).join("history.csv")).unwrap();
+        let header: Vec<&str> = t.lines().next().unwrap().split(',').collect();
+        let row: Vec<f64> = t
+            .lines()
+            .last()
+            .unwrap()
+            .split(',')
+            .map(|x| x.parse().unwrap_or(f64::NAN))
+            .collect();
+        header.iter().map(|h| h.to_string()).zip(row).collect()
+    };
+    let quiet = [
+        "--set",
+        "output.plots=false",
+        "--set",
+        "output.fields_every=0",
+    ];
+    // the static reference
+    let stat: String = text
+        .lines()
+        .filter(|l| !l.starts_with("dt = ") && !l.starts_with("integrator = "))
+        .filter(|l| !l.starts_with("duration = "))
+        .map(|l| {
+            if l.starts_with("kind = \"dynamic\"") {
+                "kind = \"static\"\nsteps = 4".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(dir.join("s.toml"), stat).unwrap();
+    let mut args = vec!["run", "s.toml", "--out", "s"];
+    args.extend_from_slice(&quiet);
+    let out = deasim(&args, &dir);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let reference = last("s");
+    for integrator in ["midpoint", "newmark"] {
+        let set = format!("stages.0.integrator={integrator}");
+        let mut args = vec![
+            "run",
+            "d.toml",
+            "--out",
+            integrator,
+            "--set",
+            "materials.elastomer.viscosity=100",
+            "--set",
+            &set,
+        ];
+        args.extend_from_slice(&quiet);
+        let out = deasim(&args, &dir);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        // the charge at every recorded step after the first
+        let t = std::fs::read_to_string(dir.join(integrator).join("history.csv")).unwrap();
+        let header: Vec<&str> = t.lines().next().unwrap().split(',').collect();
+        let c = header.iter().position(|h| *h == "probe:charge").unwrap();
+        for l in t.lines().skip(2) {
+            let charge: f64 = l.split(',').nth(c).unwrap().parse().unwrap();
+            assert!((charge / q - 1.0).abs() < 1e-9, "{integrator}: {charge}");
+        }
+        let end = last(integrator);
+        for key in [
+            "voltage",
+            "probe:thickness_stretch",
+            "probe:inplane_stretch",
+        ] {
+            let (a, b) = (end[key], reference[key]);
+            assert!((a / b - 1.0).abs() < 1e-9, "{integrator} {key}: {a} vs {b}");
+        }
+        assert!(
+            end["kinetic"] < 1e-12 * end["stored"],
+            "{integrator}: rung down"
+        );
+    }
+}
+
+/// The capacitive divider of two floating electrodes holds at every instant of a dynamic stage
+/// with a sine drive: the projection keeps their charge at zero.
+#[test]
+fn floating_electrodes_follow_the_divider_in_a_dynamic_stage() {
+    let dir = tempdir("floating-dynamic");
+    let text = std::fs::read_to_string(divider(&dir, 1000.0))
+        .unwrap()
+        .replace("permittivity = 3.0", "permittivity = 3.0\ndensity = 1000.0")
+        .replace(
+            "voltage = 1000",
+            "voltage = { waveform = \"sine\", amplitude = 1000.0, frequency = 1000.0 }",
+        )
+        .replace(
+            "kind = \"static\"\nsteps = 1",
+            "kind = \"dynamic\"\nduration = 1e-3\ndt = 5e-5",
+        )
+        + "\n[probes.drive]\nkind = \"mean\"\nquantity = \"phi\"\nset = \"electrode_3\"\n";
+    std::fs::write(dir.join("d.toml"), text).unwrap();
+    let out = deasim(&["run", "d.toml", "--out", "o"], &dir);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let t = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
+    let header: Vec<&str> = t.lines().next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (d, f, s) = (col("probe:drive"), col("probe:first"), col("probe:second"));
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for l in t.lines().skip(1) {
+        let v: Vec<f64> = l
+            .split(',')
+            .map(|x| x.parse().unwrap_or(f64::NAN))
+            .collect();
+        lo = lo.min(v[d]);
+        hi = hi.max(v[d]);
+        assert!((v[f] - v[d] / 3.0).abs() < 1e-9 * 1000.0, "{l}");
+        assert!((v[s] - 2.0 * v[d] / 3.0).abs() < 1e-9 * 1000.0, "{l}");
+    }
+    assert!(hi - lo > 900.0, "the drive swings ({lo} … {hi})");
 }
 
 /// Two floating electrodes (zero charge) between a grounded and a driven one in a stack of three
 /// equal films with full-area electrodes take the capacitive divider's potentials V/3 and 2V/3
 /// (the material is so stiff that the films do not deform measurably).
-#[test]
-fn floating_electrodes_take_the_capacitive_divider_potentials() {
-    let dir = tempdir("floating");
-    let v = 1000.0;
+/// The divider scenario (a grounded, two floating and one driven electrode on a stiff stack),
+/// written to `d.toml` in `dir`.
+fn divider(dir: &std::path::Path, v: f64) -> std::path::PathBuf {
     let text = format!(
         r#"name = "divider"
 [mesh]
@@ -216,7 +401,16 @@ fields_every = 0
 plots = false
 "#
     );
-    std::fs::write(dir.join("d.toml"), text).unwrap();
+    let path = dir.join("d.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn floating_electrodes_take_the_capacitive_divider_potentials() {
+    let dir = tempdir("floating");
+    let v = 1000.0;
+    divider(&dir, v);
     let out = deasim(&["run", "d.toml", "--out", "o"], &dir);
     assert_eq!(
         out.status.code(),

@@ -190,9 +190,11 @@ impl<'m> Projector<'m> {
     }
 
     /// The model of the projection: all displacements held, the potential prescribed where
-    /// `step_model` prescribes it.
+    /// `step_model` prescribes it, the dead loads at full value as in the step (the free charges
+    /// of charge-controlled electrodes among them).
     fn model(step_model: &Model) -> Model {
         let mut proj_model = step_model.clone();
+        proj_model.dead_load_start = 1.0;
         let all: Vec<usize> = (0..step_model.mesh.n_nodes()).collect();
         proj_model.dirichlet = [Field::Ux, Field::Uy, Field::Uz]
             .into_iter()

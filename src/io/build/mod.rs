@@ -51,17 +51,35 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     stages::check_internal_variables(&ctx, &stages, &model)?;
     if let Some(e) = electrodes.iter().find(|e| e.charge.is_some()) {
         if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
-            !matches!(
+            matches!(
                 st.kind,
-                crate::job::plan::StageKind::Static { .. }
-                    | crate::job::plan::StageKind::Continuation { .. }
+                crate::job::plan::StageKind::Dynamic {
+                    scheme: crate::time::stage::Method::Trapezoidal,
+                    ..
+                }
+            )
+        }) {
+            return Err(ctx.err(
+                format!("stages.{i}.integrator"),
+                format!(
+                    "electrode `{}` is charge-controlled: use the `midpoint` or `newmark` \
+                     integrator (the explicit `trapezoidal` one does not hold a charge yet)",
+                    e.name
+                ),
+            ));
+        }
+        if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
+            matches!(
+                st.kind,
+                crate::job::plan::StageKind::Modes { .. }
+                    | crate::job::plan::StageKind::FrequencyResponse { .. }
             )
         }) {
             return Err(ctx.err(
                 format!("stages.{i}.kind"),
                 format!(
-                    "electrode `{}` is charge-controlled: such electrodes act in static stages \
-                     only for now",
+                    "electrode `{}` is charge-controlled: small-signal stages hold every \
+                     electrode at its voltage, which would not keep its charge",
                     e.name
                 ),
             ));
