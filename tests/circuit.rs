@@ -79,6 +79,18 @@ fn run(dir: &std::path::Path) -> std::collections::HashMap<String, Vec<f64>> {
             cols.get_mut(h).unwrap().push(v.parse().unwrap_or(f64::NAN));
         }
     }
+    // and the per-electrode columns of electrodes.csv (one row per record, too)
+    let text = std::fs::read_to_string(dir.join("o/electrodes.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    for h in header.iter().skip(3) {
+        cols.insert(h.clone(), Vec::new());
+    }
+    for l in lines {
+        for (h, v) in header.iter().zip(l.split(',')).skip(3) {
+            cols.get_mut(h).unwrap().push(v.parse().unwrap_or(f64::NAN));
+        }
+    }
     cols
 }
 
@@ -131,6 +143,25 @@ fn a_step_source_charges_the_film_exponentially_with_both_integrators() {
             "{ws} − {wl} vs {electric}"
         );
         assert!(h["energy_error"][n].abs() < 1e-9 * ws);
+        // electrodes.csv: the same voltage, Q = CV on the stiff film, the current its backward
+        // difference, the circuit's energies those of the probes; the grounded electrode holds
+        // the opposite charge
+        assert_eq!(h["voltage:top"], h["voltage"]);
+        assert_eq!(h["source_energy:top"], h["probe:source"]);
+        assert_eq!(h["resistor_loss:top"], h["probe:loss"]);
+        for k in 1..=n {
+            let (q, v) = (h["charge:top"][k], h["voltage:top"][k]);
+            assert!((q - c * v).abs() < 1e-6 * c * VS, "{k}: {q} vs {}", c * v);
+            assert!((h["charge:bottom"][k] + q).abs() < 1e-9 * c * VS);
+            assert_eq!(h["voltage:bottom"][k], 0.0);
+            let dq = q - h["charge:top"][k - 1];
+            let i = h["current:top"][k];
+            assert!(
+                (i - dq / h["dt"][k]).abs() < 1e-9 * (c * VS / tau),
+                "{k}: {i}"
+            );
+            assert!((h["power:top"][k] - v * i).abs() < 1e-12 * (VS * c * VS / tau));
+        }
     }
 }
 

@@ -369,6 +369,7 @@ mod tests {
                     energies: Energies::default(),
                     probes: vec![1.0, 2.0],
                     max_electric_field: 5.0,
+                    electrodes: vec![[2.0, 1e-9, 1e-6, 2e-6, 0.0, 0.0]],
                 }],
                 wall_s: 1.5,
             },

@@ -161,6 +161,7 @@ impl OutputWriter {
         for f in [
             "fields.pvd",
             "history.csv",
+            "electrodes.csv",
             "periods.csv",
             "summary.json",
             "modes.csv",
@@ -277,6 +278,33 @@ impl OutputWriter {
         s
     }
 
+    /// The electrodes' values per record as CSV text: time, stage, step, then for each electrode
+    /// its voltage (V), charge (C), current (A) and power (W), and for a circuit-driven one the
+    /// energy its source delivered and its resistance lost (J); whole device.
+    pub fn electrodes_csv(plan: &Plan, records: &[StepRecord]) -> String {
+        let mut s = String::from("time,stage,step");
+        for e in &plan.electrodes {
+            for q in ["voltage", "charge", "current", "power"] {
+                s.push_str(&format!(",{q}:{}", e.name));
+            }
+            if e.resistance.is_some() {
+                s.push_str(&format!(",source_energy:{0},resistor_loss:{0}", e.name));
+            }
+        }
+        s.push('\n');
+        for r in records {
+            let mut row = vec![csv_number(r.time), r.stage.clone(), r.step.to_string()];
+            for (i, e) in plan.electrodes.iter().enumerate() {
+                let v = r.electrodes.get(i).copied().unwrap_or([f64::NAN; 6]);
+                let n = if e.resistance.is_some() { 6 } else { 4 };
+                row.extend(v[..n].iter().map(|&x| csv_number(x)));
+            }
+            s.push_str(&row.join(","));
+            s.push('\n');
+        }
+        s
+    }
+
     /// The continuation points as CSV text: stage, point, load factor, the parameter's name
     /// (with its unit) and value, arc length, negative pivots of the tangent and of a stable
     /// state, stability under control of the parameter, then the probes.
@@ -317,6 +345,13 @@ impl OutputWriter {
         let text = Self::history_csv(plan, &self.records);
         if let Err(e) = write_atomic(&self.dir.join("history.csv"), text.as_bytes()) {
             self.failed(format!("{}: {e}", self.dir.join("history.csv").display()));
+        }
+        if !plan.electrodes.is_empty() {
+            let text = Self::electrodes_csv(plan, &self.records);
+            let path = self.dir.join("electrodes.csv");
+            if let Err(e) = write_atomic(&path, text.as_bytes()) {
+                self.failed(format!("{}: {e}", path.display()));
+            }
         }
         self.last_flush = Instant::now();
     }

@@ -237,6 +237,25 @@ impl Probe {
     }
 }
 
+/// Voltage (V), charge (C), current (A), power (W), and the energy its circuit's source delivered
+/// and its resistance lost (J) of electrode `e` (plan index), whole device: the per-electrode
+/// outputs of every record.
+pub fn electrode_values(inp: &ProbeInput, e: usize) -> [f64; 6] {
+    let s = inp.symmetry;
+    let v = inp.electrodes[e].1;
+    let i = current(inp, e) * s;
+    let (source, loss) = inp.circuit_energy.get(e).copied().unwrap_or((0.0, 0.0));
+    // + 0.0: no negative zero in the tables
+    [
+        v,
+        charge(inp, e) * s + 0.0,
+        i + 0.0,
+        v * i + 0.0,
+        source,
+        loss,
+    ]
+}
+
 /// Charge on an electrode: Q = −Σ ∂Π/∂Φ_a over its nodes (the free charge the source supplies).
 fn charge(inp: &ProbeInput, e: usize) -> f64 {
     -inp.electrodes[e]

@@ -166,7 +166,7 @@ impl<'p> Recorder<'p> {
         let fields = cell_fields_with(model, state, &self.points)?;
         let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
         self.check_breakdown(&fields, time, stage);
-        let probes = self.probe_values(
+        let (probes, electrodes) = self.probe_values(
             state,
             &reactions,
             (stored, electric),
@@ -194,6 +194,7 @@ impl<'p> Recorder<'p> {
             .scaled(self.plan.symmetry_factor),
             probes,
             max_electric_field,
+            electrodes,
         };
         if self.keep_history {
             self.history.push(record.clone());
@@ -201,8 +202,9 @@ impl<'p> Recorder<'p> {
         Ok((record, fields))
     }
 
-    /// The probes at a state with its reactions, energies (mechanical, electric), largest field
-    /// and the previous record's reactions with the time since it (for rate probes).
+    /// The probes and the electrodes' values (`probes::electrode_values`) at a state with its
+    /// reactions, energies (mechanical, electric), largest field and the previous record's
+    /// reactions with the time since it (for rates).
     fn probe_values(
         &self,
         state: &[f64],
@@ -210,7 +212,7 @@ impl<'p> Recorder<'p> {
         (stored, electric): (f64, f64),
         max_field: f64,
         previous: (&[f64], f64),
-    ) -> Vec<f64> {
+    ) -> (Vec<f64>, Vec<[f64; 6]>) {
         let voltages: Vec<(&[usize], f64)> = self
             .plan
             .electrodes
@@ -238,11 +240,16 @@ impl<'p> Recorder<'p> {
             previous,
             circuit_energy: &self.circuit_energy,
         };
-        self.plan
+        let probes = self
+            .plan
             .probes
             .iter()
             .map(|(_, p)| p.evaluate(&input))
-            .collect()
+            .collect();
+        let electrodes = (0..self.plan.electrodes.len())
+            .map(|e| crate::job::probes::electrode_values(&input, e))
+            .collect();
+        (probes, electrodes)
     }
 
     /// The probes at a state that is not recorded (a located limit point): nothing is
@@ -253,7 +260,9 @@ impl<'p> Recorder<'p> {
         let energies = energies_with(model, state, &self.points)?;
         let fields = cell_fields_with(model, state, &self.points)?;
         let max_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
-        Ok(self.probe_values(state, &reactions, energies, max_field, (&[], f64::NAN)))
+        Ok(self
+            .probe_values(state, &reactions, energies, max_field, (&[], f64::NAN))
+            .0)
     }
 
     /// The bookkeeping for a checkpoint.

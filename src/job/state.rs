@@ -37,6 +37,10 @@ pub struct StepRecord {
     pub probes: Vec<f64>,
     /// Largest spatial electric field magnitude at a quadrature point (V/m).
     pub max_electric_field: f64,
+    /// Per electrode (plan order): voltage, charge, current, power, source energy, resistor loss
+    /// (`probes::electrode_values`); empty in older checkpoints.
+    #[serde(default)]
+    pub electrodes: Vec<[f64; 6]>,
 }
 
 /// A converged point of a continuation stage.
