@@ -158,7 +158,9 @@ impl Progress {
         } else {
             String::new()
         };
-        format!("{}/{} steps, {pct:.0} %{eta}", self.done, self.total_steps)
+        // a continuation's points and cut-back steps can pass the nominal count
+        let shown = self.total_steps.max(self.done);
+        format!("{}/{shown} steps, {pct:.0} %{eta}", self.done)
     }
 
     fn new(plan: &Plan) -> Self {
