@@ -84,14 +84,10 @@ fn extremum(jm: Option<f64>, volts: f64, a: f64, b: f64, maximum: bool) -> (f64,
 /// One converged point: inner stretch, pressure (Pa), stable under pressure control.
 type Point = (f64, f64, bool);
 
-/// The path of the octant with `n` cells per cube-face edge, from 0 to the inner stretch
-/// `until`: its points and its limit points (λ_i, p, maximum).
-fn inflate(
-    n: usize,
-    jm: Option<f64>,
-    volts: f64,
-    until: f64,
-) -> (Vec<Point>, Vec<(f64, f64, bool)>) {
+/// The octant with `n` cells per cube-face edge (two layers, mean-dilatation, κ = 10⁴ μ; neo-Hooke
+/// or Gent `jm`), symmetry on x0, y0, z0, the inner face grounded and the outer one at `volts`
+/// (every potential 0 without a voltage).
+fn shell(n: usize, jm: Option<f64>, volts: f64) -> Model {
     let mesh = sphere_octant(R, R + H, n, 2);
     let params = MaterialParams {
         mu: vec![MU],
@@ -121,7 +117,32 @@ fn inflate(
             value: 0.0,
         });
     }
-    let inner = model.mesh.node_sets["inner"].clone();
+    model
+}
+
+/// The mean inner stretch r/R of a state.
+fn inner_stretch(model: &Model, state: &[f64]) -> f64 {
+    let inner = &model.mesh.node_sets["inner"];
+    inner
+        .iter()
+        .map(|&a| {
+            let x = model.mesh.nodes[a];
+            let r2: f64 = (0..3).map(|i| (x[i] + state[a * FIELDS + i]).powi(2)).sum();
+            r2.sqrt() / R
+        })
+        .sum::<f64>()
+        / inner.len() as f64
+}
+
+/// The path of the octant with `n` cells per cube-face edge, from 0 to the inner stretch
+/// `until`: its points and its limit points (λ_i, p, maximum).
+fn inflate(
+    n: usize,
+    jm: Option<f64>,
+    volts: f64,
+    until: f64,
+) -> (Vec<Point>, Vec<(f64, f64, bool)>) {
+    let mut model = shell(n, jm, volts);
     // the voltage first, without the pressure
     let mut start = None;
     if volts != 0.0 {
@@ -146,17 +167,7 @@ fn inflate(
         max_points: 400,
         ..Default::default()
     };
-    let stretch = |state: &[f64]| {
-        inner
-            .iter()
-            .map(|&a| {
-                let x = model.mesh.nodes[a];
-                let r2: f64 = (0..3).map(|i| (x[i] + state[a * FIELDS + i]).powi(2)).sum();
-                r2.sqrt() / R
-            })
-            .sum::<f64>()
-            / inner.len() as f64
-    };
+    let stretch = |state: &[f64]| inner_stretch(&model, state);
     let mut points = Vec::new();
     let mut limits = Vec::new();
     continuation(
@@ -340,24 +351,7 @@ fn the_balloon_example_finds_both_limit_points_of_the_closed_form() {
 
 #[test]
 fn volume_control_ramps_through_the_pressure_maximum_with_every_state_stable() {
-    let mesh = sphere_octant(R, R + H, 4, 2);
-    let params = MaterialParams {
-        mu: vec![MU],
-        kappa: Some(1e4 * MU),
-        permittivity: Some(EPS_R),
-        ..Default::default()
-    };
-    let (material, _) = build("neo-hooke-split", &params).unwrap();
-    let mut model = Model::new(mesh, material).unwrap();
-    model.formulation = Formulation::MeanDilatation;
-    model.fix("x0", Field::Ux, 0.0).unwrap();
-    model.fix("y0", Field::Uy, 0.0).unwrap();
-    model.fix("z0", Field::Uz, 0.0).unwrap();
-    model.dirichlet.push(Dirichlet {
-        nodes: (0..model.mesh.n_nodes()).collect(),
-        field: Field::Phi,
-        value: 0.0,
-    });
+    let mut model = shell(4, None, 0.0);
     let faces = surface(&model.mesh, &model.mesh.face_sets["inner"]);
     let v0 = deasim::problem::pressure::enclosed_volume(
         &faces,
@@ -368,18 +362,7 @@ fn volume_control_ramps_through_the_pressure_maximum_with_every_state_stable() {
     pressure.volume = Some(8.0 * v0);
     pressure.ramp = [0.0, 0.0];
     model.pressures.push(pressure);
-    let inner = model.mesh.node_sets["inner"].clone();
-    let stretch = |state: &[f64]| {
-        inner
-            .iter()
-            .map(|&a| {
-                let x = model.mesh.nodes[a];
-                let r2: f64 = (0..3).map(|i| (x[i] + state[a * FIELDS + i]).powi(2)).sum();
-                r2.sqrt() / R
-            })
-            .sum::<f64>()
-            / inner.len() as f64
-    };
+    let stretch = |state: &[f64]| inner_stretch(&model, state);
     let mut problem = StaticProblem::new(&model, None);
     let mut solver = SolverSettings::default().build();
     let control = deasim::solve::stepping::StepControl {

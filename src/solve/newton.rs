@@ -96,6 +96,25 @@ fn group_norms(v: &[f64], groups: &[u8]) -> [f64; 2] {
     [s[0].sqrt(), s[1].sqrt()]
 }
 
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// K⁻¹v with the solver's factorisation (the bordered step's second solve).
+fn solve_copy(
+    solver: &mut dyn LinearSolver,
+    mut v: Vec<f64>,
+    iteration: usize,
+) -> Result<Vec<f64>, NewtonError> {
+    solver
+        .solve_in_place(&mut v)
+        .map_err(|e| NewtonError::Evaluation {
+            iteration,
+            message: e.to_string(),
+        })?;
+    Ok(v)
+}
+
 /// Solves the system from its current state. On failure the state is left where Newton stopped;
 /// callers restore a snapshot.
 pub fn newton<S: NonlinearSystem + ?Sized>(
@@ -199,15 +218,10 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
         // the bordering unknown: its step, and the weight of g in the merit
         let (mut dmu, mut weight) = (0.0, 0.0);
         if let Some(bd) = &border {
-            let mut z: Vec<f64> = bd.b.iter().map(|v| -v).collect();
-            solver
-                .solve_in_place(&mut z)
-                .map_err(|e| NewtonError::Evaluation {
-                    iteration,
-                    message: e.to_string(),
-                })?;
-            let cz: f64 = bd.c.iter().zip(&z).map(|(a, b)| a * b).sum();
-            let cx: f64 = bd.c.iter().zip(&dx).map(|(a, b)| a * b).sum();
+            let minus_b: Vec<f64> = bd.b.iter().map(|v| -v).collect();
+            let z = solve_copy(solver, minus_b, iteration)?;
+            let cz = dot(&bd.c, &z);
+            let cx = dot(&bd.c, &dx);
             if cz == 0.0 || !cz.is_finite() {
                 return Err(NewtonError::Singular { iteration });
             }
@@ -333,14 +347,8 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                 // for the bordered matrix)
                 let mut negative = i.negative;
                 if let Some(bd) = system.border() {
-                    let mut z = bd.c.clone();
-                    solver
-                        .solve_in_place(&mut z)
-                        .map_err(|e| NewtonError::Evaluation {
-                            iteration,
-                            message: e.to_string(),
-                        })?;
-                    let q: f64 = bd.c.iter().zip(&z).map(|(a, b)| a * b).sum();
+                    let z = solve_copy(solver, bd.c.clone(), iteration)?;
+                    let q = dot(&bd.c, &z);
                     if q < 0.0 {
                         negative = negative.saturating_sub(1);
                     }
