@@ -129,7 +129,7 @@ fn names(plan: &Plan) -> Names {
     };
     Names {
         deflection: find(
-            &|k| matches!(k, ProbeKind::Deflection(_)),
+            &|k| matches!(k, ProbeKind::Deflection(..)),
             "center_deflection",
         ),
         capacitance: find(&|k| matches!(k, ProbeKind::Capacitance(_)), "capacitance"),

@@ -11,7 +11,7 @@
 use super::{CellFields, CellInput, CellKernel, PointFailure};
 use crate::fem::axisymmetric::meridian_kinematics;
 use crate::fem::{CellGeometry, FIELDS, MAX_NODES};
-use crate::material::{Mat3, Vec3};
+use crate::material::{Mat3, Mat9, Mat93, Vec3};
 
 /// The axisymmetric kernel with full integration, for cells from
 /// `fem::axisymmetric::meridian_geometry`.
@@ -34,11 +34,97 @@ fn point(geom: &CellGeometry, q: usize, local: &[f64]) -> (Mat3, Vec3) {
     meridian_kinematics(&geom.grad[q][..n], &geom.hoop[q][..n], &u[..n], &phi[..n])
 }
 
-/// δF of unknown (b, k), k ∈ {0, 1}: up to three (row-major index of F, value) pairs.
-fn delta_f(geom: &CellGeometry, q: usize, b: usize, k: usize) -> [(usize, f64); 3] {
+/// δF of unknown (b, k) at point q as three (row-major index of F, value) pairs: e_k ⊗ ∇₀N_b
+/// in a 3-D cell; in a meridian cell the in-plane part plus, for k = 0, the hoop entry N_b/R,
+/// and nothing for k = 2 (the held slot).
+pub(crate) fn delta_f(geom: &CellGeometry, q: usize, b: usize, k: usize) -> [(usize, f64); 3] {
     let g = geom.grad[q][b];
-    let hoop = if k == 0 { geom.hoop[q][b] } else { 0.0 };
-    [(k * 3, g[0]), (k * 3 + 1, g[1]), (8, hoop)]
+    if !geom.axisymmetric {
+        return [(k * 3, g[0]), (k * 3 + 1, g[1]), (k * 3 + 2, g[2])];
+    }
+    match k {
+        0 => [(0, g[0]), (1, g[1]), (8, geom.hoop[q][b])],
+        1 => [(3, g[0]), (4, g[1]), (8, 0.0)],
+        _ => [(0, 0.0), (1, 0.0), (8, 0.0)],
+    }
+}
+
+/// Adds w·(P : δF, D₀ · ∇₀N) of one point of a meridian cell to the residual `r`.
+pub(crate) fn add_residual_meridian(
+    geom: &CellGeometry,
+    q: usize,
+    w: f64,
+    p: &Mat3,
+    d0: &Vec3,
+    r: &mut [f64],
+) {
+    let g = &geom.grad[q];
+    for a in 0..geom.n_nodes {
+        for i in 0..2 {
+            let s: f64 = delta_f(geom, q, a, i)
+                .iter()
+                .map(|&(m, v)| v * p[(m / 3, m % 3)])
+                .sum();
+            r[a * 4 + i] += w * s;
+        }
+        r[a * 4 + 3] += w * (d0[0] * g[a][0] + d0[1] * g[a][1]);
+    }
+}
+
+/// Adds w·∂r/∂x of one point of a meridian cell to the local tangent `k` (leading dimension
+/// 4n), given the point's blocks A = ∂P/∂F (9×9), B = ∂P/∂E₀ (9×3) and G = ∂D₀/∂E₀ (3×3); the
+/// meridian counterpart of `element::add_point_tangent`.
+pub(crate) fn add_point_tangent_meridian(
+    geom: &CellGeometry,
+    q: usize,
+    w: f64,
+    a_blk: &Mat9,
+    b_blk: &Mat93,
+    g_blk: &Mat3,
+    k: &mut [f64],
+) {
+    let n = geom.n_nodes;
+    let nl = n * FIELDS;
+    let g = &geom.grad[q];
+    for a in 0..n {
+        for i in 0..2 {
+            let da = delta_f(geom, q, a, i);
+            // δF_a : A and δF_a : B
+            let mut ra = [0.0; 9];
+            let mut rb = [0.0; 3];
+            for &(m, v) in &da {
+                for col in 0..9 {
+                    ra[col] += v * a_blk[(m, col)];
+                }
+                for col in 0..3 {
+                    rb[col] += v * b_blk[(m, col)];
+                }
+            }
+            for b in 0..n {
+                let row = (a * 4 + i) * nl + b * 4;
+                for kk in 0..2 {
+                    let s: f64 = delta_f(geom, q, b, kk)
+                        .iter()
+                        .map(|&(m, v)| v * ra[m])
+                        .sum();
+                    k[row + kk] += w * s;
+                }
+                // ∂E₀/∂Φ_b = −∇₀N_b
+                let kp = -w * (rb[0] * g[b][0] + rb[1] * g[b][1]);
+                k[row + 3] += kp;
+                k[(b * 4 + 3) * nl + a * 4 + i] += kp;
+            }
+        }
+        for b in 0..n {
+            let mut s = 0.0;
+            for jj in 0..2 {
+                for kk in 0..2 {
+                    s += g[a][jj] * g_blk[(jj, kk)] * g[b][kk];
+                }
+            }
+            k[(a * 4 + 3) * nl + b * 4 + 3] += w * s;
+        }
+    }
 }
 
 fn residual_tangent(
@@ -58,7 +144,6 @@ fn residual_tangent(
         let w = geom.weights[q];
         let (f, e0) = point(geom, q, c.local);
         let fail = |error| PointFailure { qp: q, error };
-        let g = &geom.grad[q];
         let (p, d0, tan) = match k {
             None => {
                 let s = c.mat.stress_at(&f, &e0, c.hist.at(q)).map_err(fail)?;
@@ -71,56 +156,11 @@ fn residual_tangent(
                 (t.p, t.d0, Some(t))
             }
         };
-        let pv = |idx: usize| p[(idx / 3, idx % 3)];
-        for a in 0..n {
-            for i in 0..2 {
-                let s: f64 = delta_f(geom, q, a, i).iter().map(|&(m, v)| v * pv(m)).sum();
-                r[a * 4 + i] += w * s;
-            }
-            r[a * 4 + 3] += w * (d0[0] * g[a][0] + d0[1] * g[a][1]);
-        }
+        add_residual_meridian(geom, q, w, &p, &d0, r);
         let (Some(t), Some(k)) = (tan, k.as_deref_mut()) else {
             continue;
         };
-        for a in 0..n {
-            for i in 0..2 {
-                let da = delta_f(geom, q, a, i);
-                // Σ δF_a : A and Σ δF_a : B
-                let mut ra = [0.0; 9];
-                let mut rb = [0.0; 3];
-                for &(m, v) in &da {
-                    for col in 0..9 {
-                        ra[col] += v * t.a[(m, col)];
-                    }
-                    for col in 0..3 {
-                        rb[col] += v * t.b[(m, col)];
-                    }
-                }
-                for b in 0..n {
-                    let row = (a * 4 + i) * nl + b * 4;
-                    for kk in 0..2 {
-                        let s: f64 = delta_f(geom, q, b, kk)
-                            .iter()
-                            .map(|&(m, v)| v * ra[m])
-                            .sum();
-                        k[row + kk] += w * s;
-                    }
-                    // ∂E₀/∂Φ_b = −∇₀N_b
-                    let kp = -w * (rb[0] * g[b][0] + rb[1] * g[b][1]);
-                    k[row + 3] += kp;
-                    k[(b * 4 + 3) * nl + a * 4 + i] += kp;
-                }
-            }
-            for b in 0..n {
-                let mut s = 0.0;
-                for jj in 0..2 {
-                    for kk in 0..2 {
-                        s += g[a][jj] * t.g[(jj, kk)] * g[b][kk];
-                    }
-                }
-                k[(a * 4 + 3) * nl + b * 4 + 3] += w * s;
-            }
-        }
+        add_point_tangent_meridian(geom, q, w, &t.a, &t.b, &t.g, k);
     }
     Ok(energy)
 }
@@ -183,4 +223,85 @@ impl CellKernel for AxisymmetricKernel {
         }
         Ok(())
     }
+}
+
+/// The Kelvin–Voigt forces of a meridian cell: the meridian counterpart of
+/// `element::cell_viscous` (same contract). With h_a = F⁻ᵀ∇₀N_a (in-plane) and s_a = (N_a/R)/F_ΘΘ,
+/// the rate of deformation has the in-plane part sym Σ v_a ⊗ h_a and d_ΘΘ = Σ v_{r,a} s_a; the
+/// force is r_{a,i} = ∫ Jη d : sym(δl_{a,i}) dV with δl_{a,r} = e_r ⊗ h_a + s_a e_Θ ⊗ e_Θ.
+pub(crate) fn cell_viscous_meridian(
+    geom: &CellGeometry,
+    eta: f64,
+    local: &[f64],
+    vel: &[f64],
+    r: &mut [f64],
+    mut kv: Option<&mut [f64]>,
+) -> Result<f64, PointFailure> {
+    use crate::material::MaterialError;
+    let n = geom.n_nodes;
+    let nl = n * FIELDS;
+    let mut power = 0.0;
+    for q in 0..geom.n_qp {
+        let g = &geom.grad[q];
+        let w = geom.weights[q];
+        let (f, _) = point(geom, q, local);
+        let j = f.determinant();
+        let fail = |error| PointFailure { qp: q, error };
+        if j.is_nan() || j <= 0.0 {
+            return Err(fail(MaterialError::NonPositiveJ(j)));
+        }
+        let finv = f
+            .try_inverse()
+            .ok_or(fail(MaterialError::NonPositiveJ(j)))?;
+        let mut h = [[0.0; 2]; MAX_NODES];
+        let mut s = [0.0; MAX_NODES];
+        for a in 0..n {
+            for i in 0..2 {
+                h[a][i] = finv[(0, i)] * g[a][0] + finv[(1, i)] * g[a][1];
+            }
+            s[a] = geom.hoop[q][a] * finv[(2, 2)];
+        }
+        let mut l = [[0.0; 2]; 2];
+        let mut d_hoop = 0.0;
+        for a in 0..n {
+            let v = [vel[a * 4], vel[a * 4 + 1]];
+            for i in 0..2 {
+                for m in 0..2 {
+                    l[i][m] += v[i] * h[a][m];
+                }
+            }
+            d_hoop += v[0] * s[a];
+        }
+        let mut d = [[0.0; 2]; 2];
+        for i in 0..2 {
+            for m in 0..2 {
+                d[i][m] = 0.5 * (l[i][m] + l[m][i]);
+            }
+        }
+        let dd = d[0][0] * d[0][0] + 2.0 * d[0][1] * d[0][1] + d[1][1] * d[1][1] + d_hoop * d_hoop;
+        let c = w * j * eta;
+        power += c * dd;
+        for a in 0..n {
+            for i in 0..2 {
+                let hoop = if i == 0 { d_hoop * s[a] } else { 0.0 };
+                r[a * 4 + i] += c * (d[i][0] * h[a][0] + d[i][1] * h[a][1] + hoop);
+            }
+        }
+        if let Some(kv) = kv.as_deref_mut() {
+            for a in 0..n {
+                for b in 0..n {
+                    let hab = h[a][0] * h[b][0] + h[a][1] * h[b][1];
+                    for i in 0..2 {
+                        let row = (a * 4 + i) * nl + b * 4;
+                        for k in 0..2 {
+                            let delta = if i == k { hab } else { 0.0 };
+                            let hoop = if i == 0 && k == 0 { s[a] * s[b] } else { 0.0 };
+                            kv[row + k] += c * (0.5 * (delta + h[b][i] * h[a][k]) + hoop);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(power)
 }

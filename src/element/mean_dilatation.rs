@@ -49,8 +49,10 @@
 //!
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
+use crate::element::axisymmetric::{add_point_tangent_meridian, add_residual_meridian, delta_f};
 use crate::element::{CellFields, PointFailure};
 use crate::element::{CellHistory, CellKernel, MeanDilatationKernel, StandardKernel};
+use crate::fem::axisymmetric::meridian_kinematics;
 use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES, MAX_QP};
 use crate::material::{Mat3, Mat9, Mat93, Material, MaterialError, Tangent, Vec3};
@@ -91,11 +93,13 @@ impl Formulation {
     /// The names [`Formulation::from_name`] documents, for messages.
     pub const NAMES: [&'static str; 2] = ["standard", "mean-dilatation"];
 
-    /// The cell kernel of this formulation.
-    pub fn kernel(self) -> &'static dyn CellKernel {
-        match self {
-            Formulation::Standard => &StandardKernel,
-            Formulation::MeanDilatation => &MeanDilatationKernel,
+    /// The cell kernel of this formulation for 3-D cells, or for meridian cells when
+    /// `axisymmetric` (the mean-dilatation kernel serves both: its θ̄ includes the hoop stretch).
+    pub fn kernel(self, axisymmetric: bool) -> &'static dyn CellKernel {
+        match (self, axisymmetric) {
+            (Formulation::Standard, false) => &StandardKernel,
+            (Formulation::Standard, true) => &crate::element::AxisymmetricKernel,
+            (Formulation::MeanDilatation, _) => &MeanDilatationKernel,
         }
     }
 }
@@ -152,7 +156,11 @@ impl MdKinematics {
         };
         let mut v = 0.0;
         for q in 0..geom.n_qp {
-            let (f, e0) = kinematics(&geom.grad[q][..n], &u[..n], &phi[..n]);
+            let (f, e0) = if geom.axisymmetric {
+                meridian_kinematics(&geom.grad[q][..n], &geom.hoop[q][..n], &u[..n], &phi[..n])
+            } else {
+                kinematics(&geom.grad[q][..n], &u[..n], &phi[..n])
+            };
             let j = f.determinant();
             if !(j > 0.0 && j.is_finite()) {
                 return Err(fail(q)(MaterialError::NonPositiveJ(j)));
@@ -251,6 +259,16 @@ fn md_stresses(
     Ok((p, d0, energy))
 }
 
+/// The residual of point q of a 3-D or meridian cell.
+fn add_residual_any(geom: &CellGeometry, q: usize, p: &Mat3, d0: &Vec3, r: &mut [f64]) {
+    let w = geom.weights[q];
+    if geom.axisymmetric {
+        add_residual_meridian(geom, q, w, p, d0, r);
+    } else {
+        add_residual(&geom.grad[q], geom.n_nodes, w, p, d0, r);
+    }
+}
+
 fn add_residual(g: &[[f64; 3]; MAX_NODES], n: usize, w: f64, p: &Mat3, d0: &Vec3, r: &mut [f64]) {
     for a in 0..n {
         let ga = g[a];
@@ -281,7 +299,7 @@ pub fn cell_residual_tangent_md(
     let Some(k) = k else {
         let (p, d0, energy) = md_stresses(geom, mat, hist, &kin)?;
         for q in 0..nq {
-            add_residual(&geom.grad[q], n, geom.weights[q], &p[q], &d0[q], r);
+            add_residual_any(geom, q, &p[q], &d0[q], r);
         }
         return Ok(energy);
     };
@@ -355,15 +373,15 @@ pub fn cell_residual_tangent_md(
 
         // residual with the effective stress
         let p_eff = t.p * alpha + kin.finv_t[q] * (pm * j - sq / 3.0);
-        add_residual(g, n, w, &p_eff, &t.d0, r);
+        add_residual_any(geom, q, &p_eff, &t.d0, r);
 
         for a in 0..n {
             for i in 0..3 {
                 let mut m_ai = 0.0;
                 let mut b_ai = 0.0;
-                for jj in 0..3 {
-                    m_ai += cof9[i * 3 + jj] * g[a][jj];
-                    b_ai += bq[i * 3 + jj] * g[a][jj];
+                for (m, v) in delta_f(geom, q, a, i) {
+                    m_ai += cof9[m] * v;
+                    b_ai += bq[m] * v;
                 }
                 mv[a][i] += w / vol * m_ai;
                 bv[a][i] += w * b_ai;
@@ -372,7 +390,11 @@ pub fn cell_residual_tangent_md(
         }
 
         // per-point blocks, as in the standard kernel
-        crate::element::add_point_tangent(g, n, w, &a_eff, &b_eff, &t.g, k);
+        if geom.axisymmetric {
+            add_point_tangent_meridian(geom, q, w, &a_eff, &b_eff, &t.g, k);
+        } else {
+            crate::element::add_point_tangent(g, n, w, &a_eff, &b_eff, &t.g, k);
+        }
     }
 
     // couplings of all points through θ̄

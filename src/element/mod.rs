@@ -132,6 +132,9 @@ impl KelvinVoigtKernel {
         r: &mut [f64],
         kv: Option<&mut [f64]>,
     ) -> Result<f64, PointFailure> {
+        if geom.axisymmetric {
+            return axisymmetric::cell_viscous_meridian(geom, self.eta, local, vel, r, kv);
+        }
         cell_viscous(geom, self.eta, local, vel, r, kv)
     }
 }

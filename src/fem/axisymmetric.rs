@@ -16,99 +16,36 @@
 use super::{CellGeometry, MAX_NODES, MAX_QP};
 use crate::material::{Mat3, Vec3};
 
-/// Cell kinds of the meridian plane, with Gmsh's node order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum MeridianKind {
-    /// Bilinear quadrilateral, 2 × 2 Gauss points.
-    Quad4,
-    /// Serendipity quadrilateral (corners, then the mid-side nodes of sides 0–1, 1–2, 2–3, 3–0),
-    /// 3 × 3 Gauss points.
-    Quad8,
-    /// Biquadratic quadrilateral (Quad8's nodes and the centre), 3 × 3 Gauss points.
-    Quad9,
-    /// Linear triangle, one point at the centroid.
-    Tri3,
-    /// Quadratic triangle (corners, then the mid-edge nodes of edges 0–1, 1–2, 2–0), the
-    /// 3-point interior rule of degree 2.
-    Tri6,
-}
+pub use crate::mesh::MeridianKind;
 
-impl MeridianKind {
-    /// Every kind.
-    pub const ALL: [MeridianKind; 5] = [
-        MeridianKind::Quad4,
-        MeridianKind::Quad8,
-        MeridianKind::Quad9,
-        MeridianKind::Tri3,
-        MeridianKind::Tri6,
-    ];
-
-    pub fn nodes_per_cell(self) -> usize {
-        match self {
-            MeridianKind::Quad4 => 4,
-            MeridianKind::Quad8 => 8,
-            MeridianKind::Quad9 => 9,
-            MeridianKind::Tri3 => 3,
-            MeridianKind::Tri6 => 6,
+/// Quadrature points and weights of a meridian kind in its reference cell: 2 × 2 Gauss points
+/// (quad4), 3 × 3 (quad8, quad9), the centroid (tri3), the 3-point interior rule of degree 2
+/// (tri6).
+pub fn meridian_quadrature(kind: MeridianKind) -> Vec<([f64; 2], f64)> {
+    let gauss = |pts: &[(f64, f64)]| {
+        let mut out = Vec::new();
+        for &(y, wy) in pts {
+            for &(x, wx) in pts {
+                out.push(([x, y], wx * wy));
+            }
         }
-    }
-
-    /// Reference coordinates of the nodes.
-    pub fn reference_nodes(self) -> Vec<[f64; 2]> {
-        const Q: [[f64; 2]; 9] = [
-            [-1.0, -1.0],
-            [1.0, -1.0],
-            [1.0, 1.0],
-            [-1.0, 1.0],
-            [0.0, -1.0],
-            [1.0, 0.0],
-            [0.0, 1.0],
-            [-1.0, 0.0],
-            [0.0, 0.0],
-        ];
-        const T: [[f64; 2]; 6] = [
-            [0.0, 0.0],
-            [1.0, 0.0],
-            [0.0, 1.0],
-            [0.5, 0.0],
-            [0.5, 0.5],
-            [0.0, 0.5],
-        ];
-        match self {
-            MeridianKind::Quad4 | MeridianKind::Quad8 | MeridianKind::Quad9 => {
-                Q[..self.nodes_per_cell()].to_vec()
-            }
-            MeridianKind::Tri3 | MeridianKind::Tri6 => T[..self.nodes_per_cell()].to_vec(),
+        out
+    };
+    match kind {
+        MeridianKind::Quad4 => {
+            let g = 1.0 / 3f64.sqrt();
+            gauss(&[(-g, 1.0), (g, 1.0)])
         }
-    }
-
-    /// Quadrature points and weights in the reference cell.
-    pub fn quadrature(self) -> Vec<([f64; 2], f64)> {
-        let gauss = |pts: &[(f64, f64)]| {
-            let mut out = Vec::new();
-            for &(y, wy) in pts {
-                for &(x, wx) in pts {
-                    out.push(([x, y], wx * wy));
-                }
-            }
-            out
-        };
-        match self {
-            MeridianKind::Quad4 => {
-                let g = 1.0 / 3f64.sqrt();
-                gauss(&[(-g, 1.0), (g, 1.0)])
-            }
-            MeridianKind::Quad8 | MeridianKind::Quad9 => {
-                let g = (0.6f64).sqrt();
-                gauss(&[(-g, 5.0 / 9.0), (0.0, 8.0 / 9.0), (g, 5.0 / 9.0)])
-            }
-            MeridianKind::Tri3 => vec![([1.0 / 3.0, 1.0 / 3.0], 0.5)],
-            MeridianKind::Tri6 => vec![
-                ([1.0 / 6.0, 1.0 / 6.0], 1.0 / 6.0),
-                ([2.0 / 3.0, 1.0 / 6.0], 1.0 / 6.0),
-                ([1.0 / 6.0, 2.0 / 3.0], 1.0 / 6.0),
-            ],
+        MeridianKind::Quad8 | MeridianKind::Quad9 => {
+            let g = (0.6f64).sqrt();
+            gauss(&[(-g, 5.0 / 9.0), (0.0, 8.0 / 9.0), (g, 5.0 / 9.0)])
         }
+        MeridianKind::Tri3 => vec![([1.0 / 3.0, 1.0 / 3.0], 0.5)],
+        MeridianKind::Tri6 => vec![
+            ([1.0 / 6.0, 1.0 / 6.0], 1.0 / 6.0),
+            ([2.0 / 3.0, 1.0 / 6.0], 1.0 / 6.0),
+            ([1.0 / 6.0, 2.0 / 3.0], 1.0 / 6.0),
+        ],
     }
 }
 
@@ -224,13 +161,14 @@ pub fn meridian_geometry(
             return Err(MeridianCellError::NegativeRadius { node: a, r: xa[0] });
         }
     }
-    let rule = kind.quadrature();
+    let rule = meridian_quadrature(kind);
     let mut g = CellGeometry {
         n_nodes: n,
         n_qp: rule.len(),
         grad: [[[0.0; 3]; MAX_NODES]; MAX_QP],
         weights: [0.0; MAX_QP],
         hoop: [[0.0; MAX_NODES]; MAX_QP],
+        axisymmetric: true,
     };
     for (q, (xi, wq)) in rule.iter().enumerate() {
         let (nv, dn) = meridian_shape_functions(kind, *xi);

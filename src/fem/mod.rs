@@ -45,6 +45,8 @@ pub struct CellGeometry {
     pub weights: [f64; MAX_QP],
     /// N_a/R at each quadrature point of a meridian cell (1/m); zero for a 3-D cell.
     pub hoop: [[f64; MAX_NODES]; MAX_QP],
+    /// Whether the cell is a meridian cell of an axisymmetric model.
+    pub axisymmetric: bool,
 }
 
 /// A cell whose Jacobian is not positive at a quadrature point (inverted or degenerate cell).
@@ -86,6 +88,18 @@ impl ReferenceElement {
             dn: [[[0.0; 3]; MAX_NODES]; MAX_QP],
         };
         match kind {
+            ElementKind::Meridian(m) => {
+                let rule = axisymmetric::meridian_quadrature(m);
+                r.n_qp = rule.len();
+                for (q, (xi, w)) in rule.into_iter().enumerate() {
+                    let (n, dn) = axisymmetric::meridian_shape_functions(m, xi);
+                    r.qp_weights[q] = w;
+                    r.n[q][..n.len()].copy_from_slice(&n);
+                    for (a, d) in dn.iter().enumerate() {
+                        r.dn[q][a] = [d[0], d[1], 0.0];
+                    }
+                }
+            }
             ElementKind::Hex8 => {
                 let g = 1.0 / 3f64.sqrt();
                 r.n_qp = 8;
@@ -124,14 +138,27 @@ impl ReferenceElement {
         r
     }
 
-    /// Gradients and weights of a cell with reference node coordinates `x`.
+    /// Gradients and weights of a cell with reference node coordinates `x` (a meridian cell:
+    /// (R, Z, ·), see [`axisymmetric::meridian_geometry`]).
     pub fn geometry(&self, x: &[[f64; 3]]) -> Result<CellGeometry, DegenerateCell> {
+        if let ElementKind::Meridian(m) = self.kind {
+            let rz: Vec<[f64; 2]> = x.iter().map(|p| [p[0], p[1]]).collect();
+            return axisymmetric::meridian_geometry(m, &rz).map_err(|e| match e {
+                axisymmetric::MeridianCellError::NegativeRadius { r, .. } => {
+                    DegenerateCell { qp: 0, det: r }
+                }
+                axisymmetric::MeridianCellError::Degenerate { qp, det, .. } => {
+                    DegenerateCell { qp, det }
+                }
+            });
+        }
         let mut g = CellGeometry {
             n_nodes: self.n_nodes,
             n_qp: self.n_qp,
             grad: [[[0.0; 3]; MAX_NODES]; MAX_QP],
             weights: [0.0; MAX_QP],
             hoop: [[0.0; MAX_NODES]; MAX_QP],
+            axisymmetric: false,
         };
         for q in 0..self.n_qp {
             // jac[i][j] = ∂X_i/∂ξ_j
@@ -213,6 +240,13 @@ pub fn shape_functions(
                 }
             }
         }
+        ElementKind::Meridian(m) => {
+            let (v, d) = axisymmetric::meridian_shape_functions(m, [xi[0], xi[1]]);
+            n[..v.len()].copy_from_slice(&v);
+            for (a, g) in d.iter().enumerate() {
+                dn[a] = [g[0], g[1], 0.0];
+            }
+        }
     }
     (n, dn)
 }
@@ -289,6 +323,7 @@ mod tests {
                     [0.1, 0.2, 0.9],
                 ],
                 ElementKind::Tet10 => curved_tet10(),
+                ElementKind::Meridian(_) => unreachable!("3-D kinds only"),
             };
             let g = r.geometry(&x).unwrap();
             for q in 0..r.n_qp {

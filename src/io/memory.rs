@@ -25,10 +25,18 @@ pub fn estimate(nodes: u64, cells: u64, kind: ElementKind) -> MemoryEstimate {
         ElementKind::Hex8 => 27.0,
         ElementKind::Tet4 => 15.0,
         ElementKind::Tet10 => 35.0,
+        ElementKind::Meridian(crate::mesh::MeridianKind::Tri3) => 7.0,
+        ElementKind::Meridian(crate::mesh::MeridianKind::Quad4) => 9.0,
+        ElementKind::Meridian(_) => 21.0,
     };
     let n = 4.0 * nodes as f64;
     let nnz = nodes as f64 * neighbours * 16.0;
-    let factor = 15.0 * n.powf(4.0 / 3.0);
+    // nested dissection fills O(n^{4/3}) in 3-D and O(n log n) in 2-D
+    let factor = if kind.meridian().is_some() {
+        30.0 * n * n.max(2.0).log2()
+    } else {
+        15.0 * n.powf(4.0 / 3.0)
+    };
     let npc = kind.nodes_per_cell() as f64;
     let bytes = 3.0 * 16.0 * nnz            // tangent, iteration and projection matrices
         + 8.0 * factor                       // LDLᵀ factor

@@ -141,7 +141,11 @@ pub struct RigidSpec {
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MeshSpec {
-    /// `box`, `disc` or `stack`.
+    /// `3d` (default) or `axisymmetric`: the cells are then meridian cells of the (R, Z)
+    /// half-plane (x = R ≥ 0, y = Z), each standing for the ring it sweeps about the axis.
+    #[serde(default)]
+    pub geometry: Option<String>,
+    /// `box`, `disc`, `stack`, `sphere` (3-D); `disc`, `rectangle`, `sphere` (axisymmetric).
     #[serde(default)]
     pub generator: Option<String>,
     /// A Gmsh `.msh` file (MSH 4.1 ASCII or binary, 2.2 ASCII), relative to the scenario file.
@@ -156,9 +160,13 @@ pub struct MeshSpec {
     /// Cells along x, y, z.
     #[serde(default)]
     pub divisions: Option<[u64; 3]>,
-    /// `disc`: outer (clamped rim) radius (m).
+    /// `disc`: outer (clamped rim) radius (m); `rectangle`: outer radius (m); `sphere`: inner
+    /// radius (m).
     #[serde(default)]
     pub radius: Option<f64>,
+    /// `rectangle`: inner radius (m; default 0, a solid cylinder or disc).
+    #[serde(default)]
+    pub inner_radius: Option<f64>,
     /// `disc`: thickness (m).
     #[serde(default)]
     pub thickness: Option<f64>,

@@ -30,14 +30,32 @@ pub enum CellType {
     /// 10-node tetrahedron, `VTK_QUADRATIC_TETRA` = 24 (mid-edge nodes of 0–1, 1–2, 2–0, 0–3,
     /// 1–3, 2–3).
     Tet10,
+    /// 4-node quadrilateral, `VTK_QUAD` = 9.
+    Quad4,
+    /// 8-node quadrilateral, `VTK_QUADRATIC_QUAD` = 23 (corners, then the mid-side nodes).
+    Quad8,
+    /// 9-node quadrilateral, `VTK_BIQUADRATIC_QUAD` = 28 (Quad8's nodes and the centre).
+    Quad9,
+    /// 3-node triangle, `VTK_TRIANGLE` = 5.
+    Tri3,
+    /// 6-node triangle, `VTK_QUADRATIC_TRIANGLE` = 22 (corners, then the mid-edge nodes).
+    Tri6,
+    /// 6-node wedge, `VTK_WEDGE` = 13 (the revolved view of a triangle).
+    Wedge6,
 }
 
 impl From<crate::mesh::ElementKind> for CellType {
     fn from(kind: crate::mesh::ElementKind) -> Self {
+        use crate::mesh::{ElementKind as E, MeridianKind as M};
         match kind {
-            crate::mesh::ElementKind::Hex8 => CellType::Hex8,
-            crate::mesh::ElementKind::Tet4 => CellType::Tet4,
-            crate::mesh::ElementKind::Tet10 => CellType::Tet10,
+            E::Hex8 => CellType::Hex8,
+            E::Tet4 => CellType::Tet4,
+            E::Tet10 => CellType::Tet10,
+            E::Meridian(M::Quad4) => CellType::Quad4,
+            E::Meridian(M::Quad8) => CellType::Quad8,
+            E::Meridian(M::Quad9) => CellType::Quad9,
+            E::Meridian(M::Tri3) => CellType::Tri3,
+            E::Meridian(M::Tri6) => CellType::Tri6,
         }
     }
 }
@@ -49,6 +67,12 @@ impl CellType {
             CellType::Hex8 => 12,
             CellType::Tet4 => 10,
             CellType::Tet10 => 24,
+            CellType::Quad4 => 9,
+            CellType::Quad8 => 23,
+            CellType::Quad9 => 28,
+            CellType::Tri3 => 5,
+            CellType::Tri6 => 22,
+            CellType::Wedge6 => 13,
         }
     }
 
@@ -58,6 +82,12 @@ impl CellType {
             CellType::Hex8 => 8,
             CellType::Tet4 => 4,
             CellType::Tet10 => 10,
+            CellType::Quad4 => 4,
+            CellType::Quad8 => 8,
+            CellType::Quad9 => 9,
+            CellType::Tri3 => 3,
+            CellType::Tri6 => 6,
+            CellType::Wedge6 => 6,
         }
     }
 }

@@ -44,8 +44,9 @@ pub enum ProbeKind {
     /// Electric field energy in the body (J).
     ElectricEnergy,
     /// Downward displacement of a set (the pad) from the reference state (the pre-stretched one):
-    /// −mean(u_z − u_z,ref) (m, positive downward).
-    Deflection(Vec<usize>),
+    /// −mean(u_z − u_z,ref) (m, positive downward); with the axial slot (2 in 3-D, 1 in an
+    /// axisymmetric model).
+    Deflection(Vec<usize>, usize),
     /// Largest true (spatial) electric field magnitude at a quadrature point (V/m).
     MaxElectricField,
     /// Current (A) into the electrode with this index: the change of its charge over the last
@@ -128,7 +129,7 @@ impl ProbeKind {
             ProbeKind::Capacitance(_) => "F",
             ProbeKind::Reaction(..) => "N",
             ProbeKind::StoredEnergy | ProbeKind::ElectricEnergy => "J",
-            ProbeKind::Deflection(_) => "m",
+            ProbeKind::Deflection(..) => "m",
             ProbeKind::MaxElectricField => "V/m",
             ProbeKind::Current(_) => "A",
             ProbeKind::Power(_) => "W",
@@ -209,10 +210,10 @@ impl Probe {
             ProbeKind::Reaction(c, nodes) => nodes.iter().map(|&n| inp.reactions[n * 4 + c]).sum(),
             ProbeKind::StoredEnergy => inp.stored,
             ProbeKind::ElectricEnergy => inp.electric,
-            ProbeKind::Deflection(nodes) => {
+            ProbeKind::Deflection(nodes, axial) => {
                 -nodes
                     .iter()
-                    .map(|&n| inp.state[n * 4 + 2] - inp.reference[n * 4 + 2])
+                    .map(|&n| inp.state[n * 4 + axial] - inp.reference[n * 4 + axial])
                     .sum::<f64>()
                     / nodes.len().max(1) as f64
             }

@@ -178,7 +178,7 @@ fn graded_inv(y: f64, g: f64) -> f64 {
 
 /// Radii of the annulus node rings (`radial + 1` values from pad_radius to radius) and the index
 /// of the ring at the electrode radius.
-fn annulus_radii(spec: &DiscSpec) -> (Vec<f64>, usize) {
+pub(crate) fn annulus_radii(spec: &DiscSpec) -> (Vec<f64>, usize) {
     let n = spec.radial;
     let width = spec.radius - spec.pad_radius;
     let xi_e = graded_inv(
@@ -343,6 +343,9 @@ fn signed_volume(p: [[f64; 3]; 4]) -> f64 {
 
 /// A disc mesh (see the module documentation for the topology and the sets).
 pub fn disc_mesh(spec: &DiscSpec) -> Result<Mesh, String> {
+    if let ElementKind::Meridian(kind) = spec.kind {
+        return super::meridian::disc_meridian(spec, kind);
+    }
     if spec.kind == ElementKind::Tet10 {
         let linear = DiscSpec {
             kind: ElementKind::Tet4,
@@ -391,6 +394,7 @@ pub fn disc_mesh(spec: &DiscSpec) -> Result<Mesh, String> {
                     connectivity.extend(quad.iter().map(|&n| up + n));
                     cell += 1;
                 }
+                ElementKind::Meridian(_) => unreachable!("meridian kinds return above"),
                 ElementKind::Tet4 | ElementKind::Tet10 => {
                     // Two triangles along the shorter diagonal; each triangular prism into three
                     // tetrahedra whose vertical face diagonals run from the lower-numbered bottom
@@ -651,6 +655,7 @@ mod tests {
                         .map(|(k, e)| [k, e[0], e[1], e[2]])
                         .collect(),
                     ElementKind::Tet4 | ElementKind::Tet10 => vec![[0, 1, 2, 3]],
+                    ElementKind::Meridian(_) => unreachable!("3-D variants only"),
                 };
                 for [o, a, b, d] in corners {
                     let (ea, eb, ed) = (

@@ -19,7 +19,17 @@ const HEX_TO_TETS: [[usize; 4]; 6] = [
 ///
 /// Sets: node sets and face sets `x0 x1 y0 y1 z0 z1` (the faces at the low/high end of each axis),
 /// node sets of the same names, and the cell set `all`.
+///
+/// A meridian kind gives the rectangle R ∈ [0, size[0]], Z ∈ [0, size[1]] with
+/// `divisions[0] × divisions[1]` cells (see [`super::meridian::structured`]; its sets are
+/// `inner`/`axis`, `outer`, `bottom`, `top`).
 pub fn box_mesh(size: [f64; 3], divisions: [usize; 3], kind: ElementKind) -> Mesh {
+    if let ElementKind::Meridian(m) = kind {
+        let rs = super::meridian::uniform(0.0, size[0], divisions[0].max(1));
+        let zs = super::meridian::uniform(0.0, size[1], divisions[1].max(1));
+        return super::meridian::structured(&rs, &zs, m)
+            .unwrap_or_else(|e| panic!("box_mesh: invalid rectangle: {e}"));
+    }
     if kind == ElementKind::Tet10 {
         return super::quadratic::to_tet10(&box_mesh(size, divisions, ElementKind::Tet4));
     }
@@ -77,6 +87,7 @@ pub fn box_mesh(size: [f64; 3], divisions: [usize; 3], kind: ElementKind) -> Mes
                         }
                         cell += 1;
                     }
+                    ElementKind::Meridian(_) => unreachable!("meridian kinds return above"),
                     ElementKind::Tet4 | ElementKind::Tet10 => {
                         for t in HEX_TO_TETS {
                             let tet = [h[t[0]], h[t[1]], h[t[2]], h[t[3]]];

@@ -11,7 +11,7 @@
 //! Errors name the line (ASCII) or byte offset (binary) and what was expected; the reader never
 //! panics, and its memory grows only with the bytes it has read, whatever counts the file claims.
 
-use super::{ElementKind, FaceRef, Mesh};
+use super::{ElementKind, FaceRef, MeridianKind, Mesh};
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
@@ -796,6 +796,15 @@ fn orientation(kind: ElementKind, x: &[[f64; 3]]) -> f64 {
             };
             (d(0), d(1), d(2))
         }
+        ElementKind::Meridian(m) => {
+            // the (R, Z) area's sign: corners 0, 1 and the last corner
+            let last = if matches!(m, MeridianKind::Tri3 | MeridianKind::Tri6) {
+                2
+            } else {
+                3
+            };
+            (sub(x[1], x[0]), sub(x[last], x[0]), [0.0, 0.0, 1.0])
+        }
     };
     a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
         + a[2] * (b[0] * c[1] - b[1] * c[0])
@@ -808,6 +817,11 @@ fn mirror(kind: ElementKind) -> &'static [usize] {
         // corners 1 ↔ 2: edges 0–1 ↔ 0–2, 1–3 ↔ 2–3
         ElementKind::Tet10 => &[0, 2, 1, 3, 6, 5, 4, 7, 9, 8],
         ElementKind::Hex8 => &[4, 5, 6, 7, 0, 1, 2, 3],
+        ElementKind::Meridian(MeridianKind::Quad4) => &[0, 3, 2, 1],
+        ElementKind::Meridian(MeridianKind::Quad8) => &[0, 3, 2, 1, 7, 6, 5, 4],
+        ElementKind::Meridian(MeridianKind::Quad9) => &[0, 3, 2, 1, 7, 6, 5, 4, 8],
+        ElementKind::Meridian(MeridianKind::Tri3) => &[0, 2, 1],
+        ElementKind::Meridian(MeridianKind::Tri6) => &[0, 2, 1, 5, 4, 3],
     }
 }
 

@@ -5,6 +5,7 @@
 pub mod disc;
 pub mod generate;
 pub mod gmsh;
+pub mod meridian;
 pub mod quadratic;
 pub mod sphere;
 pub mod stack;
@@ -14,6 +15,103 @@ use std::collections::BTreeMap;
 /// The corners of the reference tetrahedron are (0,0,0), (1,0,0), (0,1,0), (0,0,1); the local
 /// edges of the tet10 mid-edge nodes 4..9 (VTK order).
 pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]];
+
+/// Cell kinds of the meridian plane, with Gmsh's node order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MeridianKind {
+    /// Bilinear quadrilateral, 2 × 2 Gauss points.
+    Quad4,
+    /// Serendipity quadrilateral (corners, then the mid-side nodes of sides 0–1, 1–2, 2–3, 3–0),
+    /// 3 × 3 Gauss points.
+    Quad8,
+    /// Biquadratic quadrilateral (Quad8's nodes and the centre), 3 × 3 Gauss points.
+    Quad9,
+    /// Linear triangle, one point at the centroid.
+    Tri3,
+    /// Quadratic triangle (corners, then the mid-edge nodes of edges 0–1, 1–2, 2–0), the
+    /// 3-point interior rule of degree 2.
+    Tri6,
+}
+
+impl MeridianKind {
+    /// Every kind.
+    pub const ALL: [MeridianKind; 5] = [
+        MeridianKind::Quad4,
+        MeridianKind::Quad8,
+        MeridianKind::Quad9,
+        MeridianKind::Tri3,
+        MeridianKind::Tri6,
+    ];
+
+    pub fn nodes_per_cell(self) -> usize {
+        match self {
+            MeridianKind::Quad4 => 4,
+            MeridianKind::Quad8 => 8,
+            MeridianKind::Quad9 => 9,
+            MeridianKind::Tri3 => 3,
+            MeridianKind::Tri6 => 6,
+        }
+    }
+
+    /// Reference coordinates of the nodes.
+    pub fn reference_nodes(self) -> Vec<[f64; 2]> {
+        const Q: [[f64; 2]; 9] = [
+            [-1.0, -1.0],
+            [1.0, -1.0],
+            [1.0, 1.0],
+            [-1.0, 1.0],
+            [0.0, -1.0],
+            [1.0, 0.0],
+            [0.0, 1.0],
+            [-1.0, 0.0],
+            [0.0, 0.0],
+        ];
+        const T: [[f64; 2]; 6] = [
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [0.0, 1.0],
+            [0.5, 0.0],
+            [0.5, 0.5],
+            [0.0, 0.5],
+        ];
+        match self {
+            MeridianKind::Quad4 | MeridianKind::Quad8 | MeridianKind::Quad9 => {
+                Q[..self.nodes_per_cell()].to_vec()
+            }
+            MeridianKind::Tri3 | MeridianKind::Tri6 => T[..self.nodes_per_cell()].to_vec(),
+        }
+    }
+
+    /// Local node lists of the sides (the "faces" of a meridian cell, each sweeping a ring
+    /// surface), in counter-clockwise order: the two corners, then the mid-side node of the
+    /// quadratic kinds.
+    pub fn sides(self) -> &'static [&'static [usize]] {
+        match self {
+            MeridianKind::Quad4 => &[&[0, 1], &[1, 2], &[2, 3], &[3, 0]],
+            MeridianKind::Quad8 | MeridianKind::Quad9 => {
+                &[&[0, 1, 4], &[1, 2, 5], &[2, 3, 6], &[3, 0, 7]]
+            }
+            MeridianKind::Tri3 => &[&[0, 1], &[1, 2], &[2, 0]],
+            MeridianKind::Tri6 => &[&[0, 1, 3], &[1, 2, 4], &[2, 0, 5]],
+        }
+    }
+
+    /// Name for messages and files.
+    pub fn name(self) -> &'static str {
+        match self {
+            MeridianKind::Quad4 => "quad4",
+            MeridianKind::Quad8 => "quad8",
+            MeridianKind::Quad9 => "quad9",
+            MeridianKind::Tri3 => "tri3",
+            MeridianKind::Tri6 => "tri6",
+        }
+    }
+
+    /// Whether the kind has quadratic shape functions.
+    pub fn is_quadratic(self) -> bool {
+        !matches!(self, MeridianKind::Quad4 | MeridianKind::Tri3)
+    }
+}
 
 /// The element kinds deasim knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -25,6 +123,9 @@ pub enum ElementKind {
     /// Quadratic tetrahedron, VTK node order: corners 0–3, then the mid-edge nodes of the edges
     /// 0–1, 1–2, 2–0, 0–3, 1–3, 2–3.
     Tet10,
+    /// A cell of the meridian plane (R, Z) of an axisymmetric model: node coordinates
+    /// (R, Z, 0) with R ≥ 0, each cell standing for the ring it sweeps about the Z axis.
+    Meridian(MeridianKind),
 }
 
 impl ElementKind {
@@ -34,11 +135,20 @@ impl ElementKind {
             ElementKind::Hex8 => 8,
             ElementKind::Tet4 => 4,
             ElementKind::Tet10 => 10,
+            ElementKind::Meridian(k) => k.nodes_per_cell(),
+        }
+    }
+
+    /// The meridian kind of an axisymmetric model's cells (`None` for 3-D cells).
+    pub fn meridian(self) -> Option<MeridianKind> {
+        match self {
+            ElementKind::Meridian(k) => Some(k),
+            _ => None,
         }
     }
 
     /// Local node lists of the faces, ordered so that the normal points outwards
-    /// (counter-clockwise seen from outside): the corners first, then (tet10) the mid-edge nodes
+    /// (counter-clockwise seen from outside; a meridian cell's faces are its sides): the corners first, then (tet10) the mid-edge nodes
     /// of the edges corner 0–1, 1–2, 2–0 of the face.
     pub fn faces(self) -> &'static [&'static [usize]] {
         match self {
@@ -57,15 +167,18 @@ impl ElementKind {
                 &[1, 2, 3, 5, 9, 8],
                 &[0, 3, 2, 7, 9, 6],
             ],
+            ElementKind::Meridian(k) => k.sides(),
         }
     }
 
-    /// Number of corner nodes of each face (3 for triangles, 4 for quadrilaterals): the corners
+    /// Number of corner nodes of each face (3 for triangles, 4 for quadrilaterals, 2 for the
+    /// sides of meridian cells): the corners
     /// come first in [`ElementKind::faces`].
     pub fn face_corners(self) -> usize {
         match self {
             ElementKind::Hex8 => 4,
             ElementKind::Tet4 | ElementKind::Tet10 => 3,
+            ElementKind::Meridian(_) => 2,
         }
     }
 
@@ -75,6 +188,7 @@ impl ElementKind {
             ElementKind::Hex8 => "hex8",
             ElementKind::Tet4 => "tet4",
             ElementKind::Tet10 => "tet10",
+            ElementKind::Meridian(k) => k.name(),
         }
     }
 }

@@ -237,6 +237,9 @@ const HEX_TO_TETS: [[usize; 4]; 6] = [
 
 /// A stack mesh (see the module documentation for the geometry and the sets).
 pub fn stack_mesh(spec: &StackSpec) -> Result<Mesh, String> {
+    if spec.kind.meridian().is_some() {
+        return Err("the stack generator makes 3-D cells (hex8, tet4, tet10)".into());
+    }
     if spec.kind == ElementKind::Tet10 {
         let linear = StackSpec {
             kind: ElementKind::Tet4,
@@ -294,6 +297,7 @@ pub fn stack_mesh(spec: &StackSpec) -> Result<Mesh, String> {
                         connectivity.extend_from_slice(&h);
                         cell += 1;
                     }
+                    ElementKind::Meridian(_) => unreachable!("meridian kinds return above"),
                     ElementKind::Tet4 | ElementKind::Tet10 => {
                         for t in HEX_TO_TETS {
                             connectivity.extend(t.iter().map(|&l| h[l]));

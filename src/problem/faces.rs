@@ -1,6 +1,7 @@
 //! Faces of the cells as surfaces: shape functions and quadrature of 3-, 4- and 6-node faces (in
 //! the node order of [`crate::mesh::ElementKind::faces`]) and the vector algebra on them, shared
-//! by the dead surface loads and the follower pressure.
+//! by the dead surface loads and the follower pressure; and the sides of meridian cells (2 or 3
+//! nodes), each sweeping a ring surface.
 
 /// Shape functions and their (ξ, η) derivatives of a face with `n` nodes (3, 4 or 6) at a point.
 pub fn shape(n: usize, xi: f64, eta: f64) -> ([f64; 6], [[f64; 2]; 6]) {
@@ -102,6 +103,56 @@ pub fn node_areas(p: &[[f64; 3]]) -> [f64; 6] {
             }
         }
         let da = w * norm(cross(t1, t2));
+        for a in 0..n {
+            out[a] += s[a] * da;
+        }
+    }
+    out
+}
+
+/// Shape functions and their derivative of a meridian side with `n` nodes (2: the corners;
+/// 3: the corners and the mid-side node) at ξ ∈ [−1, 1].
+pub fn side_shape(n: usize, xi: f64) -> ([f64; 3], [f64; 3]) {
+    if n == 2 {
+        ([0.5 * (1.0 - xi), 0.5 * (1.0 + xi), 0.0], [-0.5, 0.5, 0.0])
+    } else {
+        (
+            [0.5 * xi * (xi - 1.0), 0.5 * xi * (xi + 1.0), 1.0 - xi * xi],
+            [xi - 0.5, xi + 0.5, -2.0 * xi],
+        )
+    }
+}
+
+/// Gauss points (ξ, weight) on [−1, 1] for the sides of meridian cells: 2 points for 2-node
+/// sides, 4 for 3-node ones (exact for the polynomial integrands of the ring area and of the
+/// volume of revolution).
+pub fn side_points(n: usize) -> Vec<(f64, f64)> {
+    if n == 2 {
+        let g = 1.0 / 3f64.sqrt();
+        vec![(-g, 1.0), (g, 1.0)]
+    } else {
+        let a = (3.0 / 7.0 - 2.0 / 7.0 * (6.0f64 / 5.0).sqrt()).sqrt();
+        let b = (3.0 / 7.0 + 2.0 / 7.0 * (6.0f64 / 5.0).sqrt()).sqrt();
+        let wa = (18.0 + 30f64.sqrt()) / 36.0;
+        let wb = (18.0 - 30f64.sqrt()) / 36.0;
+        vec![(-b, wb), (-a, wa), (a, wa), (b, wb)]
+    }
+}
+
+/// ∫ N_a dA (m²) of each node of a meridian side with node positions `p` = (R, Z, ·): the
+/// area of the ring surface it sweeps, dA = 2πR ds. Exact on straight sides.
+pub fn ring_node_areas(p: &[[f64; 3]]) -> [f64; 6] {
+    let n = p.len();
+    let mut out = [0.0; 6];
+    for (xi, w) in side_points(n) {
+        let (s, d) = side_shape(n, xi);
+        let (mut r, mut t) = (0.0, [0.0; 2]);
+        for (a, x) in p.iter().enumerate() {
+            r += s[a] * x[0];
+            t[0] += d[a] * x[0];
+            t[1] += d[a] * x[1];
+        }
+        let da = w * 2.0 * std::f64::consts::PI * r * (t[0] * t[0] + t[1] * t[1]).sqrt();
         for a in 0..n {
             out[a] += s[a] * da;
         }

@@ -25,6 +25,9 @@ pub fn face_node_areas(mesh: &Mesh, face: FaceRef) -> (&'static [usize], [f64; 6
     let local = mesh.kind.faces()[face.face];
     let cell = mesh.cell(face.cell);
     let p: Vec<[f64; 3]> = local.iter().map(|&l| mesh.nodes[cell[l]]).collect();
+    if mesh.kind.meridian().is_some() {
+        return (local, crate::problem::faces::ring_node_areas(&p));
+    }
     (local, face_point_areas(&p))
 }
 

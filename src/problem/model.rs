@@ -90,6 +90,8 @@ impl Model {
             circuits: Vec::new(),
         };
         model.check_cells()?;
+        let mut model = model;
+        model.dirichlet = model.axisymmetric_supports();
         Ok(model)
     }
 
@@ -234,6 +236,39 @@ impl Model {
             )?;
         }
         Ok(())
+    }
+
+    /// The conditions every axisymmetric model carries: the unused third displacement slot held
+    /// at 0 at every node, and u_r = 0 on the axis (nodes with R = 0). Empty for a 3-D model.
+    pub fn axisymmetric_supports(&self) -> Vec<Dirichlet> {
+        if !self.is_axisymmetric() {
+            return Vec::new();
+        }
+        let axis: Vec<usize> = (0..self.mesh.n_nodes())
+            .filter(|&n| self.mesh.nodes[n][0] == 0.0)
+            .collect();
+        vec![
+            Dirichlet {
+                nodes: (0..self.mesh.n_nodes()).collect(),
+                field: crate::problem::dofs::Field::Uz,
+                value: 0.0,
+            },
+            Dirichlet {
+                nodes: axis,
+                field: crate::problem::dofs::Field::Ux,
+                value: 0.0,
+            },
+        ]
+    }
+
+    /// Whether the model is axisymmetric (its cells are meridian cells).
+    pub fn is_axisymmetric(&self) -> bool {
+        self.mesh.kind.meridian().is_some()
+    }
+
+    /// The cell kernel of the model's formulation and kinematics.
+    pub fn kernel(&self) -> &'static dyn crate::element::CellKernel {
+        self.formulation.kernel(self.is_axisymmetric())
     }
 
     /// Mean cell size (m): the cube root of the mean cell volume.

@@ -134,7 +134,6 @@ impl PointStates {
                 return Ok(());
             }
             model
-                .formulation
                 .kernel()
                 .point_deformations(
                     &CellInput {

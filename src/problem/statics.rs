@@ -248,7 +248,6 @@ pub fn energies_with(
     let (mut mech, mut elec) = (0.0, 0.0);
     model.for_each_cell(state, |c, g, mat, local| {
         let (a, b) = model
-            .formulation
             .kernel()
             .energy_split(&CellInput {
                 geom: g,
@@ -283,7 +282,6 @@ pub fn nodal_reactions_with(
     model.for_each_cell(state, |c, g, mat, local| {
         let h = points.cell(c, model.cell_material[c], dt);
         model
-            .formulation
             .kernel()
             .residual_tangent(
                 &CellInput {
@@ -321,7 +319,6 @@ pub fn cell_fields_with(
     model.for_each_cell(state, |c, g, mat, local| {
         out.push(
             model
-                .formulation
                 .kernel()
                 .fields(&CellInput {
                     geom: g,
@@ -344,7 +341,7 @@ impl NonlinearSystem for StaticProblem<'_> {
     fn evaluate(&mut self, r: &mut [f64], mut k: Option<&mut CsrMatrix>) -> Result<(), String> {
         let m = self.model;
         let (points, dt) = (&self.points, self.dt());
-        let cell_kernel = m.formulation.kernel();
+        let cell_kernel = m.kernel();
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let input = CellInput {
                 geom: &m.geometry[c],

@@ -190,7 +190,7 @@ fn branch_tangents(
         if branches.is_empty() || total <= 0.0 {
             continue;
         }
-        let kernel = model.formulation.kernel();
+        let kernel = model.kernel();
         let cell_kernel = |cell: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             rl[..nl].iter_mut().for_each(|v| *v = 0.0);
             let Some(kl) = kl else {

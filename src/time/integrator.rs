@@ -322,7 +322,6 @@ impl<'m> TimeStep<'m> {
         model.for_each_cell(q, |c, g, mat, local| {
             let nl = local.len();
             model
-                .formulation
                 .kernel()
                 .residual_tangent(
                     &CellInput {
@@ -431,7 +430,6 @@ impl NonlinearSystem for TimeStep<'_> {
             let nl = npc * FIELDS;
             let mut kl = kl;
             let e = model
-                .formulation
                 .kernel()
                 .residual_tangent(
                     &CellInput {

@@ -71,6 +71,62 @@ fn tet10_cell_mass(x: &[[f64; 3]], rho: f64) -> [[f64; 10]; 10] {
     m
 }
 
+/// Consistent mass ∫ρ N_a N_b 2πR dA (kg, whole ring) of a meridian cell with nodes `x` =
+/// (R, Z, ·): Gauss rules of 3 × 3 (quad4) and 4 × 4 points (quad8, quad9), exact for
+/// N_a N_b R on parallelograms, and Dunavant's degree-4 rule on triangles (exact for tri3, an
+/// approximation of degree 4 of the degree-6 integrand of tri6).
+fn meridian_cell_mass(kind: crate::mesh::MeridianKind, x: &[[f64; 3]], rho: f64) -> Vec<Vec<f64>> {
+    use crate::fem::axisymmetric::meridian_shape_functions;
+    use crate::mesh::MeridianKind as K;
+    let n = kind.nodes_per_cell();
+    let line = |k: usize| -> Vec<(f64, f64)> {
+        match k {
+            3 => {
+                let g = 0.6f64.sqrt();
+                vec![(-g, 5.0 / 9.0), (0.0, 8.0 / 9.0), (g, 5.0 / 9.0)]
+            }
+            _ => crate::problem::faces::side_points(3),
+        }
+    };
+    let rule: Vec<([f64; 2], f64)> = match kind {
+        K::Quad4 | K::Quad8 | K::Quad9 => {
+            let l = line(if kind == K::Quad4 { 3 } else { 4 });
+            l.iter()
+                .flat_map(|&(a, wa)| l.iter().map(move |&(b, wb)| ([b, a], wa * wb)))
+                .collect()
+        }
+        K::Tri3 | K::Tri6 => crate::problem::faces::points(6)
+            .into_iter()
+            .map(|(a, b, w)| ([a, b], w))
+            .collect(),
+    };
+    let mut m = vec![vec![0.0; n]; n];
+    for (xi, w) in rule {
+        let (nv, dn) = meridian_shape_functions(kind, xi);
+        let (mut r, mut j) = (0.0, [[0.0; 2]; 2]);
+        for a in 0..n {
+            r += nv[a] * x[a][0];
+            for i in 0..2 {
+                for k in 0..2 {
+                    j[i][k] += x[a][i] * dn[a][k];
+                }
+            }
+        }
+        let dv = rho
+            * w
+            * 2.0
+            * std::f64::consts::PI
+            * r
+            * (j[0][0] * j[1][1] - j[0][1] * j[1][0]).abs();
+        for a in 0..n {
+            for b in 0..n {
+                m[a][b] += dv * nv[a] * nv[b];
+            }
+        }
+    }
+    m
+}
+
 impl NodalMass {
     /// Assembles the mass of a model with the density of each material (kg/m³).
     pub fn new(model: &Model, densities: &[f64], kind: MassKind) -> Self {
@@ -124,6 +180,24 @@ impl NodalMass {
                                 m.add(cell[a], cell[b], mc[a][b]);
                             }
                         }
+                        MassKind::Lumped => m.add(cell[a], cell[a], mc[a][a] * total / diag),
+                    }
+                }
+                continue;
+            }
+            if let crate::mesh::ElementKind::Meridian(mk) = mesh.kind {
+                let mc = meridian_cell_mass(mk, &x, rho);
+                let diag: f64 = (0..npc).map(|a| mc[a][a]).sum();
+                let total: f64 = mc.iter().flatten().sum();
+                for a in 0..npc {
+                    match kind {
+                        MassKind::Consistent => {
+                            for b in 0..npc {
+                                m.add(cell[a], cell[b], mc[a][b]);
+                            }
+                        }
+                        // HRZ: row sums vanish at the corners of tri6 and are negative at
+                        // those of quad8
                         MassKind::Lumped => m.add(cell[a], cell[a], mc[a][a] * total / diag),
                     }
                 }

@@ -25,7 +25,9 @@ pub(super) fn build_loads(
 ) -> Result<Loads, InputError> {
     build_tractions(ctx, s, model)?;
     build_pressures(ctx, s, model)?;
-    let mut supports = build_constraints(ctx, s, &model.mesh)?;
+    // an axisymmetric model holds its hoop slot and the axis's radial displacement
+    let mut supports = model.axisymmetric_supports();
+    supports.extend(build_constraints(ctx, s, &model.mesh)?);
     supports.extend(prestretch_supports(ctx, s, &model.mesh)?);
     let rigid = match &s.loads {
         None => Vec::new(),
@@ -42,14 +44,68 @@ pub(super) fn build_loads(
     })
 }
 
+/// A vector of the scenario in the model's slots: (x, y, z) in 3-D; in an axisymmetric model
+/// the cylindrical components (r, θ, z) go to the slots (r, z, ·), and θ must be 0 (the model
+/// carries no torsion).
+pub(super) fn model_vector(
+    ctx: &Ctx,
+    key: &str,
+    mesh: &Mesh,
+    v: [f64; 3],
+) -> Result<[f64; 3], InputError> {
+    if mesh.kind.meridian().is_none() {
+        return Ok(v);
+    }
+    if v[1] != 0.0 {
+        return Err(ctx.err(
+            key,
+            format!(
+                "an axisymmetric model reads vectors as cylindrical components [r, θ, z] and \
+                 carries no hoop (θ) component; got {v:?}"
+            ),
+        ));
+    }
+    Ok([v[0], v[2], 0.0])
+}
+
+/// The displacement slot of a component name: `x`, `y`, `z` in 3-D; `r`, `z` in an
+/// axisymmetric model (slots 0 and 1).
+pub(super) fn component_field(
+    ctx: &Ctx,
+    key: &str,
+    mesh: &Mesh,
+    name: &str,
+) -> Result<Field, InputError> {
+    let axisymmetric = mesh.kind.meridian().is_some();
+    match (axisymmetric, name) {
+        (false, "x") => Ok(Field::Ux),
+        (false, "y") => Ok(Field::Uy),
+        (false, "z") => Ok(Field::Uz),
+        (true, "r") => Ok(Field::Ux),
+        (true, "z") => Ok(Field::Uy),
+        (true, o) => Err(ctx.err(
+            key,
+            format!(
+                "unknown component `{o}`: an axisymmetric model has \"r\" (radial) and \"z\" \
+                 (axial)"
+            ),
+        )),
+        (false, o) => Err(ctx.err(
+            key,
+            format!("unknown component `{o}`: expected \"x\", \"y\" or \"z\""),
+        )),
+    }
+}
+
 /// `[[tractions]]`: dead nominal tractions (Pa) on face sets.
 fn build_tractions(ctx: &Ctx, s: &Scenario, model: &mut Model) -> Result<(), InputError> {
     for (i, t) in s.tractions.iter().enumerate() {
         for (c, v) in t.value.iter().enumerate() {
             ctx.finite(&format!("tractions.{i}.value.{c}"), *v, "traction in Pa")?;
         }
+        let value = model_vector(ctx, &format!("tractions.{i}.value"), &model.mesh, t.value)?;
         model
-            .add_traction(&t.set, t.value)
+            .add_traction(&t.set, value)
             .map_err(|e| ctx.err(format!("tractions.{i}.set"), e.to_string()))?;
     }
     Ok(())
@@ -117,17 +173,7 @@ fn build_constraints(ctx: &Ctx, s: &Scenario, mesh: &Mesh) -> Result<Vec<Dirichl
             ));
         }
         for comp in &c.fix {
-            let field = match comp.as_str() {
-                "x" => Field::Ux,
-                "y" => Field::Uy,
-                "z" => Field::Uz,
-                o => {
-                    return Err(ctx.err(
-                        format!("{key}.fix"),
-                        format!("unknown component `{o}`: expected \"x\", \"y\" or \"z\""),
-                    ))
-                }
-            };
+            let field = component_field(ctx, &format!("{key}.fix"), mesh, comp)?;
             supports.push(Dirichlet {
                 nodes: nodes.clone(),
                 field,
@@ -155,9 +201,14 @@ fn prestretch_supports(ctx: &Ctx, s: &Scenario, mesh: &Mesh) -> Result<Vec<Diric
         ));
     }
     let mut supports = Vec::new();
+    // in-plane: x and y in 3-D; the radius in an axisymmetric model
+    let components = if mesh.kind.meridian().is_some() { 1 } else { 2 };
     for n in ctx.set_nodes(mesh, "prestretch.set", &p.set)? {
         let x = mesh.nodes[n];
-        for (field, value) in [(Field::Ux, (l - 1.0) * x[0]), (Field::Uy, (l - 1.0) * x[1])] {
+        for (field, value) in [(Field::Ux, (l - 1.0) * x[0]), (Field::Uy, (l - 1.0) * x[1])]
+            .into_iter()
+            .take(components)
+        {
             supports.push(Dirichlet {
                 nodes: vec![n],
                 field,
@@ -230,7 +281,16 @@ fn build_gravity(
                     format!("expected an acceleration in m/s² (e.g. [0, 0, -9.81]); got {g:?}"),
                 ));
             }
-            g
+            if model.is_axisymmetric() && g[0] != 0.0 {
+                return Err(ctx.err(
+                    "loads.gravity",
+                    format!(
+                        "an axisymmetric model's gravity acts along its axis: [0, 0, g_z]; got \
+                         {g:?}"
+                    ),
+                ));
+            }
+            model_vector(ctx, "loads.gravity", &model.mesh, g)?
         }
         None => [0.0; 3],
     };
@@ -260,7 +320,15 @@ fn build_rigid(
         let key = format!("loads.rigid.{i}");
         let nodes = rigid_nodes(ctx, &key, r, &model.mesh, &rigid, supports)?;
         check_damping(ctx, s, &key, r)?;
-        for field in [Field::Ux, Field::Uy, Field::Uz] {
+        // the translations; an axisymmetric body can only move along its axis (the tie of the
+        // radial slot is held as a whole by the axis node it contains, or keeps the rigid ring
+        // from stretching)
+        let fields: &[Field] = if model.is_axisymmetric() {
+            &[Field::Ux, Field::Uy]
+        } else {
+            &[Field::Ux, Field::Uy, Field::Uz]
+        };
+        for &field in fields {
             model.ties.push(Tie {
                 nodes: nodes.clone(),
                 field,

@@ -7,7 +7,7 @@ use crate::element::mean_dilatation::Formulation;
 use crate::io::scenario::{closest, InputError, MeshSpec, Scenario};
 use crate::mesh::disc::{disc_mesh, DiscSpec};
 use crate::mesh::stack::{stack_mesh, StackSpec};
-use crate::mesh::{generate::box_mesh, ElementKind, Mesh};
+use crate::mesh::{generate::box_mesh, ElementKind, MeridianKind, Mesh};
 use crate::problem::model::Model;
 use std::path::Path;
 
@@ -18,11 +18,23 @@ const ELEMENTS: [(&str, ElementKind); 3] = [
     ("tet10", ElementKind::Tet10),
 ];
 
+/// The meridian element kinds of axisymmetric models by scenario name.
+const MERIDIAN_ELEMENTS: [(&str, MeridianKind); 5] = [
+    ("quad4", MeridianKind::Quad4),
+    ("quad8", MeridianKind::Quad8),
+    ("quad9", MeridianKind::Quad9),
+    ("tri3", MeridianKind::Tri3),
+    ("tri6", MeridianKind::Tri6),
+];
+
 /// The generators by scenario name.
-const GENERATORS: [&str; 4] = ["box", "disc", "stack", "sphere"];
+const GENERATORS: [&str; 5] = ["box", "disc", "stack", "sphere", "rectangle"];
+
+/// The generators of axisymmetric models.
+const MERIDIAN_GENERATORS: [&str; 3] = ["disc", "rectangle", "sphere"];
 
 /// The size keys of each generator (the others reject them).
-const GENERATOR_KEYS: [(&str, &[&str]); 4] = [
+const GENERATOR_KEYS: [(&str, &[&str]); 5] = [
     ("box", &["size", "divisions"]),
     (
         "disc",
@@ -47,7 +59,23 @@ const GENERATOR_KEYS: [(&str, &[&str]); 4] = [
         ],
     ),
     ("sphere", &["radius", "thickness", "radial", "layers"]),
+    (
+        "rectangle",
+        &["radius", "inner_radius", "thickness", "radial", "layers"],
+    ),
 ];
+
+/// Whether `mesh.geometry` asks for an axisymmetric model (`3d` when not given).
+pub(super) fn is_axisymmetric(ctx: &Ctx, m: &MeshSpec) -> Result<bool, InputError> {
+    match m.geometry.as_deref() {
+        None | Some("3d" | "3-d" | "3D") => Ok(false),
+        Some("axisymmetric") => Ok(true),
+        Some(o) => Err(ctx.err(
+            "mesh.geometry",
+            format!("unknown geometry `{o}`: expected `3d` or `axisymmetric`"),
+        )),
+    }
+}
 
 /// The mesh of a scenario, and warnings about it (cells the Gmsh import reoriented); refused when
 /// it would not fit in memory.
@@ -95,6 +123,14 @@ pub(super) fn build_model(
 /// Copies of the meshed part that make the physical device: 4 for a quarter disc or stack, 8 for
 /// the octant of a sphere.
 pub(super) fn symmetry_factor(m: &MeshSpec) -> f64 {
+    if m.geometry.as_deref() == Some("axisymmetric") {
+        // the meridian cells carry whole rings; the sphere is its upper half
+        return if m.generator.as_deref() == Some("sphere") {
+            2.0
+        } else {
+            1.0
+        };
+    }
     match m.generator.as_deref() {
         Some("disc" | "stack") if m.quarter != Some(false) => 4.0,
         Some("sphere") => 8.0,
@@ -102,7 +138,31 @@ pub(super) fn symmetry_factor(m: &MeshSpec) -> f64 {
     }
 }
 
-fn element_kind(ctx: &Ctx, name: &str) -> Result<ElementKind, InputError> {
+fn element_kind(ctx: &Ctx, name: &str, axisymmetric: bool) -> Result<ElementKind, InputError> {
+    if axisymmetric {
+        return MERIDIAN_ELEMENTS
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, k)| ElementKind::Meridian(*k))
+            .ok_or_else(|| {
+                ctx.err(
+                    "mesh.element",
+                    format!(
+                        "unknown element `{name}` for `geometry = \"axisymmetric\"`: expected \
+                         `quad4`, `quad8`, `quad9`, `tri3` or `tri6` (cells of the meridian plane)"
+                    ),
+                )
+            });
+    }
+    if MERIDIAN_ELEMENTS.iter().any(|(n, _)| *n == name) {
+        return Err(ctx.err(
+            "mesh.element",
+            format!(
+                "`{name}` is a cell of the meridian plane: give `geometry = \"axisymmetric\"`, or \
+                 a 3-D element (`hex8`, `tet4`, `tet10`)"
+            ),
+        ));
+    }
     ELEMENTS
         .iter()
         .find(|(n, _)| *n == name)
@@ -132,8 +192,32 @@ fn mesh_of(
     }
     let generator = generator(ctx, m)?;
     reject_foreign_keys(ctx, m, generator)?;
-    let kind = element_kind(ctx, m.element.as_deref().unwrap_or("hex8"))?;
+    let axisymmetric = is_axisymmetric(ctx, m)?;
+    let default_kind = if axisymmetric { "quad8" } else { "hex8" };
+    let kind = element_kind(
+        ctx,
+        m.element.as_deref().unwrap_or(default_kind),
+        axisymmetric,
+    )?;
+    if axisymmetric != MERIDIAN_GENERATORS.contains(&generator)
+        && (axisymmetric || generator == "rectangle")
+    {
+        let hint = if axisymmetric {
+            "axisymmetric models use `disc`, `rectangle` or `sphere`"
+        } else {
+            "`rectangle` makes meridian cells: give `geometry = \"axisymmetric\"`"
+        };
+        return Err(ctx.err(
+            "mesh.generator",
+            format!(
+                "`{generator}` with `geometry` = {}: {hint}",
+                if axisymmetric { "axisymmetric" } else { "3d" }
+            ),
+        ));
+    }
     let mesh = match generator {
+        "rectangle" => build_rectangle(ctx, m, kind)?,
+        "sphere" if axisymmetric => build_meridian_sphere(ctx, m, kind)?,
         "disc" => build_disc(ctx, m, kind)?,
         "stack" => build_stack(ctx, m, kind)?,
         "sphere" => build_sphere(ctx, m, kind)?,
@@ -215,6 +299,7 @@ fn reject_foreign_keys(ctx: &Ctx, m: &MeshSpec, generator: &str) -> Result<(), I
         ("size", m.size.is_some()),
         ("divisions", m.divisions.is_some()),
         ("radius", m.radius.is_some()),
+        ("inner_radius", m.inner_radius.is_some()),
         ("thickness", m.thickness.is_some()),
         ("pad_radius", m.pad_radius.is_some()),
         ("electrode_radius", m.electrode_radius.is_some()),
@@ -238,11 +323,15 @@ fn reject_foreign_keys(ctx: &Ctx, m: &MeshSpec, generator: &str) -> Result<(), I
         let owned_by = owners(key);
         if is_given && !owned_by.contains(&generator) {
             let list: Vec<String> = owned_by.iter().map(|g| format!("`{g}`")).collect();
+            let list = match list.split_last() {
+                Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+                _ => list.join(""),
+            };
             return Err(ctx.err(
                 format!("mesh.{key}"),
                 format!(
                     "applies to the {} generator, not to `generator = \"{generator}\"`",
-                    list.join(" or ")
+                    list
                 ),
             ));
         }
@@ -254,6 +343,7 @@ fn reject_foreign_keys(ctx: &Ctx, m: &MeshSpec, generator: &str) -> Result<(), I
 fn reject_generator_keys(ctx: &Ctx, m: &MeshSpec, file: &str) -> Result<(), InputError> {
     let generator_keys = [
         ("generator", m.generator.is_some()),
+        ("inner_radius", m.inner_radius.is_some()),
         ("size", m.size.is_some()),
         ("divisions", m.divisions.is_some()),
         ("radius", m.radius.is_some()),
@@ -300,7 +390,7 @@ fn build_file_mesh(
     let g = crate::mesh::gmsh::read_msh(&path, scale)
         .map_err(|e| ctx.err("mesh.file", e.to_string()))?;
     if let Some(name) = &m.element {
-        let want = element_kind(ctx, name)?;
+        let want = element_kind(ctx, name, is_axisymmetric(ctx, m)?)?;
         if want != g.mesh.kind {
             return Err(ctx.err(
                 "mesh.element",
@@ -423,6 +513,74 @@ fn build_sphere(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, Inpu
     ))
 }
 
+/// The `rectangle` generator (axisymmetric): R ∈ [inner_radius, radius], Z ∈ [0, thickness]
+/// with `radial × layers` equal cells; sets `inner` (and `axis` when inner_radius = 0), `outer`,
+/// `bottom`, `top`.
+fn build_rectangle(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputError> {
+    let radius = ctx.positive("mesh.radius", m.radius, "outer radius in m")?;
+    let thickness = ctx.positive("mesh.thickness", m.thickness, "height in m")?;
+    let inner = m.inner_radius.unwrap_or(0.0);
+    if !(inner.is_finite() && (0.0..radius).contains(&inner)) {
+        return Err(ctx.err(
+            "mesh.inner_radius",
+            format!("expected 0 ≤ inner_radius < radius ({radius} m); got {inner}"),
+        ));
+    }
+    let (radial, layers) = meridian_divisions(ctx, m, 8, 1)?;
+    let ElementKind::Meridian(k) = kind else {
+        return Err(ctx.err("mesh.element", "expected a meridian element"));
+    };
+    crate::mesh::meridian::rectangle_mesh(inner, radius, thickness, radial, layers, k)
+        .map_err(|e| ctx.err("mesh", e))
+}
+
+/// The `sphere` generator (axisymmetric): the upper half of a spherical shell of inner radius
+/// `radius` and wall `thickness`, `radial` cells along the quarter meridian and `layers`
+/// through the wall; sets `inner`, `outer`, `equator` (Z = 0) and `axis`.
+fn build_meridian_sphere(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputError> {
+    let radius = ctx.positive("mesh.radius", m.radius, "inner radius in m")?;
+    let thickness = ctx.positive("mesh.thickness", m.thickness, "wall thickness in m")?;
+    let (radial, layers) = meridian_divisions(ctx, m, 16, 2)?;
+    let ElementKind::Meridian(k) = kind else {
+        return Err(ctx.err("mesh.element", "expected a meridian element"));
+    };
+    crate::mesh::meridian::sphere_meridian(radius, radius + thickness, radial, layers, k)
+        .map_err(|e| ctx.err("mesh", e))
+}
+
+/// `mesh.radial` and `mesh.layers` of a meridian generator, with their defaults.
+fn meridian_divisions(
+    ctx: &Ctx,
+    m: &MeshSpec,
+    radial: u64,
+    layers: u64,
+) -> Result<(usize, usize), InputError> {
+    let radial = m.radial.unwrap_or(radial);
+    let layers = m.layers.unwrap_or(layers);
+    if !(1..=100_000).contains(&radial) {
+        return Err(ctx.err(
+            "mesh.radial",
+            format!("must be between 1 and 100000; got {radial}"),
+        ));
+    }
+    if !(1..=10_000).contains(&layers) {
+        return Err(ctx.err(
+            "mesh.layers",
+            format!("must be between 1 and 10000; got {layers}"),
+        ));
+    }
+    if radial * layers > MAX_CELLS {
+        return Err(ctx.err(
+            "mesh.radial",
+            format!(
+                "{} cells: too large for this machine's memory",
+                radial * layers
+            ),
+        ));
+    }
+    Ok((radial as usize, layers as usize))
+}
+
 /// Refuses a generated mesh of more than [`MAX_CELLS`] cells (`hexahedra` of the layout, six
 /// tetrahedra each for tet meshes), naming `key`, the parameter that sets the size.
 fn check_cell_count(
@@ -431,7 +589,12 @@ fn check_cell_count(
     hexahedra: usize,
     kind: ElementKind,
 ) -> Result<(), InputError> {
-    let cells = hexahedra as u64 * if kind == ElementKind::Hex8 { 1 } else { 6 };
+    let cells = hexahedra as u64
+        * if matches!(kind, ElementKind::Hex8 | ElementKind::Meridian(_)) {
+            1
+        } else {
+            6
+        };
     if cells > MAX_CELLS {
         return Err(ctx.err(
             key,
@@ -716,7 +879,7 @@ mod tests {
         assert_names(
             &e,
             "mesh.radius",
-            "applies to the `disc` or `sphere` generator, not to `generator = \"stack\"`",
+            "applies to the `disc`, `sphere` or `rectangle` generator, not to `generator = \"stack\"`",
         );
         let e = mesh(&box_mesh_of("radius = 1.0")).unwrap_err();
         assert_names(&e, "mesh.radius", "not to `generator = \"box\"`");

@@ -165,9 +165,10 @@ fn probe_kind(
     let need = |v: &Option<String>, what: &str| need(ctx, key, p, v, what);
     let set = |name: &str| ctx.set_nodes(&model.mesh, &format!("{key}.set"), name);
     let electrode = |name: &str| electrode_index(ctx, key, electrodes, name);
+    let axisymmetric = model.is_axisymmetric();
     Ok(match p.kind.as_str() {
         "mean" | "max" | "min" => {
-            let q = nodal(ctx, key, &need(&p.quantity, "quantity")?)?;
+            let q = nodal(ctx, key, &need(&p.quantity, "quantity")?, axisymmetric)?;
             let name = need(&p.set, "set")?;
             let nodes = set(&name)?;
             match p.kind.as_str() {
@@ -180,7 +181,7 @@ fn probe_kind(
             }
         }
         "point" => {
-            let q = nodal(ctx, key, &need(&p.quantity, "quantity")?)?;
+            let q = nodal(ctx, key, &need(&p.quantity, "quantity")?, axisymmetric)?;
             let at = p.at.ok_or_else(|| {
                 ctx.err(
                     format!("{key}.at"),
@@ -190,6 +191,8 @@ fn probe_kind(
             if at.iter().any(|v| !v.is_finite()) {
                 return Err(ctx.err(format!("{key}.at"), "coordinates must be finite (m)"));
             }
+            // an axisymmetric model's point is [r, 0, z] (cylindrical coordinates)
+            let at = super::loads::model_vector(ctx, &format!("{key}.at"), &model.mesh, at)?;
             let node = model.mesh.nearest_node(at);
             let (lo, hi) = model.mesh.extents();
             let diagonal = (0..3).map(|c| (hi[c] - lo[c]).powi(2)).sum::<f64>().sqrt();
@@ -235,7 +238,7 @@ fn probe_kind(
             }
         }
         "reaction" => {
-            let c = reaction_component(ctx, key, &need(&p.quantity, "quantity")?)?;
+            let c = reaction_component(ctx, key, &need(&p.quantity, "quantity")?, axisymmetric)?;
             ProbeKind::Reaction(c, set(&need(&p.set, "set")?)?)
         }
         "energy" => match need(&p.quantity, "quantity")?.as_str() {
@@ -248,7 +251,10 @@ fn probe_kind(
                 ))
             }
         },
-        "center_deflection" => ProbeKind::Deflection(set(p.set.as_deref().unwrap_or("pad"))?),
+        "center_deflection" => ProbeKind::Deflection(
+            set(p.set.as_deref().unwrap_or("pad"))?,
+            if axisymmetric { 1 } else { 2 },
+        ),
         "max_electric_field" => ProbeKind::MaxElectricField,
         "pressure" => {
             let name = need(&p.set, "set")?;
@@ -351,8 +357,24 @@ fn need(
     })
 }
 
-/// A nodal quantity of [`NODAL`].
-fn nodal(ctx: &Ctx, key: &str, q: &str) -> Result<NodalQuantity, InputError> {
+/// A nodal quantity of [`NODAL`]; an axisymmetric model has `ur` and `uz` (slots 0 and 1)
+/// instead of `ux`, `uy`, `uz`.
+fn nodal(ctx: &Ctx, key: &str, q: &str, axisymmetric: bool) -> Result<NodalQuantity, InputError> {
+    if axisymmetric {
+        return match q {
+            "ur" => Ok(NodalQuantity::Component(0)),
+            "uz" => Ok(NodalQuantity::Component(1)),
+            "u" => Ok(NodalQuantity::Magnitude),
+            "phi" => Ok(NodalQuantity::Potential),
+            o => Err(ctx.err(
+                format!("{key}.quantity"),
+                format!(
+                    "unknown nodal quantity `{o}` of an axisymmetric model (known: ur, uz, u, \
+                     phi)"
+                ),
+            )),
+        };
+    }
     Ok(match q {
         "ux" => NodalQuantity::Component(0),
         "uy" => NodalQuantity::Component(1),
@@ -374,8 +396,26 @@ fn nodal(ctx: &Ctx, key: &str, q: &str) -> Result<NodalQuantity, InputError> {
     })
 }
 
-/// The component (0, 1, 2) of a reaction probe: `x`, `y` or `z`.
-fn reaction_component(ctx: &Ctx, key: &str, q: &str) -> Result<usize, InputError> {
+/// The component (0, 1, 2) of a reaction probe: `x`, `y` or `z`; `r` or `z` (slots 0, 1) in
+/// an axisymmetric model.
+fn reaction_component(
+    ctx: &Ctx,
+    key: &str,
+    q: &str,
+    axisymmetric: bool,
+) -> Result<usize, InputError> {
+    if axisymmetric {
+        return match q {
+            "r" => Ok(0),
+            "z" => Ok(1),
+            o => Err(ctx.err(
+                format!("{key}.quantity"),
+                format!(
+                    "reaction component of an axisymmetric model must be \"r\" or \"z\"; got `{o}`"
+                ),
+            )),
+        };
+    }
     match q {
         "x" => Ok(0),
         "y" => Ok(1),
@@ -519,7 +559,7 @@ mod tests {
         assert_eq!(p[0].1.kind, ProbeKind::ElectricEnergy);
         assert_eq!(p[1].1.kind, ProbeKind::MaxElectricField);
         assert!(matches!(&p[2].1.kind, ProbeKind::Reaction(1, n) if n.len() == 9));
-        assert!(matches!(&p[3].1.kind, ProbeKind::Deflection(n) if n.len() == 9));
+        assert!(matches!(&p[3].1.kind, ProbeKind::Deflection(n, 2) if n.len() == 9));
     }
 
     #[test]
