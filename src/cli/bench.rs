@@ -153,6 +153,19 @@ pub fn cmd_bench(large: bool) -> i32 {
     }
     println!();
     println!(
+        "the default diaphragm, axisymmetric against 3-D (diaphragm-3d); solves only, no output \
+         files; times in s"
+    );
+    println!("{AXISYMMETRIC_HEADER}");
+    match bench_axisymmetric() {
+        Ok(rows) => rows.iter().for_each(|r| println!("{r}")),
+        Err(e) => {
+            eprintln!("error: axisymmetric benchmark: {e}");
+            return 1;
+        }
+    }
+    println!();
+    println!(
         "small-signal analyses of the diaphragm (2928 dofs, 2 kV bias) against a time-domain \
          sweep; times in s"
     );
@@ -292,6 +305,78 @@ pub fn bench_dynamic(
 /// Column titles of [`bench_dynamic`]'s rows.
 pub const DYNAMIC_HEADER: &str = "      mesh     dofs  steps    newton   s/step  its/step peak_MiB";
 
+/// An observer that keeps nothing (the benchmarks time the solve alone).
+struct Quiet;
+
+impl crate::job::run::Observer for Quiet {
+    fn step(
+        &mut self,
+        _: &crate::job::plan::Plan,
+        _: &crate::job::run::StepRecord,
+        _: &[f64],
+        _: &[crate::element::CellFields],
+    ) {
+    }
+    fn finished(&mut self, _: &crate::job::plan::Plan, _: &crate::job::run::RunSummary) {}
+}
+
+/// A stage's name, wall time (s) and steps.
+type StageWall = (String, f64, usize);
+
+/// Runs an example with overrides through the library (no output files): the model's unknowns
+/// and, per stage, its name, wall time (s) and steps.
+fn run_example(name: &str, sets: &[String]) -> Result<(usize, Vec<StageWall>), String> {
+    use crate::io::build::build;
+    use crate::io::examples::example;
+    use crate::io::scenario::parse;
+    let text = example(name).ok_or_else(|| format!("no example {name}"))?;
+    let s = parse(text, name, sets).map_err(|e| e.to_string())?;
+    let plan = build(&s, name, None).map_err(|e| e.to_string())?;
+    let summary = crate::job::run::run(&plan, &NewtonSettings::default(), &mut Quiet);
+    if !summary.converged {
+        return Err(summary.error.unwrap_or_default());
+    }
+    Ok((
+        plan.model.mesh.n_nodes() * crate::fem::FIELDS,
+        summary
+            .stages
+            .iter()
+            .map(|st| (st.name.clone(), st.wall_s, st.steps))
+            .collect(),
+    ))
+}
+
+/// Wall time (s) and steps of the stage `name` of a [`run_example`] result.
+fn wall(stages: &[StageWall], name: &str) -> (f64, usize) {
+    stages
+        .iter()
+        .find(|s| s.0 == name)
+        .map(|s| (s.1, s.2))
+        .unwrap_or((f64::NAN, 0))
+}
+
+/// Column titles of [`bench_axisymmetric`]'s rows.
+pub const AXISYMMETRIC_HEADER: &str =
+    "            model   dofs  sag_solve_s  default_run_s  peak_MiB";
+
+/// The default diaphragm (axisymmetric) against the same actuator in 3-D (`diaphragm-3d`, a
+/// quarter disc): the static sag (the `load` stage, pre-stretch included) and the whole default
+/// run (load and 1 s of actuation), solved through the library without writing output files;
+/// the process's peak memory after each (the axisymmetric model runs first).
+pub fn bench_axisymmetric() -> Result<Vec<String>, String> {
+    let mut rows = Vec::new();
+    for name in ["diaphragm", "diaphragm-3d"] {
+        let (dofs, stages) = run_example(name, &[])?;
+        let total: f64 = stages.iter().map(|s| s.1).sum();
+        rows.push(format!(
+            "{name:>17} {dofs:>6} {:>12.3} {total:>14.3} {:>9.0}",
+            wall(&stages, "load").0,
+            peak_memory_mib()
+        ));
+    }
+    Ok(rows)
+}
+
 /// Column titles of [`bench_linear`]'s rows.
 pub const LINEAR_HEADER: &str =
     "                        analysis  count   total_s   per_item_s peak_MiB";
@@ -303,43 +388,6 @@ pub const LINEAR_HEADER: &str =
 /// prices a sweep of `points` such runs (a lower bound: high frequencies need more periods for
 /// their transients to decay). Returns the rows.
 pub fn bench_linear(points: usize) -> Result<Vec<String>, String> {
-    use crate::io::build::build;
-    use crate::io::examples::example;
-    use crate::io::scenario::parse;
-    use crate::job::run::run;
-    struct Quiet;
-    impl crate::job::run::Observer for Quiet {
-        fn step(
-            &mut self,
-            _: &crate::job::plan::Plan,
-            _: &crate::job::run::StepRecord,
-            _: &[f64],
-            _: &[crate::element::CellFields],
-        ) {
-        }
-        fn finished(&mut self, _: &crate::job::plan::Plan, _: &crate::job::run::RunSummary) {}
-    }
-    let run_example = |name: &str, sets: &[String]| -> Result<Vec<(String, f64, usize)>, String> {
-        let text = example(name).ok_or_else(|| format!("no example {name}"))?;
-        let s = parse(text, name, sets).map_err(|e| e.to_string())?;
-        let plan = build(&s, name, None).map_err(|e| e.to_string())?;
-        let summary = run(&plan, &NewtonSettings::default(), &mut Quiet);
-        if !summary.converged {
-            return Err(summary.error.unwrap_or_default());
-        }
-        Ok(summary
-            .stages
-            .iter()
-            .map(|st| (st.name.clone(), st.wall_s, st.steps))
-            .collect())
-    };
-    let wall = |stages: &[(String, f64, usize)], name: &str| {
-        stages
-            .iter()
-            .find(|s| s.0 == name)
-            .map(|s| (s.1, s.2))
-            .unwrap_or((f64::NAN, 0))
-    };
     let mut rows = Vec::new();
     let row = |what: &str, count: usize, total: f64| {
         format!(
@@ -348,14 +396,14 @@ pub fn bench_linear(points: usize) -> Result<Vec<String>, String> {
             peak_memory_mib()
         )
     };
-    let direct = run_example("diaphragm-response", &[format!("stages.3.points={points}")])?;
+    let (_, direct) = run_example("diaphragm-response", &[format!("stages.3.points={points}")])?;
     rows.push(row("modes stage (4 modes)", 4, wall(&direct, "modes").0));
     rows.push(row(
         "frequency response, direct",
         points,
         wall(&direct, "response").0,
     ));
-    let modal = run_example(
+    let (_, modal) = run_example(
         "diaphragm-response",
         &[
             format!("stages.3.points={points}"),
@@ -369,8 +417,8 @@ pub fn bench_linear(points: usize) -> Result<Vec<String>, String> {
         wall(&modal, "response").0,
     ));
     let f = 30.0;
-    let time_domain = run_example(
-        "diaphragm",
+    let (_, time_domain) = run_example(
+        "diaphragm-3d",
         &[
             "electrodes.top.voltage.waveform=\"sine\"".into(),
             "electrodes.top.voltage.polarity=\"bipolar\"".into(),

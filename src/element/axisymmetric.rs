@@ -305,3 +305,72 @@ pub(crate) fn cell_viscous_meridian(
     }
     Ok(power)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::axisymmetric::{meridian_geometry, MeridianKind};
+
+    /// The Kelvin–Voigt forces of a meridian cell are half the velocity gradient of the
+    /// dissipation power, ∫ Jη d:d dV, and their velocity tangent is its derivative (central
+    /// differences); a rigid axial translation dissipates nothing.
+    #[test]
+    fn viscous_forces_match_finite_differences() {
+        for kind in MeridianKind::ALL {
+            let x: Vec<[f64; 2]> = kind
+                .reference_nodes()
+                .iter()
+                .map(|p| {
+                    let (s, t) = match kind {
+                        MeridianKind::Tri3 | MeridianKind::Tri6 => (p[0], p[1]),
+                        _ => (0.5 * (p[0] + 1.0), 0.5 * (p[1] + 1.0)),
+                    };
+                    [0.5e-3 + 1e-3 * s * (1.0 + 0.1 * t), 1e-3 * (t + 0.05 * s)]
+                })
+                .collect();
+            let g = meridian_geometry(kind, &x).unwrap();
+            let n = x.len() * 4;
+            let wave = |i: usize, a: f64| ((i as f64 * 12.9898 + a).sin() * 43758.5453).fract();
+            let local: Vec<f64> = (0..n)
+                .map(|i| if i % 4 < 2 { 1e-4 * wave(i, 0.0) } else { 0.0 })
+                .collect();
+            let vel: Vec<f64> = (0..n)
+                .map(|i| if i % 4 < 2 { 1e-3 * wave(i, 1.0) } else { 0.0 })
+                .collect();
+            let eta = 2000.0;
+            let mut r = vec![0.0; n];
+            let mut kv = vec![0.0; n * n];
+            let power =
+                cell_viscous_meridian(&g, eta, &local, &vel, &mut r, Some(&mut kv)).unwrap();
+            assert!(power > 0.0);
+            let rmax = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let kmax = kv.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let h = 1e-9;
+            for j in 0..n {
+                let (mut vp, mut vm) = (vel.clone(), vel.clone());
+                vp[j] += h;
+                vm[j] -= h;
+                let (mut rp, mut rm) = (vec![0.0; n], vec![0.0; n]);
+                let pp = cell_viscous_meridian(&g, eta, &local, &vp, &mut rp, None).unwrap();
+                let pm = cell_viscous_meridian(&g, eta, &local, &vm, &mut rm, None).unwrap();
+                let dp = (pp - pm) / (2.0 * h);
+                assert!((0.5 * dp - r[j]).abs() < 1e-6 * rmax, "{kind:?} r[{j}]");
+                for i in 0..n {
+                    let fd = (rp[i] - rm[i]) / (2.0 * h);
+                    assert!(
+                        (fd - kv[i * n + j]).abs() < 1e-6 * kmax,
+                        "{kind:?} K[{i}][{j}]"
+                    );
+                    assert!((kv[i * n + j] - kv[j * n + i]).abs() < 1e-12 * kmax);
+                }
+            }
+            // an axial translation is rigid
+            let axial: Vec<f64> = (0..n)
+                .map(|i| if i % 4 == 1 { 1e-3 } else { 0.0 })
+                .collect();
+            let mut r0 = vec![0.0; n];
+            let p0 = cell_viscous_meridian(&g, eta, &vec![0.0; n], &axial, &mut r0, None).unwrap();
+            assert!(p0.abs() < 1e-20, "{kind:?}: {p0}");
+        }
+    }
+}

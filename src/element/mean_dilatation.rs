@@ -499,26 +499,26 @@ mod tests {
     }
 
     /// The residual is the gradient of the energy and the tangent the derivative of the residual
-    /// (central differences, step 1e-7 of the cell size; tolerance 1e-6 of the largest entry).
-    #[test]
-    fn residual_and_tangent_are_consistent() {
-        let (g, local) = cell();
+    /// (central differences, step 1e-7 of the cell size; tolerance 1e-6 of the largest entry),
+    /// for every material, on the cell `g` at the state `local` (4 values per node).
+    fn check_consistency(g: &CellGeometry, local: &[f64]) {
+        let nl = g.n_nodes * 4;
         for mat in materials() {
             let mat = mat.as_ref();
-            let mut r = vec![0.0; 32];
-            let mut k = vec![0.0; 32 * 32];
+            let mut r = vec![0.0; nl];
+            let mut k = vec![0.0; nl * nl];
             let e =
-                cell_residual_tangent_md(&g, mat, CellHistory::NONE, &local, &mut r, Some(&mut k))
+                cell_residual_tangent_md(g, mat, CellHistory::NONE, local, &mut r, Some(&mut k))
                     .unwrap();
-            let mut r2 = vec![0.0; 32];
-            let e2 = cell_residual_tangent_md(&g, mat, CellHistory::NONE, &local, &mut r2, None)
-                .unwrap();
+            let mut r2 = vec![0.0; nl];
+            let e2 =
+                cell_residual_tangent_md(g, mat, CellHistory::NONE, local, &mut r2, None).unwrap();
             assert_eq!(e, e2);
             assert!(
-                (cell_energy_md(&g, mat, CellHistory::NONE, &local).unwrap() - e).abs()
+                (cell_energy_md(g, mat, CellHistory::NONE, local).unwrap() - e).abs()
                     <= 1e-14 * e.abs()
             );
-            for i in 0..32 {
+            for i in 0..nl {
                 assert!(
                     (r[i] - r2[i]).abs() <= 1e-12 * r.iter().fold(0.0f64, |m, v| m.max(v.abs()))
                 );
@@ -526,34 +526,84 @@ mod tests {
             // compare in the solver's scaled unknowns (Φ/√(μ/ε) is a length, s·r_Φ a force)
             let e_scale = (1e5f64 / (4.7 * EPSILON_0)).sqrt();
             let sc = |i: usize| if i % 4 == 3 { e_scale } else { 1.0 };
-            let rmax = (0..32).fold(0.0f64, |m, i| m.max((r[i] * sc(i)).abs()));
+            let rmax = (0..nl).fold(0.0f64, |m, i| m.max((r[i] * sc(i)).abs()));
             let kmax =
-                (0..32 * 32).fold(0.0f64, |m, p| m.max((k[p] * sc(p / 32) * sc(p % 32)).abs()));
+                (0..nl * nl).fold(0.0f64, |m, p| m.max((k[p] * sc(p / nl) * sc(p % nl)).abs()));
             let (mut worst_r, mut worst_k) = (0.0f64, 0.0f64);
-            for j in 0..32 {
+            for j in 0..nl {
                 let h = 1e-10 * sc(j);
-                let mut lp = local.clone();
-                let mut lm = local.clone();
+                let mut lp = local.to_vec();
+                let mut lm = local.to_vec();
                 lp[j] += h;
                 lm[j] -= h;
-                let (mut rp, mut rm) = (vec![0.0; 32], vec![0.0; 32]);
-                let ep = cell_residual_tangent_md(&g, mat, CellHistory::NONE, &lp, &mut rp, None)
+                let (mut rp, mut rm) = (vec![0.0; nl], vec![0.0; nl]);
+                let ep = cell_residual_tangent_md(g, mat, CellHistory::NONE, &lp, &mut rp, None)
                     .unwrap();
-                let em = cell_residual_tangent_md(&g, mat, CellHistory::NONE, &lm, &mut rm, None)
+                let em = cell_residual_tangent_md(g, mat, CellHistory::NONE, &lm, &mut rm, None)
                     .unwrap();
                 worst_r = worst_r.max(((ep - em) / (2.0 * h) - r[j]).abs() * sc(j) / rmax);
-                for i in 0..32 {
+                for i in 0..nl {
                     let fd = (rp[i] - rm[i]) / (2.0 * h);
-                    worst_k = worst_k.max((fd - k[i * 32 + j]).abs() * sc(i) * sc(j) / kmax);
+                    worst_k = worst_k.max((fd - k[i * nl + j]).abs() * sc(i) * sc(j) / kmax);
                 }
             }
             eprintln!("{mat:?}: residual {worst_r:.2e}, tangent {worst_k:.2e}");
             assert!(worst_r < 1e-6, "residual vs energy: {worst_r:e}");
             assert!(worst_k < 1e-6, "tangent vs residual: {worst_k:e}");
-            for i in 0..32 {
-                for j in 0..32 {
-                    assert!((k[i * 32 + j] - k[j * 32 + i]).abs() <= 1e-12 * kmax);
+            for i in 0..nl {
+                for j in 0..nl {
+                    assert!((k[i * nl + j] - k[j * nl + i]).abs() <= 1e-12 * kmax);
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn residual_and_tangent_are_consistent() {
+        let (g, local) = cell();
+        check_consistency(&g, &local);
+    }
+
+    /// The same on meridian cells (quad4 and quad9 touching the axis and off it), whose θ̄ and
+    /// forces carry the hoop stretch; the held third slot has no residual.
+    #[test]
+    fn meridian_residual_and_tangent_are_consistent() {
+        use crate::fem::axisymmetric::{meridian_geometry, MeridianKind};
+        for kind in [MeridianKind::Quad4, MeridianKind::Quad9] {
+            for r0 in [0.0, 0.8e-3] {
+                let x: Vec<[f64; 2]> = kind
+                    .reference_nodes()
+                    .iter()
+                    .map(|p| {
+                        let (s, t) = (0.5 * (p[0] + 1.0), 0.5 * (p[1] + 1.0));
+                        [r0 + 1e-3 * s * (1.0 + 0.1 * t), 1e-3 * (t + 0.05 * s)]
+                    })
+                    .collect();
+                let g = meridian_geometry(kind, &x).unwrap();
+                let e_scale = (1e5f64 / (4.7 * EPSILON_0)).sqrt();
+                let mut local = vec![0.0; 4 * x.len()];
+                for (i, v) in local.iter_mut().enumerate() {
+                    let r = ((i as f64 * 12.9898).sin() * 43758.5453).fract();
+                    *v = match i % 4 {
+                        3 => 0.3 * e_scale * 1e-3 * r,
+                        2 => 0.0,
+                        // u_r = 0 on the axis
+                        0 if x[i / 4][0] == 0.0 => 0.0,
+                        _ => 0.1 * 1e-3 * r,
+                    };
+                }
+                check_consistency(&g, &local);
+                let mut r = vec![0.0; local.len()];
+                cell_residual_tangent_md(
+                    &g,
+                    materials()[0].as_ref(),
+                    CellHistory::NONE,
+                    &local,
+                    &mut r,
+                    None,
+                )
+                .unwrap();
+                assert!(r.iter().skip(2).step_by(4).all(|&v| v == 0.0));
             }
         }
     }

@@ -23,6 +23,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
     ),
     ("diaphragm", include_str!("../../scenarios/diaphragm.toml")),
     (
+        "diaphragm-3d",
+        include_str!("../../scenarios/diaphragm-3d.toml"),
+    ),
+    (
         "diaphragm-response",
         include_str!("../../scenarios/diaphragm-response.toml"),
     ),

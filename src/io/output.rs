@@ -11,6 +11,7 @@ use crate::element::CellFields;
 use crate::job::linear::FrequencyResponse;
 use crate::job::run::{LimitRecord, Observer, PathRecord, RunSummary, StepRecord};
 use crate::time::modal::Mode;
+use rayon::prelude::*;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -637,20 +638,26 @@ impl OutputWriter {
                 ));
             }
         }
-        for (file, title, ylabel, series, xlabel) in plots {
-            let path = self.dir.join("plots").join(format!("{file}.{ext}"));
-            let spec = PlotSpec {
-                title: &title,
-                x_label: &xlabel,
-                y_label: &ylabel,
-                series: std::slice::from_ref(&series),
-            };
-            if let Err(e) = line_plot(&path, &spec) {
-                self.plot_error(e);
-            }
+        // the plots are independent files: drawn on the pool's threads
+        let dir = self.dir.join("plots");
+        let errors: Vec<PlotError> = plots
+            .par_iter()
+            .filter_map(|(file, title, ylabel, series, xlabel)| {
+                let path = dir.join(format!("{file}.{ext}"));
+                let spec = PlotSpec {
+                    title,
+                    x_label: xlabel,
+                    y_label: ylabel,
+                    series: std::slice::from_ref(series),
+                };
+                line_plot(&path, &spec).err()
+            })
+            .collect();
+        for e in errors {
+            self.plot_error(e);
         }
         // dynamic stages: every probe above the voltage, over the stage only
-        let mut stage_errors = Vec::new();
+        let mut panels_to_draw = Vec::new();
         for stage in &plan.stages {
             if !matches!(
                 stage.kind,
@@ -680,31 +687,32 @@ impl OutputWriter {
                     y: rows.iter().map(|r| r.probes[i]).collect(),
                 };
                 let title = format!("{name} in stage {}", stage.name);
-                let path = self
-                    .dir
-                    .join("plots")
-                    .join(format!("{}_{name}_and_voltage.{ext}", stage.name));
+                let path = dir.join(format!("{}_{name}_and_voltage.{ext}", stage.name));
                 let y_label = probe_axis(name, &plan.probes[i].1);
+                panels_to_draw.push((path, title, y_label, probe, voltage.clone()));
+            }
+        }
+        let errors: Vec<PlotError> = panels_to_draw
+            .par_iter()
+            .filter_map(|(path, title, y_label, probe, voltage)| {
                 let panels = [
                     PlotSpec {
-                        title: &title,
+                        title,
                         x_label: "time [s]",
-                        y_label: &y_label,
-                        series: std::slice::from_ref(&probe),
+                        y_label,
+                        series: std::slice::from_ref(probe),
                     },
                     PlotSpec {
                         title: "largest electrode voltage",
                         x_label: "time [s]",
                         y_label: "voltage [V]",
-                        series: std::slice::from_ref(&voltage),
+                        series: std::slice::from_ref(voltage),
                     },
                 ];
-                if let Err(e) = stacked_plot(&path, &panels) {
-                    stage_errors.push(e);
-                }
-            }
-        }
-        for e in stage_errors {
+                stacked_plot(path, &panels).err()
+            })
+            .collect();
+        for e in errors {
             self.plot_error(e);
         }
     }

@@ -150,9 +150,15 @@ pub(super) fn prestretch(
     .unwrap_or(1.0 / (p.stretch * p.stretch));
     let mut guess = state.to_vec();
     for (n, x) in model.mesh.nodes.iter().enumerate() {
-        guess[n * FIELDS] = (p.stretch - 1.0) * x[0];
-        guess[n * FIELDS + 1] = (p.stretch - 1.0) * x[1];
-        guess[n * FIELDS + 2] = (thickness - 1.0) * x[2];
+        if model.is_axisymmetric() {
+            // (r, z) in the slots 0 and 1
+            guess[n * FIELDS] = (p.stretch - 1.0) * x[0];
+            guess[n * FIELDS + 1] = (thickness - 1.0) * x[1];
+        } else {
+            guess[n * FIELDS] = (p.stretch - 1.0) * x[0];
+            guess[n * FIELDS + 1] = (p.stretch - 1.0) * x[1];
+            guess[n * FIELDS + 2] = (thickness - 1.0) * x[2];
+        }
     }
     crate::problem::dofs::apply_dirichlet(&mut guess, &pre.dirichlet);
     let one = StepControl {

@@ -12,6 +12,10 @@ use crate::mesh::Mesh;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS};
 use rayon::prelude::*;
 
+/// Below this many cells the assembly runs on the calling thread: handing colours to the pool
+/// costs more than assembling the cells.
+const PARALLEL_MIN_CELLS: usize = 2048;
+
 /// A square sparse matrix in compressed sparse row form (full storage, sorted columns).
 #[derive(Debug, Clone)]
 pub struct CsrMatrix {
@@ -277,8 +281,18 @@ impl Assembler {
             }
             Ok(())
         };
-        for colour in &self.colours {
-            colour.par_iter().try_for_each_init(init, body)?;
+        if mesh.n_cells() < PARALLEL_MIN_CELLS || rayon::current_num_threads() == 1 {
+            // the same colour order as the parallel path: identical sums
+            let mut work = init();
+            for colour in &self.colours {
+                for c in colour {
+                    body(&mut work, c)?;
+                }
+            }
+        } else {
+            for colour in &self.colours {
+                colour.par_iter().try_for_each_init(init, body)?;
+            }
         }
         let mut work = init();
         for c in &self.serial {

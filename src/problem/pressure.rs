@@ -15,10 +15,16 @@
 //! and the second derivative follows by differentiating each cross product once more. The
 //! integrand is a polynomial of the face's shape functions: 2×2 Gauss points (quad4), 3 points
 //! (tri3) and the 6-point degree-4 rule (tri6) integrate it exactly.
+//!
+//! Axisymmetric models: a face is a side (r(ξ), z(ξ)) of a meridian cell sweeping a ring, and the
+//! volume of revolution is V = −s ∫ π r² z_ξ dξ (s orients (z_ξ, −r_ξ) along the body's outward
+//! normal), so ∂V/∂r_a = −s ∫ 2π r N_a z_ξ, ∂V/∂z_a = −s ∫ π r² N_a,ξ, and the second derivatives
+//! −s ∫ 2π N_a N_b z_ξ (r r), −s ∫ 2π r N_a N_b,ξ (r z); Gauss rules of 2 and 4 points integrate
+//! them exactly on 2- and 3-node sides. The axis closes the volume (r = 0 there).
 
 use crate::mesh::{FaceRef, Mesh};
 use crate::problem::dofs::FIELDS;
-use crate::problem::faces::{cross, dot, points, shape};
+use crate::problem::faces::{cross, dot, points, shape, side_points, side_shape};
 
 /// A pressure (Pa, positive pushing the faces away from the cavity) on faces of the mesh.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,6 +69,8 @@ pub struct SurfaceFace {
     pub nodes: Vec<usize>,
     pub reference: Vec<[f64; 3]>,
     pub sign: f64,
+    /// A side of a meridian cell (a ring surface of an axisymmetric model).
+    pub ring: bool,
 }
 
 /// The faces with their orientation, taken from the reference geometry: the body's outward
@@ -84,6 +92,24 @@ pub fn surface(mesh: &Mesh, list: &[FaceRef]) -> Vec<SurfaceFace> {
             };
             let cc = centroid(&mut cell.iter().map(|&n| mesh.nodes[n]));
             let fc = centroid(&mut x.iter().copied());
+            let out = [fc[0] - cc[0], fc[1] - cc[1], fc[2] - cc[2]];
+            if mesh.kind.meridian().is_some() {
+                // the side's tangent at its middle, turned clockwise: (z_ξ, −r_ξ)
+                let (_, d) = side_shape(nodes.len(), 0.0);
+                let t: [f64; 2] =
+                    std::array::from_fn(|i| (0..x.len()).map(|a| d[a] * x[a][i]).sum());
+                let sign = if t[1] * out[0] - t[0] * out[1] >= 0.0 {
+                    1.0
+                } else {
+                    -1.0
+                };
+                return SurfaceFace {
+                    nodes,
+                    reference: x,
+                    sign,
+                    ring: true,
+                };
+            }
             let (xi, eta) = if nodes.len() == 4 {
                 (0.0, 0.0)
             } else {
@@ -97,7 +123,6 @@ pub fn surface(mesh: &Mesh, list: &[FaceRef]) -> Vec<SurfaceFace> {
                     t2[i] += d[a][1] * p[i];
                 }
             }
-            let out = [fc[0] - cc[0], fc[1] - cc[1], fc[2] - cc[2]];
             let sign = if dot(cross(t1, t2), out) >= 0.0 {
                 1.0
             } else {
@@ -107,6 +132,7 @@ pub fn surface(mesh: &Mesh, list: &[FaceRef]) -> Vec<SurfaceFace> {
                 nodes,
                 reference: x,
                 sign,
+                ring: false,
             }
         })
         .collect()
@@ -126,6 +152,16 @@ pub fn enclosed_volume(faces: &[SurfaceFace], state: &[f64]) -> f64 {
     let mut v = 0.0;
     for f in faces {
         let x = positions(f, state);
+        if f.ring {
+            for (xi, w) in side_points(x.len()) {
+                let (s, d) = side_shape(x.len(), xi);
+                let (r, zx) = x.iter().enumerate().fold((0.0, 0.0), |(r, z), (a, p)| {
+                    (r + s[a] * p[0], z + d[a] * p[1])
+                });
+                v -= f.sign * w * std::f64::consts::PI * r * r * zx;
+            }
+            continue;
+        }
         for (xi, eta, w) in points(f.nodes.len()) {
             let (s, d) = shape(f.nodes.len(), xi, eta);
             let (mut p, mut t1, mut t2) = ([0.0; 3], [0.0; 3], [0.0; 3]);
@@ -157,6 +193,10 @@ pub fn add_pressure(
     for f in &load.faces {
         let n = f.nodes.len();
         let x = positions(f, state);
+        if f.ring {
+            add_ring_pressure(f, p, &x, residual, &mut tangent);
+            continue;
+        }
         // ∂V/∂x = −(s/3) ∂v/∂x; the residual gets −p ∂V/∂x = p s/3 ∂v/∂x
         let c = p * f.sign / 3.0;
         let mut k = vec![[[0.0; 3]; 3]; n * n];
@@ -207,6 +247,58 @@ pub fn add_pressure(
                                 k[a * n + b][i][j],
                             );
                         }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The contribution of one meridian side (module docs): residual −p ∂V/∂x and stiffness
+/// −p ∂²V/∂x∂x on the (r, z) slots of its nodes at current positions `x`.
+fn add_ring_pressure(
+    f: &SurfaceFace,
+    p: f64,
+    x: &[[f64; 3]],
+    residual: &mut [f64],
+    tangent: &mut Option<&mut dyn FnMut(usize, usize, f64)>,
+) {
+    let n = x.len();
+    let pi = std::f64::consts::PI;
+    // −p ∂V/∂x = p s ∫ (2π r N_a z_ξ, π r² N_a,ξ)
+    let c = p * f.sign;
+    let mut k = [[[0.0; 2]; 2]; 9];
+    for (xi, w) in side_points(n) {
+        let (s, d) = side_shape(n, xi);
+        let (mut r, mut zx) = (0.0, 0.0);
+        for (a, pa) in x.iter().enumerate() {
+            r += s[a] * pa[0];
+            zx += d[a] * pa[1];
+        }
+        for a in 0..n {
+            let base = f.nodes[a] * FIELDS;
+            residual[base] += c * w * 2.0 * pi * r * s[a] * zx;
+            residual[base + 1] += c * w * pi * r * r * d[a];
+        }
+        for a in 0..n {
+            for b in 0..n {
+                let m = &mut k[a * n + b];
+                m[0][0] += c * w * 2.0 * pi * s[a] * s[b] * zx;
+                m[0][1] += c * w * 2.0 * pi * r * s[a] * d[b];
+                m[1][0] += c * w * 2.0 * pi * r * s[b] * d[a];
+            }
+        }
+    }
+    if let Some(t) = tangent.as_deref_mut() {
+        for a in 0..n {
+            for b in 0..n {
+                for i in 0..2 {
+                    for j in 0..2 {
+                        t(
+                            f.nodes[a] * FIELDS + i,
+                            f.nodes[b] * FIELDS + j,
+                            k[a * n + b][i][j],
+                        );
                     }
                 }
             }
@@ -394,6 +486,95 @@ mod tests {
                         r[d],
                         follower[d]
                     );
+                }
+            }
+        }
+    }
+
+    /// Ring faces of an axisymmetric model: the outer sides of a solid cylinder enclose minus its
+    /// volume (closed by the axis), and so does its image under a uniform stretch; the cavity
+    /// of a half shell is the half ball, to the arc's discretisation.
+    #[test]
+    fn ring_volumes_of_a_cylinder_and_a_half_shell() {
+        use crate::mesh::meridian::{rectangle_mesh, sphere_meridian};
+        use crate::mesh::MeridianKind;
+        for kind in MeridianKind::ALL {
+            let (a, h) = (2e-3, 1e-3);
+            let mesh = rectangle_mesh(0.0, a, h, 3, 2, kind).unwrap();
+            let list: Vec<FaceRef> = ["outer", "top", "bottom"]
+                .iter()
+                .flat_map(|s| mesh.face_sets[*s].iter().copied())
+                .collect();
+            let faces = surface(&mesh, &list);
+            assert!(faces.iter().all(|f| f.ring));
+            let zero = vec![0.0; mesh.n_nodes() * FIELDS];
+            let v = enclosed_volume(&faces, &zero);
+            let exact = std::f64::consts::PI * a * a * h;
+            assert!((v + exact).abs() < 1e-13 * exact, "{kind:?}: {v}");
+            let (lr, lz) = (1.3, 0.8);
+            let mut state = zero.clone();
+            for (n, x) in mesh.nodes.iter().enumerate() {
+                state[n * FIELDS] = (lr - 1.0) * x[0];
+                state[n * FIELDS + 1] = (lz - 1.0) * x[1];
+            }
+            let v = enclosed_volume(&faces, &state);
+            assert!((v + exact * lr * lr * lz).abs() < 1e-13 * exact, "{kind:?}");
+            let shell = sphere_meridian(1e-2, 1.05e-2, 16, 1, kind).unwrap();
+            let cavity = surface(&shell, &shell.face_sets["inner"]);
+            let v = enclosed_volume(&cavity, &vec![0.0; shell.n_nodes() * FIELDS]);
+            let ball = 2.0 / 3.0 * std::f64::consts::PI * 1e-6;
+            let bound = if kind.is_quadratic() { 1e-6 } else { 5e-3 };
+            assert!(((v - ball) / ball).abs() < bound, "{kind:?}: {v} vs {ball}");
+        }
+    }
+
+    /// The ring pressure's residual is −p ∂V/∂x and its stiffness the derivative: central
+    /// differences on the inner sides of a half shell with a random displacement, every kind.
+    #[test]
+    fn ring_pressure_matches_finite_differences() {
+        use crate::mesh::meridian::sphere_meridian;
+        use crate::mesh::MeridianKind;
+        for kind in MeridianKind::ALL {
+            let mesh = sphere_meridian(1e-2, 1.1e-2, 3, 1, kind).unwrap();
+            let load = Pressure::new(surface(&mesh, &mesh.face_sets["inner"]), 2e3);
+            let mut state = wiggle(&mesh, 1e-3);
+            for v in state.iter_mut().skip(2).step_by(FIELDS) {
+                *v = 0.0;
+            }
+            let n = state.len();
+            let mut r = vec![0.0; n];
+            let mut k = vec![0.0; n * n];
+            let mut put = |i: usize, j: usize, v: f64| k[i * n + j] += v;
+            add_pressure(&load, 1.0, &state, &mut r, Some(&mut put));
+            let p = load.value;
+            let h = 1e-7;
+            let scale_r = r.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let scale_k = k.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale_r > 0.0 && scale_k > 0.0);
+            for d in (0..n).filter(|d| d % FIELDS < 2) {
+                let (mut plus, mut minus) = (state.clone(), state.clone());
+                plus[d] += h;
+                minus[d] -= h;
+                let dv = (enclosed_volume(&load.faces, &plus)
+                    - enclosed_volume(&load.faces, &minus))
+                    / (2.0 * h);
+                assert!(
+                    (r[d] + p * dv).abs() < 1e-6 * scale_r,
+                    "{kind:?} dof {d}: {} vs {}",
+                    r[d],
+                    -p * dv
+                );
+                let (mut rp, mut rm) = (vec![0.0; n], vec![0.0; n]);
+                add_pressure(&load, 1.0, &plus, &mut rp, None);
+                add_pressure(&load, 1.0, &minus, &mut rm, None);
+                for i in 0..n {
+                    let fd = (rp[i] - rm[i]) / (2.0 * h);
+                    assert!(
+                        (k[i * n + d] - fd).abs() < 1e-6 * scale_k,
+                        "{kind:?} K[{i}][{d}] = {} vs {fd}",
+                        k[i * n + d]
+                    );
+                    assert!((k[i * n + d] - k[d * n + i]).abs() < 1e-9 * scale_k);
                 }
             }
         }

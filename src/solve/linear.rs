@@ -168,6 +168,9 @@ impl std::fmt::Debug for FaerLdlt {
     }
 }
 
+/// Below this many unknowns the factorisation and the solves run on the calling thread.
+const PARALLEL_MIN_UNKNOWNS: usize = 20_000;
+
 impl Default for FaerLdlt {
     fn default() -> Self {
         Self::new()
@@ -267,6 +270,10 @@ impl LinearSolver for FaerLdlt {
             )
             .map_err(|e| LinearSolverError::Symbolic(format!("{e:?}")))?;
             self.l_values = vec![0.0; symbolic.len_val()];
+            if a.n < PARALLEL_MIN_UNKNOWNS {
+                // the pool's hand-offs cost more than a small factorisation
+                self.par = Par::Seq;
+            }
             let req = symbolic
                 .factorize_numeric_ldlt_scratch::<f64>(self.par, Spec::<LdltParams, f64>::default())
                 .or(symbolic.solve_in_place_scratch::<f64>(1, self.par));

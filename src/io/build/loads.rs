@@ -320,9 +320,18 @@ fn build_rigid(
         let key = format!("loads.rigid.{i}");
         let nodes = rigid_nodes(ctx, &key, r, &model.mesh, &rigid, supports)?;
         check_damping(ctx, s, &key, r)?;
-        // the translations; an axisymmetric body can only move along its axis (the tie of the
-        // radial slot is held as a whole by the axis node it contains, or keeps the rigid ring
-        // from stretching)
+        // the translations; an axisymmetric body can only move along its axis: the tie of the
+        // radial slot is held as a whole by the axis node the region must contain
+        if model.is_axisymmetric() && !nodes.iter().any(|&n| model.mesh.nodes[n][0] == 0.0) {
+            return Err(ctx.err(
+                format!("{key}.set"),
+                format!(
+                    "`{}` has no node on the axis: a rigid region of an axisymmetric model is a \
+                     central body (a pad) that moves along the axis",
+                    r.set
+                ),
+            ));
+        }
         let fields: &[Field] = if model.is_axisymmetric() {
             &[Field::Ux, Field::Uy]
         } else {
