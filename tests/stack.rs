@@ -372,7 +372,7 @@ fn stack_keys_are_validated() {
     assert!(e.contains("mesh.side") && e.contains("3 values"), "{e}");
     let e = err(&["mesh.radius=1e-3"]);
     assert!(
-        e.contains("mesh.radius") && e.contains("`disc` or `sphere`"),
+        e.contains("mesh.radius") && e.contains("`disc`, `sphere` or `rectangle`"),
         "{e}"
     );
     let e = err(&["mesh.grading=0.5"]);
