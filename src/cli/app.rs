@@ -772,8 +772,13 @@ fn print_estimate(plan: &Plan) -> Vec<String> {
                 e.trial_steps,
                 e.stages_timed
             );
+            let revolved = if plan.output.revolve.is_some() {
+                " (the section and its revolved view)"
+            } else {
+                ""
+            };
             println!(
-                "estimate: {} on disk: {} field files of {} and the history",
+                "estimate: {} on disk: {} field files of {}{revolved} and the history",
                 human_bytes(e.disk_bytes()),
                 e.field_files,
                 human_bytes(e.field_file_bytes as f64)
@@ -786,9 +791,15 @@ fn print_estimate(plan: &Plan) -> Vec<String> {
                 ));
             }
             if e.disk_bytes() > LARGE_OUTPUT_BYTES {
+                let smaller = if plan.output.revolve.is_some() {
+                    "; fewer `output.revolve_wedges` or `output.revolve = false` shrink the \
+                     revolved view"
+                } else {
+                    ""
+                };
                 warnings.push(format!(
                     "the outputs may take {}: a larger `output.fields_every` writes fewer \
-                     field files",
+                     field files{smaller}",
                     human_bytes(e.disk_bytes())
                 ));
             }

@@ -33,7 +33,8 @@ pub struct Estimate {
     pub run_s: f64,
     /// Nominal steps of the whole run.
     pub steps: usize,
-    /// Size of one field file (bytes).
+    /// Size of the field files of one written state (bytes): the section's file and, for an
+    /// axisymmetric model, its revolved view.
     pub field_file_bytes: u64,
     /// Field files the run writes.
     pub field_files: usize,
@@ -154,11 +155,13 @@ impl Drop for Scratch {
     }
 }
 
-/// The largest regular file in `dir` (bytes), 0 when there is none.
-fn largest_file(dir: &Path) -> u64 {
+/// The largest regular file in `dir` whose name starts with `prefix` (bytes), 0 when there is
+/// none.
+fn largest_file(dir: &Path, prefix: &str) -> u64 {
     std::fs::read_dir(dir)
         .map(|r| {
             r.flatten()
+                .filter(|e| e.file_name().to_string_lossy().starts_with(prefix))
                 .filter_map(|e| e.metadata().ok())
                 .filter(|m| m.is_file())
                 .map(|m| m.len())
@@ -226,7 +229,10 @@ pub fn estimate(plan: &Plan) -> Result<Estimate, String> {
         stages_timed: timed,
         run_s,
         steps,
-        field_file_bytes: largest_file(&scratch.0.join("fields")),
+        field_file_bytes: ["step_", "revolved_"]
+            .iter()
+            .map(|p| largest_file(&scratch.0.join("fields"), p))
+            .sum(),
         field_files: field_files(plan, records),
         history_bytes: history / clock.times.len().max(1) as u64 * records as u64,
     })

@@ -10,5 +10,6 @@ pub mod memory;
 pub mod output;
 pub mod periods;
 pub mod plot;
+pub mod revolve;
 pub mod scenario;
 pub mod vtu;

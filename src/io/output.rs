@@ -1,11 +1,13 @@
-//! The output directory of a run: `history.csv`, `summary.json`, `fields.pvd` + `fields/*.vtu`,
-//! `plots/`. Every file is written to a temporary name and renamed, so an interrupted run leaves
-//! valid files. Only converged steps reach the writer.
+//! The output directory of a run: `history.csv`, `summary.json`, `fields.pvd` +
+//! `fields/step_*.vtu` (for an axisymmetric model also the revolved view, `fields_revolved.pvd` +
+//! `fields/revolved_*.vtu`), `plots/`. Every file is written to a temporary name and renamed, so
+//! an interrupted run leaves valid files. Only converged steps reach the writer.
 
 use super::atomic::write_atomic;
 use super::build::Plan;
 use super::linear::{write_modes, write_response};
 use super::plot::{line_plot, stacked_plot, PlotError, PlotSpec, Series};
+use super::revolve::{Components, RevolvedMesh};
 use super::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuError, VtuPiece};
 use crate::element::CellFields;
 use crate::job::linear::FrequencyResponse;
@@ -36,6 +38,10 @@ pub struct OutputWriter {
     dir: PathBuf,
     records: Vec<StepRecord>,
     pvd: Vec<(f64, String)>,
+    /// The entries of `fields_revolved.pvd` (axisymmetric models).
+    pvd_revolved: Vec<(f64, String)>,
+    /// The revolved mesh, built at the first field file of an axisymmetric model.
+    revolved: Option<RevolvedMesh>,
     steps_seen: usize,
     last_flush: Instant,
     /// When the writer was created (the provisional summary's wall time).
@@ -62,6 +68,17 @@ pub struct OutputWriter {
     limits: Vec<LimitRecord>,
 }
 
+/// The arrays of one field file of the meridian section, for its revolved view: nodal
+/// (u_r, u_z, 0) and Φ, and per cell e, the three stress tensors (total, mechanical, Maxwell) and
+/// J, components in (R, Z, Θ).
+struct Section<'a> {
+    disp: &'a [f64],
+    phi: &'a [f64],
+    e: &'a [f64],
+    tensors: [&'a [f64]; 3],
+    j: &'a [f64],
+}
+
 /// Name and SI unit of the parameter of continuation stage `stage`.
 fn path_parameter(plan: &Plan, stage: &str) -> (String, &'static str) {
     plan.stages
@@ -81,11 +98,18 @@ fn is_plot(name: &str) -> bool {
     name.ends_with(".png") || name.ends_with(".svg")
 }
 
-/// Whether a file name is a field file `step_NNNNN.vtu`.
-fn is_field_file(name: &str) -> bool {
+/// The number NNNNN of a field file `step_NNNNN.vtu` or `revolved_NNNNN.vtu`.
+fn field_file_index(name: &str) -> Option<usize> {
     name.strip_prefix("step_")
+        .or_else(|| name.strip_prefix("revolved_"))
         .and_then(|r| r.strip_suffix(".vtu"))
-        .is_some_and(|d| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit()))
+        .filter(|d| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit()))
+        .and_then(|d| d.parse().ok())
+}
+
+/// Whether a file name is a field file `step_NNNNN.vtu` or `revolved_NNNNN.vtu`.
+fn is_field_file(name: &str) -> bool {
+    field_file_index(name).is_some()
 }
 
 /// Removes a file; a missing one is fine.
@@ -120,8 +144,9 @@ impl OutputWriter {
     /// Checks that `dir` may receive the results of scenario `name`: refused when it holds the
     /// results of a different scenario (its `summary.json` names another scenario) unless
     /// `overwrite`. Results of the same scenario are replaced: deasim's own files of the earlier
-    /// run are deleted (`summary.json`, `history.csv`, `periods.csv`, `fields.pvd`, `fields/step_NNNNN.vtu`,
-    /// `plots/*.png` and `plots/*.svg`), so that no stale step, plot or probe remains; other
+    /// run are deleted (`summary.json`, `history.csv`, `periods.csv`, `fields.pvd`,
+    /// `fields_revolved.pvd`, `fields/step_NNNNN.vtu`, `fields/revolved_NNNNN.vtu`, `plots/*.png`
+    /// and `plots/*.svg`), so that no stale step, plot or probe remains; other
     /// files in the directory are left alone.
     pub fn check_directory(dir: &Path, name: &str, overwrite: bool) -> Result<(), String> {
         let summary = dir.join("summary.json");
@@ -161,6 +186,7 @@ impl OutputWriter {
         }
         for f in [
             "fields.pvd",
+            "fields_revolved.pvd",
             "history.csv",
             "electrodes.csv",
             "periods.csv",
@@ -191,6 +217,8 @@ impl OutputWriter {
             dir: dir.to_path_buf(),
             records: Vec::new(),
             pvd: Vec::new(),
+            pvd_revolved: Vec::new(),
+            revolved: None,
             steps_seen: 0,
             last_flush: Instant::now(),
             started: Instant::now(),
@@ -437,11 +465,112 @@ impl OutputWriter {
         };
         match write_vtu_as(&self.dir.join("fields").join(&name), &piece, encoding) {
             Ok(()) => {
+                let index = self.pvd.len();
                 self.pvd.push((record.time, format!("fields/{name}")));
                 if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
                     self.vtu_error(e);
                 }
                 self.last_written_step = Some(self.steps_seen);
+                let section = Section {
+                    disp: &disp,
+                    phi: &phi,
+                    e: &e,
+                    tensors: [&sigma, &sigma_mech, &maxwell],
+                    j: &j,
+                };
+                self.write_revolved(plan, record.time, index, &section, encoding);
+            }
+            Err(e) => self.vtu_error(e),
+        }
+    }
+
+    /// The revolved view of field file `index` of an axisymmetric model (nothing for a 3-D
+    /// model or with `output.revolve = false`): `fields/revolved_NNNNN.vtu` and
+    /// `fields_revolved.pvd`. It only reads the section's arrays.
+    fn write_revolved(
+        &mut self,
+        plan: &Plan,
+        time: f64,
+        index: usize,
+        s: &Section,
+        encoding: Encoding,
+    ) {
+        let Some(revolve) = plan.output.revolve else {
+            return;
+        };
+        if self.revolved.is_none() {
+            self.revolved = RevolvedMesh::new(&plan.model.mesh, revolve);
+        }
+        let Some(mesh) = &self.revolved else {
+            return;
+        };
+        let disp = mesh.point_array(Components::Vector, s.disp);
+        let phi = mesh.point_array(Components::Scalar, s.phi);
+        let e = mesh.cell_array(Components::Vector, s.e);
+        let [sigma, sigma_mech, maxwell] =
+            s.tensors.map(|t| mesh.cell_array(Components::Tensor, t));
+        let j = mesh.cell_array(Components::Scalar, s.j);
+        let states = mesh.named_cell_scalars(&self.point_states);
+        let mut piece = VtuPiece {
+            points: &mesh.points,
+            cell_type: mesh.cell_type,
+            connectivity: &mesh.connectivity,
+            point_data: vec![
+                DataArray {
+                    name: "displacement",
+                    components: 3,
+                    values: &disp,
+                },
+                DataArray {
+                    name: "potential",
+                    components: 1,
+                    values: &phi,
+                },
+            ],
+            cell_data: vec![
+                DataArray {
+                    name: "electric_field",
+                    components: 3,
+                    values: &e,
+                },
+                DataArray {
+                    name: "cauchy_stress",
+                    components: 9,
+                    values: &sigma,
+                },
+                DataArray {
+                    name: "mechanical_stress",
+                    components: 9,
+                    values: &sigma_mech,
+                },
+                DataArray {
+                    name: "maxwell_stress",
+                    components: 9,
+                    values: &maxwell,
+                },
+                DataArray {
+                    name: "J",
+                    components: 1,
+                    values: &j,
+                },
+            ],
+        };
+        for (n, values) in &states {
+            piece.cell_data.push(DataArray {
+                name: n,
+                components: 1,
+                values,
+            });
+        }
+        let name = format!("revolved_{index:05}.vtu");
+        let result = write_vtu_as(&self.dir.join("fields").join(&name), &piece, encoding);
+        match result {
+            Ok(()) => {
+                self.pvd_revolved.push((time, format!("fields/{name}")));
+                if let Err(e) = write_pvd(&self.dir.join("fields_revolved.pvd"), &self.pvd_revolved)
+                {
+                    self.vtu_error(e);
+                }
             }
             Err(e) => self.vtu_error(e),
         }
@@ -868,8 +997,9 @@ impl Observer for OutputWriter {
 
     /// Takes over the records of the run before the checkpoint: rebuilds the PVD index of the
     /// field files written for them, deletes deasim's own field files beyond it (written by the
-    /// killed run after the checkpoint) and rewrites `history.csv` and `fields.pvd`, so that no
-    /// row or entry is duplicated.
+    /// killed run after the checkpoint) and rewrites `history.csv`, `fields.pvd` and (revolved
+    /// view) `fields_revolved.pvd` with the revolved files that exist, so that no row or entry is
+    /// duplicated.
     fn resumed(
         &mut self,
         plan: &Plan,
@@ -880,6 +1010,7 @@ impl Observer for OutputWriter {
         self.records = records.to_vec();
         self.steps_seen = records.len();
         self.pvd.clear();
+        self.pvd_revolved.clear();
         self.last_written_step = None;
         if let Some(last) = records.last() {
             self.last_state = Some((last.clone(), state.to_vec(), fields.to_vec()));
@@ -889,20 +1020,21 @@ impl Observer for OutputWriter {
             // as `step` wrote them: every `every`-th record and the last of each finished stage
             let stage_end = records.get(i + 1).is_some_and(|n| n.stage != r.stage);
             if every > 0 && (i.is_multiple_of(every) || stage_end) {
+                let index = self.pvd.len();
                 self.pvd
-                    .push((r.time, format!("fields/step_{:05}.vtu", self.pvd.len())));
+                    .push((r.time, format!("fields/step_{index:05}.vtu")));
+                // the revolved view of the files the earlier run wrote
+                let revolved = format!("fields/revolved_{index:05}.vtu");
+                if plan.output.revolve.is_some() && self.dir.join(&revolved).is_file() {
+                    self.pvd_revolved.push((r.time, revolved));
+                }
                 self.last_written_step = Some(i);
             }
         }
         if let Ok(entries) = std::fs::read_dir(self.dir.join("fields")) {
             for e in entries.flatten() {
                 let n = e.file_name().to_string_lossy().into_owned();
-                let index = n
-                    .strip_prefix("step_")
-                    .and_then(|r| r.strip_suffix(".vtu"))
-                    .filter(|d| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit()))
-                    .and_then(|d| d.parse::<usize>().ok());
-                if index.is_some_and(|i| i >= self.pvd.len()) {
+                if field_file_index(&n).is_some_and(|i| i >= self.pvd.len()) {
                     if let Err(err) = std::fs::remove_file(e.path()) {
                         self.errors.push(format!("{}: {err}", e.path().display()));
                     }
@@ -911,6 +1043,12 @@ impl Observer for OutputWriter {
         }
         if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
             self.vtu_error(e);
+        }
+        if plan.output.revolve.is_some() {
+            let path = self.dir.join("fields_revolved.pvd");
+            if let Err(e) = write_pvd(&path, &self.pvd_revolved) {
+                self.vtu_error(e);
+            }
         }
         self.write_history(plan);
     }

@@ -633,6 +633,15 @@ pub struct OutputSpec {
     /// Encoding of the `.vtu` field files: `binary` (default) or `ascii`.
     #[serde(default)]
     pub vtu_format: Option<String>,
+    /// Axisymmetric models only: also write the revolved 3-D view (default true).
+    #[serde(default)]
+    pub revolve: Option<bool>,
+    /// Axisymmetric models only: the angle the revolved view sweeps, degrees (default 270).
+    #[serde(default)]
+    pub revolve_sector: Option<f64>,
+    /// Axisymmetric models only: wedges of the revolved view (default one per 10°).
+    #[serde(default)]
+    pub revolve_wedges: Option<u64>,
 }
 
 fn one() -> u64 {
@@ -652,6 +661,9 @@ impl Default for OutputSpec {
             plots: true,
             plot_format: png(),
             vtu_format: None,
+            revolve: None,
+            revolve_sector: None,
+            revolve_wedges: None,
         }
     }
 }

@@ -148,6 +148,20 @@ pub struct OutputPlan {
     pub plot_format: String,
     /// How the arrays of the field files are written.
     pub fields_format: FieldFormat,
+    /// The revolved 3-D view written beside every field file of an axisymmetric model (`None`:
+    /// not written; always `None` for a 3-D model).
+    pub revolve: Option<Revolve>,
+}
+
+/// How the meridian section of an axisymmetric model is swept about its axis for the revolved
+/// view (`output.revolve_sector`, `output.revolve_wedges`). Output only: the solution never
+/// reads it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Revolve {
+    /// The swept angle in degrees, in (0, 360]; 360 closes the ring.
+    pub sector_deg: f64,
+    /// The wedges the sector is divided into (at least 1, each at most 120°).
+    pub wedges: usize,
 }
 
 /// The encoding of the field files' arrays (`output.vtu_format`).

@@ -138,7 +138,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         }
     }
     let probes = probes::build_probes(&ctx, s, &model, &electrodes)?;
-    let output = build_output(&ctx, &s.output)?;
+    let output = build_output(&ctx, &s.output, model.is_axisymmetric())?;
     warnings.extend(stages::aliasing_warnings(&stages, &electrodes));
     Ok(Plan {
         name: s.name.clone(),
@@ -186,8 +186,8 @@ fn check_name(ctx: &Ctx, name: &str) -> Result<(), InputError> {
     Ok(())
 }
 
-/// `[output]` → the output settings.
-fn build_output(ctx: &Ctx, o: &OutputSpec) -> Result<OutputPlan, InputError> {
+/// `[output]` → the output settings; `axisymmetric` allows the keys of the revolved view.
+fn build_output(ctx: &Ctx, o: &OutputSpec, axisymmetric: bool) -> Result<OutputPlan, InputError> {
     if !["png", "svg"].contains(&o.plot_format.as_str()) {
         return Err(ctx.err(
             "output.plot_format",
@@ -211,7 +211,76 @@ fn build_output(ctx: &Ctx, o: &OutputSpec) -> Result<OutputPlan, InputError> {
         plots: o.plots,
         plot_format: o.plot_format.clone(),
         fields_format,
+        revolve: build_revolve(ctx, o, axisymmetric)?,
     })
+}
+
+/// Largest number of wedges of the revolved view (0.5° each over a full turn).
+pub const MAX_REVOLVE_WEDGES: u64 = 720;
+
+/// Largest angle of one wedge of the revolved view (degrees): a straight chord across a wider
+/// angle would flatten the ring.
+pub const MAX_WEDGE_DEG: f64 = 120.0;
+
+/// The revolved view of an axisymmetric model (`output.revolve*`): on by default, 270° (the cut
+/// shows the meridian section) in one wedge per 10°. The keys are refused for a 3-D model.
+fn build_revolve(
+    ctx: &Ctx,
+    o: &OutputSpec,
+    axisymmetric: bool,
+) -> Result<Option<crate::job::plan::Revolve>, InputError> {
+    if !axisymmetric {
+        let given = [
+            ("output.revolve", o.revolve.is_some()),
+            ("output.revolve_sector", o.revolve_sector.is_some()),
+            ("output.revolve_wedges", o.revolve_wedges.is_some()),
+        ];
+        if let Some((key, _)) = given.iter().find(|(_, g)| *g) {
+            return Err(ctx.err(
+                *key,
+                "the revolved view is for axisymmetric models (`mesh.geometry = \"axisymmetric\"`); \
+                 a 3-D model's field files already show the whole body: remove the key",
+            ));
+        }
+        return Ok(None);
+    }
+    let sector = o.revolve_sector.unwrap_or(270.0);
+    if !(sector.is_finite() && sector > 0.0 && sector <= 360.0) {
+        return Err(ctx.err(
+            "output.revolve_sector",
+            format!(
+                "must be an angle in degrees with 0 < angle ≤ 360; got {}",
+                crate::units::Short(sector)
+            ),
+        ));
+    }
+    let fewest = (sector / MAX_WEDGE_DEG).ceil().max(1.0) as u64;
+    let wedges = match o.revolve_wedges {
+        None => ((sector / 10.0).ceil() as u64).clamp(fewest, MAX_REVOLVE_WEDGES),
+        Some(w) if w > MAX_REVOLVE_WEDGES => {
+            return Err(ctx.err(
+                "output.revolve_wedges",
+                format!("must be at most {MAX_REVOLVE_WEDGES}; got {w}"),
+            ))
+        }
+        Some(w) if w < fewest => {
+            return Err(ctx.err(
+                "output.revolve_wedges",
+                format!(
+                    "must be at least {fewest} for a sector of {}° (one wedge spans at most \
+                     {MAX_WEDGE_DEG}°); got {w}",
+                    crate::units::Short(sector)
+                ),
+            ))
+        }
+        Some(w) => w,
+    };
+    Ok(o.revolve
+        .unwrap_or(true)
+        .then_some(crate::job::plan::Revolve {
+            sector_deg: sector,
+            wedges: wedges as usize,
+        }))
 }
 
 /// What every concern builder shares: the file name of the messages, and the common checks.
@@ -417,6 +486,100 @@ mod tests {
         assert_rejected(&with, "name", "without `/`");
         assert_rejected(&[("name", "name = \"..\"")], "name", "not `.` or `..`");
         assert_rejected(&[("name", "name = \"  \"")], "name", "non-empty name");
+    }
+
+    /// The sections of a small axisymmetric film (a 2 × 1 quad4 rectangle) and `output`.
+    fn axisymmetric(output: &str) -> Vec<(&'static str, String)> {
+        vec![
+            (
+                "mesh",
+                "[mesh]\ngeometry = \"axisymmetric\"\ngenerator = \"rectangle\"\nradius = 0.01\n\
+                 thickness = 0.001\nradial = 2\nlayers = 1"
+                    .to_string(),
+            ),
+            (
+                "constraints",
+                "[[constraints]]\nset = \"bottom\"\nfix = [\"z\"]".to_string(),
+            ),
+            (
+                "electrodes",
+                "[electrodes.top]\nset = \"top\"\nvoltage = 1000.0\n\
+                 [electrodes.bottom]\nset = \"bottom\"\nvoltage = 0.0"
+                    .to_string(),
+            ),
+            ("output", output.to_string()),
+        ]
+    }
+
+    fn revolve_of(output: &str) -> Option<crate::job::plan::Revolve> {
+        let sections = axisymmetric(output);
+        let with: Vec<(&str, &str)> = sections.iter().map(|(k, v)| (*k, v.as_str())).collect();
+        plan(&with).output.revolve
+    }
+
+    #[test]
+    fn the_revolved_view_defaults_to_270_degrees_in_10_degree_wedges() {
+        use crate::job::plan::Revolve;
+        let r = |sector_deg, wedges| Some(Revolve { sector_deg, wedges });
+        assert_eq!(revolve_of(""), r(270.0, 27));
+        assert_eq!(revolve_of("[output]\nrevolve_sector = 360"), r(360.0, 36));
+        assert_eq!(revolve_of("[output]\nrevolve_sector = 45.0"), r(45.0, 5));
+        assert_eq!(revolve_of("[output]\nrevolve_sector = 0.5"), r(0.5, 1));
+        assert_eq!(
+            revolve_of("[output]\nrevolve_sector = 360\nrevolve_wedges = 3"),
+            r(360.0, 3)
+        );
+        assert_eq!(revolve_of("[output]\nrevolve = false"), None);
+        // a 3-D model has none
+        assert_eq!(plan(&[]).output.revolve, None);
+    }
+
+    #[test]
+    fn revolved_view_keys_are_refused_for_3d_models_and_out_of_range() {
+        for (line, key) in [
+            ("revolve = true", "output.revolve"),
+            ("revolve = false", "output.revolve"),
+            ("revolve_sector = 90", "output.revolve_sector"),
+            ("revolve_wedges = 4", "output.revolve_wedges"),
+        ] {
+            assert_rejected(
+                &[("output", &format!("[output]\n{line}"))],
+                key,
+                "the revolved view is for axisymmetric models",
+            );
+        }
+        let rejected = |output: &str, key: &str, expected: &str| {
+            let sections = axisymmetric(output);
+            let with: Vec<(&str, &str)> = sections.iter().map(|(k, v)| (*k, v.as_str())).collect();
+            assert_rejected(&with, key, expected);
+        };
+        for sector in ["0", "-90", "361", "nan", "inf"] {
+            rejected(
+                &format!("[output]\nrevolve_sector = {sector}"),
+                "output.revolve_sector",
+                "0 < angle ≤ 360",
+            );
+        }
+        rejected(
+            "[output]\nrevolve_wedges = 0",
+            "output.revolve_wedges",
+            "must be at least 3 for a sector of 270°",
+        );
+        rejected(
+            "[output]\nrevolve_sector = 360\nrevolve_wedges = 2",
+            "output.revolve_wedges",
+            "must be at least 3 for a sector of 360°",
+        );
+        rejected(
+            "[output]\nrevolve_sector = 90\nrevolve_wedges = 0",
+            "output.revolve_wedges",
+            "must be at least 1",
+        );
+        rejected(
+            "[output]\nrevolve_wedges = 721",
+            "output.revolve_wedges",
+            "must be at most 720; got 721",
+        );
     }
 
     #[test]
