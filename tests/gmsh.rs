@@ -6,7 +6,8 @@
 //! interpolate the homogeneous state (linear in X) exactly and their quadrature integrates its
 //! constant stress exactly, so on the unstructured Gmsh meshes too every node must sit where the
 //! closed form puts it, to the Newton tolerance: |Δu|/X < 1e-8 and |ΔΦ| < 1e-9 V₀.
-//! The scenario path (`mesh.file`, `mesh.scale`, physical groups as sets) is run through the binary.
+//! The scenario path (`mesh.file`, `mesh.scale`, physical groups as sets) is run through the binary,
+//! for 3-D meshes and for the meridian meshes of axisymmetric models (tests/data/gmsh/meridian.geo).
 //! An internal surface (the embedded electrode of tests/data/gmsh/bilayer.geo) is a face set and an
 //! electrode like any other.
 
@@ -176,6 +177,48 @@ fn scenario_with_a_gmsh_file_runs() {
         let d = deasim::io::vtu::read_vtu(&vtu.path()).unwrap();
         assert!(d.types.iter().all(|&t| t == vtk), "{:?}", d.types);
         let _ = std::fs::remove_dir_all(&out_dir);
+    }
+}
+
+/// `deasim run` on tests/data/gmsh/meridian.toml (an axisymmetric model on a Gmsh meridian mesh,
+/// physical curves `top`/`bottom` as electrodes and supports), with `--set mesh.file=` switched to
+/// every meridian kind and format: the probes reach the closed form of the film (the homogeneous
+/// state is exact on every kind: u_r = (λ − 1)R, u_z = (t − 1)Z).
+#[test]
+fn axisymmetric_scenario_with_a_gmsh_meridian_file_runs() {
+    let reference = Film {
+        mu: FILM_MU,
+        lambda: FILM_LAMBDA,
+        eps: FILM_EPS_R * EPSILON_0,
+        c2: 0.0,
+    };
+    let s = reference.state(VOLTAGE / H).unwrap();
+    for kind in ["quad4", "quad8", "quad9", "tri3", "tri6"] {
+        for format in ["msh41", "msh22", "msh41-bin"] {
+            let file = format!("meridian-{kind}-{format}.msh");
+            let out_dir = tempdir(&format!("meridian-{kind}-{format}"));
+            let o = std::process::Command::new(env!("CARGO_BIN_EXE_deasim"))
+                .arg("run")
+                .arg(data("meridian.toml"))
+                .arg("--out")
+                .arg(&out_dir)
+                .args(["--set", &format!("mesh.file={file}")])
+                .output()
+                .unwrap();
+            let msg = String::from_utf8_lossy(&o.stderr).into_owned();
+            assert!(o.status.success(), "{file}: {msg}");
+            let summary: serde_json::Value = serde_json::from_str(
+                &std::fs::read_to_string(out_dir.join("summary.json")).unwrap(),
+            )
+            .unwrap();
+            let t = summary["probes"]["thickness_stretch"].as_f64().unwrap();
+            let l = summary["probes"]["radial_stretch"].as_f64().unwrap();
+            assert!(
+                (t - s.t).abs() < 1e-8 && (l - s.lambda).abs() < 1e-8,
+                "{file}: {t} {l}"
+            );
+            let _ = std::fs::remove_dir_all(&out_dir);
+        }
     }
 }
 

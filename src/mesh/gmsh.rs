@@ -1,12 +1,22 @@
 //! Gmsh mesh import: MSH 4.1 (ASCII and binary) and MSH 2.2 (ASCII).
 //!
-//! Volume elements become the cells (tet4, tet10 or hex8, one kind per file); physical groups by
-//! name become sets: a volume group a cell set (and the node set of its cells), a surface group
-//! (triangles, six-node triangles or quadrilaterals) a face set matched to the faces of the cells
-//! by their corner nodes (internal surfaces too: the face of the first adjacent cell), and the node
-//! set of those faces. Points and curves are ignored. Groups without a name are called
-//! `volume<tag>` and `surface<tag>`. Nodes are renumbered compactly in file order; nodes no cell
-//! uses are dropped. Node orders are converted to deasim's (VTK's) and inverted cells reordered.
+//! 3-D meshes ([`read_msh`]): volume elements become the cells (tet4, tet10 or hex8, one kind per
+//! file); physical groups by name become sets: a volume group a cell set (and the node set of its
+//! cells), a surface group (triangles, six-node triangles or quadrilaterals) a face set matched to
+//! the faces of the cells by their corner nodes (internal surfaces too: the face of the first
+//! adjacent cell), and the node set of those faces. Points and curves are ignored. Groups without a
+//! name are called `volume<tag>` and `surface<tag>`.
+//!
+//! Meridian meshes of axisymmetric models ([`read_msh_meridian`]): the surface elements of the
+//! x–y plane (x = R ≥ 0, y = Z) become the cells (quad4, quad8, quad9, tri3 or tri6, one kind per
+//! file); a physical surface becomes a cell set (and a node set), a physical curve a face set
+//! matched to the cell sides (and a node set), a physical point a node set. Unnamed groups are
+//! `surface<tag>`, `curve<tag>` and `point<tag>`. Nodes within 1e-12 of the mesh's extent of the
+//! axis are put on it (x = 0).
+//!
+//! Nodes are renumbered compactly in file order; nodes no cell uses are dropped. Node orders are
+//! converted to deasim's (VTK's for the 3-D kinds; the meridian kinds use Gmsh's) and inverted
+//! cells reordered.
 //!
 //! Errors name the line (ASCII) or byte offset (binary) and what was expected; the reader never
 //! panics, and its memory grows only with the bytes it has read, whatever counts the file claims.
@@ -52,19 +62,38 @@ pub struct GmshMesh {
     pub format: String,
 }
 
-/// Reads a `.msh` file; coordinates are multiplied by `scale` (1e-3 for a file drawn in mm).
+/// Reads a 3-D `.msh` file; coordinates are multiplied by `scale` (1e-3 for a file drawn in mm).
 pub fn read_msh(path: &Path, scale: f64) -> Result<GmshMesh, GmshError> {
+    read(path, scale, false)
+}
+
+/// Reads a 2-D `.msh` file as the meridian mesh of an axisymmetric model: its surface elements in
+/// the x–y plane with x = R ≥ 0, y = Z; coordinates are multiplied by `scale`.
+pub fn read_msh_meridian(path: &Path, scale: f64) -> Result<GmshMesh, GmshError> {
+    read(path, scale, true)
+}
+
+fn read(path: &Path, scale: f64, meridian: bool) -> Result<GmshMesh, GmshError> {
     let name = path.display().to_string();
     let data = std::fs::read(path).map_err(|e| GmshError {
         file: name.clone(),
         at: None,
         message: format!("cannot read: {e}"),
     })?;
-    parse_msh(&data, &name, scale)
+    parse(&data, &name, scale, meridian)
 }
 
-/// Parses the bytes of a `.msh` file; `file` names it in messages.
+/// Parses the bytes of a 3-D `.msh` file; `file` names it in messages.
 pub fn parse_msh(data: &[u8], file: &str, scale: f64) -> Result<GmshMesh, GmshError> {
+    parse(data, file, scale, false)
+}
+
+/// Parses the bytes of a 2-D `.msh` file as a meridian mesh (see [`read_msh_meridian`]).
+pub fn parse_msh_meridian(data: &[u8], file: &str, scale: f64) -> Result<GmshMesh, GmshError> {
+    parse(data, file, scale, true)
+}
+
+fn parse(data: &[u8], file: &str, scale: f64, meridian: bool) -> Result<GmshMesh, GmshError> {
     if !(scale.is_finite() && scale > 0.0) {
         return Err(GmshError {
             file: file.into(),
@@ -80,9 +109,14 @@ pub fn parse_msh(data: &[u8], file: &str, scale: f64) -> Result<GmshMesh, GmshEr
         binary: false,
         size_t: 8,
         swap: false,
+        meridian,
     };
     let raw = r.read_file()?;
-    raw.build(file, scale)
+    if meridian {
+        raw.build_meridian(file, scale)
+    } else {
+        raw.build(file, scale)
+    }
 }
 
 /// A physical-group membership of an element: through its entity (4.1) or its own tag (2.2).
@@ -108,7 +142,6 @@ enum Role {
     Unsupported,
 }
 
-/// (dimension, nodes, name, role) of a Gmsh element type.
 /// At most `max` bytes of `s`, cut at a character boundary (a message quotes the start of a
 /// token or line, which may hold multi-byte characters).
 fn clip(s: &str, max: usize) -> &str {
@@ -122,6 +155,7 @@ fn clip(s: &str, max: usize) -> &str {
     &s[..end]
 }
 
+/// (dimension, nodes, name, role) of a Gmsh element type.
 fn element_type(t: i32) -> Option<(i32, usize, &'static str, Role)> {
     use Role::*;
     Some(match t {
@@ -158,6 +192,37 @@ const SUPPORTED: &str =
     "deasim reads volume elements of types 4 (tet4), 11 (tet10) and 5 (hex8) and faces of types 2 \
      (triangle), 9 (6-node triangle) and 3 (quadrangle)";
 
+const MERIDIAN_SUPPORTED: &str =
+    "a meridian mesh holds surface elements of types 3 (quad4), 16 (quad8), 10 (quad9), 2 (tri3) \
+     or 9 (tri6), lines of types 1 (2-node, linear cells) or 8 (3-node, quadratic cells) and points";
+
+/// What an element of a meridian (2-D) file is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum MeridianRole {
+    Cell(MeridianKind),
+    Side,
+    Point,
+    Volume,
+    /// Another surface or line type.
+    Unsupported,
+}
+
+/// The role of a known element type of dimension `dim` in a meridian file.
+fn meridian_role(dim: i32, t: i32) -> MeridianRole {
+    use MeridianRole::*;
+    match t {
+        3 => Cell(MeridianKind::Quad4),
+        16 => Cell(MeridianKind::Quad8),
+        10 => Cell(MeridianKind::Quad9),
+        2 => Cell(MeridianKind::Tri3),
+        9 => Cell(MeridianKind::Tri6),
+        1 | 8 => Side,
+        15 => Point,
+        _ if dim == 3 => Volume,
+        _ => Unsupported,
+    }
+}
+
 struct Element {
     tag: u64,
     kind: ElementKind,
@@ -185,6 +250,15 @@ struct Raw {
     faces: Vec<Face>,
     /// Surface blocks of unsupported types: (entity, type, element tag), an error if physical.
     odd_faces: Vec<(Group, i32, u64)>,
+    /// Surface elements of a 3-D read (a file of only these is a 2-D mesh).
+    surfaces: u64,
+    /// Meridian read: the surface cells; the lines and points of groups, with all their nodes;
+    /// lines of other types (an error if physical); the first volume element (tag, type).
+    cells2d: Vec<Element>,
+    curves: Vec<Face>,
+    points: Vec<Face>,
+    odd_curves: Vec<(Group, i32, u64)>,
+    volume: Option<(u64, i32)>,
 }
 
 struct Reader<'a> {
@@ -195,6 +269,8 @@ struct Reader<'a> {
     binary: bool,
     size_t: usize,
     swap: bool,
+    /// Reading a meridian (2-D) mesh.
+    meridian: bool,
 }
 
 type Res<T> = Result<T, GmshError>;
@@ -397,6 +473,15 @@ impl<'a> Reader<'a> {
             self.double(what, section)
         } else {
             self.coord(what, section)
+        }
+    }
+
+    /// The element types this read accepts, for messages.
+    fn supported(&self) -> &'static str {
+        if self.meridian {
+            MERIDIAN_SUPPORTED
+        } else {
+            SUPPORTED
         }
     }
 
@@ -654,7 +739,7 @@ impl<'a> Reader<'a> {
                     continue;
                 }
                 None => {
-                    let msg = format!("unknown element type {t} ({SUPPORTED})");
+                    let msg = format!("unknown element type {t} ({})", self.supported());
                     return Err(if self.binary {
                         self.err_byte(at.1, msg)
                     } else {
@@ -666,10 +751,16 @@ impl<'a> Reader<'a> {
                     });
                 }
             };
-            if role == Role::Unsupported && dim == 3 {
+            let odd = if self.meridian {
+                dim == 2 && !matches!(meridian_role(dim, t), MeridianRole::Cell(_))
+            } else {
+                role == Role::Unsupported && dim == 3
+            };
+            if odd {
                 return Err(self.here(format!(
-                    "element type {t} ({}) is not supported: {SUPPORTED}",
-                    info.map_or("", |i| i.2)
+                    "element type {t} ({}) is not supported: {}",
+                    info.map_or("", |i| i.2),
+                    self.supported()
                 )));
             }
             if self.binary {
@@ -680,6 +771,13 @@ impl<'a> Reader<'a> {
                 let mut list = Vec::with_capacity(nodes);
                 for _ in 0..nodes {
                     list.push(self.sz("a node tag", S)?);
+                }
+                if self.meridian {
+                    raw.keep_meridian(dim, t, etag, list, Some(group));
+                    continue;
+                }
+                if dim == 2 {
+                    raw.surfaces += 1;
                 }
                 match role {
                     Role::Volume(kind) => raw.volumes.push(Element {
@@ -728,7 +826,8 @@ impl<'a> Reader<'a> {
             let t: i32 = self.num("an element type", S)?;
             let Some((dim, nodes, name, role)) = element_type(t) else {
                 return Err(self.err_line(format!(
-                    "element {etag}: unknown element type {t} ({SUPPORTED})"
+                    "element {etag}: unknown element type {t} ({})",
+                    self.supported()
                 )));
             };
             let n_tags: u64 = self.num("the number of tags", S)?;
@@ -741,6 +840,18 @@ impl<'a> Reader<'a> {
             let mut list = Vec::with_capacity(nodes);
             for _ in 0..nodes {
                 list.push(self.num::<u64>("a node tag", S)?);
+            }
+            if self.meridian {
+                if dim == 2 && !matches!(meridian_role(dim, t), MeridianRole::Cell(_)) {
+                    return Err(self.err_line(format!(
+                        "element {etag}: type {t} ({name}) is not supported: {MERIDIAN_SUPPORTED}"
+                    )));
+                }
+                raw.keep_meridian(dim, t, etag, list, (phys != 0).then_some(group));
+                continue;
+            }
+            if dim == 2 {
+                raw.surfaces += 1;
             }
             match role {
                 Role::Volume(kind) => raw.volumes.push(Element {
@@ -826,23 +937,78 @@ fn mirror(kind: ElementKind) -> &'static [usize] {
 }
 
 impl Raw {
+    /// `4.1 ASCII`, `4.1 binary` or `2.2 ASCII`.
+    fn format(&self) -> &'static str {
+        match self.version.unwrap_or((Version::V41, false)) {
+            (Version::V41, false) => "4.1 ASCII",
+            (Version::V41, true) => "4.1 binary",
+            (Version::V22, _) => "2.2 ASCII",
+        }
+    }
+
+    /// The physical groups (dimension, tag) an element belongs to.
+    fn groups_of(&self, g: Option<Group>) -> Vec<(i32, i32)> {
+        match g {
+            None => vec![],
+            Some(Group::Physical(d, t)) => vec![(d, t)],
+            Some(Group::Entity(d, t)) => self
+                .entity_groups
+                .get(&(d, t))
+                .map(|v| v.iter().map(|&p| (d, p)).collect())
+                .unwrap_or_default(),
+        }
+    }
+
+    /// Keeps an element of a meridian file: cells always, lines and points of a group.
+    fn keep_meridian(&mut self, dim: i32, t: i32, tag: u64, nodes: Vec<u64>, group: Option<Group>) {
+        match (meridian_role(dim, t), group) {
+            (MeridianRole::Cell(k), _) => self.cells2d.push(Element {
+                tag,
+                kind: ElementKind::Meridian(k),
+                nodes,
+                group,
+            }),
+            (MeridianRole::Side, Some(group)) => self.curves.push(Face {
+                tag,
+                corners: nodes,
+                group,
+            }),
+            (MeridianRole::Point, Some(group)) => self.points.push(Face {
+                tag,
+                corners: nodes,
+                group,
+            }),
+            (MeridianRole::Volume, _) => {
+                self.volume.get_or_insert((tag, t));
+            }
+            (MeridianRole::Unsupported, Some(group)) if dim == 1 => {
+                self.odd_curves.push((group, t, tag))
+            }
+            _ => {}
+        }
+    }
+
     fn build(self, file: &str, scale: f64) -> Res<GmshMesh> {
         let err = |message: String| GmshError {
             file: file.into(),
             at: None,
             message,
         };
-        let (version, binary) = self.version.unwrap_or((Version::V41, false));
-        let format = match (version, binary) {
-            (Version::V41, false) => "4.1 ASCII",
-            (Version::V41, true) => "4.1 binary",
-            (Version::V22, _) => "2.2 ASCII",
-        };
+        let format = self.format();
         let first = self.volumes.first().ok_or_else(|| {
-            err(format!(
-                "no volume elements: {SUPPORTED}; mesh the volumes (`gmsh -3`) and, if physical \
-                 groups are defined, put the volumes in one (`Physical Volume`)"
-            ))
+            if self.surfaces > 0 {
+                err(format!(
+                    "no volume elements, only surface elements ({}): a 2-D mesh, which deasim \
+                     reads as the meridian plane of an axisymmetric model; a 3-D mesh needs \
+                     volume elements: {SUPPORTED}",
+                    self.surfaces
+                ))
+            } else {
+                err(format!(
+                    "no volume elements: {SUPPORTED}; mesh the volumes (`gmsh -3`) and, if \
+                     physical groups are defined, put the volumes in one (`Physical Volume`)"
+                ))
+            }
         })?;
         let kind = first.kind;
         if let Some(o) = self.volumes.iter().find(|e| e.kind != kind) {
@@ -855,18 +1021,7 @@ impl Raw {
                 o.tag
             )));
         }
-        // the groups an element belongs to
-        let groups_of = |g: Option<Group>| -> Vec<(i32, i32)> {
-            match g {
-                None => vec![],
-                Some(Group::Physical(d, t)) => vec![(d, t)],
-                Some(Group::Entity(d, t)) => self
-                    .entity_groups
-                    .get(&(d, t))
-                    .map(|v| v.iter().map(|&p| (d, p)).collect())
-                    .unwrap_or_default(),
-            }
-        };
+        let groups_of = |g: Option<Group>| self.groups_of(g);
         for &(g, t, etag) in &self.odd_faces {
             if let Some((d, p)) = groups_of(Some(g)).first() {
                 let name = self.names.get(&(*d, *p)).cloned().unwrap_or(format!("{p}"));
@@ -1065,6 +1220,341 @@ impl Raw {
             reoriented,
             format: format.into(),
         })
+    }
+}
+
+impl Raw {
+    /// The meridian mesh of a 2-D file (see [`read_msh_meridian`]).
+    fn build_meridian(self, file: &str, scale: f64) -> Res<GmshMesh> {
+        let err = |message: String| GmshError {
+            file: file.into(),
+            at: None,
+            message,
+        };
+        if let Some((tag, t)) = self.volume {
+            let name = element_type(t).map_or("volume element", |i| i.2);
+            return Err(err(format!(
+                "element {tag} is a {name}: a 3-D mesh, not a meridian mesh ({MERIDIAN_SUPPORTED}, \
+                 in the x–y plane with x = R ≥ 0, y = Z)"
+            )));
+        }
+        let first = self.cells2d.first().ok_or_else(|| {
+            err(format!(
+                "no surface elements: {MERIDIAN_SUPPORTED}; mesh the surfaces (`gmsh -2`) and, if \
+                 physical groups are defined, put the surfaces in one (`Physical Surface`)"
+            ))
+        })?;
+        let kind = first.kind;
+        let ElementKind::Meridian(mk) = kind else {
+            return Err(err("internal: a surface cell of a 3-D kind".into()));
+        };
+        if let Some(o) = self.cells2d.iter().find(|e| e.kind != kind) {
+            return Err(err(format!(
+                "mixed surface element kinds: {} (element {}) and {} (element {}); deasim needs one \
+                 kind per mesh",
+                kind.name(),
+                first.tag,
+                o.kind.name(),
+                o.tag
+            )));
+        }
+        let dim_word = |d: i32| match d {
+            0 => "point",
+            1 => "curve",
+            2 => "surface",
+            _ => "volume",
+        };
+        let group_name = |(d, p): (i32, i32)| -> String {
+            self.names
+                .get(&(d, p))
+                .cloned()
+                .unwrap_or_else(|| format!("{}{p}", dim_word(d)))
+        };
+        for &(g, t, etag) in &self.odd_curves {
+            if let Some(&dp) = self.groups_of(Some(g)).first() {
+                return Err(err(format!(
+                    "element {etag} of physical curve `{}` has type {t}, not supported: \
+                     {MERIDIAN_SUPPORTED}",
+                    group_name(dp)
+                )));
+            }
+        }
+        let node_pos: HashMap<u64, usize> = self
+            .node_tags
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| (t, i))
+            .collect();
+        if node_pos.len() != self.node_tags.len() {
+            return Err(err("a node tag appears twice in $Nodes".into()));
+        }
+        // unique cells (MSH 2.2 repeats an element once per physical group), Gmsh node positions
+        let npc = kind.nodes_per_cell();
+        let mut cells: Vec<Vec<usize>> = Vec::new();
+        let mut cell_groups: Vec<Vec<(i32, i32)>> = Vec::new();
+        let mut cell_tags: Vec<u64> = Vec::new();
+        let mut by_nodes: HashMap<Vec<usize>, usize> = HashMap::new();
+        for e in &self.cells2d {
+            let mut pos = Vec::with_capacity(npc);
+            for &t in &e.nodes {
+                pos.push(*node_pos.get(&t).ok_or_else(|| {
+                    err(format!(
+                        "element {} refers to node {t}, which is not in $Nodes",
+                        e.tag
+                    ))
+                })?);
+            }
+            let mut key = pos.clone();
+            key.sort_unstable();
+            if key.windows(2).any(|w| w[0] == w[1]) {
+                return Err(err(format!("element {} repeats a node", e.tag)));
+            }
+            let c = *by_nodes.entry(key).or_insert_with(|| {
+                cells.push(pos);
+                cell_groups.push(Vec::new());
+                cell_tags.push(e.tag);
+                cells.len() - 1
+            });
+            cell_groups[c].extend(self.groups_of(e.group));
+        }
+        let (nodes, new_index) = self.meridian_nodes(&cells, &cell_tags, scale, &err)?;
+        let mut connectivity = Vec::with_capacity(cells.len() * npc);
+        let mut reoriented = 0;
+        let mut x = vec![[0.0; 3]; npc];
+        for (c, cell) in cells.iter().enumerate() {
+            let mut ids: Vec<usize> = cell.iter().map(|&p| new_index[p]).collect();
+            for (xa, &n) in x.iter_mut().zip(&ids) {
+                *xa = nodes[n];
+            }
+            let det = orientation(kind, &x);
+            if det.is_nan() || det == 0.0 {
+                return Err(err(format!(
+                    "surface element {} is degenerate (zero area)",
+                    cell_tags[c]
+                )));
+            }
+            if det < 0.0 {
+                ids = mirror(kind).iter().map(|&l| ids[l]).collect();
+                reoriented += 1;
+            }
+            connectivity.extend_from_slice(&ids);
+        }
+        // sets; named groups exist even when empty
+        let mut cell_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+        let mut face_sets: BTreeMap<String, Vec<FaceRef>> = BTreeMap::new();
+        let mut point_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+        for (&(d, _), name) in &self.names {
+            if d == 2 {
+                cell_sets.entry(name.clone()).or_default();
+            } else if d == 1 {
+                face_sets.entry(name.clone()).or_default();
+            } else if d == 0 {
+                point_sets.entry(name.clone()).or_default();
+            }
+        }
+        for (c, gs) in cell_groups.iter().enumerate() {
+            for &g in gs {
+                cell_sets.entry(group_name(g)).or_default().push(c);
+            }
+        }
+        // a node of the mesh by its tag, for the lines and points of groups
+        let node_of = |what: &str, tag: u64, t: u64, name: &str| -> Res<usize> {
+            let p = node_pos.get(&t).ok_or_else(|| {
+                err(format!(
+                    "{what} element {tag} refers to node {t}, which is not in $Nodes"
+                ))
+            })?;
+            match new_index[*p] {
+                usize::MAX => Err(err(format!(
+                    "{what} element {tag} of physical group `{name}` has node {t}, which no \
+                     surface element uses"
+                ))),
+                n => Ok(n),
+            }
+        };
+        let sides = mk.sides();
+        let mut side_of: HashMap<[usize; 2], FaceRef> = HashMap::new();
+        for c in 0..cells.len() {
+            let cell = &connectivity[c * npc..(c + 1) * npc];
+            for (f, local) in sides.iter().enumerate() {
+                let mut key = [cell[local[0]], cell[local[1]]];
+                key.sort_unstable();
+                side_of.entry(key).or_insert(FaceRef { cell: c, face: f });
+            }
+        }
+        for line in &self.curves {
+            let gs = self.groups_of(Some(line.group));
+            let Some(&g0) = gs.first() else {
+                continue;
+            };
+            let name = group_name(g0);
+            let quadratic = line.corners.len() == 3;
+            if quadratic != mk.is_quadratic() {
+                return Err(err(format!(
+                    "curve element {} of physical group `{name}` is a {}-node line, but the cells \
+                     are {}: {} cells have {}-node sides",
+                    line.tag,
+                    line.corners.len(),
+                    mk.name(),
+                    if mk.is_quadratic() {
+                        "quadratic"
+                    } else {
+                        "linear"
+                    },
+                    sides[0].len()
+                )));
+            }
+            let mut ids = Vec::with_capacity(line.corners.len());
+            for &t in &line.corners {
+                ids.push(node_of("curve", line.tag, t, &name)?);
+            }
+            let mut key = [ids[0], ids[1]];
+            key.sort_unstable();
+            let f = side_of.get(&key).ok_or_else(|| {
+                err(format!(
+                    "curve element {} of physical group `{name}` is not a side of a {} surface \
+                     element",
+                    line.tag,
+                    mk.name()
+                ))
+            })?;
+            if quadratic {
+                let mid = connectivity[f.cell * npc + sides[f.face][2]];
+                if ids[2] != mid {
+                    return Err(err(format!(
+                        "curve element {} of physical group `{name}`: its middle node {} is not \
+                         the mid-side node of the {} cell side it lies on",
+                        line.tag,
+                        line.corners[2],
+                        mk.name()
+                    )));
+                }
+            }
+            for g in gs {
+                face_sets.entry(group_name(g)).or_default().push(*f);
+            }
+        }
+        for point in &self.points {
+            let gs = self.groups_of(Some(point.group));
+            let Some(&g0) = gs.first() else {
+                continue;
+            };
+            let Some(&t) = point.corners.first() else {
+                continue;
+            };
+            let n = node_of("point", point.tag, t, &group_name(g0))?;
+            for g in gs {
+                point_sets.entry(group_name(g)).or_default().push(n);
+            }
+        }
+        let names = [
+            ("surface", cell_sets.keys().collect::<Vec<_>>()),
+            ("curve", face_sets.keys().collect()),
+            ("point", point_sets.keys().collect()),
+        ];
+        for (i, (a, na)) in names.iter().enumerate() {
+            for (b, nb) in &names[i + 1..] {
+                if let Some(n) = na.iter().find(|n| nb.contains(n)) {
+                    return Err(err(format!(
+                        "the physical name `{n}` names both a {a} and a {b} group"
+                    )));
+                }
+            }
+        }
+        cell_sets
+            .values_mut()
+            .chain(point_sets.values_mut())
+            .for_each(|s| {
+                s.sort_unstable();
+                s.dedup();
+            });
+        face_sets.values_mut().for_each(|s| {
+            s.sort_unstable();
+            s.dedup();
+        });
+        let mut mesh = Mesh {
+            kind,
+            nodes,
+            connectivity,
+            node_sets: BTreeMap::new(),
+            face_sets,
+            cell_sets,
+        };
+        let mut node_sets = point_sets;
+        for name in mesh.face_sets.keys() {
+            node_sets.insert(name.clone(), mesh.face_set_nodes(name).unwrap_or_default());
+        }
+        for (name, cells) in &mesh.cell_sets {
+            let mut n: Vec<usize> = cells.iter().flat_map(|&c| mesh.cell(c).to_vec()).collect();
+            n.sort_unstable();
+            n.dedup();
+            node_sets.insert(name.clone(), n);
+        }
+        mesh.node_sets = node_sets;
+        Ok(GmshMesh {
+            mesh,
+            reoriented,
+            format: self.format().into(),
+        })
+    }
+
+    /// The nodes the meridian cells use (m), in file order, and the new index of each Gmsh node
+    /// position (`usize::MAX` for dropped nodes): the mesh must lie in the x–y plane (|z| ≤ 1e-9
+    /// of its extent) with x ≥ 0; nodes within 1e-12 of the extent from the axis are put on it.
+    fn meridian_nodes(
+        &self,
+        cells: &[Vec<usize>],
+        cell_tags: &[u64],
+        scale: f64,
+        err: &dyn Fn(String) -> GmshError,
+    ) -> Res<(Vec<[f64; 3]>, Vec<usize>)> {
+        // the extent of the meridian (m): the tolerances of the plane and the axis
+        let mut used = vec![false; self.coords.len()];
+        cells.iter().flatten().for_each(|&p| used[p] = true);
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for (x, _) in self.coords.iter().zip(&used).filter(|(_, u)| **u) {
+            for k in 0..2 {
+                lo[k] = lo[k].min(scale * x[k]);
+                hi[k] = hi[k].max(scale * x[k]);
+            }
+        }
+        let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+        let (plane_tol, axis_tol) = (1e-9 * extent, 1e-12 * extent);
+        for (p, x) in self.coords.iter().enumerate().filter(|(p, _)| used[*p]) {
+            if (scale * x[2]).abs() > plane_tol {
+                return Err(err(format!(
+                    "node {} has z = {} m: a meridian mesh lies in the x–y plane (|z| ≤ 1e-9 of \
+                     its extent, {extent} m)",
+                    self.node_tags[p],
+                    scale * x[2]
+                )));
+            }
+        }
+        for (c, cell) in cells.iter().enumerate() {
+            if let Some(&p) = cell
+                .iter()
+                .find(|&&p| scale * self.coords[p][0] < -axis_tol)
+            {
+                return Err(err(format!(
+                    "element {}: node {} has x = {} m < 0; cells must not cross the axis \
+                     (x = R ≥ 0)",
+                    cell_tags[c],
+                    self.node_tags[p],
+                    scale * self.coords[p][0]
+                )));
+            }
+        }
+        // compact numbering in file order; nodes within the tolerance of the axis are put on it
+        let mut new_index = vec![usize::MAX; self.coords.len()];
+        let mut nodes = Vec::new();
+        for (p, slot) in new_index.iter_mut().enumerate() {
+            if used[p] {
+                *slot = nodes.len();
+                let [x, y, _] = self.coords[p].map(|v| scale * v);
+                nodes.push([if x.abs() <= axis_tol { 0.0 } else { x }, y, 0.0]);
+            }
+        }
+        Ok((nodes, new_index))
     }
 }
 
@@ -1364,10 +1854,468 @@ mod tests {
                     }
                 }
             }
+            let m = std::panic::catch_unwind(|| parse_msh_meridian(&d, "r.msh", 1.0));
+            assert!(m.is_ok(), "case {case} panicked (meridian)");
             let r = std::panic::catch_unwind(|| parse_msh(&d, "r.msh", 1.0));
             match r {
                 Ok(r) => assert!(r.is_err(), "case {case} read as a mesh"),
                 Err(_) => panic!("case {case} panicked on {:?}", String::from_utf8_lossy(&d)),
+            }
+        }
+    }
+
+    // ---- meridian (2-D) meshes ----
+
+    use crate::fem::axisymmetric::meridian_geometry;
+
+    /// The meridian R ∈ [0, 2], Z ∈ [0, 1] of a 2 × 1 quad4 grid, written by Gmsh 4.15 (MSH 4.1
+    /// ASCII): curves `axis`, `bottom`, `top`, `outer`, surface `film`, point `corner` at (2, 0).
+    const RECT_QUAD4_MSH41: &str = r#"$MeshFormat
+4.1 0 8
+$EndMeshFormat
+$PhysicalNames
+6
+0 6 "corner"
+1 1 "axis"
+1 2 "bottom"
+1 3 "top"
+1 4 "outer"
+2 5 "film"
+$EndPhysicalNames
+$Entities
+4 4 1 0
+1 0 0 0 0
+2 2 0 0 1 6
+3 2 1 0 0
+4 0 1 0 0
+1 0 0 0 2 0 0 1 2 2 1 -2
+2 2 0 0 2 1 0 1 4 2 2 -3
+3 0 1 0 2 1 0 1 3 2 3 -4
+4 0 0 0 0 1 0 1 1 2 4 -1
+1 0 0 0 2 1 0 1 5 4 1 2 3 4
+$EndEntities
+$Nodes
+9 6 1 6
+0 1 0 1
+1
+0 0 0
+0 2 0 1
+2
+2 0 0
+0 3 0 1
+3
+2 1 0
+0 4 0 1
+4
+0 1 0
+1 1 0 1
+5
+0.9999999999973842 0 0
+1 2 0 0
+1 3 0 1
+6
+1.000000000004119 1 0
+1 4 0 0
+2 1 0 0
+$EndNodes
+$Elements
+6 9 1 9
+0 2 15 1
+1 2
+1 1 1 2
+2 1 5
+3 5 2
+1 2 1 1
+4 2 3
+1 3 1 2
+5 3 6
+6 6 4
+1 4 1 1
+7 4 1
+2 1 3 2
+8 1 5 6 4
+9 5 2 3 6
+$EndElements
+"#;
+
+    /// The same rectangle in four tri6 cells, written by Gmsh 4.15 (MSH 2.2 ASCII).
+    const RECT_TRI6_MSH22: &str = r#"$MeshFormat
+2.2 0 8
+$EndMeshFormat
+$PhysicalNames
+6
+0 6 "corner"
+1 1 "axis"
+1 2 "bottom"
+1 3 "top"
+1 4 "outer"
+2 5 "film"
+$EndPhysicalNames
+$Nodes
+15
+1 0 0 0
+2 2 0 0
+3 2 1 0
+4 0 1 0
+5 0.9999999999973842 0 0
+6 0.4999999999988369 0 0
+7 1.499999999998692 0 0
+8 2 0.4999999999986718 0
+9 1.000000000004119 1 0
+10 1.50000000000152 1 0
+11 0.5000000000020595 1 0
+12 0 0.5000000000013304 0
+13 0.4999999999986921 0.5 0
+14 1.000000000000752 0.5 0
+15 1.500000000002059 0.5 0
+$EndNodes
+$Elements
+11
+1 15 2 6 2 2
+2 8 2 2 1 1 5 6
+3 8 2 2 1 5 2 7
+4 8 2 4 2 2 3 8
+5 8 2 3 3 3 9 10
+6 8 2 3 3 9 4 11
+7 8 2 1 4 4 1 12
+8 9 2 5 1 1 5 4 6 13 12
+9 9 2 5 1 4 5 9 13 14 11
+10 9 2 5 1 5 2 9 7 15 14
+11 9 2 5 1 9 2 3 15 8 10
+$EndElements
+"#;
+
+    fn meridian(text: &str) -> Result<GmshMesh, GmshError> {
+        parse_msh_meridian(text.as_bytes(), "m.msh", 1.0)
+    }
+
+    #[track_caller]
+    fn meridian_err(text: &str) -> String {
+        match meridian(text) {
+            Ok(_) => panic!("read without error"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    /// The sum of the ring weights 2πR·w·det J of every cell: the volume of the solid of
+    /// revolution (m³).
+    fn ring_volume(m: &Mesh) -> f64 {
+        let k = m.kind.meridian().expect("a meridian mesh");
+        let mut x = vec![[0.0; 2]; k.nodes_per_cell()];
+        (0..m.n_cells())
+            .map(|c| {
+                for (xa, &n) in x.iter_mut().zip(m.cell(c)) {
+                    *xa = [m.nodes[n][0], m.nodes[n][1]];
+                }
+                let g = meridian_geometry(k, &x).expect("a valid meridian cell");
+                g.weights[..g.n_qp].iter().sum::<f64>()
+            })
+            .sum()
+    }
+
+    /// The sets of the rectangle R ∈ [0, 2], Z ∈ [0, 1]: each curve's nodes are the nodes on its
+    /// line (the axis ones at exactly R = 0), `film` holds every cell and node, `corner` the
+    /// node at (2, 0); every side of a face set lies on its line; the ring volume is π R² H.
+    #[track_caller]
+    fn check_rectangle(m: &Mesh, what: &str) {
+        let vol = ring_volume(m);
+        let exact = std::f64::consts::PI * 4.0;
+        assert!((vol - exact).abs() < 1e-12 * exact, "{what}: volume {vol}");
+        assert_eq!(m.cell_sets["film"], (0..m.n_cells()).collect::<Vec<_>>());
+        assert_eq!(m.node_sets["film"].len(), m.n_nodes(), "{what}");
+        assert!(m.nodes.iter().all(|x| x[2] == 0.0 && x[0] >= 0.0), "{what}");
+        let on = |axis: usize, value: f64| -> Vec<usize> {
+            (0..m.n_nodes())
+                .filter(|&n| (m.nodes[n][axis] - value).abs() < 1e-9)
+                .collect()
+        };
+        for (set, axis, value) in [
+            ("axis", 0, 0.0),
+            ("bottom", 1, 0.0),
+            ("top", 1, 1.0),
+            ("outer", 0, 2.0),
+        ] {
+            let nodes = on(axis, value);
+            assert_eq!(m.node_sets[set], nodes, "{what} {set}");
+            assert_eq!(m.face_set_nodes(set).unwrap(), nodes, "{what} {set}");
+            assert!(!m.face_sets[set].is_empty(), "{what} {set}");
+        }
+        assert!(m.node_sets["axis"].iter().all(|&n| m.nodes[n][0] == 0.0));
+        let corner = m.node_sets["corner"].clone();
+        assert_eq!(corner.len(), 1, "{what}");
+        assert_eq!(m.nodes[corner[0]], [2.0, 0.0, 0.0], "{what}");
+    }
+
+    /// Straight sides: the mid-side nodes of quad8, quad9 and tri6 cells sit at the midpoints of
+    /// their sides in MeridianKind's order (sides 0–1, 1–2, 2–3, 3–0, then the centre), which is
+    /// Gmsh's; every cell is counter-clockwise.
+    #[track_caller]
+    fn check_node_order(m: &Mesh, what: &str) {
+        let k = m.kind.meridian().unwrap();
+        let sides = k.sides();
+        let corners = sides.len();
+        for c in 0..m.n_cells() {
+            let x: Vec<[f64; 3]> = m.cell(c).iter().map(|&n| m.nodes[n]).collect();
+            assert!(orientation(m.kind, &x) > 0.0, "{what} cell {c}");
+            if !k.is_quadratic() {
+                continue;
+            }
+            for (s, side) in sides.iter().enumerate() {
+                assert_eq!(side[2], corners + s, "{what}");
+                for i in 0..2 {
+                    let mid = 0.5 * (x[side[0]][i] + x[side[1]][i]);
+                    assert!(
+                        (x[side[2]][i] - mid).abs() < 1e-9,
+                        "{what} cell {c} side {s}"
+                    );
+                }
+            }
+            if k == MeridianKind::Quad9 {
+                for i in 0..2 {
+                    let centre = x[..4].iter().map(|p| p[i]).sum::<f64>() / 4.0;
+                    assert!((x[8][i] - centre).abs() < 1e-9, "{what} cell {c}");
+                }
+            }
+        }
+    }
+
+    /// Every meridian file written by Gmsh (tests/data/gmsh/meridian.geo: quad4, quad8, quad9,
+    /// tri3, tri6 in MSH 4.1 ASCII, 4.1 binary and 2.2 ASCII): the kind, the sets on their lines,
+    /// the ring volume π R² H, Gmsh's node order, the same mesh whatever the format.
+    #[test]
+    fn meridian_files_written_by_gmsh() {
+        for kind in MeridianKind::ALL {
+            let mut first: Option<Mesh> = None;
+            for f in FORMATS {
+                let file = format!("meridian-{}-{f}.msh", kind.name());
+                let g = parse_msh_meridian(&data(&file), &file, 1.0).unwrap();
+                let m = &g.mesh;
+                assert_eq!(m.kind, ElementKind::Meridian(kind), "{file}");
+                assert_eq!(g.reoriented, 0, "{file}");
+                if !matches!(kind, MeridianKind::Tri3 | MeridianKind::Tri6) {
+                    assert_eq!(m.n_cells(), 8, "{file}");
+                }
+                check_rectangle(m, &file);
+                check_node_order(m, &file);
+                match &first {
+                    None => first = Some(m.clone()),
+                    Some(a) => {
+                        assert_eq!(a.nodes.len(), m.nodes.len(), "{file}");
+                        for (p, q) in a.nodes.iter().zip(&m.nodes) {
+                            for k in 0..3 {
+                                assert!((p[k] - q[k]).abs() < 1e-15, "{file}");
+                            }
+                        }
+                        assert_eq!(a.connectivity, m.connectivity, "{file}");
+                        assert_eq!(a.face_sets, m.face_sets, "{file}");
+                        assert_eq!(a.node_sets, m.node_sets, "{file}");
+                    }
+                }
+                // read as a 3-D mesh: a clear error
+                let e = parse_msh(&data(&file), &file, 1.0).unwrap_err().to_string();
+                assert!(
+                    e.contains("only surface elements") && e.contains("2-D mesh"),
+                    "{e}"
+                );
+            }
+        }
+    }
+
+    /// The MSH 4.1 quad4 and MSH 2.2 tri6 strings: counts, kinds, sets, ring volume, scale.
+    #[test]
+    fn meridian_strings_in_msh41_and_msh22() {
+        let g = meridian(RECT_QUAD4_MSH41).unwrap();
+        assert_eq!(g.format, "4.1 ASCII");
+        let m = &g.mesh;
+        assert_eq!(m.kind, ElementKind::Meridian(MeridianKind::Quad4));
+        assert_eq!((m.n_cells(), m.n_nodes()), (2, 6));
+        check_rectangle(m, "quad4");
+        // the bottom's sides are side 0 of both cells, the axis side 3 of the first
+        assert_eq!(
+            m.face_sets["bottom"],
+            vec![FaceRef { cell: 0, face: 0 }, FaceRef { cell: 1, face: 0 }]
+        );
+        assert_eq!(m.face_sets["axis"], vec![FaceRef { cell: 0, face: 3 }]);
+        let g = meridian(RECT_TRI6_MSH22).unwrap();
+        assert_eq!(g.format, "2.2 ASCII");
+        let m = &g.mesh;
+        assert_eq!(m.kind, ElementKind::Meridian(MeridianKind::Tri6));
+        assert_eq!((m.n_cells(), m.n_nodes()), (4, 15));
+        check_rectangle(m, "tri6");
+        check_node_order(m, "tri6");
+        // drawn in mm: the volume scales with the cube
+        let g = parse_msh_meridian(RECT_TRI6_MSH22.as_bytes(), "mm.msh", 1e-3).unwrap();
+        let v = ring_volume(&g.mesh);
+        assert!((v - 4e-9 * std::f64::consts::PI).abs() < 1e-12 * v, "{v}");
+    }
+
+    /// A 2.2 file: nodes (tag i + 1), the names `axis` (curve 1), `bottom` (curve 2), `film`
+    /// (surface 5), and the element lines.
+    fn msh22(nodes: &[[f64; 3]], elements: &[&str]) -> String {
+        let mut t = String::from(
+            "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n3\n1 1 \"axis\"\n\
+             1 2 \"bottom\"\n2 5 \"film\"\n$EndPhysicalNames\n$Nodes\n",
+        );
+        t += &format!("{}\n", nodes.len());
+        for (i, x) in nodes.iter().enumerate() {
+            t += &format!("{} {:e} {:e} {:e}\n", i + 1, x[0], x[1], x[2]);
+        }
+        t += &format!("$EndNodes\n$Elements\n{}\n", elements.len());
+        for e in elements {
+            t += e;
+            t += "\n";
+        }
+        t + "$EndElements\n"
+    }
+
+    /// The unit square [0, 1]² with corners 1–4 counter-clockwise from the origin.
+    const SQUARE: [[f64; 3]; 4] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ];
+
+    /// A clockwise cell is mirrored (and counted); its sides are matched after the mirroring.
+    #[test]
+    fn clockwise_meridian_cells_are_reoriented() {
+        let g = meridian(&msh22(
+            &SQUARE,
+            &["1 3 2 5 1 1 4 3 2", "2 1 2 2 1 2 1", "3 1 2 1 1 4 1"],
+        ))
+        .unwrap();
+        assert_eq!(g.reoriented, 1);
+        assert_eq!(g.mesh.cell(0), &[0, 1, 2, 3]);
+        assert_eq!(
+            g.mesh.face_sets["bottom"],
+            vec![FaceRef { cell: 0, face: 0 }]
+        );
+        assert_eq!(g.mesh.face_sets["axis"], vec![FaceRef { cell: 0, face: 3 }]);
+        let v = ring_volume(&g.mesh);
+        assert!((v - std::f64::consts::PI).abs() < 1e-12, "{v}");
+        // a clockwise tri6: the triangle (0, 0), (1, 0), (0, 1) given as 1, 3, 2 (and mid-sides)
+        let mut nodes = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        nodes.extend([[0.5, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.5, 0.0]]);
+        let g = meridian(&msh22(&nodes, &["1 9 2 5 1 1 3 2 6 5 4"])).unwrap();
+        assert_eq!(g.reoriented, 1);
+        check_node_order(&g.mesh, "tri6");
+        let v = ring_volume(&g.mesh);
+        // ∫ 2πR dA over the triangle 0 ≤ R, 0 ≤ Z ≤ 1 − R: 2π/6
+        assert!((v - std::f64::consts::PI / 3.0).abs() < 1e-12, "{v}");
+    }
+
+    /// The axis: a node a hair off it is put on it; one at x < 0 is an error; so is z ≠ 0.
+    #[test]
+    fn the_axis_and_the_plane_are_checked() {
+        for x in [1e-17, -1e-17] {
+            let mut nodes = SQUARE;
+            nodes[3][0] = x;
+            let g = meridian(&msh22(&nodes, &["1 3 2 5 1 1 2 3 4"])).unwrap();
+            assert_eq!(g.mesh.nodes[3][0].to_bits(), 0.0f64.to_bits(), "{x}");
+        }
+        let mut nodes = SQUARE;
+        nodes[3][0] = -1e-3;
+        let e = meridian_err(&msh22(&nodes, &["7 3 2 5 1 1 2 3 4"]));
+        assert!(
+            e.starts_with("m.msh: element 7: node 4 has x = -0.001 m < 0")
+                && e.contains("cells must not cross the axis (x = R ≥ 0)"),
+            "{e}"
+        );
+        let mut nodes = SQUARE;
+        nodes[2][2] = 1e-3;
+        let e = meridian_err(&msh22(&nodes, &["1 3 2 5 1 1 2 3 4"]));
+        assert!(
+            e.starts_with("m.msh: node 3 has z = 0.001 m") && e.contains("x–y plane"),
+            "{e}"
+        );
+        // within 1e-9 of the extent, z is dropped
+        let mut nodes = SQUARE;
+        nodes[2][2] = 1e-10;
+        let g = meridian(&msh22(&nodes, &["1 3 2 5 1 1 2 3 4"])).unwrap();
+        assert!(g.mesh.nodes.iter().all(|x| x[2] == 0.0));
+    }
+
+    #[test]
+    fn bad_meridian_files_give_clear_errors() {
+        let mut nodes = SQUARE.to_vec();
+        nodes.push([0.5, 0.0, 0.0]);
+        let quad = "1 3 2 5 1 1 2 3 4";
+        let e = meridian_err(&msh22(&nodes, &[quad, "2 2 2 5 1 1 2 4"]));
+        assert!(
+            e.contains(
+                "m.msh: mixed surface element kinds: quad4 (element 1) and tri3 (element 2)"
+            ),
+            "{e}"
+        );
+        let e = meridian_err(&msh22(&nodes, &["2 1 2 2 1 1 2"]));
+        assert!(e.contains("m.msh: no surface elements"), "{e}");
+        let e = meridian_err(&msh22(&nodes, &[quad, "2 4 2 5 1 1 2 3 5"]));
+        assert!(
+            e.contains("element 2 is a 4-node tetrahedron: a 3-D mesh"),
+            "{e}"
+        );
+        let e = meridian_err(&msh22(&nodes, &[quad, "2 8 2 2 1 1 2 5"]));
+        assert!(
+            e.contains("curve element 2 of physical group `bottom` is a 3-node line, but the cells are quad4"),
+            "{e}"
+        );
+        let e = meridian_err(&msh22(&nodes, &[quad, "2 1 2 2 1 1 3"]));
+        assert!(
+            e.contains("curve element 2 of physical group `bottom` is not a side of a quad4"),
+            "{e}"
+        );
+        let e = meridian_err(&msh22(&nodes, &[quad, "2 1 2 2 1 1 5"]));
+        assert!(
+            e.contains("has node 5, which no surface element uses"),
+            "{e}"
+        );
+        let e = meridian_err(&msh22(&nodes, &["1 3 2 5 1 1 2 2 4"]));
+        assert!(e.contains("element 1 repeats a node"), "{e}");
+        let e = meridian_err(&msh22(&nodes, &["1 3 2 5 1 1 2 5 1"]));
+        assert!(e.contains("repeats a node"), "{e}");
+        let flat = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
+        let e = meridian_err(&msh22(&flat, &["1 2 2 5 1 1 2 3"]));
+        assert!(e.contains("surface element 1 is degenerate"), "{e}");
+        let e = meridian_err(&msh22(&nodes, &["1 20 2 5 1 1 2 3 4 5 1 2 3 4"]));
+        assert!(
+            e.contains("type 20 (9-node triangle) is not supported"),
+            "{e}"
+        );
+        let e = meridian_err(&msh22(&nodes, &[quad]).replace("\"bottom\"", "\"film\""));
+        assert!(
+            e.contains("the physical name `film` names both a surface and a curve group"),
+            "{e}"
+        );
+        // a tri6 whose line's middle node is not the side's
+        let mut tri = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        tri.extend([[0.5, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.5, 0.0]]);
+        let e = meridian_err(&msh22(&tri, &["1 9 2 5 1 1 2 3 4 5 6", "2 8 2 2 1 1 2 5"]));
+        assert!(
+            e.contains("its middle node 5 is not the mid-side node"),
+            "{e}"
+        );
+        // MSH 4.1: a 9-node triangle block
+        let e = meridian_err(&RECT_QUAD4_MSH41.replace("\n2 1 3 2\n", "\n2 1 20 2\n"));
+        assert!(e.contains("line ") && e.contains("type 20"), "{e}");
+    }
+
+    /// Every prefix of meridian files is an error for the meridian reader, never a panic; so is
+    /// every single-byte corruption of a binary one (or it still reads).
+    #[test]
+    fn truncated_and_corrupted_meridian_files_are_errors() {
+        for file in ["meridian-quad9-msh41-bin.msh", "meridian-tri6-msh22.msh"] {
+            let d = data(file);
+            for len in 0..d.len() - 14 {
+                let r = parse_msh_meridian(&d[..len], file, 1.0);
+                assert!(r.is_err(), "{file}: prefix of {len} bytes read");
+            }
+        }
+        let d = data("meridian-quad8-msh41-bin.msh");
+        for i in 0..d.len() {
+            for v in [0u8, 0xff, b'$', b'\n'] {
+                let mut c = d.clone();
+                c[i] = v;
+                let _ = parse_msh_meridian(&c, "c.msh", 1.0);
             }
         }
     }

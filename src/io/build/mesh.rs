@@ -372,7 +372,8 @@ fn reject_generator_keys(ctx: &Ctx, m: &MeshSpec, file: &str) -> Result<(), Inpu
     Ok(())
 }
 
-/// `mesh.file`: a Gmsh mesh, its path relative to the scenario file.
+/// `mesh.file`: a Gmsh mesh (the meridian mesh of an axisymmetric model with `geometry =
+/// "axisymmetric"`), its path relative to the scenario file.
 fn build_file_mesh(
     ctx: &Ctx,
     m: &MeshSpec,
@@ -387,10 +388,10 @@ fn build_file_mesh(
     let path = base_dir
         .map(|d| d.join(file))
         .unwrap_or_else(|| file.into());
-    let g = crate::mesh::gmsh::read_msh(&path, scale)
-        .map_err(|e| ctx.err("mesh.file", e.to_string()))?;
+    let axisymmetric = is_axisymmetric(ctx, m)?;
+    let g = read_file_mesh(&path, scale, axisymmetric).map_err(|e| ctx.err("mesh.file", e))?;
     if let Some(name) = &m.element {
-        let want = element_kind(ctx, name, is_axisymmetric(ctx, m)?)?;
+        let want = element_kind(ctx, name, axisymmetric)?;
         if want != g.mesh.kind {
             return Err(ctx.err(
                 "mesh.element",
@@ -429,6 +430,39 @@ fn build_file_mesh(
         ));
     }
     Ok((g.mesh, warnings))
+}
+
+/// A Gmsh file as a 3-D mesh, or as a meridian mesh for an axisymmetric model; when it does not
+/// read so but reads the other way, the message says which `mesh.geometry` it needs.
+fn read_file_mesh(
+    path: &Path,
+    scale: f64,
+    axisymmetric: bool,
+) -> Result<crate::mesh::gmsh::GmshMesh, String> {
+    use crate::mesh::gmsh::{read_msh, read_msh_meridian};
+    let read = |meridian: bool| {
+        if meridian {
+            read_msh_meridian(path, scale)
+        } else {
+            read_msh(path, scale)
+        }
+    };
+    read(axisymmetric).map_err(|e| match read(!axisymmetric) {
+        Ok(other) if axisymmetric => format!(
+            "`{}` holds a 3-D mesh ({} cells), not the meridian of an axisymmetric model (2-D \
+             cells in the x–y plane, x = R ≥ 0, y = Z): remove `geometry = \"axisymmetric\"` \
+             to read it as a 3-D model",
+            path.display(),
+            other.mesh.kind.name()
+        ),
+        Ok(other) => format!(
+            "`{}` holds a 2-D mesh ({} cells), not a 3-D one: give `geometry = \"axisymmetric\"` \
+             to read it as the meridian of an axisymmetric model (x = R ≥ 0, y = Z)",
+            path.display(),
+            other.mesh.kind.name()
+        ),
+        Err(_) => e.to_string(),
+    })
 }
 
 /// The `disc` generator: a circular membrane (O-grid) with sets `rim`, `top`, `bottom`, `pad`,
@@ -704,7 +738,7 @@ fn build_stack(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, Input
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::{assert_names, assert_rejected, plan, scenario, CTX};
+    use super::super::testing::{assert_names, assert_rejected, plan, scenario, CTX, FILE};
     use super::*;
 
     const DISC: &str = "[mesh]\ngenerator = \"disc\"\nradius = 17.5e-3\nthickness = 1e-3\n\
@@ -981,5 +1015,144 @@ mod tests {
         )
         .unwrap_err();
         assert_names(&e, "mesh.scale", "factor from file units to m");
+    }
+
+    /// The meridian R ∈ [0, 2], Z ∈ [0, 1] (mm) in two quad8 cells, written by Gmsh 4.15 (MSH 2.2):
+    /// curves `axis`, `bottom`, `top`, `outer`, surface `film`, point `corner`.
+    const MERIDIAN_QUAD8: &str = r#"$MeshFormat
+2.2 0 8
+$EndMeshFormat
+$PhysicalNames
+6
+0 6 "corner"
+1 1 "axis"
+1 2 "bottom"
+1 3 "top"
+1 4 "outer"
+2 5 "film"
+$EndPhysicalNames
+$Nodes
+13
+1 0 0 0
+2 2 0 0
+3 2 1 0
+4 0 1 0
+5 0.9999999999973842 0 0
+6 0.4999999999988369 0 0
+7 1.499999999998692 0 0
+8 2 0.4999999999986718 0
+9 1.000000000004119 1 0
+10 1.50000000000152 1 0
+11 0.5000000000020595 1 0
+12 0 0.5000000000013304 0
+13 1.000000000000752 0.5 0
+$EndNodes
+$Elements
+9
+1 15 2 6 2 2
+2 8 2 2 1 1 5 6
+3 8 2 2 1 5 2 7
+4 8 2 4 2 2 3 8
+5 8 2 3 3 3 9 10
+6 8 2 3 3 9 4 11
+7 8 2 1 4 4 1 12
+8 16 2 5 1 1 5 9 4 6 13 11 12
+9 16 2 5 1 5 2 3 9 7 8 10 13
+$EndElements
+"#;
+
+    /// An axisymmetric scenario on a Gmsh meridian file (written to a temporary directory): the
+    /// model has the file's quad8 cells and sets, the axis nodes held radially, the electrodes on
+    /// the physical curves.
+    #[test]
+    fn axisymmetric_scenario_on_a_gmsh_meridian_file() {
+        let dir = std::env::temp_dir().join(format!("deasim-meridian-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("rect.msh"), MERIDIAN_QUAD8).unwrap();
+        let s = scenario(&[
+            (
+                "mesh",
+                "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"rect.msh\"\nscale = 1e-3\n\
+                 element = \"quad8\"",
+            ),
+            (
+                "constraints",
+                "[[constraints]]\nset = \"bottom\"\nfix = [\"z\"]",
+            ),
+            (
+                "electrodes",
+                "[electrodes.top]\nset = \"top\"\nvoltage = 1000.0\n\
+                 [electrodes.bottom]\nset = \"bottom\"\nvoltage = 0.0",
+            ),
+        ]);
+        let p = crate::io::build::build(&s, FILE, Some(&dir));
+        let wrong = scenario(&[(
+            "mesh",
+            "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"rect.msh\"\nelement = \"tri6\"",
+        )]);
+        let e = build_mesh(&CTX, &wrong, Some(&dir));
+        let _ = std::fs::remove_dir_all(&dir);
+        let p = p.unwrap_or_else(|e| panic!("{e}"));
+        let m = &p.model.mesh;
+        assert_eq!(m.kind, ElementKind::Meridian(MeridianKind::Quad8));
+        assert_eq!((m.n_cells(), m.n_nodes()), (2, 13));
+        assert!(p.model.is_axisymmetric());
+        assert!(p.warnings.is_empty(), "{:?}", p.warnings);
+        let axis = m.node_sets["axis"].clone();
+        assert_eq!(axis.len(), 3);
+        assert!(axis.iter().all(|&n| m.nodes[n][0] == 0.0));
+        // the axis nodes are held radially (slot 0) by the model's own supports
+        assert!(p
+            .supports
+            .iter()
+            .any(|d| d.field == crate::problem::dofs::Field::Ux && d.nodes == axis));
+        let top = &p.electrodes.iter().find(|e| e.name == "top").unwrap().nodes;
+        assert_eq!(top.len(), 5);
+        assert!(top.iter().all(|&n| (m.nodes[n][1] - 1e-3).abs() < 1e-15));
+        let e = e.unwrap_err();
+        assert_names(&e, "mesh.element", "`tri6` given, but");
+        assert!(e.message.ends_with("holds quad8 cells"), "{e}");
+    }
+
+    /// A 2-D file in a 3-D scenario, a 3-D file in an axisymmetric one: the error says which
+    /// `geometry` reads it.
+    #[test]
+    fn gmsh_files_of_the_other_geometry_are_rejected() {
+        let e = build_mesh(
+            &CTX,
+            &scenario(&[("mesh", "[mesh]\nfile = \"meridian-tri6-msh41.msh\"")]),
+            Some(&gmsh_dir()),
+        )
+        .unwrap_err();
+        assert_names(&e, "mesh.file", "holds a 2-D mesh (tri6 cells)");
+        assert!(
+            e.message.contains("give `geometry = \"axisymmetric\"`"),
+            "{e}"
+        );
+        let e = build_mesh(
+            &CTX,
+            &scenario(&[(
+                "mesh",
+                "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"film-tet4-msh22.msh\"",
+            )]),
+            Some(&gmsh_dir()),
+        )
+        .unwrap_err();
+        assert_names(&e, "mesh.file", "holds a 3-D mesh (tet4 cells)");
+        assert!(
+            e.message.contains("remove `geometry = \"axisymmetric\"`"),
+            "{e}"
+        );
+        // a file neither way reads: the reader's own message
+        let e = build_mesh(
+            &CTX,
+            &scenario(&[(
+                "mesh",
+                "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"no-such-file.msh\"",
+            )]),
+            Some(&gmsh_dir()),
+        )
+        .unwrap_err();
+        assert_names(&e, "mesh.file", "no-such-file.msh: cannot read");
     }
 }
