@@ -463,47 +463,62 @@ impl OutputWriter {
             crate::job::plan::FieldFormat::Binary => Encoding::Binary,
             crate::job::plan::FieldFormat::Compressed => Encoding::Compressed,
         };
-        match write_vtu_as(&self.dir.join("fields").join(&name), &piece, encoding) {
+        let index = self.pvd.len();
+        let section = Section {
+            disp: &disp,
+            phi: &phi,
+            e: &e,
+            tensors: [&sigma, &sigma_mech, &maxwell],
+            j: &j,
+        };
+        if self.revolved.is_none() {
+            if let Some(revolve) = plan.output.revolve {
+                self.revolved = RevolvedMesh::new(&plan.model.mesh, revolve);
+            }
+        }
+        // the section and its revolved view are independent files: written side by side
+        let path = self.dir.join("fields").join(&name);
+        let (written, revolved) = rayon::join(
+            || write_vtu_as(&path, &piece, encoding),
+            || self.write_revolved(plan, index, &section, encoding),
+        );
+        match written {
             Ok(()) => {
-                let index = self.pvd.len();
                 self.pvd.push((record.time, format!("fields/{name}")));
                 if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
                     self.vtu_error(e);
                 }
                 self.last_written_step = Some(self.steps_seen);
-                let section = Section {
-                    disp: &disp,
-                    phi: &phi,
-                    e: &e,
-                    tensors: [&sigma, &sigma_mech, &maxwell],
-                    j: &j,
-                };
-                self.write_revolved(plan, record.time, index, &section, encoding);
+                match revolved {
+                    Some(Ok(name)) => {
+                        self.pvd_revolved
+                            .push((record.time, format!("fields/{name}")));
+                        if let Err(e) =
+                            write_pvd(&self.dir.join("fields_revolved.pvd"), &self.pvd_revolved)
+                        {
+                            self.vtu_error(e);
+                        }
+                    }
+                    Some(Err(e)) => self.vtu_error(e),
+                    None => {}
+                }
             }
             Err(e) => self.vtu_error(e),
         }
     }
 
-    /// The revolved view of field file `index` of an axisymmetric model (nothing for a 3-D
-    /// model or with `output.revolve = false`): `fields/revolved_NNNNN.vtu` and
-    /// `fields_revolved.pvd`. It only reads the section's arrays.
+    /// Writes the revolved view of field file `index` of an axisymmetric model,
+    /// `fields/revolved_NNNNN.vtu`, and returns its name (`None` for a 3-D model or with
+    /// `output.revolve = false`). It only reads the section's arrays.
     fn write_revolved(
-        &mut self,
+        &self,
         plan: &Plan,
-        time: f64,
         index: usize,
         s: &Section,
         encoding: Encoding,
-    ) {
-        let Some(revolve) = plan.output.revolve else {
-            return;
-        };
-        if self.revolved.is_none() {
-            self.revolved = RevolvedMesh::new(&plan.model.mesh, revolve);
-        }
-        let Some(mesh) = &self.revolved else {
-            return;
-        };
+    ) -> Option<Result<String, VtuError>> {
+        plan.output.revolve?;
+        let mesh = self.revolved.as_ref()?;
         let disp = mesh.point_array(Components::Vector, s.disp);
         let phi = mesh.point_array(Components::Scalar, s.phi);
         let e = mesh.cell_array(Components::Vector, s.e);
@@ -563,17 +578,7 @@ impl OutputWriter {
             });
         }
         let name = format!("revolved_{index:05}.vtu");
-        let result = write_vtu_as(&self.dir.join("fields").join(&name), &piece, encoding);
-        match result {
-            Ok(()) => {
-                self.pvd_revolved.push((time, format!("fields/{name}")));
-                if let Err(e) = write_pvd(&self.dir.join("fields_revolved.pvd"), &self.pvd_revolved)
-                {
-                    self.vtu_error(e);
-                }
-            }
-            Err(e) => self.vtu_error(e),
-        }
+        Some(write_vtu_as(&self.dir.join("fields").join(&name), &piece, encoding).map(|()| name))
     }
 
     /// The summary as JSON.
