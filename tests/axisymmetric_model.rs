@@ -354,3 +354,39 @@ fn the_thick_sphere_converges_to_lame() {
     println!("sphere quad4 mean-dilatation, n = 4: error {md:.3e}");
     assert!(md < 0.02, "{md}");
 }
+
+/// Objectivity about the axis: the deformation gradient of a meridian cell's point, rotated about
+/// the axis (e_Z, the second basis vector), leaves the energy and the referential electric
+/// displacement unchanged and rotates the first Piola stress (1e-12).
+#[test]
+fn rotations_about_the_axis_leave_the_response_unchanged() {
+    use deasim::fem::axisymmetric::{meridian_geometry, meridian_kinematics};
+    use deasim::material::{Mat3, Material, PointHistory};
+    let kind = MeridianKind::Quad4;
+    let x = [
+        [1e-3, 0.0],
+        [2e-3, 0.1e-3],
+        [2.1e-3, 1e-3],
+        [0.9e-3, 0.9e-3],
+    ];
+    let g = meridian_geometry(kind, &x).unwrap();
+    let u = [
+        [1e-4, -2e-5, 0.0],
+        [2e-4, 1e-5, 0.0],
+        [1.5e-4, -3e-5, 0.0],
+        [0.5e-4, 2e-5, 0.0],
+    ];
+    let phi = [0.0, 50.0, 900.0, 1000.0];
+    let (f, e0) = meridian_kinematics(&g.grad[0][..4], &g.hoop[0][..4], &u, &phi);
+    let mat = ElectroNeoHooke::new(FILM_MU, FILM_LAMBDA, FILM_EPS_R);
+    let s = mat.stress_at(&f, &e0, PointHistory::NONE).unwrap();
+    for angle in [0.3f64, 1.2, 2.9] {
+        let (c, sn) = (angle.cos(), angle.sin());
+        // about e_Z in the basis (e_R, e_Z, e_Θ): mixes the first and third components
+        let q = Mat3::new(c, 0.0, -sn, 0.0, 1.0, 0.0, sn, 0.0, c);
+        let r = mat.stress_at(&(q * f), &e0, PointHistory::NONE).unwrap();
+        assert!((r.energy - s.energy).abs() <= 1e-12 * s.energy.abs());
+        assert!((r.d0 - s.d0).norm() <= 1e-12 * s.d0.norm());
+        assert!((r.p - q * s.p).norm() <= 1e-12 * s.p.norm());
+    }
+}
