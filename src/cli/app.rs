@@ -560,7 +560,10 @@ fn execute(
         }
     });
     let mut progress = Progress::new(plan);
-    eprintln!("deasim: linear solver: {}", plan.solver.describe());
+    eprintln!(
+        "deasim: linear solver: {}",
+        plan.solver.describe(plan.model.mesh.n_nodes() * 4)
+    );
     let mut checkpoint = checkpoint;
     let mut observers: Vec<&mut dyn Observer> = vec![&mut writer, &mut progress];
     if let Some(c) = checkpoint.as_mut() {

@@ -48,6 +48,7 @@ pub fn bench_film(div: [usize; 3], ordering: Ordering) -> Result<String, String>
     let mut solver = SolverSettings {
         kind: SolverKind::Direct,
         ordering,
+        ..Default::default()
     }
     .build();
     let t = Instant::now();
@@ -99,6 +100,50 @@ pub fn bench_film(div: [usize; 3], ordering: Ordering) -> Result<String, String>
     ))
 }
 
+/// Column titles of [`bench_solver`]'s rows.
+pub const SOLVER_HEADER: &str =
+    "          mesh      dofs  solver  run_s newton per_newton_s factors krylov peak_MiB";
+
+/// The `film` example's run (15 voltage steps to 30 kV, a stability test at every step) on a
+/// hex8 mesh with the given solver kind: wall time, Newton iterations, time per Newton
+/// iteration, factorisations, Krylov iterations and the process's peak memory so far.
+pub fn bench_solver(div: [usize; 3], kind: SolverKind) -> Result<String, String> {
+    use crate::solve::stepping::ramp;
+    let model = film(div, ElementKind::Hex8, 30e3).map_err(|e| e.to_string())?;
+    let mut p = StaticProblem::new(&model, None);
+    let n = p.n();
+    let mut solver = SolverSettings {
+        kind,
+        ordering: Ordering::NestedDissection,
+        ..Default::default()
+    }
+    .build();
+    let t = Instant::now();
+    let report = ramp(
+        &mut p,
+        solver.as_mut(),
+        &NewtonSettings::default(),
+        &StepControl {
+            steps: 15,
+            ..Default::default()
+        },
+        |_, _| {},
+    )
+    .map_err(|e| e.reason)?;
+    let total = t.elapsed().as_secs_f64();
+    let st = solver.stats();
+    let its = report.newton_iterations;
+    Ok(format!(
+        "{:>14} {n:>9} {:>7} {total:>6.2} {its:>6} {:>12.3} {:>7} {:>6} {:>8.0}",
+        format!("{}x{}x{}", div[0], div[1], div[2]),
+        kind.name(),
+        total / its.max(1) as f64,
+        st.factorizations,
+        st.krylov_iterations,
+        peak_memory_mib()
+    ))
+}
+
 /// `deasim bench`: prints the table; `large` adds the ~400k-dof mesh.
 pub fn cmd_bench(large: bool) -> i32 {
     println!(
@@ -116,6 +161,24 @@ pub fn cmd_bench(large: bool) -> i32 {
             Err(e) => {
                 eprintln!("error: {div:?}: {e}");
                 return 1;
+            }
+        }
+    }
+    println!();
+    println!(
+        "solvers: the film example's run (15 steps to 30 kV, inertia at every step), exact \
+         factorisation at every Newton iteration (direct) against factorisations reused as FGMRES \
+         preconditioners (auto); times in s"
+    );
+    println!("{SOLVER_HEADER}");
+    for div in [[30, 30, 6], [40, 40, 8]] {
+        for kind in [SolverKind::Auto, SolverKind::Direct] {
+            match bench_solver(div, kind) {
+                Ok(row) => println!("{row}"),
+                Err(e) => {
+                    eprintln!("error: {div:?} {}: {e}", kind.name());
+                    return 1;
+                }
             }
         }
     }

@@ -97,10 +97,12 @@ pub struct Scenario {
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSpec {
-    /// `direct` (default).
+    /// `auto` (default) or `direct`.
     pub kind: Option<String>,
     /// Fill-reducing ordering of the direct solver: `nested-dissection` (default) or `amd`.
     pub ordering: Option<String>,
+    /// `auto`: the number of unknowns from which factorisations are reused (default 20 000).
+    pub reuse_from: Option<i64>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

@@ -43,6 +43,29 @@ impl CsrMatrix {
         }
     }
 
+    /// y = A x, rows in parallel on the rayon pool when the matrix is large (each row is summed
+    /// in the same order as by [`CsrMatrix::mul_vec`], so the result does not depend on threads).
+    pub fn par_mul_vec(&self, x: &[f64], y: &mut [f64]) {
+        use rayon::prelude::*;
+        const ROWS: usize = 4096;
+        if self.nnz() < 200_000 || rayon::current_num_threads() < 2 {
+            return self.mul_vec(x, y);
+        }
+        y[..self.n]
+            .par_chunks_mut(ROWS)
+            .enumerate()
+            .for_each(|(c, ys)| {
+                for (k, yi) in ys.iter_mut().enumerate() {
+                    let i = c * ROWS + k;
+                    let mut s = 0.0;
+                    for p in self.row_ptr[i]..self.row_ptr[i + 1] {
+                        s += self.values[p] * x[self.col_idx[p]];
+                    }
+                    *yi = s;
+                }
+            });
+    }
+
     /// Number of stored entries.
     pub fn nnz(&self) -> usize {
         self.col_idx.len()
@@ -259,23 +282,41 @@ impl Assembler {
                 }
             }
             if let (Some(kp), Some((row_ptr, col_idx))) = (k_ptr, pattern) {
+                // the cell's free columns in increasing equation order: each row's entries are
+                // then found by one forward walk through its sorted columns (a node's dofs are
+                // consecutive equations, so most are the next entry)
+                let mut order = [0usize; MAX_LOCAL];
+                let mut m = 0;
+                for j in 0..nl {
+                    if eqs[j] != CONSTRAINED {
+                        let mut k = m;
+                        while k > 0 && eqs[order[k - 1]] > eqs[j] {
+                            order[k] = order[k - 1];
+                            k -= 1;
+                        }
+                        order[k] = j;
+                        m += 1;
+                    }
+                }
+                let order = &order[..m];
                 for i in 0..nl {
                     let ei = eqs[i];
                     if ei == CONSTRAINED {
                         continue;
                     }
                     let cols = &col_idx[row_ptr[ei]..row_ptr[ei + 1]];
-                    for j in 0..nl {
+                    let mut pos = 0;
+                    for &j in order {
                         let ej = eqs[j];
-                        if ej == CONSTRAINED {
-                            continue;
-                        }
-                        let p = row_ptr[ei]
-                            + cols
+                        if cols.get(pos + 1) == Some(&ej) {
+                            pos += 1;
+                        } else if cols[pos] != ej {
+                            pos += cols[pos..]
                                 .binary_search(&ej)
                                 .expect("pattern holds every cell coupling");
+                        }
                         // SAFETY: as above, row ei belongs to a node of this cell only.
-                        unsafe { kp.add(p, scale[i] * scale[j] * kl[i * nl + j]) };
+                        unsafe { kp.add(row_ptr[ei] + pos, scale[i] * scale[j] * kl[i * nl + j]) };
                     }
                 }
             }

@@ -6,6 +6,7 @@
 //! has exactly as many negative pivots as free potential dofs. One more negative pivot means the
 //! mechanical part has lost stability (a limit point such as pull-in was passed).
 
+use super::reused::ReusedLdlt;
 use crate::problem::assembly::CsrMatrix;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::ldlt::factor::{LdltParams, LdltRegularization};
@@ -56,6 +57,28 @@ pub trait LinearSolver: Send {
     fn factor_nnz(&self) -> Option<usize> {
         None
     }
+    /// Sets the matrix of the next solves (a Newton iteration's tangent). A solver that can
+    /// solve with a matrix it has not factored (a held factorisation as the preconditioner of a
+    /// Krylov method) may defer or skip the factorisation; the others factor it here. The
+    /// inertia, when it matters, is asked for with [`LinearSolver::factor`].
+    fn set_operator(&mut self, a: &CsrMatrix) -> Result<(), LinearSolverError> {
+        self.factor(a).map(|_| ())
+    }
+    /// Counts of the work done so far, for reports and benchmarks.
+    fn stats(&self) -> SolverStats {
+        SolverStats::default()
+    }
+}
+
+/// Work counts of a linear solver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SolverStats {
+    /// Numeric factorisations.
+    pub factorizations: usize,
+    /// Solves (right-hand sides).
+    pub solves: usize,
+    /// Krylov iterations in all.
+    pub krylov_iterations: usize,
 }
 
 /// Fill-reducing ordering of [`FaerLdlt`].
@@ -85,18 +108,27 @@ impl Ordering {
 /// The kind of linear solver of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum SolverKind {
-    /// Sparse LDLᵀ ([`FaerLdlt`]): exact, gives the inertia (the stability test).
+    /// By size: a fresh sparse LDLᵀ at every Newton iteration below [`REUSE_MIN_UNKNOWNS`]
+    /// unknowns, above it the factorisation reused as the preconditioner of FGMRES
+    /// ([`ReusedLdlt`]). Both give the inertia (the stability test).
     #[default]
+    Auto,
+    /// Sparse LDLᵀ ([`FaerLdlt`]) of every Newton tangent: exact, gives the inertia.
     Direct,
 }
 
+/// From this many unknowns on, `auto` keeps factorisations across Newton iterations and steps
+/// (below it a factorisation costs about as much as the Krylov iterations it would save).
+pub const REUSE_MIN_UNKNOWNS: usize = 20_000;
+
 impl SolverKind {
     /// Names in scenario files (`[solver] kind`).
-    pub const NAMES: [&'static str; 1] = ["direct"];
+    pub const NAMES: [&'static str; 2] = ["auto", "direct"];
 
     /// Parses a name of [`SolverKind::NAMES`].
     pub fn from_name(s: &str) -> Option<Self> {
         match s {
+            "auto" => Some(SolverKind::Auto),
             "direct" => Some(SolverKind::Direct),
             _ => None,
         }
@@ -105,17 +137,30 @@ impl SolverKind {
     /// Name for messages and `summary.json`.
     pub fn name(self) -> &'static str {
         match self {
+            SolverKind::Auto => "auto",
             SolverKind::Direct => "direct",
         }
     }
 }
 
 /// The linear solver settings of a run (`[solver]` in a scenario).
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SolverSettings {
     pub kind: SolverKind,
     /// Fill-reducing ordering of the direct solver.
     pub ordering: Ordering,
+    /// `auto` reuses factorisations from this many unknowns on ([`REUSE_MIN_UNKNOWNS`]).
+    pub reuse_from: usize,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        SolverSettings {
+            kind: SolverKind::default(),
+            ordering: Ordering::default(),
+            reuse_from: REUSE_MIN_UNKNOWNS,
+        }
+    }
 }
 
 impl SolverSettings {
@@ -123,6 +168,9 @@ impl SolverSettings {
     pub fn build(&self) -> Box<dyn LinearSolver> {
         match self.kind {
             SolverKind::Direct => Box::new(FaerLdlt::with_ordering(self.ordering)),
+            SolverKind::Auto => {
+                Box::new(ReusedLdlt::with_ordering(self.ordering).from_unknowns(self.reuse_from))
+            }
         }
     }
 
@@ -130,19 +178,29 @@ impl SolverSettings {
     /// without it, limit points show only as Newton failures).
     pub fn gives_inertia(&self) -> bool {
         match self.kind {
-            SolverKind::Direct => true,
+            SolverKind::Direct | SolverKind::Auto => true,
         }
     }
 
-    /// One line for the start of a run: the solver and why.
-    pub fn describe(&self) -> String {
+    /// One line for the start of a run: the solver chosen for `unknowns` unknowns, and why.
+    pub fn describe(&self, unknowns: usize) -> String {
+        let ordering = match self.ordering {
+            Ordering::NestedDissection => "METIS nested-dissection",
+            Ordering::Amd => "AMD",
+        };
+        let exact = format!(
+            "direct sparse LDLT, {ordering} ordering (exact solves and the inertia for the stability test)"
+        );
         match self.kind {
-            SolverKind::Direct => format!(
-                "direct sparse LDLT, {} ordering (exact solves and the inertia for the stability test)",
-                match self.ordering {
-                    Ordering::NestedDissection => "METIS nested-dissection",
-                    Ordering::Amd => "AMD",
-                }
+            SolverKind::Direct => exact,
+            SolverKind::Auto if unknowns < self.reuse_from => {
+                format!("{exact}; auto: {unknowns} unknowns, a fresh factorisation per Newton iteration")
+            }
+            SolverKind::Auto => format!(
+                "direct sparse LDLT, {ordering} ordering, reused as the preconditioner of FGMRES \
+                 (auto: {unknowns} unknowns ≥ {}; refactored when the Krylov work \
+                 exceeds a factorisation, and at every stability test, whose inertia stays exact)",
+                self.reuse_from
             ),
         }
     }
@@ -157,6 +215,7 @@ pub struct FaerLdlt {
     factored: bool,
     par: Par,
     mem: Option<MemBuffer>,
+    stats: SolverStats,
 }
 
 impl std::fmt::Debug for FaerLdlt {
@@ -197,6 +256,7 @@ impl FaerLdlt {
                 Par::Seq
             },
             mem: None,
+            stats: SolverStats::default(),
         }
     }
 
@@ -204,6 +264,30 @@ impl FaerLdlt {
         // A symmetric matrix in CSR is the same matrix in CSC.
         let sym = SymbolicSparseColMatRef::new_checked(a.n, a.n, &a.row_ptr, None, &a.col_idx);
         SparseColMatRef::new(sym, &a.values)
+    }
+
+    /// Multiply–adds of one numeric factorisation, from the symbolic analysis (per supernode of c
+    /// columns over m rows below it: c³/3 + m c² + m² c); `None` before the first factorisation.
+    pub fn factor_flops(&self) -> Option<f64> {
+        let symbolic = self.symbolic.as_ref()?;
+        Some(match symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => {
+                let cp = s.col_ptr();
+                (0..s.nrows())
+                    .map(|j| ((cp[j + 1] - cp[j]) as f64).powi(2))
+                    .sum()
+            }
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                let (begin, end, nnz) = (s.supernode_begin(), s.supernode_end(), s.nnz_per_super());
+                (0..s.n_supernodes())
+                    .map(|sn| {
+                        // the diagonal block, the panel below it and the update of the ancestors
+                        let (c, m) = ((end[sn] - begin[sn]) as f64, nnz[sn] as f64);
+                        c * c * c / 3.0 + m * c * c + m * m * c
+                    })
+                    .sum()
+            }
+        })
     }
 
     /// The pivots D of the last factorisation.
@@ -310,6 +394,7 @@ impl LinearSolver for FaerLdlt {
                 inertia.negative += 1;
             }
         }
+        self.stats.factorizations += 1;
         if inertia.zero > 0 {
             return Err(LinearSolverError::Singular(0));
         }
@@ -325,6 +410,7 @@ impl LinearSolver for FaerLdlt {
         let mem = self.mem.as_mut().expect("factored");
         let stack = MemStack::new(mem);
         let n = b.len();
+        self.stats.solves += 1;
         let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
         LdltRef::new(symbolic, &self.l_values).solve_in_place_with_conj(
             Conj::No,
@@ -341,6 +427,10 @@ impl LinearSolver for FaerLdlt {
 
     fn factor_nnz(&self) -> Option<usize> {
         Some(self.l_values.len())
+    }
+
+    fn stats(&self) -> SolverStats {
+        self.stats
     }
 
     fn invalidate(&mut self) {

@@ -3,7 +3,9 @@
 
 pub mod continuation;
 pub mod interrupt;
+pub mod krylov;
 pub mod linear;
 pub mod newton;
 pub mod ordering;
+pub mod reused;
 pub mod stepping;

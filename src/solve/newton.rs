@@ -196,7 +196,7 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
                     .evaluate(&mut r, Some(&mut *k))
                     .map_err(|message| NewtonError::Evaluation { iteration, message })?;
             }
-            solver.factor(k).map_err(|e| match e {
+            solver.set_operator(k).map_err(|e| match e {
                 LinearSolverError::Singular(_) => NewtonError::Singular { iteration },
                 other => NewtonError::Evaluation {
                     iteration,

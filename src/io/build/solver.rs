@@ -32,6 +32,20 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
             )
         })?;
     }
+    if let Some(n) = spec.reuse_from {
+        if out.kind != SolverKind::Auto {
+            return Err(ctx.err(
+                "solver.reuse_from",
+                "applies to kind = \"auto\" only (the direct kind factors every tangent)",
+            ));
+        }
+        out.reuse_from = usize::try_from(n).map_err(|_| {
+            ctx.err(
+                "solver.reuse_from",
+                format!("expected a number of unknowns ≥ 0, got {n}"),
+            )
+        })?;
+    }
     Ok(out)
 }
 
@@ -47,7 +61,7 @@ mod tests {
     #[test]
     fn without_the_table_the_defaults() {
         let s = plan(&[]).solver;
-        assert_eq!(s.kind, SolverKind::Direct);
+        assert_eq!(s.kind, SolverKind::Auto);
         assert_eq!(s.ordering, Ordering::NestedDissection);
         assert_eq!(solver("[solver]").unwrap(), SolverSettings::default());
     }
@@ -71,7 +85,23 @@ mod tests {
         assert_rejected(
             &[("solver", "[solver]\nkind = \"cg\"")],
             "solver.kind",
-            "unknown solver `cg`; expected one of: direct",
+            "unknown solver `cg`; expected one of: auto, direct",
+        );
+    }
+
+    #[test]
+    fn reuse_from_is_a_count_of_unknowns_for_auto_only() {
+        let s = solver("[solver]\nreuse_from = 0").unwrap();
+        assert_eq!((s.kind, s.reuse_from), (SolverKind::Auto, 0));
+        assert_rejected(
+            &[("solver", "[solver]\nreuse_from = -3")],
+            "solver.reuse_from",
+            "expected a number of unknowns ≥ 0, got -3",
+        );
+        assert_rejected(
+            &[("solver", "[solver]\nkind = \"direct\"\nreuse_from = 10")],
+            "solver.reuse_from",
+            "applies to kind = \"auto\" only",
         );
     }
 
@@ -86,8 +116,8 @@ mod tests {
 
     #[test]
     fn the_kind_is_checked_before_the_ordering() {
-        let e = solver("[solver]\nkind = \"iterative\"\nordering = \"rcm\"").unwrap_err();
-        assert_names(&e, "solver.kind", "unknown solver `iterative`");
+        let e = solver("[solver]\nkind = \"cg\"\nordering = \"rcm\"").unwrap_err();
+        assert_names(&e, "solver.kind", "unknown solver `cg`");
         let e = solver("[solver]\nkind = \"direct\"\nordering = \"AMD\"").unwrap_err();
         assert_names(&e, "solver.ordering", "unknown ordering `AMD`");
     }
