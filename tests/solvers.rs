@@ -32,7 +32,12 @@ fn history(out: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
 /// Runs the example with each solver and returns the largest column-relative difference of the
 /// histories (Newton iteration counts excluded: inexact solves may take one more).
 fn compare(example: &str, sets: &[&str]) -> f64 {
-    let dir = tempdir(&format!("solvers-{example}"));
+    compare_with(example, sets, &["solver.reuse_from=0"])
+}
+
+/// [`compare`] with the given settings of the reusing solver.
+fn compare_with(example: &str, sets: &[&str], reused: &[&str]) -> f64 {
+    let dir = tempdir(&format!("solvers-{example}-{}", reused.len()));
     let run = |out: &str, solver: &[&str]| {
         let mut args = vec![
             "run",
@@ -55,7 +60,7 @@ fn compare(example: &str, sets: &[&str]) -> f64 {
         );
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
-    let log = run("reused", &["solver.reuse_from=0"]);
+    let log = run("reused", reused);
     assert!(
         log.contains("reused as the preconditioner of FGMRES"),
         "{log}"
@@ -92,6 +97,17 @@ fn compare(example: &str, sets: &[&str]) -> f64 {
 #[test]
 fn reused_factorisations_agree_with_direct_on_the_film() {
     assert!(compare("film", &[]) < 1e-8);
+}
+
+#[test]
+fn single_precision_factorisations_agree_with_direct_on_the_film() {
+    // FGMRES restores double-precision accuracy from a single-precision preconditioner
+    let d = compare_with(
+        "film",
+        &[],
+        &["solver.reuse_from=0", "solver.precision=\"single\""],
+    );
+    assert!(d < 1e-8, "{d:e}");
 }
 
 #[test]

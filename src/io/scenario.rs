@@ -103,6 +103,8 @@ pub struct SolverSpec {
     pub ordering: Option<String>,
     /// `auto`: the number of unknowns from which factorisations are reused (default 20 000).
     pub reuse_from: Option<i64>,
+    /// `auto`: the precision of reused factorisations, `double` (default) or `single`.
+    pub precision: Option<String>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

@@ -35,6 +35,8 @@ pub enum LinearSolverError {
     Symbolic(String),
     #[error("solve called before a successful factorisation")]
     NotFactored,
+    #[error("the iterative solve did not converge: {0}")]
+    NotConverged(String),
 }
 
 /// A direct solver: factor once, solve many right-hand sides.
@@ -151,6 +153,8 @@ pub struct SolverSettings {
     pub ordering: Ordering,
     /// `auto` reuses factorisations from this many unknowns on ([`REUSE_MIN_UNKNOWNS`]).
     pub reuse_from: usize,
+    /// `auto`: hold reused factorisations in single precision.
+    pub single_precision: bool,
 }
 
 impl Default for SolverSettings {
@@ -159,6 +163,7 @@ impl Default for SolverSettings {
             kind: SolverKind::default(),
             ordering: Ordering::default(),
             reuse_from: REUSE_MIN_UNKNOWNS,
+            single_precision: false,
         }
     }
 }
@@ -169,7 +174,12 @@ impl SolverSettings {
         match self.kind {
             SolverKind::Direct => Box::new(FaerLdlt::with_ordering(self.ordering)),
             SolverKind::Auto => {
-                Box::new(ReusedLdlt::with_ordering(self.ordering).from_unknowns(self.reuse_from))
+                let s = ReusedLdlt::with_ordering(self.ordering).from_unknowns(self.reuse_from);
+                Box::new(if self.single_precision {
+                    s.single_precision()
+                } else {
+                    s
+                })
             }
         }
     }
@@ -216,6 +226,16 @@ pub struct FaerLdlt {
     par: Par,
     mem: Option<MemBuffer>,
     stats: SolverStats,
+    /// Single precision: the factor, and work copies of the matrix and a right-hand side.
+    single: Option<Single>,
+}
+
+/// The single-precision factor of [`FaerLdlt::single_precision`].
+#[derive(Default)]
+struct Single {
+    l: Vec<f32>,
+    a: Vec<f32>,
+    rhs: Vec<f32>,
 }
 
 impl std::fmt::Debug for FaerLdlt {
@@ -257,6 +277,7 @@ impl FaerLdlt {
             },
             mem: None,
             stats: SolverStats::default(),
+            single: None,
         }
     }
 
@@ -264,6 +285,21 @@ impl FaerLdlt {
         // A symmetric matrix in CSR is the same matrix in CSC.
         let sym = SymbolicSparseColMatRef::new_checked(a.n, a.n, &a.row_ptr, None, &a.col_idx);
         SparseColMatRef::new(sym, &a.values)
+    }
+
+    /// Factors and solves in single precision: half the memory of the factor and of every
+    /// triangular sweep, and twice the arithmetic rate of the dense kernels. The solves are then
+    /// accurate to about 1e-6 only, so such a factor serves as a preconditioner (see
+    /// [`super::reused::ReusedLdlt`]); its inertia is that of the matrix unless a pivot is within
+    /// single-precision round-off of zero.
+    pub fn single_precision(mut self) -> Self {
+        self.single = Some(Single::default());
+        self
+    }
+
+    /// Whether the factor is held in single precision.
+    pub fn is_single(&self) -> bool {
+        self.single.is_some()
     }
 
     /// Multiply–adds of one numeric factorisation, from the symbolic analysis (per supernode of c
@@ -290,6 +326,14 @@ impl FaerLdlt {
         })
     }
 
+    /// Entry `i` of the stored factor, in either precision.
+    fn l_value(&self, i: usize) -> f64 {
+        match &self.single {
+            Some(s) => f64::from(s.l[i]),
+            None => self.l_values[i],
+        }
+    }
+
     /// The pivots D of the last factorisation.
     fn pivots(&self) -> Vec<f64> {
         let Some(symbolic) = &self.symbolic else {
@@ -300,7 +344,7 @@ impl FaerLdlt {
             SymbolicCholeskyRaw::Simplicial(s) => {
                 let cp = s.col_ptr();
                 for j in 0..s.nrows() {
-                    d.push(self.l_values[cp[j]]);
+                    d.push(self.l_value(cp[j]));
                 }
             }
             SymbolicCholeskyRaw::Supernodal(s) => {
@@ -313,7 +357,7 @@ impl FaerLdlt {
                     let nrows = nnz[sn] + ncols;
                     let base = cp[sn];
                     for j in 0..ncols {
-                        d.push(self.l_values[base + j * nrows + j]);
+                        d.push(self.l_value(base + j * nrows + j));
                     }
                 }
             }
@@ -353,7 +397,10 @@ impl LinearSolver for FaerLdlt {
                 CholeskySymbolicParams::default(),
             )
             .map_err(|e| LinearSolverError::Symbolic(format!("{e:?}")))?;
-            self.l_values = vec![0.0; symbolic.len_val()];
+            match &mut self.single {
+                Some(s) => s.l = vec![0.0; symbolic.len_val()],
+                None => self.l_values = vec![0.0; symbolic.len_val()],
+            }
             if a.n < PARALLEL_MIN_UNKNOWNS {
                 // the pool's hand-offs cost more than a small factorisation
                 self.par = Par::Seq;
@@ -367,26 +414,50 @@ impl LinearSolver for FaerLdlt {
         let symbolic = self.symbolic.as_ref().expect("set above");
         let mem = self.mem.as_mut().expect("set above");
         let stack = MemStack::new(mem);
-        symbolic
-            .factorize_numeric_ldlt(
-                &mut self.l_values,
-                mat,
-                Side::Lower,
-                LdltRegularization::default(),
-                self.par,
-                stack,
-                Spec::<LdltParams, f64>::default(),
-            )
-            .map_err(|e| match e {
-                faer::linalg::cholesky::ldlt::factor::LdltError::ZeroPivot { index } => {
-                    LinearSolverError::Singular(index)
-                }
-            })?;
+        let zero_pivot = |e| match e {
+            faer::linalg::cholesky::ldlt::factor::LdltError::ZeroPivot { index } => {
+                LinearSolverError::Singular(index)
+            }
+        };
+        match &mut self.single {
+            None => {
+                symbolic
+                    .factorize_numeric_ldlt(
+                        &mut self.l_values,
+                        mat,
+                        Side::Lower,
+                        LdltRegularization::default(),
+                        self.par,
+                        stack,
+                        Spec::<LdltParams, f64>::default(),
+                    )
+                    .map_err(zero_pivot)?;
+            }
+            Some(s) => {
+                s.a.clear();
+                s.a.extend(a.values.iter().map(|&v| v as f32));
+                let sym =
+                    SymbolicSparseColMatRef::new_checked(a.n, a.n, &a.row_ptr, None, &a.col_idx);
+                symbolic
+                    .factorize_numeric_ldlt(
+                        &mut s.l,
+                        SparseColMatRef::new(sym, &s.a),
+                        Side::Lower,
+                        LdltRegularization::default(),
+                        self.par,
+                        stack,
+                        Spec::<LdltParams, f32>::default(),
+                    )
+                    .map_err(zero_pivot)?;
+            }
+        }
         let mut inertia = Inertia::default();
         let d = self.pivots();
         let dmax = d.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        // pivots within round-off of zero (relative to the largest) count as zero
+        let small = if self.single.is_some() { 1e-7 } else { 1e-14 };
         for v in d {
-            if !v.is_finite() || v.abs() <= 1e-14 * dmax {
+            if !v.is_finite() || v.abs() <= small * dmax {
                 inertia.zero += 1;
             } else if v > 0.0 {
                 inertia.positive += 1;
@@ -411,13 +482,36 @@ impl LinearSolver for FaerLdlt {
         let stack = MemStack::new(mem);
         let n = b.len();
         self.stats.solves += 1;
-        let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
-        LdltRef::new(symbolic, &self.l_values).solve_in_place_with_conj(
-            Conj::No,
-            rhs,
-            self.par,
-            stack,
-        );
+        match &mut self.single {
+            None => {
+                let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
+                LdltRef::new(symbolic, &self.l_values).solve_in_place_with_conj(
+                    Conj::No,
+                    rhs,
+                    self.par,
+                    stack,
+                );
+            }
+            Some(s) => {
+                // scaled to unit size, so that no entry under- or overflows in single precision
+                let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                if scale == 0.0 {
+                    return Ok(());
+                }
+                s.rhs.clear();
+                s.rhs.extend(b.iter().map(|&v| (v / scale) as f32));
+                let rhs = MatMut::from_column_major_slice_mut(&mut s.rhs, n, 1);
+                LdltRef::new(symbolic, &s.l).solve_in_place_with_conj(
+                    Conj::No,
+                    rhs,
+                    self.par,
+                    stack,
+                );
+                for (v, &x) in b.iter_mut().zip(&s.rhs) {
+                    *v = f64::from(x) * scale;
+                }
+            }
+        }
         Ok(())
     }
 
@@ -426,7 +520,10 @@ impl LinearSolver for FaerLdlt {
     }
 
     fn factor_nnz(&self) -> Option<usize> {
-        Some(self.l_values.len())
+        Some(match &self.single {
+            Some(s) => s.l.len(),
+            None => self.l_values.len(),
+        })
     }
 
     fn stats(&self) -> SolverStats {
@@ -503,5 +600,27 @@ mod tests {
         let shifted = saddle(n, 1.0);
         let inertia = s.factor(&shifted).unwrap().unwrap();
         assert!(inertia.negative > n, "{inertia:?}");
+    }
+
+    #[test]
+    fn single_precision_gives_the_inertia_and_solves_to_single_accuracy() {
+        let n = 40;
+        let a = saddle(n, 0.0);
+        let mut s = FaerLdlt::new().single_precision();
+        let inertia = s.factor(&a).unwrap().unwrap();
+        assert_eq!((inertia.positive, inertia.negative), (n, n));
+        let x: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.37).sin()).collect();
+        let mut b = vec![0.0; 2 * n];
+        a.mul_vec(&x, &mut b);
+        s.solve_in_place(&mut b).unwrap();
+        let err = b
+            .iter()
+            .zip(&x)
+            .map(|(u, v)| (u - v).abs())
+            .fold(0.0, f64::max);
+        // single precision: far from double round-off, near single round-off
+        assert!(err < 1e-5 && err > 1e-13, "{err:e}");
+        let shifted = saddle(n, 1.0);
+        assert!(s.factor(&shifted).unwrap().unwrap().negative > n);
     }
 }

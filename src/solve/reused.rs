@@ -55,6 +55,13 @@ impl ReusedLdlt {
         }
     }
 
+    /// Holds the factorisation in single precision ([`FaerLdlt::single_precision`]); every solve
+    /// then runs FGMRES, which restores double-precision accuracy.
+    pub fn single_precision(mut self) -> Self {
+        self.direct = self.direct.single_precision();
+        self
+    }
+
     /// Reuses factorisations only for systems of at least `n` unknowns; smaller ones are factored
     /// at every [`LinearSolver::set_operator`], exactly as [`FaerLdlt`] would.
     pub fn from_unknowns(mut self, n: usize) -> Self {
@@ -88,29 +95,11 @@ impl ReusedLdlt {
         };
         Ok(inertia)
     }
-}
 
-impl LinearSolver for ReusedLdlt {
-    fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
-        self.keep(a);
-        self.factor_op()
-    }
-
-    fn set_operator(&mut self, a: &CsrMatrix) -> Result<(), LinearSolverError> {
-        self.keep(a);
-        if self.renew || !self.direct.is_factored() || a.n < self.min_unknowns {
-            self.factor_op()?;
-        } else {
-            self.current = false;
-        }
-        Ok(())
-    }
-
-    fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
-        if self.current || self.op.is_none() {
-            return self.direct.solve_in_place(b);
-        }
-        let op = self.op.as_ref().expect("checked above");
+    /// FGMRES on the held operator, preconditioned by the held factorisation; `Ok(true)` with
+    /// the solution in `b` when it converged (or came close enough for an inexact Newton step).
+    fn krylov(&mut self, b: &mut [f64]) -> Result<bool, LinearSolverError> {
+        let op = self.op.as_ref().ok_or(LinearSolverError::NotFactored)?;
         let direct = &mut self.direct;
         let mut x = vec![0.0; b.len()];
         let mut failed = None;
@@ -140,11 +129,46 @@ impl LinearSolver for ReusedLdlt {
             if !report.converged || self.since_factor >= self.budget {
                 self.renew = true;
             }
+            return Ok(true);
+        }
+        Ok(false)
+    }
+}
+
+impl LinearSolver for ReusedLdlt {
+    fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
+        self.keep(a);
+        self.factor_op()
+    }
+
+    fn set_operator(&mut self, a: &CsrMatrix) -> Result<(), LinearSolverError> {
+        self.keep(a);
+        if self.renew || !self.direct.is_factored() || a.n < self.min_unknowns {
+            self.factor_op()?;
+        } else {
+            self.current = false;
+        }
+        Ok(())
+    }
+
+    fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
+        if self.op.is_none() || (self.current && !self.direct.is_single()) {
+            return self.direct.solve_in_place(b);
+        }
+        if self.krylov(b)? {
             return Ok(());
         }
-        // the held factorisation no longer describes the matrix: renew it and solve exactly
+        // the held factorisation no longer describes the matrix: renew it and solve again
         self.factor_op()?;
-        self.direct.solve_in_place(b)
+        if !self.direct.is_single() {
+            return self.direct.solve_in_place(b);
+        }
+        if self.krylov(b)? {
+            return Ok(());
+        }
+        Err(LinearSolverError::NotConverged(
+            "FGMRES with a fresh single-precision factorisation".into(),
+        ))
     }
 
     fn name(&self) -> &'static str {

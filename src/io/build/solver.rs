@@ -46,6 +46,24 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
             )
         })?;
     }
+    if let Some(p) = &spec.precision {
+        if out.kind != SolverKind::Auto {
+            return Err(ctx.err(
+                "solver.precision",
+                "applies to kind = \"auto\" only (the direct kind factors in double precision)",
+            ));
+        }
+        out.single_precision = match p.as_str() {
+            "double" => false,
+            "single" => true,
+            _ => {
+                return Err(ctx.err(
+                    "solver.precision",
+                    format!("unknown precision `{p}`; expected one of: double, single"),
+                ))
+            }
+        };
+    }
     Ok(out)
 }
 
@@ -101,6 +119,33 @@ mod tests {
         assert_rejected(
             &[("solver", "[solver]\nkind = \"direct\"\nreuse_from = 10")],
             "solver.reuse_from",
+            "applies to kind = \"auto\" only",
+        );
+    }
+
+    #[test]
+    fn precision_double_or_single_for_auto_only() {
+        assert!(
+            solver("[solver]\nprecision = \"single\"")
+                .unwrap()
+                .single_precision
+        );
+        assert!(
+            !solver("[solver]\nprecision = \"double\"")
+                .unwrap()
+                .single_precision
+        );
+        assert_rejected(
+            &[("solver", "[solver]\nprecision = \"half\"")],
+            "solver.precision",
+            "unknown precision `half`; expected one of: double, single",
+        );
+        assert_rejected(
+            &[(
+                "solver",
+                "[solver]\nkind = \"direct\"\nprecision = \"single\"",
+            )],
+            "solver.precision",
             "applies to kind = \"auto\" only",
         );
     }
