@@ -1730,4 +1730,175 @@ mod tests {
             &test_params(),
         );
     }
+
+    #[test]
+    fn amg_vcycle_is_symmetric_and_positive() {
+        let (a, coords) = elasticity([8, 8, 6], [1.0, 1.0, 0.75], 0.3);
+        let rbm = rigid_body_modes(&coords, 3);
+        let params = AmgParams {
+            coarse_size: 60,
+            ..AmgParams::default()
+        };
+        let amg = Amg::new(&a, 3, &rbm, &params).expect("hierarchy");
+        assert!(amg.levels() >= 3, "{amg:?}");
+        let (mut mx, mut my) = (vec![0.0; a.n], vec![0.0; a.n]);
+        for seed in 1..4 {
+            let x = noise(a.n, seed);
+            let y = noise(a.n, seed + 100);
+            amg.apply(&x, &mut mx);
+            amg.apply(&y, &mut my);
+            let (ymx, xmy) = (dot(&y, &mx), dot(&x, &my));
+            let scale = dot(&y, &y).sqrt() * dot(&mx, &mx).sqrt();
+            assert!(
+                (ymx - xmy).abs() <= 1e-10 * scale,
+                "yᵀM⁻¹x = {ymx:e}, xᵀM⁻¹y = {xmy:e}"
+            );
+            let xmx = dot(&x, &mx);
+            assert!(xmx > 0.0, "xᵀM⁻¹x = {xmx:e}");
+            // the same input gives the same output (work vectors left no trace)
+            let mut again = vec![0.0; a.n];
+            amg.apply(&x, &mut again);
+            assert_eq!(again, mx);
+        }
+    }
+
+    #[test]
+    fn amg_same_result_on_one_and_two_threads() {
+        // large enough for the parallel code paths
+        let (a, coords) = elasticity([24, 24, 24], [1.0, 1.0, 1.0], 0.3);
+        assert!(a.n >= PARALLEL_MIN_ROWS);
+        let rbm = rigid_body_modes(&coords, 3);
+        let b = noise(a.n, 3);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            pool.install(|| {
+                let amg = Amg::new(&a, 3, &rbm, &test_params()).expect("hierarchy");
+                let mut z = vec![0.0; a.n];
+                amg.apply(&b, &mut z);
+                (format!("{amg:?}"), z)
+            })
+        };
+        let (d1, z1) = run(1);
+        let (d2, z2) = run(2);
+        assert_eq!(d1, d2);
+        assert!(z1.iter().zip(&z2).all(|(u, v)| u.to_bits() == v.to_bits()));
+    }
+
+    #[test]
+    fn amg_rejects_bad_input() {
+        let a = laplace7(4);
+        let ones = vec![vec![1.0; a.n]];
+        let p = AmgParams::default();
+        let mut nan = a.clone();
+        nan.values[5] = f64::NAN;
+        assert!(matches!(
+            Amg::new(&nan, 1, &ones, &p),
+            Err(AmgError::NonFinite { .. })
+        ));
+        assert!(matches!(
+            Amg::new(&a, 1, &[vec![1.0; a.n - 1]], &p),
+            Err(AmgError::NearNullLength { index: 0, .. })
+        ));
+        assert!(matches!(
+            Amg::new(&a, 1, &[vec![f64::INFINITY; a.n]], &p),
+            Err(AmgError::NearNullNonFinite { .. })
+        ));
+        assert!(matches!(
+            Amg::new(&a, 1, &[], &p),
+            Err(AmgError::NoNearNull)
+        ));
+        assert!(matches!(
+            Amg::new(&a, 3, &ones, &p),
+            Err(AmgError::BlockSize { block: 3, .. })
+        ));
+        let empty = CsrMatrix {
+            n: 0,
+            row_ptr: vec![0],
+            col_idx: vec![],
+            values: vec![],
+        };
+        assert!(matches!(
+            Amg::new(&empty, 1, &[vec![]], &p),
+            Err(AmgError::Empty)
+        ));
+        let mut wide = a.clone();
+        let last = wide.col_idx.len() - 1;
+        wide.col_idx[last] = a.n + 2;
+        let e = Amg::new(&wide, 1, &ones, &p).expect_err("not square");
+        assert!(matches!(e, AmgError::NotSquare { .. }), "{e}");
+        let mut short = a.clone();
+        short.row_ptr.pop();
+        assert!(matches!(
+            Amg::new(&short, 1, &ones, &p),
+            Err(AmgError::Malformed(_))
+        ));
+        let mut negative = a.clone();
+        negative.values[0] = -1.0;
+        assert!(matches!(
+            Amg::new(&negative, 1, &ones, &p),
+            Err(AmgError::NonPositiveDiagonal { row: 0, .. })
+        ));
+        let bad_params = AmgParams {
+            theta: f64::NAN,
+            ..AmgParams::default()
+        };
+        assert!(matches!(
+            Amg::new(&a, 1, &ones, &bad_params),
+            Err(AmgError::Params(_))
+        ));
+        // the messages say what is wrong
+        let msg = Amg::new(&a, 1, &[vec![1.0; 3]], &p)
+            .expect_err("length")
+            .to_string();
+        assert!(
+            msg.contains("3 entries") && msg.contains("64 rows"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn amg_rigid_body_modes_are_in_the_element_kernel() {
+        // the free-floating element: K·(rigid mode) = 0
+        let h = [0.3, 0.2, 0.5];
+        let k = hex_stiffness(h, 1.0, 0.3);
+        let coords: Vec<[f64; 3]> = (0..8)
+            .map(|a| {
+                [
+                    (a & 1) as f64 * h[0] + 1.0,
+                    ((a >> 1) & 1) as f64 * h[1],
+                    ((a >> 2) & 1) as f64 * h[2] - 2.0,
+                ]
+            })
+            .collect();
+        let modes = rigid_body_modes(&coords, 3);
+        assert_eq!(modes.len(), 6);
+        let kmax = k.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+        for m in &modes {
+            for row in &k {
+                let s: f64 = row.iter().zip(m).map(|(u, v)| u * v).sum();
+                assert!(s.abs() < 1e-12 * kmax, "K·mode = {s:e}");
+            }
+        }
+        assert_eq!(rigid_body_modes(&coords, 2).len(), 3);
+        assert_eq!(rigid_body_modes(&coords, 1), vec![vec![1.0; 8]]);
+    }
+
+    #[test]
+    fn amg_small_problem_is_one_direct_level() {
+        let a = laplace7(5);
+        let amg = Amg::new(&a, 1, &[vec![1.0; a.n]], &AmgParams::default()).expect("hierarchy");
+        assert_eq!(amg.levels(), 1);
+        assert_eq!(amg.operator_complexity(), 1.0);
+        let b = noise(a.n, 1);
+        let mut x = vec![0.0; a.n];
+        amg.apply(&b, &mut x);
+        let mut ax = vec![0.0; a.n];
+        a.mul_vec(&x, &mut ax);
+        for (u, v) in ax.iter().zip(&b) {
+            assert!((u - v).abs() < 1e-12);
+        }
+    }
 }
