@@ -1,6 +1,7 @@
 //! Nonlinear and linear solvers: Newton with line search, load stepping with cut-back, and sparse
 //! direct factorisation of the symmetric indefinite tangent. Solvers know nothing of elements.
 
+pub mod amg;
 pub mod continuation;
 pub mod interrupt;
 pub mod krylov;
