@@ -48,6 +48,7 @@ pub fn bench_film(div: [usize; 3], ordering: Ordering) -> Result<String, String>
     let mut solver = SolverSettings {
         kind: SolverKind::Direct,
         ordering,
+        ..SolverSettings::default()
     }
     .build();
     let t = Instant::now();

@@ -34,6 +34,9 @@ pub enum LinearSolverError {
     Symbolic(String),
     #[error("solve called before a successful factorisation")]
     NotFactored,
+    /// A solver library failed, or an iterative solve did not converge (the message says which).
+    #[error("{0}")]
+    Failed(String),
 }
 
 /// A direct solver: factor once, solve many right-hand sides.
@@ -88,16 +91,28 @@ pub enum SolverKind {
     /// Sparse LDLᵀ ([`FaerLdlt`]): exact, gives the inertia (the stability test).
     #[default]
     Direct,
+    /// PETSc ([`super::petsc::PetscSolver`]): MUMPS LDLᵀ by default, any KSP/PC by options, on
+    /// one or more MPI ranks.
+    #[cfg(feature = "petsc")]
+    Petsc,
 }
 
 impl SolverKind {
-    /// Names in scenario files (`[solver] kind`).
-    pub const NAMES: [&'static str; 1] = ["direct"];
+    /// Names in scenario files (`[solver] kind`) that this build accepts.
+    #[cfg(not(feature = "petsc"))]
+    pub const NAMES: &'static [&'static str] = &["direct"];
+    /// Names in scenario files (`[solver] kind`) that this build accepts.
+    #[cfg(feature = "petsc")]
+    pub const NAMES: &'static [&'static str] = &["direct", "petsc"];
+    /// Names of kinds that need a build with a Cargo feature, with that feature.
+    pub const OPTIONAL: &'static [(&'static str, &'static str)] = &[("petsc", "petsc")];
 
     /// Parses a name of [`SolverKind::NAMES`].
     pub fn from_name(s: &str) -> Option<Self> {
         match s {
             "direct" => Some(SolverKind::Direct),
+            #[cfg(feature = "petsc")]
+            "petsc" => Some(SolverKind::Petsc),
             _ => None,
         }
     }
@@ -106,16 +121,22 @@ impl SolverKind {
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::Direct => "direct",
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => "petsc",
         }
     }
 }
 
 /// The linear solver settings of a run (`[solver]` in a scenario).
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct SolverSettings {
     pub kind: SolverKind,
     /// Fill-reducing ordering of the direct solver.
     pub ordering: Ordering,
+    /// PETSc options (`-ksp_type minres -pc_type jacobi ...`) of the PETSc solver; empty for
+    /// PETSc's defaults as deasim sets them (a direct MUMPS LDLᵀ).
+    #[serde(default)]
+    pub petsc_options: String,
 }
 
 impl SolverSettings {
@@ -123,6 +144,8 @@ impl SolverSettings {
     pub fn build(&self) -> Box<dyn LinearSolver> {
         match self.kind {
             SolverKind::Direct => Box::new(FaerLdlt::with_ordering(self.ordering)),
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => Box::new(super::petsc::PetscSolver::new(&self.petsc_options)),
         }
     }
 
@@ -131,6 +154,16 @@ impl SolverSettings {
     pub fn gives_inertia(&self) -> bool {
         match self.kind {
             SolverKind::Direct => true,
+            // MUMPS's LDLᵀ counts the negative pivots unless options choose another method
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => {
+                let env = std::env::var("PETSC_OPTIONS").unwrap_or_default();
+                ![self.petsc_options.as_str(), env.as_str()].iter().any(|o| {
+                    o.contains("-ksp_type")
+                        || o.contains("-pc_type")
+                        || o.contains("-pc_factor_mat_solver_type")
+                })
+            }
         }
     }
 
@@ -144,6 +177,21 @@ impl SolverSettings {
                     Ordering::Amd => "AMD",
                 }
             ),
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => {
+                let env = std::env::var("PETSC_OPTIONS").unwrap_or_default();
+                let mut s = String::from("PETSc");
+                if self.petsc_options.trim().is_empty() && env.trim().is_empty() {
+                    s.push_str(" (MUMPS LDLT: exact solves and the inertia for the stability test)");
+                }
+                if !self.petsc_options.trim().is_empty() {
+                    s.push_str(&format!(", options \"{}\"", self.petsc_options.trim()));
+                }
+                if !env.trim().is_empty() {
+                    s.push_str(&format!(", PETSC_OPTIONS \"{}\"", env.trim()));
+                }
+                s
+            }
         }
     }
 }

@@ -6,4 +6,6 @@ pub mod interrupt;
 pub mod linear;
 pub mod newton;
 pub mod ordering;
+#[cfg(feature = "petsc")]
+pub mod petsc;
 pub mod stepping;
