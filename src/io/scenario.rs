@@ -97,7 +97,7 @@ pub struct Scenario {
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSpec {
-    /// `auto` (default) or `direct`.
+    /// `auto` (default) or `direct`, or `petsc` in a build with the `petsc` feature.
     pub kind: Option<String>,
     /// Fill-reducing ordering of the direct solver: `nested-dissection` (default) or `amd`.
     pub ordering: Option<String>,
@@ -105,6 +105,8 @@ pub struct SolverSpec {
     pub reuse_from: Option<i64>,
     /// `auto`: the precision of reused factorisations, `double` (default) or `single`.
     pub precision: Option<String>,
+    /// PETSc options of the `petsc` solver, e.g. `"-ksp_type minres -pc_type jacobi"`.
+    pub petsc_options: Option<String>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

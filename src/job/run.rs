@@ -1082,7 +1082,7 @@ impl<'p, 'o> Job<'p, 'o> {
             min_fraction: 1.0 / 1024.0,
             easy_iterations: 6,
             reuse_factorization: true,
-            solver: plan.solver,
+            solver: plan.solver.clone(),
         };
         // the integrator runs on stage time; records get the global time
         let (t0, resume, mut step_no) = match position {

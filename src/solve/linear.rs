@@ -37,6 +37,9 @@ pub enum LinearSolverError {
     NotFactored,
     #[error("the iterative solve did not converge: {0}")]
     NotConverged(String),
+    /// A solver library failed, or an iterative solve did not converge (the message says which).
+    #[error("{0}")]
+    Failed(String),
 }
 
 /// A direct solver: factor once, solve many right-hand sides.
@@ -117,6 +120,10 @@ pub enum SolverKind {
     Auto,
     /// Sparse LDLᵀ ([`FaerLdlt`]) of every Newton tangent: exact, gives the inertia.
     Direct,
+    /// PETSc ([`super::petsc::PetscSolver`]): MUMPS LDLᵀ by default, any KSP/PC by options, on
+    /// one or more MPI ranks.
+    #[cfg(feature = "petsc")]
+    Petsc,
 }
 
 /// From this many unknowns on, `auto` keeps factorisations across Newton iterations and steps
@@ -124,14 +131,22 @@ pub enum SolverKind {
 pub const REUSE_MIN_UNKNOWNS: usize = 20_000;
 
 impl SolverKind {
-    /// Names in scenario files (`[solver] kind`).
-    pub const NAMES: [&'static str; 2] = ["auto", "direct"];
+    /// Names in scenario files (`[solver] kind`) that this build accepts.
+    #[cfg(not(feature = "petsc"))]
+    pub const NAMES: &'static [&'static str] = &["auto", "direct"];
+    /// Names in scenario files (`[solver] kind`) that this build accepts.
+    #[cfg(feature = "petsc")]
+    pub const NAMES: &'static [&'static str] = &["auto", "direct", "petsc"];
+    /// Names of kinds that need a build with a Cargo feature, with that feature.
+    pub const OPTIONAL: &'static [(&'static str, &'static str)] = &[("petsc", "petsc")];
 
     /// Parses a name of [`SolverKind::NAMES`].
     pub fn from_name(s: &str) -> Option<Self> {
         match s {
             "auto" => Some(SolverKind::Auto),
             "direct" => Some(SolverKind::Direct),
+            #[cfg(feature = "petsc")]
+            "petsc" => Some(SolverKind::Petsc),
             _ => None,
         }
     }
@@ -141,12 +156,14 @@ impl SolverKind {
         match self {
             SolverKind::Auto => "auto",
             SolverKind::Direct => "direct",
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => "petsc",
         }
     }
 }
 
 /// The linear solver settings of a run (`[solver]` in a scenario).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SolverSettings {
     pub kind: SolverKind,
     /// Fill-reducing ordering of the direct solver.
@@ -155,6 +172,10 @@ pub struct SolverSettings {
     pub reuse_from: usize,
     /// `auto`: hold reused factorisations in single precision.
     pub single_precision: bool,
+    /// PETSc options (`-ksp_type minres -pc_type jacobi ...`) of the PETSc solver; empty for
+    /// PETSc's defaults as deasim sets them (a direct MUMPS LDLᵀ).
+    #[serde(default)]
+    pub petsc_options: String,
 }
 
 impl Default for SolverSettings {
@@ -164,6 +185,7 @@ impl Default for SolverSettings {
             ordering: Ordering::default(),
             reuse_from: REUSE_MIN_UNKNOWNS,
             single_precision: false,
+            petsc_options: String::new(),
         }
     }
 }
@@ -181,6 +203,8 @@ impl SolverSettings {
                     s
                 })
             }
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => Box::new(super::petsc::PetscSolver::new(&self.petsc_options)),
         }
     }
 
@@ -189,6 +213,16 @@ impl SolverSettings {
     pub fn gives_inertia(&self) -> bool {
         match self.kind {
             SolverKind::Direct | SolverKind::Auto => true,
+            // MUMPS's LDLᵀ counts the negative pivots unless options choose another method
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => {
+                let env = std::env::var("PETSC_OPTIONS").unwrap_or_default();
+                ![self.petsc_options.as_str(), env.as_str()].iter().any(|o| {
+                    o.contains("-ksp_type")
+                        || o.contains("-pc_type")
+                        || o.contains("-pc_factor_mat_solver_type")
+                })
+            }
         }
     }
 
@@ -212,6 +246,23 @@ impl SolverSettings {
                  exceeds a factorisation, and at every stability test, whose inertia stays exact)",
                 self.reuse_from
             ),
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => {
+                let env = std::env::var("PETSC_OPTIONS").unwrap_or_default();
+                let mut s = String::from("PETSc");
+                if self.petsc_options.trim().is_empty() && env.trim().is_empty() {
+                    s.push_str(
+                        " (MUMPS LDLT: exact solves and the inertia for the stability test)",
+                    );
+                }
+                if !self.petsc_options.trim().is_empty() {
+                    s.push_str(&format!(", options \"{}\"", self.petsc_options.trim()));
+                }
+                if !env.trim().is_empty() {
+                    s.push_str(&format!(", PETSC_OPTIONS \"{}\"", env.trim()));
+                }
+                s
+            }
         }
     }
 }

@@ -8,5 +8,7 @@ pub mod krylov;
 pub mod linear;
 pub mod newton;
 pub mod ordering;
+#[cfg(feature = "petsc")]
+pub mod petsc;
 pub mod reused;
 pub mod stepping;

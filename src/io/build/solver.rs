@@ -12,14 +12,26 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
     };
     if let Some(k) = &spec.kind {
         out.kind = SolverKind::from_name(k).ok_or_else(|| {
-            ctx.err(
-                "solver.kind",
-                format!(
+            let message = match SolverKind::OPTIONAL.iter().find(|(name, _)| name == k) {
+                Some((name, feature)) => {
+                    format!("kind = \"{name}\" needs a build with --features {feature}")
+                }
+                None => format!(
                     "unknown solver `{k}`; expected one of: {}",
                     SolverKind::NAMES.join(", ")
                 ),
-            )
+            };
+            ctx.err("solver.kind", message)
         })?;
+    }
+    if let Some(o) = &spec.petsc_options {
+        if out.kind.name() != "petsc" {
+            return Err(ctx.err(
+                "solver.petsc_options",
+                "petsc_options applies to kind = \"petsc\" only",
+            ));
+        }
+        out.petsc_options = o.clone();
     }
     if let Some(o) = &spec.ordering {
         out.ordering = Ordering::from_name(o).ok_or_else(|| {
@@ -147,6 +159,34 @@ mod tests {
             )],
             "solver.precision",
             "applies to kind = \"auto\" only",
+        );
+    }
+
+    #[cfg(not(feature = "petsc"))]
+    #[test]
+    fn the_petsc_kind_names_the_feature_it_needs() {
+        assert_rejected(
+            &[("solver", "[solver]\nkind = \"petsc\"")],
+            "solver.kind",
+            "kind = \"petsc\" needs a build with --features petsc",
+        );
+    }
+
+    #[cfg(feature = "petsc")]
+    #[test]
+    fn the_petsc_kind_with_its_options() {
+        let s = solver("[solver]\nkind = \"petsc\"\npetsc_options = \"-ksp_type minres\"").unwrap();
+        assert_eq!(s.kind, SolverKind::Petsc);
+        assert_eq!(s.petsc_options, "-ksp_type minres");
+        assert!(s.describe().starts_with("PETSc"), "{}", s.describe());
+    }
+
+    #[test]
+    fn petsc_options_need_the_petsc_kind() {
+        assert_rejected(
+            &[("solver", "[solver]\npetsc_options = \"-ksp_type cg\"")],
+            "solver.petsc_options",
+            "petsc_options applies to kind = \"petsc\" only",
         );
     }
 

@@ -1,0 +1,701 @@
+//! Linear solves by PETSc (`[solver] kind = "petsc"`, a build with `--features petsc`).
+//!
+//! A thin safe layer over `petsc-sys`: owning wrappers of PETSc's matrix, vector, scatter and
+//! Krylov-solver objects, every error code turned into a [`LinearSolverError`] with PETSc's own
+//! message, and [`PetscSolver`], a [`LinearSolver`] whose system is one PETSc AIJ matrix on
+//! `PETSC_COMM_WORLD`.
+//!
+//! **Distribution.** Every MPI rank runs the same program and holds the same full matrix; the
+//! PETSc system is nevertheless one distributed system: each rank owns a contiguous block of rows
+//! (whole 4×4 node blocks where the pattern allows a block size of 4) and passes only those
+//! entries, and the solution is gathered back to every rank. On one rank this is an ordinary
+//! sequential solve.
+//!
+//! **Default method.** Without options the solver is direct: `-ksp_type preonly -pc_type cholesky
+//! -pc_factor_mat_solver_type mumps`, a symmetric indefinite LDLᵀ factorisation by MUMPS (Amestoy
+//! et al., SIAM J. Matrix Anal. Appl. 23, 2001), so results agree with the serial LDLᵀ to
+//! round-off, and MUMPS's count of negative pivots gives the inertia for the stability test
+//! (`MatGetInertia`; `-mat_mumps_icntl_13 1` is set so that the count is also right on several
+//! ranks, as the PETSc manual page of `MATSOLVERMUMPS` requires).
+//!
+//! **Options.** Each solver has an options database of its own, holding the scenario's
+//! `[solver] petsc_options` string and then the `PETSC_OPTIONS` environment variable (the later
+//! wins, as PETSc's command line wins over an options file); it is made PETSc's default database
+//! (`PetscOptionsPush`) for every call of that solver, so that solvers with different options
+//! in one process do not see each other's. The solver reads them with `KSPSetFromOptions`, so
+//! any KSP/PC choice of the PETSc users manual applies, e.g. `-ksp_type minres -pc_type jacobi
+//! -ksp_rtol 1e-10`. A Krylov solve that does not converge is an error naming PETSc's reason,
+//! never a silently inaccurate answer.
+//!
+//! **Threads.** PETSc is not thread-safe: every call into it holds one process-wide lock, and
+//! PETSc is initialised once per process (on first use) and finalised at process exit.
+
+use super::linear::{Inertia, LinearSolver, LinearSolverError};
+use crate::problem::assembly::CsrMatrix;
+use petsc_sys as ffi;
+use std::cell::Cell;
+use std::ffi::{CStr, CString};
+use std::ptr;
+use std::sync::{Mutex, MutexGuard, OnceLock};
+
+/// Serialises every call into PETSc (and MPI) of this process.
+static LOCK: Mutex<()> = Mutex::new(());
+
+/// The outcome of the one initialisation of the process.
+static INIT: OnceLock<Result<(), String>> = OnceLock::new();
+
+thread_local! {
+    /// Whether this thread holds [`LOCK`] (so that nested calls, e.g. destructors on an error
+    /// path, do not wait for themselves).
+    static HELD: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Holds [`LOCK`] unless this thread already does.
+struct Guard(Option<MutexGuard<'static, ()>>);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        if self.0.is_some() {
+            HELD.with(|h| h.set(false));
+        }
+    }
+}
+
+fn lock() -> Guard {
+    if HELD.with(|h| h.get()) {
+        return Guard(None);
+    }
+    // a panic while holding the lock leaves PETSc as it was: carry on
+    let guard = LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    HELD.with(|h| h.set(true));
+    Guard(Some(guard))
+}
+
+/// PETSc's message for an error code: the generic text and the specific message of the last
+/// error raised.
+fn message(code: ffi::PetscErrorCode) -> String {
+    let mut text: *const std::os::raw::c_char = ptr::null();
+    let mut specific: *mut std::os::raw::c_char = ptr::null_mut();
+    // SAFETY: PetscErrorMessage writes pointers to static strings owned by PETSc
+    unsafe {
+        ffi::PetscErrorMessage(code, &mut text, &mut specific);
+    }
+    let read = |p: *const std::os::raw::c_char| {
+        if p.is_null() {
+            String::new()
+        } else {
+            // SAFETY: non-null pointers from PETSc are NUL-terminated strings
+            unsafe { CStr::from_ptr(p) }
+                .to_string_lossy()
+                .trim()
+                .to_string()
+        }
+    };
+    let (text, specific) = (read(text), read(specific));
+    match (text.is_empty(), specific.is_empty()) {
+        (_, true) => format!("PETSc error {code}: {text}"),
+        (true, false) => format!("PETSc error {code}: {specific}"),
+        (false, false) => format!("PETSc error {code}: {text}: {specific}"),
+    }
+}
+
+/// A PETSc return code as a `Result`; `what` names the call for the message.
+fn check(code: ffi::PetscErrorCode, what: &str) -> Result<(), LinearSolverError> {
+    ffi::check(code).map_err(|c| LinearSolverError::Failed(format!("{what}: {}", message(c))))
+}
+
+extern "C" fn finalize_at_exit() {
+    let _guard = lock();
+    // SAFETY: runs once, at exit, after PetscInitialize succeeded; objects still alive are freed
+    // by the operating system
+    unsafe {
+        ffi::PetscFinalize();
+    }
+}
+
+/// Initialises PETSc (and MPI, unless the program already did) once per process, and registers
+/// its finalisation at exit. PETSc's signal handlers stay off (deasim handles Ctrl-C itself), and
+/// errors are returned to the caller rather than printed as tracebacks.
+pub fn initialize() -> Result<(), LinearSolverError> {
+    INIT.get_or_init(|| {
+        let _guard = lock();
+        // SAFETY: the options database may be written before PetscInitialize; the argument
+        // pointers may be null (no command line: deasim's own arguments are not PETSc's)
+        unsafe {
+            let opt = c"-no_signal_handler";
+            ffi::PetscOptionsSetValue(ptr::null_mut(), opt.as_ptr(), ptr::null());
+            let code =
+                ffi::PetscInitialize(ptr::null_mut(), ptr::null_mut(), ptr::null(), ptr::null());
+            if code != 0 {
+                return Err(format!("PetscInitialize failed with error code {code}"));
+            }
+            ffi::PetscPushErrorHandler(Some(ffi::PetscReturnErrorHandler), ptr::null_mut());
+            libc::atexit(finalize_at_exit);
+        }
+        Ok(())
+    })
+    .clone()
+    .map_err(LinearSolverError::Failed)
+}
+
+/// This process's rank and the number of ranks of `PETSC_COMM_WORLD` (initialising PETSc).
+pub fn world() -> Result<(usize, usize), LinearSolverError> {
+    initialize()?;
+    let _guard = lock();
+    let (mut rank, mut size) = (0, 0);
+    // SAFETY: PETSc is initialised
+    unsafe {
+        let comm = ffi::comm_world();
+        ffi::MPI_Comm_rank(comm, &mut rank);
+        ffi::MPI_Comm_size(comm, &mut size);
+    }
+    Ok((rank as usize, size as usize))
+}
+
+/// Inserts an options string into the default options database (call with the lock held).
+fn insert_options(options: &str, origin: &str) -> Result<(), LinearSolverError> {
+    if options.trim().is_empty() {
+        return Ok(());
+    }
+    let c = CString::new(options).map_err(|_| {
+        LinearSolverError::Failed(format!("{origin}: the PETSc options contain a NUL byte"))
+    })?;
+    // SAFETY: c is a valid C string for the duration of the call
+    check(
+        unsafe { ffi::PetscOptionsInsertString(ptr::null_mut(), c.as_ptr()) },
+        &format!("{origin}: PetscOptionsInsertString(\"{options}\")"),
+    )
+}
+
+fn has_option(name: &CStr) -> Result<bool, LinearSolverError> {
+    let mut set = ffi::PETSC_FALSE;
+    // SAFETY: valid C string, out-pointer to a local
+    check(
+        unsafe { ffi::PetscOptionsHasName(ptr::null_mut(), ptr::null(), name.as_ptr(), &mut set) },
+        "PetscOptionsHasName",
+    )?;
+    Ok(set == ffi::PETSC_TRUE)
+}
+
+/// A C string of PETSc (a type name) as Rust text.
+fn type_name(p: *const std::os::raw::c_char) -> String {
+    if p.is_null() {
+        String::new()
+    } else {
+        // SAFETY: PETSc type names are NUL-terminated static strings
+        unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
+    }
+}
+
+/// An owned PETSc options database.
+struct Options(ffi::PetscOptions);
+/// An owned PETSc matrix.
+struct Mat(ffi::Mat);
+/// An owned PETSc vector.
+struct Vector(ffi::Vec);
+/// An owned PETSc Krylov solver (with its preconditioner).
+struct Ksp(ffi::KSP);
+/// An owned PETSc scatter.
+struct Scatter(ffi::VecScatter);
+
+macro_rules! destroy_on_drop {
+    ($t:ident, $f:ident) => {
+        impl Drop for $t {
+            fn drop(&mut self) {
+                if !self.0.is_null() {
+                    let _guard = lock();
+                    // SAFETY: the handle is owned and destroyed once; PETSc is initialised
+                    unsafe {
+                        ffi::$f(&mut self.0);
+                    }
+                }
+            }
+        }
+        // SAFETY: every use of the handle holds the process-wide PETSc lock
+        unsafe impl Send for $t {}
+    };
+}
+destroy_on_drop!(Options, PetscOptionsDestroy);
+destroy_on_drop!(Mat, MatDestroy);
+destroy_on_drop!(Vector, VecDestroy);
+destroy_on_drop!(Ksp, KSPDestroy);
+destroy_on_drop!(Scatter, VecScatterDestroy);
+
+/// The PETSc objects of one matrix pattern. Fields drop in order: the solver before its matrix.
+struct System {
+    ksp: Ksp,
+    scatter: Scatter,
+    /// The whole solution on every rank (sequential).
+    x_all: Vector,
+    x: Vector,
+    b: Vector,
+    mat: Mat,
+    options: Options,
+    n: usize,
+    nnz: usize,
+    /// The rows this rank owns.
+    rows: std::ops::Range<usize>,
+    block_size: usize,
+    /// Whether the preconditioner is a MUMPS Cholesky (LDLᵀ) factorisation, which gives the
+    /// inertia.
+    gives_inertia: bool,
+    description: String,
+}
+
+/// While alive, `options` is PETSc's default options database (the lock must be held).
+struct Scope;
+
+impl Scope {
+    fn push(options: &Options) -> Result<Scope, LinearSolverError> {
+        // SAFETY: the database is live; it is popped by the guard's drop
+        check(
+            unsafe { ffi::PetscOptionsPush(options.0) },
+            "PetscOptionsPush",
+        )?;
+        Ok(Scope)
+    }
+}
+
+impl Drop for Scope {
+    fn drop(&mut self) {
+        // SAFETY: pops what `push` pushed
+        unsafe {
+            ffi::PetscOptionsPop();
+        }
+    }
+}
+
+/// The block size of the matrix: 4 when every aligned group of 4 rows has one pattern made of
+/// whole aligned groups of 4 columns (every node keeps all its unknowns free), else 1.
+pub fn block_size(a: &CsrMatrix) -> usize {
+    const BS: usize = 4;
+    if a.n == 0 || !a.n.is_multiple_of(BS) {
+        return 1;
+    }
+    for block in 0..a.n / BS {
+        let first = block * BS;
+        let cols = &a.col_idx[a.row_ptr[first]..a.row_ptr[first + 1]];
+        if !cols.len().is_multiple_of(BS) {
+            return 1;
+        }
+        for chunk in cols.chunks(BS) {
+            if !chunk[0].is_multiple_of(BS)
+                || chunk.iter().enumerate().any(|(k, &c)| c != chunk[0] + k)
+            {
+                return 1;
+            }
+        }
+        for r in first + 1..first + BS {
+            if a.col_idx[a.row_ptr[r]..a.row_ptr[r + 1]] != *cols {
+                return 1;
+            }
+        }
+    }
+    BS
+}
+
+/// The rows of `rank` among `size`: contiguous, whole blocks, as even as possible.
+fn owned_rows(n: usize, block_size: usize, rank: usize, size: usize) -> std::ops::Range<usize> {
+    let blocks = n / block_size;
+    let lo = blocks * rank / size;
+    let hi = blocks * (rank + 1) / size;
+    lo * block_size..hi * block_size
+}
+
+impl System {
+    /// Creates the matrix (COO preallocation over this rank's rows), the vectors, the gather to
+    /// every rank and the KSP with its defaults and the options database applied. Holds the lock.
+    fn new(a: &CsrMatrix, options: &str) -> Result<System, LinearSolverError> {
+        let (rank, size) = world()?;
+        let _guard = lock();
+        let n = a.n;
+        let block_size = block_size(a);
+        let rows = owned_rows(n, block_size, rank, size);
+        let local = rows.len();
+        // SAFETY throughout: PETSc is initialised, every handle is created before it is used
+        // and owned by a wrapper that destroys it; arrays passed outlive the calls.
+        unsafe {
+            let comm = ffi::comm_world();
+            let mut db = Options(ptr::null_mut());
+            check(ffi::PetscOptionsCreate(&mut db.0), "PetscOptionsCreate")?;
+            let scope = Scope::push(&db)?;
+
+            let mut mat = Mat(ptr::null_mut());
+            check(ffi::MatCreate(comm, &mut mat.0), "MatCreate")?;
+            check(
+                ffi::MatSetSizes(mat.0, local as _, local as _, n as _, n as _),
+                "MatSetSizes",
+            )?;
+            check(
+                ffi::MatSetType(mat.0, ffi::MATAIJ.as_ptr().cast()),
+                "MatSetType",
+            )?;
+            check(
+                ffi::MatSetBlockSize(mat.0, block_size as _),
+                "MatSetBlockSize",
+            )?;
+            let span = a.row_ptr[rows.start]..a.row_ptr[rows.end];
+            let mut coo_i: Vec<ffi::PetscInt> = Vec::with_capacity(span.len());
+            for i in rows.clone() {
+                for _ in a.row_ptr[i]..a.row_ptr[i + 1] {
+                    coo_i.push(i as ffi::PetscInt);
+                }
+            }
+            let mut coo_j: Vec<ffi::PetscInt> = a.col_idx[span.clone()]
+                .iter()
+                .map(|&j| j as ffi::PetscInt)
+                .collect();
+            check(
+                ffi::MatSetPreallocationCOO(
+                    mat.0,
+                    coo_i.len() as ffi::PetscCount,
+                    coo_i.as_mut_ptr(),
+                    coo_j.as_mut_ptr(),
+                ),
+                "MatSetPreallocationCOO",
+            )?;
+            drop((coo_i, coo_j));
+
+            let (mut x, mut b) = (Vector(ptr::null_mut()), Vector(ptr::null_mut()));
+            check(
+                ffi::MatCreateVecs(mat.0, &mut x.0, &mut b.0),
+                "MatCreateVecs",
+            )?;
+            let (mut scatter, mut x_all) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
+            check(
+                ffi::VecScatterCreateToAll(x.0, &mut scatter.0, &mut x_all.0),
+                "VecScatterCreateToAll",
+            )?;
+
+            let mut ksp = Ksp(ptr::null_mut());
+            check(ffi::KSPCreate(comm, &mut ksp.0), "KSPCreate")?;
+            check(ffi::KSPSetOperators(ksp.0, mat.0, mat.0), "KSPSetOperators")?;
+            check(
+                ffi::KSPSetType(ksp.0, ffi::KSPPREONLY.as_ptr().cast()),
+                "KSPSetType",
+            )?;
+            let mut pc: ffi::PC = ptr::null_mut();
+            check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
+            check(
+                ffi::PCSetType(pc, ffi::PCCHOLESKY.as_ptr().cast()),
+                "PCSetType",
+            )?;
+            check(
+                ffi::PCFactorSetMatSolverType(pc, ffi::MATSOLVERMUMPS.as_ptr().cast()),
+                "PCFactorSetMatSolverType",
+            )?;
+            insert_options(options, "[solver] petsc_options")?;
+            if let Ok(env) = std::env::var("PETSC_OPTIONS") {
+                insert_options(&env, "PETSC_OPTIONS")?;
+            }
+            check(ffi::KSPSetFromOptions(ksp.0), "KSPSetFromOptions")?;
+
+            let mut ksp_type: ffi::KSPType = ptr::null();
+            check(ffi::KSPGetType(ksp.0, &mut ksp_type), "KSPGetType")?;
+            let mut pc_type: ffi::PCType = ptr::null();
+            check(ffi::PCGetType(pc, &mut pc_type), "PCGetType")?;
+            let (ksp_type, pc_type) = (type_name(ksp_type), type_name(pc_type));
+            let mut solver_type = String::new();
+            if pc_type == "cholesky" || pc_type == "lu" {
+                let mut t: ffi::MatSolverType = ptr::null();
+                check(
+                    ffi::PCFactorGetMatSolverType(pc, &mut t),
+                    "PCFactorGetMatSolverType",
+                )?;
+                solver_type = type_name(t);
+            }
+            let mumps = solver_type == "mumps";
+            if mumps && !has_option(c"-mat_mumps_icntl_13")? {
+                // the inertia counted over all ranks (the root front not split by ScaLAPACK)
+                check(
+                    ffi::PetscOptionsSetValue(
+                        ptr::null_mut(),
+                        c"-mat_mumps_icntl_13".as_ptr(),
+                        c"1".as_ptr(),
+                    ),
+                    "PetscOptionsSetValue",
+                )?;
+            }
+            let description = if solver_type.is_empty() {
+                format!("KSP {ksp_type}, PC {pc_type}")
+            } else {
+                format!("KSP {ksp_type}, PC {pc_type} ({solver_type})")
+            };
+            drop(scope);
+            Ok(System {
+                ksp,
+                scatter,
+                x_all,
+                x,
+                b,
+                mat,
+                options: db,
+                n,
+                nnz: a.nnz(),
+                rows,
+                block_size,
+                gives_inertia: mumps && pc_type == "cholesky",
+                description,
+            })
+        }
+    }
+
+    /// Copies this rank's values into the matrix and sets up (factors) the preconditioner.
+    fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
+        let _guard = lock();
+        let _scope = Scope::push(&self.options)?;
+        let span = a.row_ptr[self.rows.start]..a.row_ptr[self.rows.end];
+        // SAFETY: the handles are live; the value slice has exactly the preallocated length
+        unsafe {
+            check(
+                ffi::MatSetValuesCOO(self.mat.0, a.values[span].as_ptr(), ffi::INSERT_VALUES),
+                "MatSetValuesCOO",
+            )?;
+            for option in [ffi::MAT_SYMMETRIC, ffi::MAT_SYMMETRY_ETERNAL] {
+                check(
+                    ffi::MatSetOption(self.mat.0, option, ffi::PETSC_TRUE),
+                    "MatSetOption",
+                )?;
+            }
+            check(ffi::KSPSetUp(self.ksp.0), "KSPSetUp")?;
+            let mut pc: ffi::PC = ptr::null_mut();
+            check(ffi::KSPGetPC(self.ksp.0, &mut pc), "KSPGetPC")?;
+            let mut failed: ffi::PCFailedReason = ffi::PC_NOERROR;
+            check(ffi::PCGetFailedReason(pc, &mut failed), "PCGetFailedReason")?;
+            if failed == ffi::PC_FACTOR_STRUCT_ZEROPIVOT
+                || failed == ffi::PC_FACTOR_NUMERIC_ZEROPIVOT
+            {
+                return Err(LinearSolverError::Singular(0));
+            }
+            if failed != ffi::PC_NOERROR {
+                return Err(LinearSolverError::Failed(format!(
+                    "PETSc preconditioner set-up failed ({}; PCFailedReason {failed})",
+                    self.description
+                )));
+            }
+            if !self.gives_inertia {
+                return Ok(None);
+            }
+            let mut factor: ffi::Mat = ptr::null_mut();
+            check(ffi::PCFactorGetMatrix(pc, &mut factor), "PCFactorGetMatrix")?;
+            let mut negative: ffi::PetscInt = 0;
+            check(
+                ffi::MatGetInertia(factor, &mut negative, ptr::null_mut(), ptr::null_mut()),
+                "MatGetInertia",
+            )?;
+            let negative = negative as usize;
+            Ok(Some(Inertia {
+                positive: self.n - negative.min(self.n),
+                negative,
+                zero: 0,
+            }))
+        }
+    }
+
+    /// Solves with this rank's part of `b` and overwrites all of `b` with the solution.
+    fn solve(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
+        let _guard = lock();
+        let _scope = Scope::push(&self.options)?;
+        // SAFETY: the handles are live; arrays obtained from PETSc are restored before return
+        // and have the local (for b) or global (for x_all) length
+        unsafe {
+            let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
+            check(ffi::VecGetArray(self.b.0, &mut arr), "VecGetArray")?;
+            std::slice::from_raw_parts_mut(arr, self.rows.len())
+                .copy_from_slice(&b[self.rows.clone()]);
+            check(ffi::VecRestoreArray(self.b.0, &mut arr), "VecRestoreArray")?;
+
+            check(ffi::KSPSolve(self.ksp.0, self.b.0, self.x.0), "KSPSolve")?;
+            let mut reason: ffi::KSPConvergedReason = 0;
+            check(
+                ffi::KSPGetConvergedReason(self.ksp.0, &mut reason),
+                "KSPGetConvergedReason",
+            )?;
+            if reason <= 0 {
+                let mut its: ffi::PetscInt = 0;
+                let mut rnorm: ffi::PetscReal = 0.0;
+                ffi::KSPGetIterationNumber(self.ksp.0, &mut its);
+                ffi::KSPGetResidualNorm(self.ksp.0, &mut rnorm);
+                let name = type_name(*ffi::KSPConvergedReasons.offset(reason as isize));
+                return Err(LinearSolverError::Failed(format!(
+                    "PETSc solve did not converge ({}): {name} after {its} iterations, residual \
+                     norm {rnorm:.3e}",
+                    self.description
+                )));
+            }
+
+            for step in [ffi::VecScatterBegin, ffi::VecScatterEnd] {
+                check(
+                    step(
+                        self.scatter.0,
+                        self.x.0,
+                        self.x_all.0,
+                        ffi::INSERT_VALUES,
+                        ffi::SCATTER_FORWARD,
+                    ),
+                    "VecScatter",
+                )?;
+            }
+            let mut arr: *const ffi::PetscScalar = ptr::null();
+            check(
+                ffi::VecGetArrayRead(self.x_all.0, &mut arr),
+                "VecGetArrayRead",
+            )?;
+            b.copy_from_slice(std::slice::from_raw_parts(arr, self.n));
+            check(
+                ffi::VecRestoreArrayRead(self.x_all.0, &mut arr),
+                "VecRestoreArrayRead",
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// A [`LinearSolver`] by PETSc: KSP and PC from the options (default MUMPS LDLᵀ), the matrix
+/// distributed by rows over the ranks of `PETSC_COMM_WORLD`.
+pub struct PetscSolver {
+    options: String,
+    system: Option<System>,
+    factored: bool,
+}
+
+impl std::fmt::Debug for PetscSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PetscSolver")
+            .field("options", &self.options)
+            .field("factored", &self.factored)
+            .field(
+                "method",
+                &self.system.as_ref().map(|s| s.description.as_str()),
+            )
+            .finish()
+    }
+}
+
+impl PetscSolver {
+    /// A solver with the scenario's PETSc options (inserted into PETSc's options database at
+    /// the first factorisation).
+    pub fn new(options: &str) -> Self {
+        PetscSolver {
+            options: options.to_string(),
+            system: None,
+            factored: false,
+        }
+    }
+
+    /// The KSP and PC in use (known after the first factorisation).
+    pub fn method(&self) -> Option<&str> {
+        self.system.as_ref().map(|s| s.description.as_str())
+    }
+
+    /// The block size of the PETSc matrix (known after the first factorisation).
+    pub fn matrix_block_size(&self) -> Option<usize> {
+        self.system.as_ref().map(|s| s.block_size)
+    }
+}
+
+impl LinearSolver for PetscSolver {
+    fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
+        self.factored = false;
+        let same = matches!(&self.system, Some(s) if s.n == a.n && s.nnz == a.nnz());
+        if !same {
+            self.system = None;
+            self.system = Some(System::new(a, &self.options)?);
+        }
+        let system = self.system.as_mut().expect("set above");
+        let inertia = system.factor(a)?;
+        self.factored = true;
+        Ok(inertia)
+    }
+
+    fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
+        if !self.factored {
+            return Err(LinearSolverError::NotFactored);
+        }
+        let system = self.system.as_mut().ok_or(LinearSolverError::NotFactored)?;
+        system.solve(b)
+    }
+
+    fn name(&self) -> &'static str {
+        "PETSc"
+    }
+
+    fn is_factored(&self) -> bool {
+        self.factored
+    }
+
+    fn invalidate(&mut self) {
+        self.factored = false;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn csr(n: usize, entries: &[(usize, usize, f64)]) -> CsrMatrix {
+        let mut rows = vec![Vec::new(); n];
+        for &(i, j, v) in entries {
+            rows[i].push((j, v));
+        }
+        let mut a = CsrMatrix {
+            n,
+            row_ptr: vec![0],
+            col_idx: vec![],
+            values: vec![],
+        };
+        for mut r in rows {
+            r.sort_by_key(|e| e.0);
+            for (j, v) in r {
+                a.col_idx.push(j);
+                a.values.push(v);
+            }
+            a.row_ptr.push(a.col_idx.len());
+        }
+        a
+    }
+
+    #[test]
+    fn block_size_four_only_for_whole_aligned_blocks() {
+        let full: Vec<_> = (0..8)
+            .flat_map(|i| (0..8).map(move |j| (i, j, 1.0)))
+            .collect();
+        assert_eq!(block_size(&csr(8, &full)), 4);
+        let diag: Vec<_> = (0..8).map(|i| (i, i, 1.0)).collect();
+        assert_eq!(block_size(&csr(8, &diag)), 1);
+        let odd: Vec<_> = (0..6)
+            .flat_map(|i| (0..6).map(move |j| (i, j, 1.0)))
+            .collect();
+        assert_eq!(block_size(&csr(6, &odd)), 1);
+    }
+
+    #[test]
+    fn rows_split_in_whole_blocks() {
+        assert_eq!(owned_rows(10, 1, 0, 1), 0..10);
+        assert_eq!(owned_rows(12, 4, 0, 2), 0..4);
+        assert_eq!(owned_rows(12, 4, 1, 2), 4..12);
+        assert_eq!(owned_rows(7, 1, 1, 2), 3..7);
+    }
+
+    #[test]
+    fn solves_a_small_saddle_system_with_its_inertia() {
+        // [[2, 1], [1, -1]]: one positive and one negative eigenvalue
+        let a = csr(2, &[(0, 0, 2.0), (0, 1, 1.0), (1, 0, 1.0), (1, 1, -1.0)]);
+        let mut s = PetscSolver::new("");
+        let inertia = s.factor(&a).unwrap();
+        assert_eq!(
+            inertia,
+            Some(Inertia {
+                positive: 1,
+                negative: 1,
+                zero: 0
+            })
+        );
+        let mut b = vec![3.0, 0.0];
+        s.solve_in_place(&mut b).unwrap();
+        assert!(
+            (b[0] - 1.0).abs() < 1e-14 && (b[1] - 1.0).abs() < 1e-14,
+            "{b:?}"
+        );
+    }
+}
