@@ -152,6 +152,21 @@ pub fn world() -> Result<(usize, usize), LinearSolverError> {
     Ok((rank as usize, size as usize))
 }
 
+/// Waits until every rank of `PETSC_COMM_WORLD` arrives here (e.g. the writing rank has
+/// finished its files before any rank exits, which would make the launcher abort the others).
+pub fn barrier() -> Result<(), LinearSolverError> {
+    initialize()?;
+    let _guard = lock();
+    // SAFETY: PETSc (and so MPI) is initialised
+    let code = unsafe { ffi::MPI_Barrier(ffi::comm_world()) };
+    if code != 0 {
+        return Err(LinearSolverError::Failed(format!(
+            "MPI_Barrier failed with code {code}"
+        )));
+    }
+    Ok(())
+}
+
 /// Inserts an options string into the default options database (call with the lock held).
 fn insert_options(options: &str, origin: &str) -> Result<(), LinearSolverError> {
     if options.trim().is_empty() {
