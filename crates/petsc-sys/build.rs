@@ -23,6 +23,7 @@ const FUNCTIONS: &[&str] = &[
     "PetscGetVersion",
     "MPI_Comm_rank",
     "MPI_Comm_size",
+    "MPI_Barrier",
     "Vec(Create|CreateMPI|SetSizes|SetBlockSize|SetFromOptions|Destroy|GetOwnershipRange|GetLocalSize|GetSize|GetArray|GetArrayRead|RestoreArray|RestoreArrayRead|Set|SetValues|AssemblyBegin|AssemblyEnd|Duplicate|Norm)",
     "VecScatter(CreateToAll|Begin|End|Destroy)",
     "Mat(Create|SetSizes|SetType|SetBlockSize|SetFromOptions|SetUp|Destroy|GetOwnershipRange|GetSize|SetPreallocationCOO|SetValuesCOO|AssemblyBegin|AssemblyEnd|SetOption|GetInertia|Mult|SetNearNullSpace|CreateVecs)",

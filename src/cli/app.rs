@@ -328,6 +328,18 @@ pub fn cmd_run(
             return EXIT_BAD_INPUT;
         }
     };
+    // a distributed PETSc solve: every rank runs the whole program, rank 0 alone writes
+    let ranks = match mpi_ranks(&plan) {
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_SOLVE_FAILED;
+        }
+        Ok((rank, _)) if rank > 0 => return run_secondary_rank(&plan),
+        Ok((_, size)) => size,
+    };
+    if ranks > 1 {
+        eprintln!("deasim: one linear system on {ranks} MPI ranks; rank 0 writes the outputs");
+    }
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(&plan.name));
@@ -372,7 +384,52 @@ pub fn cmd_run(
         },
         fingerprint: plan.fingerprint(),
     });
-    execute(&plan, &dir, writer, checkpoint, None)
+    let status = execute(&plan, &dir, writer, checkpoint, None);
+    if ranks > 1 {
+        mpi_barrier();
+    }
+    status
+}
+
+/// This process's rank and the number of ranks when the plan's solver is distributed (PETSc,
+/// which initialises MPI here); `(0, 1)` otherwise.
+fn mpi_ranks(plan: &Plan) -> Result<(usize, usize), String> {
+    #[cfg(feature = "petsc")]
+    if plan.solver.kind == crate::solve::linear::SolverKind::Petsc {
+        return crate::solve::petsc::world().map_err(|e| e.to_string());
+    }
+    let _ = plan;
+    Ok((0, 1))
+}
+
+/// Waits for every rank of a distributed run (rank 0 has written its files).
+fn mpi_barrier() {
+    #[cfg(feature = "petsc")]
+    if let Err(e) = crate::solve::petsc::barrier() {
+        eprintln!("warning: {e}");
+    }
+}
+
+/// The number of processes an MPI launcher started (Open MPI's or a PMI launcher's variable),
+/// if any.
+fn launched_ranks() -> Option<usize> {
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE"]
+        .iter()
+        .find_map(|v| std::env::var(v).ok()?.parse().ok())
+}
+
+/// A rank other than 0 of a distributed run: the same run (the same steps, so the same
+/// collective PETSc calls), silent and without files.
+fn run_secondary_rank(plan: &Plan) -> i32 {
+    let summary = run_with(plan, &NewtonSettings::default(), &mut [], None);
+    mpi_barrier();
+    if summary.interrupted {
+        EXIT_INTERRUPTED
+    } else if summary.converged {
+        EXIT_OK
+    } else {
+        EXIT_SOLVE_FAILED
+    }
 }
 
 /// `deasim run --resume DIR`: continues the run whose newest checkpoint is in `dir`, with the
@@ -383,6 +440,10 @@ pub fn cmd_resume(
     overrides: &[String],
     checkpoint_every: Option<usize>,
 ) -> i32 {
+    if let Some(size) = launched_ranks().filter(|&n| n > 1) {
+        eprintln!("error: --resume runs on one MPI rank, not {size}");
+        return EXIT_BAD_INPUT;
+    }
     if !dir.is_dir() {
         eprintln!(
             "error: cannot resume from {}: no such directory",

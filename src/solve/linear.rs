@@ -217,11 +217,13 @@ impl SolverSettings {
             #[cfg(feature = "petsc")]
             SolverKind::Petsc => {
                 let env = std::env::var("PETSC_OPTIONS").unwrap_or_default();
-                ![self.petsc_options.as_str(), env.as_str()].iter().any(|o| {
-                    o.contains("-ksp_type")
-                        || o.contains("-pc_type")
-                        || o.contains("-pc_factor_mat_solver_type")
-                })
+                let options = format!("{} {env}", self.petsc_options);
+                let is = |name: &str, default: &str| {
+                    last_option_value(&options, name).is_none_or(|v| v == default)
+                };
+                is("-ksp_type", "preonly")
+                    && is("-pc_type", "cholesky")
+                    && is("-pc_factor_mat_solver_type", "mumps")
             }
         }
     }
@@ -265,6 +267,21 @@ impl SolverSettings {
             }
         }
     }
+}
+
+/// The value of the last occurrence of option `name` in a PETSc options string (the one PETSc
+/// uses), `Some("")` for a flag without value.
+#[cfg(feature = "petsc")]
+fn last_option_value<'a>(options: &'a str, name: &str) -> Option<&'a str> {
+    let words: Vec<&str> = options.split_whitespace().collect();
+    let i = words.iter().rposition(|w| *w == name)?;
+    Some(
+        words
+            .get(i + 1)
+            .filter(|v| !v.starts_with('-') || v.parse::<f64>().is_ok())
+            .copied()
+            .unwrap_or(""),
+    )
 }
 
 /// Sparse supernodal LDLᵀ (faer) with a nested-dissection (METIS) or AMD ordering; the symbolic
@@ -630,6 +647,24 @@ mod tests {
             a.row_ptr.push(a.col_idx.len());
         }
         a
+    }
+
+    #[cfg(feature = "petsc")]
+    #[test]
+    fn petsc_gives_the_inertia_only_with_the_mumps_cholesky() {
+        let with = |o: &str| SolverSettings {
+            kind: SolverKind::Petsc,
+            petsc_options: o.to_string(),
+            ..SolverSettings::default()
+        };
+        assert!(with("").gives_inertia());
+        assert!(with("-pc_type cholesky -mat_mumps_icntl_14 50").gives_inertia());
+        assert!(!with("-ksp_type gmres -pc_type jacobi").gives_inertia());
+        assert!(!with("-pc_type lu").gives_inertia());
+        assert!(with("-pc_type lu -pc_type cholesky").gives_inertia());
+        assert_eq!(last_option_value("-a 1 -b -c -2", "-c"), Some("-2"));
+        assert_eq!(last_option_value("-a 1 -b -c -2", "-b"), Some(""));
+        assert_eq!(last_option_value("-a 1", "-d"), None);
     }
 
     #[test]

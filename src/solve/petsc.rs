@@ -152,6 +152,21 @@ pub fn world() -> Result<(usize, usize), LinearSolverError> {
     Ok((rank as usize, size as usize))
 }
 
+/// Waits until every rank of `PETSC_COMM_WORLD` arrives here (e.g. the writing rank has
+/// finished its files before any rank exits, which would make the launcher abort the others).
+pub fn barrier() -> Result<(), LinearSolverError> {
+    initialize()?;
+    let _guard = lock();
+    // SAFETY: PETSc (and so MPI) is initialised
+    let code = unsafe { ffi::MPI_Barrier(ffi::comm_world()) };
+    if code != 0 {
+        return Err(LinearSolverError::Failed(format!(
+            "MPI_Barrier failed with code {code}"
+        )));
+    }
+    Ok(())
+}
+
 /// Inserts an options string into the default options database (call with the lock held).
 fn insert_options(options: &str, origin: &str) -> Result<(), LinearSolverError> {
     if options.trim().is_empty() {
@@ -304,58 +319,26 @@ fn owned_rows(n: usize, block_size: usize, rank: usize, size: usize) -> std::ops
 
 impl System {
     /// Creates the matrix (COO preallocation over this rank's rows), the vectors, the gather to
-    /// every rank and the KSP with its defaults and the options database applied. Holds the lock.
+    /// every rank and the KSP with its defaults and the options applied.
     fn new(a: &CsrMatrix, options: &str) -> Result<System, LinearSolverError> {
+        if ffi::PetscInt::try_from(a.n).is_err() {
+            return Err(LinearSolverError::Failed(format!(
+                "{} unknowns are too many for this PETSc's 32-bit indices",
+                a.n
+            )));
+        }
         let (rank, size) = world()?;
         let _guard = lock();
-        let n = a.n;
         let block_size = block_size(a);
-        let rows = owned_rows(n, block_size, rank, size);
-        let local = rows.len();
+        let rows = owned_rows(a.n, block_size, rank, size);
         // SAFETY throughout: PETSc is initialised, every handle is created before it is used
-        // and owned by a wrapper that destroys it; arrays passed outlive the calls.
+        // and owned by a wrapper that destroys it
         unsafe {
             let comm = ffi::comm_world();
             let mut db = Options(ptr::null_mut());
             check(ffi::PetscOptionsCreate(&mut db.0), "PetscOptionsCreate")?;
             let scope = Scope::push(&db)?;
-
-            let mut mat = Mat(ptr::null_mut());
-            check(ffi::MatCreate(comm, &mut mat.0), "MatCreate")?;
-            check(
-                ffi::MatSetSizes(mat.0, local as _, local as _, n as _, n as _),
-                "MatSetSizes",
-            )?;
-            check(
-                ffi::MatSetType(mat.0, ffi::MATAIJ.as_ptr().cast()),
-                "MatSetType",
-            )?;
-            check(
-                ffi::MatSetBlockSize(mat.0, block_size as _),
-                "MatSetBlockSize",
-            )?;
-            let span = a.row_ptr[rows.start]..a.row_ptr[rows.end];
-            let mut coo_i: Vec<ffi::PetscInt> = Vec::with_capacity(span.len());
-            for i in rows.clone() {
-                for _ in a.row_ptr[i]..a.row_ptr[i + 1] {
-                    coo_i.push(i as ffi::PetscInt);
-                }
-            }
-            let mut coo_j: Vec<ffi::PetscInt> = a.col_idx[span.clone()]
-                .iter()
-                .map(|&j| j as ffi::PetscInt)
-                .collect();
-            check(
-                ffi::MatSetPreallocationCOO(
-                    mat.0,
-                    coo_i.len() as ffi::PetscCount,
-                    coo_i.as_mut_ptr(),
-                    coo_j.as_mut_ptr(),
-                ),
-                "MatSetPreallocationCOO",
-            )?;
-            drop((coo_i, coo_j));
-
+            let mat = create_matrix(comm, a, rows.clone(), block_size)?;
             let (mut x, mut b) = (Vector(ptr::null_mut()), Vector(ptr::null_mut()));
             check(
                 ffi::MatCreateVecs(mat.0, &mut x.0, &mut b.0),
@@ -366,61 +349,7 @@ impl System {
                 ffi::VecScatterCreateToAll(x.0, &mut scatter.0, &mut x_all.0),
                 "VecScatterCreateToAll",
             )?;
-
-            let mut ksp = Ksp(ptr::null_mut());
-            check(ffi::KSPCreate(comm, &mut ksp.0), "KSPCreate")?;
-            check(ffi::KSPSetOperators(ksp.0, mat.0, mat.0), "KSPSetOperators")?;
-            check(
-                ffi::KSPSetType(ksp.0, ffi::KSPPREONLY.as_ptr().cast()),
-                "KSPSetType",
-            )?;
-            let mut pc: ffi::PC = ptr::null_mut();
-            check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
-            check(
-                ffi::PCSetType(pc, ffi::PCCHOLESKY.as_ptr().cast()),
-                "PCSetType",
-            )?;
-            check(
-                ffi::PCFactorSetMatSolverType(pc, ffi::MATSOLVERMUMPS.as_ptr().cast()),
-                "PCFactorSetMatSolverType",
-            )?;
-            insert_options(options, "[solver] petsc_options")?;
-            if let Ok(env) = std::env::var("PETSC_OPTIONS") {
-                insert_options(&env, "PETSC_OPTIONS")?;
-            }
-            check(ffi::KSPSetFromOptions(ksp.0), "KSPSetFromOptions")?;
-
-            let mut ksp_type: ffi::KSPType = ptr::null();
-            check(ffi::KSPGetType(ksp.0, &mut ksp_type), "KSPGetType")?;
-            let mut pc_type: ffi::PCType = ptr::null();
-            check(ffi::PCGetType(pc, &mut pc_type), "PCGetType")?;
-            let (ksp_type, pc_type) = (type_name(ksp_type), type_name(pc_type));
-            let mut solver_type = String::new();
-            if pc_type == "cholesky" || pc_type == "lu" {
-                let mut t: ffi::MatSolverType = ptr::null();
-                check(
-                    ffi::PCFactorGetMatSolverType(pc, &mut t),
-                    "PCFactorGetMatSolverType",
-                )?;
-                solver_type = type_name(t);
-            }
-            let mumps = solver_type == "mumps";
-            if mumps && !has_option(c"-mat_mumps_icntl_13")? {
-                // the inertia counted over all ranks (the root front not split by ScaLAPACK)
-                check(
-                    ffi::PetscOptionsSetValue(
-                        ptr::null_mut(),
-                        c"-mat_mumps_icntl_13".as_ptr(),
-                        c"1".as_ptr(),
-                    ),
-                    "PetscOptionsSetValue",
-                )?;
-            }
-            let description = if solver_type.is_empty() {
-                format!("KSP {ksp_type}, PC {pc_type}")
-            } else {
-                format!("KSP {ksp_type}, PC {pc_type} ({solver_type})")
-            };
+            let (ksp, description, gives_inertia) = create_ksp(comm, &mat, options)?;
             drop(scope);
             Ok(System {
                 ksp,
@@ -430,11 +359,11 @@ impl System {
                 b,
                 mat,
                 options: db,
-                n,
+                n: a.n,
                 nnz: a.nnz(),
                 rows,
                 block_size,
-                gives_inertia: mumps && pc_type == "cholesky",
+                gives_inertia,
                 description,
             })
         }
@@ -549,6 +478,120 @@ impl System {
         }
         Ok(())
     }
+}
+
+/// An AIJ matrix of `a`'s size whose rows `rows` are this rank's, preallocated by COO with the
+/// pattern of those rows.
+///
+/// # Safety
+/// PETSc is initialised and the caller holds the lock.
+unsafe fn create_matrix(
+    comm: ffi::MPI_Comm,
+    a: &CsrMatrix,
+    rows: std::ops::Range<usize>,
+    block_size: usize,
+) -> Result<Mat, LinearSolverError> {
+    let (n, local) = (a.n as ffi::PetscInt, rows.len() as ffi::PetscInt);
+    let mut mat = Mat(ptr::null_mut());
+    check(ffi::MatCreate(comm, &mut mat.0), "MatCreate")?;
+    check(ffi::MatSetSizes(mat.0, local, local, n, n), "MatSetSizes")?;
+    check(
+        ffi::MatSetType(mat.0, ffi::MATAIJ.as_ptr().cast()),
+        "MatSetType",
+    )?;
+    check(
+        ffi::MatSetBlockSize(mat.0, block_size as ffi::PetscInt),
+        "MatSetBlockSize",
+    )?;
+    let span = a.row_ptr[rows.start]..a.row_ptr[rows.end];
+    let mut coo_i: Vec<ffi::PetscInt> = Vec::with_capacity(span.len());
+    for i in rows {
+        let count = a.row_ptr[i + 1] - a.row_ptr[i];
+        coo_i.extend(std::iter::repeat_n(i as ffi::PetscInt, count));
+    }
+    let mut coo_j: Vec<ffi::PetscInt> = a.col_idx[span]
+        .iter()
+        .map(|&j| j as ffi::PetscInt)
+        .collect();
+    // the arrays may be freed after the call (PETSc copies what it needs)
+    check(
+        ffi::MatSetPreallocationCOO(
+            mat.0,
+            coo_i.len() as ffi::PetscCount,
+            coo_i.as_mut_ptr(),
+            coo_j.as_mut_ptr(),
+        ),
+        "MatSetPreallocationCOO",
+    )?;
+    Ok(mat)
+}
+
+/// The KSP on `mat`: deasim's default (MUMPS Cholesky, i.e. LDLᵀ), then the scenario's options
+/// and `PETSC_OPTIONS` inserted into the current (the solver's own) database and applied.
+/// Returns it with a description and whether its factorisation gives the inertia.
+///
+/// # Safety
+/// PETSc is initialised, the caller holds the lock and has pushed the solver's database.
+unsafe fn create_ksp(
+    comm: ffi::MPI_Comm,
+    mat: &Mat,
+    options: &str,
+) -> Result<(Ksp, String, bool), LinearSolverError> {
+    let mut ksp = Ksp(ptr::null_mut());
+    check(ffi::KSPCreate(comm, &mut ksp.0), "KSPCreate")?;
+    check(ffi::KSPSetOperators(ksp.0, mat.0, mat.0), "KSPSetOperators")?;
+    check(
+        ffi::KSPSetType(ksp.0, ffi::KSPPREONLY.as_ptr().cast()),
+        "KSPSetType",
+    )?;
+    let mut pc: ffi::PC = ptr::null_mut();
+    check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
+    check(
+        ffi::PCSetType(pc, ffi::PCCHOLESKY.as_ptr().cast()),
+        "PCSetType",
+    )?;
+    check(
+        ffi::PCFactorSetMatSolverType(pc, ffi::MATSOLVERMUMPS.as_ptr().cast()),
+        "PCFactorSetMatSolverType",
+    )?;
+    insert_options(options, "[solver] petsc_options")?;
+    if let Ok(env) = std::env::var("PETSC_OPTIONS") {
+        insert_options(&env, "PETSC_OPTIONS")?;
+    }
+    check(ffi::KSPSetFromOptions(ksp.0), "KSPSetFromOptions")?;
+
+    let mut ksp_type: ffi::KSPType = ptr::null();
+    check(ffi::KSPGetType(ksp.0, &mut ksp_type), "KSPGetType")?;
+    let mut pc_type: ffi::PCType = ptr::null();
+    check(ffi::PCGetType(pc, &mut pc_type), "PCGetType")?;
+    let (ksp_type, pc_type) = (type_name(ksp_type), type_name(pc_type));
+    let mut solver_type = String::new();
+    if pc_type == "cholesky" || pc_type == "lu" {
+        let mut t: ffi::MatSolverType = ptr::null();
+        check(
+            ffi::PCFactorGetMatSolverType(pc, &mut t),
+            "PCFactorGetMatSolverType",
+        )?;
+        solver_type = type_name(t);
+    }
+    let mumps = solver_type == "mumps";
+    if mumps && !has_option(c"-mat_mumps_icntl_13")? {
+        // the inertia counted over all ranks (the root front not split by ScaLAPACK)
+        check(
+            ffi::PetscOptionsSetValue(
+                ptr::null_mut(),
+                c"-mat_mumps_icntl_13".as_ptr(),
+                c"1".as_ptr(),
+            ),
+            "PetscOptionsSetValue",
+        )?;
+    }
+    let description = if solver_type.is_empty() {
+        format!("KSP {ksp_type}, PC {pc_type}")
+    } else {
+        format!("KSP {ksp_type}, PC {pc_type} ({solver_type})")
+    };
+    Ok((ksp, description, mumps && pc_type == "cholesky"))
 }
 
 /// A [`LinearSolver`] by PETSc: KSP and PC from the options (default MUMPS LDLᵀ), the matrix
