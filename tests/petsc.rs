@@ -49,7 +49,7 @@ fn run_example(name: &str, solver: Option<&str>) -> (Plan, RunSummary, Records) 
     let summary = run(&plan, &NewtonSettings::default(), &mut records);
     eprintln!(
         "{name} with {}: {:.2} s",
-        plan.solver.describe(),
+        plan.solver.describe(plan.model.mesh.n_nodes() * 4),
         t.elapsed().as_secs_f64()
     );
     (plan, summary, records)

@@ -50,7 +50,8 @@ fn checkpoints(out: &Path) -> Vec<PathBuf> {
     v
 }
 
-/// summary.json without its wall times.
+/// summary.json without its wall times and the linear solver's work counts (a resumed stage
+/// counts the solves since the resume, and factors its start again).
 fn summary(out: &Path) -> serde_json::Value {
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
@@ -58,6 +59,7 @@ fn summary(out: &Path) -> serde_json::Value {
     v.as_object_mut().unwrap().remove("date");
     for s in v["stages"].as_array_mut().unwrap() {
         s.as_object_mut().unwrap().remove("wall_s");
+        s.as_object_mut().unwrap().remove("linear");
     }
     v
 }

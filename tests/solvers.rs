@@ -37,7 +37,21 @@ fn compare(example: &str, sets: &[&str]) -> f64 {
 
 /// [`compare`] with the given settings of the reusing solver.
 fn compare_with(example: &str, sets: &[&str], reused: &[&str]) -> f64 {
-    let dir = tempdir(&format!("solvers-{example}-{}", reused.len()));
+    compare_solvers(
+        example,
+        sets,
+        reused,
+        "reused as the preconditioner of FGMRES",
+    )
+}
+
+/// Runs the example with the solver settings `other` (whose log must contain `expect`) and with
+/// the direct solver; the largest column-relative difference of the histories.
+fn compare_solvers(example: &str, sets: &[&str], reused: &[&str], expect: &str) -> f64 {
+    let dir = tempdir(&format!(
+        "solvers-{example}-{}",
+        reused.join("-").replace(['"', '.', '='], "")
+    ));
     let run = |out: &str, solver: &[&str]| {
         let mut args = vec![
             "run",
@@ -61,10 +75,7 @@ fn compare_with(example: &str, sets: &[&str], reused: &[&str]) -> f64 {
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
     let log = run("reused", reused);
-    assert!(
-        log.contains("reused as the preconditioner of FGMRES"),
-        "{log}"
-    );
+    assert!(log.contains(expect), "{log}");
     run("direct", &["solver.kind=\"direct\""]);
     let find = |name: &str| {
         std::fs::read_dir(dir.join(name))
@@ -125,7 +136,21 @@ fn reused_factorisations_agree_with_direct_on_the_diaphragm() {
 fn pull_in_is_found_with_reused_factorisations() {
     // the film ramped past the closed-form pull-in voltage (33.695 kV): the ramp stops at the
     // limit point because the stability test's factorisation shows one more negative pivot
-    let dir = tempdir("solvers-pull-in");
+    let v = pull_in("solver.reuse_from=0");
+    assert!((v - 33_695.33).abs() < 0.5, "{v}");
+}
+
+#[test]
+fn pull_in_is_found_with_the_iterative_solver() {
+    // MINRES gives no inertia: past the limit point there is no equilibrium, so Newton fails,
+    // and the ramp cuts its step back until the failures persist at the smallest increment
+    let v = pull_in("solver.kind=\"iterative\"");
+    assert!((v - 33_695.33).abs() < 0.5, "{v}");
+}
+
+/// The last converged voltage of the film ramped past pull-in with the solver setting `solver`.
+fn pull_in(solver: &str) -> f64 {
+    let dir = tempdir(&format!("solvers-pull-in-{}", solver.len()));
     let o = deasim(
         &[
             "run",
@@ -135,7 +160,7 @@ fn pull_in_is_found_with_reused_factorisations() {
             "--set",
             "output.plots=false",
             "--set",
-            "solver.reuse_from=0",
+            solver,
             "--set",
             "electrodes.top.voltage.amplitude=40e3",
             "--set",
@@ -152,6 +177,90 @@ fn pull_in_is_found_with_reused_factorisations() {
         .and_then(|t| t.split(' ').next())
         .and_then(|t| t.parse().ok())
         .unwrap_or_else(|| panic!("no last converged voltage in: {log}"));
-    println!("pull-in: last converged {v} V");
-    assert!((v - 33_695.33).abs() < 0.5, "{v}");
+    println!("pull-in with {solver}: last converged {v} V");
+    v
+}
+
+const MINRES: &str = "MINRES to 1e-8 with a block preconditioner";
+
+#[test]
+fn the_iterative_solver_agrees_with_direct_on_the_film() {
+    let d = compare_solvers("film", &[], &["solver.kind=\"iterative\""], MINRES);
+    assert!(d < 1e-8, "{d:e}");
+}
+
+#[test]
+fn the_iterative_solver_agrees_with_direct_on_the_stack() {
+    // a coarser stack (3 cells through each film, 3 to the electrode edge): the example's own
+    // mesh takes minutes with MINRES (see docs/validation.md)
+    let d = compare_solvers(
+        "stack",
+        &["mesh.layers_per_film=3", "mesh.active_cells=3"],
+        &["solver.kind=\"iterative\""],
+        MINRES,
+    );
+    assert!(d < 1e-8, "{d:e}");
+}
+
+#[test]
+fn the_iterative_solver_agrees_with_direct_on_the_diaphragm() {
+    // axisymmetric: the displacement block is (u_r, u_z) per node, the rigid pad one tied node
+    let d = compare_solvers("diaphragm", &[], &["solver.kind=\"iterative\""], MINRES);
+    assert!(d < 1e-8, "{d:e}");
+}
+
+#[test]
+fn auto_switches_to_minres_when_the_factor_would_not_fit() {
+    // a memory limit of 1 kB: the symbolic analysis shows a larger factor before any numeric
+    // work, and the run goes on with MINRES
+    let d = compare_solvers(
+        "film",
+        &[],
+        &["solver.memory_limit=1000"],
+        "switching to MINRES with block AMG",
+    );
+    assert!(d < 1e-8, "{d:e}");
+}
+
+/// MINRES iterations per linear solve of the film at `divisions` (λ = 2μ: a compressible
+/// elastomer, where smoothed aggregation is at its best).
+fn iterations_per_solve(divisions: &str) -> f64 {
+    let dir = tempdir(&format!("solvers-count-{}", divisions.len()));
+    let o = deasim(
+        &[
+            "run",
+            "film",
+            "--out",
+            "o",
+            "--set",
+            "output.plots=false",
+            "--set",
+            "output.fields_every=0",
+            "--set",
+            "solver.kind=\"iterative\"",
+            "--set",
+            "materials.elastomer.lambda=2e5",
+            "--set",
+            &format!("mesh.divisions={divisions}"),
+        ],
+        &dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
+            .unwrap();
+    let linear = &summary["stages"][0]["linear"];
+    let its = linear["krylov_iterations"].as_f64().unwrap();
+    let solves = linear["solves"].as_f64().unwrap();
+    assert!(solves > 0.0, "{summary}");
+    its / solves
+}
+
+#[test]
+fn minres_iterations_stay_bounded_under_refinement() {
+    // 2 600 and 5 800 unknowns, both with a multigrid hierarchy below the fine level
+    let coarse = iterations_per_solve("[12,12,3]");
+    let fine = iterations_per_solve("[16,16,4]");
+    println!("MINRES iterations per solve: {coarse:.1} → {fine:.1}");
+    assert!(coarse > 1.0 && fine <= 1.3 * coarse, "{coarse} → {fine}");
 }

@@ -357,6 +357,7 @@ mod tests {
                     wall_s: 0.1,
                     converged: true,
                     modes_hz: vec![30.5],
+                    linear: Default::default(),
                 }],
                 warnings: vec![],
                 records: vec![StepRecord {

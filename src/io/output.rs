@@ -618,6 +618,10 @@ impl OutputWriter {
             "stages": summary.stages.iter().map(|s| json!({
                 "name": s.name, "kind": s.kind, "steps": s.steps,
                 "newton_iterations": s.newton_iterations, "wall_s": s.wall_s, "converged": s.converged,
+                "linear": {
+                    "factorizations": s.linear.factorizations, "solves": s.linear.solves,
+                    "krylov_iterations": s.linear.krylov_iterations,
+                },
             })).collect::<Vec<_>>(),
             "probes": probes,
             "max_electric_field": json_number(max_field),

@@ -97,7 +97,7 @@ pub struct Scenario {
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SolverSpec {
-    /// `auto` (default) or `direct`, or `petsc` in a build with the `petsc` feature.
+    /// `auto` (default), `direct` or `iterative`, or `petsc` in a build with the `petsc` feature.
     pub kind: Option<String>,
     /// Fill-reducing ordering of the direct solver: `nested-dissection` (default) or `amd`.
     pub ordering: Option<String>,
@@ -107,6 +107,12 @@ pub struct SolverSpec {
     pub precision: Option<String>,
     /// PETSc options of the `petsc` solver, e.g. `"-ksp_type minres -pc_type jacobi"`.
     pub petsc_options: Option<String>,
+    /// `iterative` (and `auto` once it has switched to MINRES): the relative residual of each
+    /// linear solve (default 1e-8).
+    pub rtol: Option<f64>,
+    /// `auto`, `direct`: the largest sparse factor to hold, bytes (default: 80 % of the memory
+    /// available). Above it `auto` switches to `iterative` and `direct` stops with an error.
+    pub memory_limit: Option<f64>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

@@ -439,6 +439,7 @@ impl<'p, 'o> Job<'p, 'o> {
             wall_s: 0.0,
             converged: true,
             modes_hz: Vec::new(),
+            linear: Default::default(),
         };
         let failure = match stage.kind {
             StageKind::Static { steps } | StageKind::QuasiStatic { steps } => {
@@ -594,6 +595,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     wall_s: started.elapsed().as_secs_f64(),
                     converged: false,
                     modes_hz: Vec::new(),
+                    linear: Default::default(),
                 });
                 false
             }
@@ -766,6 +768,7 @@ impl<'p, 'o> Job<'p, 'o> {
         self.q = outcome.state;
         self.points = outcome.points;
         summary.steps = step_no;
+        summary.linear = outcome.linear;
         match outcome.result {
             Ok(r) => {
                 summary.newton_iterations = r.newton_iterations + self.prestretch_iterations;

@@ -87,6 +87,9 @@ pub struct StageSummary {
     /// Natural frequencies (Hz) found by a `modes` stage (empty for other kinds).
     #[serde(default)]
     pub modes_hz: Vec<f64>,
+    /// The linear solver's work (static stages; zero for the others).
+    #[serde(default)]
+    pub linear: crate::solve::linear::SolverStats,
 }
 
 /// Where a stage stood.

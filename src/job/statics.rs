@@ -5,7 +5,7 @@ use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
 use crate::problem::system::LoadedSystem;
-use crate::solve::linear::SolverSettings;
+use crate::solve::linear::{SolverSettings, SolverStats};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepControl};
 
@@ -26,6 +26,8 @@ pub struct StaticOutcome {
     /// Committed internal variables of the material points at `state`.
     pub points: PointStates,
     pub result: Result<RampReport, RampFailure>,
+    /// The linear solver's work over the stage.
+    pub linear: SolverStats,
 }
 
 /// Ramps the model's Dirichlet values from `initial` (zero state when `None`), and its dead loads
@@ -47,6 +49,7 @@ pub fn solve_static(
         state: problem.state,
         points: problem.points,
         result,
+        linear: solver.stats(),
     }
 }
 
@@ -92,5 +95,6 @@ pub fn solve_static_from(
         state: problem.state,
         points: problem.points,
         result,
+        linear: solver.stats(),
     }
 }

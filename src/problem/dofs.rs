@@ -6,6 +6,7 @@
 //! r̂ = s·r. Choosing `phi_scale` = √(μ/ε) makes the potential block of the Jacobian the same size as
 //! the displacement block, and the system stays symmetric.
 
+use super::system::DofLayout;
 pub use crate::fem::{FIELDS, PHI};
 /// Marker of a constrained dof in [`DofMap::eq`].
 pub const CONSTRAINED: usize = usize::MAX;
@@ -145,7 +146,26 @@ impl DofMap {
         }
     }
 
-    /// Physical value of a scaled free unknown vector entry for dof `d`.
+    /// The layout of the free unknowns over the mesh nodes at `coords` (a tied equation sits at
+    /// the tie's first node).
+    pub fn layout(&self, coords: &[[f64; 3]], axisymmetric: bool) -> DofLayout {
+        let mut node = vec![usize::MAX; self.n_free];
+        let mut field = vec![0u8; self.n_free];
+        for (d, &e) in self.eq.iter().enumerate() {
+            if e != CONSTRAINED && node[e] == usize::MAX {
+                node[e] = d / FIELDS;
+                field[e] = (d % FIELDS) as u8;
+            }
+        }
+        DofLayout {
+            node,
+            field,
+            coords: coords.to_vec(),
+            axisymmetric,
+        }
+    }
+
+    /// The field (0..`FIELDS`) of every free unknown.
     pub fn field_of_equation(&self) -> Vec<usize> {
         let mut f = vec![0; self.n_free];
         for (d, &e) in self.eq.iter().enumerate() {

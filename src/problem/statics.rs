@@ -9,7 +9,7 @@ use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAIN
 use crate::problem::loads::dead_load_forces;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
-use crate::problem::system::{LoadedSystem, NonlinearSystem};
+use crate::problem::system::{DofLayout, LoadedSystem, NonlinearSystem};
 
 /// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
 const RESIDUAL_FLOOR: f64 = 1e-11;
@@ -475,6 +475,13 @@ impl NonlinearSystem for StaticProblem<'_> {
             .into_iter()
             .map(|f| u8::from(f == PHI))
             .collect()
+    }
+
+    fn layout(&self) -> Option<DofLayout> {
+        Some(
+            self.dofs
+                .layout(&self.model.mesh.nodes, self.model.is_axisymmetric()),
+        )
     }
 }
 

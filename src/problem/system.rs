@@ -19,6 +19,22 @@ pub struct Border {
     pub tol: f64,
 }
 
+/// Where each free unknown of a system sits in the mesh: what a block preconditioner needs to
+/// split the tangent into its displacement and potential blocks and to build the displacement
+/// block's rigid-body modes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DofLayout {
+    /// Per free unknown: its node (the first node of a tie) ...
+    pub node: Vec<usize>,
+    /// ... and its field: 0, 1, 2 the displacement components, 3 the potential.
+    pub field: Vec<u8>,
+    /// Reference coordinates of every node (m).
+    pub coords: Vec<[f64; 3]>,
+    /// True for the meridian plane of an axisymmetric model (components r, z): its only rigid
+    /// motion is the axial translation.
+    pub axisymmetric: bool,
+}
+
 /// A nonlinear system R(x) = 0 with a symmetric tangent.
 pub trait NonlinearSystem {
     /// Number of unknowns.
@@ -39,6 +55,10 @@ pub trait NonlinearSystem {
     fn residual_floor(&self) -> f64;
     /// For each unknown, its field group (0: displacement, 1: potential), for the printed table.
     fn groups(&self) -> Vec<u8>;
+    /// Where the unknowns sit (for block preconditioners); `None` when the system cannot tell.
+    fn layout(&self) -> Option<DofLayout> {
+        None
+    }
     /// The solver has just factored the tangent of the current state: a system whose
     /// factorisation is reused (modified Newton) records here where that was, so that a resumed
     /// run can factor the same matrix again.

@@ -31,6 +31,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltParams, LltRegularization};
 use faer::{Mat, Par, Spec};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::sync::Mutex;
 
 /// Rows per parallel task; matrices and vectors shorter than [`PARALLEL_MIN_ROWS`] are handled on
@@ -904,7 +905,8 @@ pub struct LevelInfo {
 /// behind a mutex, locked once per cycle (uncontended, so it costs nothing measurable) instead of
 /// being allocated per call.
 pub struct Amg<'a> {
-    fine: &'a CsrMatrix,
+    /// The fine operator: borrowed ([`Amg::new`]) or owned ([`Amg::owning`]).
+    fine: Cow<'a, CsrMatrix>,
     /// Operators of levels 1.. (level 0 is `fine`).
     ops: Vec<Csr>,
     /// Prolongators from level l+1 to level l, and their transposes.
@@ -948,6 +950,27 @@ impl<'a> Amg<'a> {
         near_null: &[Vec<f64>],
         params: &AmgParams,
     ) -> Result<Amg<'a>, AmgError> {
+        Self::build(Cow::Borrowed(a), block, near_null, params)
+    }
+
+    /// As [`Amg::new`], owning the matrix: for a preconditioner built from a matrix of its own
+    /// (a block or an approximate Schur complement of the tangent).
+    pub fn owning(
+        a: CsrMatrix,
+        block: usize,
+        near_null: &[Vec<f64>],
+        params: &AmgParams,
+    ) -> Result<Amg<'static>, AmgError> {
+        Amg::build(Cow::Owned(a), block, near_null, params)
+    }
+
+    fn build(
+        fine: Cow<'a, CsrMatrix>,
+        block: usize,
+        near_null: &[Vec<f64>],
+        params: &AmgParams,
+    ) -> Result<Amg<'a>, AmgError> {
+        let a: &CsrMatrix = &fine;
         check_params(params)?;
         check_matrix(a)?;
         let n = a.n;
@@ -1087,7 +1110,7 @@ impl<'a> Amg<'a> {
             })
             .collect();
         Ok(Amg {
-            fine: a,
+            fine,
             ops,
             p: ps,
             r: rs,

@@ -6,8 +6,11 @@
 //! has exactly as many negative pivots as free potential dofs. One more negative pivot means the
 //! mechanical part has lost stability (a limit point such as pull-in was passed).
 
+use super::auto::AutoSolver;
+use super::iterative::BlockMinres;
 use super::reused::ReusedLdlt;
 use crate::problem::assembly::CsrMatrix;
+use crate::problem::system::DofLayout;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::ldlt::factor::{LdltParams, LdltRegularization};
 use faer::perm::PermRef;
@@ -40,6 +43,27 @@ pub enum LinearSolverError {
     /// A solver library failed, or an iterative solve did not converge (the message says which).
     #[error("{0}")]
     Failed(String),
+    /// The factor would not fit in the memory allowed for it.
+    #[error(
+        "the sparse factor would need {:.2} GB, more than the {:.2} GB allowed \
+         ([solver] memory_limit, or 80 % of the memory available); \
+         kind = \"iterative\" needs memory linear in the unknowns",
+        *needed as f64 / 1e9, *limit as f64 / 1e9
+    )]
+    OutOfMemory { needed: usize, limit: usize },
+}
+
+/// Memory the system can still give (bytes; Linux's `MemAvailable`), `None` where unknown.
+pub fn available_memory() -> Option<usize> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// The memory a factor may take when no limit is set: 80 % of what is available.
+fn default_memory_limit() -> usize {
+    available_memory().map_or(usize::MAX, |m| m / 5 * 4)
 }
 
 /// A direct solver: factor once, solve many right-hand sides.
@@ -73,10 +97,16 @@ pub trait LinearSolver: Send {
     fn stats(&self) -> SolverStats {
         SolverStats::default()
     }
+    /// Whether the solver wants the layout of a system of `n` unknowns ([`LinearSolver::set_layout`]).
+    fn needs_layout(&self, _n: usize) -> bool {
+        false
+    }
+    /// Where the unknowns sit, for a solver that splits the tangent into its fields.
+    fn set_layout(&mut self, _layout: DofLayout) {}
 }
 
 /// Work counts of a linear solver.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct SolverStats {
     /// Numeric factorisations.
     pub factorizations: usize,
@@ -120,6 +150,9 @@ pub enum SolverKind {
     Auto,
     /// Sparse LDLᵀ ([`FaerLdlt`]) of every Newton tangent: exact, gives the inertia.
     Direct,
+    /// MINRES with a block AMG preconditioner ([`BlockMinres`]): memory linear in the unknowns,
+    /// no inertia.
+    Iterative,
     /// PETSc ([`super::petsc::PetscSolver`]): MUMPS LDLᵀ by default, any KSP/PC by options, on
     /// one or more MPI ranks.
     #[cfg(feature = "petsc")]
@@ -133,10 +166,10 @@ pub const REUSE_MIN_UNKNOWNS: usize = 20_000;
 impl SolverKind {
     /// Names in scenario files (`[solver] kind`) that this build accepts.
     #[cfg(not(feature = "petsc"))]
-    pub const NAMES: &'static [&'static str] = &["auto", "direct"];
+    pub const NAMES: &'static [&'static str] = &["auto", "direct", "iterative"];
     /// Names in scenario files (`[solver] kind`) that this build accepts.
     #[cfg(feature = "petsc")]
-    pub const NAMES: &'static [&'static str] = &["auto", "direct", "petsc"];
+    pub const NAMES: &'static [&'static str] = &["auto", "direct", "iterative", "petsc"];
     /// Names of kinds that need a build with a Cargo feature, with that feature.
     pub const OPTIONAL: &'static [(&'static str, &'static str)] = &[("petsc", "petsc")];
 
@@ -145,6 +178,7 @@ impl SolverKind {
         match s {
             "auto" => Some(SolverKind::Auto),
             "direct" => Some(SolverKind::Direct),
+            "iterative" => Some(SolverKind::Iterative),
             #[cfg(feature = "petsc")]
             "petsc" => Some(SolverKind::Petsc),
             _ => None,
@@ -156,6 +190,7 @@ impl SolverKind {
         match self {
             SolverKind::Auto => "auto",
             SolverKind::Direct => "direct",
+            SolverKind::Iterative => "iterative",
             #[cfg(feature = "petsc")]
             SolverKind::Petsc => "petsc",
         }
@@ -176,6 +211,17 @@ pub struct SolverSettings {
     /// PETSc's defaults as deasim sets them (a direct MUMPS LDLᵀ).
     #[serde(default)]
     pub petsc_options: String,
+    /// `iterative`, and `auto` once it has switched to MINRES: relative residual of each solve.
+    #[serde(default = "default_rtol")]
+    pub rtol: f64,
+    /// `auto` and `direct`: the largest factor (bytes) to hold; `None`: 80 % of the memory
+    /// available when the factorisation starts. `auto` switches to MINRES above it.
+    #[serde(default)]
+    pub memory_limit: Option<usize>,
+}
+
+fn default_rtol() -> f64 {
+    super::iterative::DEFAULT_RTOL
 }
 
 impl Default for SolverSettings {
@@ -186,6 +232,8 @@ impl Default for SolverSettings {
             reuse_from: REUSE_MIN_UNKNOWNS,
             single_precision: false,
             petsc_options: String::new(),
+            rtol: default_rtol(),
+            memory_limit: None,
         }
     }
 }
@@ -194,15 +242,24 @@ impl SolverSettings {
     /// A new solver of these settings: the one place where concrete solver types are named.
     pub fn build(&self) -> Box<dyn LinearSolver> {
         match self.kind {
-            SolverKind::Direct => Box::new(FaerLdlt::with_ordering(self.ordering)),
-            SolverKind::Auto => {
-                let s = ReusedLdlt::with_ordering(self.ordering).from_unknowns(self.reuse_from);
-                Box::new(if self.single_precision {
-                    s.single_precision()
-                } else {
-                    s
+            SolverKind::Direct => {
+                let s = FaerLdlt::with_ordering(self.ordering);
+                Box::new(match self.memory_limit {
+                    Some(bytes) => s.memory_limit(bytes),
+                    None => s,
                 })
             }
+            SolverKind::Auto => {
+                let mut s = ReusedLdlt::with_ordering(self.ordering).from_unknowns(self.reuse_from);
+                if self.single_precision {
+                    s = s.single_precision();
+                }
+                if let Some(bytes) = self.memory_limit {
+                    s = s.memory_limit(bytes);
+                }
+                Box::new(AutoSolver::new(s, self.rtol))
+            }
+            SolverKind::Iterative => Box::new(BlockMinres::new(self.rtol)),
             #[cfg(feature = "petsc")]
             SolverKind::Petsc => Box::new(super::petsc::PetscSolver::new(&self.petsc_options)),
         }
@@ -213,6 +270,7 @@ impl SolverSettings {
     pub fn gives_inertia(&self) -> bool {
         match self.kind {
             SolverKind::Direct | SolverKind::Auto => true,
+            SolverKind::Iterative => false,
             // MUMPS's LDLᵀ counts the negative pivots unless options choose another method
             #[cfg(feature = "petsc")]
             SolverKind::Petsc => {
@@ -242,6 +300,12 @@ impl SolverSettings {
             SolverKind::Auto if unknowns < self.reuse_from => {
                 format!("{exact}; auto: {unknowns} unknowns, a fresh factorisation per Newton iteration")
             }
+            SolverKind::Iterative => format!(
+                "MINRES to {:.0e} with a block preconditioner: smoothed-aggregation AMG on the \
+                 displacement block (rigid-body modes) and on the potential block (memory linear \
+                 in the unknowns; no inertia, so a limit point shows as a Newton failure)",
+                self.rtol
+            ),
             SolverKind::Auto => format!(
                 "direct sparse LDLT, {ordering} ordering, reused as the preconditioner of FGMRES \
                  (auto: {unknowns} unknowns ≥ {}; refactored when the Krylov work \
@@ -296,6 +360,8 @@ pub struct FaerLdlt {
     stats: SolverStats,
     /// Single precision: the factor, and work copies of the matrix and a right-hand side.
     single: Option<Single>,
+    /// Largest factor (bytes) allowed; `None`: 80 % of the memory available.
+    memory_limit: Option<usize>,
 }
 
 /// The single-precision factor of [`FaerLdlt::single_precision`].
@@ -346,7 +412,15 @@ impl FaerLdlt {
             mem: None,
             stats: SolverStats::default(),
             single: None,
+            memory_limit: None,
         }
+    }
+
+    /// Refuses factors of more than `bytes` ([`LinearSolverError::OutOfMemory`]) instead of 80 %
+    /// of the memory available.
+    pub fn memory_limit(mut self, bytes: usize) -> Self {
+        self.memory_limit = Some(bytes);
+        self
     }
 
     fn matrix(a: &CsrMatrix) -> SparseColMatRef<'_, usize, f64> {
@@ -465,6 +539,14 @@ impl LinearSolver for FaerLdlt {
                 CholeskySymbolicParams::default(),
             )
             .map_err(|e| LinearSolverError::Symbolic(format!("{e:?}")))?;
+            let bytes = symbolic.len_val() * if self.single.is_some() { 4 } else { 8 };
+            let limit = self.memory_limit.unwrap_or_else(default_memory_limit);
+            if bytes > limit {
+                return Err(LinearSolverError::OutOfMemory {
+                    needed: bytes,
+                    limit,
+                });
+            }
             match &mut self.single {
                 Some(s) => s.l = vec![0.0; symbolic.len_val()],
                 None => self.l_values = vec![0.0; symbolic.len_val()],

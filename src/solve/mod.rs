@@ -2,8 +2,10 @@
 //! direct factorisation of the symmetric indefinite tangent. Solvers know nothing of elements.
 
 pub mod amg;
+pub mod auto;
 pub mod continuation;
 pub mod interrupt;
+pub mod iterative;
 pub mod krylov;
 pub mod linear;
 pub mod newton;

@@ -132,6 +132,11 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
     } else {
         Vec::new()
     };
+    if solver.needs_layout(n) {
+        if let Some(layout) = system.layout() {
+            solver.set_layout(layout);
+        }
+    }
     let floor = system.residual_floor();
     let reuse = settings.reuse_factorization;
     // k_fresh: `k` holds the tangent at the current iterate

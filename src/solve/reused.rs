@@ -62,6 +62,12 @@ impl ReusedLdlt {
         self
     }
 
+    /// Refuses factors of more than `bytes` ([`FaerLdlt::memory_limit`]).
+    pub fn memory_limit(mut self, bytes: usize) -> Self {
+        self.direct = self.direct.memory_limit(bytes);
+        self
+    }
+
     /// Reuses factorisations only for systems of at least `n` unknowns; smaller ones are factored
     /// at every [`LinearSolver::set_operator`], exactly as [`FaerLdlt`] would.
     pub fn from_unknowns(mut self, n: usize) -> Self {

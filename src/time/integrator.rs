@@ -21,6 +21,7 @@ use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::discretize;
+use crate::problem::system::DofLayout;
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
 
@@ -594,6 +595,13 @@ impl NonlinearSystem for TimeStep<'_> {
             .into_iter()
             .map(|f| u8::from(f == PHI))
             .collect()
+    }
+
+    fn layout(&self) -> Option<DofLayout> {
+        Some(
+            self.dofs
+                .layout(&self.model.mesh.nodes, self.model.is_axisymmetric()),
+        )
     }
 
     fn factored(&mut self) {

@@ -58,6 +58,36 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
             )
         })?;
     }
+    if let Some(m) = spec.memory_limit {
+        if !matches!(out.kind, SolverKind::Auto | SolverKind::Direct) {
+            return Err(ctx.err(
+                "solver.memory_limit",
+                "applies to kind = \"auto\" or \"direct\" only (the kinds that factor)",
+            ));
+        }
+        if !(m.is_finite() && m >= 1.0) {
+            return Err(ctx.err(
+                "solver.memory_limit",
+                format!("expected a number of bytes ≥ 1, e.g. 8e9, got {m}"),
+            ));
+        }
+        out.memory_limit = Some(m as usize);
+    }
+    if let Some(r) = spec.rtol {
+        if !matches!(out.kind, SolverKind::Iterative | SolverKind::Auto) {
+            return Err(ctx.err(
+                "solver.rtol",
+                "applies to kind = \"iterative\" or \"auto\" only (the direct kind solves exactly)",
+            ));
+        }
+        if !(r > 0.0 && r < 1.0) {
+            return Err(ctx.err(
+                "solver.rtol",
+                format!("expected a relative tolerance in (0, 1), got {r}"),
+            ));
+        }
+        out.rtol = r;
+    }
     if let Some(p) = &spec.precision {
         if out.kind != SolverKind::Auto {
             return Err(ctx.err(
@@ -115,7 +145,7 @@ mod tests {
         assert_rejected(
             &[("solver", "[solver]\nkind = \"cg\"")],
             "solver.kind",
-            "unknown solver `cg`; expected one of: auto, direct",
+            "unknown solver `cg`; expected one of: auto, direct, iterative",
         );
     }
 
@@ -159,6 +189,45 @@ mod tests {
             )],
             "solver.precision",
             "applies to kind = \"auto\" only",
+        );
+    }
+
+    #[test]
+    fn the_iterative_kind_and_its_tolerance() {
+        let s = solver("[solver]\nkind = \"iterative\"\nrtol = 1e-6").unwrap();
+        assert_eq!((s.kind, s.rtol), (SolverKind::Iterative, 1e-6));
+        assert_eq!(
+            solver("[solver]\nkind = \"iterative\"").unwrap().rtol,
+            crate::solve::iterative::DEFAULT_RTOL
+        );
+        assert_rejected(
+            &[("solver", "[solver]\nkind = \"iterative\"\nrtol = 2.0")],
+            "solver.rtol",
+            "expected a relative tolerance in (0, 1), got 2",
+        );
+        assert_rejected(
+            &[("solver", "[solver]\nkind = \"direct\"\nrtol = 1e-6")],
+            "solver.rtol",
+            "applies to kind = \"iterative\" or \"auto\" only",
+        );
+    }
+
+    #[test]
+    fn memory_limit_in_bytes_for_the_kinds_that_factor() {
+        let s = solver("[solver]\nmemory_limit = 8e9").unwrap();
+        assert_eq!(s.memory_limit, Some(8_000_000_000));
+        assert_rejected(
+            &[("solver", "[solver]\nmemory_limit = -1")],
+            "solver.memory_limit",
+            "expected a number of bytes ≥ 1, e.g. 8e9, got -1",
+        );
+        assert_rejected(
+            &[(
+                "solver",
+                "[solver]\nkind = \"iterative\"\nmemory_limit = 8e9",
+            )],
+            "solver.memory_limit",
+            "applies to kind = \"auto\" or \"direct\" only",
         );
     }
 
