@@ -71,8 +71,14 @@ impl ElectricPart {
         let a = e0.dot(&g);
         let ej = self.eps * k.j;
         let s = e0 * e0.transpose() * (2.0 * self.c2) + (g * g.transpose() - ci * (0.5 * a)) * ej;
-        let d0 = e0 * (-2.0 * self.c1) - (k.c * e0) * (2.0 * self.c2) + g * ej;
-        (s, d0)
+        (s, self.d0(k, e0))
+    }
+
+    /// D0 alone (as in [`ElectricPart::first`]).
+    pub fn d0(&self, k: &CKinematics, e0: &Vec3) -> Vec3 {
+        let g = k.c_inv * e0;
+        let ej = self.eps * k.j;
+        e0 * (-2.0 * self.c1) - (k.c * e0) * (2.0 * self.c2) + g * ej
     }
 
     /// Adds 𝕃_e to `ll` and returns (∂S/∂E0 indexed `[I][J][K]`, ∂D0/∂E0).

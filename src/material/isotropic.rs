@@ -159,14 +159,20 @@ pub fn b_from_c(f: &Mat3, se: &Tensor3) -> Mat93 {
     b
 }
 
+/// The kinematics of F after checking the inputs (a finite E0, J > 0), as every conversion
+/// below does.
+pub fn checked_kinematics(f: &Mat3, e0: &Vec3) -> Result<CKinematics, MaterialError> {
+    check_field(e0)?;
+    CKinematics::from_f(f)
+}
+
 /// Ψ(F, E0) = Ω(FᵀF, E0).
 pub fn energy_from_c<M: CMaterial + ?Sized>(
     m: &M,
     f: &Mat3,
     e0: &Vec3,
 ) -> Result<f64, MaterialError> {
-    check_field(e0)?;
-    let k = CKinematics::from_f(f)?;
+    let k = checked_kinematics(f, e0)?;
     m.c_energy(&k, e0)
 }
 
@@ -176,8 +182,7 @@ pub fn stress_from_c<M: CMaterial + ?Sized>(
     f: &Mat3,
     e0: &Vec3,
 ) -> Result<Stress, MaterialError> {
-    check_field(e0)?;
-    let k = CKinematics::from_f(f)?;
+    let k = checked_kinematics(f, e0)?;
     let cf = m.c_first(&k, e0)?;
     Ok(Stress {
         energy: cf.energy,
@@ -192,8 +197,7 @@ pub fn tangent_from_c<M: CMaterial + ?Sized>(
     f: &Mat3,
     e0: &Vec3,
 ) -> Result<Tangent, MaterialError> {
-    check_field(e0)?;
-    let k = CKinematics::from_f(f)?;
+    let k = checked_kinematics(f, e0)?;
     let cd = m.c_second(&k, e0)?;
     Ok(Tangent {
         energy: cd.energy,
