@@ -50,7 +50,7 @@
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
 use crate::element::axisymmetric::{add_point_tangent_meridian, add_residual_meridian, delta_f};
-use crate::element::standard::split_local;
+use crate::element::standard::{add_residual, split_local};
 use crate::element::{CellFields, PointFailure};
 use crate::element::{CellHistory, CellKernel, MeanDilatationKernel, StandardKernel};
 use crate::fem::axisymmetric::meridian_kinematics;
@@ -282,16 +282,6 @@ fn add_residual_any(geom: &CellGeometry, q: usize, p: &Mat3, d0: &Vec3, r: &mut 
         add_residual_meridian(geom, q, w, p, d0, r);
     } else {
         add_residual(&geom.grad[q], geom.n_nodes, w, p, d0, r);
-    }
-}
-
-fn add_residual(g: &[[f64; 3]; MAX_NODES], n: usize, w: f64, p: &Mat3, d0: &Vec3, r: &mut [f64]) {
-    for a in 0..n {
-        let ga = g[a];
-        for i in 0..3 {
-            r[a * 4 + i] += w * (p[(i, 0)] * ga[0] + p[(i, 1)] * ga[1] + p[(i, 2)] * ga[2]);
-        }
-        r[a * 4 + 3] += w * (d0[0] * ga[0] + d0[1] * ga[1] + d0[2] * ga[2]);
     }
 }
 

@@ -35,10 +35,12 @@ impl<H: Hyperelastic> Electroelastic<H> {
 }
 
 impl<H: Hyperelastic> CMaterial for Electroelastic<H> {
+    #[inline]
     fn c_energy(&self, k: &CKinematics, e0: &Vec3) -> Result<f64, MaterialError> {
         Ok(self.mech.w(k)? + self.elec.energy(k, e0))
     }
 
+    #[inline]
     fn c_first(&self, k: &CKinematics, e0: &Vec3) -> Result<CFirst, MaterialError> {
         let m = self.mech.s(k)?;
         let (se, d0) = self.elec.first(k, e0);
