@@ -40,7 +40,7 @@ impl<H: Hyperelastic> CMaterial for Electroelastic<H> {
         Ok(self.mech.w(k)? + self.elec.energy(k, e0))
     }
 
-    #[inline]
+    #[inline(always)]
     fn c_first(&self, k: &CKinematics, e0: &Vec3) -> Result<CFirst, MaterialError> {
         let m = self.mech.s(k)?;
         let (se, d0) = self.elec.first(k, e0);

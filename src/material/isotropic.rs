@@ -42,7 +42,7 @@ pub struct CKinematics {
 impl CKinematics {
     /// Compute C, C⁻¹ and J from F. Fails with
     /// [`MaterialError::NonPositiveJ`] if J <= 0 or J is not finite.
-    #[inline]
+    #[inline(always)]
     pub fn from_f(f: &Mat3) -> Result<Self, MaterialError> {
         let j = f.determinant();
         if !(j.is_finite() && j > 0.0) {
@@ -162,7 +162,7 @@ pub fn b_from_c(f: &Mat3, se: &Tensor3) -> Mat93 {
 
 /// The kinematics of F after checking the inputs (a finite E0, J > 0), as every conversion
 /// below does.
-#[inline]
+#[inline(always)]
 pub fn checked_kinematics(f: &Mat3, e0: &Vec3) -> Result<CKinematics, MaterialError> {
     check_field(e0)?;
     CKinematics::from_f(f)
