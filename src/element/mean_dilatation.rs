@@ -50,6 +50,7 @@
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
 use crate::element::axisymmetric::{add_point_tangent_meridian, add_residual_meridian, delta_f};
+use crate::element::standard::{add_residual, split_local};
 use crate::element::{CellFields, PointFailure};
 use crate::element::{CellHistory, CellKernel, MeanDilatationKernel, StandardKernel};
 use crate::fem::axisymmetric::meridian_kinematics;
@@ -112,7 +113,7 @@ pub fn point_deformations_md(
 ) -> Result<(), PointFailure> {
     let k = MdKinematics::new(geom, local)?;
     for q in 0..geom.n_qp {
-        out[q] = (k.fbar[q], k.e0[q]);
+        out[q] = (k.fbar(q), k.e0[q]);
     }
     Ok(())
 }
@@ -126,7 +127,6 @@ struct MdKinematics {
     finv_t: [Mat3; MAX_QP],
     /// (θ̄/J)^{1/3}.
     alpha: [f64; MAX_QP],
-    fbar: [Mat3; MAX_QP],
     theta: f64,
     volume: f64,
 }
@@ -136,21 +136,18 @@ fn fail(qp: usize) -> impl Fn(MaterialError) -> PointFailure {
 }
 
 impl MdKinematics {
+    /// The kinematics of the cell at its local values. Inlined into its callers: the struct
+    /// (about 2 kB) is then built in place instead of being copied out of the `Result`.
+    #[inline(always)]
     fn new(geom: &CellGeometry, local: &[f64]) -> Result<Self, PointFailure> {
         let n = geom.n_nodes;
-        let mut u = [[0.0; 3]; MAX_NODES];
-        let mut phi = [0.0; MAX_NODES];
-        for a in 0..n {
-            u[a] = [local[a * 4], local[a * 4 + 1], local[a * 4 + 2]];
-            phi[a] = local[a * 4 + 3];
-        }
+        let (u, phi) = split_local(n, local);
         let mut k = MdKinematics {
             f: [Mat3::identity(); MAX_QP],
             e0: [Vec3::zeros(); MAX_QP],
             j: [1.0; MAX_QP],
             finv_t: [Mat3::identity(); MAX_QP],
             alpha: [1.0; MAX_QP],
-            fbar: [Mat3::identity(); MAX_QP],
             theta: 1.0,
             volume: 0.0,
         };
@@ -181,9 +178,14 @@ impl MdKinematics {
         }
         for q in 0..geom.n_qp {
             k.alpha[q] = (k.theta / k.j[q]).cbrt();
-            k.fbar[q] = k.f[q] * k.alpha[q];
         }
         Ok(k)
+    }
+
+    /// F̄ = (θ̄/J)^{1/3} F at point q.
+    #[inline]
+    fn fbar(&self, q: usize) -> Mat3 {
+        self.f[q] * self.alpha[q]
     }
 }
 
@@ -203,7 +205,7 @@ pub fn cell_energy_md(
     for q in 0..geom.n_qp {
         e += geom.weights[q]
             * mat
-                .energy_at(&k.fbar[q], &k.e0[q], hist.at(q))
+                .energy_at(&k.fbar(q), &k.e0[q], hist.at(q))
                 .map_err(fail(q))?;
     }
     Ok(e)
@@ -218,10 +220,20 @@ pub fn cell_energy_split_md(
     local: &[f64],
 ) -> Result<(f64, f64), PointFailure> {
     let k = MdKinematics::new(geom, local)?;
+    energy_split_md(geom, mat, hist, &k)
+}
+
+/// [`cell_energy_split_md`] at given kinematics.
+fn energy_split_md(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    k: &MdKinematics,
+) -> Result<(f64, f64), PointFailure> {
     let (mut m, mut el) = (0.0, 0.0);
     for q in 0..geom.n_qp {
         let (a, b) = mat
-            .energy_split_at(&k.fbar[q], &k.e0[q], hist.at(q).state)
+            .energy_split_at(&k.fbar(q), &k.e0[q], hist.at(q).state)
             .map_err(fail(q))?;
         m += geom.weights[q] * a;
         el += geom.weights[q] * b;
@@ -229,25 +241,29 @@ pub fn cell_energy_split_md(
     Ok((m, el))
 }
 
-/// Effective first Piola stresses P_q = αP̄ − (s/3)F⁻ᵀ + p̄ cof F (Pa), the referential electric
-/// displacements D₀(F̄, E₀) and the energy of the cell.
+/// Effective first Piola stresses P_q = αP̄ − (s/3)F⁻ᵀ + p̄ cof F (Pa) into `p`, the referential
+/// electric displacements D₀(F̄, E₀) into `d0`; returns the energy of the cell. With `field`
+/// false the points see E₀ = 0 (the mechanical stress of the output fields). The outputs are
+/// the caller's buffers: returning them would copy about 1 kB per cell.
 fn md_stresses(
     geom: &CellGeometry,
     mat: &dyn Material,
     hist: CellHistory,
     k: &MdKinematics,
-) -> Result<([Mat3; MAX_QP], [Vec3; MAX_QP], f64), PointFailure> {
-    let mut p = [Mat3::zeros(); MAX_QP];
-    let mut d0 = [Vec3::zeros(); MAX_QP];
+    field: bool,
+    p: &mut [Mat3; MAX_QP],
+    d0: &mut [Vec3; MAX_QP],
+) -> Result<f64, PointFailure> {
     let mut s = [0.0; MAX_QP];
     let mut energy = 0.0;
     let mut h = 0.0;
+    let zero = Vec3::zeros();
     for q in 0..geom.n_qp {
-        let st = mat
-            .stress_at(&k.fbar[q], &k.e0[q], hist.at(q))
-            .map_err(fail(q))?;
+        let fbar = k.fbar(q);
+        let e0 = if field { &k.e0[q] } else { &zero };
+        let st = mat.stress_at(&fbar, e0, hist.at(q)).map_err(fail(q))?;
         energy += geom.weights[q] * st.energy;
-        s[q] = st.p.dot(&k.fbar[q]);
+        s[q] = st.p.dot(&fbar);
         h += geom.weights[q] * s[q] / (3.0 * k.theta);
         p[q] = st.p;
         d0[q] = st.d0;
@@ -256,7 +272,7 @@ fn md_stresses(
     for q in 0..geom.n_qp {
         p[q] = p[q] * k.alpha[q] + k.finv_t[q] * (pm * k.j[q] - s[q] / 3.0);
     }
-    Ok((p, d0, energy))
+    Ok(energy)
 }
 
 /// The residual of point q of a 3-D or meridian cell.
@@ -269,14 +285,23 @@ fn add_residual_any(geom: &CellGeometry, q: usize, p: &Mat3, d0: &Vec3, r: &mut 
     }
 }
 
-fn add_residual(g: &[[f64; 3]; MAX_NODES], n: usize, w: f64, p: &Mat3, d0: &Vec3, r: &mut [f64]) {
-    for a in 0..n {
-        let ga = g[a];
-        for i in 0..3 {
-            r[a * 4 + i] += w * (p[(i, 0)] * ga[0] + p[(i, 1)] * ga[1] + p[(i, 2)] * ga[2]);
-        }
-        r[a * 4 + 3] += w * (d0[0] * ga[0] + d0[1] * ga[1] + d0[2] * ga[2]);
+/// The residual of the cell at given kinematics into `r` (zeroed first), its effective
+/// stresses into `p`; returns the energy.
+fn md_residual(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    kin: &MdKinematics,
+    r: &mut [f64],
+    p: &mut [Mat3; MAX_QP],
+) -> Result<f64, PointFailure> {
+    r[..geom.n_nodes * FIELDS].iter_mut().for_each(|v| *v = 0.0);
+    let mut d0 = [Vec3::zeros(); MAX_QP];
+    let energy = md_stresses(geom, mat, hist, kin, true, p, &mut d0)?;
+    for q in 0..geom.n_qp {
+        add_residual_any(geom, q, &p[q], &d0[q], r);
     }
+    Ok(energy)
 }
 
 /// Local residual (and tangent when `k` is given) of the mean-dilatation cell; same contract as
@@ -295,31 +320,28 @@ pub fn cell_residual_tangent_md(
     let nl = n * FIELDS;
     let nq = geom.n_qp;
     let kin = MdKinematics::new(geom, local)?;
-    r[..nl].iter_mut().for_each(|v| *v = 0.0);
     let Some(k) = k else {
-        let (p, d0, energy) = md_stresses(geom, mat, hist, &kin)?;
-        for q in 0..nq {
-            add_residual_any(geom, q, &p[q], &d0[q], r);
-        }
-        return Ok(energy);
+        return md_residual(geom, mat, hist, &kin, r, &mut [Mat3::zeros(); MAX_QP]);
     };
+    r[..nl].iter_mut().for_each(|v| *v = 0.0);
     k[..nl * nl].iter_mut().for_each(|v| *v = 0.0);
     let theta = kin.theta;
     let vol = kin.volume;
 
     // pass 1: material tangents at F̄ and the cell's θ̄-derivative H = Σ w s/(3θ̄)
-    let mut tans: [Option<Tangent>; MAX_QP] = Default::default();
+    let mut tans: Vec<Tangent> = Vec::with_capacity(nq);
     let mut s = [0.0; MAX_QP];
     let mut energy = 0.0;
     let mut h = 0.0;
     for q in 0..nq {
+        let fbar = kin.fbar(q);
         let t = mat
-            .tangent_at(&kin.fbar[q], &kin.e0[q], hist.at(q))
+            .tangent_at(&fbar, &kin.e0[q], hist.at(q))
             .map_err(fail(q))?;
         energy += geom.weights[q] * t.energy;
-        s[q] = t.p.dot(&kin.fbar[q]);
+        s[q] = t.p.dot(&fbar);
         h += geom.weights[q] * s[q] / (3.0 * theta);
-        tans[q] = Some(t);
+        tans.push(t);
     }
     let pm = h / vol;
 
@@ -330,7 +352,7 @@ pub fn cell_residual_tangent_md(
     let mut dd = 0.0;
 
     for q in 0..nq {
-        let t = tans[q].as_ref().expect("set in pass 1");
+        let t = &tans[q];
         let g = &geom.grad[q];
         let w = geom.weights[q];
         let (alpha, j) = (kin.alpha[q], kin.j[q]);
@@ -426,11 +448,61 @@ pub fn cell_fields_md(
     local: &[f64],
 ) -> Result<CellFields, PointFailure> {
     let k = MdKinematics::new(geom, local)?;
-    let (p, _, _) = md_stresses(geom, mat, hist, &k)?;
+    let mut p = [Mat3::zeros(); MAX_QP];
+    let mut d0 = [Vec3::zeros(); MAX_QP];
+    md_stresses(geom, mat, hist, &k, true, &mut p, &mut d0)?;
+    fields_md(geom, mat, hist, &k, &p)
+}
+
+/// [`CellKernel::potential_residual`] of a mean-dilatation cell: D₀(F̄, E₀) only.
+pub fn cell_potential_residual_md(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    local: &[f64],
+    r: &mut [f64],
+) -> Result<(), PointFailure> {
+    let k = MdKinematics::new(geom, local)?;
+    r[..geom.n_nodes * FIELDS].iter_mut().for_each(|v| *v = 0.0);
+    let no_stress = Mat3::zeros();
+    for q in 0..geom.n_qp {
+        let d0 = mat
+            .electric_displacement_at(&k.fbar(q), &k.e0[q], hist.at(q))
+            .map_err(fail(q))?;
+        add_residual_any(geom, q, &no_stress, &d0, r);
+    }
+    Ok(())
+}
+
+/// [`CellKernel::record`] of a mean-dilatation cell: the kinematics once, the stresses of the
+/// residual reused for the fields.
+pub fn cell_record_md(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    local: &[f64],
+    r: &mut [f64],
+) -> Result<((f64, f64), CellFields), PointFailure> {
+    let k = MdKinematics::new(geom, local)?;
+    let mut p = [Mat3::zeros(); MAX_QP];
+    md_residual(geom, mat, hist, &k, r, &mut p)?;
+    let split = energy_split_md(geom, mat, hist, &k)?;
+    Ok((split, fields_md(geom, mat, hist, &k, &p)?))
+}
+
+/// [`cell_fields_md`] at given kinematics with the effective stresses `p` of the full state
+/// (from [`md_stresses`]).
+fn fields_md(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    k: &MdKinematics,
+    p: &[Mat3; MAX_QP],
+) -> Result<CellFields, PointFailure> {
     // the mechanical part: the same kinematics at zero field
-    let mut k0 = MdKinematics::new(geom, local)?;
-    k0.e0 = [Vec3::zeros(); MAX_QP];
-    let (p_mech, _, _) = md_stresses(geom, mat, hist, &k0)?;
+    let mut p_mech = [Mat3::zeros(); MAX_QP];
+    let mut d0 = [Vec3::zeros(); MAX_QP];
+    md_stresses(geom, mat, hist, k, false, &mut p_mech, &mut d0)?;
     let mut out = CellFields::zero();
     for q in 0..geom.n_qp {
         let sigma = p[q] * k.f[q].transpose() / k.j[q];

@@ -41,6 +41,28 @@ pub trait CellKernel: Send + Sync {
     fn energy_split(&self, cell: &CellInput) -> Result<(f64, f64), PointFailure>;
     /// Output fields of the cell.
     fn fields(&self, cell: &CellInput) -> Result<CellFields, PointFailure>;
+    /// The Φ rows of the residual of [`CellKernel::residual_tangent`] into `r` (4·n entries),
+    /// its displacement rows zero: a solve for the potential at held displacements needs no
+    /// stress.
+    fn potential_residual(&self, cell: &CellInput, r: &mut [f64]) -> Result<(), PointFailure> {
+        self.residual_tangent(cell, r, None)?;
+        for node in r[..cell.geom.n_nodes * crate::fem::FIELDS].chunks_exact_mut(crate::fem::FIELDS)
+        {
+            node[..crate::fem::PHI].fill(0.0);
+        }
+        Ok(())
+    }
+    /// What the record of a state needs of the cell, in one call: the residual (into `r`, as
+    /// [`CellKernel::residual_tangent`]), the energy split and the output fields. A kernel may
+    /// share its kinematics and stresses among them; the values are those of the three calls.
+    fn record(
+        &self,
+        cell: &CellInput,
+        r: &mut [f64],
+    ) -> Result<((f64, f64), CellFields), PointFailure> {
+        self.residual_tangent(cell, r, None)?;
+        Ok((self.energy_split(cell)?, self.fields(cell)?))
+    }
     /// The deformation gradient the material sees and E₀ at each quadrature point (where
     /// internal variables are updated), into `out[..n_qp]`.
     fn point_deformations(
@@ -103,6 +125,16 @@ impl CellKernel for MeanDilatationKernel {
     }
     fn fields(&self, c: &CellInput) -> Result<CellFields, PointFailure> {
         mean_dilatation::cell_fields_md(c.geom, c.mat, c.hist, c.local)
+    }
+    fn potential_residual(&self, c: &CellInput, r: &mut [f64]) -> Result<(), PointFailure> {
+        mean_dilatation::cell_potential_residual_md(c.geom, c.mat, c.hist, c.local, r)
+    }
+    fn record(
+        &self,
+        c: &CellInput,
+        r: &mut [f64],
+    ) -> Result<((f64, f64), CellFields), PointFailure> {
+        mean_dilatation::cell_record_md(c.geom, c.mat, c.hist, c.local, r)
     }
     fn point_deformations(
         &self,

@@ -24,7 +24,8 @@ pub struct PointFailure {
 }
 
 /// Splits the local values (node-major, 4 per node) into displacements and potentials.
-fn split_local(n: usize, local: &[f64]) -> ([[f64; 3]; MAX_NODES], [f64; MAX_NODES]) {
+#[inline]
+pub(crate) fn split_local(n: usize, local: &[f64]) -> ([[f64; 3]; MAX_NODES], [f64; MAX_NODES]) {
     let mut u = [[0.0; 3]; MAX_NODES];
     let mut phi = [0.0; MAX_NODES];
     for a in 0..n {
@@ -115,7 +116,8 @@ pub fn cell_residual_tangent(
     Ok(energy)
 }
 
-fn add_residual(
+/// Adds w·(P : ∇₀N_a, D₀ · ∇₀N_a) of one point to the residual rows of every node.
+pub(crate) fn add_residual(
     g: &[[f64; 3]; MAX_NODES],
     n: usize,
     w: f64,
@@ -123,12 +125,11 @@ fn add_residual(
     d0: &crate::material::Vec3,
     r: &mut [f64],
 ) {
-    for a in 0..n {
-        let ga = g[a];
+    for (ga, ra) in g[..n].iter().zip(r.chunks_exact_mut(FIELDS)) {
         for i in 0..3 {
-            r[a * 4 + i] += w * (p[(i, 0)] * ga[0] + p[(i, 1)] * ga[1] + p[(i, 2)] * ga[2]);
+            ra[i] += w * (p[(i, 0)] * ga[0] + p[(i, 1)] * ga[1] + p[(i, 2)] * ga[2]);
         }
-        r[a * 4 + 3] += w * (d0[0] * ga[0] + d0[1] * ga[1] + d0[2] * ga[2]);
+        ra[3] += w * (d0[0] * ga[0] + d0[1] * ga[1] + d0[2] * ga[2]);
     }
 }
 
@@ -264,17 +265,17 @@ pub fn cell_viscous(
             .try_inverse()
             .ok_or(fail(MaterialError::NonPositiveJ(j)))?;
         let mut h = [[0.0; 3]; MAX_NODES];
-        for a in 0..n {
+        for (ha, ga) in h[..n].iter_mut().zip(&g[..n]) {
             for i in 0..3 {
-                h[a][i] = finv[(0, i)] * g[a][0] + finv[(1, i)] * g[a][1] + finv[(2, i)] * g[a][2];
+                ha[i] = finv[(0, i)] * ga[0] + finv[(1, i)] * ga[1] + finv[(2, i)] * ga[2];
             }
         }
         // l = Ḟ F⁻¹ = Σ v_a ⊗ h_a, d = sym(l)
         let mut l = [[0.0; 3]; 3];
-        for a in 0..n {
+        for (va, ha) in v[..n].iter().zip(&h[..n]) {
             for i in 0..3 {
                 for m in 0..3 {
-                    l[i][m] += v[a][i] * h[a][m];
+                    l[i][m] += va[i] * ha[m];
                 }
             }
         }
@@ -292,9 +293,9 @@ pub fn cell_viscous(
         }
         let c = w * j * eta;
         power += c * dd;
-        for a in 0..n {
+        for (ha, ra) in h[..n].iter().zip(r.chunks_exact_mut(FIELDS)) {
             for i in 0..3 {
-                r[a * 4 + i] += c * (d[i][0] * h[a][0] + d[i][1] * h[a][1] + d[i][2] * h[a][2]);
+                ra[i] += c * (d[i][0] * ha[0] + d[i][1] * ha[1] + d[i][2] * ha[2]);
             }
         }
         if let Some(kv) = kv.as_deref_mut() {

@@ -282,19 +282,25 @@ pub fn tet_rule_degree5() -> Vec<([f64; 3], f64)> {
 
 /// Deformation gradient F = I + Σ u_a ⊗ ∇N_a and referential field E₀ = −Σ Φ_a ∇N_a at one
 /// quadrature point, from nodal displacements (m) and potentials (V).
+/// (Inlined: the element loops call it at every point, and callers that need F only drop E₀.)
+#[inline]
 pub fn kinematics(grad: &[[f64; 3]], u: &[[f64; 3]], phi: &[f64]) -> (Mat3, Vec3) {
-    let mut f = Mat3::identity();
-    let mut e0 = Vec3::zeros();
-    for a in 0..grad.len() {
-        let g = grad[a];
+    let mut f = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let mut e0 = [0.0; 3];
+    for ((g, ua), pa) in grad.iter().zip(u).zip(phi) {
         for i in 0..3 {
             for j in 0..3 {
-                f[(i, j)] += u[a][i] * g[j];
+                f[i][j] += ua[i] * g[j];
             }
-            e0[i] -= phi[a] * g[i];
+            e0[i] -= pa * g[i];
         }
     }
-    (f, e0)
+    (
+        Mat3::new(
+            f[0][0], f[0][1], f[0][2], f[1][0], f[1][1], f[1][2], f[2][0], f[2][1], f[2][2],
+        ),
+        Vec3::new(e0[0], e0[1], e0[2]),
+    )
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ use super::state::RecorderState;
 use crate::element::CellFields;
 use crate::problem::dofs::FIELDS;
 use crate::problem::points::PointStates;
-use crate::problem::statics::{cell_fields_with, energies_with, nodal_reactions_with};
+use crate::problem::statics::record_with;
 
 /// Accumulates the work of the prescribed values and evaluates records.
 pub(super) struct Recorder<'p> {
@@ -70,8 +70,9 @@ impl<'p> Recorder<'p> {
         dissipated: f64,
     ) -> Result<(StepRecord, Vec<CellFields>), String> {
         let model = &self.plan.model;
-        let reactions = nodal_reactions_with(model, state, &self.points, 0.0)?;
-        let (stored, electric) = energies_with(model, state, &self.points)?;
+        let cells = record_with(model, state, &self.points)?;
+        let (reactions, (stored, electric), fields) =
+            (cells.reactions, cells.energies, cells.fields);
         // work done on the body, by the trapezoidal rule: reactions at prescribed dofs
         // Σ ½(R₀ + R₁)·(x₁ − x₀) and external (traction) forces at free dofs
         let external: Vec<f64> = self
@@ -163,7 +164,6 @@ impl<'p> Recorder<'p> {
             .iter()
             .map(|e| state[e.nodes[0] * FIELDS + 3])
             .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
-        let fields = cell_fields_with(model, state, &self.points)?;
         let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
         self.check_breakdown(&fields, time, stage);
         let (probes, electrodes) = self.probe_values(
@@ -256,9 +256,8 @@ impl<'p> Recorder<'p> {
     /// accumulated; rate probes (current, power) have no previous record and read 0.
     pub(super) fn probes_at(&self, state: &[f64]) -> Result<Vec<f64>, String> {
         let model = &self.plan.model;
-        let reactions = nodal_reactions_with(model, state, &self.points, 0.0)?;
-        let energies = energies_with(model, state, &self.points)?;
-        let fields = cell_fields_with(model, state, &self.points)?;
+        let cells = record_with(model, state, &self.points)?;
+        let (reactions, energies, fields) = (cells.reactions, cells.energies, cells.fields);
         let max_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
         Ok(self
             .probe_values(state, &reactions, energies, max_field, (&[], f64::NAN))

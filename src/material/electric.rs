@@ -57,6 +57,7 @@ impl ElectricPart {
 
     /// Ω_e = c₁ E0·E0 + c₂ E0·CE0 − ε/2 J E0·C⁻¹E0 (the E0-dependent part of
     /// the energy; the bookkeeping "electric energy" is −Ω_e).
+    #[inline]
     pub fn energy(&self, k: &CKinematics, e0: &Vec3) -> f64 {
         let ee = e0.dot(e0);
         let ece = e0.dot(&(k.c * e0));
@@ -65,14 +66,22 @@ impl ElectricPart {
     }
 
     /// (S_e, D0).
+    #[inline]
     pub fn first(&self, k: &CKinematics, e0: &Vec3) -> (Mat3, Vec3) {
         let ci = &k.c_inv;
         let g = ci * e0;
         let a = e0.dot(&g);
         let ej = self.eps * k.j;
         let s = e0 * e0.transpose() * (2.0 * self.c2) + (g * g.transpose() - ci * (0.5 * a)) * ej;
-        let d0 = e0 * (-2.0 * self.c1) - (k.c * e0) * (2.0 * self.c2) + g * ej;
-        (s, d0)
+        (s, self.d0(k, e0))
+    }
+
+    /// D0 alone (as in [`ElectricPart::first`]).
+    #[inline]
+    pub fn d0(&self, k: &CKinematics, e0: &Vec3) -> Vec3 {
+        let g = k.c_inv * e0;
+        let ej = self.eps * k.j;
+        e0 * (-2.0 * self.c1) - (k.c * e0) * (2.0 * self.c2) + g * ej
     }
 
     /// Adds 𝕃_e to `ll` and returns (∂S/∂E0 indexed `[I][J][K]`, ∂D0/∂E0).

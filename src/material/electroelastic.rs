@@ -11,7 +11,7 @@
 use super::electric::ElectricPart;
 use super::hyperelastic::Hyperelastic;
 use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial};
-use super::{Mat3, Material, MaterialError, Stress, Tangent, Vec3};
+use super::{Mat3, Material, MaterialError, PointHistory, Stress, Tangent, Vec3};
 
 /// Mechanical model `H` combined with a linear dielectric.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,10 +35,12 @@ impl<H: Hyperelastic> Electroelastic<H> {
 }
 
 impl<H: Hyperelastic> CMaterial for Electroelastic<H> {
+    #[inline]
     fn c_energy(&self, k: &CKinematics, e0: &Vec3) -> Result<f64, MaterialError> {
         Ok(self.mech.w(k)? + self.elec.energy(k, e0))
     }
 
+    #[inline(always)]
     fn c_first(&self, k: &CKinematics, e0: &Vec3) -> Result<CFirst, MaterialError> {
         let m = self.mech.s(k)?;
         let (se, d0) = self.elec.first(k, e0);
@@ -90,10 +92,21 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
         self.elec.small_strain_permittivity()
     }
 
+    fn electric_displacement_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<Vec3, MaterialError> {
+        // the checks of `stress`; the mechanical part does not enter D0
+        let k = isotropic::checked_kinematics(f, e0)?;
+        Ok(self.elec.d0(&k, e0))
+    }
+
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
         // Validate exactly like the energy evaluation does.
-        isotropic::energy_from_c(self, f, e0)?;
-        let k = CKinematics::from_f(f)?;
+        // the checks of `energy` (finite field, J > 0); its value would be the sum of the parts
+        let k = isotropic::checked_kinematics(f, e0)?;
         Ok((self.mech.w(&k)?, -self.elec.energy(&k, e0)))
     }
 }

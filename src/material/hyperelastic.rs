@@ -102,6 +102,7 @@ pub fn vol_log(kappa: f64, j: f64) -> VolDerivs {
 
 /// Abaqus polynomial form U(J) = Σᵢ (1/Dᵢ)(J − 1)^(2i), i = 1, 2, …, given
 /// the inverse compressibilities `inv_d[i−1]` = 1/Dᵢ (0 for an absent term).
+#[inline]
 pub fn vol_poly(inv_d: &[f64], j: f64) -> VolDerivs {
     let x = j - 1.0;
     let x2 = x * x;
@@ -124,6 +125,7 @@ pub fn vol_poly(inv_d: &[f64], j: f64) -> VolDerivs {
 }
 
 /// Volumetric stress S_vol = J U′ C⁻¹.
+#[inline]
 pub fn vol_stress(k: &CKinematics, v: &VolDerivs) -> Mat3 {
     k.c_inv * (k.j * v.du)
 }
@@ -162,6 +164,7 @@ pub struct IsoInvariants {
 
 impl IsoInvariants {
     /// Invariants from the kinematics.
+    #[inline]
     pub fn new(k: &CKinematics) -> Self {
         let i1 = k.c.trace();
         let i2 = 0.5 * (i1 * i1 - (k.c * k.c).trace());
@@ -203,6 +206,7 @@ pub struct InvariantDerivs {
 }
 
 /// S_iso = 2(W₁ ∂Ī₁/∂C + W₂ ∂Ī₂/∂C).
+#[inline]
 pub fn iso_stress(k: &CKinematics, inv: &IsoInvariants, d: &InvariantDerivs) -> Mat3 {
     let mut s = inv.d_i1b(k) * (2.0 * d.w1);
     if d.w2 != 0.0 {

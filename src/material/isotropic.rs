@@ -42,6 +42,7 @@ pub struct CKinematics {
 impl CKinematics {
     /// Compute C, C⁻¹ and J from F. Fails with
     /// [`MaterialError::NonPositiveJ`] if J <= 0 or J is not finite.
+    #[inline(always)]
     pub fn from_f(f: &Mat3) -> Result<Self, MaterialError> {
         let j = f.determinant();
         if !(j.is_finite() && j > 0.0) {
@@ -159,25 +160,32 @@ pub fn b_from_c(f: &Mat3, se: &Tensor3) -> Mat93 {
     b
 }
 
+/// The kinematics of F after checking the inputs (a finite E0, J > 0), as every conversion
+/// below does.
+#[inline(always)]
+pub fn checked_kinematics(f: &Mat3, e0: &Vec3) -> Result<CKinematics, MaterialError> {
+    check_field(e0)?;
+    CKinematics::from_f(f)
+}
+
 /// Ψ(F, E0) = Ω(FᵀF, E0).
 pub fn energy_from_c<M: CMaterial + ?Sized>(
     m: &M,
     f: &Mat3,
     e0: &Vec3,
 ) -> Result<f64, MaterialError> {
-    check_field(e0)?;
-    let k = CKinematics::from_f(f)?;
+    let k = checked_kinematics(f, e0)?;
     m.c_energy(&k, e0)
 }
 
 /// Ψ, P, D0 from a C-form model.
+#[inline]
 pub fn stress_from_c<M: CMaterial + ?Sized>(
     m: &M,
     f: &Mat3,
     e0: &Vec3,
 ) -> Result<Stress, MaterialError> {
-    check_field(e0)?;
-    let k = CKinematics::from_f(f)?;
+    let k = checked_kinematics(f, e0)?;
     let cf = m.c_first(&k, e0)?;
     Ok(Stress {
         energy: cf.energy,
@@ -192,8 +200,7 @@ pub fn tangent_from_c<M: CMaterial + ?Sized>(
     f: &Mat3,
     e0: &Vec3,
 ) -> Result<Tangent, MaterialError> {
-    check_field(e0)?;
-    let k = CKinematics::from_f(f)?;
+    let k = checked_kinematics(f, e0)?;
     let cd = m.c_second(&k, e0)?;
     Ok(Tangent {
         energy: cd.energy,

@@ -178,6 +178,16 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     fn stress_at(&self, f: &Mat3, e0: &Vec3, _h: PointHistory) -> Result<Stress, MaterialError> {
         self.stress(f, e0)
     }
+    /// The referential electric displacement D0 of [`Material::stress_at`] alone: a solve for
+    /// the potential at held displacements needs no stress.
+    fn electric_displacement_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        h: PointHistory,
+    ) -> Result<Vec3, MaterialError> {
+        self.stress_at(f, e0, h).map(|s| s.d0)
+    }
     /// Its first and second derivatives (the consistent tangent of the update).
     fn tangent_at(&self, f: &Mat3, e0: &Vec3, _h: PointHistory) -> Result<Tangent, MaterialError> {
         self.tangent(f, e0)

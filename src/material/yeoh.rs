@@ -56,11 +56,13 @@ impl Yeoh {
 }
 
 impl Hyperelastic for Yeoh {
+    #[inline]
     fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
         let inv = IsoInvariants::new(k);
         Ok(self.iso(inv.i1b).0 + vol_poly(&self.inv_d(), k.j).u)
     }
 
+    #[inline]
     fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError> {
         let inv = IsoInvariants::new(k);
         let (w, d) = self.iso(inv.i1b);

@@ -304,6 +304,57 @@ pub fn nodal_reactions_with(
     Ok(out)
 }
 
+/// What the record of a state needs of the cells (see [`record_with`]).
+pub struct CellsRecord {
+    /// The nodal reactions of [`nodal_reactions_with`] (at Δt = 0).
+    pub reactions: Vec<f64>,
+    /// The energies of [`energies_with`].
+    pub energies: (f64, f64),
+    /// The fields of [`cell_fields_with`].
+    pub fields: Vec<CellFields>,
+}
+
+/// What the record of a state needs, in one pass over the cells (see
+/// [`CellKernel::record`](crate::element::CellKernel::record)), at committed point states.
+pub fn record_with(
+    model: &Model,
+    state: &[f64],
+    points: &PointStates,
+) -> Result<CellsRecord, String> {
+    let mut reactions = vec![0.0; state.len()];
+    let (mut mech, mut elec) = (0.0, 0.0);
+    let mut fields = Vec::with_capacity(model.mesh.n_cells());
+    let mut r = vec![0.0; crate::element::MAX_LOCAL];
+    model.for_each_cell(state, |c, g, mat, local| {
+        let ((a, b), f) = model
+            .kernel()
+            .record(
+                &CellInput {
+                    geom: g,
+                    mat,
+                    hist: points.cell(c, model.cell_material[c], 0.0),
+                    local,
+                },
+                &mut r,
+            )
+            .map_err(|e| format!("cell {c}: {}", e.error))?;
+        for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+            for f in 0..FIELDS {
+                reactions[node * FIELDS + f] += r[a * FIELDS + f];
+            }
+        }
+        mech += a;
+        elec += b;
+        fields.push(f);
+        Ok::<(), String>(())
+    })?;
+    Ok(CellsRecord {
+        reactions,
+        energies: (mech, elec),
+        fields,
+    })
+}
+
 /// Per-cell output fields of a state.
 pub fn cell_fields(model: &Model, state: &[f64]) -> Result<Vec<CellFields>, String> {
     cell_fields_with(model, state, &PointStates::default())
@@ -342,6 +393,9 @@ impl NonlinearSystem for StaticProblem<'_> {
         let m = self.model;
         let (points, dt) = (&self.points, self.dt());
         let cell_kernel = m.kernel();
+        // every displacement held (the electrostatic projection of a dynamic step): the residual
+        // has Φ rows only (the cell energies are then not evaluated)
+        let potential_only = k.is_none() && self.dofs.n_free == self.dofs.n_free_phi;
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let input = CellInput {
                 geom: &m.geometry[c],
@@ -349,9 +403,12 @@ impl NonlinearSystem for StaticProblem<'_> {
                 hist: points.cell(c, m.cell_material[c], dt),
                 local,
             };
-            cell_kernel
-                .residual_tangent(&input, rl, kl)
-                .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
+            if potential_only {
+                cell_kernel.potential_residual(&input, rl).map(|()| 0.0)
+            } else {
+                cell_kernel.residual_tangent(&input, rl, kl)
+            }
+            .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
         };
         self.assembler
             .assemble(
