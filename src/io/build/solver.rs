@@ -247,7 +247,7 @@ mod tests {
         let s = solver("[solver]\nkind = \"petsc\"\npetsc_options = \"-ksp_type minres\"").unwrap();
         assert_eq!(s.kind, SolverKind::Petsc);
         assert_eq!(s.petsc_options, "-ksp_type minres");
-        assert!(s.describe().starts_with("PETSc"), "{}", s.describe());
+        assert!(s.describe(0).starts_with("PETSc"), "{}", s.describe(0));
     }
 
     #[test]
