@@ -237,6 +237,26 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Also run the ~400k-dof mesh (minutes, several GB).
         #[arg(long)]
         large: bool,
+        /// Instead, the scaling table: the film from 1.5·10⁴ to 10⁶ unknowns, time per Newton
+        /// iteration, Krylov iterations, peak memory, and the scaling exponent.
+        #[arg(long)]
+        scaling: bool,
+        /// The linear solver of the scaling table (auto, direct, iterative).
+        #[arg(long, default_value = "auto")]
+        solver: String,
+        /// Only meshes of at most this many unknowns in the scaling table.
+        #[arg(long, default_value_t = 1_100_000)]
+        max_dofs: usize,
+        /// The largest factor (bytes) a direct solver may hold in the scaling table (default: 80 %
+        /// of the memory available); `auto` switches to MINRES above it.
+        #[arg(long)]
+        memory_limit: Option<usize>,
+        /// Seconds after which one mesh of the scaling table is stopped.
+        #[arg(long, default_value_t = 1800.0)]
+        timeout: f64,
+        /// One row of the scaling table (NXxNYxNZ), in this process.
+        #[arg(long, hide = true)]
+        scaling_row: Option<String>,
     },
 }
 
@@ -387,7 +407,47 @@ fn main() {
             out,
         }),
         Command::Validate { family } => deasim::cli::validate::cmd_validate(family.as_deref()),
-        Command::Bench { large } => deasim::cli::bench::cmd_bench(large),
+        Command::Bench {
+            large,
+            scaling,
+            solver,
+            max_dofs,
+            memory_limit,
+            timeout,
+            scaling_row,
+        } => {
+            use deasim::cli::bench;
+            use deasim::solve::linear::SolverKind;
+            match (SolverKind::from_name(&solver), scaling_row) {
+                (None, _) => {
+                    eprintln!(
+                        "error: --solver: expected one of {}, found `{solver}`",
+                        SolverKind::NAMES.join(", ")
+                    );
+                    2
+                }
+                (Some(kind), Some(mesh)) => match bench::parse_mesh(&mesh) {
+                    None => {
+                        eprintln!("error: --scaling-row: expected NXxNYxNZ, found `{mesh}`");
+                        2
+                    }
+                    Some(div) => match bench::bench_scaling_row(div, kind, memory_limit) {
+                        Ok(row) => {
+                            println!("{row}");
+                            0
+                        }
+                        Err(e) => {
+                            eprintln!("error: {mesh}: {e}");
+                            1
+                        }
+                    },
+                },
+                (Some(kind), None) if scaling => {
+                    bench::cmd_bench_scaling(kind, max_dofs, memory_limit, timeout)
+                }
+                (Some(_), None) => bench::cmd_bench(large),
+            }
+        }
     };
     std::process::exit(code);
 }

@@ -108,13 +108,56 @@ pub const SOLVER_HEADER: &str =
 /// hex8 mesh with the given solver kind: wall time, Newton iterations, time per Newton
 /// iteration, factorisations, Krylov iterations and the process's peak memory so far.
 pub fn bench_solver(div: [usize; 3], kind: SolverKind) -> Result<String, String> {
+    let run = film_run(div, kind, 15, None)?;
+    Ok(format!(
+        "{:>14} {:>9} {:>7} {:>6.2} {:>6} {:>12.3} {:>7} {:>6} {:>8.0}",
+        format!("{}x{}x{}", div[0], div[1], div[2]),
+        run.dofs,
+        kind.name(),
+        run.wall_s,
+        run.newton,
+        run.per_newton_s(),
+        run.stats.factorizations,
+        run.stats.krylov_iterations,
+        peak_memory_mib()
+    ))
+}
+
+/// What one run of the film's voltage ramp cost.
+#[derive(Debug, Clone)]
+pub struct FilmRun {
+    /// Free unknowns.
+    pub dofs: usize,
+    pub wall_s: f64,
+    pub newton: usize,
+    /// The linear solver's work, and its name (after `auto`'s choice).
+    pub stats: crate::solve::linear::SolverStats,
+    pub solver: String,
+}
+
+impl FilmRun {
+    /// Wall time per Newton iteration (the run's set-up and predictors included).
+    pub fn per_newton_s(&self) -> f64 {
+        self.wall_s / self.newton.max(1) as f64
+    }
+}
+
+/// The `film` example on a hex8 mesh, its voltage ramped to 30 kV in `steps` steps with a
+/// stability test at every step, solved by `kind` (with `memory_limit` bytes for a factor).
+pub fn film_run(
+    div: [usize; 3],
+    kind: SolverKind,
+    steps: usize,
+    memory_limit: Option<usize>,
+) -> Result<FilmRun, String> {
     use crate::solve::stepping::ramp;
     let model = film(div, ElementKind::Hex8, 30e3).map_err(|e| e.to_string())?;
     let mut p = StaticProblem::new(&model, None);
-    let n = p.n();
+    let dofs = p.n();
     let mut solver = SolverSettings {
         kind,
         ordering: Ordering::NestedDissection,
+        memory_limit,
         ..Default::default()
     }
     .build();
@@ -124,24 +167,183 @@ pub fn bench_solver(div: [usize; 3], kind: SolverKind) -> Result<String, String>
         solver.as_mut(),
         &NewtonSettings::default(),
         &StepControl {
-            steps: 15,
+            steps,
             ..Default::default()
         },
         |_, _| {},
     )
     .map_err(|e| e.reason)?;
-    let total = t.elapsed().as_secs_f64();
-    let st = solver.stats();
-    let its = report.newton_iterations;
+    Ok(FilmRun {
+        dofs,
+        wall_s: t.elapsed().as_secs_f64(),
+        newton: report.newton_iterations,
+        stats: solver.stats(),
+        solver: solver.name().to_string(),
+    })
+}
+
+/// Film meshes of the scaling table: cells about cubic in the film's 5 × 5 × 1 mm quarter, as
+/// the example's own 40 × 40 × 8; about 1.5·10⁴, 1.2·10⁵, 3.2·10⁵ and 1.05·10⁶ unknowns.
+pub const SCALING_MESHES: [[usize; 3]; 4] =
+    [[24, 24, 5], [52, 52, 10], [72, 72, 14], [108, 108, 21]];
+
+/// Voltage steps of a scaling run (to 30 kV): enough Newton iterations for a mean, few enough
+/// for the largest mesh.
+pub const SCALING_STEPS: usize = 3;
+
+/// Column titles of [`bench_scaling_row`]'s rows.
+pub const SCALING_HEADER: &str = "          mesh      dofs  newton  run_s per_newton_s factors krylov krylov/solve peak_MiB  solver";
+
+/// One row of the scaling table: the film on `div` with [`SCALING_STEPS`] steps.
+pub fn bench_scaling_row(
+    div: [usize; 3],
+    kind: SolverKind,
+    memory_limit: Option<usize>,
+) -> Result<String, String> {
+    let run = film_run(div, kind, SCALING_STEPS, memory_limit)?;
     Ok(format!(
-        "{:>14} {n:>9} {:>7} {total:>6.2} {its:>6} {:>12.3} {:>7} {:>6} {:>8.0}",
+        "{:>14} {:>9} {:>7} {:>6.1} {:>12.3} {:>7} {:>6} {:>12.1} {:>8.0}  {}",
         format!("{}x{}x{}", div[0], div[1], div[2]),
-        kind.name(),
-        total / its.max(1) as f64,
-        st.factorizations,
-        st.krylov_iterations,
-        peak_memory_mib()
+        run.dofs,
+        run.newton,
+        run.wall_s,
+        run.per_newton_s(),
+        run.stats.factorizations,
+        run.stats.krylov_iterations,
+        run.stats.krylov_iterations as f64 / run.stats.solves.max(1) as f64,
+        peak_memory_mib(),
+        run.solver
     ))
+}
+
+/// Parses `NXxNYxNZ`.
+pub fn parse_mesh(s: &str) -> Option<[usize; 3]> {
+    let v: Vec<usize> = s.split('x').filter_map(|p| p.parse().ok()).collect();
+    (v.len() == 3 && s.split('x').count() == 3).then(|| [v[0], v[1], v[2]])
+}
+
+/// The scaling exponent p of t ∝ nᵖ between two (unknowns, time) points.
+pub fn scaling_exponent(a: (f64, f64), b: (f64, f64)) -> f64 {
+    (b.1 / a.1).ln() / (b.0 / a.0).ln()
+}
+
+/// The peak resident memory (MiB) of a running process, from /proc.
+fn peak_memory_of(pid: u32) -> f64 {
+    std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|v| v.parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |kib| kib / 1024.0)
+}
+
+/// `deasim bench --scaling`: the film on [`SCALING_MESHES`] up to `max_dofs` unknowns, each in
+/// its own process (so that the peak memory is that mesh's), stopped after `timeout_s`; then the
+/// scaling exponent of the time per Newton iteration between the two largest finished meshes.
+pub fn cmd_bench_scaling(
+    kind: SolverKind,
+    max_dofs: usize,
+    memory_limit: Option<usize>,
+    timeout_s: f64,
+) -> i32 {
+    println!(
+        "scaling: the film example (hex8, cubic cells), {SCALING_STEPS} voltage steps to 30 kV with a \
+         stability test at every step, solver `{}`, {} threads; each mesh in its own process, \
+         stopped after {timeout_s:.0} s; times in s",
+        kind.name(),
+        rayon::current_num_threads()
+    );
+    println!("{SCALING_HEADER}");
+    let Ok(exe) = std::env::current_exe() else {
+        eprintln!("error: cannot find this program's path");
+        return 1;
+    };
+    let mut points: Vec<(f64, f64)> = Vec::new();
+    for div in SCALING_MESHES {
+        let nodes = (div[0] + 1) * (div[1] + 1) * (div[2] + 1);
+        if nodes * crate::fem::FIELDS > max_dofs {
+            continue;
+        }
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.args([
+            "bench",
+            "--scaling-row",
+            &format!("{}x{}x{}", div[0], div[1], div[2]),
+            "--solver",
+            kind.name(),
+        ]);
+        if let Some(bytes) = memory_limit {
+            cmd.args(["--memory-limit", &bytes.to_string()]);
+        }
+        let child = cmd
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::inherit())
+            .spawn();
+        let mut child = match child {
+            Ok(c) => c,
+            Err(e) => {
+                eprintln!("error: cannot start {}: {e}", exe.display());
+                return 1;
+            }
+        };
+        let start = Instant::now();
+        let mut peak = f64::NAN;
+        let status = loop {
+            match child.try_wait() {
+                Ok(Some(status)) => break Some(status),
+                Ok(None) if start.elapsed().as_secs_f64() > timeout_s => {
+                    peak = peak_memory_of(child.id());
+                    let _ = child.kill();
+                    let _ = child.wait();
+                    break None;
+                }
+                Ok(None) => {
+                    peak = peak_memory_of(child.id()).max(if peak.is_nan() { 0.0 } else { peak });
+                    std::thread::sleep(std::time::Duration::from_millis(200));
+                }
+                Err(e) => {
+                    eprintln!("error: waiting for the benchmark: {e}");
+                    return 1;
+                }
+            }
+        };
+        let mut out = String::new();
+        if let Some(mut so) = child.stdout.take() {
+            use std::io::Read;
+            let _ = so.read_to_string(&mut out);
+        }
+        let name = format!("{}x{}x{}", div[0], div[1], div[2]);
+        match status {
+            Some(s) if s.success() => {
+                print!("{out}");
+                let fields: Vec<&str> = out.split_whitespace().collect();
+                if let (Some(n), Some(t)) = (
+                    fields.get(1).and_then(|v| v.parse::<f64>().ok()),
+                    fields.get(4).and_then(|v| v.parse::<f64>().ok()),
+                ) {
+                    points.push((n, t));
+                }
+            }
+            Some(_) => println!("{name:>14} failed (the message is above)"),
+            None => println!(
+                "{name:>14} {:>9} stopped after {timeout_s:.0} s, peak {peak:.0} MiB so far",
+                nodes * crate::fem::FIELDS
+            ),
+        }
+    }
+    if points.len() >= 2 {
+        let (a, b) = (points[points.len() - 2], points[points.len() - 1]);
+        println!(
+            "time per Newton iteration grows as n^{:.2} from {:.0} to {:.0} unknowns",
+            scaling_exponent(a, b),
+            a.0,
+            b.0
+        );
+    }
+    0
 }
 
 /// `deasim bench`: prints the table; `large` adds the ~400k-dof mesh.
@@ -506,6 +708,33 @@ pub fn bench_linear(points: usize) -> Result<Vec<String>, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Mesh names parse only in the NXxNYxNZ form; the exponent of t ∝ n² is 2.
+    #[test]
+    fn scaling_helpers() {
+        assert_eq!(parse_mesh("108x108x21"), Some([108, 108, 21]));
+        assert_eq!(parse_mesh("10x10"), None);
+        assert_eq!(parse_mesh("10x10x2x3"), None);
+        assert_eq!(parse_mesh("10xax2"), None);
+        assert!((scaling_exponent((1e5, 2.0), (1e6, 200.0)) - 2.0).abs() < 1e-12);
+    }
+
+    /// A scaling row runs the film and reports its work: Newton iterations, a factorisation per
+    /// stability test (direct), no Krylov iterations; MINRES reports its iterations instead.
+    #[test]
+    fn scaling_rows_report_the_solver_work() {
+        let direct = film_run([3, 3, 1], SolverKind::Direct, SCALING_STEPS, None).unwrap();
+        assert!(direct.newton >= SCALING_STEPS, "{direct:?}");
+        assert!(direct.stats.factorizations > SCALING_STEPS, "{direct:?}");
+        assert_eq!(direct.stats.krylov_iterations, 0);
+        let minres = film_run([6, 6, 2], SolverKind::Iterative, SCALING_STEPS, None).unwrap();
+        assert!(minres.stats.krylov_iterations > 0, "{minres:?}");
+        assert!(minres.solver.contains("MINRES"), "{minres:?}");
+        let row = bench_scaling_row([3, 3, 1], SolverKind::Direct, None).unwrap();
+        let fields: Vec<&str> = row.split_whitespace().collect();
+        assert_eq!(fields[0], "3x3x1");
+        assert_eq!(fields[1].parse::<usize>().unwrap(), direct.dofs);
+    }
 
     /// The small-signal benchmark runs every analysis and prices the sweep from a measured run.
     #[test]

@@ -1449,21 +1449,17 @@ mod tests {
     }
 
     fn csr_from_rows(rows: Vec<Vec<(usize, f64)>>) -> CsrMatrix {
-        let mut a = CsrMatrix {
-            n: rows.len(),
-            row_ptr: vec![0],
-            col_idx: vec![],
-            values: vec![],
-        };
+        let n_rows = rows.len();
+        let (mut row_ptr, mut col_idx, mut values) = (vec![0usize], Vec::new(), Vec::<f64>::new());
         for mut row in rows {
             row.sort_by_key(|e| e.0);
             for (j, v) in row {
-                a.col_idx.push(j);
-                a.values.push(v);
+                col_idx.push(j);
+                values.push(v);
             }
-            a.row_ptr.push(a.col_idx.len());
+            row_ptr.push(col_idx.len());
         }
-        a
+        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
     }
 
     /// The 7-point Laplacian on the interior points of an n³ grid (Dirichlet boundary eliminated).
@@ -1569,12 +1565,8 @@ mod tests {
         }
         let nf = coords.len();
         // pattern: the 27 neighbours (in increasing node order, so columns come out sorted)
-        let mut a = CsrMatrix {
-            n: 3 * nf,
-            row_ptr: vec![0],
-            col_idx: vec![],
-            values: vec![],
-        };
+        let n_rows = 3 * nf;
+        let (mut row_ptr, mut col_idx) = (vec![0usize], Vec::new());
         for k in 0..=nz {
             for j in 0..=ny {
                 for i in 1..=nx {
@@ -1592,15 +1584,16 @@ mod tests {
                     for _c in 0..3 {
                         for &f in &nbrs {
                             for d in 0..3 {
-                                a.col_idx.push(3 * f + d);
+                                col_idx.push(3 * f + d);
                             }
                         }
-                        a.row_ptr.push(a.col_idx.len());
+                        row_ptr.push(col_idx.len());
                     }
                 }
             }
         }
-        a.values = vec![0.0; a.col_idx.len()];
+        let values = vec![0.0; col_idx.len()];
+        let mut a = CsrMatrix::new(n_rows, row_ptr, col_idx, values);
         for k in 0..nz {
             for j in 0..ny {
                 for i in 0..nx {
@@ -1851,23 +1844,24 @@ mod tests {
             Amg::new(&a, 3, &ones, &p),
             Err(AmgError::BlockSize { block: 3, .. })
         ));
-        let empty = CsrMatrix {
-            n: 0,
-            row_ptr: vec![0],
-            col_idx: vec![],
-            values: vec![],
-        };
+        let empty = CsrMatrix::new(0, vec![0], vec![], vec![]);
         assert!(matches!(
             Amg::new(&empty, 1, &[vec![]], &p),
             Err(AmgError::Empty)
         ));
-        let mut wide = a.clone();
-        let last = wide.col_idx.len() - 1;
-        wide.col_idx[last] = a.n + 2;
+        let mut cols = a.col_idx.to_vec();
+        let last = cols.len() - 1;
+        cols[last] = a.n + 2;
+        let wide = CsrMatrix::new(a.n, a.row_ptr.to_vec(), cols, a.values.clone());
         let e = Amg::new(&wide, 1, &ones, &p).expect_err("not square");
         assert!(matches!(e, AmgError::NotSquare { .. }), "{e}");
-        let mut short = a.clone();
-        short.row_ptr.pop();
+        let rows = a.row_ptr.len() - 1;
+        let short = CsrMatrix::new(
+            a.n,
+            a.row_ptr[..rows].to_vec(),
+            a.col_idx.to_vec(),
+            a.values.clone(),
+        );
         assert!(matches!(
             Amg::new(&short, 1, &ones, &p),
             Err(AmgError::Malformed(_))

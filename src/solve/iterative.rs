@@ -84,10 +84,8 @@ impl BlockMinres {
 
     fn keep(&mut self, a: &CsrMatrix) {
         match &mut self.op {
-            Some(op) if op.n == a.n && op.values.len() == a.values.len() => {
-                op.values.copy_from_slice(&a.values)
-            }
-            _ => self.op = Some(a.clone()),
+            Some(op) => op.assign(a),
+            None => self.op = Some(a.clone()),
         }
     }
 
@@ -441,24 +439,14 @@ impl Preconditioner {
         let pad = if count > 0 { sum / count as f64 } else { 1.0 };
         let p = if np > 0 {
             let (row_ptr, col_idx, values) = extract(k, &split.p_eq, &split.p_row, -1.0, None);
-            let c = CsrMatrix {
-                n: np,
-                row_ptr,
-                col_idx,
-                values,
-            };
+            let c = CsrMatrix::new(np, row_ptr, col_idx, values);
             Some(c)
         } else {
             None
         };
         let u = if nu > 0 {
             let (row_ptr, col_idx, values) = extract(k, &split.u_eq, &split.u_row, 1.0, Some(pad));
-            let mut a = CsrMatrix {
-                n: nu,
-                row_ptr,
-                col_idx,
-                values,
-            };
+            let mut a = CsrMatrix::new(nu, row_ptr, col_idx, values);
             if let Some(c) = &p {
                 let mut d = vec![0.0; np];
                 for (i, di) in d.iter_mut().enumerate() {
@@ -544,22 +532,18 @@ mod tests {
     /// CSR from a dense matrix, keeping the entries that are nonzero or on the diagonal.
     fn csr(dense: &[Vec<f64>]) -> CsrMatrix {
         let n = dense.len();
-        let mut a = CsrMatrix {
-            n,
-            row_ptr: vec![0],
-            col_idx: vec![],
-            values: vec![],
-        };
+        let n_rows = n;
+        let (mut row_ptr, mut col_idx, mut values) = (vec![0usize], Vec::new(), Vec::<f64>::new());
         for (i, row) in dense.iter().enumerate() {
             for (j, &v) in row.iter().enumerate() {
                 if v != 0.0 || i == j {
-                    a.col_idx.push(j);
-                    a.values.push(v);
+                    col_idx.push(j);
+                    values.push(v);
                 }
             }
-            a.row_ptr.push(a.col_idx.len());
+            row_ptr.push(col_idx.len());
         }
-        a
+        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
     }
 
     #[test]
@@ -573,7 +557,7 @@ mod tests {
         let b = (vec![0, 1, 2, 3], vec![0, 0, 0], vec![1.0, -2.0, 3.0]);
         let bt = (vec![0, 3], vec![0, 1, 2], vec![1.0, -2.0, 3.0]);
         schur_on_pattern(&mut a, &b, &bt, &[2.0]);
-        assert_eq!(a.col_idx, vec![0, 1, 2]);
+        assert_eq!(*a.col_idx, [0, 1, 2]);
         // diagonal: A_ii + G_ii + Σ_j≠i |G_ij| with G = BBᵀ/2
         let g = |i: usize, j: usize| b.2[i] * b.2[j] / 2.0;
         for i in 0..3 {

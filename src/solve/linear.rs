@@ -713,22 +713,18 @@ mod tests {
             dense[i * m + n + i] = 0.3;
             dense[(n + i) * m + i] = 0.3;
         }
-        let mut a = CsrMatrix {
-            n: m,
-            row_ptr: vec![0],
-            col_idx: vec![],
-            values: vec![],
-        };
+        let n_rows = m;
+        let (mut row_ptr, mut col_idx, mut values) = (vec![0usize], Vec::new(), Vec::<f64>::new());
         for i in 0..m {
             for j in 0..m {
                 if dense[i * m + j] != 0.0 {
-                    a.col_idx.push(j);
-                    a.values.push(dense[i * m + j]);
+                    col_idx.push(j);
+                    values.push(dense[i * m + j]);
                 }
             }
-            a.row_ptr.push(a.col_idx.len());
+            row_ptr.push(col_idx.len());
         }
-        a
+        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
     }
 
     #[cfg(feature = "petsc")]

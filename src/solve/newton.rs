@@ -413,12 +413,7 @@ mod tests {
             self.0 = s[0];
         }
         fn new_matrix(&self) -> CsrMatrix {
-            CsrMatrix {
-                n: 1,
-                row_ptr: vec![0, 1],
-                col_idx: vec![0],
-                values: vec![0.0],
-            }
+            CsrMatrix::new(1, vec![0, 1], vec![0], vec![0.0])
         }
         fn expected_negative_pivots(&self) -> usize {
             0

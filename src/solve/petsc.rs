@@ -681,21 +681,17 @@ mod tests {
         for &(i, j, v) in entries {
             rows[i].push((j, v));
         }
-        let mut a = CsrMatrix {
-            n,
-            row_ptr: vec![0],
-            col_idx: vec![],
-            values: vec![],
-        };
+        let n_rows = n;
+        let (mut row_ptr, mut col_idx, mut values) = (vec![0usize], Vec::new(), Vec::<f64>::new());
         for mut r in rows {
             r.sort_by_key(|e| e.0);
             for (j, v) in r {
-                a.col_idx.push(j);
-                a.values.push(v);
+                col_idx.push(j);
+                values.push(v);
             }
-            a.row_ptr.push(a.col_idx.len());
+            row_ptr.push(col_idx.len());
         }
-        a
+        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
     }
 
     #[test]

@@ -77,10 +77,8 @@ impl ReusedLdlt {
 
     fn keep(&mut self, a: &CsrMatrix) {
         match &mut self.op {
-            Some(op) if op.n == a.n && op.values.len() == a.values.len() => {
-                op.values.copy_from_slice(&a.values)
-            }
-            _ => self.op = Some(a.clone()),
+            Some(op) => op.assign(a),
+            None => self.op = Some(a.clone()),
         }
     }
 
@@ -211,12 +209,8 @@ mod tests {
     /// A 2-D Laplacian (n × n grid) shifted by `shift` on the diagonal, in CSR.
     fn laplacian(n: usize, shift: f64) -> CsrMatrix {
         let m = n * n;
-        let mut a = CsrMatrix {
-            n: m,
-            row_ptr: vec![0],
-            col_idx: vec![],
-            values: vec![],
-        };
+        let n_rows = m;
+        let (mut row_ptr, mut col_idx, mut values) = (vec![0usize], Vec::new(), Vec::<f64>::new());
         for i in 0..n {
             for j in 0..n {
                 let mut row = vec![(i * n + j, 4.0 + shift)];
@@ -234,13 +228,13 @@ mod tests {
                 }
                 row.sort_by_key(|e| e.0);
                 for (c, v) in row {
-                    a.col_idx.push(c);
-                    a.values.push(v);
+                    col_idx.push(c);
+                    values.push(v);
                 }
-                a.row_ptr.push(a.col_idx.len());
+                row_ptr.push(col_idx.len());
             }
         }
-        a
+        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
     }
 
     fn exact(a: &CsrMatrix, b: &[f64]) -> Vec<f64> {

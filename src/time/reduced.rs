@@ -307,12 +307,7 @@ fn potential_response(
         }
         row_ptr.push(col_idx.len());
     }
-    let block = crate::problem::assembly::CsrMatrix {
-        n: phi.len(),
-        row_ptr,
-        col_idx,
-        values,
-    };
+    let block = crate::problem::assembly::CsrMatrix::new(phi.len(), row_ptr, col_idx, values);
     let mut lin = solver.build();
     lin.factor(&block).map_err(|e| e.to_string())?;
     let mut rhs: Vec<f64> = phi.iter().map(|&e| force[e]).collect();
