@@ -70,6 +70,45 @@ pub trait CellKernel: Send + Sync {
         cell: &CellInput,
         out: &mut [(Mat3, Vec3)],
     ) -> Result<(), PointFailure>;
+    /// The residual of a dynamic step without its tangent, `f_r`·(r + r_vis), into `r`: the
+    /// residual of [`CellKernel::residual_tangent`] plus, when `viscous` gives the Kelvin–Voigt
+    /// kernel and the nodal velocities (4 per node), the viscous forces of
+    /// [`KelvinVoigtKernel::forces`] at the same configuration. Returns the cell energy and the
+    /// dissipation power (W, 0 without `viscous`). Most Newton iterations of a step need only
+    /// this; a kernel may share its kinematics between the two parts. The values are those of
+    /// the separate calls, bit for bit.
+    fn dynamic_residual(
+        &self,
+        cell: &CellInput,
+        viscous: Option<(KelvinVoigtKernel, &[f64])>,
+        f_r: f64,
+        r: &mut [f64],
+    ) -> Result<(f64, f64), PointFailure> {
+        dynamic_residual_separate(self, cell, viscous, f_r, r)
+    }
+}
+
+/// [`CellKernel::dynamic_residual`] by the separate calls: the elastic residual, scaled, plus the
+/// scaled viscous forces.
+pub fn dynamic_residual_separate<K: CellKernel + ?Sized>(
+    kernel: &K,
+    cell: &CellInput,
+    viscous: Option<(KelvinVoigtKernel, &[f64])>,
+    f_r: f64,
+    r: &mut [f64],
+) -> Result<(f64, f64), PointFailure> {
+    let nl = cell.geom.n_nodes * crate::fem::FIELDS;
+    let energy = kernel.residual_tangent(cell, r, None)?;
+    r[..nl].iter_mut().for_each(|v| *v *= f_r);
+    let mut power = 0.0;
+    if let Some((kv, vel)) = viscous {
+        let mut rv = [0.0; MAX_LOCAL];
+        power = kv.forces(cell.geom, cell.local, &vel[..nl], &mut rv, None)?;
+        for i in 0..nl {
+            r[i] += f_r * rv[i];
+        }
+    }
+    Ok((energy, power))
 }
 
 /// The standard displacement kernel (full integration).
@@ -142,6 +181,18 @@ impl CellKernel for MeanDilatationKernel {
         out: &mut [(Mat3, Vec3)],
     ) -> Result<(), PointFailure> {
         mean_dilatation::point_deformations_md(c.geom, c.local, out)
+    }
+    fn dynamic_residual(
+        &self,
+        c: &CellInput,
+        viscous: Option<(KelvinVoigtKernel, &[f64])>,
+        f_r: f64,
+        r: &mut [f64],
+    ) -> Result<(f64, f64), PointFailure> {
+        if c.geom.axisymmetric {
+            return dynamic_residual_separate(self, c, viscous, f_r, r);
+        }
+        mean_dilatation::cell_dynamic_residual_md(c.geom, c.mat, c.hist, c.local, viscous, f_r, r)
     }
 }
 

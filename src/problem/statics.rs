@@ -304,6 +304,10 @@ pub fn nodal_reactions_with(
     Ok(out)
 }
 
+/// From this many cells the record's pass over the cells runs on the pool (when it has more
+/// than one thread).
+const PARALLEL_MIN_RECORD_CELLS: usize = 128;
+
 /// What the record of a state needs of the cells (see [`record_with`]).
 pub struct CellsRecord {
     /// The nodal reactions of [`nodal_reactions_with`] (at Δt = 0).
@@ -324,6 +328,49 @@ pub fn record_with(
     let mut reactions = vec![0.0; state.len()];
     let (mut mech, mut elec) = (0.0, 0.0);
     let mut fields = Vec::with_capacity(model.mesh.n_cells());
+    if model.mesh.n_cells() >= PARALLEL_MIN_RECORD_CELLS && rayon::current_num_threads() > 1 {
+        // the cells on the pool, their contributions added in cell order as below
+        use crate::element::MAX_LOCAL;
+        use rayon::prelude::*;
+        let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+        let cells: Vec<_> = (0..model.mesh.n_cells())
+            .into_par_iter()
+            .map(|c| {
+                let mut local = [0.0; MAX_LOCAL];
+                for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                    local[a * FIELDS..(a + 1) * FIELDS]
+                        .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
+                }
+                let mut r = [0.0; MAX_LOCAL];
+                let m = model.cell_material[c];
+                let input = CellInput {
+                    geom: &model.geometry[c],
+                    mat: model.materials[m].as_ref(),
+                    hist: points.cell(c, m, 0.0),
+                    local: &local[..nl],
+                };
+                let out = model.kernel().record(&input, &mut r);
+                out.map(|(split, f)| (r, split, f))
+                    .map_err(|e| format!("cell {c}: {}", e.error))
+            })
+            .collect();
+        for (c, cell) in cells.into_iter().enumerate() {
+            let (r, (a, b), f) = cell?;
+            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                for f in 0..FIELDS {
+                    reactions[node * FIELDS + f] += r[a * FIELDS + f];
+                }
+            }
+            mech += a;
+            elec += b;
+            fields.push(f);
+        }
+        return Ok(CellsRecord {
+            reactions,
+            energies: (mech, elec),
+            fields,
+        });
+    }
     let mut r = vec![0.0; crate::element::MAX_LOCAL];
     model.for_each_cell(state, |c, g, mat, local| {
         let ((a, b), f) = model

@@ -96,7 +96,12 @@ pub struct TimeStep<'m> {
     work_q: Vec<f64>,
     work_v: Vec<f64>,
     work_m: Vec<f64>,
+    /// Each cell's viscous dissipation power at the last evaluation (W).
     cell_energy: Vec<f64>,
+    /// The Kelvin–Voigt power of the last evaluation and where it was evaluated (iterate,
+    /// start level, step size): the converged step's dissipation is that of Newton's last
+    /// residual, which need not be evaluated again.
+    power_cache: Option<(Vec<f64>, Vec<f64>, f64, f64)>,
     /// Where the matrix the solver holds was factored (see [`FactorPoint`]); `None` when the
     /// driver dropped the factorisation.
     pub factor_point: Option<FactorPoint>,
@@ -140,6 +145,7 @@ impl<'m> TimeStep<'m> {
             work_v: vec![0.0; n],
             work_m: vec![0.0; n],
             cell_energy: Vec::new(),
+            power_cache: None,
             factor_point: None,
             points: PointStates::default(),
             circuits: Vec::new(),
@@ -287,6 +293,11 @@ impl<'m> TimeStep<'m> {
     /// Dissipation power ∫ Jη d:d dV + Σ c|v|² (W) at the evaluation point of the current iterate.
     pub fn dissipation_power(&mut self) -> Result<f64, String> {
         self.evaluation_point();
+        if let Some((q, q_prev, dt, power)) = &self.power_cache {
+            if *dt == self.dt && *q == self.q && *q_prev == self.prev.q {
+                return Ok(power + damper_power(self.model, &self.work_v));
+            }
+        }
         let mut total = 0.0;
         let mut r = vec![0.0; MAX_LOCAL];
         let (qv, vv) = (&self.work_q, &self.work_v);
@@ -425,50 +436,57 @@ impl NonlinearSystem for TimeStep<'_> {
         let model = self.model;
         let npc = model.mesh.kind.nodes_per_cell();
         let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
+        // each cell's dissipation power goes into `cell_energy` (the step needs no cell energies)
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let g = &model.geometry[c];
             let mat = model.cell_material[c];
             let nl = npc * FIELDS;
-            let mut kl = kl;
-            let e = model
-                .kernel()
-                .residual_tangent(
-                    &CellInput {
-                        geom: g,
-                        mat: model.materials[mat].as_ref(),
-                        hist: points.cell(c, mat, dt),
-                        local,
-                    },
-                    rl,
-                    kl.as_deref_mut(),
-                )
-                .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
-            rl[..nl].iter_mut().for_each(|v| *v *= f_r);
-            if let Some(kl) = kl.as_deref_mut() {
-                kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
-            }
             let eta = viscosity[mat];
+            let mut vel = [0.0; MAX_LOCAL];
             if eta > 0.0 {
-                let mut vel = [0.0; MAX_LOCAL];
                 for (a, &node) in model.mesh.cell(c).iter().enumerate() {
                     vel[a * FIELDS..(a + 1) * FIELDS]
                         .copy_from_slice(&vel_all[node * FIELDS..(node + 1) * FIELDS]);
                 }
+            }
+            let input = CellInput {
+                geom: g,
+                mat: model.materials[mat].as_ref(),
+                hist: points.cell(c, mat, dt),
+                local,
+            };
+            let fail = |e: crate::element::PointFailure| {
+                format!("{} at quadrature point {}", e.error, e.qp)
+            };
+            let Some(kl) = kl else {
+                let viscous = (eta > 0.0).then_some((KelvinVoigtKernel { eta }, &vel[..nl]));
+                let (_, power) = model
+                    .kernel()
+                    .dynamic_residual(&input, viscous, f_r, rl)
+                    .map_err(fail)?;
+                return Ok::<f64, String>(power);
+            };
+            model
+                .kernel()
+                .residual_tangent(&input, rl, Some(&mut *kl))
+                .map_err(fail)?;
+            rl[..nl].iter_mut().for_each(|v| *v *= f_r);
+            kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
+            let mut power = 0.0;
+            if eta > 0.0 {
                 let mut rv = [0.0; MAX_LOCAL];
-                let mut kv = kl.as_ref().map(|_| vec![0.0; nl * nl]);
-                KelvinVoigtKernel { eta }
-                    .forces(g, local, &vel[..nl], &mut rv, kv.as_deref_mut())
-                    .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
+                let mut kv = vec![0.0; nl * nl];
+                power = KelvinVoigtKernel { eta }
+                    .forces(g, local, &vel[..nl], &mut rv, Some(&mut kv))
+                    .map_err(fail)?;
                 for i in 0..nl {
                     rl[i] += f_r * rv[i];
                 }
-                if let (Some(kl), Some(kv)) = (kl, kv) {
-                    for i in 0..nl * nl {
-                        kl[i] += f_v * kv[i];
-                    }
+                for i in 0..nl * nl {
+                    kl[i] += f_v * kv[i];
                 }
             }
-            Ok::<f64, String>(e)
+            Ok::<f64, String>(power)
         };
         let (q_eval, dofs) = (&self.work_q, &self.dofs);
         self.assembler
@@ -482,6 +500,13 @@ impl NonlinearSystem for TimeStep<'_> {
                 &mut self.cell_energy,
             )
             .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        // the power summed in cell order, as `dissipation_power` does
+        let power = self.cell_energy.iter().fold(0.0, |t, p| t + p);
+        let mut cache = self.power_cache.take().unwrap_or_default();
+        cache.0.clone_from(&self.q);
+        cache.1.clone_from(&self.prev.q);
+        (cache.2, cache.3) = (dt, power);
+        self.power_cache = Some(cache);
         // dead loads at full value, with the factor of the internal forces: −f_r·f_ext
         let (eq, scale) = (&self.dofs.eq, self.dofs.scale);
         for (d, &f) in self.dead_load.iter().enumerate() {
