@@ -471,17 +471,18 @@ impl NonlinearSystem for TimeStep<'_> {
             Ok::<f64, String>(e)
         };
         let (q_eval, dofs) = (&self.work_q, &self.dofs);
-        self.assembler
-            .assemble(
-                &model.mesh,
-                dofs,
-                q_eval,
-                kernel,
-                r,
-                k.as_deref_mut(),
-                &mut self.cell_energy,
-            )
-            .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        let cells = self.assembler.assemble(
+            &model.mesh,
+            dofs,
+            q_eval,
+            kernel,
+            r,
+            k.as_deref_mut(),
+            &mut self.cell_energy,
+        );
+        self.assembler.combine(r, cells)?;
+        // the terms below are no cell terms: in the residual everywhere, in the tangent once
+        let mut k = self.assembler.global_terms(k);
         // dead loads at full value, with the factor of the internal forces: −f_r·f_ext
         let (eq, scale) = (&self.dofs.eq, self.dofs.scale);
         for (d, &f) in self.dead_load.iter().enumerate() {
@@ -597,11 +598,16 @@ impl NonlinearSystem for TimeStep<'_> {
             .collect()
     }
 
+    fn shares_cells(&self) -> bool {
+        self.assembler.is_shared()
+    }
+
     fn layout(&self) -> Option<DofLayout> {
-        Some(
-            self.dofs
-                .layout(&self.model.mesh.nodes, self.model.is_axisymmetric()),
-        )
+        let mut layout = self
+            .dofs
+            .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
+        layout.entries = self.assembler.entries();
+        Some(layout)
     }
 
     fn factored(&mut self) {
