@@ -229,7 +229,7 @@ impl Plan {
         &mut self,
         rank: usize,
         ranks: usize,
-        sum: Box<dyn Fn(&mut [f64]) -> Result<(), String> + Send + Sync>,
+        sum: crate::problem::assembly::SumOverProcesses,
     ) -> Vec<usize> {
         let part = crate::mesh::partition::partition_cells(&self.model.mesh, ranks);
         let mut counts = vec![0; ranks];

@@ -88,8 +88,11 @@ pub struct CellShare {
     /// Whether this process adds the tangent's terms that are not cell terms (exactly one does).
     pub root: bool,
     /// Sums a vector over the processes in place; every process receives the same bits.
-    pub sum: Box<dyn Fn(&mut [f64]) -> Result<(), String> + Send + Sync>,
+    pub sum: SumOverProcesses,
 }
+
+/// Sums a vector over the processes in place, every process receiving the same bits.
+pub type SumOverProcesses = Box<dyn Fn(&mut [f64]) -> Result<(), String> + Send + Sync>;
 
 impl std::fmt::Debug for CellShare {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

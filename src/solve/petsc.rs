@@ -861,7 +861,7 @@ unsafe fn attach_modes(
         )?;
     }
     let has_u = layout.field.iter().any(|&f| f < 3);
-    let has_p = layout.field.iter().any(|&f| f == 3);
+    let has_p = layout.field.contains(&3);
     if !(has_u && has_p) {
         return Ok(());
     }
