@@ -159,6 +159,55 @@ fn history_probes(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
 /// over the two ranks, rank 0 writes. Returns the largest difference of any probe at any step
 /// relative to that probe's largest magnitude, and the two runs' stderr.
 fn two_ranks(example_name: &str) -> (f64, String, String) {
+    let (d, _, serial, mpi) = on_ranks(2, example_name, &[]);
+    (d, serial, mpi)
+}
+
+/// The numbers of every `<DataArray>` of an ASCII VTU file, by the array's name.
+fn vtu_arrays(path: &Path) -> Vec<(String, Vec<f64>)> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.split("<DataArray")
+        .skip(1)
+        .map(|chunk| {
+            let (head, rest) = chunk.split_once('>').unwrap();
+            let name = head
+                .split("Name=\"")
+                .nth(1)
+                .and_then(|t| t.split('"').next())
+                .unwrap_or("")
+                .to_string();
+            let body = rest.split("</DataArray>").next().unwrap();
+            let values = body
+                .split_whitespace()
+                .map(|t| {
+                    t.parse::<f64>()
+                        .unwrap_or_else(|e| panic!("{name}: {t}: {e}"))
+                })
+                .collect();
+            (name, values)
+        })
+        .collect()
+}
+
+/// The last field file of a run directory.
+fn last_fields(dir: &Path) -> std::path::PathBuf {
+    let mut files: Vec<_> = std::fs::read_dir(dir.join("fields"))
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("step_"))
+        })
+        .collect();
+    files.sort();
+    files.pop().expect("no field file")
+}
+
+/// As [`two_ranks`] on `ranks` ranks, with more `--set` overrides for both runs; also returns
+/// the largest difference of the final fields (every array of the last VTU file, relative to
+/// that array's largest magnitude).
+fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, String, String) {
     let dir = common::tempdir(&format!("petsc-mpi-{example_name}"));
     let text = example(example_name).unwrap();
     std::fs::write(dir.join("serial.toml"), text).unwrap();
@@ -167,14 +216,19 @@ fn two_ranks(example_name: &str) -> (f64, String, String) {
         format!("{text}\n[solver]\nkind = \"petsc\"\n"),
     )
     .unwrap();
-    let sets = [
+    let mut sets = vec![
         "--set",
         "output.plots=false",
         "--set",
-        "output.fields_every=0",
+        "output.fields_every=1000000",
+        "--set",
+        "output.vtu_format=\"ascii\"",
     ];
+    for e in extra {
+        sets.extend(["--set", e]);
+    }
     let mut args = vec!["run", "serial.toml", "--out", "serial"];
-    args.extend(sets);
+    args.extend(&sets);
     let serial = common::deasim(&args, &dir);
     let serial_log = String::from_utf8_lossy(&serial.stderr).into_owned();
     let t = Instant::now();
@@ -190,9 +244,10 @@ fn two_ranks(example_name: &str) -> (f64, String, String) {
         }
     }
     let mpi = mpirun
-        .args(["--oversubscribe", "-np", "2", env!("CARGO_BIN_EXE_deasim")])
+        .args(["--oversubscribe", "-np", &ranks.to_string()])
+        .arg(env!("CARGO_BIN_EXE_deasim"))
         .args(["run", "petsc.toml", "--out", "mpi"])
-        .args(sets)
+        .args(&sets)
         .current_dir(&dir)
         .env("RAYON_NUM_THREADS", "1")
         // Open MPI refuses root unless told (containers, CI)
@@ -202,7 +257,7 @@ fn two_ranks(example_name: &str) -> (f64, String, String) {
         .expect("mpirun not found: install Open MPI (scripts/install-petsc.sh)");
     let log = String::from_utf8_lossy(&mpi.stderr).into_owned();
     assert!(
-        log.contains("one linear system on 2 MPI ranks"),
+        log.contains(&format!("one linear system on {ranks} MPI ranks")),
         "{log}{}",
         String::from_utf8_lossy(&mpi.stdout)
     );
@@ -212,7 +267,7 @@ fn two_ranks(example_name: &str) -> (f64, String, String) {
         "serial:\n{serial_log}\n2 ranks:\n{log}"
     );
     eprintln!(
-        "{example_name} on 2 MPI ranks: {:.2} s",
+        "{example_name} on {ranks} MPI ranks: {:.2} s",
         t.elapsed().as_secs_f64()
     );
 
@@ -238,17 +293,132 @@ fn two_ranks(example_name: &str) -> (f64, String, String) {
         }
     }
     eprintln!(
-        "{example_name}: largest relative probe difference 2 ranks (PETSc) vs serial LDLT: {worst:.2e}"
+        "{example_name}: largest relative probe difference {ranks} ranks (PETSc) vs serial LDLT: {worst:.2e}"
     );
+    // the cells really were shared: each rank assembled some
+    let counts: Vec<usize> = log
+        .split("the ranks assemble ")
+        .nth(1)
+        .and_then(|t| t.split(" of the ").next())
+        .unwrap_or_else(|| panic!("no partition line in: {log}"))
+        .split(", ")
+        .map(|c| c.parse().unwrap())
+        .collect();
+    assert!(
+        counts.len() == ranks && counts.iter().all(|&c| c > 0),
+        "{log}"
+    );
+    let mut fields: f64 = 0.0;
+    if serial.status.success() {
+        let a = vtu_arrays(&last_fields(&dir.join("serial")));
+        let b = vtu_arrays(&last_fields(&dir.join("mpi")));
+        assert_eq!(a.len(), b.len());
+        let largest = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        // the total (Cauchy) stress is the mechanical minus the Maxwell stress, which cancel on
+        // a free film (28 kPa each, 6e-9 Pa left): stresses are measured on their common scale
+        let stress_scale = a
+            .iter()
+            .filter(|(name, _)| name.ends_with("stress"))
+            .map(|(_, x)| largest(x))
+            .fold(0.0f64, f64::max);
+        for ((name, x), (name_b, y)) in a.iter().zip(&b) {
+            assert_eq!((name, x.len()), (name_b, y.len()));
+            let scale = if name.ends_with("stress") {
+                stress_scale
+            } else {
+                largest(x)
+            };
+            if scale > 0.0 {
+                for (u, v) in x.iter().zip(y) {
+                    fields = fields.max((u - v).abs() / scale);
+                }
+            }
+        }
+        eprintln!(
+            "{example_name}: largest relative difference of the final fields {ranks} ranks vs \
+             serial: {fields:.2e} (cells per rank {counts:?})"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
-    (worst, serial_log, log)
+    (worst, fields, serial_log, log)
 }
 
-/// MUMPS's parallel reductions change the last bits from run to run: 1e-16 to 1e-14 measured.
+/// Each rank assembles its own cells (a METIS partition); the residual is summed over the
+/// ranks and the tangent by PETSc's COO assembly: the sums run in another order than the serial
+/// assembly's, so the results agree to round-off amplified by the Newton systems.
 #[test]
 fn film_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, _, _) = two_ranks("film");
-    assert!(d < 1e-10, "{d:e}");
+    let (d, fields, _, _) = on_ranks(2, "film", &[]);
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
+#[test]
+fn stack_on_two_mpi_ranks_agrees_with_the_serial_run() {
+    let (d, fields, _, _) = on_ranks(2, "stack", &[]);
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
+/// The 3-D diaphragm on 2 ranks: the electrodes and both symmetry planes cross the partition
+/// (see the next test). Its static `load` stage, then 5 ms of the dynamic stage.
+#[test]
+fn the_3d_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
+    let (d, fields, _, _) = on_ranks(2, "diaphragm-3d", &["stages.1.duration=0.005"]);
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
+/// On 3 ranks the partition also cuts the rigid pad (one tied unknown per direction shared by
+/// cells of two ranks); METIS's 2-way partition keeps the pad whole. The static `load` stage.
+#[test]
+fn the_3d_diaphragm_on_three_mpi_ranks_agrees_with_the_serial_run() {
+    let (d, fields, _, _) = on_ranks(3, "diaphragm-3d", &["stages.1.duration=0.001"]);
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
+/// The partitions these runs use (the function the run set-up calls) cut the sets whose
+/// unknowns are shared in special ways: on 2 ranks, both ranks own cells on the top electrode
+/// and on both symmetry planes; on 3 ranks, also on the rigid pad.
+#[test]
+fn the_partition_of_the_3d_diaphragm_cuts_its_special_sets() {
+    use deasim::problem::dofs::Field;
+    let text = example("diaphragm-3d").unwrap();
+    let scenario = parse(text, "test.toml", &[]).unwrap();
+    let plan = build(&scenario, "test.toml", None).unwrap();
+    let mesh = &plan.model.mesh;
+    let ranks_on = |parts: usize, nodes: &[usize]| -> usize {
+        let part = deasim::mesh::partition::partition_cells(mesh, parts);
+        let mut on = vec![false; mesh.n_nodes()];
+        nodes.iter().for_each(|&n| on[n] = true);
+        let mut ranks: Vec<usize> = (0..mesh.n_cells())
+            .filter(|&c| mesh.cell(c).iter().any(|&n| on[n]))
+            .map(|c| part[c])
+            .collect();
+        ranks.sort_unstable();
+        ranks.dedup();
+        ranks.len()
+    };
+    let pad = &plan.rigid[0].nodes;
+    let top = &plan
+        .electrodes
+        .iter()
+        .find(|e| e.name == "top")
+        .unwrap()
+        .nodes;
+    let plane = |f: Field| {
+        &plan
+            .supports
+            .iter()
+            .find(|d| d.field == f && d.nodes.len() > 1)
+            .unwrap()
+            .nodes
+    };
+    for (name, nodes) in [
+        ("top electrode", top),
+        ("symmetry x", plane(Field::Ux)),
+        ("symmetry y", plane(Field::Uy)),
+    ] {
+        assert_eq!(ranks_on(2, nodes), 2, "{name} on 2 ranks");
+    }
+    assert!(ranks_on(3, pad) >= 2, "the pad on 3 ranks");
 }
 
 #[test]
@@ -283,5 +453,88 @@ fn pull_in_is_found_on_two_mpi_ranks() {
         (a - b).abs() < 1e-6 * a && (b - 33_695.33).abs() < 0.5,
         "{a} {b}"
     );
+    assert!(d < 1e-10, "{d:e}");
+}
+
+/// GAMG on the whole coupled tangent: GMRES to 1e-12.
+const GAMG: &str = "-ksp_type gmres -pc_type gamg -ksp_rtol 1e-12 -ksp_atol 0 -ksp_max_it 2000 \
+                    -ksp_gmres_restart 200";
+
+/// The rigid-body modes (and the constant potential) as GAMG's near-null space: on the film's
+/// tangent at 2 kV, the solution of the direct solver to 1e-9, in fewer Krylov iterations than
+/// with GAMG's default near-null space (one constant vector per block).
+#[test]
+fn the_rigid_body_modes_help_algebraic_multigrid() {
+    use deasim::job::linear::held_model;
+    use deasim::problem::statics::StaticProblem;
+    use deasim::problem::system::{LoadedSystem, NonlinearSystem};
+    use deasim::solve::linear::{LinearSolver, SolverKind, SolverSettings};
+    use deasim::solve::petsc::PetscSolver;
+    let scenario = parse(example("film").unwrap(), "test.toml", &[]).unwrap();
+    let plan = build(&scenario, "test.toml", None).unwrap();
+    let state = vec![0.0; plan.model.mesh.n_nodes() * 4];
+    let model = held_model(&plan, &state, Some((0, 2000.0)));
+    let mut p = StaticProblem::new(&model, None);
+    p.set_load(1.0);
+    let mut k = p.new_matrix();
+    let mut r = vec![0.0; p.n()];
+    p.evaluate(&mut r, Some(&mut k)).unwrap();
+    let mut exact = r.clone();
+    let mut direct = SolverSettings {
+        kind: SolverKind::Direct,
+        ..Default::default()
+    }
+    .build();
+    direct.factor(&k).unwrap();
+    direct.solve_in_place(&mut exact).unwrap();
+    let norm = exact.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let solve = |layout: bool| -> Result<(f64, usize), String> {
+        let mut s = PetscSolver::new(GAMG);
+        if layout {
+            s.set_layout(p.layout().unwrap());
+        }
+        s.factor(&k).map_err(|e| e.to_string())?;
+        if layout {
+            assert_eq!(s.near_null_space_size(), Some(6));
+        }
+        let mut x = r.clone();
+        s.solve_in_place(&mut x).map_err(|e| e.to_string())?;
+        let d = x
+            .iter()
+            .zip(&exact)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+            / norm;
+        Ok((d, s.stats().krylov_iterations))
+    };
+    let (d, with) = solve(true).unwrap();
+    let without = solve(false);
+    eprintln!(
+        "film tangent at 2 kV, {GAMG}: {with} iterations with the rigid-body modes (difference \
+         to LDLT {d:.1e}), without: {without:?}"
+    );
+    assert!(d < 1e-9, "{d:e}");
+    if let Ok((_, without)) = without {
+        assert!(with < without, "{with} vs {without}");
+    }
+}
+
+/// A Krylov method with GAMG and the rigid-body modes through a whole run: the film agrees
+/// with the default direct solver.
+#[test]
+fn film_with_gamg_and_the_rigid_body_modes_agrees_with_the_direct_solver() {
+    let (plan, reference_summary, reference) = run_example("film", None);
+    assert!(reference_summary.converged, "{:?}", reference_summary.error);
+    let (_, summary, gamg) = run_example(
+        "film",
+        Some(&format!("kind = \"petsc\"\npetsc_options = \"{GAMG}\"")),
+    );
+    assert!(summary.converged, "{:?}", summary.error);
+    let d = probe_difference(&plan, &reference, &gamg);
+    let its: usize = summary
+        .stages
+        .iter()
+        .map(|s| s.linear.krylov_iterations)
+        .sum();
+    eprintln!("film with GAMG: largest relative probe difference vs LDLT {d:.2e}, {its} Krylov iterations");
     assert!(d < 1e-10, "{d:e}");
 }

@@ -30,7 +30,9 @@ const FUNCTIONS: &[&str] = &[
     "MatNullSpace(CreateRigidBody|Create|Destroy)",
     "MatMumps(SetIcntl|GetInfog)",
     "KSP(Create|Destroy|SetOperators|SetType|GetType|GetPC|SetFromOptions|SetUp|Solve|GetConvergedReason|GetIterationNumber|GetResidualNorm|SetTolerances|SetInitialGuessNonzero|ConvergedReasons)",
-    "PC(SetType|GetType|GetFailedReason|FactorSetMatSolverType|FactorGetMatSolverType|FactorSetUpMatSolverType|FactorGetMatrix)",
+    "PC(SetType|GetType|GetFailedReason|FactorSetMatSolverType|FactorGetMatSolverType|FactorSetUpMatSolverType|FactorGetMatrix|FieldSplitSetIS)",
+    "IS(CreateGeneral|Destroy)",
+    "PetscObjectCompose",
 ];
 
 /// Types and constants named in deasim's code.
@@ -48,6 +50,8 @@ const TYPES: &[&str] = &[
     "KSPConvergedReason",
     "PCFailedReason",
     "ScatterMode",
+    "PetscCopyMode",
+    "PetscObject",
 ];
 
 const VARS: &[&str] = &[

@@ -321,7 +321,7 @@ pub fn cmd_run(
         let plan = build(&s, &name, base.as_deref())?;
         Ok((plan, text, name, base))
     });
-    let (plan, text, name, base) = match loaded {
+    let (mut plan, text, name, base) = match loaded {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
@@ -334,11 +334,21 @@ pub fn cmd_run(
             eprintln!("error: {e}");
             return EXIT_SOLVE_FAILED;
         }
-        Ok((rank, _)) if rank > 0 => return run_secondary_rank(&plan),
+        Ok((rank, size)) if rank > 0 => {
+            share_cells(&mut plan, rank, size);
+            return run_secondary_rank(&plan);
+        }
         Ok((_, size)) => size,
     };
     if ranks > 1 {
+        let counts = share_cells(&mut plan, 0, ranks);
         eprintln!("deasim: one linear system on {ranks} MPI ranks; rank 0 writes the outputs");
+        let counts: Vec<String> = counts.iter().map(|c| c.to_string()).collect();
+        eprintln!(
+            "deasim: the ranks assemble {} of the {} cells (METIS partition)",
+            counts.join(", "),
+            plan.model.mesh.n_cells()
+        );
     }
     let dir: PathBuf = out
         .map(Path::to_path_buf)
@@ -400,6 +410,25 @@ fn mpi_ranks(plan: &Plan) -> Result<(usize, usize), String> {
     }
     let _ = plan;
     Ok((0, 1))
+}
+
+/// Shares the cells of a distributed run between its `ranks` ranks (this one `rank`): each
+/// assembles its part, the residual is summed over the ranks by PETSc. Returns the number of
+/// cells of each rank.
+fn share_cells(plan: &mut Plan, rank: usize, ranks: usize) -> Vec<usize> {
+    #[cfg(feature = "petsc")]
+    if ranks > 1 {
+        return plan.share_cells(
+            rank,
+            ranks,
+            Box::new(|v: &mut [f64]| {
+                crate::solve::petsc::sum_over_ranks(v).map_err(|e| e.to_string())
+            }),
+        );
+    }
+    // one process assembles every cell
+    let _ = (rank, ranks);
+    vec![plan.model.mesh.n_cells()]
 }
 
 /// Waits for every rank of a distributed run (rank 0 has written its files).

@@ -219,6 +219,31 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// Shares the cells of the model between `ranks` processes, of which this is `rank`: a
+    /// METIS partition of the cells ([`partition_cells`](crate::mesh::partition::partition_cells),
+    /// the same on every process), of which this process assembles its part; `sum` adds a
+    /// vector over the processes (every process receiving the same bits). Every system built
+    /// from the model afterwards assembles only this process's cells. Returns the number of
+    /// cells of each process.
+    pub fn share_cells(
+        &mut self,
+        rank: usize,
+        ranks: usize,
+        sum: crate::problem::assembly::SumOverProcesses,
+    ) -> Vec<usize> {
+        let part = crate::mesh::partition::partition_cells(&self.model.mesh, ranks);
+        let mut counts = vec![0; ranks];
+        for &p in &part {
+            counts[p] += 1;
+        }
+        self.model.share = Some(std::sync::Arc::new(crate::problem::assembly::CellShare {
+            owned: part.iter().map(|&p| p == rank).collect(),
+            root: rank == 0,
+            sum,
+        }));
+        counts
+    }
+
     /// The fraction of each pressure at the end of stage `si` when the stage ends at its load
     /// factor 1: 1 where it acts.
     pub fn pressure_targets(&self, si: usize) -> Vec<f64> {

@@ -41,6 +41,8 @@ pub fn solve_static(
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, initial);
+    // the default solver is serial: it needs the whole tangent on every process
+    problem.assemble_every_cell();
     let mut solver = SolverSettings::default().build();
     let result = ramp(&mut problem, solver.as_mut(), newton, control, |p, s| {
         on_step(p, s)

@@ -6,6 +6,7 @@ pub mod disc;
 pub mod generate;
 pub mod gmsh;
 pub mod meridian;
+pub mod partition;
 pub mod quadratic;
 pub mod sphere;
 pub mod stack;

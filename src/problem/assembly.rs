@@ -6,6 +6,14 @@
 //! are assembled in parallel and write into disjoint entries, colours one after the other. Every
 //! matrix and vector entry therefore receives its contributions in the same order whatever the
 //! number of threads: results are bitwise reproducible.
+//!
+//! **Shared assembly.** Several processes (MPI ranks) may share the cells: with a [`CellShare`]
+//! each process assembles only the cells it owns, [`Assembler::combine`] sums the residual's cell
+//! part over the processes (every process then holds the same full residual, so the nonlinear
+//! solvers run unchanged), and the tangent stays this process's part, to be summed by a
+//! distributed linear solver over the entries [`Assembler::entries`] names. Terms that are not
+//! cell terms go into the residual on every process and into the tangent on one only
+//! ([`Assembler::global_terms`]). Without a share nothing changes.
 
 use crate::element::{LocalMatrix, MAX_LOCAL};
 use crate::mesh::Mesh;
@@ -120,6 +128,29 @@ impl CsrMatrix {
     }
 }
 
+/// The cells this process assembles, and how its partial sums meet the other processes'.
+/// Built by the run set-up; the physics sees only this.
+pub struct CellShare {
+    /// Per cell: whether this process assembles it.
+    pub owned: Vec<bool>,
+    /// Whether this process adds the tangent's terms that are not cell terms (exactly one does).
+    pub root: bool,
+    /// Sums a vector over the processes in place; every process receives the same bits.
+    pub sum: SumOverProcesses,
+}
+
+/// Sums a vector over the processes in place, every process receiving the same bits.
+pub type SumOverProcesses = Box<dyn Fn(&mut [f64]) -> Result<(), String> + Send + Sync>;
+
+impl std::fmt::Debug for CellShare {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CellShare")
+            .field("owned", &self.owned.iter().filter(|&&o| o).count())
+            .field("root", &self.root)
+            .finish()
+    }
+}
+
 /// A cell kernel failed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellFailure<E> {
@@ -138,6 +169,11 @@ pub struct Assembler {
     serial: Vec<usize>,
     pattern: CsrMatrix,
     nodes_per_cell: usize,
+    /// The share of the cells of this process, if the cells are shared.
+    share: Option<std::sync::Arc<CellShare>>,
+    /// With a share: the positions in the tangent's values this process assembles (every
+    /// position on the root, which also adds the terms that are not cell terms).
+    entries: Option<std::sync::Arc<[usize]>>,
 }
 
 /// A pointer that may be shared between threads because the colouring guarantees that concurrent
@@ -241,6 +277,112 @@ impl Assembler {
             // the structure only: every matrix is made by `new_matrix`
             pattern: CsrMatrix::new(dofs.n_free, row_ptr, col_idx, Vec::new()),
             nodes_per_cell: npc,
+            share: None,
+            entries: None,
+        }
+    }
+
+    /// This assembler restricted to the cells `share` gives this process (see the module
+    /// documentation). The colours and the serial list keep their order, so every cell's
+    /// contributions are added in the same order as without a share.
+    pub fn shared(mut self, mesh: &Mesh, dofs: &DofMap, share: std::sync::Arc<CellShare>) -> Self {
+        let owned = |c: &usize| share.owned.get(*c).copied().unwrap_or(false);
+        for colour in &mut self.colours {
+            colour.retain(owned);
+        }
+        self.colours.retain(|c| !c.is_empty());
+        self.serial.retain(owned);
+        self.order.retain(owned);
+        let entries: Vec<usize> = if share.root {
+            (0..self.pattern.nnz()).collect()
+        } else {
+            let mut positions = Vec::new();
+            let mut eqs = Vec::with_capacity(MAX_LOCAL);
+            for c in (0..mesh.n_cells()).filter(|c| owned(c)) {
+                eqs.clear();
+                for &node in mesh.cell(c) {
+                    for f in 0..FIELDS {
+                        let e = dofs.eq[node * FIELDS + f];
+                        if e != CONSTRAINED {
+                            eqs.push(e);
+                        }
+                    }
+                }
+                for &i in &eqs {
+                    for &j in &eqs {
+                        positions.push(self.pattern.position(i, j).expect("cell coupling"));
+                    }
+                }
+            }
+            positions.sort_unstable();
+            positions.dedup();
+            positions
+        };
+        self.entries = Some(entries.into());
+        self.share = Some(share);
+        self
+    }
+
+    /// The positions in the tangent's values this process assembles when the cells are shared
+    /// (what a distributed solver must sum over the processes); `None`: the whole matrix.
+    pub fn entries(&self) -> Option<std::sync::Arc<[usize]>> {
+        self.entries.clone()
+    }
+
+    /// Whether the cells are shared between processes.
+    pub fn is_shared(&self) -> bool {
+        self.share.is_some()
+    }
+
+    /// Number of cells this process assembles.
+    pub fn n_assembled(&self) -> usize {
+        self.colours.iter().map(Vec::len).sum::<usize>() + self.serial.len()
+    }
+
+    /// The tangent for the terms that are not cell terms (loads, pressures, inertia, circuits):
+    /// `k` itself, or `None` on a process that shares the cells but is not the root (the root's
+    /// copy of such a term is the one the distributed solver sums).
+    pub fn global_terms<'a>(&self, k: Option<&'a mut CsrMatrix>) -> Option<&'a mut CsrMatrix> {
+        match &self.share {
+            Some(s) if !s.root => None,
+            _ => k,
+        }
+    }
+
+    /// Completes the residual's cell part after [`Assembler::assemble`], whose outcome on this
+    /// process is `outcome`: with a share, sums `r` over the processes, and fails on every
+    /// process when a cell failed on any (so that all take the same path). Without a share it
+    /// passes `outcome` through.
+    pub fn combine<E: std::fmt::Display>(
+        &self,
+        r: &mut [f64],
+        outcome: Result<f64, CellFailure<E>>,
+    ) -> Result<(), String> {
+        let failed_cell = outcome.as_ref().err().map(|f| f.cell);
+        let local = outcome
+            .map(|_| ())
+            .map_err(|f| format!("cell {}: {}", f.cell, f.error));
+        let Some(share) = &self.share else {
+            return local;
+        };
+        // two more slots: the count of failed processes and the sum of their failed cells + 1
+        let mut v = Vec::with_capacity(r.len() + 2);
+        v.extend_from_slice(r);
+        let failed = failed_cell.map_or([0.0, 0.0], |c| [1.0, c as f64 + 1.0]);
+        v.extend_from_slice(&failed);
+        (share.sum)(&mut v)?;
+        r.copy_from_slice(&v[..r.len()]);
+        local?;
+        let (count, cell) = (v[r.len()], v[r.len() + 1]);
+        if count == 0.0 {
+            Ok(())
+        } else if count == 1.0 {
+            Err(format!(
+                "cell {}: the kernel failed on another MPI rank (its message is on that rank)",
+                cell as usize - 1
+            ))
+        } else {
+            Err(format!("cell kernels failed on {count} MPI ranks"))
         }
     }
 

@@ -162,6 +162,7 @@ impl DofMap {
             field,
             coords: coords.to_vec(),
             axisymmetric,
+            entries: None,
         }
     }
 

@@ -52,6 +52,9 @@ pub struct Model {
     pub point_charges: Vec<(usize, f64)>,
     /// Electrodes driven through a series resistance (dynamic stages).
     pub circuits: Vec<crate::problem::circuit::Circuit>,
+    /// The cells this process assembles when several processes share them (a distributed run;
+    /// set by the run set-up). `None`: this process assembles every cell.
+    pub share: Option<Arc<crate::problem::assembly::CellShare>>,
 }
 
 /// Problems found while building a model.
@@ -88,6 +91,7 @@ impl Model {
             pressures: Vec::new(),
             point_charges: Vec::new(),
             circuits: Vec::new(),
+            share: None,
         };
         model.check_cells()?;
         let mut model = model;

@@ -82,6 +82,14 @@ pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
     let flags = constrained_flags(n_nodes, &model.dirichlet);
     let dofs = DofMap::with_ties(n_nodes, &flags, model.potential_scale(), &model.ties);
     let assembler = Assembler::new(&model.mesh, &dofs);
+    // shared cells of another mesh (never the case: the stages share the mesh) would leave
+    // cells out; every process then assembles everything, as without a share
+    let assembler = match &model.share {
+        Some(share) if share.owned.len() == model.mesh.n_cells() => {
+            assembler.shared(&model.mesh, &dofs, share.clone())
+        }
+        _ => assembler,
+    };
     let mu = model
         .materials
         .iter()
@@ -156,6 +164,15 @@ impl<'m> StaticProblem<'m> {
     /// Current load factor of the dead loads.
     pub fn load(&self) -> f64 {
         self.load
+    }
+
+    /// Assembles every cell on this process even when the model's cells are shared between
+    /// processes: for analyses that use the tangent itself (modes, frequency response) rather
+    /// than hand it to a distributed solver.
+    pub fn assemble_every_cell(&mut self) {
+        if self.assembler.is_shared() {
+            self.assembler = Assembler::new(&self.model.mesh, &self.dofs);
+        }
     }
 
     /// The assembler (for benchmarks).
@@ -457,17 +474,18 @@ impl NonlinearSystem for StaticProblem<'_> {
             }
             .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
         };
-        self.assembler
-            .assemble(
-                &m.mesh,
-                &self.dofs,
-                &self.state,
-                kernel,
-                r,
-                k.as_deref_mut(),
-                &mut self.cell_energy,
-            )
-            .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        let cells = self.assembler.assemble(
+            &m.mesh,
+            &self.dofs,
+            &self.state,
+            kernel,
+            r,
+            k.as_deref_mut(),
+            &mut self.cell_energy,
+        );
+        self.assembler.combine(r, cells)?;
+        // the terms below are no cell terms: in the residual everywhere, in the tangent once
+        let k = self.assembler.global_terms(k);
         // dead loads: −s·f on the free displacement rows (scaled residual s_f·r)
         if self.load != 0.0 {
             for (d, &t) in self.dead_load.iter().enumerate() {
@@ -581,11 +599,16 @@ impl NonlinearSystem for StaticProblem<'_> {
             .collect()
     }
 
+    fn shares_cells(&self) -> bool {
+        self.assembler.is_shared()
+    }
+
     fn layout(&self) -> Option<DofLayout> {
-        Some(
-            self.dofs
-                .layout(&self.model.mesh.nodes, self.model.is_axisymmetric()),
-        )
+        let mut layout = self
+            .dofs
+            .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
+        layout.entries = self.assembler.entries();
+        Some(layout)
     }
 }
 

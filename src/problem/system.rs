@@ -33,6 +33,10 @@ pub struct DofLayout {
     /// True for the meridian plane of an axisymmetric model (components r, z): its only rigid
     /// motion is the axial translation.
     pub axisymmetric: bool,
+    /// When the cells are shared between processes: the positions in the tangent's values that
+    /// this process assembles, which a distributed solver sums over the processes (`None`: the
+    /// tangent is whole on every process).
+    pub entries: Option<std::sync::Arc<[usize]>>,
 }
 
 /// A nonlinear system R(x) = 0 with a symmetric tangent.
@@ -55,6 +59,12 @@ pub trait NonlinearSystem {
     fn residual_floor(&self) -> f64;
     /// For each unknown, its field group (0: displacement, 1: potential), for the printed table.
     fn groups(&self) -> Vec<u8>;
+    /// Whether this process assembles only its share of the cells (a distributed run): the
+    /// tangent is then this process's part, which only a solver that sums the processes' parts
+    /// can take ([`LinearSolver::sums_shared_entries`](crate::solve::linear::LinearSolver)).
+    fn shares_cells(&self) -> bool {
+        false
+    }
     /// Where the unknowns sit (for block preconditioners); `None` when the system cannot tell.
     fn layout(&self) -> Option<DofLayout> {
         None

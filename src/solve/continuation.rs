@@ -187,6 +187,10 @@ impl<S: LoadedSystem + ?Sized> Path<'_, S> {
 
     /// Factors the tangent at the current state: its inertia.
     fn factor(&mut self) -> Result<Option<Inertia>, String> {
+        // a shared assembly's tangent is whole only to a solver that knows its entries
+        if self.system.shares_cells() {
+            super::newton::prepare_solver(&*self.system, self.solver)?;
+        }
         self.system.evaluate(&mut self.r, Some(&mut self.k))?;
         let inertia = self.solver.factor(&self.k).map_err(|e| e.to_string())?;
         self.system.factored();

@@ -593,6 +593,7 @@ mod tests {
             field: vec![],
             coords: vec![],
             axisymmetric: false,
+            entries: None,
         };
         for i in 0..m {
             for j in 0..m {

@@ -97,6 +97,11 @@ pub trait LinearSolver: Send {
     fn stats(&self) -> SolverStats {
         SolverStats::default()
     }
+    /// Whether the solver sums the tangents of processes that share the cells (over the entries
+    /// [`DofLayout::entries`] names), rather than taking the matrix as the whole tangent.
+    fn sums_shared_entries(&self) -> bool {
+        false
+    }
     /// Whether the solver wants the layout of a system of `n` unknowns ([`LinearSolver::set_layout`]).
     fn needs_layout(&self, _n: usize) -> bool {
         false

@@ -115,6 +115,29 @@ fn solve_copy(
     Ok(v)
 }
 
+/// Readies `solver` for the tangents of `system`: gives it the layout of the unknowns when it
+/// wants one (which also names a shared assembly's entries), and refuses a system that
+/// assembles only this process's share of the cells with a solver that would take that share
+/// for the whole tangent. Call it before the first factorisation of a system's tangent.
+pub fn prepare_solver<S: NonlinearSystem + ?Sized>(
+    system: &S,
+    solver: &mut dyn LinearSolver,
+) -> Result<(), String> {
+    if system.shares_cells() && !solver.sums_shared_entries() {
+        return Err(format!(
+            "this process assembles only its share of the cells, but the {} solver takes the \
+             matrix as the whole tangent",
+            solver.name()
+        ));
+    }
+    if solver.needs_layout(system.n()) {
+        if let Some(layout) = system.layout() {
+            solver.set_layout(layout);
+        }
+    }
+    Ok(())
+}
+
 /// Solves the system from its current state. On failure the state is left where Newton stopped;
 /// callers restore a snapshot.
 pub fn newton<S: NonlinearSystem + ?Sized>(
@@ -132,11 +155,10 @@ pub fn newton<S: NonlinearSystem + ?Sized>(
     } else {
         Vec::new()
     };
-    if solver.needs_layout(n) {
-        if let Some(layout) = system.layout() {
-            solver.set_layout(layout);
-        }
-    }
+    prepare_solver(system, solver).map_err(|message| NewtonError::Evaluation {
+        iteration: 0,
+        message,
+    })?;
     let floor = system.residual_floor();
     let reuse = settings.reuse_factorization;
     // k_fresh: `k` holds the tangent at the current iterate

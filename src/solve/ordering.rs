@@ -30,10 +30,9 @@ pub fn nested_dissection(n: usize, row_ptr: &[usize], col_idx: &[usize]) -> Opti
     if adjncy.is_empty() {
         return Some((0..n).collect());
     }
-    // METIS keeps its random state in process globals: one call at a time, so that the ordering
-    // (and with it every result) is the same when several solves start together
-    static METIS: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let _one_at_a_time = METIS.lock().unwrap_or_else(|e| e.into_inner());
+    let _one_at_a_time = crate::mesh::partition::METIS
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
     let mut nvtxs = n as idx_t;
     let mut options = vec![0 as idx_t; METIS_NOPTIONS as usize];
     let mut perm = vec![0 as idx_t; n];

@@ -5,10 +5,10 @@
 //! message, and [`PetscSolver`], a [`LinearSolver`] whose system is one PETSc AIJ matrix on
 //! `PETSC_COMM_WORLD`.
 //!
-//! **Distribution.** Every MPI rank runs the same program and holds the same full matrix; the
-//! PETSc system is nevertheless one distributed system: each rank owns a contiguous block of rows
-//! (whole 4×4 node blocks where the pattern allows a block size of 4) and passes only those
-//! entries, and the solution is gathered back to every rank. On one rank this is an ordinary
+//! **Distribution.** Every MPI rank runs the same program; the PETSc system is one distributed
+//! system: each rank owns a contiguous block of rows (whole 4×4 node blocks where the pattern
+//! allows a block size of 4), and the solution is gathered back to every rank. A rank whose
+//! matrix is the whole tangent passes the entries of its rows; on one rank this is an ordinary
 //! sequential solve.
 //!
 //! **Default method.** Without options the solver is direct: `-ksp_type preonly -pc_type cholesky
@@ -27,11 +27,26 @@
 //! -ksp_rtol 1e-10`. A Krylov solve that does not converge is an error naming PETSc's reason,
 //! never a silently inaccurate answer.
 //!
+//! **Shared assembly.** When the ranks share the cells (each assembles its own, see
+//! [`crate::problem::assembly::CellShare`]), the system's layout names the entries this rank
+//! assembled ([`DofLayout::entries`]): the rank passes exactly those, wherever their rows are,
+//! and PETSc's COO assembly sums them over the ranks. [`sum_over_ranks`] sums the residual.
+//!
+//! **Near-null space.** From the system's [`DofLayout`] the solver builds the rigid-body modes
+//! of the free displacements (three translations and three rotations in 3-D, the axial
+//! translation in the meridian plane; zero on the potential rows), orthonormal, and attaches
+//! them with the constant potential (zero on the displacement rows) to the matrix
+//! (`MatSetNearNullSpace`) for algebraic multigrid (`-pc_type gamg`). It also
+//! names the two fields for `-pc_type fieldsplit` (`PCFieldSplitSetIS`: split `u`, the
+//! displacements, with the modes attached for GAMG on that block, and split `p`, the
+//! potentials), so `-fieldsplit_u_pc_type gamg` sees the elasticity modes.
+//!
 //! **Threads.** PETSc is not thread-safe: every call into it holds one process-wide lock, and
 //! PETSc is initialised once per process (on first use) and finalised at process exit.
 
-use super::linear::{Inertia, LinearSolver, LinearSolverError};
+use super::linear::{Inertia, LinearSolver, LinearSolverError, SolverStats};
 use crate::problem::assembly::CsrMatrix;
+use crate::problem::system::DofLayout;
 use petsc_sys as ffi;
 use std::cell::Cell;
 use std::ffi::{CStr, CString};
@@ -235,6 +250,171 @@ destroy_on_drop!(Mat, MatDestroy);
 destroy_on_drop!(Vector, VecDestroy);
 destroy_on_drop!(Ksp, KSPDestroy);
 destroy_on_drop!(Scatter, VecScatterDestroy);
+destroy_on_drop!(NullSpace, MatNullSpaceDestroy);
+destroy_on_drop!(IndexSet, ISDestroy);
+
+/// An owned PETSc null space.
+struct NullSpace(ffi::MatNullSpace);
+/// An owned PETSc index set.
+struct IndexSet(ffi::IS);
+
+/// The gathers of [`sum_over_ranks`], one per vector length.
+struct Gather {
+    n: usize,
+    /// This rank's vector as block `rank` of a vector of `size` blocks.
+    parts: Vector,
+    /// Every block, on every rank.
+    all: Vector,
+    scatter: Scatter,
+}
+
+static GATHERS: Mutex<Vec<Gather>> = Mutex::new(Vec::new());
+
+/// Sums `v` over the ranks of `PETSC_COMM_WORLD` in place (collective: every rank calls it with
+/// a vector of the same length). Every rank gathers every rank's vector and adds them in rank
+/// order, so all ranks receive the same bits, and the same from run to run (a reduction tree
+/// may round differently on different ranks, which would let their Newton iterations part).
+/// Memory and traffic are `ranks × len` per rank: meant for the few ranks of a workstation.
+pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
+    let (_, size) = world()?;
+    if size == 1 {
+        return Ok(());
+    }
+    let n = v.len();
+    let local = ffi::PetscInt::try_from(n).map_err(|_| {
+        LinearSolverError::Failed(format!("a vector of {n} values is too long for PETSc"))
+    })?;
+    let _guard = lock();
+    let mut gathers = GATHERS.lock().unwrap_or_else(|e| e.into_inner());
+    // SAFETY throughout: PETSc is initialised, handles are created before use and owned by
+    // wrappers; arrays from PETSc are restored before return and have the lengths used
+    unsafe {
+        if !gathers.iter().any(|g| g.n == n) {
+            let comm = ffi::comm_world();
+            let mut parts = Vector(ptr::null_mut());
+            check(
+                ffi::VecCreateMPI(
+                    comm,
+                    local,
+                    ffi::PETSC_DECIDE as ffi::PetscInt,
+                    &mut parts.0,
+                ),
+                "VecCreateMPI",
+            )?;
+            let (mut scatter, mut all) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
+            check(
+                ffi::VecScatterCreateToAll(parts.0, &mut scatter.0, &mut all.0),
+                "VecScatterCreateToAll",
+            )?;
+            gathers.push(Gather {
+                n,
+                parts,
+                all,
+                scatter,
+            });
+        }
+        let g = gathers.iter_mut().find(|g| g.n == n).expect("made above");
+        let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
+        check(ffi::VecGetArray(g.parts.0, &mut arr), "VecGetArray")?;
+        std::slice::from_raw_parts_mut(arr, n).copy_from_slice(v);
+        check(ffi::VecRestoreArray(g.parts.0, &mut arr), "VecRestoreArray")?;
+        for step in [ffi::VecScatterBegin, ffi::VecScatterEnd] {
+            check(
+                step(
+                    g.scatter.0,
+                    g.parts.0,
+                    g.all.0,
+                    ffi::INSERT_VALUES,
+                    ffi::SCATTER_FORWARD,
+                ),
+                "VecScatter",
+            )?;
+        }
+        let mut arr: *const ffi::PetscScalar = ptr::null();
+        check(ffi::VecGetArrayRead(g.all.0, &mut arr), "VecGetArrayRead")?;
+        let all = std::slice::from_raw_parts(arr, n * size);
+        for (i, x) in v.iter_mut().enumerate() {
+            let mut sum = all[i];
+            for r in 1..size {
+                sum += all[r * n + i];
+            }
+            *x = sum;
+        }
+        check(
+            ffi::VecRestoreArrayRead(g.all.0, &mut arr),
+            "VecRestoreArrayRead",
+        )?;
+    }
+    Ok(())
+}
+
+/// The rigid-body modes of the free displacements of `layout` over its `n` unknowns,
+/// orthonormal: 3 translations and 3 rotations about the centroid in 3-D, the axial translation
+/// in the meridian plane; zero on the potential rows. A tie's unknown moves with its first node.
+/// Modes that the free unknowns cannot tell apart are dropped.
+pub fn rigid_body_modes(layout: &DofLayout) -> Vec<Vec<f64>> {
+    let n = layout.node.len();
+    let is_u = |e: usize| layout.field[e] < 3;
+    let mut modes: Vec<Vec<f64>> = Vec::new();
+    if layout.axisymmetric {
+        modes.push((0..n).map(|e| f64::from(layout.field[e] == 1)).collect());
+    } else {
+        for f in 0..3u8 {
+            modes.push((0..n).map(|e| f64::from(layout.field[e] == f)).collect());
+        }
+        let (mut c, mut count) = ([0.0; 3], 0.0);
+        for e in (0..n).filter(|&e| is_u(e)) {
+            let x = layout.coords[layout.node[e]];
+            (0..3).for_each(|i| c[i] += x[i]);
+            count += 1.0;
+        }
+        if count > 0.0 {
+            c.iter_mut().for_each(|v| *v /= count);
+        }
+        // u = ω × (x − c) for ω along each axis
+        for axis in 0..3 {
+            let mode = (0..n)
+                .map(|e| {
+                    if !is_u(e) {
+                        return 0.0;
+                    }
+                    let x = layout.coords[layout.node[e]];
+                    let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+                    let mut w = [0.0; 3];
+                    w[axis] = 1.0;
+                    let u = [
+                        w[1] * d[2] - w[2] * d[1],
+                        w[2] * d[0] - w[0] * d[2],
+                        w[0] * d[1] - w[1] * d[0],
+                    ];
+                    u[layout.field[e] as usize]
+                })
+                .collect();
+            modes.push(mode);
+        }
+    }
+    // modified Gram-Schmidt, twice for orthogonality to round-off
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let mut basis: Vec<Vec<f64>> = Vec::new();
+    for mut m in modes {
+        let before = dot(&m, &m).sqrt();
+        if before == 0.0 {
+            continue;
+        }
+        for _ in 0..2 {
+            for b in &basis {
+                let p = dot(&m, b);
+                m.iter_mut().zip(b).for_each(|(v, w)| *v -= p * w);
+            }
+        }
+        let after = dot(&m, &m).sqrt();
+        if after > 1e-10 * before {
+            m.iter_mut().for_each(|v| *v /= after);
+            basis.push(m);
+        }
+    }
+    basis
+}
 
 /// The PETSc objects of one matrix pattern. Fields drop in order: the solver before its matrix.
 struct System {
@@ -248,6 +428,14 @@ struct System {
     options: Options,
     n: usize,
     nnz: usize,
+    /// With a shared assembly: the positions of the values this rank passes (else its rows').
+    entries: Option<std::sync::Arc<[usize]>>,
+    /// The values passed to PETSc (with `entries`).
+    values: Vec<f64>,
+    /// Number of rigid-body modes attached as the near-null space.
+    modes: usize,
+    /// Krylov iterations of the last solve.
+    iterations: usize,
     /// The rows this rank owns.
     rows: std::ops::Range<usize>,
     block_size: usize,
@@ -320,7 +508,11 @@ fn owned_rows(n: usize, block_size: usize, rank: usize, size: usize) -> std::ops
 impl System {
     /// Creates the matrix (COO preallocation over this rank's rows), the vectors, the gather to
     /// every rank and the KSP with its defaults and the options applied.
-    fn new(a: &CsrMatrix, options: &str) -> Result<System, LinearSolverError> {
+    fn new(
+        a: &CsrMatrix,
+        options: &str,
+        layout: Option<&DofLayout>,
+    ) -> Result<System, LinearSolverError> {
         if ffi::PetscInt::try_from(a.n).is_err() {
             return Err(LinearSolverError::Failed(format!(
                 "{} unknowns are too many for this PETSc's 32-bit indices",
@@ -328,6 +520,15 @@ impl System {
             )));
         }
         let (rank, size) = world()?;
+        let layout = layout.filter(|l| l.node.len() == a.n);
+        let entries = layout.and_then(|l| l.entries.clone());
+        if let Some(e) = &entries {
+            if e.last().is_some_and(|&p| p >= a.nnz()) {
+                return Err(LinearSolverError::Failed(
+                    "the shared assembly's entries do not fit the matrix".into(),
+                ));
+            }
+        }
         let _guard = lock();
         let block_size = block_size(a);
         let rows = owned_rows(a.n, block_size, rank, size);
@@ -338,7 +539,7 @@ impl System {
             let mut db = Options(ptr::null_mut());
             check(ffi::PetscOptionsCreate(&mut db.0), "PetscOptionsCreate")?;
             let scope = Scope::push(&db)?;
-            let mat = create_matrix(comm, a, rows.clone(), block_size)?;
+            let mat = create_matrix(comm, a, rows.clone(), block_size, entries.as_deref())?;
             let (mut x, mut b) = (Vector(ptr::null_mut()), Vector(ptr::null_mut()));
             check(
                 ffi::MatCreateVecs(mat.0, &mut x.0, &mut b.0),
@@ -349,7 +550,16 @@ impl System {
                 ffi::VecScatterCreateToAll(x.0, &mut scatter.0, &mut x_all.0),
                 "VecScatterCreateToAll",
             )?;
-            let (ksp, description, gives_inertia) = create_ksp(comm, &mat, options)?;
+            let (ksp, mut description, gives_inertia) = create_ksp(comm, &mat, options)?;
+            let mut modes = 0;
+            // a factorisation needs no modes
+            let direct = description.contains("PC cholesky") || description.contains("PC lu");
+            if let Some(layout) = layout.filter(|_| !direct) {
+                let rigid = rigid_body_modes(layout);
+                modes = rigid.len();
+                attach_modes(comm, &ksp, &mat, layout, &rigid, rows.clone())?;
+                description.push_str(&format!(", near-null space of {modes} rigid-body modes"));
+            }
             drop(scope);
             Ok(System {
                 ksp,
@@ -361,6 +571,10 @@ impl System {
                 options: db,
                 n: a.n,
                 nnz: a.nnz(),
+                values: vec![0.0; entries.as_ref().map_or(0, |e| e.len())],
+                entries,
+                modes,
+                iterations: 0,
                 rows,
                 block_size,
                 gives_inertia,
@@ -373,11 +587,20 @@ impl System {
     fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
         let _guard = lock();
         let _scope = Scope::push(&self.options)?;
-        let span = a.row_ptr[self.rows.start]..a.row_ptr[self.rows.end];
-        // SAFETY: the handles are live; the value slice has exactly the preallocated length
+        let values = match &self.entries {
+            Some(entries) => {
+                for (v, &p) in self.values.iter_mut().zip(entries.iter()) {
+                    *v = a.values[p];
+                }
+                &self.values[..]
+            }
+            None => &a.values[a.row_ptr[self.rows.start]..a.row_ptr[self.rows.end]],
+        };
+        // SAFETY: the handles are live; the value slice has exactly the preallocated length.
+        // Repeated and other ranks' entries of one position are summed (COO assembly).
         unsafe {
             check(
-                ffi::MatSetValuesCOO(self.mat.0, a.values[span].as_ptr(), ffi::INSERT_VALUES),
+                ffi::MatSetValuesCOO(self.mat.0, values.as_ptr(), ffi::INSERT_VALUES),
                 "MatSetValuesCOO",
             )?;
             for option in [ffi::MAT_SYMMETRIC, ffi::MAT_SYMMETRY_ETERNAL] {
@@ -435,6 +658,12 @@ impl System {
             check(ffi::VecRestoreArray(self.b.0, &mut arr), "VecRestoreArray")?;
 
             check(ffi::KSPSolve(self.ksp.0, self.b.0, self.x.0), "KSPSolve")?;
+            let mut its: ffi::PetscInt = 0;
+            check(
+                ffi::KSPGetIterationNumber(self.ksp.0, &mut its),
+                "KSPGetIterationNumber",
+            )?;
+            self.iterations = its.max(0) as usize;
             let mut reason: ffi::KSPConvergedReason = 0;
             check(
                 ffi::KSPGetConvergedReason(self.ksp.0, &mut reason),
@@ -490,6 +719,7 @@ unsafe fn create_matrix(
     a: &CsrMatrix,
     rows: std::ops::Range<usize>,
     block_size: usize,
+    entries: Option<&[usize]>,
 ) -> Result<Mat, LinearSolverError> {
     let (n, local) = (a.n as ffi::PetscInt, rows.len() as ffi::PetscInt);
     let mut mat = Mat(ptr::null_mut());
@@ -503,16 +733,35 @@ unsafe fn create_matrix(
         ffi::MatSetBlockSize(mat.0, block_size as ffi::PetscInt),
         "MatSetBlockSize",
     )?;
-    let span = a.row_ptr[rows.start]..a.row_ptr[rows.end];
-    let mut coo_i: Vec<ffi::PetscInt> = Vec::with_capacity(span.len());
-    for i in rows {
-        let count = a.row_ptr[i + 1] - a.row_ptr[i];
-        coo_i.extend(std::iter::repeat_n(i as ffi::PetscInt, count));
-    }
-    let mut coo_j: Vec<ffi::PetscInt> = a.col_idx[span]
-        .iter()
-        .map(|&j| j as ffi::PetscInt)
-        .collect();
+    let (mut coo_i, mut coo_j): (Vec<ffi::PetscInt>, Vec<ffi::PetscInt>) = match entries {
+        // a shared assembly: this rank's entries, in any row (sorted positions)
+        Some(entries) => {
+            let mut row = 0;
+            entries
+                .iter()
+                .map(|&p| {
+                    while a.row_ptr[row + 1] <= p {
+                        row += 1;
+                    }
+                    (row as ffi::PetscInt, a.col_idx[p] as ffi::PetscInt)
+                })
+                .unzip()
+        }
+        // the whole matrix on every rank: this rank's rows
+        None => {
+            let span = a.row_ptr[rows.start]..a.row_ptr[rows.end];
+            let mut coo_i = Vec::with_capacity(span.len());
+            for i in rows {
+                let count = a.row_ptr[i + 1] - a.row_ptr[i];
+                coo_i.extend(std::iter::repeat_n(i as ffi::PetscInt, count));
+            }
+            let coo_j = a.col_idx[span]
+                .iter()
+                .map(|&j| j as ffi::PetscInt)
+                .collect();
+            (coo_i, coo_j)
+        }
+    };
     // the arrays may be freed after the call (PETSc copies what it needs)
     check(
         ffi::MatSetPreallocationCOO(
@@ -524,6 +773,136 @@ unsafe fn create_matrix(
         "MatSetPreallocationCOO",
     )?;
     Ok(mat)
+}
+
+/// Distributed vectors of the rows `rows` of `modes` (this rank's part, `local` rows picked by
+/// `keep` of the rows in order), for a null space on `comm`.
+///
+/// # Safety
+/// PETSc is initialised and the caller holds the lock.
+unsafe fn mode_vectors(
+    comm: ffi::MPI_Comm,
+    modes: &[Vec<f64>],
+    rows: std::ops::Range<usize>,
+    keep: impl Fn(usize) -> bool,
+) -> Result<NullSpace, LinearSolverError> {
+    let picked: Vec<usize> = rows.filter(|&e| keep(e)).collect();
+    let mut vectors: Vec<Vector> = Vec::with_capacity(modes.len());
+    for m in modes {
+        let mut v = Vector(ptr::null_mut());
+        check(
+            ffi::VecCreateMPI(
+                comm,
+                picked.len() as ffi::PetscInt,
+                ffi::PETSC_DECIDE as ffi::PetscInt,
+                &mut v.0,
+            ),
+            "VecCreateMPI",
+        )?;
+        let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
+        check(ffi::VecGetArray(v.0, &mut arr), "VecGetArray")?;
+        let local = std::slice::from_raw_parts_mut(arr, picked.len());
+        for (x, &e) in local.iter_mut().zip(&picked) {
+            *x = m[e];
+        }
+        check(ffi::VecRestoreArray(v.0, &mut arr), "VecRestoreArray")?;
+        vectors.push(v);
+    }
+    let handles: Vec<ffi::Vec> = vectors.iter().map(|v| v.0).collect();
+    let mut space = NullSpace(ptr::null_mut());
+    // the null space keeps its own references to the vectors
+    check(
+        ffi::MatNullSpaceCreate(
+            comm,
+            ffi::PETSC_FALSE,
+            handles.len() as ffi::PetscInt,
+            handles.as_ptr(),
+            &mut space.0,
+        ),
+        "MatNullSpaceCreate",
+    )?;
+    Ok(space)
+}
+
+/// Attaches the orthonormal rigid-body `modes` (over all unknowns of `layout`) and the constant
+/// potential as the near-null space of `mat`, and names the fields for a field-split preconditioner: split `u`
+/// (the displacements, with the modes restricted to them as its near-null space) and split `p`
+/// (the potentials), when both are present.
+///
+/// # Safety
+/// PETSc is initialised, the caller holds the lock and has pushed the solver's database.
+unsafe fn attach_modes(
+    comm: ffi::MPI_Comm,
+    ksp: &Ksp,
+    mat: &Mat,
+    layout: &DofLayout,
+    modes: &[Vec<f64>],
+    rows: std::ops::Range<usize>,
+) -> Result<(), LinearSolverError> {
+    // the whole matrix: the rigid-body modes and, for the potential rows, the constant (the
+    // near-null vector of the electrostatic Laplacian)
+    let mut whole = modes.to_vec();
+    let potentials = layout.field.iter().filter(|&&f| f == 3).count();
+    if potentials > 0 {
+        let v = 1.0 / (potentials as f64).sqrt();
+        whole.push(
+            layout
+                .field
+                .iter()
+                .map(|&f| if f == 3 { v } else { 0.0 })
+                .collect(),
+        );
+    }
+    if !whole.is_empty() {
+        let space = mode_vectors(comm, &whole, rows.clone(), |_| true)?;
+        check(
+            ffi::MatSetNearNullSpace(mat.0, space.0),
+            "MatSetNearNullSpace",
+        )?;
+    }
+    let has_u = layout.field.iter().any(|&f| f < 3);
+    let has_p = layout.field.contains(&3);
+    if !(has_u && has_p) {
+        return Ok(());
+    }
+    let mut pc: ffi::PC = ptr::null_mut();
+    check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
+    for (name, potential) in [(c"u", false), (c"p", true)] {
+        let rows_of: Vec<ffi::PetscInt> = rows
+            .clone()
+            .filter(|&e| (layout.field[e] == 3) == potential)
+            .map(|e| e as ffi::PetscInt)
+            .collect();
+        let mut is = IndexSet(ptr::null_mut());
+        check(
+            ffi::ISCreateGeneral(
+                comm,
+                rows_of.len() as ffi::PetscInt,
+                rows_of.as_ptr(),
+                ffi::PETSC_COPY_VALUES,
+                &mut is.0,
+            ),
+            "ISCreateGeneral",
+        )?;
+        if !potential && !modes.is_empty() {
+            // the displacement block's modes: the sub-matrix's rows are the IS's, in order
+            let space = mode_vectors(comm, modes, rows.clone(), |e| layout.field[e] < 3)?;
+            check(
+                ffi::PetscObjectCompose(
+                    is.0 as ffi::PetscObject,
+                    c"nearnullspace".as_ptr(),
+                    space.0 as ffi::PetscObject,
+                ),
+                "PetscObjectCompose",
+            )?;
+        }
+        // a no-op unless the preconditioner is a field split
+        check(
+            ffi::PCFieldSplitSetIS(pc, name.as_ptr(), is.0),
+            "PCFieldSplitSetIS",
+        )?;
+    }
+    Ok(())
 }
 
 /// The KSP on `mat`: deasim's default (MUMPS Cholesky, i.e. LDLᵀ), then the scenario's options
@@ -600,6 +979,9 @@ pub struct PetscSolver {
     options: String,
     system: Option<System>,
     factored: bool,
+    /// The layout of the current system's unknowns (near-null space, fields, shared entries).
+    layout: Option<DofLayout>,
+    stats: SolverStats,
 }
 
 impl std::fmt::Debug for PetscSolver {
@@ -623,12 +1005,20 @@ impl PetscSolver {
             options: options.to_string(),
             system: None,
             factored: false,
+            layout: None,
+            stats: SolverStats::default(),
         }
     }
 
     /// The KSP and PC in use (known after the first factorisation).
     pub fn method(&self) -> Option<&str> {
         self.system.as_ref().map(|s| s.description.as_str())
+    }
+
+    /// The number of rigid-body modes attached as the near-null space (known after the first
+    /// factorisation; 0 without a layout).
+    pub fn near_null_space_size(&self) -> Option<usize> {
+        self.system.as_ref().map(|s| s.modes)
     }
 
     /// The block size of the PETSc matrix (known after the first factorisation).
@@ -643,10 +1033,11 @@ impl LinearSolver for PetscSolver {
         let same = matches!(&self.system, Some(s) if s.n == a.n && s.nnz == a.nnz());
         if !same {
             self.system = None;
-            self.system = Some(System::new(a, &self.options)?);
+            self.system = Some(System::new(a, &self.options, self.layout.as_ref())?);
         }
         let system = self.system.as_mut().expect("set above");
         let inertia = system.factor(a)?;
+        self.stats.factorizations += 1;
         self.factored = true;
         Ok(inertia)
     }
@@ -656,7 +1047,33 @@ impl LinearSolver for PetscSolver {
             return Err(LinearSolverError::NotFactored);
         }
         let system = self.system.as_mut().ok_or(LinearSolverError::NotFactored)?;
-        system.solve(b)
+        system.solve(b)?;
+        self.stats.solves += 1;
+        self.stats.krylov_iterations += system.iterations;
+        Ok(())
+    }
+
+    fn stats(&self) -> SolverStats {
+        self.stats
+    }
+
+    fn sums_shared_entries(&self) -> bool {
+        true
+    }
+
+    /// Always: the layout names the current system's shared entries, and gives the rigid-body
+    /// modes and the fields.
+    fn needs_layout(&self, _n: usize) -> bool {
+        true
+    }
+
+    /// A layout other than the held one makes the next factorisation set the system up anew.
+    fn set_layout(&mut self, layout: DofLayout) {
+        if self.layout.as_ref() != Some(&layout) {
+            self.layout = Some(layout);
+            self.system = None;
+            self.factored = false;
+        }
     }
 
     fn name(&self) -> &'static str {

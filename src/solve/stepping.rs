@@ -189,8 +189,11 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
     let mut last_cause;
     // the solver holds a factorisation of the tangent at (or next to) the current state
     let mut predictor_work = vec![0.0; system.n()];
-    let mut have_factor =
-        system.evaluate(&mut predictor_work, Some(&mut k)).is_ok() && solver.factor(&k).is_ok();
+    // a shared assembly's tangent is whole only to a solver that knows its entries
+    let prepared = !system.shares_cells() || super::newton::prepare_solver(system, solver).is_ok();
+    let mut have_factor = prepared
+        && system.evaluate(&mut predictor_work, Some(&mut k)).is_ok()
+        && solver.factor(&k).is_ok();
     while next_nominal <= control.steps.max(1) {
         if let Some(reason) = super::interrupt::pending() {
             return Err(RampFailure {

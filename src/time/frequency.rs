@@ -78,6 +78,8 @@ pub fn linearise(
 ) -> Result<Linearisation, String> {
     let relaxed = relaxed_model(model);
     let mut problem = StaticProblem::new(&relaxed, Some(state.to_vec()));
+    // the tangent itself is used here, not only handed to a (distributed) solver
+    problem.assemble_every_cell();
     let n = problem.n();
     let mut k = problem.new_matrix();
     let mut r = vec![0.0; n];

@@ -489,24 +489,30 @@ impl NonlinearSystem for TimeStep<'_> {
             Ok::<f64, String>(power)
         };
         let (q_eval, dofs) = (&self.work_q, &self.dofs);
-        self.assembler
-            .assemble(
-                &model.mesh,
-                dofs,
-                q_eval,
-                kernel,
-                r,
-                k.as_deref_mut(),
-                &mut self.cell_energy,
-            )
-            .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
-        // the power summed in cell order, as `dissipation_power` does
-        let power = self.cell_energy.iter().fold(0.0, |t, p| t + p);
-        let mut cache = self.power_cache.take().unwrap_or_default();
-        cache.0.clone_from(&self.q);
-        cache.1.clone_from(&self.prev.q);
-        (cache.2, cache.3) = (dt, power);
-        self.power_cache = Some(cache);
+        let cells = self.assembler.assemble(
+            &model.mesh,
+            dofs,
+            q_eval,
+            kernel,
+            r,
+            k.as_deref_mut(),
+            &mut self.cell_energy,
+        );
+        self.assembler.combine(r, cells)?;
+        // the power summed in cell order, as `dissipation_power` does; with shared cells this
+        // process holds only its own cells' powers, so there is nothing to keep
+        self.power_cache = if self.assembler.is_shared() {
+            None
+        } else {
+            let power = self.cell_energy.iter().fold(0.0, |t, p| t + p);
+            let mut cache = self.power_cache.take().unwrap_or_default();
+            cache.0.clone_from(&self.q);
+            cache.1.clone_from(&self.prev.q);
+            (cache.2, cache.3) = (dt, power);
+            Some(cache)
+        };
+        // the terms below are no cell terms: in the residual everywhere, in the tangent once
+        let mut k = self.assembler.global_terms(k);
         // dead loads at full value, with the factor of the internal forces: −f_r·f_ext
         let (eq, scale) = (&self.dofs.eq, self.dofs.scale);
         for (d, &f) in self.dead_load.iter().enumerate() {
@@ -622,11 +628,16 @@ impl NonlinearSystem for TimeStep<'_> {
             .collect()
     }
 
+    fn shares_cells(&self) -> bool {
+        self.assembler.is_shared()
+    }
+
     fn layout(&self) -> Option<DofLayout> {
-        Some(
-            self.dofs
-                .layout(&self.model.mesh.nodes, self.model.is_axisymmetric()),
-        )
+        let mut layout = self
+            .dofs
+            .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
+        layout.entries = self.assembler.entries();
+        Some(layout)
     }
 
     fn factored(&mut self) {

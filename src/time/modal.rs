@@ -81,6 +81,8 @@ pub fn modes(
     settings: &ModeSettings,
 ) -> Result<Vec<Mode>, String> {
     let mut problem = StaticProblem::new(model, Some(state.to_vec()));
+    // the tangent itself is used here, not only handed to a (distributed) solver
+    problem.assemble_every_cell();
     let n = problem.n();
     let mut k = problem.new_matrix();
     let mut r = vec![0.0; n];

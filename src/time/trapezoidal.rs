@@ -145,17 +145,18 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
             }
             Ok::<f64, String>(0.0)
         };
-        self.assembler
-            .assemble(
-                &model.mesh,
-                &self.dofs,
-                &self.q_n,
-                kernel,
-                r,
-                k.as_deref_mut(),
-                &mut self.cell_energy,
-            )
-            .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
+        let cells = self.assembler.assemble(
+            &model.mesh,
+            &self.dofs,
+            &self.q_n,
+            kernel,
+            r,
+            k.as_deref_mut(),
+            &mut self.cell_energy,
+        );
+        self.assembler.combine(r, cells)?;
+        // the terms below are no cell terms: in the residual everywhere, in the tangent once
+        let k = self.assembler.global_terms(k);
         let dv: Vec<f64> = vbar.iter().zip(&self.v_n).map(|(a, b)| a - b).collect();
         let mut mdv = vec![0.0; dv.len()];
         self.mass.mul(&dv, &mut mdv);
@@ -201,5 +202,17 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
 
     fn groups(&self) -> Vec<u8> {
         vec![0; self.dofs.n_free]
+    }
+
+    fn shares_cells(&self) -> bool {
+        self.assembler.is_shared()
+    }
+
+    fn layout(&self) -> Option<crate::problem::system::DofLayout> {
+        let mut layout = self
+            .dofs
+            .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
+        layout.entries = self.assembler.entries();
+        Some(layout)
     }
 }
