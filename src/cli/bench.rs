@@ -16,7 +16,12 @@ use std::time::Instant;
 
 /// Peak resident memory of this process (MiB), from /proc (NaN where unavailable).
 pub fn peak_memory_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
+    peak_memory_in("/proc/self/status")
+}
+
+/// The peak resident memory (MiB) in a /proc status file (NaN where unavailable).
+fn peak_memory_in(status: &str) -> f64 {
+    std::fs::read_to_string(status)
         .ok()
         .and_then(|s| {
             s.lines()
@@ -24,8 +29,7 @@ pub fn peak_memory_mib() -> f64 {
                 .and_then(|l| l.split_whitespace().nth(1))
                 .and_then(|v| v.parse::<f64>().ok())
         })
-        .map(|kib| kib / 1024.0)
-        .unwrap_or(f64::NAN)
+        .map_or(f64::NAN, |kib| kib / 1024.0)
 }
 
 /// Column titles of [`bench_film`]'s rows.
@@ -229,15 +233,7 @@ pub fn scaling_exponent(a: (f64, f64), b: (f64, f64)) -> f64 {
 
 /// The peak resident memory (MiB) of a running process, from /proc.
 fn peak_memory_of(pid: u32) -> f64 {
-    std::fs::read_to_string(format!("/proc/{pid}/status"))
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|v| v.parse::<f64>().ok())
-        })
-        .map_or(f64::NAN, |kib| kib / 1024.0)
+    peak_memory_in(&format!("/proc/{pid}/status"))
 }
 
 /// `deasim bench --scaling`: the film on [`SCALING_MESHES`] up to `max_dofs` unknowns, each in

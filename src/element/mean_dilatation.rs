@@ -477,34 +477,8 @@ pub fn cell_dynamic_residual_md(
                 ha[i] = fit[(i, 0)] * ga[0] + fit[(i, 1)] * ga[1] + fit[(i, 2)] * ga[2];
             }
         }
-        // l = Ḟ F⁻¹ = Σ v_a ⊗ h_a, d = sym(l)
-        let mut l = [[0.0; 3]; 3];
-        for (va, ha) in v[..n].iter().zip(&h[..n]) {
-            for i in 0..3 {
-                for m in 0..3 {
-                    l[i][m] += va[i] * ha[m];
-                }
-            }
-        }
-        let mut d = [[0.0; 3]; 3];
-        let mut dd = 0.0;
-        for i in 0..3 {
-            for m in 0..3 {
-                d[i][m] = 0.5 * (l[i][m] + l[m][i]);
-            }
-        }
-        for i in 0..3 {
-            for m in 0..3 {
-                dd += d[i][m] * d[i][m];
-            }
-        }
         let c = w * j * eta;
-        power += c * dd;
-        for (ha, ra) in h[..n].iter().zip(rv.chunks_exact_mut(FIELDS)) {
-            for i in 0..3 {
-                ra[i] += c * (d[i][0] * ha[0] + d[i][1] * ha[1] + d[i][2] * ha[2]);
-            }
-        }
+        power += crate::element::standard::viscous_point(&h[..n], &v[..n], c, &mut rv);
     }
     for i in 0..nl {
         r[i] += f_r * rv[i];

@@ -232,6 +232,38 @@ pub fn cell_fields(
     Ok(out)
 }
 
+/// One quadrature point of the Kelvin–Voigt forces: with the spatial gradients `h` and the nodal
+/// velocities `v`, d = sym(Σ v_a ⊗ h_a) = sym(Ḟ F⁻¹); adds c·d h_a to the u rows of node a in `r`
+/// and returns c d:d (c = w J η, the point's weight in the dissipation power).
+pub(crate) fn viscous_point(h: &[[f64; 3]], v: &[[f64; 3]], c: f64, r: &mut [f64]) -> f64 {
+    let mut l = [[0.0; 3]; 3];
+    for (va, ha) in v.iter().zip(h) {
+        for i in 0..3 {
+            for m in 0..3 {
+                l[i][m] += va[i] * ha[m];
+            }
+        }
+    }
+    let mut d = [[0.0; 3]; 3];
+    let mut dd = 0.0;
+    for i in 0..3 {
+        for m in 0..3 {
+            d[i][m] = 0.5 * (l[i][m] + l[m][i]);
+        }
+    }
+    for i in 0..3 {
+        for m in 0..3 {
+            dd += d[i][m] * d[i][m];
+        }
+    }
+    for (ha, ra) in h.iter().zip(r.chunks_exact_mut(FIELDS)) {
+        for i in 0..3 {
+            ra[i] += c * (d[i][0] * ha[0] + d[i][1] * ha[1] + d[i][2] * ha[2]);
+        }
+    }
+    c * dd
+}
+
 /// Kelvin–Voigt viscosity (Wriggers' 3-D form; docs/theory.md, Kelvin–Voigt viscosity): P_vis = Jη d F⁻ᵀ with
 /// d = sym(Ḟ F⁻¹), the derivative of the Rayleigh function R = (Jη/2) d:d with respect to Ḟ.
 /// With the spatial gradients h_a = F⁻ᵀ∇₀N_a: r_{a,i} = ∫ Jη (d h_a)_i dV and
@@ -270,34 +302,8 @@ pub fn cell_viscous(
                 ha[i] = finv[(0, i)] * ga[0] + finv[(1, i)] * ga[1] + finv[(2, i)] * ga[2];
             }
         }
-        // l = Ḟ F⁻¹ = Σ v_a ⊗ h_a, d = sym(l)
-        let mut l = [[0.0; 3]; 3];
-        for (va, ha) in v[..n].iter().zip(&h[..n]) {
-            for i in 0..3 {
-                for m in 0..3 {
-                    l[i][m] += va[i] * ha[m];
-                }
-            }
-        }
-        let mut d = [[0.0; 3]; 3];
-        let mut dd = 0.0;
-        for i in 0..3 {
-            for m in 0..3 {
-                d[i][m] = 0.5 * (l[i][m] + l[m][i]);
-            }
-        }
-        for i in 0..3 {
-            for m in 0..3 {
-                dd += d[i][m] * d[i][m];
-            }
-        }
         let c = w * j * eta;
-        power += c * dd;
-        for (ha, ra) in h[..n].iter().zip(r.chunks_exact_mut(FIELDS)) {
-            for i in 0..3 {
-                ra[i] += c * (d[i][0] * ha[0] + d[i][1] * ha[1] + d[i][2] * ha[2]);
-            }
-        }
+        power += viscous_point(&h[..n], &v[..n], c, r);
         if let Some(kv) = kv.as_deref_mut() {
             for a in 0..n {
                 for b in 0..n {
