@@ -342,9 +342,22 @@ pub fn record_with(
     state: &[f64],
     points: &PointStates,
 ) -> Result<CellsRecord, String> {
-    let mut reactions = vec![0.0; state.len()];
-    let (mut mech, mut elec) = (0.0, 0.0);
-    let mut fields = Vec::with_capacity(model.mesh.n_cells());
+    let mut out = CellsRecord {
+        reactions: vec![0.0; state.len()],
+        energies: (0.0, 0.0),
+        fields: Vec::with_capacity(model.mesh.n_cells()),
+    };
+    // one cell's contributions, added in cell order on either path
+    let mut add = |c: usize, r: &[f64], (a, b): (f64, f64), f: CellFields| {
+        for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+            for f in 0..FIELDS {
+                out.reactions[node * FIELDS + f] += r[a * FIELDS + f];
+            }
+        }
+        out.energies.0 += a;
+        out.energies.1 += b;
+        out.fields.push(f);
+    };
     if model.mesh.n_cells() >= PARALLEL_MIN_RECORD_CELLS && rayon::current_num_threads() > 1 {
         // the cells on the pool, their contributions added in cell order as below
         use crate::element::MAX_LOCAL;
@@ -372,25 +385,14 @@ pub fn record_with(
             })
             .collect();
         for (c, cell) in cells.into_iter().enumerate() {
-            let (r, (a, b), f) = cell?;
-            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
-                for f in 0..FIELDS {
-                    reactions[node * FIELDS + f] += r[a * FIELDS + f];
-                }
-            }
-            mech += a;
-            elec += b;
-            fields.push(f);
+            let (r, split, f) = cell?;
+            add(c, &r, split, f);
         }
-        return Ok(CellsRecord {
-            reactions,
-            energies: (mech, elec),
-            fields,
-        });
+        return Ok(out);
     }
     let mut r = vec![0.0; crate::element::MAX_LOCAL];
     model.for_each_cell(state, |c, g, mat, local| {
-        let ((a, b), f) = model
+        let (split, f) = model
             .kernel()
             .record(
                 &CellInput {
@@ -402,21 +404,10 @@ pub fn record_with(
                 &mut r,
             )
             .map_err(|e| format!("cell {c}: {}", e.error))?;
-        for (a, &node) in model.mesh.cell(c).iter().enumerate() {
-            for f in 0..FIELDS {
-                reactions[node * FIELDS + f] += r[a * FIELDS + f];
-            }
-        }
-        mech += a;
-        elec += b;
-        fields.push(f);
+        add(c, &r, split, f);
         Ok::<(), String>(())
     })?;
-    Ok(CellsRecord {
-        reactions,
-        energies: (mech, elec),
-        fields,
-    })
+    Ok(out)
 }
 
 /// Per-cell output fields of a state.
