@@ -374,6 +374,7 @@ fn run_exports_checkpoints_and_resumes_point_states() {
                 overrides: vec![],
             },
             fingerprint: plan.fingerprint(),
+            ranks: 1,
         };
         let mut obs: Vec<&mut dyn Observer> = vec![&mut writer, &mut ck];
         let summary = run_with(&plan, &NewtonSettings::default(), &mut obs, start);

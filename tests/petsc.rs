@@ -13,6 +13,7 @@ mod common;
 use deasim::io::build::{build, Plan};
 use deasim::io::examples::example;
 use deasim::io::scenario::parse;
+use deasim::io::vtu::{read_pvtu, read_vtu, VtuData};
 use deasim::job::run::{run, Observer, RunSummary, StepRecord};
 use deasim::solve::newton::NewtonSettings;
 use std::path::Path;
@@ -163,45 +164,133 @@ fn two_ranks(example_name: &str) -> (f64, String, String) {
     (d, serial, mpi)
 }
 
-/// The numbers of every `<DataArray>` of an ASCII VTU file, by the array's name.
-fn vtu_arrays(path: &Path) -> Vec<(String, Vec<f64>)> {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    text.split("<DataArray")
-        .skip(1)
-        .map(|chunk| {
-            let (head, rest) = chunk.split_once('>').unwrap();
-            let name = head
-                .split("Name=\"")
-                .nth(1)
-                .and_then(|t| t.split('"').next())
-                .unwrap_or("")
-                .to_string();
-            let body = rest.split("</DataArray>").next().unwrap();
-            let values = body
-                .split_whitespace()
-                .map(|t| {
-                    t.parse::<f64>()
-                        .unwrap_or_else(|e| panic!("{name}: {t}: {e}"))
-                })
-                .collect();
-            (name, values)
-        })
-        .collect()
-}
-
-/// The last field file of a run directory.
-fn last_fields(dir: &Path) -> std::path::PathBuf {
+/// The last field file of a run directory with extension `ext` (`vtu`: a serial run's whole
+/// file; `pvtu`: a shared run's index over its pieces).
+fn last_fields(dir: &Path, ext: &str) -> std::path::PathBuf {
     let mut files: Vec<_> = std::fs::read_dir(dir.join("fields"))
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
         .map(|e| e.unwrap().path())
         .filter(|p| {
             p.file_name()
                 .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with("step_"))
+                .is_some_and(|n| n.starts_with("step_") && !n.contains("_p"))
+                && p.extension().is_some_and(|e| e == ext)
         })
         .collect();
     files.sort();
     files.pop().expect("no field file")
+}
+
+/// The point and cell arrays of a whole field file, by name.
+fn whole_arrays(v: &VtuData) -> Vec<(String, Vec<f64>)> {
+    v.point_data
+        .iter()
+        .chain(&v.cell_data)
+        .map(|(n, (_, x))| (n.clone(), x.clone()))
+        .collect()
+}
+
+/// The pieces of a shared run's field file `pvtu` put together in the node and cell order of
+/// the serial run's file `whole` (nodes matched by their coordinates, which both write exactly;
+/// cells by their nodes): each node and cell must be in the pieces, each cell in exactly one
+/// piece, and each piece must be one rank's (its `rank` array). Returns the arrays as
+/// [`whole_arrays`] does.
+fn pieced_arrays(pvtu: &Path, whole: &VtuData, ranks: usize) -> Vec<(String, Vec<f64>)> {
+    use std::collections::HashMap;
+    let pieces = read_pvtu(pvtu).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(pieces.len(), ranks, "one piece per rank");
+    let key = |p: &[f64; 3]| p.map(f64::to_bits);
+    let node_of: HashMap<[u64; 3], usize> = whole
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (key(p), i))
+        .collect();
+    let npc = whole.offsets[0];
+    let cell_key = |nodes: &[usize]| {
+        let mut k = nodes.to_vec();
+        k.sort_unstable();
+        k
+    };
+    let cell_of: HashMap<Vec<usize>, usize> = whole
+        .connectivity
+        .chunks(npc)
+        .enumerate()
+        .map(|(c, nodes)| (cell_key(nodes), c))
+        .collect();
+    let n_nodes = whole.points.len();
+    let n_cells = whole.types.len();
+    let mut out: Vec<(String, Vec<f64>)> = whole_arrays(whole)
+        .into_iter()
+        .map(|(n, x)| (n, vec![f64::NAN; x.len()]))
+        .collect();
+    let mut cell_seen = vec![0usize; n_cells];
+    for (rank, piece) in pieces.iter().enumerate() {
+        let global: Vec<usize> = piece
+            .points
+            .iter()
+            .map(|p| {
+                *node_of
+                    .get(&key(p))
+                    .expect("a piece's point is not a mesh node")
+            })
+            .collect();
+        let cells: Vec<usize> = piece
+            .connectivity
+            .chunks(npc)
+            .map(|nodes| {
+                let g: Vec<usize> = nodes.iter().map(|&l| global[l]).collect();
+                *cell_of
+                    .get(&cell_key(&g))
+                    .expect("a piece's cell is not a mesh cell")
+            })
+            .collect();
+        cells.iter().for_each(|&c| cell_seen[c] += 1);
+        let (_, ranks_of) = &piece.cell_data["rank"];
+        assert!(ranks_of.iter().all(|&r| r == rank as f64));
+        for (name, values) in out.iter_mut() {
+            let (arrays, at, count) = match piece.point_data.get(name) {
+                Some(a) => (a, &global, n_nodes),
+                None => (&piece.cell_data[name], &cells, n_cells),
+            };
+            let comps = values.len() / count;
+            for (k, &g) in at.iter().enumerate() {
+                values[g * comps..(g + 1) * comps]
+                    .copy_from_slice(&arrays.1[k * comps..(k + 1) * comps]);
+            }
+        }
+    }
+    assert!(cell_seen.iter().all(|&k| k == 1), "each cell in one piece");
+    for (name, values) in &out {
+        assert!(values.iter().all(|v| !v.is_nan()), "{name} not covered");
+    }
+    out
+}
+
+/// Runs deasim with `args` in `dir` under `mpirun -np ranks`.
+fn mpirun(ranks: usize, dir: &Path, args: &[&str]) -> std::process::Output {
+    let mut mpirun = Command::new("mpirun");
+    // this test process may itself be an MPI singleton (PETSc initialised by the other tests):
+    // its launcher variables would make mpirun think it is nested
+    for (k, _) in std::env::vars() {
+        if ["OMPI_", "PMIX_", "ORTE_", "OPAL_", "PMI_"]
+            .iter()
+            .any(|p| k.starts_with(p))
+        {
+            mpirun.env_remove(k);
+        }
+    }
+    mpirun
+        .args(["--oversubscribe", "-np", &ranks.to_string()])
+        .arg(env!("CARGO_BIN_EXE_deasim"))
+        .args(args)
+        .current_dir(dir)
+        .env("RAYON_NUM_THREADS", "1")
+        // Open MPI refuses root unless told (containers, CI)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .output()
+        .expect("mpirun not found: install Open MPI (scripts/install-petsc.sh)")
 }
 
 /// As [`two_ranks`] on `ranks` ranks, with more `--set` overrides for both runs; also returns
@@ -232,29 +321,9 @@ fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, Stri
     let serial = common::deasim(&args, &dir);
     let serial_log = String::from_utf8_lossy(&serial.stderr).into_owned();
     let t = Instant::now();
-    let mut mpirun = Command::new("mpirun");
-    // this test process may itself be an MPI singleton (PETSc initialised by the other tests):
-    // its launcher variables would make mpirun think it is nested
-    for (k, _) in std::env::vars() {
-        if ["OMPI_", "PMIX_", "ORTE_", "OPAL_", "PMI_"]
-            .iter()
-            .any(|p| k.starts_with(p))
-        {
-            mpirun.env_remove(k);
-        }
-    }
-    let mpi = mpirun
-        .args(["--oversubscribe", "-np", &ranks.to_string()])
-        .arg(env!("CARGO_BIN_EXE_deasim"))
-        .args(["run", "petsc.toml", "--out", "mpi"])
-        .args(&sets)
-        .current_dir(&dir)
-        .env("RAYON_NUM_THREADS", "1")
-        // Open MPI refuses root unless told (containers, CI)
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .output()
-        .expect("mpirun not found: install Open MPI (scripts/install-petsc.sh)");
+    let mut args = vec!["run", "petsc.toml", "--out", "mpi"];
+    args.extend(&sets);
+    let mpi = mpirun(ranks, &dir, &args);
     let log = String::from_utf8_lossy(&mpi.stderr).into_owned();
     assert!(
         log.contains(&format!("one linear system on {ranks} MPI ranks")),
@@ -310,8 +379,12 @@ fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, Stri
     );
     let mut fields: f64 = 0.0;
     if serial.status.success() {
-        let a = vtu_arrays(&last_fields(&dir.join("serial")));
-        let b = vtu_arrays(&last_fields(&dir.join("mpi")));
+        let whole = read_vtu(&last_fields(&dir.join("serial"), "vtu")).unwrap();
+        let a = whole_arrays(&whole);
+        let b = pieced_arrays(&last_fields(&dir.join("mpi"), "pvtu"), &whole, ranks);
+        // the collection lists the indexes
+        let pvd = std::fs::read_to_string(dir.join("mpi/fields.pvd")).unwrap();
+        assert!(pvd.contains(".pvtu\"") && !pvd.contains(".vtu\""), "{pvd}");
         assert_eq!(a.len(), b.len());
         let largest = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         // the total (Cauchy) stress is the mechanical minus the Maxwell stress, which cancel on
@@ -454,6 +527,134 @@ fn pull_in_is_found_on_two_mpi_ranks() {
         "{a} {b}"
     );
     assert!(d < 1e-10, "{d:e}");
+}
+
+/// A run on 2 ranks with checkpoints, cut back to its older checkpoint as a killed run would
+/// leave it (newer rows and field files, a stale piece), resumed under `mpirun -np 2`: it ends
+/// with the uninterrupted run's history and field files (the same `.pvtu` indexes, every rank's
+/// pieces with the same values to round-off). Resuming on 3 ranks works too, with a warning.
+#[test]
+fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
+    let dir = common::tempdir("petsc-mpi-resume");
+    let text = example("film").unwrap();
+    std::fs::write(
+        dir.join("petsc.toml"),
+        format!("{text}\n[solver]\nkind = \"petsc\"\n"),
+    )
+    .unwrap();
+    let full = mpirun(
+        2,
+        &dir,
+        &[
+            "run",
+            "petsc.toml",
+            "--out",
+            "full",
+            "--checkpoint-every",
+            "4",
+            "--set",
+            "output.plots=false",
+            "--set",
+            "output.vtu_format=\"ascii\"",
+        ],
+    );
+    let log = |o: &std::process::Output| String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(full.status.success(), "{}", log(&full));
+    let mut ck: Vec<_> = std::fs::read_dir(dir.join("full/checkpoint"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    ck.sort();
+    assert_eq!(ck.len(), 2, "{ck:?}");
+    for (cut, ranks) in [("cut2", 2), ("cut3", 3)] {
+        let out = dir.join(cut);
+        std::fs::create_dir_all(out.join("checkpoint")).unwrap();
+        std::fs::create_dir_all(out.join("fields")).unwrap();
+        std::fs::copy(
+            &ck[0],
+            out.join("checkpoint").join(ck[0].file_name().unwrap()),
+        )
+        .unwrap();
+        let history = std::fs::read_to_string(dir.join("full/history.csv")).unwrap();
+        let rows: Vec<&str> = history.lines().collect();
+        std::fs::write(out.join("history.csv"), rows[..rows.len() - 2].join("\n")).unwrap();
+        for e in std::fs::read_dir(dir.join("full/fields"))
+            .unwrap()
+            .flatten()
+        {
+            std::fs::copy(e.path(), out.join("fields").join(e.file_name())).unwrap();
+        }
+        std::fs::write(out.join("fields/step_99999_p0001.vtu"), "stale").unwrap();
+        let resumed = mpirun(ranks, &dir, &["run", "--resume", cut]);
+        assert!(resumed.status.success(), "{}", log(&resumed));
+        assert!(!out.join("fields/step_99999_p0001.vtu").exists());
+        // MUMPS schedules its work on several ranks by their load, so two runs agree to
+        // round-off, not bit for bit
+        let (names, x) = history_probes(&dir.join("full/history.csv"));
+        let (_, y) = history_probes(&out.join("history.csv"));
+        assert_eq!(x.len(), y.len());
+        for k in 0..names.len() {
+            let scale = x.iter().fold(0.0f64, |m, r| m.max(r[k].abs()));
+            for (rx, ry) in x.iter().zip(&y) {
+                let same = rx[k].is_nan() && ry[k].is_nan();
+                assert!(
+                    same || (rx[k] - ry[k]).abs() <= 1e-10 * scale,
+                    "{}",
+                    names[k]
+                );
+            }
+        }
+        if ranks == 2 {
+            assert!(!log(&resumed).contains("written on"), "{}", log(&resumed));
+            let mut files = 0;
+            for e in std::fs::read_dir(dir.join("full/fields"))
+                .unwrap()
+                .flatten()
+            {
+                let name = e.file_name().into_string().unwrap();
+                let other = out.join("fields").join(&name);
+                if name.ends_with(".pvtu") {
+                    assert_eq!(
+                        std::fs::read(e.path()).unwrap(),
+                        std::fs::read(&other).unwrap()
+                    );
+                } else {
+                    let (p, q) = (read_vtu(&e.path()).unwrap(), read_vtu(&other).unwrap());
+                    assert_eq!((&p.points, &p.connectivity), (&q.points, &q.connectivity));
+                    let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+                    let arrays = || p.point_data.iter().chain(&p.cell_data);
+                    // the total stress of the free film is the difference of two that cancel:
+                    // stresses are compared on their common scale
+                    let stress_scale = arrays()
+                        .filter(|(n, _)| n.ends_with("stress"))
+                        .fold(0.0f64, |m, (_, (_, v))| m.max(largest(v)));
+                    for (n, (_, v)) in arrays() {
+                        let w = &q.point_data.get(n).or(q.cell_data.get(n)).unwrap().1;
+                        let scale = if n.ends_with("stress") {
+                            stress_scale
+                        } else {
+                            largest(v)
+                        };
+                        for (s, t) in v.iter().zip(w) {
+                            assert!((s - t).abs() <= 1e-10 * scale, "{name} {n}");
+                        }
+                    }
+                }
+                files += 1;
+            }
+            // 16 records (the initial state and 15 steps): an index and 2 pieces each
+            assert_eq!(files, 16 * 3);
+        } else {
+            assert!(
+                log(&resumed).contains("written on 2 MPI rank(s), this run has 3"),
+                "{}",
+                log(&resumed)
+            );
+            let last = last_fields(&out, "pvtu");
+            assert_eq!(read_pvtu(&last).unwrap().len(), 3);
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// GAMG on the whole coupled tangent: GMRES to 1e-12.

@@ -7,6 +7,7 @@ use crate::io::checkpoint::{CheckpointWriter, ScenarioSource};
 use crate::io::examples::{example, DEFAULT, EXAMPLES};
 use crate::io::lock::DirLock;
 use crate::io::output::OutputWriter;
+use crate::io::pieces::Pieces;
 use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
 use crate::job::linear::{FrequencyResponse, ResponseMethod};
 use crate::job::run::{run_with, Observer, RunState, RunSummary, StepRecord};
@@ -328,61 +329,45 @@ pub fn cmd_run(
             return EXIT_BAD_INPUT;
         }
     };
-    // a distributed PETSc solve: every rank runs the whole program, rank 0 alone writes
-    let ranks = match mpi_ranks(&plan) {
+    // a distributed PETSc solve: every rank runs the whole program, rank 0 writes the outputs
+    // and every rank its piece of the field files
+    let (rank, ranks) = match mpi_ranks(&plan) {
         Err(e) => {
             eprintln!("error: {e}");
             return EXIT_SOLVE_FAILED;
         }
-        Ok((rank, size)) if rank > 0 => {
-            share_cells(&mut plan, rank, size);
-            return run_secondary_rank(&plan);
-        }
-        Ok((_, size)) => size,
+        Ok(r) => r,
     };
-    if ranks > 1 {
-        let counts = share_cells(&mut plan, 0, ranks);
-        eprintln!("deasim: one linear system on {ranks} MPI ranks; rank 0 writes the outputs");
-        let counts: Vec<String> = counts.iter().map(|c| c.to_string()).collect();
-        eprintln!(
-            "deasim: the ranks assemble {} of the {} cells (METIS partition)",
-            counts.join(", "),
-            plan.model.mesh.n_cells()
-        );
-    }
+    let pieces = distribute(&mut plan, rank, ranks);
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(&plan.name));
-    // held until the run ends: a second run into the directory is refused meanwhile
-    let _lock = match DirLock::acquire(&dir) {
-        Ok(l) => l,
+    if rank > 0 {
+        // rank 0 prepares the directory first
+        if !ranks_agree(true) {
+            return EXIT_BAD_INPUT;
+        }
+        return run_secondary_rank(&plan, &dir, pieces, None);
+    }
+    let prepared = prepare_output(&dir, &plan.name, overwrite);
+    if ranks > 1 && !ranks_agree(prepared.is_ok()) {
+        if let Err(e) = &prepared {
+            eprintln!("error: {e}");
+        }
+        return EXIT_BAD_INPUT;
+    }
+    // the lock is held until the run ends: a second run into the directory is refused meanwhile
+    let (_lock, mut writer) = match prepared {
+        Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
             return EXIT_BAD_INPUT;
         }
     };
-    if let Err(e) = OutputWriter::check_directory(&dir, &plan.name, overwrite) {
-        eprintln!("error: {e}");
-        return EXIT_BAD_INPUT;
-    }
-    // checkpoints of an earlier run in this directory belong to other results
-    for old in crate::io::checkpoint::list(&dir) {
-        if let Err(e) = std::fs::remove_file(&old) {
-            eprintln!("error: {}: {e}", old.display());
-            return EXIT_BAD_INPUT;
-        }
-    }
-    let mut writer = match OutputWriter::new(&dir) {
-        Ok(w) => w,
-        Err(e) => {
-            eprintln!(
-                "error: cannot create the output directory {}: {e}",
-                dir.display()
-            );
-            return EXIT_BAD_INPUT;
-        }
-    };
     writer.overrides = overrides.to_vec();
+    if let Some(p) = pieces {
+        writer.split_fields(p, false);
+    }
     let checkpoint = checkpoint_every.map(|every| CheckpointWriter {
         dir: dir.clone(),
         every,
@@ -393,12 +378,72 @@ pub fn cmd_run(
             overrides: overrides.to_vec(),
         },
         fingerprint: plan.fingerprint(),
+        ranks: ranks as u64,
     });
     let status = execute(&plan, &dir, writer, checkpoint, None);
     if ranks > 1 {
         mpi_barrier();
     }
     status
+}
+
+/// Locks the output directory `dir` of scenario `name`, clears deasim's files of an earlier run
+/// from it (refused for another scenario's results unless `overwrite`) and creates the writer.
+fn prepare_output(
+    dir: &Path,
+    name: &str,
+    overwrite: bool,
+) -> Result<(DirLock, OutputWriter), String> {
+    let lock = DirLock::acquire(dir).map_err(|e| e.to_string())?;
+    OutputWriter::check_directory(dir, name, overwrite)?;
+    // checkpoints of an earlier run in this directory belong to other results
+    for old in crate::io::checkpoint::list(dir) {
+        std::fs::remove_file(&old).map_err(|e| format!("{}: {e}", old.display()))?;
+    }
+    let writer = OutputWriter::new(dir)
+        .map_err(|e| format!("cannot create the output directory {}: {e}", dir.display()))?;
+    Ok((lock, writer))
+}
+
+/// On several ranks: shares the cells of `plan` between them (rank 0 says how) and returns this
+/// rank's piece of the field files; `None` on one rank.
+fn distribute(plan: &mut Plan, rank: usize, ranks: usize) -> Option<Pieces> {
+    if ranks < 2 {
+        return None;
+    }
+    let counts = share_cells(plan, rank, ranks);
+    if rank == 0 {
+        eprintln!(
+            "deasim: one linear system on {ranks} MPI ranks; rank 0 writes the outputs, each \
+             rank its piece of the field files"
+        );
+        let counts: Vec<String> = counts.iter().map(|c| c.to_string()).collect();
+        eprintln!(
+            "deasim: the ranks assemble {} of the {} cells (METIS partition)",
+            counts.join(", "),
+            plan.model.mesh.n_cells()
+        );
+    }
+    let owned = plan.model.share.as_ref()?;
+    Some(Pieces::new(&plan.model.mesh, &owned.owned, rank, ranks))
+}
+
+/// Whether every rank of a distributed run says `ok` (a collective call: every rank makes it at
+/// the same point); always `ok` on one rank.
+fn ranks_agree(ok: bool) -> bool {
+    #[cfg(feature = "petsc")]
+    {
+        let mut failed = [if ok { 0.0 } else { 1.0 }];
+        return match crate::solve::petsc::sum_over_ranks(&mut failed) {
+            Ok(()) => failed[0] == 0.0,
+            Err(e) => {
+                eprintln!("error: {e}");
+                false
+            }
+        };
+    }
+    #[allow(unreachable_code)]
+    ok
 }
 
 /// This process's rank and the number of ranks when the plan's solver is distributed (PETSc,
@@ -439,19 +484,40 @@ fn mpi_barrier() {
     }
 }
 
-/// The number of processes an MPI launcher started (Open MPI's or a PMI launcher's variable),
-/// if any.
-fn launched_ranks() -> Option<usize> {
-    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE"]
+/// This process's rank as an MPI launcher set it (Open MPI's or a PMI launcher's variable);
+/// 0 without a launcher. Known before MPI is initialised.
+fn launched_rank() -> usize {
+    ["OMPI_COMM_WORLD_RANK", "PMI_RANK"]
         .iter()
         .find_map(|v| std::env::var(v).ok()?.parse().ok())
+        .unwrap_or(0)
 }
 
 /// A rank other than 0 of a distributed run: the same run (the same steps, so the same
-/// collective PETSc calls), silent and without files.
-fn run_secondary_rank(plan: &Plan) -> i32 {
-    let summary = run_with(plan, &NewtonSettings::default(), &mut [], None);
+/// collective PETSc calls), silent, writing only its `pieces` of the field files into `dir`
+/// (from `start` when resuming).
+fn run_secondary_rank(
+    plan: &Plan,
+    dir: &Path,
+    pieces: Option<Pieces>,
+    start: Option<RunState>,
+) -> i32 {
+    let mut writer = match OutputWriter::new(dir) {
+        Ok(w) => w,
+        Err(e) => {
+            eprintln!("error: {}: {e}", dir.display());
+            return EXIT_BAD_INPUT;
+        }
+    };
+    if let Some(p) = pieces {
+        writer.split_fields(p, true);
+    }
+    let summary = run_with(plan, &NewtonSettings::default(), &mut [&mut writer], start);
     mpi_barrier();
+    if let Some(f) = writer.write_failure() {
+        eprintln!("error: {f}");
+        return EXIT_SOLVE_FAILED;
+    }
     if summary.interrupted {
         EXIT_INTERRUPTED
     } else if summary.converged {
@@ -469,10 +535,6 @@ pub fn cmd_resume(
     overrides: &[String],
     checkpoint_every: Option<usize>,
 ) -> i32 {
-    if let Some(size) = launched_ranks().filter(|&n| n > 1) {
-        eprintln!("error: --resume runs on one MPI rank, not {size}");
-        return EXIT_BAD_INPUT;
-    }
     if !dir.is_dir() {
         eprintln!(
             "error: cannot resume from {}: no such directory",
@@ -480,15 +542,42 @@ pub fn cmd_resume(
         );
         return EXIT_BAD_INPUT;
     }
-    let _lock = match DirLock::acquire(dir) {
-        Ok(l) => l,
-        Err(e) => {
-            eprintln!("error: {e}");
-            return EXIT_BAD_INPUT;
+    // under an MPI launcher the process of rank 0 locks the directory and speaks; a failure
+    // here ends the process, and the launcher then stops the others
+    let first = launched_rank() == 0;
+    let _lock = if first {
+        match DirLock::acquire(dir) {
+            Ok(l) => Some(l),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return EXIT_BAD_INPUT;
+            }
         }
+    } else {
+        None
     };
-    match prepare_resume(dir, scenario, overrides, checkpoint_every) {
-        Ok((plan, checkpoint, state)) => {
+    match prepare_resume(dir, scenario, overrides, checkpoint_every, first) {
+        Ok((mut plan, mut checkpoint, state)) => {
+            let (rank, ranks) = match mpi_ranks(&plan) {
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    return EXIT_SOLVE_FAILED;
+                }
+                Ok(r) => r,
+            };
+            if rank == 0 && checkpoint.ranks != ranks as u64 {
+                eprintln!(
+                    "warning: the checkpoint was written on {} MPI rank(s), this run has {ranks}: \
+                     the partition orders the sums, so the results agree to round-off, not bit \
+                     for bit",
+                    checkpoint.ranks
+                );
+            }
+            checkpoint.ranks = ranks as u64;
+            let pieces = distribute(&mut plan, rank, ranks);
+            if rank > 0 {
+                return run_secondary_rank(&plan, dir, pieces, Some(state));
+            }
             let mut writer = match OutputWriter::new(dir) {
                 Ok(w) => w,
                 Err(e) => {
@@ -497,7 +586,14 @@ pub fn cmd_resume(
                 }
             };
             writer.overrides.clone_from(&checkpoint.source.overrides);
-            execute(&plan, dir, writer, Some(checkpoint), Some(state))
+            if let Some(p) = pieces {
+                writer.split_fields(p, false);
+            }
+            let status = execute(&plan, dir, writer, Some(checkpoint), Some(state));
+            if ranks > 1 {
+                mpi_barrier();
+            }
+            status
         }
         Err(e) => {
             eprintln!("error: cannot resume from {}: {e}", dir.display());
@@ -506,12 +602,14 @@ pub fn cmd_resume(
     }
 }
 
-/// Reads the newest checkpoint of `dir` and checks it against the plan it rebuilds.
+/// Reads the newest checkpoint of `dir` and checks it against the plan it rebuilds; `loud`:
+/// says so and warns (the process of rank 0).
 fn prepare_resume(
     dir: &Path,
     scenario: Option<&Path>,
     overrides: &[String],
     checkpoint_every: Option<usize>,
+    loud: bool,
 ) -> Result<(Plan, CheckpointWriter, RunState), String> {
     use crate::io::checkpoint::latest;
     use crate::job::state::StagePosition;
@@ -528,7 +626,7 @@ fn prepare_resume(
         }
     }
     let (ck, _, skipped) = latest(dir).map_err(|e| e.to_string())?;
-    for w in &skipped {
+    for w in skipped.iter().filter(|_| loud) {
         eprintln!("warning: {w}");
     }
     let src = &ck.source;
@@ -602,25 +700,28 @@ fn prepare_resume(
         return Err("the checkpoint does not match the scenario's model or stages".to_string());
     }
     let threads = rayon::current_num_threads() as u64;
-    if ck.threads != threads {
+    if loud && ck.threads != threads {
         eprintln!(
             "warning: the checkpoint was written with {} threads, this run has {threads}: the \
              results agree to round-off, not bit for bit",
             ck.threads
         );
     }
-    eprintln!(
-        "deasim: resuming `{}` from step {} (stage {}, {} steps recorded)",
-        plan.name,
-        st.accepted,
-        st.stage,
-        st.records.len()
-    );
+    if loud {
+        eprintln!(
+            "deasim: resuming `{}` from step {} (stage {}, {} steps recorded)",
+            plan.name,
+            st.accepted,
+            st.stage,
+            st.records.len()
+        );
+    }
     let checkpoint = CheckpointWriter {
         dir: dir.to_path_buf(),
         every: ck.every as usize,
         source: ck.source.clone(),
         fingerprint: ck.fingerprint,
+        ranks: ck.ranks,
     };
     Ok((plan, checkpoint, ck.state))
 }

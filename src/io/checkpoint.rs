@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every checkpoint.
 pub const MAGIC: &[u8; 8] = b"DEASIMCK";
 /// Version of the layout; a file of another version is refused.
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
 /// The sub-directory of the output directory that holds the checkpoints.
 pub const SUBDIR: &str = "checkpoint";
 /// How many checkpoints are kept (older ones are deleted after a new one is written).
@@ -50,6 +50,9 @@ pub struct Checkpoint {
     pub fingerprint: u64,
     /// Rayon threads of the writing run (bitwise continuation needs the same count).
     pub threads: u64,
+    /// MPI ranks sharing the writing run's assembly (1 when not distributed); bitwise
+    /// continuation needs the same count, since the partition sets the order of the sums.
+    pub ranks: u64,
     /// The checkpoint interval (accepted steps).
     pub every: u64,
     pub state: RunState,
@@ -273,6 +276,8 @@ pub struct CheckpointWriter {
     pub source: ScenarioSource,
     /// Fingerprint of the plan being run.
     pub fingerprint: u64,
+    /// MPI ranks sharing the run's assembly (1 when not distributed).
+    pub ranks: u64,
 }
 
 impl Observer for CheckpointWriter {
@@ -294,6 +299,7 @@ impl Observer for CheckpointWriter {
             source: self.source.clone(),
             fingerprint: self.fingerprint,
             threads: rayon::current_num_threads() as u64,
+            ranks: self.ranks,
             every: self.every as u64,
             state: state.clone(),
         };
@@ -317,6 +323,7 @@ mod tests {
             },
             fingerprint: 42,
             threads: 2,
+            ranks: 1,
             every: 5,
             state: RunState {
                 accepted: 10,

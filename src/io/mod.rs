@@ -9,6 +9,7 @@ pub mod lock;
 pub mod memory;
 pub mod output;
 pub mod periods;
+pub mod pieces;
 pub mod plot;
 pub mod revolve;
 pub mod scenario;

@@ -1,14 +1,18 @@
 //! The output directory of a run: `history.csv`, `summary.json`, `fields.pvd` +
-//! `fields/step_*.vtu` (for an axisymmetric model also the revolved view, `fields_revolved.pvd` +
+//! `fields/step_*.vtu` (on several MPI ranks `fields/step_*.pvtu` over one piece per rank,
+//! `fields/step_*_pRRRR.vtu`; for an axisymmetric model also the revolved view, `fields_revolved.pvd` +
 //! `fields/revolved_*.vtu`), `plots/`. Every file is written to a temporary name and renamed, so
 //! an interrupted run leaves valid files. Only converged steps reach the writer.
 
 use super::atomic::write_atomic;
 use super::build::Plan;
 use super::linear::{write_modes, write_response};
+use super::pieces::Pieces;
 use super::plot::{line_plot, stacked_plot, PlotError, PlotSpec, Series};
 use super::revolve::{Components, RevolvedMesh};
-use super::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuError, VtuPiece};
+use super::vtu::{
+    write_pvd, write_pvtu, write_vtu_as, CellType, DataArray, Encoding, VtuError, VtuPiece,
+};
 use crate::element::CellFields;
 use crate::job::linear::FrequencyResponse;
 use crate::job::run::{LimitRecord, Observer, PathRecord, RunSummary, StepRecord};
@@ -66,6 +70,11 @@ pub struct OutputWriter {
     /// The points and limit points of the continuation stages.
     path: Vec<PathRecord>,
     limits: Vec<LimitRecord>,
+    /// In a run shared between MPI ranks: this rank's piece of the field files, which are then
+    /// written as one `.vtu` piece per rank and a `.pvtu` index (by rank 0).
+    pieces: Option<Pieces>,
+    /// A rank other than 0 of a shared run: it writes its pieces of the field files only.
+    piece_only: bool,
 }
 
 /// The arrays of one field file of the meridian section, for its revolved view: nodal
@@ -98,16 +107,32 @@ fn is_plot(name: &str) -> bool {
     name.ends_with(".png") || name.ends_with(".svg")
 }
 
-/// The number NNNNN of a field file `step_NNNNN.vtu` or `revolved_NNNNN.vtu`.
+/// The number NNNNN of a field file `step_NNNNN.vtu` or `revolved_NNNNN.vtu`, or of a shared
+/// run's index `step_NNNNN.pvtu` or piece `step_NNNNN_pRRRR.vtu`.
 fn field_file_index(name: &str) -> Option<usize> {
-    name.strip_prefix("step_")
-        .or_else(|| name.strip_prefix("revolved_"))
-        .and_then(|r| r.strip_suffix(".vtu"))
-        .filter(|d| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit()))
-        .and_then(|d| d.parse().ok())
+    let digits = |d: &str| d.len() == 5 && d.bytes().all(|b| b.is_ascii_digit());
+    fn piece(r: &str) -> Option<&str> {
+        r.strip_suffix(".vtu")
+            .and_then(|r| r.split_once("_p"))
+            .filter(|(_, rank)| rank.len() == 4 && rank.bytes().all(|b| b.is_ascii_digit()))
+            .map(|(d, _)| d)
+    }
+    let step = name.strip_prefix("step_").and_then(|r| {
+        r.strip_suffix(".vtu")
+            .or_else(|| r.strip_suffix(".pvtu"))
+            .filter(|d| digits(d))
+            .or_else(|| piece(r))
+    });
+    step.or_else(|| {
+        name.strip_prefix("revolved_")
+            .and_then(|r| r.strip_suffix(".vtu"))
+    })
+    .filter(|d| digits(d))
+    .and_then(|d| d.parse().ok())
 }
 
-/// Whether a file name is a field file `step_NNNNN.vtu` or `revolved_NNNNN.vtu`.
+/// Whether a file name is a field file `step_NNNNN.vtu`, `revolved_NNNNN.vtu`, or an index
+/// or a piece of a shared run's field file.
 fn is_field_file(name: &str) -> bool {
     field_file_index(name).is_some()
 }
@@ -138,6 +163,74 @@ fn json_number(v: f64) -> Value {
     } else {
         Value::Null
     }
+}
+
+/// Writes this rank's piece `Pieces::file_name(index, rank)` of the field file whose whole-mesh
+/// arrays are `whole`, with a cell array `rank`; with `index_file` (rank 0) also the index
+/// `step_NNNNN.pvtu` over every rank's piece. Returns the name the PVD lists (the index).
+fn write_rank_piece(
+    dir: &Path,
+    pieces: &Pieces,
+    index: usize,
+    whole: &VtuPiece,
+    encoding: Encoding,
+    index_file: bool,
+) -> Result<String, VtuError> {
+    let nodal: Vec<Vec<f64>> = whole
+        .point_data
+        .iter()
+        .map(|a| pieces.node_values(a.values, a.components))
+        .collect();
+    let cells: Vec<Vec<f64>> = whole
+        .cell_data
+        .iter()
+        .map(|a| pieces.cell_values(a.values, a.components))
+        .collect();
+    let rank = vec![pieces.rank as f64; pieces.n_cells()];
+    let mut cell_data: Vec<DataArray> = whole
+        .cell_data
+        .iter()
+        .zip(&cells)
+        .map(|(a, v)| DataArray { values: v, ..*a })
+        .collect();
+    cell_data.push(DataArray {
+        name: "rank",
+        components: 1,
+        values: &rank,
+    });
+    let piece = VtuPiece {
+        points: pieces.points(),
+        cell_type: whole.cell_type,
+        connectivity: pieces.connectivity(),
+        point_data: whole
+            .point_data
+            .iter()
+            .zip(&nodal)
+            .map(|(a, v)| DataArray { values: v, ..*a })
+            .collect(),
+        cell_data,
+    };
+    write_vtu_as(
+        &dir.join(Pieces::file_name(index, pieces.rank)),
+        &piece,
+        encoding,
+    )?;
+    let name = format!("step_{index:05}.pvtu");
+    if index_file {
+        fn list<'a>(arrays: &[DataArray<'a>]) -> Vec<(&'a str, usize)> {
+            arrays.iter().map(|a| (a.name, a.components)).collect()
+        }
+        let files: Vec<String> = (0..pieces.ranks)
+            .map(|r| Pieces::file_name(index, r))
+            .collect();
+        write_pvtu(
+            &dir.join(&name),
+            &files,
+            &list(&piece.point_data),
+            &list(&piece.cell_data),
+        )?;
+    }
+    Ok(name)
 }
 
 impl OutputWriter {
@@ -233,6 +326,8 @@ impl OutputWriter {
             overrides: Vec::new(),
             path: Vec::new(),
             limits: Vec::new(),
+            pieces: None,
+            piece_only: false,
         };
         for sub in ["fields", "plots"] {
             let d = dir.join(sub);
@@ -241,6 +336,14 @@ impl OutputWriter {
             }
         }
         Ok(w)
+    }
+
+    /// Writes the field files in pieces, one per MPI rank (this rank's `pieces`); rank 0 also
+    /// writes the `.pvtu` index of each and everything else, another rank (`piece_only`) only
+    /// its pieces. The ranks must share the output directory.
+    pub fn split_fields(&mut self, pieces: Pieces, piece_only: bool) {
+        self.pieces = Some(pieces);
+        self.piece_only = piece_only;
     }
 
     /// Records a file that could not be written.
@@ -477,16 +580,29 @@ impl OutputWriter {
             }
         }
         // the section and its revolved view are independent files: written side by side
-        let path = self.dir.join("fields").join(&name);
+        let fields_dir = self.dir.join("fields");
         let (written, revolved) = rayon::join(
-            || write_vtu_as(&path, &piece, encoding),
-            || self.write_revolved(plan, index, &section, encoding),
+            || match &self.pieces {
+                Some(p) => {
+                    write_rank_piece(&fields_dir, p, index, &piece, encoding, !self.piece_only)
+                }
+                None => write_vtu_as(&fields_dir.join(&name), &piece, encoding).map(|()| name),
+            },
+            || {
+                if self.piece_only {
+                    None
+                } else {
+                    self.write_revolved(plan, index, &section, encoding)
+                }
+            },
         );
         match written {
-            Ok(()) => {
-                self.pvd.push((record.time, format!("fields/{name}")));
-                if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
-                    self.vtu_error(e);
+            Ok(file) => {
+                self.pvd.push((record.time, format!("fields/{file}")));
+                if !self.piece_only {
+                    if let Err(e) = write_pvd(&self.dir.join("fields.pvd"), &self.pvd) {
+                        self.vtu_error(e);
+                    }
                 }
                 self.last_written_step = Some(self.steps_seen);
                 match revolved {
@@ -947,6 +1063,9 @@ impl OutputWriter {
 
 impl Observer for OutputWriter {
     fn modes(&mut self, plan: &Plan, stage: &str, state: &[f64], modes: &[Mode]) {
+        if self.piece_only {
+            return;
+        }
         let stem = self.linear_stem("modes", stage);
         if let Err(e) = write_modes(plan, &self.dir, &stem, state, modes) {
             self.failed(e);
@@ -954,6 +1073,9 @@ impl Observer for OutputWriter {
     }
 
     fn frequency_response(&mut self, plan: &Plan, stage: &str, response: &FrequencyResponse) {
+        if self.piece_only {
+            return;
+        }
         let stem = self.linear_stem("frequency_response", stage);
         self.responses
             .push((stage.to_string(), response.electrode.clone(), response.bias));
@@ -998,7 +1120,9 @@ impl Observer for OutputWriter {
         }
         self.steps_seen += 1;
         self.last_state = Some((record.clone(), state.to_vec(), fields.to_vec()));
-        if self.steps_seen == 1 || self.last_flush.elapsed().as_secs_f64() > 2.0 {
+        if !self.piece_only
+            && (self.steps_seen == 1 || self.last_flush.elapsed().as_secs_f64() > 2.0)
+        {
             self.write_history(plan);
             self.write_running_summary(plan);
         }
@@ -1030,8 +1154,9 @@ impl Observer for OutputWriter {
             let stage_end = records.get(i + 1).is_some_and(|n| n.stage != r.stage);
             if every > 0 && (i.is_multiple_of(every) || stage_end) {
                 let index = self.pvd.len();
+                let ext = if self.pieces.is_some() { "pvtu" } else { "vtu" };
                 self.pvd
-                    .push((r.time, format!("fields/step_{index:05}.vtu")));
+                    .push((r.time, format!("fields/step_{index:05}.{ext}")));
                 // the revolved view of the files the earlier run wrote
                 let revolved = format!("fields/revolved_{index:05}.vtu");
                 if plan.output.revolve.is_some() && self.dir.join(&revolved).is_file() {
@@ -1039,6 +1164,10 @@ impl Observer for OutputWriter {
                 }
                 self.last_written_step = Some(i);
             }
+        }
+        // another rank's writer leaves the directory to rank 0's
+        if self.piece_only {
+            return;
         }
         if let Ok(entries) = std::fs::read_dir(self.dir.join("fields")) {
             for e in entries.flatten() {
@@ -1063,7 +1192,11 @@ impl Observer for OutputWriter {
     }
 
     fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
-        self.finished_summary(plan, summary);
+        if self.piece_only {
+            self.write_last_fields(plan);
+        } else {
+            self.finished_summary(plan, summary);
+        }
     }
 }
 
@@ -1088,13 +1221,17 @@ impl OutputWriter {
         }
     }
 
-    fn finished_summary(&mut self, plan: &Plan, summary: &RunSummary) {
-        // the last converged state is always in the field files
+    /// The last converged state is always in the field files.
+    fn write_last_fields(&mut self, plan: &Plan) {
         if self.last_written_step != Some(self.steps_seen.saturating_sub(1)) {
             if let Some((r, s, f)) = self.last_state.take() {
                 self.write_fields(plan, &r, &s, &f);
             }
         }
+    }
+
+    fn finished_summary(&mut self, plan: &Plan, summary: &RunSummary) {
+        self.write_last_fields(plan);
         self.write_history(plan);
         if !self.path.is_empty() {
             let path = self.dir.join("path.csv");
@@ -1114,6 +1251,29 @@ impl OutputWriter {
         let text = serde_json::to_string_pretty(&json).unwrap_or_else(|_| "{}".into());
         if let Err(e) = write_atomic(&self.dir.join("summary.json"), text.as_bytes()) {
             self.failed(format!("{}: {e}", self.dir.join("summary.json").display()));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The field files a run may leave, serial and shared: each with its index; nothing else.
+    #[test]
+    fn field_file_names() {
+        for (name, index) in [
+            ("step_00012.vtu", Some(12)),
+            ("revolved_00003.vtu", Some(3)),
+            ("step_00012.pvtu", Some(12)),
+            ("step_00012_p0001.vtu", Some(12)),
+            ("step_00012_p01.vtu", None),
+            ("step_0012.vtu", None),
+            ("revolved_00003.pvtu", None),
+            ("step_00012_p0001.pvtu", None),
+            ("notes.vtu", None),
+        ] {
+            assert_eq!(field_file_index(name), index, "{name}");
         }
     }
 }

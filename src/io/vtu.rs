@@ -1,4 +1,5 @@
-//! ParaView output: VTK XML UnstructuredGrid (`.vtu`) files and `.pvd` time collections.
+//! ParaView output: VTK XML UnstructuredGrid (`.vtu`) files, their parallel index (`.pvtu`, one
+//! piece per MPI rank) and `.pvd` time collections.
 //!
 //! Files are VTK XML, version 0.1, little endian, with the arrays in one of three encodings
 //! ([`Encoding`]): `binary` (the default: each array base64-encoded after a UInt64 byte count,
@@ -296,6 +297,61 @@ pub fn write_pvd(path: &Path, entries: &[(f64, String)]) -> Result<(), VtuError>
     })
 }
 
+/// Writes a parallel unstructured-grid index (`.pvtu`, VTK's `PUnstructuredGrid`) over the
+/// `.vtu` files `pieces` (names relative to the index's directory), which all hold the
+/// `Float64` point arrays `point_data` and cell arrays `cell_data` (name, components). ParaView
+/// reads the pieces as one data set.
+pub fn write_pvtu(
+    path: &Path,
+    pieces: &[String],
+    point_data: &[(&str, usize)],
+    cell_data: &[(&str, usize)],
+) -> Result<(), VtuError> {
+    if let Some(index) = pieces.iter().position(|p| p.is_empty()) {
+        return Err(VtuError::InvalidPvdEntry {
+            path: path.to_path_buf(),
+            index,
+            reason: "empty piece file name".into(),
+        });
+    }
+    let arrays = |w: &mut dyn Write, tag: &str, list: &[(&str, usize)]| -> io::Result<()> {
+        writeln!(w, "    <{tag}>")?;
+        for (name, components) in list {
+            writeln!(
+                w,
+                "      <PDataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{components}\"/>",
+                xml_escape(name)
+            )?;
+        }
+        writeln!(w, "    </{tag}>")
+    };
+    write_atomic_with(path, |w| {
+        writeln!(w, "<?xml version=\"1.0\"?>")?;
+        writeln!(
+            w,
+            "<VTKFile type=\"PUnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\" header_type=\"UInt64\">"
+        )?;
+        writeln!(w, "  <PUnstructuredGrid GhostLevel=\"0\">")?;
+        arrays(w, "PPointData", point_data)?;
+        arrays(w, "PCellData", cell_data)?;
+        writeln!(w, "    <PPoints>")?;
+        writeln!(
+            w,
+            "      <PDataArray type=\"Float64\" NumberOfComponents=\"3\"/>"
+        )?;
+        writeln!(w, "    </PPoints>")?;
+        for p in pieces {
+            writeln!(w, "    <Piece Source=\"{}\"/>", xml_escape(p))?;
+        }
+        writeln!(w, "  </PUnstructuredGrid>")?;
+        writeln!(w, "</VTKFile>")
+    })
+    .map_err(|source| VtuError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
 /// Shortest round-trip representation; plain decimal for ordinary magnitudes, exponent form
 /// otherwise (Rust's `Display` never uses an exponent, which is unreadable for 1e-9).
 fn format_time(t: f64) -> String {
@@ -570,6 +626,47 @@ pub fn read_vtu(path: &Path) -> Result<VtuData, VtuError> {
         path: path.to_path_buf(),
         reason,
     })
+}
+
+/// Reads a `.pvtu` index as [`write_pvtu`] writes it and every piece it lists (with
+/// [`read_vtu`], paths relative to the index's directory), in the index's order.
+pub fn read_pvtu(path: &Path) -> Result<Vec<VtuData>, VtuError> {
+    let parse = |reason: String| VtuError::Parse {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let text = std::fs::read_to_string(path).map_err(|source| VtuError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut sc = Scanner::new(&text);
+    let mut sources = Vec::new();
+    let mut root = false;
+    while let Some(tok) = sc.next_token().map_err(parse)? {
+        if let Token::Start { name, attrs, .. } = tok {
+            match name {
+                "VTKFile" => {
+                    let kind = attrs.iter().find(|(n, _)| *n == "type").map(|(_, v)| v);
+                    if kind.map(String::as_str) != Some("PUnstructuredGrid") {
+                        return Err(parse(format!(
+                            "VTKFile type is {kind:?}, expected \"PUnstructuredGrid\""
+                        )));
+                    }
+                    root = true;
+                }
+                "Piece" => match attrs.into_iter().find(|(n, _)| *n == "Source") {
+                    Some((_, source)) => sources.push(source),
+                    None => return Err(parse(sc.err("a Piece without a Source"))),
+                },
+                _ => {}
+            }
+        }
+    }
+    if !root || sources.is_empty() {
+        return Err(parse("no PUnstructuredGrid with pieces".into()));
+    }
+    let dir = path.parent().unwrap_or(Path::new("."));
+    sources.iter().map(|s| read_vtu(&dir.join(s))).collect()
 }
 
 /// A start tag, end tag or text run of the XML stream.
@@ -1318,6 +1415,57 @@ mod tests {
             ]);
         }
         (points, conn)
+    }
+
+    /// A `.pvtu` index over two one-cell pieces: the reader finds both pieces, in order, with
+    /// their arrays; an index of another type or without pieces is refused.
+    #[test]
+    fn pvtu_index_lists_its_pieces() {
+        let dir = scratch_dir("pvtu");
+        let (points, conn) = two_hex_mesh();
+        for (r, cell) in conn.chunks(8).enumerate() {
+            let phi: Vec<f64> = (0..points.len()).map(|n| (n + r) as f64).collect();
+            let j = [1.0 + r as f64];
+            let piece = VtuPiece {
+                points: &points,
+                cell_type: CellType::Hex8,
+                connectivity: cell,
+                point_data: vec![DataArray {
+                    name: "potential",
+                    components: 1,
+                    values: &phi,
+                }],
+                cell_data: vec![DataArray {
+                    name: "J",
+                    components: 1,
+                    values: &j,
+                }],
+            };
+            write_vtu(&dir.join(format!("p{r}.vtu")), &piece).unwrap();
+        }
+        let index = dir.join("all.pvtu");
+        let names = vec!["p0.vtu".to_string(), "p1.vtu".to_string()];
+        write_pvtu(&index, &names, &[("potential", 1)], &[("J", 1)]).unwrap();
+        let text = fs::read_to_string(&index).unwrap();
+        assert!(text.contains("PUnstructuredGrid") && text.contains("Name=\"J\""));
+        let pieces = read_pvtu(&index).unwrap();
+        assert_eq!(pieces.len(), 2);
+        for (r, p) in pieces.iter().enumerate() {
+            assert_eq!(p.cell_data["J"].1, vec![1.0 + r as f64]);
+            assert_eq!(p.point_data["potential"].1[0], r as f64);
+        }
+        assert!(write_pvtu(&index, &[String::new()], &[], &[]).is_err());
+        fs::write(
+            dir.join("bad.pvtu"),
+            "<VTKFile type=\"UnstructuredGrid\"></VTKFile>",
+        )
+        .unwrap();
+        let e = read_pvtu(&dir.join("bad.pvtu")).unwrap_err().to_string();
+        assert!(
+            e.contains("bad.pvtu") && e.contains("PUnstructuredGrid"),
+            "{e}"
+        );
+        let _ = fs::remove_dir_all(&dir);
     }
 
     /// Values that stress round-tripping: irrational-ish, tiny, huge, negative zero.
