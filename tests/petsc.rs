@@ -267,20 +267,25 @@ fn pieced_arrays(pvtu: &Path, whole: &VtuData, ranks: usize) -> Vec<(String, Vec
     out
 }
 
-/// Runs deasim with `args` in `dir` under `mpirun -np ranks`.
-fn mpirun(ranks: usize, dir: &Path, args: &[&str]) -> std::process::Output {
-    let mut mpirun = Command::new("mpirun");
-    // this test process may itself be an MPI singleton (PETSc initialised by the other tests):
-    // its launcher variables would make mpirun think it is nested
+/// `command` without the MPI variables of this test process, which may itself be an MPI
+/// singleton (PETSc initialised by the other tests): they would make mpirun think it is nested,
+/// and a child deasim think it was launched.
+fn without_mpi_variables(command: &mut Command) -> &mut Command {
     for (k, _) in std::env::vars() {
         if ["OMPI_", "PMIX_", "ORTE_", "OPAL_", "PMI_"]
             .iter()
             .any(|p| k.starts_with(p))
         {
-            mpirun.env_remove(k);
+            command.env_remove(k);
         }
     }
-    mpirun
+    command
+}
+
+/// Runs deasim with `args` in `dir` under `mpirun -np ranks`.
+fn mpirun(ranks: usize, dir: &Path, args: &[&str]) -> std::process::Output {
+    let mut mpirun = Command::new("mpirun");
+    without_mpi_variables(&mut mpirun)
         .args(["--oversubscribe", "-np", &ranks.to_string()])
         .arg(env!("CARGO_BIN_EXE_deasim"))
         .args(args)
@@ -653,6 +658,44 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
             let last = last_fields(&out, "pvtu");
             assert_eq!(read_pvtu(&last).unwrap().len(), 3);
         }
+    }
+    // a run begun in one process and resumed on 2 ranks: the collection lists the whole files
+    // before the checkpoint and the indexes after it, and every file it lists exists
+    let one = without_mpi_variables(&mut Command::new(env!("CARGO_BIN_EXE_deasim")))
+        .args([
+            "run",
+            "petsc.toml",
+            "--out",
+            "one",
+            "--checkpoint-every",
+            "4",
+        ])
+        .args(["--set", "output.plots=false"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(one.status.success(), "{}", log(&one));
+    let mut ck: Vec<_> = std::fs::read_dir(dir.join("one/checkpoint"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    ck.sort();
+    std::fs::remove_file(&ck[1]).unwrap();
+    std::fs::remove_file(dir.join("one/summary.json")).unwrap();
+    let resumed = mpirun(2, &dir, &["run", "--resume", "one"]);
+    assert!(resumed.status.success(), "{}", log(&resumed));
+    assert!(log(&resumed).contains("written on 1 MPI rank(s), this run has 2"));
+    let pvd = std::fs::read_to_string(dir.join("one/fields.pvd")).unwrap();
+    let files: Vec<&str> = pvd
+        .split("file=\"")
+        .skip(1)
+        .map(|t| t.split('"').next().unwrap())
+        .collect();
+    assert_eq!(files.len(), 16, "{pvd}");
+    assert!(files[..9].iter().all(|f| f.ends_with(".vtu")), "{pvd}");
+    assert!(files[9..].iter().all(|f| f.ends_with(".pvtu")), "{pvd}");
+    for f in files {
+        assert!(dir.join("one").join(f).is_file(), "{f}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1154,9 +1154,15 @@ impl Observer for OutputWriter {
             let stage_end = records.get(i + 1).is_some_and(|n| n.stage != r.stage);
             if every > 0 && (i.is_multiple_of(every) || stage_end) {
                 let index = self.pvd.len();
-                let ext = if self.pieces.is_some() { "pvtu" } else { "vtu" };
-                self.pvd
-                    .push((r.time, format!("fields/step_{index:05}.{ext}")));
+                // a shared run's index, or the whole file (the part before the checkpoint may
+                // have run on one rank)
+                let pvtu = format!("fields/step_{index:05}.pvtu");
+                let file = if self.dir.join(&pvtu).is_file() {
+                    pvtu
+                } else {
+                    format!("fields/step_{index:05}.vtu")
+                };
+                self.pvd.push((r.time, file));
                 // the revolved view of the files the earlier run wrote
                 let revolved = format!("fields/revolved_{index:05}.vtu");
                 if plan.output.revolve.is_some() && self.dir.join(&revolved).is_file() {
