@@ -534,10 +534,21 @@ fn pull_in_is_found_on_two_mpi_ranks() {
     assert!(d < 1e-10, "{d:e}");
 }
 
+/// The checkpoint files of run directory `out`, oldest first.
+fn checkpoints(out: &Path) -> Vec<std::path::PathBuf> {
+    let mut ck: Vec<_> = std::fs::read_dir(out.join("checkpoint"))
+        .unwrap_or_else(|e| panic!("{}: {e}", out.display()))
+        .map(|e| e.unwrap().path())
+        .collect();
+    ck.sort();
+    ck
+}
+
 /// A run on 2 ranks with checkpoints, cut back to its older checkpoint as a killed run would
 /// leave it (newer rows and field files, a stale piece), resumed under `mpirun -np 2`: it ends
 /// with the uninterrupted run's history and field files (the same `.pvtu` indexes, every rank's
-/// pieces with the same values to round-off). Resuming on 3 ranks works too, with a warning.
+/// pieces with the same values to round-off). Resuming on 3 ranks works too, with a warning, and
+/// so does a run begun in one process and resumed on 2 ranks.
 #[test]
 fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
     let dir = common::tempdir("petsc-mpi-resume");
@@ -565,11 +576,7 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
     );
     let log = |o: &std::process::Output| String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(full.status.success(), "{}", log(&full));
-    let mut ck: Vec<_> = std::fs::read_dir(dir.join("full/checkpoint"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    ck.sort();
+    let ck = checkpoints(&dir.join("full"));
     assert_eq!(ck.len(), 2, "{ck:?}");
     for (cut, ranks) in [("cut2", 2), ("cut3", 3)] {
         let out = dir.join(cut);
@@ -675,11 +682,8 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
         .output()
         .unwrap();
     assert!(one.status.success(), "{}", log(&one));
-    let mut ck: Vec<_> = std::fs::read_dir(dir.join("one/checkpoint"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    ck.sort();
+    let ck = checkpoints(&dir.join("one"));
+    assert_eq!(ck.len(), 2, "{ck:?}");
     std::fs::remove_file(&ck[1]).unwrap();
     std::fs::remove_file(dir.join("one/summary.json")).unwrap();
     let resumed = mpirun(2, &dir, &["run", "--resume", "one"]);

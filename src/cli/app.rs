@@ -434,15 +434,15 @@ fn ranks_agree(ok: bool) -> bool {
     #[cfg(feature = "petsc")]
     {
         let mut failed = [if ok { 0.0 } else { 1.0 }];
-        return match crate::solve::petsc::sum_over_ranks(&mut failed) {
+        match crate::solve::petsc::sum_over_ranks(&mut failed) {
             Ok(()) => failed[0] == 0.0,
             Err(e) => {
                 eprintln!("error: {e}");
                 false
             }
-        };
+        }
     }
-    #[allow(unreachable_code)]
+    #[cfg(not(feature = "petsc"))]
     ok
 }
 
