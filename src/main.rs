@@ -248,7 +248,7 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         #[arg(long, default_value_t = 1_100_000)]
         max_dofs: usize,
         /// The largest factor (bytes) a direct solver may hold in the scaling table (default: 80 %
-        /// of the memory available); `auto` switches to MINRES above it.
+        /// of the memory available); `auto` switches to `iterative` above it.
         #[arg(long)]
         memory_limit: Option<usize>,
         /// Seconds after which one mesh of the scaling table is stopped.

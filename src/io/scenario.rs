@@ -107,7 +107,7 @@ pub struct SolverSpec {
     pub precision: Option<String>,
     /// PETSc options of the `petsc` solver, e.g. `"-ksp_type minres -pc_type jacobi"`.
     pub petsc_options: Option<String>,
-    /// `iterative` (and `auto` once it has switched to MINRES): the relative residual of each
+    /// `iterative` (and `auto` once it has switched to it): the relative residual of each
     /// linear solve (default 1e-8).
     pub rtol: Option<f64>,
     /// `auto`, `direct`: the largest sparse factor to hold, bytes (default: 80 % of the memory

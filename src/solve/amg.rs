@@ -1,6 +1,7 @@
 //! Smoothed-aggregation algebraic multigrid (SA-AMG): a symmetric positive definite
-//! preconditioner for the displacement block (elasticity) and the potential block (a scalar,
-//! Laplacian-like operator) of the tangent, for use inside CG or MINRES.
+//! preconditioner for elasticity or a scalar, Laplacian-like operator, for use inside CG or
+//! MINRES, and (with [`AmgParams::indefinite`]) a preconditioner of the whole coupled,
+//! symmetric indefinite tangent for flexible GMRES.
 //!
 //! The method is that of Vaněk, Mandel & Brezina, "Algebraic multigrid by smoothed aggregation
 //! for second and fourth order elliptic problems", Computing 56 (1996) 179–196: nodes are grouped
@@ -62,6 +63,12 @@ pub struct AmgParams {
     pub coarse_size: usize,
     /// Largest coarsest level accepted for the dense factorisation (when coarsening stalls).
     pub max_dense_size: usize,
+    /// Accept a symmetric indefinite matrix with a nonzero diagonal of either sign (a coupled
+    /// saddle-point tangent): the smoother and the prolongator smoothing then use the signed
+    /// diagonal, whose scaled operator |D|⁻¹ S A has its spectrum in the disc of radius
+    /// ‖|D|^{-1/2} A |D|^{-1/2}‖ (S the signs), and the coarsest level is factored by LBLᵀ.
+    /// The cycle is then not symmetric: use it in flexible GMRES.
+    pub indefinite: bool,
 }
 
 impl Default for AmgParams {
@@ -75,6 +82,7 @@ impl Default for AmgParams {
             max_levels: 12,
             coarse_size: 2000,
             max_dense_size: 6000,
+            indefinite: false,
         }
     }
 }
@@ -385,7 +393,7 @@ fn product<IA: Idx, IB: Idx>(
 // ---------------------------------------------------------------------------------------------
 // Input checks
 
-fn check_matrix(a: &CsrMatrix) -> Result<(), AmgError> {
+fn check_matrix(a: &CsrMatrix, indefinite: bool) -> Result<(), AmgError> {
     let n = a.n;
     if n == 0 {
         return Err(AmgError::Empty);
@@ -434,7 +442,7 @@ fn check_matrix(a: &CsrMatrix) -> Result<(), AmgError> {
             }
         }
         let d = diag.unwrap_or(0.0);
-        if d <= 0.0 {
+        if d <= 0.0 && !(indefinite && d < 0.0) {
             return Err(AmgError::NonPositiveDiagonal { row: i, value: d });
         }
     }
@@ -693,8 +701,18 @@ where
 }
 
 /// Largest eigenvalue of D⁻¹A (self-adjoint in the D inner product) by a few Lanczos steps from a
-/// fixed start vector: the largest Ritz value, an estimate from below.
-fn lambda_max(op: Op<'_>, dinv: &[f64], steps: usize) -> f64 {
+/// fixed start vector: the largest Ritz value, an estimate from below. With `indefinite`, the
+/// Lanczos process runs on |D|⁻¹A in the |D| inner product and the largest Ritz value in
+/// magnitude is returned: it bounds the spectral radius of the signed D⁻¹A (see
+/// [`AmgParams::indefinite`]).
+fn lambda_max(op: Op<'_>, dinv: &[f64], steps: usize, indefinite: bool) -> f64 {
+    let absolute: Vec<f64>;
+    let dinv = if indefinite {
+        absolute = dinv.iter().map(|d| d.abs()).collect();
+        &absolute[..]
+    } else {
+        dinv
+    };
     let n = op.n();
     let steps = steps.min(n);
     // deterministic pseudo-random start (a hash of the index), D-normalised
@@ -743,7 +761,14 @@ fn lambda_max(op: Op<'_>, dinv: &[f64], steps: usize) -> f64 {
             v[i] = w[i] / b;
         }
     }
-    tridiagonal_max_eigenvalue(&alpha, &beta)
+    let top = tridiagonal_max_eigenvalue(&alpha, &beta);
+    if indefinite {
+        let negated: Vec<f64> = alpha.iter().map(|a| -a).collect();
+        top.abs()
+            .max(tridiagonal_max_eigenvalue(&negated, &beta).abs())
+    } else {
+        top
+    }
 }
 
 /// Largest eigenvalue of the symmetric tridiagonal matrix (diagonal `a`, off-diagonal `b`) by
@@ -800,15 +825,17 @@ struct Smoother {
     hi: f64,
 }
 
-/// The dense Cholesky factor of the coarsest operator, row-major lower triangle.
+/// The dense factor of the coarsest operator: Cholesky (row-major lower triangle `l`) for a
+/// positive definite level, LBLᵀ (Bunch–Kaufman) for an indefinite one.
 struct CoarseSolver {
     n: usize,
     l: Vec<f64>,
     shift: f64,
+    lblt: Option<faer::linalg::solvers::Lblt<f64>>,
 }
 
 impl CoarseSolver {
-    fn new<I: Idx>(a: View<'_, I>) -> Result<CoarseSolver, AmgError> {
+    fn new<I: Idx>(a: View<'_, I>, indefinite: bool) -> Result<CoarseSolver, AmgError> {
         let n = a.nrows;
         let mut dense = Mat::<f64>::zeros(n, n);
         let mut dmax = 0.0f64;
@@ -816,7 +843,23 @@ impl CoarseSolver {
             for p in a.row_ptr[i]..a.row_ptr[i + 1] {
                 dense[(i, a.col[p].ix())] = a.val[p];
             }
-            dmax = dmax.max(dense[(i, i)]);
+            dmax = dmax.max(dense[(i, i)].abs());
+        }
+        if indefinite {
+            use faer::linalg::solvers::Solve;
+            let lblt = dense.lblt(faer::Side::Lower);
+            // a singular level shows as a non-finite solution of a test right-hand side
+            let mut probe = Mat::<f64>::from_fn(n, 1, |i, _| 1.0 + (i % 7) as f64);
+            lblt.solve_in_place(probe.as_mut());
+            if (0..n).any(|i| !probe[(i, 0)].is_finite()) {
+                return Err(AmgError::CoarseFactorisation { n });
+            }
+            return Ok(CoarseSolver {
+                n,
+                l: Vec::new(),
+                shift: 0.0,
+                lblt: Some(lblt),
+            });
         }
         let params = Spec::<LltParams, f64>::default();
         let mut mem = MemBuffer::new(
@@ -851,15 +894,23 @@ impl CoarseSolver {
                     n,
                     l,
                     shift: shift * dmax,
+                    lblt: None,
                 });
             }
         }
         Err(AmgError::CoarseFactorisation { n })
     }
 
-    /// x = (L Lᵀ)⁻¹ b.
+    /// x = (L Lᵀ)⁻¹ b, or the LBLᵀ solve.
     fn solve(&self, b: &[f64], x: &mut [f64]) {
         let n = self.n;
+        if let Some(lblt) = &self.lblt {
+            use faer::linalg::solvers::Solve;
+            let mut rhs = faer::MatMut::from_column_major_slice_mut(x, n, 1);
+            rhs.copy_from(faer::MatRef::from_column_major_slice(b, n, 1));
+            lblt.solve_in_place(rhs);
+            return;
+        }
         for i in 0..n {
             let row = &self.l[i * n..i * n + i];
             let s: f64 = row.iter().zip(&x[..i]).map(|(l, y)| l * y).sum();
@@ -972,7 +1023,7 @@ impl<'a> Amg<'a> {
     ) -> Result<Amg<'a>, AmgError> {
         let a: &CsrMatrix = &fine;
         check_params(params)?;
-        check_matrix(a)?;
+        check_matrix(a, params.indefinite)?;
         let n = a.n;
         if block == 0 || !n.is_multiple_of(block) {
             return Err(AmgError::BlockSize { n, block });
@@ -1048,8 +1099,8 @@ impl<'a> Amg<'a> {
             } else {
                 tentative(nl, level_block, k, &agg, n_agg, |i, j| coarse_nn[i * k + j])
             };
-            let dinv = diagonal_inverse(op);
-            let rho = lambda_max(op, &dinv, params.lanczos_steps);
+            let dinv = diagonal_inverse(op, params.indefinite);
+            let rho = lambda_max(op, &dinv, params.lanczos_steps, params.indefinite);
             // P = (I − ω D⁻¹A) P_tent with ω = 4 / (3 ρ(D⁻¹A))
             let omega = 4.0 / (3.0 * rho);
             let scale: Vec<f64> = dinv.iter().map(|d| -omega * d).collect();
@@ -1092,8 +1143,8 @@ impl<'a> Amg<'a> {
             });
         }
         let coarse = match ops.last() {
-            None => CoarseSolver::new(fine_view)?,
-            Some(c) => CoarseSolver::new(c.view())?,
+            None => CoarseSolver::new(fine_view, params.indefinite)?,
+            Some(c) => CoarseSolver::new(c.view(), params.indefinite)?,
         };
         let work = info
             .iter()
@@ -1196,15 +1247,16 @@ impl<'a> Amg<'a> {
     }
 }
 
-/// Inverse of the diagonal of a level operator.
-fn diagonal_inverse(op: Op<'_>) -> Vec<f64> {
-    fn diag<I: Idx>(a: View<'_, I>) -> Vec<f64> {
+/// Inverse of the diagonal of a level operator (0 where the diagonal is zero, or not positive
+/// unless `indefinite`).
+fn diagonal_inverse(op: Op<'_>, indefinite: bool) -> Vec<f64> {
+    fn diag<I: Idx>(a: View<'_, I>, indefinite: bool) -> Vec<f64> {
         (0..a.nrows)
             .map(|i| {
                 let cols = &a.col[a.row_ptr[i]..a.row_ptr[i + 1]];
                 let p = cols.iter().position(|c| c.ix() == i);
                 let d = p.map_or(0.0, |p| a.val[a.row_ptr[i] + p]);
-                if d > 0.0 {
+                if d > 0.0 || (indefinite && d < 0.0) {
                     1.0 / d
                 } else {
                     0.0
@@ -1213,8 +1265,8 @@ fn diagonal_inverse(op: Op<'_>) -> Vec<f64> {
             .collect()
     }
     match op {
-        Op::Fine(v) => diag(v),
-        Op::Coarse(v) => diag(v),
+        Op::Fine(v) => diag(v, indefinite),
+        Op::Coarse(v) => diag(v, indefinite),
     }
 }
 
@@ -1888,6 +1940,76 @@ mod tests {
             msg.contains("3 entries") && msg.contains("64 rows"),
             "{msg}"
         );
+    }
+    #[test]
+    fn an_indefinite_matrix_needs_the_indefinite_setting() {
+        // a Laplacian block coupled weakly to a negative definite one: node-major, two unknowns
+        // per node (a stand-in for displacement and potential)
+        let m = 30;
+        let mut rows = vec![Vec::new(); 2 * m];
+        for i in 0..m {
+            for (f, sign) in [(0, 1.0), (1, -1.0)] {
+                let r = 2 * i + f;
+                rows[r].push((r, sign * 2.0));
+                if i > 0 {
+                    rows[r].push((r - 2, -sign));
+                }
+                if i + 1 < m {
+                    rows[r].push((r + 2, -sign));
+                }
+                rows[r].push((2 * i + 1 - f, 0.1));
+            }
+            rows[2 * i].sort_by_key(|e| e.0);
+            rows[2 * i + 1].sort_by_key(|e| e.0);
+        }
+        let a = csr_from_rows(rows);
+        let modes = vec![
+            (0..2 * m)
+                .map(|r| if r % 2 == 0 { 1.0 } else { 0.0 })
+                .collect::<Vec<_>>(),
+            (0..2 * m)
+                .map(|r| if r % 2 == 1 { 1.0 } else { 0.0 })
+                .collect(),
+        ];
+        let params = AmgParams {
+            coarse_size: 8,
+            ..test_params()
+        };
+        assert!(matches!(
+            Amg::new(&a, 2, &modes, &params),
+            Err(AmgError::NonPositiveDiagonal { row: 1, .. })
+        ));
+        let indefinite = AmgParams {
+            indefinite: true,
+            ..params
+        };
+        let amg = Amg::new(&a, 2, &modes, &indefinite).unwrap();
+        assert!(amg.levels() >= 2, "{amg:?}");
+        // the spectral radius bound covers both signs: |D|^(-1/2) A |D|^(-1/2) has eigenvalues
+        // near ±2 here, so ρ > 1.5
+        assert!(amg.level_info()[0].rho > 1.5, "{:?}", amg.level_info());
+        // as the preconditioner of flexible GMRES it solves to the tolerance
+        let b: Vec<f64> = (0..2 * m).map(|i| ((i * 5) % 7) as f64 - 3.0).collect();
+        let mut x = vec![0.0; 2 * m];
+        let report = crate::solve::krylov::fgmres(
+            |v, y| a.mul_vec(v, y),
+            |r, z| amg.apply(r, z),
+            &b,
+            &mut x,
+            &crate::solve::krylov::KrylovSettings {
+                rtol: 1e-10,
+                max_iterations: 100,
+                restart: 50,
+            },
+        );
+        assert!(report.converged && report.iterations < 30, "{report:?}");
+        let mut ax = vec![0.0; 2 * m];
+        a.mul_vec(&x, &mut ax);
+        let res = ax
+            .iter()
+            .zip(&b)
+            .fold(0.0f64, |s, (p, q)| s.max((p - q).abs()));
+        assert!(res < 1e-8, "{res:e}");
     }
 
     #[test]

@@ -1,27 +1,27 @@
 //! The `auto` solver: a sparse LDLᵀ (reused across Newton iterations from a size on) while its
-//! factor fits in memory, block-preconditioned MINRES once it does not.
+//! factor fits in memory, FGMRES with a coupled AMG preconditioner once it does not.
 //!
 //! The size of the factor is known exactly after the symbolic analysis, before any numeric work:
 //! the factorisation refuses to start when it exceeds the memory limit
 //! ([`LinearSolverError::OutOfMemory`]), and from then on this solver hands every system to
-//! [`BlockMinres`], whose memory is linear in the unknowns.
+//! [`AmgGmres`], whose memory is linear in the unknowns.
 
-use super::iterative::BlockMinres;
+use super::iterative::AmgGmres;
 use super::linear::{Inertia, LinearSolver, LinearSolverError, SolverStats};
 use super::reused::ReusedLdlt;
 use crate::problem::assembly::CsrMatrix;
 use crate::problem::system::DofLayout;
 
-/// A reused LDLᵀ that gives way to MINRES when its factor would not fit.
+/// A reused LDLᵀ that gives way to FGMRES with AMG when its factor would not fit.
 pub struct AutoSolver {
     direct: ReusedLdlt,
-    iterative: Option<BlockMinres>,
+    iterative: Option<AmgGmres>,
     rtol: f64,
     layout: Option<DofLayout>,
 }
 
 impl AutoSolver {
-    /// `direct` until its factor would not fit; then MINRES to `rtol`.
+    /// `direct` until its factor would not fit; then FGMRES with AMG to `rtol`.
     pub fn new(direct: ReusedLdlt, rtol: f64) -> Self {
         AutoSolver {
             direct,
@@ -31,13 +31,13 @@ impl AutoSolver {
         }
     }
 
-    /// Whether the solver has switched to MINRES.
+    /// Whether the solver has switched to the iterative solver.
     pub fn is_iterative(&self) -> bool {
         self.iterative.is_some()
     }
 
     /// Runs `f` on the active solver; when the direct one reports that its factor does not fit,
-    /// switches to MINRES (if the system's layout is known) and runs `f` on it.
+    /// switches to FGMRES with AMG (if the system's layout is known) and runs `f` on it.
     fn with_active<T>(
         &mut self,
         mut f: impl FnMut(&mut dyn LinearSolver) -> Result<T, LinearSolverError>,
@@ -50,8 +50,8 @@ impl AutoSolver {
                 let Some(layout) = self.layout.clone() else {
                     return Err(e);
                 };
-                eprintln!("deasim: {e}: switching to MINRES with block AMG");
-                let mut it = BlockMinres::new(self.rtol);
+                eprintln!("deasim: {e}: switching to FGMRES with coupled AMG");
+                let mut it = AmgGmres::new(self.rtol);
                 it.set_layout(layout);
                 let out = f(&mut it);
                 self.iterative = Some(it);

@@ -7,7 +7,7 @@
 //! mechanical part has lost stability (a limit point such as pull-in was passed).
 
 use super::auto::AutoSolver;
-use super::iterative::BlockMinres;
+use super::iterative::AmgGmres;
 use super::reused::ReusedLdlt;
 use crate::problem::assembly::CsrMatrix;
 use crate::problem::system::DofLayout;
@@ -155,7 +155,7 @@ pub enum SolverKind {
     Auto,
     /// Sparse LDLᵀ ([`FaerLdlt`]) of every Newton tangent: exact, gives the inertia.
     Direct,
-    /// MINRES with a block AMG preconditioner ([`BlockMinres`]): memory linear in the unknowns,
+    /// FGMRES with AMG of the coupled tangent ([`AmgGmres`]): memory linear in the unknowns,
     /// no inertia.
     Iterative,
     /// PETSc ([`super::petsc::PetscSolver`]): MUMPS LDLᵀ by default, any KSP/PC by options, on
@@ -216,11 +216,11 @@ pub struct SolverSettings {
     /// PETSc's defaults as deasim sets them (a direct MUMPS LDLᵀ).
     #[serde(default)]
     pub petsc_options: String,
-    /// `iterative`, and `auto` once it has switched to MINRES: relative residual of each solve.
+    /// `iterative`, and `auto` once it has switched to it: relative residual of each solve.
     #[serde(default = "default_rtol")]
     pub rtol: f64,
     /// `auto` and `direct`: the largest factor (bytes) to hold; `None`: 80 % of the memory
-    /// available when the factorisation starts. `auto` switches to MINRES above it.
+    /// available when the factorisation starts. `auto` switches to `iterative` above it.
     #[serde(default)]
     pub memory_limit: Option<usize>,
 }
@@ -264,7 +264,7 @@ impl SolverSettings {
                 }
                 Box::new(AutoSolver::new(s, self.rtol))
             }
-            SolverKind::Iterative => Box::new(BlockMinres::new(self.rtol)),
+            SolverKind::Iterative => Box::new(AmgGmres::new(self.rtol)),
             #[cfg(feature = "petsc")]
             SolverKind::Petsc => Box::new(super::petsc::PetscSolver::new(&self.petsc_options)),
         }
@@ -306,9 +306,10 @@ impl SolverSettings {
                 format!("{exact}; auto: {unknowns} unknowns, a fresh factorisation per Newton iteration")
             }
             SolverKind::Iterative => format!(
-                "MINRES to {:.0e} with a block preconditioner: smoothed-aggregation AMG on the \
-                 displacement block (rigid-body modes) and on the potential block (memory linear \
-                 in the unknowns; no inertia, so a limit point shows as a Newton failure)",
+                "FGMRES to {:.0e} preconditioned by smoothed-aggregation AMG of the whole \
+                 coupled tangent (aggregates of nodes with u and Φ; rigid-body modes and the \
+                 constant potential; memory linear in the unknowns; no inertia, so a limit point \
+                 shows as a Newton failure)",
                 self.rtol
             ),
             SolverKind::Auto => format!(
