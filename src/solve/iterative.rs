@@ -71,6 +71,8 @@ pub struct AmgGmres {
     stats: SolverStats,
     /// Hierarchy builds.
     builds: usize,
+    /// Print each solve's iterations and each build's levels on stderr (with Newton's table).
+    verbose: bool,
 }
 
 impl AmgGmres {
@@ -89,6 +91,7 @@ impl AmgGmres {
             direct: FaerLdlt::with_ordering(Ordering::NestedDissection),
             stats: SolverStats::default(),
             builds: 0,
+            verbose: std::env::var_os("DEASIM_NEWTON_VERBOSE").is_some(),
         }
     }
 
@@ -108,7 +111,14 @@ impl AmgGmres {
         let (Some(nodal), Some(op)) = (&self.nodal, &self.op) else {
             return Err(LinearSolverError::NotFactored);
         };
+        let start = std::time::Instant::now();
         let fresh = nodal.hierarchy(op)?;
+        if self.verbose {
+            eprintln!(
+                "    AMG of the coupled tangent built in {:.2} s: {fresh:?}",
+                start.elapsed().as_secs_f64()
+            );
+        }
         self.previous = self
             .amg
             .replace(fresh)
@@ -141,6 +151,12 @@ impl AmgGmres {
         );
         self.stats.krylov_iterations += report.iterations;
         self.stats.solves += 1;
+        if self.verbose {
+            eprintln!(
+                "    FGMRES: {} iterations, relative residual {:.2e}",
+                report.iterations, report.relative_residual
+            );
+        }
         if report.converged {
             b.copy_from_slice(&x);
         }

@@ -189,8 +189,10 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
     let mut last_cause;
     // the solver holds a factorisation of the tangent at (or next to) the current state
     let mut predictor_work = vec![0.0; system.n()];
-    // a shared assembly's tangent is whole only to a solver that knows its entries
-    let prepared = !system.shares_cells() || super::newton::prepare_solver(system, solver).is_ok();
+    // the solver learns the layout of the unknowns before its first factorisation (an iterative
+    // solver would otherwise fall back to a direct one for it); a shared assembly's tangent is
+    // whole only to a solver that knows its entries
+    let prepared = super::newton::prepare_solver(system, solver).is_ok();
     let mut have_factor = prepared
         && system.evaluate(&mut predictor_work, Some(&mut k)).is_ok()
         && solver.factor(&k).is_ok();
