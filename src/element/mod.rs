@@ -54,7 +54,8 @@ pub trait CellKernel: Send + Sync {
     }
     /// What the record of a state needs of the cell, in one call: the residual (into `r`, as
     /// [`CellKernel::residual_tangent`]), the energy split and the output fields. A kernel may
-    /// share its kinematics and stresses among them; the values are those of the three calls.
+    /// share its kinematics and stresses among them; the values are those of the three calls up
+    /// to round-off.
     fn record(
         &self,
         cell: &CellInput,
@@ -76,7 +77,7 @@ pub trait CellKernel: Send + Sync {
     /// [`KelvinVoigtKernel::forces`] at the same configuration. Returns the cell energy and the
     /// dissipation power (W, 0 without `viscous`). Most Newton iterations of a step need only
     /// this; a kernel may share its kinematics between the two parts. The values are those of
-    /// the separate calls, bit for bit.
+    /// the separate calls up to round-off.
     fn dynamic_residual(
         &self,
         cell: &CellInput,

@@ -11,11 +11,11 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond, Hyperelastic,
-    InvariantDerivs, IsoInvariants,
+    i1_model_piola, invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond,
+    Hyperelastic, InvariantDerivs, IsoInvariants,
 };
 use super::isotropic::CKinematics;
-use super::MaterialError;
+use super::{KnownDeformation, Mat3, MaterialError};
 
 /// Series coefficients Cᵢ of the five-term Arruda–Boyce energy.
 pub const AB_COEFFS: [f64; 5] = [
@@ -99,6 +99,13 @@ impl Hyperelastic for ArrudaBoyce {
         let (w, d) = self.iso(inv.i1b);
         let v = vol_log(self.kappa, k.j);
         Ok(invariant_model_second(k, &inv, w + v.u, &d, &v))
+    }
+
+    fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
+        let i1 = k.f.norm_squared();
+        let (w, d) = self.iso(k.jm23 * i1);
+        let v = vol_log(self.kappa, k.j);
+        Some(Ok((w + v.u, i1_model_piola(k, i1, d.w1, v.du))))
     }
 
     fn shear_modulus(&self) -> f64 {

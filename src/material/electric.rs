@@ -22,7 +22,7 @@
 //! ```
 
 use super::isotropic::{CKinematics, Tensor3, Tensor4};
-use super::{Mat3, Vec3, EPSILON_0};
+use super::{KnownDeformation, Mat3, Vec3, EPSILON_0};
 
 /// Dielectric part of the energy (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -82,6 +82,46 @@ impl ElectricPart {
         let g = k.c_inv * e0;
         let ej = self.eps * k.j;
         e0 * (-2.0 * self.c1) - (k.c * e0) * (2.0 * self.c2) + g * ej
+    }
+
+    /// (Ω_e, P_e = F S_e, D0) at a known deformation, with the spatial field e = F⁻ᵀE0,
+    /// g = C⁻¹E0 = F⁻¹e and a = E0·g = e·e (F g = e, F C⁻¹ = F⁻ᵀ):
+    /// P_e = 2c₂ (F E0)⊗E0 + εJ (e⊗g − ½ a F⁻ᵀ), D0 = −2c₁E0 − 2c₂ Fᵀ(F E0) + εJ g,
+    /// Ω_e = c₁ E0·E0 + c₂ |F E0|² − ½ εJ a. No C or C⁻¹ is formed.
+    #[inline]
+    pub fn first_known(&self, k: &KnownDeformation, e0: &Vec3) -> (f64, Mat3, Vec3) {
+        let e = k.f_inv_t * e0;
+        let g = k.f_inv_t.tr_mul(&e);
+        let a = e.dot(&e);
+        let ej = self.eps * k.j;
+        let mut energy = -0.5 * ej * a;
+        let mut p = e * g.transpose() * ej - k.f_inv_t * (0.5 * a * ej);
+        let mut d0 = g * ej;
+        if self.c1 != 0.0 {
+            energy += self.c1 * e0.dot(e0);
+            d0 -= e0 * (2.0 * self.c1);
+        }
+        if self.c2 != 0.0 {
+            let fe = k.f * e0;
+            energy += self.c2 * fe.dot(&fe);
+            p += fe * e0.transpose() * (2.0 * self.c2);
+            d0 -= k.f.tr_mul(&fe) * (2.0 * self.c2);
+        }
+        (energy, p, d0)
+    }
+
+    /// D0 alone at a known deformation (as in [`ElectricPart::first_known`]).
+    #[inline]
+    pub fn d0_known(&self, k: &KnownDeformation, e0: &Vec3) -> Vec3 {
+        let g = k.f_inv_t.tr_mul(&(k.f_inv_t * e0));
+        let mut d0 = g * (self.eps * k.j);
+        if self.c1 != 0.0 {
+            d0 -= e0 * (2.0 * self.c1);
+        }
+        if self.c2 != 0.0 {
+            d0 -= k.f.tr_mul(&(k.f * e0)) * (2.0 * self.c2);
+        }
+        d0
     }
 
     /// Adds 𝕃_e to `ll` and returns (∂S/∂E0 indexed `[I][J][K]`, ∂D0/∂E0).

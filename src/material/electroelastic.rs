@@ -11,7 +11,10 @@
 use super::electric::ElectricPart;
 use super::hyperelastic::Hyperelastic;
 use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial};
-use super::{Mat3, Material, MaterialError, PointHistory, Stress, Tangent, Vec3};
+use super::{
+    KnownDeformation, Mat3, Material, MaterialError, PointHistory, PointRecord, Stress, Tangent,
+    Vec3,
+};
 
 /// Mechanical model `H` combined with a linear dielectric.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,6 +34,21 @@ impl<H: Hyperelastic> Electroelastic<H> {
     /// Mechanical model with an ideal dielectric of relative permittivity εᵣ.
     pub fn ideal(mech: H, eps_r: f64) -> Self {
         Self::new(mech, ElectricPart::ideal(eps_r))
+    }
+}
+
+impl<H: Hyperelastic> Electroelastic<H> {
+    /// W and the mechanical first Piola stress at a known deformation: the model's own F-form
+    /// when it has one, else F S from C and C⁻¹.
+    #[inline(always)]
+    fn mech_piola(&self, k: &KnownDeformation) -> Result<(f64, Mat3), MaterialError> {
+        match self.mech.first_piola(k) {
+            Some(r) => r,
+            None => {
+                let m = self.mech.s(&CKinematics::from_known(k))?;
+                Ok((m.w, k.f * m.s))
+            }
+        }
     }
 }
 
@@ -101,6 +119,53 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
         // the checks of `stress`; the mechanical part does not enter D0
         let k = isotropic::checked_kinematics(f, e0)?;
         Ok(self.elec.d0(&k, e0))
+    }
+
+    fn stress_known(
+        &self,
+        k: &KnownDeformation,
+        e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<Stress, MaterialError> {
+        isotropic::check_field(e0)?;
+        let (w, p) = self.mech_piola(k)?;
+        let (we, pe, d0) = self.elec.first_known(k, e0);
+        Ok(Stress {
+            energy: w + we,
+            p: p + pe,
+            d0,
+        })
+    }
+
+    fn electric_displacement_known(
+        &self,
+        k: &KnownDeformation,
+        e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<Vec3, MaterialError> {
+        isotropic::check_field(e0)?;
+        Ok(self.elec.d0_known(k, e0))
+    }
+
+    /// One evaluation for the three parts: the zero-field stress is the mechanical one.
+    fn record_known(
+        &self,
+        k: &KnownDeformation,
+        e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<PointRecord, MaterialError> {
+        isotropic::check_field(e0)?;
+        let (w, p) = self.mech_piola(k)?;
+        let (we, pe, d0) = self.elec.first_known(k, e0);
+        Ok(PointRecord {
+            stress: Stress {
+                energy: w + we,
+                p: p + pe,
+                d0,
+            },
+            split: (w, -we),
+            p_mech: p,
+        })
     }
 
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {

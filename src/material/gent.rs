@@ -9,11 +9,11 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond, Hyperelastic,
-    InvariantDerivs, IsoInvariants,
+    i1_model_piola, invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond,
+    Hyperelastic, InvariantDerivs, IsoInvariants,
 };
 use super::isotropic::CKinematics;
-use super::MaterialError;
+use super::{KnownDeformation, Mat3, MaterialError};
 
 /// Gent W = −(μJ_m/2) ln(1 − (Ī₁ − 3)/J_m) + κ/4 (J² − 1 − 2 ln J).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -75,6 +75,15 @@ impl Hyperelastic for Gent {
         let (w, d) = self.iso(inv.i1b)?;
         let v = vol_log(self.kappa, k.j);
         Ok(invariant_model_second(k, &inv, w + v.u, &d, &v))
+    }
+
+    fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
+        let i1 = k.f.norm_squared();
+        let v = vol_log(self.kappa, k.j);
+        Some(
+            self.iso(k.jm23 * i1)
+                .map(|(w, d)| (w + v.u, i1_model_piola(k, i1, d.w1, v.du))),
+        )
     }
 
     fn shear_modulus(&self) -> f64 {

@@ -43,7 +43,7 @@
 //! with K₀ = 2/D₁.
 
 use super::isotropic::{CKinematics, Tensor4};
-use super::{Mat3, MaterialError};
+use super::{KnownDeformation, Mat3, MaterialError};
 
 /// W and S = 2∂W/∂C.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -74,6 +74,11 @@ pub trait Hyperelastic: Send + Sync + std::fmt::Debug {
     fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError>;
     /// W, S and 𝕃 = 4∂²W/∂C².
     fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError>;
+    /// W and the first Piola stress P = ∂W/∂F = F S straight from a known deformation (no C,
+    /// C⁻¹ or F·S product); `None` when the model has no such form and the caller forms S.
+    fn first_piola(&self, _k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
+        None
+    }
     /// Small-strain shear modulus μ₀ (Pa).
     fn shear_modulus(&self) -> f64;
     /// Small-strain bulk modulus K₀ (Pa).
@@ -188,6 +193,14 @@ impl IsoInvariants {
         (Mat3::identity() * self.i1 - k.c - k.c_inv * (2.0 * self.i2 / 3.0))
             * (self.jm23 * self.jm23)
     }
+}
+
+/// P = F S of W = Ŵ(Ī₁) + U(J) at a known deformation: with F C⁻¹ = F⁻ᵀ,
+/// P = 2W₁ J^(−2/3)(F − I₁/3 F⁻ᵀ) + J U′ F⁻ᵀ (`i1` = I₁ = F:F, `w1` = ∂Ŵ/∂Ī₁, `du` = U′).
+#[inline]
+pub fn i1_model_piola(k: &KnownDeformation, i1: f64, w1: f64, du: f64) -> Mat3 {
+    let a = 2.0 * w1 * k.jm23;
+    k.f * a + k.f_inv_t * (k.j * du - a * i1 / 3.0)
 }
 
 /// Derivatives of the isochoric energy Ŵ(Ī₁, Ī₂).

@@ -21,7 +21,7 @@
 //!
 //! Everything lives on the stack; no heap allocation is performed.
 
-use super::{Mat3, Mat9, Mat93, MaterialError, Stress, Tangent, Vec3};
+use super::{KnownDeformation, Mat3, Mat9, Mat93, MaterialError, Stress, Tangent, Vec3};
 
 /// Fourth-order tensor with indices `[I][J][K][L]`.
 pub type Tensor4 = [[[[f64; 3]; 3]; 3]; 3];
@@ -53,6 +53,17 @@ impl CKinematics {
         let c_inv = f_inv * f_inv.transpose();
         let c = f.transpose() * f;
         Ok(Self { c, c_inv, j })
+    }
+
+    /// C, C⁻¹ and J of a deformation whose inverse is known (J > 0 checked by the caller).
+    #[inline]
+    pub fn from_known(k: &KnownDeformation) -> Self {
+        let fit = &k.f_inv_t;
+        Self {
+            c: k.f.transpose() * k.f,
+            c_inv: fit.transpose() * fit,
+            j: k.j,
+        }
     }
 }
 
@@ -95,7 +106,8 @@ pub trait CMaterial {
     fn c_second(&self, k: &CKinematics, e0: &Vec3) -> Result<CDerivs, MaterialError>;
 }
 
-fn check_field(e0: &Vec3) -> Result<(), MaterialError> {
+/// Fails unless every component of E0 is finite (the first check of every evaluation).
+pub(crate) fn check_field(e0: &Vec3) -> Result<(), MaterialError> {
     if e0.iter().all(|x| x.is_finite()) {
         Ok(())
     } else {

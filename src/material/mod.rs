@@ -105,6 +105,48 @@ pub struct Tangent {
     pub g: Mat3,
 }
 
+/// A deformation gradient with its inverse transpose, determinant and J^(−2/3) already at hand
+/// (an element kernel computes them for its own needs): the `*_known` methods of [`Material`]
+/// then form no inverse and take no fractional power.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KnownDeformation {
+    pub f: Mat3,
+    /// F⁻ᵀ.
+    pub f_inv_t: Mat3,
+    /// J = det F > 0.
+    pub j: f64,
+    /// J^(−2/3).
+    pub jm23: f64,
+}
+
+impl KnownDeformation {
+    /// The quantities of F computed from F (`None` unless J > 0 and finite).
+    pub fn new(f: &Mat3) -> Option<Self> {
+        let j = f.determinant();
+        if !(j > 0.0 && j.is_finite()) {
+            return None;
+        }
+        let f_inv_t = f.try_inverse()?.transpose();
+        let r = j.cbrt();
+        Some(KnownDeformation {
+            f: *f,
+            f_inv_t,
+            j,
+            jm23: 1.0 / (r * r),
+        })
+    }
+}
+
+/// What the record of a state needs of a material point: the stress of the full state, the
+/// energy split `(mechanical, electric)` of [`Material::energy_split_at`] and the first Piola
+/// stress at zero field (the mechanical stress of the output fields).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointRecord {
+    pub stress: Stress,
+    pub split: (f64, f64),
+    pub p_mech: Mat3,
+}
+
 /// What a material with internal variables sees of a point's history: the committed internal
 /// variables (empty for an elastic material) and the time step to the state being evaluated.
 #[derive(Debug, Clone, Copy)]
@@ -187,6 +229,41 @@ pub trait Material: Send + Sync + std::fmt::Debug {
         h: PointHistory,
     ) -> Result<Vec3, MaterialError> {
         self.stress_at(f, e0, h).map(|s| s.d0)
+    }
+    /// [`Material::stress_at`] at a deformation whose inverse and J^(−2/3) the caller knows;
+    /// equal to it up to round-off. Models override it to skip their own kinematics.
+    fn stress_known(
+        &self,
+        k: &KnownDeformation,
+        e0: &Vec3,
+        h: PointHistory,
+    ) -> Result<Stress, MaterialError> {
+        self.stress_at(&k.f, e0, h)
+    }
+    /// [`Material::electric_displacement_at`] at a known deformation (see
+    /// [`Material::stress_known`]).
+    fn electric_displacement_known(
+        &self,
+        k: &KnownDeformation,
+        e0: &Vec3,
+        h: PointHistory,
+    ) -> Result<Vec3, MaterialError> {
+        self.electric_displacement_at(&k.f, e0, h)
+    }
+    /// The [`PointRecord`] of a point at a known deformation: by default the stress at the
+    /// state, the energy split and the stress at zero field, three evaluations that a model may
+    /// share.
+    fn record_known(
+        &self,
+        k: &KnownDeformation,
+        e0: &Vec3,
+        h: PointHistory,
+    ) -> Result<PointRecord, MaterialError> {
+        Ok(PointRecord {
+            stress: self.stress_known(k, e0, h)?,
+            split: self.energy_split_at(&k.f, e0, h.state)?,
+            p_mech: self.stress_known(k, &Vec3::zeros(), h)?.p,
+        })
     }
     /// Its first and second derivatives (the consistent tangent of the update).
     fn tangent_at(&self, f: &Mat3, e0: &Vec3, _h: PointHistory) -> Result<Tangent, MaterialError> {

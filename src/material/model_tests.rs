@@ -755,3 +755,78 @@ fn energy_at_general_f_matches_principal_closed_form() {
         }
     }
 }
+
+/// The fast paths at a known deformation (the models' F-form stresses, the dielectric without C⁻¹,
+/// the one-evaluation record) agree with the generic evaluations up to round-off, their P with
+/// finite differences of the energy, and they fail where those fail.
+#[test]
+fn known_deformation_paths_match_generic_ones() {
+    use super::{KnownDeformation, PointHistory};
+    let mut rng = Rng::new(0x6b6e_0000_0000_0021);
+    let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-12 * scale;
+    let mut materials: Vec<(String, Arc<dyn Material>)> = models()
+        .iter()
+        .flat_map(|m| [(m.name(), m.ideal()), (m.name() + " coupled", m.coupled())])
+        .collect();
+    materials.push((
+        "compressible neo-Hooke".into(),
+        Arc::new(super::ElectroNeoHooke::new(1e5, 4e5, 4.7).with_coupling(1e-12, 2e-12)),
+    ));
+    for (name, m) in &materials {
+        let m = m.as_ref();
+        for i in 0..8 {
+            let f = rng.deformation();
+            let e0 = if i == 0 { Vec3::zeros() } else { rng.field(m) };
+            let k = KnownDeformation::new(&f).unwrap();
+            let h = PointHistory::NONE;
+            let s = m.stress(&f, &e0).unwrap();
+            let sk = m.stress_known(&k, &e0, h).unwrap();
+            let (pmax, dmax) = (s.p.amax(), s.d0.amax().max(f64::MIN_POSITIVE));
+            assert!(close(sk.energy, s.energy, s.energy.abs()), "{name}: energy");
+            assert!(close((sk.p - s.p).amax(), 0.0, pmax), "{name}: P");
+            assert!(close((sk.d0 - s.d0).amax(), 0.0, dmax), "{name}: D0");
+            let d0 = m.electric_displacement_known(&k, &e0, h).unwrap();
+            assert!(close((d0 - s.d0).amax(), 0.0, dmax), "{name}: D0 alone");
+            let rec = m.record_known(&k, &e0, h).unwrap();
+            assert_eq!(rec.stress, sk, "{name}: the record's stress");
+            let (wm, we) = m.energy_split(&f, &e0).unwrap();
+            assert!(
+                close(rec.split.0, wm, wm.abs()),
+                "{name}: mechanical energy"
+            );
+            assert!(
+                close(rec.split.1, we, we.abs().max(1e-300)),
+                "{name}: electric energy"
+            );
+            let p0 = m.stress(&f, &Vec3::zeros()).unwrap().p;
+            assert!(
+                close((rec.p_mech - p0).amax(), 0.0, p0.amax()),
+                "{name}: P at E0 = 0"
+            );
+            let p_fd = fd_p_from_energy(m, &f, &e0);
+            let ep = rel_err((sk.p - p_fd).amax(), sk.p.amax());
+            assert!(ep < TOL, "{name}: P rel err {ep:e}");
+        }
+        let bad = Vec3::new(f64::NAN, 0.0, 0.0);
+        let k = KnownDeformation::new(&Mat3::identity()).unwrap();
+        assert!(m.stress_known(&k, &bad, PointHistory::NONE).is_err());
+        assert!(m.record_known(&k, &bad, PointHistory::NONE).is_err());
+        assert!(m
+            .electric_displacement_known(&k, &bad, PointHistory::NONE)
+            .is_err());
+    }
+    // beyond the Gent model's locking stretch both paths fail
+    let gent = Gent {
+        mu: 1e5,
+        jm: 10.0,
+        kappa: 5e6,
+    }
+    .ideal();
+    let f = Mat3::from_diagonal(&Vec3::new(4.0, 0.5, 0.5));
+    assert!(gent.stress(&f, &Vec3::zeros()).is_err());
+    let k = KnownDeformation::new(&f).unwrap();
+    assert!(gent
+        .stress_known(&k, &Vec3::zeros(), super::PointHistory::NONE)
+        .is_err());
+    assert!(KnownDeformation::new(&-Mat3::identity()).is_none());
+}

@@ -8,11 +8,11 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond, Hyperelastic,
-    InvariantDerivs, IsoInvariants,
+    i1_model_piola, invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond,
+    Hyperelastic, InvariantDerivs, IsoInvariants,
 };
 use super::isotropic::CKinematics;
-use super::MaterialError;
+use super::{KnownDeformation, Mat3, MaterialError};
 
 /// Split neo-Hooke W = μ/2 (Ī₁ − 3) + κ/4 (J² − 1 − 2 ln J).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,6 +55,13 @@ impl Hyperelastic for NeoHookeSplit {
         let v = vol_log(self.kappa, k.j);
         let w = 0.5 * self.mu * (inv.i1b - 3.0) + v.u;
         Ok(invariant_model_second(k, &inv, w, &self.derivs(), &v))
+    }
+
+    fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
+        let i1 = k.f.norm_squared();
+        let v = vol_log(self.kappa, k.j);
+        let w = 0.5 * self.mu * (k.jm23 * i1 - 3.0) + v.u;
+        Some(Ok((w, i1_model_piola(k, i1, 0.5 * self.mu, v.du))))
     }
 
     fn shear_modulus(&self) -> f64 {

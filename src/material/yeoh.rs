@@ -10,11 +10,11 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    invariant_model_second, iso_stress, vol_poly, vol_stress, HFirst, HSecond, Hyperelastic,
-    InvariantDerivs, IsoInvariants,
+    i1_model_piola, invariant_model_second, iso_stress, vol_poly, vol_stress, HFirst, HSecond,
+    Hyperelastic, InvariantDerivs, IsoInvariants,
 };
 use super::isotropic::CKinematics;
-use super::MaterialError;
+use super::{KnownDeformation, Mat3, MaterialError};
 
 /// Yeoh W = Σ Cᵢ₀(Ī₁ − 3)ⁱ + Σ (J − 1)²ⁱ/Dᵢ.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,6 +78,14 @@ impl Hyperelastic for Yeoh {
         let (w, d) = self.iso(inv.i1b);
         let v = vol_poly(&self.inv_d(), k.j);
         Ok(invariant_model_second(k, &inv, w + v.u, &d, &v))
+    }
+
+    #[inline]
+    fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
+        let i1 = k.f.norm_squared();
+        let (w, d) = self.iso(k.jm23 * i1);
+        let v = vol_poly(&self.inv_d(), k.j);
+        Some(Ok((w + v.u, i1_model_piola(k, i1, d.w1, v.du))))
     }
 
     fn shear_modulus(&self) -> f64 {
