@@ -23,7 +23,8 @@
 //! fails. Close to a stability limit a hierarchy of the current tangent can precondition worse
 //! than the older one (the displacement block at fixed potential is then indefinite): the hierarchy
 //! a rebuild replaced is kept until the first solve with the new one, and restored when the new
-//! one needed more iterations than the old one's last solve. There is no inertia: a limit point
+//! one needed more iterations than the old one's last solve (below [`KEEP_PREVIOUS_MAX_ENTRIES`];
+//! a larger problem drops the old hierarchy before building the new one, to hold one at a time). There is no inertia: a limit point
 //! (pull-in) shows as a Newton failure at the step that passes it, and load stepping cuts back
 //! towards it. A system that cannot tell where its unknowns sit ([`DofLayout`]) is solved by the
 //! direct LDLᵀ instead.
@@ -47,6 +48,9 @@ const SMOOTHER_DEGREE: usize = 3;
 /// The hierarchy is rebuilt when a solve needs more than this factor times the iterations of the
 /// first solve with it.
 const GROWTH: f64 = 1.5;
+/// Above this many matrix entries (about 10⁵ unknowns of a hex8 mesh) the hierarchy a rebuild
+/// replaces is dropped first, not kept for the comparison with its successor: memory comes first.
+const KEEP_PREVIOUS_MAX_ENTRIES: usize = 10_000_000;
 /// A row index meaning "none".
 const NONE: usize = usize::MAX;
 
@@ -111,6 +115,12 @@ impl AmgGmres {
         let (Some(nodal), Some(op)) = (&self.nodal, &self.op) else {
             return Err(LinearSolverError::NotFactored);
         };
+        // a large problem holds one hierarchy at a time: the old one goes before the new one is
+        // built (two hierarchies of the 10⁶-unknown film took 11.7 GB at their peak)
+        if op.nnz() > KEEP_PREVIOUS_MAX_ENTRIES {
+            self.amg = None;
+            self.previous = None;
+        }
         let start = std::time::Instant::now();
         let fresh = nodal.hierarchy(op)?;
         if self.verbose {
