@@ -21,13 +21,13 @@
 //! The hierarchy is kept across Newton iterations and steps while the iteration counts stay near
 //! that of its first solve (the tangent changes little), and rebuilt when they grow or a solve
 //! fails. Close to a stability limit a hierarchy of the current tangent can precondition worse
-//! than the older one (the displacement block at fixed potential is then indefinite): the hierarchy
-//! a rebuild replaced is kept until the first solve with the new one, and restored when the new
-//! one needed more iterations than the old one's last solve (below [`KEEP_PREVIOUS_MAX_ENTRIES`];
-//! a larger problem drops the old hierarchy before building the new one, to hold one at a time). There is no inertia: a limit point
-//! (pull-in) shows as a Newton failure at the step that passes it, and load stepping cuts back
-//! towards it. A system that cannot tell where its unknowns sit ([`DofLayout`]) is solved by the
-//! direct LDLᵀ instead.
+//! than the older one (the displacement block at fixed potential is then indefinite): the
+//! hierarchy a rebuild replaced is kept until the first solve with the new one, and restored when
+//! the new one needed more iterations than the old one's last solve. Above
+//! [`KEEP_PREVIOUS_MAX_ENTRIES`] the old hierarchy is dropped before the new one is built, so that
+//! a large problem holds one at a time. There is no inertia: a limit point (pull-in) shows as a
+//! Newton failure at the step that passes it, and load stepping cuts back towards it. A system
+//! that cannot tell where its unknowns sit ([`DofLayout`]) is solved by the direct LDLᵀ instead.
 
 use super::amg::{rigid_body_modes, Amg, AmgParams};
 use super::krylov::{fgmres, KrylovSettings};
