@@ -1178,7 +1178,9 @@ impl Observer for OutputWriter {
         if let Ok(entries) = std::fs::read_dir(self.dir.join("fields")) {
             for e in entries.flatten() {
                 let n = e.file_name().to_string_lossy().into_owned();
-                if field_file_index(&n).is_some_and(|i| i >= self.pvd.len()) {
+                // a killed run's half-written temporaries (`.<name>.tmp-<pid>-<n>`) go too
+                let temporary = n.starts_with('.') && n.contains(".tmp-");
+                if temporary || field_file_index(&n).is_some_and(|i| i >= self.pvd.len()) {
                     if let Err(err) = std::fs::remove_file(e.path()) {
                         self.errors.push(format!("{}: {err}", e.path().display()));
                     }
