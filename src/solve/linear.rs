@@ -757,18 +757,12 @@ impl LinearSolver for FaerLdlt {
         let n = b.len();
         self.stats.solves += 1;
         match &mut self.single {
-            None if self.par == Par::Seq => {
+            None if self.par == Par::Seq
+                && matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) =>
+            {
                 if let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() {
                     let perm = symbolic.perm().map(|p| p.arrays());
                     supernodal_ldlt_solve(sn, perm, &self.l_values, b, &mut self.work);
-                } else {
-                    let rhs = MatMut::from_column_major_slice_mut(b, n, 1);
-                    LdltRef::new(symbolic, &self.l_values).solve_in_place_with_conj(
-                        Conj::No,
-                        rhs,
-                        self.par,
-                        stack,
-                    );
                 }
             }
             None => {
