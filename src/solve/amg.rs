@@ -353,57 +353,91 @@ impl Bsr {
             return None;
         }
         let nb = a.nrows / b;
-        // block pattern: the distinct block columns of the b rows of each block row, merged
+        let per = (CHUNK / b).max(1);
+        let chunks = nb.div_ceil(per);
+        // block pattern, per chunk of block rows in parallel: the sorted distinct block columns
+        // of the b rows of each block row
+        let parts: Vec<(Vec<usize>, Vec<u32>)> = (0..chunks)
+            .into_par_iter()
+            .map(|k| {
+                let (mut counts, mut cols, mut row) = (Vec::new(), Vec::new(), Vec::new());
+                for ib in k * per..((k + 1) * per).min(nb) {
+                    row.clear();
+                    for i in ib * b..(ib + 1) * b {
+                        row.extend(
+                            a.col[a.row_ptr[i]..a.row_ptr[i + 1]]
+                                .iter()
+                                .map(|c| (c.ix() / b) as u32),
+                        );
+                    }
+                    row.sort_unstable();
+                    row.dedup();
+                    counts.push(row.len());
+                    cols.extend_from_slice(&row);
+                }
+                (counts, cols)
+            })
+            .collect();
         let mut row_ptr = Vec::with_capacity(nb + 1);
         row_ptr.push(0usize);
-        let mut col: Vec<u32> = Vec::new();
-        let mut mark = vec![usize::MAX; nb];
-        let mut cols: Vec<u32> = Vec::new();
-        for ib in 0..nb {
-            cols.clear();
-            for i in ib * b..(ib + 1) * b {
-                for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                    let jb = a.col[p].ix() / b;
-                    if mark[jb] != ib {
-                        mark[jb] = ib;
-                        cols.push(jb as u32);
-                    }
-                }
+        let mut col: Vec<u32> = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
+        for (counts, cols) in parts {
+            for c in counts {
+                row_ptr.push(row_ptr[row_ptr.len() - 1] + c);
             }
-            cols.sort_unstable();
             col.extend_from_slice(&cols);
-            row_ptr.push(col.len());
         }
-        drop(mark);
         let stored = col.len() * b * b;
         if stored as f64 > max_fill * a.val.len().max(1) as f64 {
             return None;
         }
-        let fill = |dst: &mut dyn FnMut(usize, f64)| {
-            for ib in 0..nb {
-                let blocks = &col[row_ptr[ib]..row_ptr[ib + 1]];
-                for r in 0..b {
-                    let i = ib * b + r;
-                    // the row's columns are sorted, and so are the blocks: walk both forward
-                    let mut q = 0;
-                    for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                        let j = a.col[p].ix();
-                        while blocks[q] as usize != j / b {
-                            q += 1;
+        // values, per chunk of block rows in parallel, each into its own slice
+        fn fill<I: Idx, T: Copy + Send>(
+            a: View<'_, I>,
+            b: usize,
+            per: usize,
+            row_ptr: &[usize],
+            col: &[u32],
+            convert: fn(f64) -> T,
+            zero: T,
+        ) -> Vec<T> {
+            let nb = row_ptr.len() - 1;
+            let mut values = vec![zero; col.len() * b * b];
+            let mut slices = Vec::new();
+            let mut rest: &mut [T] = &mut values;
+            let mut first = 0;
+            while first < nb {
+                let last = (first + per).min(nb);
+                let (head, tail) = rest.split_at_mut((row_ptr[last] - row_ptr[first]) * b * b);
+                slices.push((first, last, head));
+                rest = tail;
+                first = last;
+            }
+            slices.into_par_iter().for_each(|(first, last, vals)| {
+                let base = row_ptr[first];
+                for ib in first..last {
+                    let blocks = &col[row_ptr[ib]..row_ptr[ib + 1]];
+                    for r in 0..b {
+                        let i = ib * b + r;
+                        // the row's columns are sorted, and so are the blocks: walk both forward
+                        let mut q = 0;
+                        for p in a.row_ptr[i]..a.row_ptr[i + 1] {
+                            let j = a.col[p].ix();
+                            while blocks[q] as usize != j / b {
+                                q += 1;
+                            }
+                            vals[((row_ptr[ib] + q - base) * b + r) * b + j % b] =
+                                convert(a.val[p]);
                         }
-                        dst(((row_ptr[ib] + q) * b + r) * b + j % b, a.val[p]);
                     }
                 }
-            }
-        };
+            });
+            values
+        }
         let val = if single {
-            let mut v = vec![0f32; stored];
-            fill(&mut |k, x| v[k] = x as f32);
-            BlockValues::Single(v)
+            BlockValues::Single(fill(a, b, per, &row_ptr, &col, |x| x as f32, 0.0))
         } else {
-            let mut v = vec![0f64; stored];
-            fill(&mut |k, x| v[k] = x);
-            BlockValues::Double(v)
+            BlockValues::Double(fill(a, b, per, &row_ptr, &col, |x| x, 0.0))
         };
         Some(Bsr {
             b,
@@ -495,6 +529,147 @@ impl Apply for Bsr {
             BlockValues::Double(v) => dispatch!(v),
             BlockValues::Single(v) => dispatch!(v),
         }
+    }
+}
+
+/// A square matrix in double-precision node blocks (see [`SmootherStorage`]): the operator of a
+/// Krylov method at about half the bytes per entry of a [`CsrMatrix`], whose products are what
+/// bounds an iteration on large problems.
+#[derive(Debug, Clone)]
+pub struct BlockMatrix {
+    m: Bsr,
+}
+
+impl BlockMatrix {
+    /// The node blocks of `a` (rows node-major, `block` unknowns per node), or `None` when
+    /// `block` does not divide the rows, exceeds 8, or the blocks would be more than half zeros.
+    pub fn from_csr(a: &CsrMatrix, block: usize) -> Option<BlockMatrix> {
+        if block > BLOCK_MAX {
+            return None;
+        }
+        let view = View {
+            nrows: a.n,
+            ncols: a.n,
+            row_ptr: &a.row_ptr,
+            col: &a.col_idx,
+            val: &a.values,
+        };
+        Bsr::from_csr(view, block, false, BLOCK_MAX_FILL).map(|m| BlockMatrix { m })
+    }
+
+    /// Rows (= columns).
+    pub fn n(&self) -> usize {
+        self.m.nb * self.m.b
+    }
+
+    /// Stored values (zeros of the blocks included).
+    pub fn stored(&self) -> usize {
+        self.m.stored()
+    }
+
+    /// y = A x (rows in parallel for large matrices; each row summed in the same order).
+    pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
+        self.m.apply_with(x, y, |_, s, yi| *yi = s);
+    }
+
+    /// Overwrites the values with those of `a`, renumbered: unknown e of `a` is row `row[e]`
+    /// here, `eq[r]` is the unknown of row r (`usize::MAX` for none), and a column without a row
+    /// is dropped. A row without an unknown gets `pad` on its diagonal and zeros elsewhere.
+    /// Returns false, leaving the values undefined, when an entry of `a` falls outside the stored
+    /// blocks (build a new matrix then).
+    pub fn assign_renumbered(
+        &mut self,
+        a: &CsrMatrix,
+        eq: &[usize],
+        row: &[usize],
+        pad: f64,
+    ) -> bool {
+        let b = self.m.b;
+        let (row_ptr, col) = (&self.m.row_ptr, &self.m.col);
+        let BlockValues::Double(values) = &mut self.m.val else {
+            return false;
+        };
+        // chunks of block rows, each with its own slice of the values
+        let per = (CHUNK / b).max(1);
+        let mut slices = Vec::new();
+        let mut rest: &mut [f64] = values;
+        let mut first = 0;
+        while first < self.m.nb {
+            let last = (first + per).min(self.m.nb);
+            let len = (row_ptr[last] - row_ptr[first]) * b * b;
+            let (head, tail) = rest.split_at_mut(len);
+            slices.push((first, last, head));
+            rest = tail;
+            first = last;
+        }
+        let fill = |(first, last, vals): (usize, usize, &mut [f64])| -> bool {
+            vals.fill(0.0);
+            let base = row_ptr[first];
+            for ib in first..last {
+                let blocks = &col[row_ptr[ib]..row_ptr[ib + 1]];
+                for r in 0..b {
+                    let e = eq[ib * b + r];
+                    if e == usize::MAX {
+                        match blocks.binary_search(&(ib as u32)) {
+                            Ok(q) => vals[((row_ptr[ib] + q - base) * b + r) * b + r] = pad,
+                            Err(_) => return false,
+                        }
+                        continue;
+                    }
+                    for p in a.row_ptr[e]..a.row_ptr[e + 1] {
+                        let c = row[a.col_idx[p]];
+                        if c == usize::MAX {
+                            continue;
+                        }
+                        match blocks.binary_search(&((c / b) as u32)) {
+                            Ok(q) => {
+                                vals[((row_ptr[ib] + q - base) * b + r) * b + c % b] = a.values[p]
+                            }
+                            Err(_) => return false,
+                        }
+                    }
+                }
+            }
+            true
+        };
+        if self.m.nb * b >= PARALLEL_MIN_ROWS {
+            slices
+                .into_par_iter()
+                .map(fill)
+                .reduce(|| true, |x, y| x && y)
+        } else {
+            slices.into_iter().map(fill).fold(true, |x, y| x && y)
+        }
+    }
+
+    /// The stored entries that are not zero, and every diagonal entry, in scalar CSR.
+    pub fn to_csr(&self) -> CsrMatrix {
+        let BlockValues::Double(values) = &self.m.val else {
+            unreachable!("a BlockMatrix holds double-precision blocks")
+        };
+        let (b, n) = (self.m.b, self.n());
+        let mut row_ptr = Vec::with_capacity(n + 1);
+        row_ptr.push(0);
+        let mut cols = Vec::new();
+        let mut vals = Vec::new();
+        for ib in 0..self.m.nb {
+            for r in 0..b {
+                let i = ib * b + r;
+                for q in self.m.row_ptr[ib]..self.m.row_ptr[ib + 1] {
+                    let jb = self.m.col[q] as usize;
+                    for c in 0..b {
+                        let v = values[(q * b + r) * b + c];
+                        let j = jb * b + c;
+                        if v != 0.0 || j == i {
+                            cols.push(j);
+                            vals.push(v);
+                        }
+                    }
+                }
+                row_ptr.push(cols.len());
+            }
+        }
+        CsrMatrix::new(n, row_ptr, cols, vals)
     }
 }
 
@@ -2215,6 +2390,90 @@ mod tests {
         assert!(Bsr::from_csr(view(&diagonal), 1, true, BLOCK_MAX_FILL).is_some());
         // a size the block does not divide
         assert!(Bsr::from_csr(view(&diagonal), 3, true, BLOCK_MAX_FILL).is_none());
+    }
+
+    #[test]
+    fn a_block_matrix_takes_renumbered_values_and_gives_them_back() {
+        for (nb, b) in [(30, 4), (9_000, 4), (40, 3)] {
+            let a = blocked(nb, b);
+            let n = a.n;
+            // nodes in reverse order, a padding node after every fourth, and the first unknown
+            // of every third node held (no row of its own: a padding row in its node)
+            let slots = nb + nb / 4 + 1;
+            let rows = slots * b;
+            let mut eq = vec![usize::MAX; rows];
+            let mut row = vec![usize::MAX; n];
+            let mut slot = 0;
+            for node in (0..nb).rev() {
+                if slot % 5 == 4 {
+                    slot += 1;
+                }
+                for c in 0..b {
+                    if node % 3 != 0 || c != 0 {
+                        eq[slot * b + c] = node * b + c;
+                        row[node * b + c] = slot * b + c;
+                    }
+                }
+                slot += 1;
+            }
+            assert!(slot <= slots);
+            // the renumbered matrix as the solver's `extract` builds it
+            let pad = 3.5;
+            let renumbered_of = |a: &CsrMatrix, pad: f64| {
+                csr_from_rows(
+                    (0..rows)
+                        .map(|r| match eq[r] {
+                            usize::MAX => vec![(r, pad)],
+                            e => (a.row_ptr[e]..a.row_ptr[e + 1])
+                                .filter(|&p| row[a.col_idx[p]] != usize::MAX)
+                                .map(|p| (row[a.col_idx[p]], a.values[p]))
+                                .collect(),
+                        })
+                        .collect(),
+                )
+            };
+            let renumbered = renumbered_of(&a, pad);
+            let mut m = BlockMatrix::from_csr(&renumbered, b).expect("blocks");
+            assert_eq!(m.n(), rows);
+            // scalar copy: the same entries
+            let back = m.to_csr();
+            assert_eq!(back.row_ptr, renumbered.row_ptr);
+            assert_eq!(back.col_idx, renumbered.col_idx);
+            assert_eq!(back.values, renumbered.values);
+            // new values of the same pattern, scattered in place, multiply as the scalar matrix
+            let scaled = CsrMatrix::new(
+                n,
+                a.row_ptr.to_vec(),
+                a.col_idx.to_vec(),
+                a.values.iter().map(|v| 2.0 * v - 0.25).collect(),
+            );
+            assert!(m.assign_renumbered(&scaled, &eq, &row, 7.0));
+            let want_matrix = renumbered_of(&scaled, 7.0);
+            let x = noise(rows, 5);
+            let mut got = vec![0.0; rows];
+            m.mul_vec(&x, &mut got);
+            let mut want = vec![0.0; rows];
+            want_matrix.mul_vec(&x, &mut want);
+            for r in 0..rows {
+                assert!(
+                    (got[r] - want[r]).abs() <= 1e-12 * (1.0 + want[r].abs()),
+                    "row {r}: {} against {}",
+                    got[r],
+                    want[r]
+                );
+            }
+            // an entry outside the stored blocks is refused
+            let mut wide: Vec<Vec<(usize, f64)>> = (0..n)
+                .map(|i| {
+                    (a.row_ptr[i]..a.row_ptr[i + 1])
+                        .map(|p| (a.col_idx[p], a.values[p]))
+                        .collect()
+                })
+                .collect();
+            wide[n - 1].push((b + 1, 1.0));
+            wide[b + 1].push((n - 1, 1.0));
+            assert!(!m.assign_renumbered(&csr_from_rows(wide), &eq, &row, 7.0));
+        }
     }
 
     #[test]

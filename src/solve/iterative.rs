@@ -36,7 +36,7 @@
 //! Newton failure at the step that passes it, and load stepping cuts back towards it. A system
 //! that cannot tell where its unknowns sit ([`DofLayout`]) is solved by the direct LDLᵀ instead.
 
-use super::amg::{rigid_body_modes, Amg, AmgParams, SmootherStorage};
+use super::amg::{rigid_body_modes, Amg, AmgParams, BlockMatrix, SmootherStorage};
 use super::krylov::{fgmres, KrylovSettings};
 use super::linear::{FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats};
 use crate::problem::assembly::CsrMatrix;
@@ -57,6 +57,11 @@ const SMOOTHER_DEGREE: usize = 4;
 /// The hierarchy is rebuilt when a solve needs more than this factor times the iterations of the
 /// first solve with it.
 const GROWTH: f64 = 1.5;
+/// A solve with a hierarchy that solved before is abandoned after this factor times the
+/// iterations of its first solve (plus 10), and the hierarchy rebuilt for the same right-hand
+/// side: on the 10⁶-unknown film the first solve of a new load step on the previous step's
+/// hierarchy took 184 iterations (143 s) where a fresh hierarchy needed 71.
+const ABANDON: f64 = 2.0;
 /// Above this many matrix entries (about 10⁵ unknowns of a hex8 mesh) the hierarchy a rebuild
 /// replaces is dropped first, not kept for the comparison with its successor: memory comes first.
 const KEEP_PREVIOUS_MAX_ENTRIES: usize = 10_000_000;
@@ -68,8 +73,8 @@ pub struct AmgGmres {
     rtol: f64,
     layout: Option<DofLayout>,
     nodal: Option<Nodal>,
-    /// The matrix of the next solves.
-    op: Option<CsrMatrix>,
+    /// The matrix of the next solves, renumbered by nodes.
+    op: Option<NodalOperator>,
     amg: Option<Amg<'static>>,
     /// The hierarchy the last rebuild replaced, with the iterations of its last solve, until the
     /// first solve with the new one.
@@ -113,11 +118,26 @@ impl AmgGmres {
         self.builds
     }
 
-    fn keep(&mut self, a: &CsrMatrix) {
-        match &mut self.op {
-            Some(op) => op.assign(a),
-            None => self.op = Some(a.clone()),
+    /// Takes `a` as the matrix of the next solves (renumbered by nodes).
+    fn keep(&mut self, a: &CsrMatrix) -> Result<(), LinearSolverError> {
+        let Some(nodal) = &self.nodal else {
+            return Err(LinearSolverError::NotFactored);
+        };
+        let pad = nodal.pad(a);
+        if let Some(NodalOperator::Blocks(m)) = &mut self.op {
+            if m.assign_renumbered(a, &nodal.eq, &nodal.row, pad) {
+                return Ok(());
+            }
         }
+        // a first matrix, a new pattern, or blocks that did not pay: renumber it whole
+        self.op = None;
+        let (row_ptr, col_idx, values) = extract(a, &nodal.eq, &nodal.row, pad);
+        let scalar = CsrMatrix::new(nodal.eq.len(), row_ptr, col_idx, values);
+        self.op = Some(match BlockMatrix::from_csr(&scalar, nodal.block) {
+            Some(m) => NodalOperator::Blocks(m),
+            None => NodalOperator::Scalar(scalar),
+        });
+        Ok(())
     }
 
     fn build(&mut self) -> Result<(), LinearSolverError> {
@@ -131,7 +151,7 @@ impl AmgGmres {
             self.previous = None;
         }
         let start = std::time::Instant::now();
-        let fresh = nodal.hierarchy(op)?;
+        let fresh = nodal.hierarchy(op.to_csr())?;
         if self.verbose {
             eprintln!(
                 "    AMG of the coupled tangent built in {:.2} s: {fresh:?}",
@@ -150,22 +170,27 @@ impl AmgGmres {
 
     /// One FGMRES solve with the current hierarchy: (converged, iterations); `b` holds the
     /// solution when converged.
-    fn gmres(&mut self, b: &mut [f64]) -> Result<(bool, usize), LinearSolverError> {
+    fn gmres(&mut self, b: &mut [f64], limit: usize) -> Result<(bool, usize), LinearSolverError> {
         let (Some(nodal), Some(op), Some(amg)) = (&self.nodal, &self.op, &self.amg) else {
             return Err(LinearSolverError::NotFactored);
         };
-        let mut x = vec![0.0; b.len()];
         let settings = KrylovSettings {
             rtol: self.rtol,
-            max_iterations: MAX_ITERATIONS,
+            max_iterations: limit,
             restart: RESTART,
         };
-        let (mut rr, mut zz) = (vec![0.0; nodal.eq.len()], vec![0.0; nodal.eq.len()]);
+        // FGMRES in the node numbering: padding rows have a zero right-hand side
+        let rhs: Vec<f64> = nodal
+            .eq
+            .iter()
+            .map(|&e| if e == NONE { 0.0 } else { b[e] })
+            .collect();
+        let mut x = vec![0.0; rhs.len()];
         let start = std::time::Instant::now();
         let report = fgmres(
-            |v, y| op.par_mul_vec(v, y),
-            |r, z| nodal.apply(amg, &mut rr, &mut zz, r, z),
-            b,
+            |v, y| op.mul_vec(v, y),
+            |r, z| amg.apply(r, z),
+            &rhs,
             &mut x,
             &settings,
         );
@@ -180,7 +205,9 @@ impl AmgGmres {
             );
         }
         if report.converged {
-            b.copy_from_slice(&x);
+            for (be, &r) in b.iter_mut().zip(&nodal.row) {
+                *be = x[r];
+            }
         }
         Ok((report.converged, report.iterations))
     }
@@ -214,7 +241,7 @@ impl LinearSolver for AmgGmres {
         }
         // no factorisation and no inertia: the matrix is taken, and the hierarchy is built only
         // when there is none (a stability test right after Newton reuses it)
-        self.keep(a);
+        self.keep(a)?;
         if self.amg.is_none() {
             self.build()?;
         }
@@ -225,7 +252,7 @@ impl LinearSolver for AmgGmres {
         if self.nodal.is_none() {
             return self.direct.factor(a).map(|_| ());
         }
-        self.keep(a);
+        self.keep(a)?;
         if self.rebuild || self.amg.is_none() {
             self.build()?;
         }
@@ -237,7 +264,12 @@ impl LinearSolver for AmgGmres {
             return self.direct.solve_in_place(b);
         }
         let rhs = b.to_vec();
-        let (converged, iterations) = self.gmres(b)?;
+        // a hierarchy that has solved before stops early when the solve would call for its
+        // rebuild anyway, and is rebuilt for this one
+        let limit = self.first_iterations.map_or(MAX_ITERATIONS, |first| {
+            ((ABANDON * first as f64) as usize + 10).min(MAX_ITERATIONS)
+        });
+        let (converged, iterations) = self.gmres(b, limit)?;
         if converged {
             self.converged(iterations);
             return Ok(());
@@ -257,7 +289,7 @@ impl LinearSolver for AmgGmres {
         };
         if retry {
             b.copy_from_slice(&rhs);
-            let (converged, iterations) = self.gmres(b)?;
+            let (converged, iterations) = self.gmres(b, MAX_ITERATIONS)?;
             if converged {
                 self.converged(iterations);
                 return Ok(());
@@ -394,8 +426,9 @@ impl Nodal {
         })
     }
 
-    /// The hierarchy of `k` renumbered by nodes.
-    fn hierarchy(&self, k: &CsrMatrix) -> Result<Amg<'static>, LinearSolverError> {
+    /// The diagonal of a padding row: the mean magnitude of `k`'s diagonal, so that padding
+    /// neither dominates nor vanishes in the smoother's scaling.
+    fn pad(&self, k: &CsrMatrix) -> f64 {
         let mut sum = 0.0;
         let mut count = 0usize;
         for &e in self.eq.iter().filter(|&&e| e != NONE) {
@@ -404,9 +437,15 @@ impl Nodal {
                 count += 1;
             }
         }
-        let pad = if count > 0 { sum / count as f64 } else { 1.0 };
-        let (row_ptr, col_idx, values) = extract(k, &self.eq, &self.row, pad);
-        let a = CsrMatrix::new(self.eq.len(), row_ptr, col_idx, values);
+        if count > 0 && sum > 0.0 {
+            sum / count as f64
+        } else {
+            1.0
+        }
+    }
+
+    /// The hierarchy of the renumbered tangent `a`.
+    fn hierarchy(&self, a: CsrMatrix) -> Result<Amg<'static>, LinearSolverError> {
         let params = AmgParams {
             smoother_degree: SMOOTHER_DEGREE,
             indefinite: true,
@@ -416,15 +455,37 @@ impl Nodal {
         Amg::owning(a, self.block, &self.modes, &params)
             .map_err(|e| LinearSolverError::Failed(format!("AMG of the coupled tangent: {e}")))
     }
+}
 
-    /// z = M⁻¹ r by one V-cycle, through the work vectors `rr`, `zz` of the node numbering.
-    fn apply(&self, amg: &Amg<'_>, rr: &mut [f64], zz: &mut [f64], r: &[f64], z: &mut [f64]) {
-        for (ri, &e) in rr.iter_mut().zip(&self.eq) {
-            *ri = if e == NONE { 0.0 } else { r[e] };
+/// The tangent renumbered by nodes, as FGMRES multiplies by it: double-precision node blocks
+/// (about half the bytes per entry of scalar CSR), or scalar CSR where blocks would be mostly
+/// zeros.
+enum NodalOperator {
+    Blocks(BlockMatrix),
+    Scalar(CsrMatrix),
+}
+
+impl NodalOperator {
+    fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
+        match self {
+            NodalOperator::Blocks(m) => m.mul_vec(x, y),
+            NodalOperator::Scalar(m) => m.par_mul_vec(x, y),
         }
-        amg.apply(rr, zz);
-        for (e, &row) in self.row.iter().enumerate() {
-            z[e] = zz[row];
+    }
+
+    /// Stored entries (zeros of the blocks included).
+    fn nnz(&self) -> usize {
+        match self {
+            NodalOperator::Blocks(m) => m.stored(),
+            NodalOperator::Scalar(m) => m.nnz(),
+        }
+    }
+
+    /// A scalar copy, for a new hierarchy.
+    fn to_csr(&self) -> CsrMatrix {
+        match self {
+            NodalOperator::Blocks(m) => m.to_csr(),
+            NodalOperator::Scalar(m) => m.clone(),
         }
     }
 }
