@@ -638,7 +638,7 @@ impl BlockMatrix {
                 .map(fill)
                 .reduce(|| true, |x, y| x && y)
         } else {
-            slices.into_iter().map(fill).fold(true, |x, y| x && y)
+            slices.into_iter().all(fill)
         }
     }
 
