@@ -448,6 +448,43 @@ impl Bsr {
         })
     }
 
+    /// The stored entries of double-precision blocks that are not zero, and every diagonal entry,
+    /// in scalar CSR with 32-bit columns.
+    fn to_compact(&self) -> Csr {
+        let BlockValues::Double(values) = &self.val else {
+            unreachable!("only double-precision blocks are converted back")
+        };
+        let (b, n) = (self.b, self.nb * self.b);
+        let mut row_ptr = Vec::with_capacity(n + 1);
+        row_ptr.push(0);
+        let mut col = Vec::new();
+        let mut val = Vec::new();
+        for ib in 0..self.nb {
+            for r in 0..b {
+                let i = ib * b + r;
+                for q in self.row_ptr[ib]..self.row_ptr[ib + 1] {
+                    let jb = self.col[q] as usize;
+                    for c in 0..b {
+                        let v = values[(q * b + r) * b + c];
+                        let j = jb * b + c;
+                        if v != 0.0 || j == i {
+                            col.push(j as u32);
+                            val.push(v);
+                        }
+                    }
+                }
+                row_ptr.push(col.len());
+            }
+        }
+        Csr {
+            nrows: n,
+            ncols: n,
+            row_ptr,
+            col,
+            val,
+        }
+    }
+
     /// Stored values (zeros of the blocks included).
     fn stored(&self) -> usize {
         self.col.len() * self.b * self.b
@@ -644,32 +681,9 @@ impl BlockMatrix {
 
     /// The stored entries that are not zero, and every diagonal entry, in scalar CSR.
     pub fn to_csr(&self) -> CsrMatrix {
-        let BlockValues::Double(values) = &self.m.val else {
-            unreachable!("a BlockMatrix holds double-precision blocks")
-        };
-        let (b, n) = (self.m.b, self.n());
-        let mut row_ptr = Vec::with_capacity(n + 1);
-        row_ptr.push(0);
-        let mut cols = Vec::new();
-        let mut vals = Vec::new();
-        for ib in 0..self.m.nb {
-            for r in 0..b {
-                let i = ib * b + r;
-                for q in self.m.row_ptr[ib]..self.m.row_ptr[ib + 1] {
-                    let jb = self.m.col[q] as usize;
-                    for c in 0..b {
-                        let v = values[(q * b + r) * b + c];
-                        let j = jb * b + c;
-                        if v != 0.0 || j == i {
-                            cols.push(j);
-                            vals.push(v);
-                        }
-                    }
-                }
-                row_ptr.push(cols.len());
-            }
-        }
-        CsrMatrix::new(n, row_ptr, cols, vals)
+        let c = self.m.to_compact();
+        let cols = c.col.iter().map(|&j| j as usize).collect();
+        CsrMatrix::new(c.nrows, c.row_ptr, cols, c.val)
     }
 }
 
@@ -787,8 +801,8 @@ fn product<IA: Idx, IB: Idx>(
 // ---------------------------------------------------------------------------------------------
 // Input checks
 
-fn check_matrix(a: &CsrMatrix, indefinite: bool) -> Result<(), AmgError> {
-    let n = a.n;
+fn check_matrix<I: Idx>(a: View<'_, I>, indefinite: bool) -> Result<(), AmgError> {
+    let n = a.nrows;
     if n == 0 {
         return Err(AmgError::Empty);
     }
@@ -799,14 +813,14 @@ fn check_matrix(a: &CsrMatrix, indefinite: bool) -> Result<(), AmgError> {
         )));
     }
     if a.row_ptr[0] != 0
-        || a.row_ptr[n] != a.col_idx.len()
-        || a.col_idx.len() != a.values.len()
+        || a.row_ptr[n] != a.col.len()
+        || a.col.len() != a.val.len()
         || a.row_ptr.windows(2).any(|w| w[1] < w[0])
     {
         return Err(AmgError::Malformed(format!(
             "row pointers, {} column indices and {} values do not agree",
-            a.col_idx.len(),
-            a.values.len()
+            a.col.len(),
+            a.val.len()
         )));
     }
     if n > u32::MAX as usize {
@@ -818,7 +832,7 @@ fn check_matrix(a: &CsrMatrix, indefinite: bool) -> Result<(), AmgError> {
         let mut diag = None;
         let mut last = None;
         for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-            let j = a.col_idx[p];
+            let j = a.col[p].ix();
             if j >= n {
                 return Err(AmgError::NotSquare { row: i, col: j, n });
             }
@@ -828,11 +842,11 @@ fn check_matrix(a: &CsrMatrix, indefinite: bool) -> Result<(), AmgError> {
                 )));
             }
             last = Some(j);
-            if !a.values[p].is_finite() {
+            if !a.val[p].is_finite() {
                 return Err(AmgError::NonFinite { row: i, col: j });
             }
             if j == i {
-                diag = Some(a.values[p]);
+                diag = Some(a.val[p]);
             }
         }
         let d = diag.unwrap_or(0.0);
@@ -1342,6 +1356,30 @@ pub struct LevelInfo {
     pub rho: f64,
 }
 
+/// The fine operator in scalar form: the caller's matrix (borrowed or owned), a compact copy
+/// with 32-bit columns ([`Amg::from_blocks`]), or nothing once node blocks replaced it.
+enum Source<'a> {
+    Matrix(Cow<'a, CsrMatrix>),
+    Compact(Csr),
+    Released,
+}
+
+impl Source<'_> {
+    fn op(&self) -> Op<'_> {
+        match self {
+            Source::Matrix(m) => Op::Fine(View {
+                nrows: m.n,
+                ncols: m.n,
+                row_ptr: &m.row_ptr,
+                col: &m.col_idx,
+                val: &m.values,
+            }),
+            Source::Compact(c) => Op::Coarse(c.view()),
+            Source::Released => unreachable!("the fine operator is used only while it is held"),
+        }
+    }
+}
+
 /// A smoothed-aggregation AMG hierarchy over a borrowed fine matrix; [`Amg::apply`] is one
 /// V-cycle, a symmetric positive definite preconditioner.
 ///
@@ -1352,9 +1390,9 @@ pub struct LevelInfo {
 pub struct Amg<'a> {
     /// Unknowns of the fine level.
     n: usize,
-    /// The fine operator: borrowed ([`Amg::new`]) or owned ([`Amg::owning`]); `None` once
-    /// `blocks[0]` replaces it.
-    fine: Option<Cow<'a, CsrMatrix>>,
+    /// The fine operator: borrowed ([`Amg::new`]), owned ([`Amg::owning`]) or compact
+    /// ([`Amg::from_blocks`]); released once `blocks[0]` replaces it.
+    fine: Source<'a>,
     /// Per smoothed level: its operator in node blocks ([`SmootherStorage`]), which replaces the
     /// scalar one.
     blocks: Vec<Option<Bsr>>,
@@ -1403,7 +1441,7 @@ impl<'a> Amg<'a> {
         near_null: &[Vec<f64>],
         params: &AmgParams,
     ) -> Result<Amg<'a>, AmgError> {
-        Self::build(Cow::Borrowed(a), block, near_null, params)
+        Self::build(Source::Matrix(Cow::Borrowed(a)), block, near_null, params)
     }
 
     /// As [`Amg::new`], owning the matrix: for a preconditioner built from a matrix of its own
@@ -1414,19 +1452,38 @@ impl<'a> Amg<'a> {
         near_null: &[Vec<f64>],
         params: &AmgParams,
     ) -> Result<Amg<'static>, AmgError> {
-        Amg::build(Cow::Owned(a), block, near_null, params)
+        Amg::build(Source::Matrix(Cow::Owned(a)), block, near_null, params)
+    }
+
+    /// As [`Amg::owning`], from node blocks (with `block` unknowns per node, as `a` stores
+    /// them): the set-up works on a scalar copy with 32-bit columns (the blocks' zeros left out),
+    /// which is released as soon as the fine level's smoother blocks exist, before the coarse
+    /// operator is formed. The caller keeps `a`, e.g. as its Krylov operator.
+    pub fn from_blocks(
+        a: &BlockMatrix,
+        near_null: &[Vec<f64>],
+        params: &AmgParams,
+    ) -> Result<Amg<'static>, AmgError> {
+        Amg::build(Source::Compact(a.m.to_compact()), a.m.b, near_null, params)
     }
 
     fn build(
-        fine: Cow<'a, CsrMatrix>,
+        mut fine: Source<'a>,
         block: usize,
         near_null: &[Vec<f64>],
         params: &AmgParams,
     ) -> Result<Amg<'a>, AmgError> {
-        let a: &CsrMatrix = &fine;
         check_params(params)?;
-        check_matrix(a, params.indefinite)?;
-        let n = a.n;
+        let n = match fine.op() {
+            Op::Fine(v) => {
+                check_matrix(v, params.indefinite)?;
+                v.nrows
+            }
+            Op::Coarse(v) => {
+                check_matrix(v, params.indefinite)?;
+                v.nrows
+            }
+        };
         if block == 0 || !n.is_multiple_of(block) {
             return Err(AmgError::BlockSize { n, block });
         }
@@ -1446,13 +1503,14 @@ impl<'a> Amg<'a> {
             }
         }
         let k = near_null.len();
-        let fine_view = View {
-            nrows: n,
-            ncols: n,
-            row_ptr: &a.row_ptr,
-            col: &a.col_idx,
-            val: &a.values,
+        // the smoother's storage of a level of block size b: Some(single precision) for blocks
+        let as_blocks = |b: usize| match params.smoother_storage {
+            _ if b > BLOCK_MAX => None,
+            SmootherStorage::Csr => None,
+            SmootherStorage::BlockDouble => Some(false),
+            SmootherStorage::BlockSingle => Some(true),
         };
+        let mut fine_blocks: Option<Bsr> = None;
         let mut ops: Vec<Csr> = Vec::new();
         let mut ps: Vec<Csr> = Vec::new();
         let mut rs: Vec<Csr> = Vec::new();
@@ -1464,7 +1522,7 @@ impl<'a> Amg<'a> {
         loop {
             let level = ops.len();
             let op = match ops.last() {
-                None => Op::Fine(fine_view),
+                None => fine.op(),
                 Some(c) => Op::Coarse(c.view()),
             };
             let nl = op.n();
@@ -1517,6 +1575,14 @@ impl<'a> Amg<'a> {
                 Op::Fine(v) => product(v, p.view(), None, None),
                 Op::Coarse(v) => product(v, p.view(), None, None),
             };
+            // a compact fine copy is needed no more: its smoother blocks replace it before the
+            // coarse product, the set-up's largest
+            if let (0, Source::Compact(c), Some(single)) = (level, &fine, as_blocks(block)) {
+                fine_blocks = Bsr::from_csr(c.view(), block, single, BLOCK_MAX_FILL);
+                if fine_blocks.is_some() {
+                    fine = Source::Released;
+                }
+            }
             let mut ac = product(r.view(), ap.view(), None, None);
             drop(ap);
             ac.symmetrise();
@@ -1545,7 +1611,10 @@ impl<'a> Amg<'a> {
             });
         }
         let coarse = match ops.last() {
-            None => CoarseSolver::new(fine_view, params.indefinite)?,
+            None => match fine.op() {
+                Op::Fine(v) => CoarseSolver::new(v, params.indefinite)?,
+                Op::Coarse(v) => CoarseSolver::new(v, params.indefinite)?,
+            },
             Some(c) => CoarseSolver::new(c.view(), params.indefinite)?,
         };
         // the smoother's block copies of the level operators, which replace the scalar ones
@@ -1553,28 +1622,24 @@ impl<'a> Amg<'a> {
         let mut blocks: Vec<Option<Bsr>> = Vec::with_capacity(smoothed);
         for l in 0..smoothed {
             let b = info[l].block;
-            let single = match params.smoother_storage {
-                _ if b > BLOCK_MAX => None,
-                SmootherStorage::Csr => None,
-                SmootherStorage::BlockDouble => Some(false),
-                SmootherStorage::BlockSingle => Some(true),
+            let m = match l {
+                0 if fine_blocks.is_some() => fine_blocks.take(),
+                0 => as_blocks(b).and_then(|single| match fine.op() {
+                    Op::Fine(v) => Bsr::from_csr(v, b, single, BLOCK_MAX_FILL),
+                    Op::Coarse(v) => Bsr::from_csr(v, b, single, BLOCK_MAX_FILL),
+                }),
+                _ => as_blocks(b)
+                    .and_then(|single| Bsr::from_csr(ops[l - 1].view(), b, single, BLOCK_MAX_FILL)),
             };
-            let m = single.and_then(|single| match l {
-                0 => Bsr::from_csr(fine_view, b, single, BLOCK_MAX_FILL),
-                _ => Bsr::from_csr(ops[l - 1].view(), b, single, BLOCK_MAX_FILL),
-            });
             if let Some(m) = &m {
                 info[l].nnz = m.stored();
-                if l > 0 {
-                    ops[l - 1] = Csr::default();
+                match l {
+                    0 => fine = Source::Released,
+                    _ => ops[l - 1] = Csr::default(),
                 }
             }
             blocks.push(m);
         }
-        let fine = match blocks.first() {
-            Some(Some(_)) => None,
-            _ => Some(fine),
-        };
         let work = info
             .iter()
             .enumerate()
@@ -1648,14 +1713,8 @@ impl<'a> Amg<'a> {
 
     /// The CSR operator of level l > 0, or of the fine level when it is kept in CSR.
     fn op(&self, l: usize) -> Op<'_> {
-        match (l, &self.fine) {
-            (0, Some(fine)) => Op::Fine(View {
-                nrows: fine.n,
-                ncols: fine.n,
-                row_ptr: &fine.row_ptr,
-                col: &fine.col_idx,
-                val: &fine.values,
-            }),
+        match l {
+            0 => self.fine.op(),
             _ => Op::Coarse(self.ops[l - 1].view()),
         }
     }
@@ -2474,6 +2533,37 @@ mod tests {
             wide[b + 1].push((n - 1, 1.0));
             assert!(!m.assign_renumbered(&csr_from_rows(wide), &eq, &row, 7.0));
         }
+    }
+
+    #[test]
+    fn a_hierarchy_from_blocks_is_the_hierarchy_of_the_matrix() {
+        let (a, coords) = elasticity([10, 10, 8], [1.0, 1.0, 0.8], 0.3);
+        let rbm = rigid_body_modes(&coords, 3);
+        let params = AmgParams {
+            coarse_size: 60,
+            smoother_storage: SmootherStorage::BlockSingle,
+            ..AmgParams::default()
+        };
+        let m = BlockMatrix::from_csr(&a, 3).expect("blocks");
+        let from_blocks = Amg::from_blocks(&m, &rbm, &params).expect("hierarchy");
+        let from_matrix = Amg::new(&a, 3, &rbm, &params).expect("hierarchy");
+        assert!(from_blocks.levels() >= 3);
+        assert_eq!(from_blocks.levels(), from_matrix.levels());
+        assert_eq!(from_blocks.smoother_storage(), SmootherStorage::BlockSingle);
+        // the compact copy was released: no scalar fine operator is held
+        assert!(matches!(from_blocks.fine, Source::Released));
+        let x = noise(a.n, 9);
+        let (mut y1, mut y2) = (vec![0.0; a.n], vec![0.0; a.n]);
+        from_blocks.apply(&x, &mut y1);
+        from_matrix.apply(&x, &mut y2);
+        let scale = dot(&y2, &y2).sqrt();
+        let diff = y1
+            .iter()
+            .zip(&y2)
+            .map(|(u, v)| (u - v) * (u - v))
+            .sum::<f64>()
+            .sqrt();
+        assert!(diff <= 1e-12 * scale, "{diff:e} of {scale:e}");
     }
 
     #[test]

@@ -151,7 +151,7 @@ impl AmgGmres {
             self.previous = None;
         }
         let start = std::time::Instant::now();
-        let fresh = nodal.hierarchy(op.to_csr())?;
+        let fresh = nodal.hierarchy(op)?;
         if self.verbose {
             eprintln!(
                 "    AMG of the coupled tangent built in {:.2} s: {fresh:?}",
@@ -444,16 +444,19 @@ impl Nodal {
         }
     }
 
-    /// The hierarchy of the renumbered tangent `a`.
-    fn hierarchy(&self, a: CsrMatrix) -> Result<Amg<'static>, LinearSolverError> {
+    /// The hierarchy of the renumbered tangent.
+    fn hierarchy(&self, op: &NodalOperator) -> Result<Amg<'static>, LinearSolverError> {
         let params = AmgParams {
             smoother_degree: SMOOTHER_DEGREE,
             indefinite: true,
             smoother_storage: SmootherStorage::BlockSingle,
             ..AmgParams::default()
         };
-        Amg::owning(a, self.block, &self.modes, &params)
-            .map_err(|e| LinearSolverError::Failed(format!("AMG of the coupled tangent: {e}")))
+        match op {
+            NodalOperator::Blocks(m) => Amg::from_blocks(m, &self.modes, &params),
+            NodalOperator::Scalar(m) => Amg::owning(m.clone(), self.block, &self.modes, &params),
+        }
+        .map_err(|e| LinearSolverError::Failed(format!("AMG of the coupled tangent: {e}")))
     }
 }
 
@@ -478,14 +481,6 @@ impl NodalOperator {
         match self {
             NodalOperator::Blocks(m) => m.stored(),
             NodalOperator::Scalar(m) => m.nnz(),
-        }
-    }
-
-    /// A scalar copy, for a new hierarchy.
-    fn to_csr(&self) -> CsrMatrix {
-        match self {
-            NodalOperator::Blocks(m) => m.to_csr(),
-            NodalOperator::Scalar(m) => m.clone(),
         }
     }
 }
