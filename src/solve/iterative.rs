@@ -12,8 +12,8 @@
 //! part while A is positive definite. The cycle is not symmetric, so the Krylov method is flexible
 //! GMRES (Saad, SIAM J. Sci. Comput. 14 (1993) 461–469) with a restart of [`RESTART`].
 //!
-//! The smoother holds each level's operator in node blocks with single-precision values
-//! ([`SmootherStorage::BlockSingle`]): its products stream a quarter of the bytes of the scalar
+//! On large matrices (from [`SINGLE_MIN_ENTRIES`] on) the smoother holds each level's operator
+//! in node blocks with single-precision values ([`SmootherStorage::BlockSingle`]): its products stream a quarter of the bytes of the scalar
 //! double-precision matrix, which is what bounds a solve on large meshes (1.75× faster per
 //! iteration at 1.2·10⁵ unknowns, with the same iteration counts). The preconditioner is then a
 //! fixed linear operator built from the rounded matrix; FGMRES multiplies by the exact tangent, so
@@ -57,11 +57,11 @@ const SMOOTHER_DEGREE: usize = 4;
 /// The hierarchy is rebuilt when a solve needs more than this factor times the iterations of the
 /// first solve with it.
 const GROWTH: f64 = 1.5;
-/// A solve with a hierarchy that solved before is abandoned after this factor times the
-/// iterations of its first solve (plus 10), and the hierarchy rebuilt for the same right-hand
-/// side: on the 10⁶-unknown film the first solve of a new load step on the previous step's
-/// hierarchy took 184 iterations (143 s) where a fresh hierarchy needed 71.
-const ABANDON: f64 = 2.0;
+/// From this many matrix entries on (about 10⁴ unknowns of a hex8 mesh) the smoother's blocks are
+/// single precision: below it the matrices stay in cache and rounding them gains no time, while
+/// the double-precision blocks keep small, stiff problems (the axisymmetric diaphragm with its
+/// pre-stretch and tied pad) solvable to tight tolerances.
+const SINGLE_MIN_ENTRIES: usize = 1_000_000;
 /// Above this many matrix entries (about 10⁵ unknowns of a hex8 mesh) the hierarchy a rebuild
 /// replaces is dropped first, not kept for the comparison with its successor: memory comes first.
 const KEEP_PREVIOUS_MAX_ENTRIES: usize = 10_000_000;
@@ -170,13 +170,13 @@ impl AmgGmres {
 
     /// One FGMRES solve with the current hierarchy: (converged, iterations); `b` holds the
     /// solution when converged.
-    fn gmres(&mut self, b: &mut [f64], limit: usize) -> Result<(bool, usize), LinearSolverError> {
+    fn gmres(&mut self, b: &mut [f64]) -> Result<(bool, usize), LinearSolverError> {
         let (Some(nodal), Some(op), Some(amg)) = (&self.nodal, &self.op, &self.amg) else {
             return Err(LinearSolverError::NotFactored);
         };
         let settings = KrylovSettings {
             rtol: self.rtol,
-            max_iterations: limit,
+            max_iterations: MAX_ITERATIONS,
             restart: RESTART,
         };
         // FGMRES in the node numbering: padding rows have a zero right-hand side
@@ -264,12 +264,7 @@ impl LinearSolver for AmgGmres {
             return self.direct.solve_in_place(b);
         }
         let rhs = b.to_vec();
-        // a hierarchy that has solved before stops early when the solve would call for its
-        // rebuild anyway, and is rebuilt for this one
-        let limit = self.first_iterations.map_or(MAX_ITERATIONS, |first| {
-            ((ABANDON * first as f64) as usize + 10).min(MAX_ITERATIONS)
-        });
-        let (converged, iterations) = self.gmres(b, limit)?;
+        let (converged, iterations) = self.gmres(b)?;
         if converged {
             self.converged(iterations);
             return Ok(());
@@ -289,7 +284,7 @@ impl LinearSolver for AmgGmres {
         };
         if retry {
             b.copy_from_slice(&rhs);
-            let (converged, iterations) = self.gmres(b, MAX_ITERATIONS)?;
+            let (converged, iterations) = self.gmres(b)?;
             if converged {
                 self.converged(iterations);
                 return Ok(());
@@ -449,7 +444,11 @@ impl Nodal {
         let params = AmgParams {
             smoother_degree: SMOOTHER_DEGREE,
             indefinite: true,
-            smoother_storage: SmootherStorage::BlockSingle,
+            smoother_storage: if op.nnz() >= SINGLE_MIN_ENTRIES {
+                SmootherStorage::BlockSingle
+            } else {
+                SmootherStorage::BlockDouble
+            },
             ..AmgParams::default()
         };
         match op {
