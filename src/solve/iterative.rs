@@ -13,10 +13,11 @@
 //! GMRES (Saad, SIAM J. Sci. Comput. 14 (1993) 461–469) with a restart of [`RESTART`].
 //!
 //! On large matrices (from [`SINGLE_MIN_ENTRIES`] on) the smoother holds each level's operator
-//! in node blocks with single-precision values ([`SmootherStorage::BlockSingle`]): its products stream a quarter of the bytes of the scalar
-//! double-precision matrix, which is what bounds a solve on large meshes (1.75× faster per
-//! iteration at 1.2·10⁵ unknowns, with the same iteration counts). The preconditioner is then a
-//! fixed linear operator built from the rounded matrix; FGMRES multiplies by the exact tangent, so
+//! in node blocks with single-precision values ([`SmootherStorage::BlockSingle`]): its products
+//! stream a quarter of the bytes of the scalar double-precision matrix, which is what bounds a
+//! solve on large meshes (1.75× faster per iteration at 1.2·10⁵ unknowns, with the same iteration
+//! counts). The preconditioner is then a fixed linear operator built from the rounded matrix;
+//! FGMRES multiplies by the exact tangent, in double-precision node blocks ([`BlockMatrix`]), so
 //! each solve still reaches its tolerance.
 //!
 //! Why not a block-diagonal preconditioner in MINRES (Murphy, Golub & Wathen 2000), which this
