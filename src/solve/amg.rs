@@ -401,37 +401,28 @@ impl Bsr {
             convert: fn(f64) -> T,
             zero: T,
         ) -> Vec<T> {
-            let nb = row_ptr.len() - 1;
             let mut values = vec![zero; col.len() * b * b];
-            let mut slices = Vec::new();
-            let mut rest: &mut [T] = &mut values;
-            let mut first = 0;
-            while first < nb {
-                let last = (first + per).min(nb);
-                let (head, tail) = rest.split_at_mut((row_ptr[last] - row_ptr[first]) * b * b);
-                slices.push((first, last, head));
-                rest = tail;
-                first = last;
-            }
-            slices.into_par_iter().for_each(|(first, last, vals)| {
-                let base = row_ptr[first];
-                for ib in first..last {
-                    let blocks = &col[row_ptr[ib]..row_ptr[ib + 1]];
-                    for r in 0..b {
-                        let i = ib * b + r;
-                        // the row's columns are sorted, and so are the blocks: walk both forward
-                        let mut q = 0;
-                        for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                            let j = a.col[p].ix();
-                            while blocks[q] as usize != j / b {
-                                q += 1;
+            block_row_chunks(row_ptr, b, per, &mut values)
+                .into_par_iter()
+                .for_each(|(first, last, vals)| {
+                    let base = row_ptr[first];
+                    for ib in first..last {
+                        let blocks = &col[row_ptr[ib]..row_ptr[ib + 1]];
+                        for r in 0..b {
+                            let i = ib * b + r;
+                            // the row's columns are sorted, and so are the blocks: walk both forward
+                            let mut q = 0;
+                            for p in a.row_ptr[i]..a.row_ptr[i + 1] {
+                                let j = a.col[p].ix();
+                                while blocks[q] as usize != j / b {
+                                    q += 1;
+                                }
+                                vals[((row_ptr[ib] + q - base) * b + r) * b + j % b] =
+                                    convert(a.val[p]);
                             }
-                            vals[((row_ptr[ib] + q - base) * b + r) * b + j % b] =
-                                convert(a.val[p]);
                         }
                     }
-                }
-            });
+                });
             values
         }
         let val = if single {
@@ -496,6 +487,28 @@ impl Bsr {
             BlockValues::Single(_) => SmootherStorage::BlockSingle,
         }
     }
+}
+
+/// The values of a block matrix cut into runs of `per` block rows, as (first block row, end,
+/// that run's values), for filling the runs in parallel.
+fn block_row_chunks<'v, T>(
+    row_ptr: &[usize],
+    b: usize,
+    per: usize,
+    values: &'v mut [T],
+) -> Vec<(usize, usize, &'v mut [T])> {
+    let nb = row_ptr.len() - 1;
+    let mut chunks = Vec::with_capacity(nb.div_ceil(per.max(1)));
+    let mut rest = values;
+    let mut first = 0;
+    while first < nb {
+        let last = (first + per).min(nb);
+        let (head, tail) = rest.split_at_mut((row_ptr[last] - row_ptr[first]) * b * b);
+        chunks.push((first, last, head));
+        rest = tail;
+        first = last;
+    }
+    chunks
 }
 
 /// y_i ← f(i, (A x)_i, y_i) over the block rows of a matrix with `B` × `B` blocks; each row is
@@ -626,19 +639,7 @@ impl BlockMatrix {
         let BlockValues::Double(values) = &mut self.m.val else {
             return false;
         };
-        // chunks of block rows, each with its own slice of the values
-        let per = (CHUNK / b).max(1);
-        let mut slices = Vec::new();
-        let mut rest: &mut [f64] = values;
-        let mut first = 0;
-        while first < self.m.nb {
-            let last = (first + per).min(self.m.nb);
-            let len = (row_ptr[last] - row_ptr[first]) * b * b;
-            let (head, tail) = rest.split_at_mut(len);
-            slices.push((first, last, head));
-            rest = tail;
-            first = last;
-        }
+        let slices = block_row_chunks(row_ptr, b, (CHUNK / b).max(1), values);
         let fill = |(first, last, vals): (usize, usize, &mut [f64])| -> bool {
             vals.fill(0.0);
             let base = row_ptr[first];
