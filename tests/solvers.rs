@@ -2,7 +2,8 @@
 //! preconditioners (`solver.reuse_from = 0`, so that even these small models take that path)
 //! and with a fresh factorisation per Newton iteration (`kind = "direct"`) give the same
 //! histories to 1e-8 of each column's largest magnitude: both converge Newton to 1e-10 of its
-//! first residual, and each Krylov solve reaches 1e-9 of its right-hand side, so the states
+//! first residual, and each Krylov solve of a reused factorisation reaches 1e-9 of its
+//! right-hand side (the iterative solver: Newton's forcing term, below), so the states
 //! differ by well under the Newton tolerance times the conditioning of these small models.
 //! Limit points are still found: the stability test factors the tangent, so its inertia is
 //! exact with either solver (film pull-in below).
@@ -181,7 +182,8 @@ fn pull_in(solver: &str) -> f64 {
     v
 }
 
-const ITERATIVE: &str = "FGMRES to 1e-8 preconditioned by smoothed-aggregation AMG";
+const ITERATIVE: &str =
+    "FGMRES to 1e-8 or Newton's looser forcing term preconditioned by smoothed-aggregation AMG";
 
 #[test]
 fn the_iterative_solver_agrees_with_direct_on_the_film() {
@@ -205,12 +207,23 @@ fn the_iterative_solver_agrees_with_direct_on_the_stack() {
 #[test]
 fn the_iterative_solver_agrees_with_direct_on_the_diaphragm() {
     // axisymmetric: the displacement block is (u_r, u_z) per node, the rigid pad one tied node.
-    // A dynamic history of 1 s carries every step's solve error (1e-8 of its right-hand side)
-    // forward; the difference from `direct` has been 1.3e-9 to 1.03e-8 of a column's scale as
-    // round-off changed the hierarchy. Tighter solves are out of reach on this system: FGMRES
-    // stalls above 1e-10 at the first step even with an exact (one-level) preconditioner
+    // A dynamic history of 1 s carries every step's error forward, most visibly in the kinetic
+    // energy (velocities are differences of positions over the step). With every solve to 1e-8
+    // of its right-hand side the difference from `direct` has been 1.3e-9 to 1.03e-8 of a
+    // column's scale as round-off changed the hierarchy; tighter solves are out of reach on this
+    // system (FGMRES stalls above 1e-10 at the first step even with an exact one-level
+    // preconditioner)
+    let fixed = compare_solvers(
+        "diaphragm",
+        &[],
+        &["solver.kind=\"iterative\"", "solver.forcing=\"fixed\""],
+        "FGMRES to 1e-8 preconditioned",
+    );
+    assert!(fixed < 3e-8, "{fixed:e}");
+    // Newton's forcing term leaves each step's residual nearer its tolerance (1e-10 of the
+    // step's first residual) than exact solves do, which converge far past it: 2.7e-8 measured
     let d = compare_solvers("diaphragm", &[], &["solver.kind=\"iterative\""], ITERATIVE);
-    assert!(d < 3e-8, "{d:e}");
+    assert!(d < 6e-8, "{d:e}");
 }
 
 #[test]

@@ -17,6 +17,9 @@ pub struct AutoSolver {
     direct: ReusedLdlt,
     iterative: Option<AmgGmres>,
     rtol: f64,
+    /// Whether the iterative solver follows Newton's forcing term.
+    adaptive: bool,
+    forcing: Option<f64>,
     layout: Option<DofLayout>,
 }
 
@@ -27,8 +30,17 @@ impl AutoSolver {
             direct,
             iterative: None,
             rtol,
+            adaptive: true,
+            forcing: None,
             layout: None,
         }
+    }
+
+    /// Whether the iterative solver, once switched to, stops at Newton's forcing term
+    /// ([`AmgGmres::adaptive`]).
+    pub fn adaptive(mut self, on: bool) -> Self {
+        self.adaptive = on;
+        self
     }
 
     /// Whether the solver has switched to the iterative solver.
@@ -51,8 +63,9 @@ impl AutoSolver {
                     return Err(e);
                 };
                 eprintln!("deasim: {e}: switching to FGMRES with coupled AMG");
-                let mut it = AmgGmres::new(self.rtol);
+                let mut it = AmgGmres::new(self.rtol).adaptive(self.adaptive);
                 it.set_layout(layout);
+                it.set_forcing(self.forcing);
                 let out = f(&mut it);
                 self.iterative = Some(it);
                 out
@@ -126,5 +139,12 @@ impl LinearSolver for AutoSolver {
             it.set_layout(layout.clone());
         }
         self.layout = Some(layout);
+    }
+
+    fn set_forcing(&mut self, rtol: Option<f64>) {
+        self.forcing = rtol;
+        if let Some(it) = &mut self.iterative {
+            it.set_forcing(rtol);
+        }
     }
 }

@@ -66,23 +66,34 @@ const SINGLE_MIN_ENTRIES: usize = 1_000_000;
 /// Above this many matrix entries (about 10⁵ unknowns of a hex8 mesh) the hierarchy a rebuild
 /// replaces is dropped first, not kept for the comparison with its successor: memory comes first.
 const KEEP_PREVIOUS_MAX_ENTRIES: usize = 10_000_000;
+/// Only solves over at least this many decades of residual reduction and [`MIN_ITERATIONS`]
+/// iterations count in the comparison of rates: a solve stopped after a decade or a few
+/// iterations (a loose forcing term, an easy right-hand side) says little about the hierarchy.
+const MIN_DECADES: f64 = 2.0;
+const MIN_ITERATIONS: usize = 5;
 /// A row index meaning "none".
 const NONE: usize = usize::MAX;
 
 /// FGMRES with the coupled AMG preconditioner; the direct LDLᵀ without a layout.
 pub struct AmgGmres {
     rtol: f64,
+    /// Stop at Newton's forcing term when it is looser than `rtol`.
+    adaptive: bool,
+    /// Newton's forcing term for the next solves.
+    forcing: Option<f64>,
     layout: Option<DofLayout>,
     nodal: Option<Nodal>,
     /// The matrix of the next solves, renumbered by nodes.
     op: Option<NodalOperator>,
     amg: Option<Amg<'static>>,
-    /// The hierarchy the last rebuild replaced, with the iterations of its last solve, until the
+    /// The hierarchy the last rebuild replaced, with the rate of its last solve, until the
     /// first solve with the new one.
-    previous: Option<(Amg<'static>, usize)>,
-    /// Iterations of the first solve with the current hierarchy, and of the latest solve.
-    first_iterations: Option<usize>,
-    last_iterations: usize,
+    previous: Option<(Amg<'static>, f64)>,
+    /// Iterations per decade of residual reduction ([`rate`]) of the first solve with the
+    /// current hierarchy, and of the latest solve. Rates, not counts: with Newton's forcing
+    /// term the solves stop at different tolerances.
+    first_rate: Option<f64>,
+    last_rate: f64,
     /// A rebuild is due.
     rebuild: bool,
     /// Used when the system gives no layout.
@@ -99,18 +110,38 @@ impl AmgGmres {
     pub fn new(rtol: f64) -> Self {
         AmgGmres {
             rtol,
+            adaptive: true,
+            forcing: None,
             layout: None,
             nodal: None,
             op: None,
             amg: None,
             previous: None,
-            first_iterations: None,
-            last_iterations: 0,
+            first_rate: None,
+            last_rate: f64::INFINITY,
             rebuild: true,
             direct: FaerLdlt::with_ordering(Ordering::NestedDissection),
             stats: SolverStats::default(),
             builds: 0,
             verbose: std::env::var_os("DEASIM_NEWTON_VERBOSE").is_some(),
+        }
+    }
+
+    /// Whether a solve stops at Newton's forcing term ([`LinearSolver::set_forcing`]) when that
+    /// is looser than the solver's tolerance (default), or always at the tolerance. Newton's
+    /// first iterations of a step remove the large residual only approximately anyway: solving
+    /// them to 1e-8 spends Krylov iterations that the next Newton iteration throws away
+    /// (Eisenstat & Walker, SIAM J. Sci. Comput. 17 (1996) 16–32).
+    pub fn adaptive(mut self, on: bool) -> Self {
+        self.adaptive = on;
+        self
+    }
+
+    /// The relative residual the next solve stops at.
+    fn tolerance(&self) -> f64 {
+        match (self.adaptive, self.forcing) {
+            (true, Some(eta)) => eta.max(self.rtol),
+            _ => self.rtol,
         }
     }
 
@@ -159,24 +190,23 @@ impl AmgGmres {
                 start.elapsed().as_secs_f64()
             );
         }
-        self.previous = self
-            .amg
-            .replace(fresh)
-            .map(|old| (old, self.last_iterations));
-        self.first_iterations = None;
+        self.previous = self.amg.replace(fresh).map(|old| (old, self.last_rate));
+        self.first_rate = None;
+        // no informative solve with the new hierarchy yet: nothing to compare against
+        self.last_rate = f64::INFINITY;
         self.rebuild = false;
         self.builds += 1;
         Ok(())
     }
 
-    /// One FGMRES solve with the current hierarchy: (converged, iterations); `b` holds the
-    /// solution when converged.
-    fn gmres(&mut self, b: &mut [f64]) -> Result<(bool, usize), LinearSolverError> {
+    /// One FGMRES solve with the current hierarchy: (converged, iterations, decades of residual
+    /// reduction); `b` holds the solution when converged.
+    fn gmres(&mut self, b: &mut [f64]) -> Result<(bool, usize, f64), LinearSolverError> {
         let (Some(nodal), Some(op), Some(amg)) = (&self.nodal, &self.op, &self.amg) else {
             return Err(LinearSolverError::NotFactored);
         };
         let settings = KrylovSettings {
-            rtol: self.rtol,
+            rtol: self.tolerance(),
             max_iterations: MAX_ITERATIONS,
             restart: RESTART,
         };
@@ -210,28 +240,34 @@ impl AmgGmres {
                 *be = x[r];
             }
         }
-        Ok((report.converged, report.iterations))
+        let decades = -report.relative_residual.max(1e-16).log10();
+        Ok((report.converged, report.iterations, decades))
     }
 
-    /// Bookkeeping after a converged solve of `iterations`: the first solve with a new hierarchy
-    /// decides between it and the one it replaced; later ones may call for a rebuild.
-    fn converged(&mut self, iterations: usize) {
-        let iterations = iterations.max(1);
-        match self.first_iterations {
+    /// Bookkeeping after a converged solve of `iterations` over `decades`: the first solve with a
+    /// new hierarchy decides between it and the one it replaced; later ones may call for a
+    /// rebuild when they need more than [`GROWTH`] times the iterations the first one's rate
+    /// predicts (plus two).
+    fn converged(&mut self, iterations: usize, decades: f64) {
+        if decades < MIN_DECADES || iterations < MIN_ITERATIONS {
+            return;
+        }
+        let now = rate(iterations, decades);
+        match self.first_rate {
             None => {
-                self.first_iterations = Some(iterations);
-                if let Some((old, old_iterations)) = self.previous.take() {
-                    if iterations > old_iterations {
+                self.first_rate = Some(now);
+                if let Some((old, old_rate)) = self.previous.take() {
+                    if now > old_rate {
                         self.amg = Some(old);
-                        self.first_iterations = Some(old_iterations.max(1));
+                        self.first_rate = Some(old_rate);
                     }
                 }
             }
             Some(first) => {
-                self.rebuild |= iterations as f64 > GROWTH * first as f64 + 2.0;
+                self.rebuild |= iterations as f64 > GROWTH * first * decades + 2.0;
             }
         }
-        self.last_iterations = iterations;
+        self.last_rate = now;
     }
 }
 
@@ -265,29 +301,29 @@ impl LinearSolver for AmgGmres {
             return self.direct.solve_in_place(b);
         }
         let rhs = b.to_vec();
-        let (converged, iterations) = self.gmres(b)?;
+        let (converged, iterations, decades) = self.gmres(b)?;
         if converged {
-            self.converged(iterations);
+            self.converged(iterations, decades);
             return Ok(());
         }
         // a hierarchy of an older tangent: rebuild it for this one; a new one that failed: go
         // back to the one it replaced
-        let retry = if self.first_iterations.is_some() {
+        let retry = if self.first_rate.is_some() {
             self.build()?;
             self.previous = None;
             true
-        } else if let Some((old, old_iterations)) = self.previous.take() {
+        } else if let Some((old, old_rate)) = self.previous.take() {
             self.amg = Some(old);
-            self.first_iterations = Some(old_iterations.max(1));
+            self.first_rate = old_rate.is_finite().then_some(old_rate);
             true
         } else {
             false
         };
         if retry {
             b.copy_from_slice(&rhs);
-            let (converged, iterations) = self.gmres(b)?;
+            let (converged, iterations, decades) = self.gmres(b)?;
             if converged {
-                self.converged(iterations);
+                self.converged(iterations, decades);
                 return Ok(());
             }
         }
@@ -295,7 +331,7 @@ impl LinearSolver for AmgGmres {
         Err(LinearSolverError::NotConverged(format!(
             "FGMRES with coupled AMG did not reach {:.0e} in {MAX_ITERATIONS} iterations \
              (an unstable state, or a tangent the preconditioner does not suit)",
-            self.rtol
+            self.tolerance()
         )))
     }
 
@@ -330,6 +366,10 @@ impl LinearSolver for AmgGmres {
         self.rebuild = true;
     }
 
+    fn set_forcing(&mut self, rtol: Option<f64>) {
+        self.forcing = rtol;
+    }
+
     fn stats(&self) -> SolverStats {
         let d = self.direct.stats();
         SolverStats {
@@ -338,6 +378,12 @@ impl LinearSolver for AmgGmres {
             krylov_iterations: self.stats.krylov_iterations,
         }
     }
+}
+
+/// Iterations per decade of residual reduction: how well a hierarchy preconditions, comparable
+/// between solves to different tolerances.
+fn rate(iterations: usize, decades: f64) -> f64 {
+    iterations as f64 / decades
 }
 
 /// The unknowns renumbered by whole nodes, (dim + 1) rows per node (the displacement components,
@@ -644,6 +690,71 @@ mod tests {
         // no inertia from a factorisation it never makes
         assert_eq!(s.factor(&k).unwrap(), None);
         assert_eq!(s.builds(), 1);
+    }
+
+    /// With a forcing term looser than its tolerance an adaptive solver stops there, in fewer
+    /// iterations; a fixed one ignores it; clearing the forcing term restores the tolerance.
+    #[test]
+    fn a_solve_stops_at_the_forcing_term_when_adaptive() {
+        // more than one level: a one-level hierarchy solves exactly
+        let (k, layout) = coupled(9);
+        let n = k.n;
+        let b: Vec<f64> = (0..n).map(|i| ((i * 5) % 13) as f64 - 6.0).collect();
+        let bn = b.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let relative = |x: &[f64]| {
+            let mut ax = vec![0.0; n];
+            k.mul_vec(x, &mut ax);
+            ax.iter()
+                .zip(&b)
+                .map(|(u, v)| (u - v).powi(2))
+                .sum::<f64>()
+                .sqrt()
+                / bn
+        };
+        let run = |adaptive: bool, forcing: Option<f64>| {
+            let mut s = AmgGmres::new(1e-10).adaptive(adaptive);
+            s.set_layout(layout.clone());
+            s.set_operator(&k).unwrap();
+            s.set_forcing(forcing);
+            let mut x = b.clone();
+            s.solve_in_place(&mut x).unwrap();
+            (relative(&x), s.stats().krylov_iterations)
+        };
+        let (tight, tight_iterations) = run(true, None);
+        let (loose, loose_iterations) = run(true, Some(1e-3));
+        let (fixed, fixed_iterations) = run(false, Some(1e-3));
+        assert!(tight < 1e-9, "{tight:e}");
+        assert!(loose < 1e-3 && loose > 1e-9, "{loose:e}");
+        assert!(
+            loose_iterations < tight_iterations,
+            "{loose_iterations} {tight_iterations}"
+        );
+        assert!(fixed < 1e-9, "{fixed:e}");
+        assert_eq!(fixed_iterations, tight_iterations);
+        // a forcing term tighter than the tolerance does not tighten it
+        let (_, floor_iterations) = run(true, Some(1e-14));
+        assert_eq!(floor_iterations, tight_iterations);
+    }
+
+    /// Rates compare solves to different tolerances: a hierarchy is not rebuilt because a tight
+    /// solve needs more iterations than a loose one, and loose or short solves are not compared.
+    #[test]
+    fn rebuilds_compare_iterations_per_decade() {
+        let (k, layout) = coupled(5);
+        let mut s = AmgGmres::new(1e-10);
+        s.set_layout(layout);
+        s.set_operator(&k).unwrap();
+        s.converged(30, 4.0);
+        assert_eq!(s.first_rate, Some(7.5));
+        // 60 iterations over 8 decades: the same rate
+        s.converged(60, 8.0);
+        assert!(!s.rebuild);
+        // a loose solve says nothing
+        s.converged(40, 1.0);
+        assert!(!s.rebuild);
+        // twice the rate: rebuild
+        s.converged(60, 4.0);
+        assert!(s.rebuild);
     }
 
     #[test]

@@ -108,6 +108,10 @@ pub trait LinearSolver: Send {
     }
     /// Where the unknowns sit, for a solver that splits the tangent into its fields.
     fn set_layout(&mut self, _layout: DofLayout) {}
+    /// The relative residual the next solves need (Newton's forcing term), or `None` for the
+    /// solver's own tolerance. An iterative solver may stop there instead of its own, tighter
+    /// tolerance; the others solve exactly and ignore it.
+    fn set_forcing(&mut self, _rtol: Option<f64>) {}
 }
 
 /// Work counts of a linear solver.
@@ -219,6 +223,10 @@ pub struct SolverSettings {
     /// `iterative`, and `auto` once it has switched to it: relative residual of each solve.
     #[serde(default = "default_rtol")]
     pub rtol: f64,
+    /// `iterative`: stop each solve at Newton's forcing term when that is looser than `rtol`
+    /// (Eisenstat–Walker); false: every solve to `rtol`.
+    #[serde(default = "default_adaptive")]
+    pub adaptive: bool,
     /// `auto` and `direct`: the largest factor (bytes) to hold; `None`: 80 % of the memory
     /// available when the factorisation starts. `auto` switches to `iterative` above it.
     #[serde(default)]
@@ -227,6 +235,10 @@ pub struct SolverSettings {
 
 fn default_rtol() -> f64 {
     super::iterative::DEFAULT_RTOL
+}
+
+fn default_adaptive() -> bool {
+    true
 }
 
 impl Default for SolverSettings {
@@ -238,6 +250,7 @@ impl Default for SolverSettings {
             single_precision: false,
             petsc_options: String::new(),
             rtol: default_rtol(),
+            adaptive: default_adaptive(),
             memory_limit: None,
         }
     }
@@ -262,9 +275,9 @@ impl SolverSettings {
                 if let Some(bytes) = self.memory_limit {
                     s = s.memory_limit(bytes);
                 }
-                Box::new(AutoSolver::new(s, self.rtol))
+                Box::new(AutoSolver::new(s, self.rtol).adaptive(self.adaptive))
             }
-            SolverKind::Iterative => Box::new(AmgGmres::new(self.rtol)),
+            SolverKind::Iterative => Box::new(AmgGmres::new(self.rtol).adaptive(self.adaptive)),
             #[cfg(feature = "petsc")]
             SolverKind::Petsc => Box::new(super::petsc::PetscSolver::new(&self.petsc_options)),
         }
@@ -306,11 +319,16 @@ impl SolverSettings {
                 format!("{exact}; auto: {unknowns} unknowns, a fresh factorisation per Newton iteration")
             }
             SolverKind::Iterative => format!(
-                "FGMRES to {:.0e} preconditioned by smoothed-aggregation AMG of the whole \
+                "FGMRES to {:.0e}{} preconditioned by smoothed-aggregation AMG of the whole \
                  coupled tangent (aggregates of nodes with u and Φ; rigid-body modes and the \
                  constant potential; memory linear in the unknowns; no inertia, so a limit point \
                  shows as a Newton failure)",
-                self.rtol
+                self.rtol,
+                if self.adaptive {
+                    " or Newton's looser forcing term"
+                } else {
+                    ""
+                }
             ),
             SolverKind::Auto => format!(
                 "direct sparse LDLT, {ordering} ordering, reused as the preconditioner of FGMRES \

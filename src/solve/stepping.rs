@@ -312,7 +312,8 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
 /// Tangent predictor: moves the free unknowns along the solution path to first order,
 /// Δx_f = −K⁻¹ K_fd Δx_d, with the factorised tangent of the converged state at load `from`.
 /// K_fd Δx_d is the directional derivative of the residual along the change of the prescribed
-/// values, taken by a one-sided difference (the residual vanishes at the converged state).
+/// values, taken by a one-sided difference (the residual vanishes at the converged state). The
+/// solve is asked for the difference's accuracy only ([`LinearSolver::set_forcing`]).
 fn predict<S: LoadedSystem + ?Sized>(
     system: &mut S,
     solver: &mut dyn LinearSolver,
@@ -343,7 +344,11 @@ fn predict<S: LoadedSystem + ?Sized>(
     for (w, b) in work.iter_mut().zip(&r0) {
         *w = -(*w - b) / H;
     }
-    if solver.solve_in_place(work).is_ok() && work.iter().all(|v| v.is_finite()) {
+    // the difference quotient is accurate to about H: an iterative solver need not go further
+    solver.set_forcing(Some(H));
+    let solved = solver.solve_in_place(work).is_ok();
+    solver.set_forcing(None);
+    if solved && work.iter().all(|v| v.is_finite()) {
         let before = system.snapshot();
         system.increment(work, 1.0);
         if system.evaluate(&mut r0, None).is_err() {

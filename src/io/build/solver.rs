@@ -88,6 +88,24 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
         }
         out.rtol = r;
     }
+    if let Some(f) = &spec.forcing {
+        if !matches!(out.kind, SolverKind::Iterative | SolverKind::Auto) {
+            return Err(ctx.err(
+                "solver.forcing",
+                "applies to kind = \"iterative\" or \"auto\" only (the direct kind solves exactly)",
+            ));
+        }
+        out.adaptive = match f.as_str() {
+            "adaptive" => true,
+            "fixed" => false,
+            _ => {
+                return Err(ctx.err(
+                    "solver.forcing",
+                    format!("unknown forcing `{f}`; expected one of: adaptive, fixed"),
+                ))
+            }
+        };
+    }
     if let Some(p) = &spec.precision {
         if out.kind != SolverKind::Auto {
             return Err(ctx.err(
@@ -256,6 +274,27 @@ mod tests {
             &[("solver", "[solver]\npetsc_options = \"-ksp_type cg\"")],
             "solver.petsc_options",
             "petsc_options applies to kind = \"petsc\" only",
+        );
+    }
+
+    #[test]
+    fn the_forcing_is_adaptive_unless_fixed() {
+        assert!(solver("[solver]\nkind = \"iterative\"").unwrap().adaptive);
+        let s = solver("[solver]\nkind = \"iterative\"\nforcing = \"fixed\"").unwrap();
+        assert!(!s.adaptive);
+        assert!(s.describe(10).starts_with("FGMRES to 1e-8 preconditioned"));
+        assert_rejected(
+            &[(
+                "solver",
+                "[solver]\nkind = \"iterative\"\nforcing = \"loose\"",
+            )],
+            "solver.forcing",
+            "unknown forcing `loose`; expected one of: adaptive, fixed",
+        );
+        assert_rejected(
+            &[("solver", "[solver]\nkind = \"direct\"\nforcing = \"fixed\"")],
+            "solver.forcing",
+            "applies to kind = \"iterative\" or \"auto\" only",
         );
     }
 
