@@ -196,7 +196,7 @@ pub const SCALING_MESHES: [[usize; 3]; 4] =
 pub const SCALING_STEPS: usize = 3;
 
 /// Column titles of [`bench_scaling_row`]'s rows.
-pub const SCALING_HEADER: &str = "          mesh      dofs  newton  run_s per_newton_s factors krylov krylov/solve peak_MiB  solver";
+pub const SCALING_HEADER: &str = "          mesh      dofs  newton  run_s per_newton_s factors krylov krylov/solve krylov/decade peak_MiB  solver";
 
 /// One row of the scaling table: the film on `div` with [`SCALING_STEPS`] steps.
 pub fn bench_scaling_row(
@@ -206,7 +206,7 @@ pub fn bench_scaling_row(
 ) -> Result<String, String> {
     let run = film_run(div, kind, SCALING_STEPS, memory_limit)?;
     Ok(format!(
-        "{:>14} {:>9} {:>7} {:>6.1} {:>12.3} {:>7} {:>6} {:>12.1} {:>8.0}  {}",
+        "{:>14} {:>9} {:>7} {:>6.1} {:>12.3} {:>7} {:>6} {:>12.1} {:>13.2} {:>8.0}  {}",
         format!("{}x{}x{}", div[0], div[1], div[2]),
         run.dofs,
         run.newton,
@@ -215,6 +215,10 @@ pub fn bench_scaling_row(
         run.stats.factorizations,
         run.stats.krylov_iterations,
         run.stats.krylov_iterations as f64 / run.stats.solves.max(1) as f64,
+        match run.stats.krylov_decades {
+            d if d > 0.0 => run.stats.krylov_iterations as f64 / d,
+            _ => 0.0,
+        },
         peak_memory_mib(),
         run.solver
     ))

@@ -718,9 +718,11 @@ struct ProductScratch {
 }
 
 /// C = S + D·(A·B) for sparse A, B (Gustavson's row-by-row algorithm), with an optional sparse S
-/// of the shape of C and an optional diagonal row scaling D. Rows are computed in parallel chunks
-/// and concatenated in order; each row's sums run in a fixed order, so the result does not depend
-/// on the threads.
+/// of the shape of C and an optional diagonal row scaling D. Two passes over the rows, each in
+/// parallel chunks: the first counts each row's entries, the second writes them into the result,
+/// allocated once at its final size (collecting chunks and concatenating them held the product
+/// twice, which set the peak memory of a large hierarchy's set-up). Each row's sums run in a
+/// fixed order, so the result does not depend on the threads.
 fn product<IA: Idx, IB: Idx>(
     a: View<'_, IA>,
     b: View<'_, IB>,
@@ -730,73 +732,102 @@ fn product<IA: Idx, IB: Idx>(
     let n = a.nrows;
     let ncols = b.ncols;
     let nchunks = n.div_ceil(CHUNK);
-    let chunk = |s: &mut ProductScratch, c: usize| {
-        let rows = c * CHUNK..((c + 1) * CHUNK).min(n);
-        let mut lens = Vec::with_capacity(rows.len());
-        let mut col = Vec::new();
-        let mut val = Vec::new();
-        for i in rows {
-            s.cols.clear();
-            let push = |j: usize, v: f64, s: &mut ProductScratch| {
-                if s.mark[j] != i {
-                    s.mark[j] = i;
+    let rows_of = |c: usize| c * CHUNK..((c + 1) * CHUNK).min(n);
+    // the columns of row i of C, unsorted, in s.cols (and their sums in s.acc when `numeric`)
+    let row = |s: &mut ProductScratch, i: usize, numeric: bool| {
+        s.cols.clear();
+        let mut push = |j: usize, v: f64| {
+            if s.mark[j] != i {
+                s.mark[j] = i;
+                s.cols.push(j as u32);
+                if numeric {
                     s.acc[j] = v;
-                    s.cols.push(j as u32);
-                } else {
-                    s.acc[j] += v;
                 }
-            };
-            if let Some(sm) = add {
-                for p in sm.row_ptr[i]..sm.row_ptr[i + 1] {
-                    push(sm.col[p] as usize, sm.val[p], s);
-                }
+            } else if numeric {
+                s.acc[j] += v;
             }
-            let d = scale.map_or(1.0, |d| d[i]);
-            for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                let k = a.col[p].ix();
-                let aik = d * a.val[p];
-                for q in b.row_ptr[k]..b.row_ptr[k + 1] {
-                    push(b.col[q].ix(), aik * b.val[q], s);
-                }
-            }
-            s.cols.sort_unstable();
-            lens.push(s.cols.len());
-            for &j in &s.cols {
-                col.push(j);
-                val.push(s.acc[j as usize]);
+        };
+        if let Some(sm) = add {
+            for p in sm.row_ptr[i]..sm.row_ptr[i + 1] {
+                push(sm.col[p] as usize, sm.val[p]);
             }
         }
-        (lens, col, val)
+        let d = scale.map_or(1.0, |d| d[i]);
+        for p in a.row_ptr[i]..a.row_ptr[i + 1] {
+            let k = a.col[p].ix();
+            let aik = d * a.val[p];
+            for q in b.row_ptr[k]..b.row_ptr[k + 1] {
+                push(b.col[q].ix(), aik * b.val[q]);
+            }
+        }
     };
     let init = || ProductScratch {
         acc: vec![0.0; ncols],
         mark: vec![usize::MAX; ncols],
         cols: Vec::new(),
     };
-    let parts: Vec<(Vec<usize>, Vec<u32>, Vec<f64>)> = if n >= PARALLEL_MIN_ROWS {
-        (0..nchunks).into_par_iter().map_init(init, chunk).collect()
+    let parallel = n >= PARALLEL_MIN_ROWS;
+    // pass 1: the entries of each row
+    let count = |s: &mut ProductScratch, c: usize| -> Vec<usize> {
+        rows_of(c)
+            .map(|i| {
+                row(s, i, false);
+                s.cols.len()
+            })
+            .collect()
+    };
+    let lens: Vec<Vec<usize>> = if parallel {
+        (0..nchunks).into_par_iter().map_init(init, count).collect()
     } else {
         let mut s = init();
-        (0..nchunks).map(|c| chunk(&mut s, c)).collect()
+        (0..nchunks).map(|c| count(&mut s, c)).collect()
     };
-    let nnz: usize = parts.iter().map(|p| p.1.len()).sum();
-    let mut out = Csr {
+    let mut row_ptr = Vec::with_capacity(n + 1);
+    row_ptr.push(0);
+    for l in lens.iter().flatten() {
+        row_ptr.push(row_ptr[row_ptr.len() - 1] + l);
+    }
+    drop(lens);
+    let nnz = row_ptr[n];
+    let mut col = vec![0u32; nnz];
+    let mut val = vec![0.0; nnz];
+    // pass 2: each chunk's rows into its own part of the result
+    let mut parts: Vec<(usize, &mut [u32], &mut [f64])> = Vec::with_capacity(nchunks);
+    let (mut col_rest, mut val_rest) = (col.as_mut_slice(), val.as_mut_slice());
+    for c in 0..nchunks {
+        let r = rows_of(c);
+        let len = row_ptr[r.end] - row_ptr[r.start];
+        let (cc, cr) = std::mem::take(&mut col_rest).split_at_mut(len);
+        let (vc, vr) = std::mem::take(&mut val_rest).split_at_mut(len);
+        parts.push((c, cc, vc));
+        col_rest = cr;
+        val_rest = vr;
+    }
+    let fill = |s: &mut ProductScratch, (c, cc, vc): (usize, &mut [u32], &mut [f64])| {
+        let mut at = 0;
+        for i in rows_of(c) {
+            row(s, i, true);
+            s.cols.sort_unstable();
+            for &j in &s.cols {
+                cc[at] = j;
+                vc[at] = s.acc[j as usize];
+                at += 1;
+            }
+        }
+    };
+    if parallel {
+        parts.into_par_iter().for_each_init(init, fill);
+    } else {
+        let mut s = init();
+        parts.into_iter().for_each(|p| fill(&mut s, p));
+    }
+    Csr {
         nrows: n,
         ncols,
-        row_ptr: Vec::with_capacity(n + 1),
-        col: Vec::with_capacity(nnz),
-        val: Vec::with_capacity(nnz),
-    };
-    out.row_ptr.push(0);
-    for (lens, col, val) in parts {
-        for l in lens {
-            let last = *out.row_ptr.last().unwrap_or(&0);
-            out.row_ptr.push(last + l);
-        }
-        out.col.extend_from_slice(&col);
-        out.val.extend_from_slice(&val);
+        row_ptr,
+        col,
+        val,
     }
-    out
 }
 
 // ---------------------------------------------------------------------------------------------

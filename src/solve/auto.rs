@@ -127,6 +127,7 @@ impl LinearSolver for AutoSolver {
             factorizations: d.factorizations + i.factorizations,
             solves: d.solves + i.solves,
             krylov_iterations: d.krylov_iterations + i.krylov_iterations,
+            krylov_decades: d.krylov_decades + i.krylov_decades,
         }
     }
 

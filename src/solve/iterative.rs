@@ -241,6 +241,7 @@ impl AmgGmres {
             }
         }
         let decades = -report.relative_residual.max(1e-16).log10();
+        self.stats.krylov_decades += decades;
         Ok((report.converged, report.iterations, decades))
     }
 
@@ -376,6 +377,7 @@ impl LinearSolver for AmgGmres {
             factorizations: d.factorizations,
             solves: d.solves + self.stats.solves,
             krylov_iterations: self.stats.krylov_iterations,
+            krylov_decades: self.stats.krylov_decades,
         }
     }
 }

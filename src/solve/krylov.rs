@@ -50,6 +50,49 @@ fn norm(a: &[f64]) -> f64 {
     dot(a, a).sqrt()
 }
 
+/// Entries per piece of the vectors in [`orthogonalise`]: the pieces' sums are added in order,
+/// so the result is the same on any number of threads.
+const PIECE: usize = 4096;
+
+/// One classical Gram–Schmidt pass: c = Vᵀw and w −= V c for the orthonormal columns V stored
+/// one after another in `basis`; returns c. Each piece of the vectors is done by one thread.
+fn orthogonalise(basis: &[f64], w: &mut [f64]) -> Vec<f64> {
+    use rayon::prelude::*;
+    let n = w.len();
+    let m = basis.len() / n.max(1);
+    let piece = |p: usize| p * PIECE..((p + 1) * PIECE).min(n);
+    let pieces = n.div_ceil(PIECE);
+    let parallel = n >= 16 * PIECE && rayon::current_num_threads() > 1;
+    let partial = |p: usize| -> Vec<f64> {
+        let r = piece(p);
+        (0..m)
+            .map(|i| dot(&w[r.clone()], &basis[i * n + r.start..i * n + r.end]))
+            .collect()
+    };
+    let partials: Vec<Vec<f64>> = if parallel {
+        (0..pieces).into_par_iter().map(partial).collect()
+    } else {
+        (0..pieces).map(partial).collect()
+    };
+    let mut c = vec![0.0; m];
+    for part in &partials {
+        c.iter_mut().zip(part).for_each(|(ci, pi)| *ci += pi);
+    }
+    let update = |(p, wp): (usize, &mut [f64])| {
+        let start = p * PIECE;
+        for (i, ci) in c.iter().enumerate() {
+            let v = &basis[i * n + start..i * n + start + wp.len()];
+            wp.iter_mut().zip(v).for_each(|(wi, vi)| *wi -= ci * vi);
+        }
+    };
+    if parallel {
+        w.par_chunks_mut(PIECE).enumerate().for_each(update);
+    } else {
+        w.chunks_mut(PIECE).enumerate().for_each(update);
+    }
+    c
+}
+
 /// Right-preconditioned flexible GMRES(m) for A x = b, from the initial guess in `x`.
 ///
 /// `apply(v, y)` sets y = A v; `precond(v, z)` sets z ≈ A⁻¹ v (it may change from call to call:
@@ -74,44 +117,48 @@ pub fn fgmres(
     }
     let m = settings.restart.max(1);
     let target = settings.rtol * bnorm;
-    let mut basis: Vec<Vec<f64>> = Vec::with_capacity(m + 1);
-    let mut zs: Vec<Vec<f64>> = Vec::with_capacity(m);
+    // the Krylov basis and the preconditioned vectors, each in one zeroed allocation: its pages
+    // are mapped only as the iteration reaches them, and it goes back to the system as a whole
+    // when the solve ends (m vectors of their own each would stay in the allocator's heap)
+    let mut basis = vec![0.0; (m + 1) * n];
+    let mut zs = vec![0.0; m * n];
     let mut h = vec![vec![0.0; m]; m + 1]; // h[i][j]: row i, column j
     let (mut cs, mut sn, mut g) = (vec![0.0; m], vec![0.0; m], vec![0.0; m + 1]);
     let mut w = vec![0.0; n];
     let mut iterations = 0;
     let mut residual;
     loop {
-        // true residual r = b − A x
+        // true residual r = b − A x, the first basis vector
         apply(x, &mut w);
-        let mut r: Vec<f64> = b.iter().zip(&w).map(|(bi, wi)| bi - wi).collect();
-        residual = norm(&r);
+        let r = &mut basis[..n];
+        r.iter_mut()
+            .zip(b.iter().zip(&w))
+            .for_each(|(ri, (bi, wi))| *ri = bi - wi);
+        residual = norm(r);
         if residual <= target || iterations >= settings.max_iterations || !residual.is_finite() {
             break;
         }
         r.iter_mut().for_each(|v| *v /= residual);
-        basis.clear();
-        zs.clear();
-        basis.push(r);
         g.iter_mut().for_each(|v| *v = 0.0);
         g[0] = residual;
         let mut k = 0;
         while k < m && iterations < settings.max_iterations {
-            let mut z = vec![0.0; n];
-            precond(&basis[k], &mut z);
-            apply(&z, &mut w);
-            zs.push(z);
+            let z = &mut zs[k * n..(k + 1) * n];
+            // as a fresh vector: a restart's earlier vector is not the preconditioner's guess
+            z.iter_mut().for_each(|v| *v = 0.0);
+            precond(&basis[k * n..(k + 1) * n], z);
+            apply(z, &mut w);
             iterations += 1;
-            // modified Gram–Schmidt, repeated once (keeps the basis orthogonal when the
-            // preconditioner is nearly exact and the Hessenberg entries span many decades)
+            // classical Gram–Schmidt, repeated once (CGS2: as orthogonal as the modified
+            // process repeated, also when the preconditioner is nearly exact and the Hessenberg
+            // entries span many decades, and one pass over the basis for all its products)
             for hcol in h.iter_mut() {
                 hcol[k] = 0.0;
             }
             for _ in 0..2 {
-                for (i, v) in basis.iter().enumerate() {
-                    let c = dot(&w, v);
-                    h[i][k] += c;
-                    w.iter_mut().zip(v).for_each(|(wi, vi)| *wi -= c * vi);
+                let c = orthogonalise(&basis[..(k + 1) * n], &mut w);
+                for (i, ci) in c.into_iter().enumerate() {
+                    h[i][k] += ci;
                 }
             }
             let hn = norm(&w);
@@ -136,7 +183,10 @@ pub fn fgmres(
             if g[k].abs() <= target || hn == 0.0 {
                 break;
             }
-            basis.push(w.iter().map(|v| v / hn).collect());
+            basis[k * n..(k + 1) * n]
+                .iter_mut()
+                .zip(&w)
+                .for_each(|(v, wi)| *v = wi / hn);
         }
         // back substitution for the coefficients, then x += Z y
         let mut y = vec![0.0; k];
@@ -144,7 +194,7 @@ pub fn fgmres(
             let s: f64 = (i + 1..k).map(|j| h[i][j] * y[j]).sum();
             y[i] = (g[i] - s) / h[i][i];
         }
-        for (z, yi) in zs.iter().zip(&y) {
+        for (z, yi) in zs.chunks_exact(n).zip(&y) {
             x.iter_mut().zip(z).for_each(|(xi, zi)| *xi += yi * zi);
         }
     }

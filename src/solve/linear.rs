@@ -115,7 +115,7 @@ pub trait LinearSolver: Send {
 }
 
 /// Work counts of a linear solver.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct SolverStats {
     /// Numeric factorisations.
     pub factorizations: usize,
@@ -123,6 +123,11 @@ pub struct SolverStats {
     pub solves: usize,
     /// Krylov iterations in all.
     pub krylov_iterations: usize,
+    /// Decades of residual reduction over all Krylov solves (the sum of −log₁₀ of each solve's
+    /// final relative residual): iterations per decade compare preconditioners across solves
+    /// to different tolerances.
+    #[serde(default)]
+    pub krylov_decades: f64,
 }
 
 /// Fill-reducing ordering of [`FaerLdlt`].

@@ -247,8 +247,9 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
     let mut border = system.border();
     let mut reference = r0.max(floor);
     let border_open = |b: &Option<Border>| b.as_ref().is_some_and(|b| b.g.abs() > b.tol);
-    // the last iteration's residual and forcing term
+    // the last iteration's residual and forcing term, and whether its step was shortened
     let mut forced: Option<(f64, f64)> = None;
+    let mut backtracked = false;
     while rn > tol || border_open(&border) {
         // round-off plateau: within ROUNDOFF_BAND of the floor and no longer halving over two
         // iterations; the floor's round-off estimate is a few times off on distorted meshes
@@ -287,9 +288,13 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
         dx.iter_mut().zip(&r).for_each(|(d, v)| *d = -v);
         // a bordered step combines two solves into the step: both exact to the solver's own
         // tolerance
+        // after a step the line search had to shorten, the direction is suspect (near a limit
+        // point an inexact solve errs most along the nearly singular mode): solve to the
+        // solver's own tolerance
         let eta = forcing_term(rn, forced, tol);
-        solver.set_forcing(border.is_none().then_some(eta));
-        forced = Some((rn, eta));
+        let inexact = border.is_none() && !backtracked;
+        solver.set_forcing(inexact.then_some(eta));
+        forced = Some((rn, if inexact { eta } else { 0.0 }));
         solver
             .solve_in_place(&mut dx)
             .map_err(|e| NewtonError::Evaluation {
@@ -388,6 +393,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
                 .map_err(|message| NewtonError::Evaluation { iteration, message })?;
             k_fresh = !reuse;
         }
+        backtracked = alpha < 1.0;
         let previous = rn;
         rn = norm(&r);
         border = system.border();

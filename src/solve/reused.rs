@@ -127,6 +127,7 @@ impl ReusedLdlt {
             return Err(e);
         }
         self.stats.krylov_iterations += report.iterations;
+        self.stats.krylov_decades += -report.relative_residual.max(1e-16).log10();
         self.since_factor += report.iterations;
         if report.converged || report.relative_residual <= ACCEPTABLE_RTOL {
             b.copy_from_slice(&x);
@@ -198,6 +199,7 @@ impl LinearSolver for ReusedLdlt {
             factorizations: d.factorizations,
             solves: d.solves,
             krylov_iterations: self.stats.krylov_iterations,
+            krylov_decades: self.stats.krylov_decades,
         }
     }
 }
