@@ -685,6 +685,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 accepted_steps: 0,
                 cutbacks: 0,
                 newton_iterations: 0,
+                retrying: false,
             },
             |r| r.1,
         );

@@ -29,6 +29,10 @@ pub struct NewtonSettings {
     /// Modified Newton: keep the solver's factorisation (from an earlier iteration or step) and
     /// refactor only when an iteration reduces the residual by less than 10×.
     pub reuse_factorization: bool,
+    /// Let an iterative solver stop each solve at Newton's forcing term ([`forcing_term`]);
+    /// false: every solve to the solver's own tolerance (a load step retried after a failure,
+    /// where a loose first solve can leave Newton creeping next to a limit point).
+    pub inexact: bool,
 }
 
 /// Residuals up to this multiple of the system's floor count as converged once they stagnate.
@@ -46,6 +50,7 @@ impl Default for NewtonSettings {
             // a table of every iteration on stderr (for diagnosing a failing solve)
             verbose: std::env::var_os("DEASIM_NEWTON_VERBOSE").is_some(),
             reuse_factorization: false,
+            inexact: true,
         }
     }
 }
@@ -247,9 +252,8 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
     let mut border = system.border();
     let mut reference = r0.max(floor);
     let border_open = |b: &Option<Border>| b.as_ref().is_some_and(|b| b.g.abs() > b.tol);
-    // the last iteration's residual and forcing term, and whether its step was shortened
+    // the last iteration's residual and forcing term
     let mut forced: Option<(f64, f64)> = None;
-    let mut backtracked = false;
     while rn > tol || border_open(&border) {
         // round-off plateau: within ROUNDOFF_BAND of the floor and no longer halving over two
         // iterations; the floor's round-off estimate is a few times off on distorted meshes
@@ -288,13 +292,9 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
         dx.iter_mut().zip(&r).for_each(|(d, v)| *d = -v);
         // a bordered step combines two solves into the step: both exact to the solver's own
         // tolerance
-        // after a step the line search had to shorten, the direction is suspect (near a limit
-        // point an inexact solve errs most along the nearly singular mode): solve to the
-        // solver's own tolerance
         let eta = forcing_term(rn, forced, tol);
-        let inexact = border.is_none() && !backtracked;
-        solver.set_forcing(inexact.then_some(eta));
-        forced = Some((rn, if inexact { eta } else { 0.0 }));
+        solver.set_forcing((settings.inexact && border.is_none()).then_some(eta));
+        forced = Some((rn, eta));
         solver
             .solve_in_place(&mut dx)
             .map_err(|e| NewtonError::Evaluation {
@@ -393,7 +393,6 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
                 .map_err(|message| NewtonError::Evaluation { iteration, message })?;
             k_fresh = !reuse;
         }
-        backtracked = alpha < 1.0;
         let previous = rn;
         rn = norm(&r);
         border = system.border();
