@@ -144,9 +144,12 @@ fn pull_in_is_found_with_reused_factorisations() {
 #[test]
 fn pull_in_is_found_with_the_iterative_solver() {
     // the iterative solver gives no inertia: past the limit point there is no equilibrium, so Newton fails,
-    // and the ramp cuts its step back until the failures persist at the smallest increment
+    // and the ramp cuts its step back until the failures persist at the smallest increment;
+    // once a step has failed, its retries solve to the solver's own tolerance, not to Newton's
+    // loose forcing term: that finds the limit as exact solves do (33 695.31 V; loose retries
+    // stopped 0.5 V short of it)
     let v = pull_in("solver.kind=\"iterative\"");
-    assert!((v - 33_695.33).abs() < 0.5, "{v}");
+    assert!((v - 33_695.33).abs() < 0.1, "{v}");
 }
 
 /// The last converged voltage of the film ramped past pull-in with the solver setting `solver`.

@@ -26,9 +26,11 @@
 //! 6·10⁴ unknowns, where the coupled hierarchy needs about 52, 60 and 78, and 80 at 1.2·10⁵
 //! (docs/validation.md).
 //!
-//! The hierarchy is kept across Newton iterations and steps while the iteration counts stay near
-//! that of its first solve (the tangent changes little), and rebuilt when they grow or a solve
-//! fails. Close to a stability limit a hierarchy of the current tangent can precondition worse
+//! Each solve stops at Newton's forcing term when that is looser than the tolerance
+//! ([`AmgGmres::adaptive`]), so solves reach different tolerances; the hierarchy's quality is
+//! therefore judged by iterations per decade of residual reduction. It is kept across Newton
+//! iterations and steps while that rate stays near the one of its first solve (the tangent
+//! changes little), and rebuilt when it grows or a solve fails. Close to a stability limit a hierarchy of the current tangent can precondition worse
 //! than the older one (the displacement block at fixed potential is then indefinite): the
 //! hierarchy a rebuild replaced is kept until the first solve with the new one, and restored when
 //! the new one needed more iterations than the old one's last solve. Above

@@ -95,16 +95,7 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
                 "applies to kind = \"iterative\" or \"auto\" only (the direct kind solves exactly)",
             ));
         }
-        out.adaptive = match f.as_str() {
-            "adaptive" => true,
-            "fixed" => false,
-            _ => {
-                return Err(ctx.err(
-                    "solver.forcing",
-                    format!("unknown forcing `{f}`; expected one of: adaptive, fixed"),
-                ))
-            }
-        };
+        out.adaptive = choice(ctx, "forcing", f, [("adaptive", true), ("fixed", false)])?;
     }
     if let Some(p) = &spec.precision {
         if out.kind != SolverKind::Auto {
@@ -113,18 +104,26 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
                 "applies to kind = \"auto\" only (the direct kind factors in double precision)",
             ));
         }
-        out.single_precision = match p.as_str() {
-            "double" => false,
-            "single" => true,
-            _ => {
-                return Err(ctx.err(
-                    "solver.precision",
-                    format!("unknown precision `{p}`; expected one of: double, single"),
-                ))
-            }
-        };
+        out.single_precision = choice(ctx, "precision", p, [("double", false), ("single", true)])?;
     }
     Ok(out)
+}
+
+/// The setting of one of two named choices of `solver.<key>`, or an error listing them.
+fn choice(ctx: &Ctx, key: &str, value: &str, names: [(&str, bool); 2]) -> Result<bool, InputError> {
+    names
+        .iter()
+        .find(|(name, _)| *name == value)
+        .map(|&(_, on)| on)
+        .ok_or_else(|| {
+            ctx.err(
+                format!("solver.{key}"),
+                format!(
+                    "unknown {key} `{value}`; expected one of: {}, {}",
+                    names[0].0, names[1].0
+                ),
+            )
+        })
 }
 
 #[cfg(test)]
