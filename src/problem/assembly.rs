@@ -495,24 +495,32 @@ impl Assembler {
                     }
                 }
                 let order = &order[..m];
+                // where each column sat in the previous row: the rows of one node have the same
+                // columns, so after a node's first row every position is a guess that holds
+                let mut rel = [0usize; MAX_LOCAL];
                 for i in 0..nl {
                     let ei = eqs[i];
                     if ei == CONSTRAINED {
                         continue;
                     }
-                    let cols = &col_idx[row_ptr[ei]..row_ptr[ei + 1]];
-                    let mut pos = 0;
-                    for &j in order {
+                    let start = row_ptr[ei];
+                    let cols = &col_idx[start..row_ptr[ei + 1]];
+                    let mut prev = 0;
+                    for (t, &j) in order.iter().enumerate() {
                         let ej = eqs[j];
-                        if cols.get(pos + 1) == Some(&ej) {
-                            pos += 1;
-                        } else if cols[pos] != ej {
-                            pos += cols[pos..]
+                        let pos = if cols.get(rel[t]) == Some(&ej) {
+                            rel[t]
+                        } else if t > 0 && cols.get(prev + 1) == Some(&ej) {
+                            prev + 1
+                        } else {
+                            prev + cols[prev..]
                                 .binary_search(&ej)
-                                .expect("pattern holds every cell coupling");
-                        }
+                                .expect("pattern holds every cell coupling")
+                        };
+                        rel[t] = pos;
+                        prev = pos;
                         // SAFETY: as above, row ei belongs to a node of this cell only.
-                        unsafe { kp.add(row_ptr[ei] + pos, scale[i] * scale[j] * kl[i * nl + j]) };
+                        unsafe { kp.add(start + pos, scale[i] * scale[j] * kl[i * nl + j]) };
                     }
                 }
             }

@@ -144,6 +144,7 @@ impl LinearSolver for AutoSolver {
 
     fn set_forcing(&mut self, rtol: Option<f64>) {
         self.forcing = rtol;
+        self.direct.set_forcing(rtol);
         if let Some(it) = &mut self.iterative {
             it.set_forcing(rtol);
         }

@@ -273,7 +273,9 @@ impl SolverSettings {
                 })
             }
             SolverKind::Auto => {
-                let mut s = ReusedLdlt::with_ordering(self.ordering).from_unknowns(self.reuse_from);
+                let mut s = ReusedLdlt::with_ordering(self.ordering)
+                    .from_unknowns(self.reuse_from)
+                    .adaptive(self.adaptive);
                 if self.single_precision {
                     s = s.single_precision();
                 }
