@@ -41,7 +41,9 @@
 
 use super::amg::{rigid_body_modes, Amg, AmgParams, BlockMatrix, SmootherStorage};
 use super::krylov::{fgmres, KrylovSettings};
-use super::linear::{FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats};
+use super::linear::{
+    forced_tolerance, FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats,
+};
 use crate::problem::assembly::CsrMatrix;
 use crate::problem::system::DofLayout;
 
@@ -141,10 +143,7 @@ impl AmgGmres {
 
     /// The relative residual the next solve stops at.
     fn tolerance(&self) -> f64 {
-        match (self.adaptive, self.forcing) {
-            (true, Some(eta)) => eta.max(self.rtol),
-            _ => self.rtol,
-        }
+        forced_tolerance(self.rtol, self.adaptive, self.forcing)
     }
 
     /// Number of times the hierarchy was built.

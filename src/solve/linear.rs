@@ -114,6 +114,15 @@ pub trait LinearSolver: Send {
     fn set_forcing(&mut self, _rtol: Option<f64>) {}
 }
 
+/// The relative residual a Krylov solve stops at: its own tolerance `own`, or Newton's forcing
+/// term ([`LinearSolver::set_forcing`]) when the solver is adaptive and that is looser.
+pub(crate) fn forced_tolerance(own: f64, adaptive: bool, forcing: Option<f64>) -> f64 {
+    match (adaptive, forcing) {
+        (true, Some(eta)) => eta.max(own),
+        _ => own,
+    }
+}
+
 /// Work counts of a linear solver.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct SolverStats {
@@ -228,8 +237,9 @@ pub struct SolverSettings {
     /// `iterative`, and `auto` once it has switched to it: relative residual of each solve.
     #[serde(default = "default_rtol")]
     pub rtol: f64,
-    /// `iterative`: stop each solve at Newton's forcing term when that is looser than `rtol`
-    /// (Eisenstat–Walker); false: every solve to `rtol`.
+    /// `iterative`, and `auto` wherever it runs FGMRES: stop each solve at Newton's forcing term
+    /// when that is looser than the solver's own tolerance (Eisenstat–Walker); false: every
+    /// solve to that tolerance.
     #[serde(default = "default_adaptive")]
     pub adaptive: bool,
     /// `auto` and `direct`: the largest factor (bytes) to hold; `None`: 80 % of the memory

@@ -14,7 +14,9 @@
 //! Reference: Knoll & Keyes, J. Comput. Phys. 193 (2004) 357–397, §3 (preconditioner lagging).
 
 use super::krylov::{fgmres, KrylovSettings};
-use super::linear::{FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats};
+use super::linear::{
+    forced_tolerance, FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats,
+};
 use crate::problem::assembly::CsrMatrix;
 
 /// Relative residual of each Krylov solve (Newton's own tolerance is 1e-10 of its first
@@ -121,10 +123,7 @@ impl ReusedLdlt {
     /// the solution in `b` when it converged (or came close enough for an inexact Newton step).
     fn krylov(&mut self, b: &mut [f64]) -> Result<bool, LinearSolverError> {
         let op = self.op.as_ref().ok_or(LinearSolverError::NotFactored)?;
-        let rtol = match (self.adaptive, self.forcing) {
-            (true, Some(eta)) => eta.max(KRYLOV_RTOL),
-            _ => KRYLOV_RTOL,
-        };
+        let rtol = forced_tolerance(KRYLOV_RTOL, self.adaptive, self.forcing);
         let direct = &mut self.direct;
         let mut x = vec![0.0; b.len()];
         let mut failed = None;
