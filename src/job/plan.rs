@@ -223,8 +223,8 @@ impl Plan {
     /// METIS partition of the cells ([`partition_cells`](crate::mesh::partition::partition_cells),
     /// the same on every process), of which this process assembles its part; `sum` adds a
     /// vector over the processes (every process receiving the same bits). Every system built
-    /// from the model afterwards assembles only this process's cells. Returns the number of
-    /// cells of each process.
+    /// from the model afterwards assembles only this process's cells, and the model holds the
+    /// reference geometry of those cells only. Returns the number of cells of each process.
     pub fn share_cells(
         &mut self,
         rank: usize,
@@ -236,9 +236,11 @@ impl Plan {
         for &p in &part {
             counts[p] += 1;
         }
+        self.model.hold_geometry_of(|c| part[c] == rank);
         self.model.share = Some(std::sync::Arc::new(crate::problem::assembly::CellShare {
             owned: part.iter().map(|&p| p == rank).collect(),
-            root: rank == 0,
+            rank,
+            size: ranks,
             sum,
         }));
         counts

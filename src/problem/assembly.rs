@@ -11,9 +11,11 @@
 //! each process assembles only the cells it owns, [`Assembler::combine`] sums the residual's cell
 //! part over the processes (every process then holds the same full residual, so the nonlinear
 //! solvers run unchanged), and the tangent stays this process's part, to be summed by a
-//! distributed linear solver over the entries [`Assembler::entries`] names. Terms that are not
-//! cell terms go into the residual on every process and into the tangent on one only
-//! ([`Assembler::global_terms`]). Without a share nothing changes.
+//! distributed linear solver. That part has a pattern of its own: the couplings of the owned
+//! cells, and the whole rows of one contiguous range of equations ([`Assembler::term_rows`]),
+//! into which this process adds the tangent's terms that are not cell terms
+//! ([`Assembler::global_terms`]); the ranges of the processes cover every equation once. So no
+//! process holds the whole tangent or its whole pattern. Without a share nothing changes.
 
 use crate::element::{LocalMatrix, MAX_LOCAL};
 use crate::mesh::Mesh;
@@ -133,8 +135,11 @@ impl CsrMatrix {
 pub struct CellShare {
     /// Per cell: whether this process assembles it.
     pub owned: Vec<bool>,
-    /// Whether this process adds the tangent's terms that are not cell terms (exactly one does).
-    pub root: bool,
+    /// This process's index among the processes ...
+    pub rank: usize,
+    /// ... and their number: each adds the non-cell terms of the tangent's rows in its own
+    /// contiguous range of equations.
+    pub size: usize,
     /// Sums a vector over the processes in place; every process receives the same bits.
     pub sum: SumOverProcesses,
 }
@@ -146,7 +151,8 @@ impl std::fmt::Debug for CellShare {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("CellShare")
             .field("owned", &self.owned.iter().filter(|&&o| o).count())
-            .field("root", &self.root)
+            .field("rank", &self.rank)
+            .field("size", &self.size)
             .finish()
     }
 }
@@ -171,9 +177,9 @@ pub struct Assembler {
     nodes_per_cell: usize,
     /// The share of the cells of this process, if the cells are shared.
     share: Option<std::sync::Arc<CellShare>>,
-    /// With a share: the positions in the tangent's values this process assembles (every
-    /// position on the root, which also adds the terms that are not cell terms).
-    entries: Option<std::sync::Arc<[usize]>>,
+    /// The equations whose tangent rows take this process's non-cell terms (all without a
+    /// share).
+    term_rows: std::ops::Range<usize>,
 }
 
 /// A pointer that may be shared between threads because the colouring guarantees that concurrent
@@ -190,10 +196,74 @@ impl SharedMut {
     }
 }
 
+/// The equations of process `rank` among `size` whose tangent rows take its non-cell terms:
+/// contiguous, split at multiples of 4 (a node's unknowns stay together when all are free), as
+/// even as possible; the ranges of all processes cover `0..n` once.
+fn term_rows(n: usize, rank: usize, size: usize) -> std::ops::Range<usize> {
+    let blocks = n.div_ceil(4);
+    let at = |r: usize| (blocks * r / size * 4).min(n);
+    at(rank)..at(rank + 1)
+}
+
+/// The tangent as it takes the terms that are not cell terms (loads, pressures, inertia,
+/// circuits): on this process, only the rows of [`Assembler::term_rows`], so that the processes
+/// sharing the cells add each such term once between them.
+#[derive(Debug)]
+pub struct GlobalTerms<'a> {
+    k: &'a mut CsrMatrix,
+    rows: std::ops::Range<usize>,
+}
+
+impl GlobalTerms<'_> {
+    /// Position of entry (i, j) in the tangent's values when this process adds the non-cell
+    /// terms of row i and the entry is in the pattern.
+    pub fn position(&self, i: usize, j: usize) -> Option<usize> {
+        if self.rows.contains(&i) {
+            self.k.position(i, j)
+        } else {
+            None
+        }
+    }
+
+    /// Adds `v` to entry (i, j) when [`GlobalTerms::position`] has it; nothing otherwise.
+    pub fn add(&mut self, i: usize, j: usize, v: f64) {
+        if let Some(p) = self.position(i, j) {
+            self.k.values[p] += v;
+        }
+    }
+
+    /// The tangent's values, for adding at positions found by [`GlobalTerms::position`].
+    pub fn values_mut(&mut self) -> &mut [f64] {
+        &mut self.k.values
+    }
+}
+
 impl Assembler {
     /// Builds the colouring and the CSR pattern of the free dofs of `mesh` under `dofs`.
     pub fn new(mesh: &Mesh, dofs: &DofMap) -> Self {
+        Self::build(mesh, dofs, None)
+    }
+
+    /// The assembler of this process when `share` gives it some of the cells (see the module
+    /// documentation): its colours and serial list are those of [`Assembler::new`] restricted
+    /// to the owned cells, in the same order, so every cell's contributions are added in the
+    /// same order as without a share; its pattern holds the owned cells' couplings and the
+    /// whole rows of its [`Assembler::term_rows`].
+    pub fn shared(mesh: &Mesh, dofs: &DofMap, share: Arc<CellShare>) -> Self {
+        Self::build(mesh, dofs, Some(share))
+    }
+
+    fn build(mesh: &Mesh, dofs: &DofMap, share: Option<Arc<CellShare>>) -> Self {
         let npc = mesh.kind.nodes_per_cell();
+        let owned = |c: usize| {
+            share
+                .as_ref()
+                .is_none_or(|s| s.owned.get(c).copied().unwrap_or(false))
+        };
+        let term_rows = match &share {
+            Some(s) => term_rows(dofs.n_free, s.rank, s.size),
+            None => 0..dofs.n_free,
+        };
         // node adjacency through cells
         let mut node_cells: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
         for c in 0..mesh.n_cells() {
@@ -218,7 +288,7 @@ impl Assembler {
         order.dedup();
         let mut cols: Vec<usize> = Vec::new();
         let mut neighbours: Vec<usize> = Vec::new();
-        let mut last_nodes: Vec<usize> = Vec::new();
+        let mut last: (Vec<usize>, bool) = (Vec::new(), false);
         let mut i = 0;
         while i < order.len() {
             let e = order[i].0;
@@ -228,11 +298,13 @@ impl Assembler {
             }
             let nodes: Vec<usize> = order[i..j].iter().map(|p| p.1).collect();
             debug_assert_eq!(row_ptr.len() - 1, e, "equations are numbered densely");
+            // a row of the term range couples through every cell, another through the owned
+            let whole = term_rows.contains(&e);
             // consecutive equations of one node (or one tie) share their columns
-            if nodes != last_nodes {
+            if nodes != last.0 || whole != last.1 {
                 neighbours.clear();
                 for &node in &nodes {
-                    for &c in &node_cells[node] {
+                    for &c in node_cells[node].iter().filter(|&&c| whole || owned(c)) {
                         neighbours.extend_from_slice(mesh.cell(c));
                     }
                 }
@@ -249,12 +321,13 @@ impl Assembler {
                 }
                 cols.sort_unstable();
                 cols.dedup();
-                last_nodes = nodes;
+                last = (nodes, whole);
             }
             col_idx.extend_from_slice(&cols);
             row_ptr.push(col_idx.len());
             i = j;
         }
+        drop(node_cells);
         // cells of one colour share no node; cells on tied nodes go to the serial list
         let rep = dofs.node_representatives();
         let mut class_size = vec![0usize; mesh.n_nodes()];
@@ -262,11 +335,18 @@ impl Assembler {
             class_size[r] += 1;
         }
         let tied = |c: usize| mesh.cell(c).iter().any(|&n| class_size[rep[n]] > 1);
-        let serial: Vec<usize> = (0..mesh.n_cells()).filter(|&c| tied(c)).collect();
+        let serial: Vec<usize> = (0..mesh.n_cells())
+            .filter(|&c| tied(c) && owned(c))
+            .collect();
         let colours: Vec<Vec<usize>> = mesh
             .cell_colours()
             .into_iter()
-            .map(|colour| colour.into_iter().filter(|&c| !tied(c)).collect::<Vec<_>>())
+            .map(|colour| {
+                colour
+                    .into_iter()
+                    .filter(|&c| !tied(c) && owned(c))
+                    .collect::<Vec<_>>()
+            })
             .filter(|colour| !colour.is_empty())
             .collect();
         let order = colours.iter().flatten().chain(&serial).copied().collect();
@@ -277,56 +357,15 @@ impl Assembler {
             // the structure only: every matrix is made by `new_matrix`
             pattern: CsrMatrix::new(dofs.n_free, row_ptr, col_idx, Vec::new()),
             nodes_per_cell: npc,
-            share: None,
-            entries: None,
+            share,
+            term_rows,
         }
     }
 
-    /// This assembler restricted to the cells `share` gives this process (see the module
-    /// documentation). The colours and the serial list keep their order, so every cell's
-    /// contributions are added in the same order as without a share.
-    pub fn shared(mut self, mesh: &Mesh, dofs: &DofMap, share: std::sync::Arc<CellShare>) -> Self {
-        let owned = |c: &usize| share.owned.get(*c).copied().unwrap_or(false);
-        for colour in &mut self.colours {
-            colour.retain(owned);
-        }
-        self.colours.retain(|c| !c.is_empty());
-        self.serial.retain(owned);
-        self.order.retain(owned);
-        let entries: Vec<usize> = if share.root {
-            (0..self.pattern.nnz()).collect()
-        } else {
-            let mut positions = Vec::new();
-            let mut eqs = Vec::with_capacity(MAX_LOCAL);
-            for c in (0..mesh.n_cells()).filter(|c| owned(c)) {
-                eqs.clear();
-                for &node in mesh.cell(c) {
-                    for f in 0..FIELDS {
-                        let e = dofs.eq[node * FIELDS + f];
-                        if e != CONSTRAINED {
-                            eqs.push(e);
-                        }
-                    }
-                }
-                for &i in &eqs {
-                    for &j in &eqs {
-                        positions.push(self.pattern.position(i, j).expect("cell coupling"));
-                    }
-                }
-            }
-            positions.sort_unstable();
-            positions.dedup();
-            positions
-        };
-        self.entries = Some(entries.into());
-        self.share = Some(share);
-        self
-    }
-
-    /// The positions in the tangent's values this process assembles when the cells are shared
-    /// (what a distributed solver must sum over the processes); `None`: the whole matrix.
-    pub fn entries(&self) -> Option<std::sync::Arc<[usize]>> {
-        self.entries.clone()
+    /// The equations whose tangent rows take this process's non-cell terms: all of them
+    /// without a share.
+    pub fn term_rows(&self) -> std::ops::Range<usize> {
+        self.term_rows.clone()
     }
 
     /// Whether the cells are shared between processes.
@@ -339,14 +378,14 @@ impl Assembler {
         self.colours.iter().map(Vec::len).sum::<usize>() + self.serial.len()
     }
 
-    /// The tangent for the terms that are not cell terms (loads, pressures, inertia, circuits):
-    /// `k` itself, or `None` on a process that shares the cells but is not the root (the root's
-    /// copy of such a term is the one the distributed solver sums).
-    pub fn global_terms<'a>(&self, k: Option<&'a mut CsrMatrix>) -> Option<&'a mut CsrMatrix> {
-        match &self.share {
-            Some(s) if !s.root => None,
-            _ => k,
-        }
+    /// The tangent as it takes the terms that are not cell terms (loads, pressures, inertia,
+    /// circuits): the rows of [`Assembler::term_rows`] of `k`, so that the processes that
+    /// share the cells add each such term once between them.
+    pub fn global_terms<'a>(&self, k: Option<&'a mut CsrMatrix>) -> Option<GlobalTerms<'a>> {
+        k.map(|k| GlobalTerms {
+            k,
+            rows: self.term_rows.clone(),
+        })
     }
 
     /// Completes the residual's cell part after [`Assembler::assemble`], whose outcome on this
@@ -658,6 +697,85 @@ mod tests {
         assert!(serial.0.iter().any(|&v| v != 0.0));
         assert_eq!(run(2, false), serial);
         assert_eq!(run(2, true), serial);
+    }
+
+    /// Processes that share the cells hold only their part of the pattern, and their parts of
+    /// the tangent, each with the non-cell terms of its own rows, add up to the whole tangent
+    /// with each such term once.
+    #[test]
+    fn shared_parts_add_up_to_the_whole_tangent() {
+        let mesh = box_mesh([1.0, 1.0, 0.5], [6, 6, 3], ElementKind::Hex8);
+        let n = mesh.n_nodes();
+        let constrained: Vec<bool> = (0..n * FIELDS)
+            .map(|d| mesh.nodes[d / FIELDS][2] == 0.0)
+            .collect();
+        let dofs = DofMap::new(n, &constrained, 3.0);
+        let state: Vec<f64> = (0..n * FIELDS)
+            .map(|d| ((d as f64 * 12.9898).sin() * 43758.5453).fract())
+            .collect();
+        let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
+            rl.iter_mut().zip(local).for_each(|(r, x)| *r = x * x);
+            if let Some(kl) = kl {
+                for (p, v) in kl.iter_mut().enumerate() {
+                    *v = ((c * 131 + p) as f64 * 0.37).sin();
+                }
+            }
+            Ok::<f64, ()>(0.0)
+        };
+        // the whole tangent, and 1 added once to every diagonal entry as a non-cell term
+        let assemble = |asm: &Assembler| {
+            let mut k = asm.new_matrix();
+            let mut r = vec![0.0; dofs.n_free];
+            asm.assemble(
+                &mesh,
+                &dofs,
+                &state,
+                kernel,
+                &mut r,
+                Some(&mut k),
+                &mut Vec::new(),
+            )
+            .unwrap();
+            let mut terms = asm.global_terms(Some(&mut k)).unwrap();
+            (0..dofs.n_free).for_each(|e| terms.add(e, e, 1.0));
+            k
+        };
+        let whole = assemble(&Assembler::new(&mesh, &dofs));
+        for size in [2, 3] {
+            let mut sum = whole.zeros_like();
+            let mut covered = vec![0; dofs.n_free];
+            for rank in 0..size {
+                let share = Arc::new(CellShare {
+                    owned: (0..mesh.n_cells())
+                        .map(|c| c * size / mesh.n_cells() == rank)
+                        .collect(),
+                    rank,
+                    size,
+                    sum: Box::new(|_| Ok(())),
+                });
+                let asm = Assembler::shared(&mesh, &dofs, share);
+                asm.term_rows().for_each(|e| covered[e] += 1);
+                let part = assemble(&asm);
+                assert!(
+                    part.nnz() < whole.nnz(),
+                    "{size} processes: a part is smaller"
+                );
+                for i in 0..part.n {
+                    for p in part.row_ptr[i]..part.row_ptr[i + 1] {
+                        let at = whole.position(i, part.col_idx[p]).expect("a whole entry");
+                        sum.values[at] += part.values[p];
+                    }
+                }
+            }
+            assert!(covered.iter().all(|&c| c == 1), "the term rows cover once");
+            let scale = whole.values.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            for (a, b) in sum.values.iter().zip(&whole.values) {
+                assert!(
+                    (a - b).abs() <= 1e-13 * scale,
+                    "{size} processes: {a} against {b}"
+                );
+            }
+        }
     }
 
     /// Matrices made by the assembler share one structure; assigning one to another copies the

@@ -162,7 +162,7 @@ impl DofMap {
             field,
             coords: coords.to_vec(),
             axisymmetric,
-            entries: None,
+            shared: false,
         }
     }
 

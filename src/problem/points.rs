@@ -104,7 +104,8 @@ impl PointStates {
         for c in 0..n_cells {
             let m = model.cell_material[c];
             let s = self.sizes[m];
-            let weights = &model.geometry[c].weights[..n_qp];
+            let g = model.geometry(c);
+            let weights = &g.weights[..n_qp];
             let volume: f64 = weights.iter().sum();
             for (v, &col) in columns[m].iter().enumerate().take(s) {
                 let mean: f64 = (0..n_qp)

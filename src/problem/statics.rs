@@ -4,7 +4,7 @@
 //! [`Formulation`](crate::problem::model::Formulation) (standard or mean-dilatation).
 
 use crate::element::{CellFields, CellInput};
-use crate::problem::assembly::{Assembler, CsrMatrix};
+use crate::problem::assembly::{Assembler, CsrMatrix, GlobalTerms};
 use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::loads::dead_load_forces;
 use crate::problem::model::Model;
@@ -81,14 +81,13 @@ pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
     let n_nodes = model.mesh.n_nodes();
     let flags = constrained_flags(n_nodes, &model.dirichlet);
     let dofs = DofMap::with_ties(n_nodes, &flags, model.potential_scale(), &model.ties);
-    let assembler = Assembler::new(&model.mesh, &dofs);
     // shared cells of another mesh (never the case: the stages share the mesh) would leave
     // cells out; every process then assembles everything, as without a share
     let assembler = match &model.share {
         Some(share) if share.owned.len() == model.mesh.n_cells() => {
-            assembler.shared(&model.mesh, &dofs, share.clone())
+            Assembler::shared(&model.mesh, &dofs, share.clone())
         }
-        _ => assembler,
+        _ => Assembler::new(&model.mesh, &dofs),
     };
     let mu = model
         .materials
@@ -219,23 +218,21 @@ fn add_pressures(
     state: &[f64],
     dofs: &crate::problem::dofs::DofMap,
     r: &mut [f64],
-    mut k: Option<&mut CsrMatrix>,
+    mut k: Option<GlobalTerms<'_>>,
 ) {
     let mut full = vec![0.0; state.len()];
     for (p, &load) in m.pressures.iter().zip(fractions) {
         if load == 0.0 {
             continue;
         }
-        match k.as_deref_mut() {
+        match k.as_mut() {
             Some(k) => {
                 let mut put = |i: usize, j: usize, v: f64| {
                     let (ei, ej) = (dofs.eq[i], dofs.eq[j]);
                     if ei == CONSTRAINED || ej == CONSTRAINED {
                         return;
                     }
-                    if let Some(at) = k.position(ei, ej) {
-                        k.values[at] += dofs.scale[i % FIELDS] * dofs.scale[j % FIELDS] * v;
-                    }
+                    k.add(ei, ej, dofs.scale[i % FIELDS] * dofs.scale[j % FIELDS] * v);
                 };
                 crate::problem::pressure::add_pressure(p, load, state, &mut full, Some(&mut put));
             }
@@ -374,7 +371,7 @@ pub fn record_with(
                 let mut r = [0.0; MAX_LOCAL];
                 let m = model.cell_material[c];
                 let input = CellInput {
-                    geom: &model.geometry[c],
+                    geom: &model.geometry(c),
                     mat: model.materials[m].as_ref(),
                     hist: points.cell(c, m, 0.0),
                     local: &local[..nl],
@@ -453,7 +450,7 @@ impl NonlinearSystem for StaticProblem<'_> {
         let potential_only = k.is_none() && self.dofs.n_free == self.dofs.n_free_phi;
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let input = CellInput {
-                geom: &m.geometry[c],
+                geom: &m.geometry(c),
                 mat: m.materials[m.cell_material[c]].as_ref(),
                 hist: points.cell(c, m.cell_material[c], dt),
                 local,
@@ -598,7 +595,7 @@ impl NonlinearSystem for StaticProblem<'_> {
         let mut layout = self
             .dofs
             .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
-        layout.entries = self.assembler.entries();
+        layout.shared = self.assembler.is_shared();
         Some(layout)
     }
 }

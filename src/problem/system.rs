@@ -33,10 +33,10 @@ pub struct DofLayout {
     /// True for the meridian plane of an axisymmetric model (components r, z): its only rigid
     /// motion is the axial translation.
     pub axisymmetric: bool,
-    /// When the cells are shared between processes: the positions in the tangent's values that
-    /// this process assembles, which a distributed solver sums over the processes (`None`: the
-    /// tangent is whole on every process).
-    pub entries: Option<std::sync::Arc<[usize]>>,
+    /// Whether the cells are shared between processes: the tangent is then this process's part,
+    /// with a pattern of its own, and a distributed solver sums every entry of every process's
+    /// part (otherwise the tangent is whole on every process).
+    pub shared: bool,
 }
 
 /// A nonlinear system R(x) = 0 with a symmetric tangent.

@@ -604,7 +604,7 @@ mod tests {
             field: vec![],
             coords: vec![],
             axisymmetric: false,
-            entries: None,
+            shared: false,
         };
         for i in 0..m {
             for j in 0..m {

@@ -28,9 +28,10 @@
 //! never a silently inaccurate answer.
 //!
 //! **Shared assembly.** When the ranks share the cells (each assembles its own, see
-//! [`crate::problem::assembly::CellShare`]), the system's layout names the entries this rank
-//! assembled ([`DofLayout::entries`]): the rank passes exactly those, wherever their rows are,
-//! and PETSc's COO assembly sums them over the ranks. [`sum_over_ranks`] sums the residual.
+//! [`crate::problem::assembly::CellShare`]), the system's layout says so
+//! ([`DofLayout::shared`]): the rank's tangent is then its part, with a pattern of its own, and
+//! it passes every entry of it, wherever the rows are; PETSc's COO assembly sums them over the
+//! ranks. The block size is agreed between the ranks. [`sum_over_ranks`] sums the residual.
 //!
 //! **Near-null space.** From the system's [`DofLayout`] the solver builds the rigid-body modes
 //! of the free displacements (three translations and three rotations in 3-D, the axial
@@ -428,10 +429,9 @@ struct System {
     options: Options,
     n: usize,
     nnz: usize,
-    /// With a shared assembly: the positions of the values this rank passes (else its rows').
-    entries: Option<std::sync::Arc<[usize]>>,
-    /// The values passed to PETSc (with `entries`).
-    values: Vec<f64>,
+    /// Whether the matrix is this rank's part of a shared assembly (it passes every entry),
+    /// else the whole matrix (it passes its rows').
+    shared: bool,
     /// Number of rigid-body modes attached as the near-null space.
     modes: usize,
     /// Krylov iterations of the last solve.
@@ -521,16 +521,18 @@ impl System {
         }
         let (rank, size) = world()?;
         let layout = layout.filter(|l| l.node.len() == a.n);
-        let entries = layout.and_then(|l| l.entries.clone());
-        if let Some(e) = &entries {
-            if e.last().is_some_and(|&p| p >= a.nnz()) {
-                return Err(LinearSolverError::Failed(
-                    "the shared assembly's entries do not fit the matrix".into(),
-                ));
+        let shared = layout.is_some_and(|l| l.shared);
+        let mut block_size = block_size(a);
+        if shared {
+            // each rank sees only its part of the pattern: the block size holds if it holds
+            // on every rank
+            let mut fails = [f64::from(u8::from(block_size == 1))];
+            sum_over_ranks(&mut fails)?;
+            if fails[0] > 0.0 {
+                block_size = 1;
             }
         }
         let _guard = lock();
-        let block_size = block_size(a);
         let rows = owned_rows(a.n, block_size, rank, size);
         // SAFETY throughout: PETSc is initialised, every handle is created before it is used
         // and owned by a wrapper that destroys it
@@ -539,7 +541,7 @@ impl System {
             let mut db = Options(ptr::null_mut());
             check(ffi::PetscOptionsCreate(&mut db.0), "PetscOptionsCreate")?;
             let scope = Scope::push(&db)?;
-            let mat = create_matrix(comm, a, rows.clone(), block_size, entries.as_deref())?;
+            let mat = create_matrix(comm, a, rows.clone(), block_size, shared)?;
             let (mut x, mut b) = (Vector(ptr::null_mut()), Vector(ptr::null_mut()));
             check(
                 ffi::MatCreateVecs(mat.0, &mut x.0, &mut b.0),
@@ -571,8 +573,7 @@ impl System {
                 options: db,
                 n: a.n,
                 nnz: a.nnz(),
-                values: vec![0.0; entries.as_ref().map_or(0, |e| e.len())],
-                entries,
+                shared,
                 modes,
                 iterations: 0,
                 rows,
@@ -587,14 +588,10 @@ impl System {
     fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
         let _guard = lock();
         let _scope = Scope::push(&self.options)?;
-        let values = match &self.entries {
-            Some(entries) => {
-                for (v, &p) in self.values.iter_mut().zip(entries.iter()) {
-                    *v = a.values[p];
-                }
-                &self.values[..]
-            }
-            None => &a.values[a.row_ptr[self.rows.start]..a.row_ptr[self.rows.end]],
+        let values = if self.shared {
+            &a.values[..]
+        } else {
+            &a.values[a.row_ptr[self.rows.start]..a.row_ptr[self.rows.end]]
         };
         // SAFETY: the handles are live; the value slice has exactly the preallocated length.
         // Repeated and other ranks' entries of one position are summed (COO assembly).
@@ -710,7 +707,8 @@ impl System {
 }
 
 /// An AIJ matrix of `a`'s size whose rows `rows` are this rank's, preallocated by COO with the
-/// pattern of those rows.
+/// pattern of those rows of `a`, or of every row of `a` when `shared` (`a` is then this rank's
+/// part of a sum).
 ///
 /// # Safety
 /// PETSc is initialised and the caller holds the lock.
@@ -719,7 +717,7 @@ unsafe fn create_matrix(
     a: &CsrMatrix,
     rows: std::ops::Range<usize>,
     block_size: usize,
-    entries: Option<&[usize]>,
+    shared: bool,
 ) -> Result<Mat, LinearSolverError> {
     let (n, local) = (a.n as ffi::PetscInt, rows.len() as ffi::PetscInt);
     let mut mat = Mat(ptr::null_mut());
@@ -733,35 +731,18 @@ unsafe fn create_matrix(
         ffi::MatSetBlockSize(mat.0, block_size as ffi::PetscInt),
         "MatSetBlockSize",
     )?;
-    let (mut coo_i, mut coo_j): (Vec<ffi::PetscInt>, Vec<ffi::PetscInt>) = match entries {
-        // a shared assembly: this rank's entries, in any row (sorted positions)
-        Some(entries) => {
-            let mut row = 0;
-            entries
-                .iter()
-                .map(|&p| {
-                    while a.row_ptr[row + 1] <= p {
-                        row += 1;
-                    }
-                    (row as ffi::PetscInt, a.col_idx[p] as ffi::PetscInt)
-                })
-                .unzip()
-        }
-        // the whole matrix on every rank: this rank's rows
-        None => {
-            let span = a.row_ptr[rows.start]..a.row_ptr[rows.end];
-            let mut coo_i = Vec::with_capacity(span.len());
-            for i in rows {
-                let count = a.row_ptr[i + 1] - a.row_ptr[i];
-                coo_i.extend(std::iter::repeat_n(i as ffi::PetscInt, count));
-            }
-            let coo_j = a.col_idx[span]
-                .iter()
-                .map(|&j| j as ffi::PetscInt)
-                .collect();
-            (coo_i, coo_j)
-        }
-    };
+    // a shared assembly: every entry of this rank's part, in any row; else this rank's rows
+    let rows = if shared { 0..a.n } else { rows };
+    let span = a.row_ptr[rows.start]..a.row_ptr[rows.end];
+    let mut coo_i = Vec::with_capacity(span.len());
+    for i in rows {
+        let count = a.row_ptr[i + 1] - a.row_ptr[i];
+        coo_i.extend(std::iter::repeat_n(i as ffi::PetscInt, count));
+    }
+    let mut coo_j: Vec<ffi::PetscInt> = a.col_idx[span]
+        .iter()
+        .map(|&j| j as ffi::PetscInt)
+        .collect();
     // the arrays may be freed after the call (PETSc copies what it needs)
     check(
         ffi::MatSetPreallocationCOO(

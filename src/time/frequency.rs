@@ -102,7 +102,7 @@ pub fn linearise(
                 let zero = [0.0; MAX_LOCAL];
                 let mut rv = [0.0; MAX_LOCAL];
                 KelvinVoigtKernel { eta }
-                    .forces(&model.geometry[cell], local, &zero[..nl], &mut rv, Some(kl))
+                    .forces(&model.geometry(cell), local, &zero[..nl], &mut rv, Some(kl))
                     .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))?;
             }
         }
@@ -208,7 +208,7 @@ fn branch_tangents(
             let mut r_tmp = [0.0; MAX_LOCAL];
             let mut k_eq = vec![0.0; nl * nl];
             let full = crate::element::CellInput {
-                geom: &model.geometry[cell],
+                geom: &model.geometry(cell),
                 mat: material.as_ref(),
                 hist: points.cell(cell, mi, 0.0),
                 local,
@@ -217,7 +217,7 @@ fn branch_tangents(
                 .residual_tangent(&full, &mut r_tmp, Some(&mut *kl))
                 .map_err(fail)?;
             let eq = crate::element::CellInput {
-                geom: &model.geometry[cell],
+                geom: &model.geometry(cell),
                 mat: relaxed.materials[mi].as_ref(),
                 hist: crate::element::CellHistory::NONE,
                 local,

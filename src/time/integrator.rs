@@ -413,11 +413,6 @@ impl<'m> TimeStep<'m> {
         self.factor_point = Some(point.clone());
         Ok(())
     }
-
-    fn build_mass_map(&mut self, k: &CsrMatrix) {
-        self.mass_map = self.mass.positions_in(&self.dofs, k);
-        self.mass_map_built = true;
-    }
 }
 
 impl NonlinearSystem for TimeStep<'_> {
@@ -438,7 +433,7 @@ impl NonlinearSystem for TimeStep<'_> {
         let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
         // each cell's dissipation power goes into `cell_energy` (the step needs no cell energies)
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
-            let g = &model.geometry[c];
+            let g = &*model.geometry(c);
             let mat = model.cell_material[c];
             let nl = npc * FIELDS;
             let eta = viscosity[mat];
@@ -531,11 +526,10 @@ impl NonlinearSystem for TimeStep<'_> {
             }
             let (q, dq) = st.charge_at(midpoint, dt, c.resistance, self.work_q[d]);
             r[e] += scale[PHI] * f_r * q;
-            if let Some(k) = k.as_deref_mut() {
+            if let Some(k) = k.as_mut() {
                 // ∂V_eval/∂V_{n+1}: ½ at the midpoint, 1 at the end point
                 let dv = if midpoint { 0.5 } else { 1.0 };
-                let pos = k.position(e, e).expect("the pattern holds the diagonal");
-                k.values[pos] += scale[PHI] * scale[PHI] * f_r * dq * dv;
+                k.add(e, e, scale[PHI] * scale[PHI] * f_r * dq * dv);
             }
         }
         // dashpots c·v at the evaluation velocity, like the viscous forces
@@ -547,9 +541,8 @@ impl NonlinearSystem for TimeStep<'_> {
                     continue;
                 }
                 r[e] += scale[i] * f_r * c * self.work_v[d];
-                if let Some(k) = k.as_deref_mut() {
-                    let pos = k.position(e, e).expect("the pattern holds the diagonal");
-                    k.values[pos] += scale[i] * scale[i] * f_v * c;
+                if let Some(k) = k.as_mut() {
+                    k.add(e, e, scale[i] * scale[i] * f_v * c);
                 }
             }
         }
@@ -576,16 +569,18 @@ impl NonlinearSystem for TimeStep<'_> {
                 r[e] += mv[d];
             }
         }
-        if let Some(k) = k {
+        if let Some(mut k) = k {
             if !self.mass_map_built {
-                self.build_mass_map(k);
+                self.mass_map = self.mass.positions_in(&self.dofs, |i, j| k.position(i, j));
+                self.mass_map_built = true;
             }
             let factor = match self.scheme {
                 Scheme::Midpoint => 1.0 / dt,
                 Scheme::Newmark { .. } => 1.0,
             };
+            let values = k.values_mut();
             for &(pos, p) in &self.mass_map {
-                k.values[pos] += factor * self.mass.values[p];
+                values[pos] += factor * self.mass.values[p];
             }
         }
         Ok(())
@@ -636,7 +631,7 @@ impl NonlinearSystem for TimeStep<'_> {
         let mut layout = self
             .dofs
             .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
-        layout.entries = self.assembler.entries();
+        layout.shared = self.assembler.is_shared();
         Some(layout)
     }
 

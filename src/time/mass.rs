@@ -343,12 +343,13 @@ impl NodalMass {
 }
 
 impl NodalMass {
-    /// (position in `k`, index into `values`) of every coupling between free displacement dofs,
-    /// to add the mass to a tangent with the pattern of `k` without searching.
+    /// (position in a tangent, index into `values`) of every coupling between free displacement
+    /// dofs that `position` (equations → position) places, to add the mass to the tangent
+    /// without searching.
     pub fn positions_in(
         &self,
         dofs: &crate::problem::dofs::DofMap,
-        k: &crate::problem::assembly::CsrMatrix,
+        position: impl Fn(usize, usize) -> Option<usize>,
     ) -> Vec<(usize, usize)> {
         let mut out = Vec::new();
         for a in 0..self.row_ptr.len() - 1 {
@@ -359,7 +360,7 @@ impl NodalMass {
                     if ea != crate::problem::dofs::CONSTRAINED
                         && eb != crate::problem::dofs::CONSTRAINED
                     {
-                        if let Some(pos) = k.position(ea, eb) {
+                        if let Some(pos) = position(ea, eb) {
                             out.push((pos, p));
                         }
                     }

@@ -65,7 +65,7 @@ impl Default for ModeSettings {
 pub fn mass_matrix(mass: &NodalMass, dofs: &DofMap, k: &CsrMatrix) -> CsrMatrix {
     let mut m = k.clone();
     m.values.iter_mut().for_each(|v| *v = 0.0);
-    for (pos, p) in mass.positions_in(dofs, k) {
+    for (pos, p) in mass.positions_in(dofs, |i, j| k.position(i, j)) {
         m.values[pos] += mass.values[p];
     }
     m

@@ -129,7 +129,7 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
             }
             let eta = viscosity[model.cell_material[c]];
             if eta > 0.0 {
-                let g = &model.geometry[c];
+                let g = &*model.geometry(c);
                 let mut vel = [0.0; MAX_LOCAL];
                 for (a, &node) in model.mesh.cell(c).iter().enumerate() {
                     vel[a * FIELDS..(a + 1) * FIELDS]
@@ -165,12 +165,13 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
                 r[e] += mdv[d] + 0.5 * dt * self.f_n[d];
             }
         }
-        if let Some(k) = k {
+        if let Some(mut k) = k {
             if self.mass_positions.is_empty() {
-                self.mass_positions = self.mass.positions_in(&self.dofs, k);
+                self.mass_positions = self.mass.positions_in(&self.dofs, |i, j| k.position(i, j));
             }
+            let values = k.values_mut();
             for &(pos, p) in &self.mass_positions {
-                k.values[pos] += self.mass.values[p] / dt;
+                values[pos] += self.mass.values[p] / dt;
             }
         }
         Ok(())
@@ -212,7 +213,7 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
         let mut layout = self
             .dofs
             .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
-        layout.entries = self.assembler.entries();
+        layout.shared = self.assembler.is_shared();
         Some(layout)
     }
 }
