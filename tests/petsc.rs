@@ -444,6 +444,14 @@ fn the_3d_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
+/// A follower pressure under volume control (the balloon octant): the pressure's stiffness is
+/// a term that is not a cell term, which each rank adds in its own range of rows.
+#[test]
+fn a_pressure_load_on_two_mpi_ranks_agrees_with_the_serial_run() {
+    let (d, fields, _, _) = on_ranks(2, "balloon-volume", &[]);
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
 /// On 3 ranks the partition also cuts the rigid pad (one tied unknown per direction shared by
 /// cells of two ranks); METIS's 2-way partition keeps the pad whole. The static `load` stage.
 #[test]

@@ -25,7 +25,7 @@ const FUNCTIONS: &[&str] = &[
     "MPI_Comm_size",
     "MPI_Barrier",
     "Vec(Create|CreateMPI|SetSizes|SetBlockSize|SetFromOptions|Destroy|GetOwnershipRange|GetLocalSize|GetSize|GetArray|GetArrayRead|RestoreArray|RestoreArrayRead|Set|SetValues|AssemblyBegin|AssemblyEnd|Duplicate|Norm)",
-    "VecScatter(CreateToAll|Begin|End|Destroy)",
+    "VecScatter(Create|CreateToAll|Begin|End|Destroy)",
     "Mat(Create|SetSizes|SetType|SetBlockSize|SetFromOptions|SetUp|Destroy|GetOwnershipRange|GetSize|SetPreallocationCOO|SetValuesCOO|AssemblyBegin|AssemblyEnd|SetOption|GetInertia|Mult|SetNearNullSpace|CreateVecs)",
     "MatNullSpace(CreateRigidBody|Create|Destroy)",
     "MatMumps(SetIcntl|GetInfog)",

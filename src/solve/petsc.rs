@@ -259,32 +259,47 @@ struct NullSpace(ffi::MatNullSpace);
 /// An owned PETSc index set.
 struct IndexSet(ffi::IS);
 
-/// The gathers of [`sum_over_ranks`], one per vector length.
+/// The exchanges of [`sum_over_ranks`], one per vector length.
 struct Gather {
     n: usize,
     /// This rank's vector as block `rank` of a vector of `size` blocks.
     parts: Vector,
-    /// Every block, on every rank.
+    /// This rank's chunk of every rank's vector, block after block in rank order.
+    mine: Vector,
+    to_mine: Scatter,
+    /// The summed chunk of this rank (a distributed vector of length `n`).
+    sum: Vector,
+    /// The whole sum, on every rank.
     all: Vector,
-    scatter: Scatter,
+    to_all: Scatter,
 }
 
 static GATHERS: Mutex<Vec<Gather>> = Mutex::new(Vec::new());
 
+/// The chunk of a vector of `n` values that rank `r` of `size` sums.
+fn chunk(n: usize, r: usize, size: usize) -> std::ops::Range<usize> {
+    n * r / size..n * (r + 1) / size
+}
+
 /// Sums `v` over the ranks of `PETSC_COMM_WORLD` in place (collective: every rank calls it with
-/// a vector of the same length). Every rank gathers every rank's vector and adds them in rank
-/// order, so all ranks receive the same bits, and the same from run to run (a reduction tree
-/// may round differently on different ranks, which would let their Newton iterations part).
-/// Memory and traffic are `ranks × len` per rank: meant for the few ranks of a workstation.
+/// a vector of the same length). Each rank receives one chunk of every rank's vector and adds
+/// them in rank order, then the summed chunks are gathered on every rank: all ranks receive the
+/// same bits, and the same from run to run (a reduction tree may round differently on different
+/// ranks, which would let their Newton iterations part). Memory and traffic are a few times
+/// `len` per rank, whatever the number of ranks.
 pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
-    let (_, size) = world()?;
+    let (rank, size) = world()?;
     if size == 1 {
         return Ok(());
     }
     let n = v.len();
-    let local = ffi::PetscInt::try_from(n).map_err(|_| {
-        LinearSolverError::Failed(format!("a vector of {n} values is too long for PETSc"))
-    })?;
+    let int = |k: usize| {
+        ffi::PetscInt::try_from(k).map_err(|_| {
+            LinearSolverError::Failed(format!("a vector of {n} values is too long for PETSc"))
+        })
+    };
+    int(n * size)?;
+    let own = chunk(n, rank, size);
     let _guard = lock();
     let mut gathers = GATHERS.lock().unwrap_or_else(|e| e.into_inner());
     // SAFETY throughout: PETSc is initialised, handles are created before use and owned by
@@ -292,26 +307,63 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
     unsafe {
         if !gathers.iter().any(|g| g.n == n) {
             let comm = ffi::comm_world();
-            let mut parts = Vector(ptr::null_mut());
+            let mpi_vector = |local: usize| -> Result<Vector, LinearSolverError> {
+                let mut x = Vector(ptr::null_mut());
+                check(
+                    ffi::VecCreateMPI(
+                        comm,
+                        int(local)?,
+                        ffi::PETSC_DECIDE as ffi::PetscInt,
+                        &mut x.0,
+                    ),
+                    "VecCreateMPI",
+                )?;
+                Ok(x)
+            };
+            let parts = mpi_vector(n)?;
+            let mine = mpi_vector(size * own.len())?;
+            let sum = mpi_vector(own.len())?;
+            // block q of `mine` on this rank is chunk `own` of rank q's vector
+            let before: usize = (0..rank).map(|r| size * chunk(n, r, size).len()).sum();
+            let from: Vec<ffi::PetscInt> = (0..size)
+                .flat_map(|q| own.clone().map(move |i| (q * n + i) as ffi::PetscInt))
+                .collect();
+            let to: Vec<ffi::PetscInt> = (0..from.len())
+                .map(|k| (before + k) as ffi::PetscInt)
+                .collect();
+            let index_set = |idx: &[ffi::PetscInt]| -> Result<IndexSet, LinearSolverError> {
+                let mut is = IndexSet(ptr::null_mut());
+                check(
+                    ffi::ISCreateGeneral(
+                        comm,
+                        idx.len() as ffi::PetscInt,
+                        idx.as_ptr(),
+                        ffi::PETSC_COPY_VALUES,
+                        &mut is.0,
+                    ),
+                    "ISCreateGeneral",
+                )?;
+                Ok(is)
+            };
+            let (is_from, is_to) = (index_set(&from)?, index_set(&to)?);
+            let mut to_mine = Scatter(ptr::null_mut());
             check(
-                ffi::VecCreateMPI(
-                    comm,
-                    local,
-                    ffi::PETSC_DECIDE as ffi::PetscInt,
-                    &mut parts.0,
-                ),
-                "VecCreateMPI",
+                ffi::VecScatterCreate(parts.0, is_from.0, mine.0, is_to.0, &mut to_mine.0),
+                "VecScatterCreate",
             )?;
-            let (mut scatter, mut all) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
+            let (mut to_all, mut all) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
             check(
-                ffi::VecScatterCreateToAll(parts.0, &mut scatter.0, &mut all.0),
+                ffi::VecScatterCreateToAll(sum.0, &mut to_all.0, &mut all.0),
                 "VecScatterCreateToAll",
             )?;
             gathers.push(Gather {
                 n,
                 parts,
+                mine,
+                to_mine,
+                sum,
                 all,
-                scatter,
+                to_all,
             });
         }
         let g = gathers.iter_mut().find(|g| g.n == n).expect("made above");
@@ -319,31 +371,49 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
         check(ffi::VecGetArray(g.parts.0, &mut arr), "VecGetArray")?;
         std::slice::from_raw_parts_mut(arr, n).copy_from_slice(v);
         check(ffi::VecRestoreArray(g.parts.0, &mut arr), "VecRestoreArray")?;
-        for step in [ffi::VecScatterBegin, ffi::VecScatterEnd] {
-            check(
-                step(
-                    g.scatter.0,
-                    g.parts.0,
-                    g.all.0,
-                    ffi::INSERT_VALUES,
-                    ffi::SCATTER_FORWARD,
-                ),
-                "VecScatter",
-            )?;
-        }
-        let mut arr: *const ffi::PetscScalar = ptr::null();
-        check(ffi::VecGetArrayRead(g.all.0, &mut arr), "VecGetArrayRead")?;
-        let all = std::slice::from_raw_parts(arr, n * size);
-        for (i, x) in v.iter_mut().enumerate() {
-            let mut sum = all[i];
-            for r in 1..size {
-                sum += all[r * n + i];
+        scatter(&g.to_mine, &g.parts, &g.mine)?;
+        // this rank's chunk, summed in rank order
+        let m = own.len();
+        let mut mine: *const ffi::PetscScalar = ptr::null();
+        check(ffi::VecGetArrayRead(g.mine.0, &mut mine), "VecGetArrayRead")?;
+        let blocks = std::slice::from_raw_parts(mine, m * size);
+        check(ffi::VecGetArray(g.sum.0, &mut arr), "VecGetArray")?;
+        for (k, x) in std::slice::from_raw_parts_mut(arr, m)
+            .iter_mut()
+            .enumerate()
+        {
+            let mut sum = blocks[k];
+            for q in 1..size {
+                sum += blocks[q * m + k];
             }
             *x = sum;
         }
+        check(ffi::VecRestoreArray(g.sum.0, &mut arr), "VecRestoreArray")?;
+        check(
+            ffi::VecRestoreArrayRead(g.mine.0, &mut mine),
+            "VecRestoreArrayRead",
+        )?;
+        scatter(&g.to_all, &g.sum, &g.all)?;
+        let mut arr: *const ffi::PetscScalar = ptr::null();
+        check(ffi::VecGetArrayRead(g.all.0, &mut arr), "VecGetArrayRead")?;
+        v.copy_from_slice(std::slice::from_raw_parts(arr, n));
         check(
             ffi::VecRestoreArrayRead(g.all.0, &mut arr),
             "VecRestoreArrayRead",
+        )?;
+    }
+    Ok(())
+}
+
+/// Scatters `x` into `y` by `s` (inserting).
+///
+/// # Safety
+/// PETSc is initialised, the caller holds the lock, and `s` was made for `x` and `y`.
+unsafe fn scatter(s: &Scatter, x: &Vector, y: &Vector) -> Result<(), LinearSolverError> {
+    for step in [ffi::VecScatterBegin, ffi::VecScatterEnd] {
+        check(
+            step(s.0, x.0, y.0, ffi::INSERT_VALUES, ffi::SCATTER_FORWARD),
+            "VecScatter",
         )?;
     }
     Ok(())
@@ -679,18 +749,7 @@ impl System {
                 )));
             }
 
-            for step in [ffi::VecScatterBegin, ffi::VecScatterEnd] {
-                check(
-                    step(
-                        self.scatter.0,
-                        self.x.0,
-                        self.x_all.0,
-                        ffi::INSERT_VALUES,
-                        ffi::SCATTER_FORWARD,
-                    ),
-                    "VecScatter",
-                )?;
-            }
+            scatter(&self.scatter, &self.x, &self.x_all)?;
             let mut arr: *const ffi::PetscScalar = ptr::null();
             check(
                 ffi::VecGetArrayRead(self.x_all.0, &mut arr),
