@@ -331,21 +331,7 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
             let to: Vec<ffi::PetscInt> = (0..from.len())
                 .map(|k| (before + k) as ffi::PetscInt)
                 .collect();
-            let index_set = |idx: &[ffi::PetscInt]| -> Result<IndexSet, LinearSolverError> {
-                let mut is = IndexSet(ptr::null_mut());
-                check(
-                    ffi::ISCreateGeneral(
-                        comm,
-                        idx.len() as ffi::PetscInt,
-                        idx.as_ptr(),
-                        ffi::PETSC_COPY_VALUES,
-                        &mut is.0,
-                    ),
-                    "ISCreateGeneral",
-                )?;
-                Ok(is)
-            };
-            let (is_from, is_to) = (index_set(&from)?, index_set(&to)?);
+            let (is_from, is_to) = (index_set(comm, &from)?, index_set(comm, &to)?);
             let mut to_mine = Scatter(ptr::null_mut());
             check(
                 ffi::VecScatterCreate(parts.0, is_from.0, mine.0, is_to.0, &mut to_mine.0),
@@ -403,6 +389,28 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
         )?;
     }
     Ok(())
+}
+
+/// An index set of `idx` (copied) on `comm`.
+///
+/// # Safety
+/// PETSc is initialised and the caller holds the lock.
+unsafe fn index_set(
+    comm: ffi::MPI_Comm,
+    idx: &[ffi::PetscInt],
+) -> Result<IndexSet, LinearSolverError> {
+    let mut is = IndexSet(ptr::null_mut());
+    check(
+        ffi::ISCreateGeneral(
+            comm,
+            idx.len() as ffi::PetscInt,
+            idx.as_ptr(),
+            ffi::PETSC_COPY_VALUES,
+            &mut is.0,
+        ),
+        "ISCreateGeneral",
+    )?;
+    Ok(is)
 }
 
 /// Scatters `x` into `y` by `s` (inserting).
@@ -913,17 +921,7 @@ unsafe fn attach_modes(
             .filter(|&e| (layout.field[e] == 3) == potential)
             .map(|e| e as ffi::PetscInt)
             .collect();
-        let mut is = IndexSet(ptr::null_mut());
-        check(
-            ffi::ISCreateGeneral(
-                comm,
-                rows_of.len() as ffi::PetscInt,
-                rows_of.as_ptr(),
-                ffi::PETSC_COPY_VALUES,
-                &mut is.0,
-            ),
-            "ISCreateGeneral",
-        )?;
+        let is = index_set(comm, &rows_of)?;
         if !potential && !modes.is_empty() {
             // the displacement block's modes: the sub-matrix's rows are the IS's, in order
             let space = mode_vectors(comm, modes, rows.clone(), |e| layout.field[e] < 3)?;
