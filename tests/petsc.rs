@@ -542,6 +542,71 @@ fn pull_in_is_found_on_two_mpi_ranks() {
     assert!(d < 1e-10, "{d:e}");
 }
 
+/// Each rank records its own cells only: where the true field first exceeds the dielectric
+/// strength is found over every rank's cells, so the 3-D diaphragm on 3 ranks warns about the
+/// same cell at the same step as the serial run, and every rank stops there.
+#[test]
+fn dielectric_breakdown_is_found_over_every_ranks_cells() {
+    let dir = common::tempdir("petsc-mpi-breakdown");
+    let text = example("diaphragm-3d").unwrap();
+    std::fs::write(dir.join("serial.toml"), &text).unwrap();
+    std::fs::write(
+        dir.join("petsc.toml"),
+        format!("{text}\n[solver]\nkind = \"petsc\"\n"),
+    )
+    .unwrap();
+    let sets = [
+        "--set",
+        "output.plots=false",
+        "--set",
+        "output.fields_every=0",
+        "--set",
+        // below the largest field of the first pulse (1.2e7 V/m)
+        "materials.vhb.breakdown_field=1.1e7",
+        "--set",
+        "materials.vhb.stop_at_breakdown=true",
+    ];
+    let mut args = vec!["run", "serial.toml", "--out", "serial"];
+    args.extend(sets);
+    let serial = common::deasim(&args, &dir);
+    let mut args = vec!["run", "petsc.toml", "--out", "mpi"];
+    args.extend(sets);
+    let mpi = mpirun(3, &dir, &args);
+    let log = String::from_utf8_lossy(&mpi.stderr).into_owned();
+    // both stop at the breakdown (exit status 1)
+    assert_eq!(
+        serial.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&serial.stderr)
+    );
+    assert_eq!(mpi.status.code(), Some(1), "{log}");
+    let warning = |run: &str| -> String {
+        let text = std::fs::read_to_string(dir.join(run).join("summary.json")).unwrap();
+        let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+        summary["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|w| w.as_str())
+            .find(|w| w.starts_with("dielectric breakdown"))
+            .unwrap_or_else(|| panic!("{run}: no breakdown warning in {text}"))
+            .to_string()
+    };
+    let (a, b) = (warning("serial"), warning("mpi"));
+    eprintln!("serial: {a}\n3 ranks: {b}");
+    // the same cell, position, time and stage; the field to the printed 5 digits
+    assert_eq!(a, b);
+    let rows = |run: &str| {
+        std::fs::read_to_string(dir.join(run).join("history.csv"))
+            .unwrap()
+            .lines()
+            .count()
+    };
+    assert_eq!(rows("serial"), rows("mpi"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The checkpoint files of run directory `out`, oldest first.
 fn checkpoints(out: &Path) -> Vec<std::path::PathBuf> {
     let mut ck: Vec<_> = std::fs::read_dir(out.join("checkpoint"))

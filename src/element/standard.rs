@@ -159,6 +159,31 @@ impl CellFields {
         }
     }
 
+    /// Number of values of [`CellFields::to_array`].
+    pub const VALUES: usize = 23;
+
+    /// The fields as one array (e, σ, σ_mech, J, |e|max), to sum over processes.
+    pub fn to_array(&self) -> [f64; Self::VALUES] {
+        let mut a = [0.0; Self::VALUES];
+        a[..3].copy_from_slice(&self.e);
+        a[3..12].copy_from_slice(&self.sigma);
+        a[12..21].copy_from_slice(&self.sigma_mech);
+        a[21] = self.j;
+        a[22] = self.e_max;
+        a
+    }
+
+    /// The fields from the first [`CellFields::VALUES`] entries of `a` ([`CellFields::to_array`]).
+    pub fn from_array(a: &[f64]) -> Self {
+        let mut f = Self::zero();
+        f.e.copy_from_slice(&a[..3]);
+        f.sigma.copy_from_slice(&a[3..12]);
+        f.sigma_mech.copy_from_slice(&a[12..21]);
+        f.j = a[21];
+        f.e_max = a[22];
+        f
+    }
+
     /// Adds the weight-`w` contribution of a material point at (F, E₀) with history `h`: its
     /// total stress, the mechanical one (the same point at zero field), its true field and J.
     pub fn add_material_point(

@@ -164,8 +164,8 @@ impl<'p> Recorder<'p> {
             .iter()
             .map(|e| state[e.nodes[0] * FIELDS + 3])
             .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
-        let max_electric_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
-        self.check_breakdown(&fields, time, stage);
+        let (max_electric_field, breakdowns) = self.field_extremes(&fields)?;
+        self.check_breakdown(&breakdowns, time, stage);
         let (probes, electrodes) = self.probe_values(
             state,
             &reactions,
@@ -258,7 +258,7 @@ impl<'p> Recorder<'p> {
         let model = &self.plan.model;
         let cells = record_with(model, state, &self.points)?;
         let (reactions, energies, fields) = (cells.reactions, cells.energies, cells.fields);
-        let max_field = fields.iter().map(|f| f.e_max).fold(0.0, f64::max);
+        let (max_field, _) = self.field_extremes(&fields)?;
         Ok(self
             .probe_values(state, &reactions, energies, max_field, (&[], f64::NAN))
             .0)
@@ -313,23 +313,74 @@ impl Recorder<'_> {
         self.load_change_work = 0.0;
     }
 
-    /// Warns (once per material) where the true field first exceeds a material's dielectric
-    /// strength, and asks the driver to stop when the plan says so.
-    pub(super) fn check_breakdown(&mut self, fields: &[CellFields], time: f64, stage: &str) {
+    /// The largest true field of a state's cell fields (V/m) and, per material with a
+    /// dielectric strength, the first cell where the field exceeds it, with that field. When
+    /// processes share the cells, each holds its own cells' fields: the result is then over
+    /// every process's cells, the same on each.
+    #[allow(clippy::type_complexity)]
+    fn field_extremes(
+        &self,
+        fields: &[CellFields],
+    ) -> Result<(f64, Vec<Option<(usize, f64)>>), String> {
         let plan = self.plan;
+        let mut max = 0.0f64;
+        let mut first: Vec<Option<(usize, f64)>> = vec![None; plan.breakdown.len()];
         for (c, f) in fields.iter().enumerate() {
+            max = max.max(f.e_max);
             let m = plan.model.cell_material[c];
+            if first[m].is_none() && plan.breakdown[m].is_some_and(|s| f.e_max > s) {
+                first[m] = Some((c, f.e_max));
+            }
+        }
+        let Some(share) = plan.model.share.as_deref() else {
+            return Ok((max, first));
+        };
+        // [largest field, per material: first cell + 1 (0: none) and its field]
+        let mut local = vec![max];
+        for f in &first {
+            local.extend_from_slice(&f.map_or([0.0, 0.0], |(c, e)| [c as f64 + 1.0, e]));
+        }
+        let all = share.gather(&local)?;
+        let max = all.iter().map(|v| v[0]).fold(0.0, f64::max);
+        for (m, slot) in first.iter_mut().enumerate() {
+            *slot = all
+                .iter()
+                .filter(|v| v[1 + 2 * m] > 0.0)
+                .map(|v| (v[1 + 2 * m] as usize - 1, v[2 + 2 * m]))
+                .min_by_key(|&(c, _)| c);
+        }
+        Ok((max, first))
+    }
+
+    /// Warns (once per material) where the true field first exceeds a material's dielectric
+    /// strength (`first`: per material, the first cell where it does and its field, from
+    /// [`Recorder::field_extremes`]), and asks the driver to stop when the plan says so.
+    pub(super) fn check_breakdown(
+        &mut self,
+        first: &[Option<(usize, f64)>],
+        time: f64,
+        stage: &str,
+    ) {
+        let plan = self.plan;
+        // in cell order, as a pass over the cells meets them
+        let mut exceeded: Vec<(usize, f64, usize)> = first
+            .iter()
+            .enumerate()
+            .filter_map(|(m, f)| f.map(|(c, e)| (c, e, m)))
+            .collect();
+        exceeded.sort_by_key(|&(c, _, _)| c);
+        for (c, e_max, m) in exceeded {
             let Some(strength) = plan.breakdown[m] else {
                 continue;
             };
-            if f.e_max <= strength || self.broken_down[m] {
+            if self.broken_down[m] {
                 continue;
             }
             self.broken_down[m] = true;
             let centre = plan.model.mesh.cell_centroid(c);
             let message = format!(
                 "dielectric breakdown: true field {:.4e} V/m exceeds the strength {:.4e} V/m of material `{}` at t = {:.6} s (stage `{stage}`), cell {c} at ({:.4e}, {:.4e}, {:.4e}) m",
-                f.e_max,
+                e_max,
                 strength,
                 plan.material_names[m],
                 time,

@@ -172,6 +172,10 @@ pub fn rectangle_mesh(
     structured(&uniform(r0, r1, nr), &uniform(0.0, height, nz), kind)
 }
 
+/// Most radial cells of the pad region of a meridian disc: a strongly graded annulus (tiny
+/// cells at the pad) would ask for more than any machine holds.
+const MAX_PAD_CELLS: usize = 100_000;
+
 /// Radial cells of the pad region of a meridian disc: as many as make them about the size of
 /// the annulus cells at the pad, at least 2.
 fn pad_cells(spec: &DiscSpec, annulus: &[f64]) -> usize {
@@ -186,6 +190,14 @@ pub fn disc_meridian(spec: &DiscSpec, kind: MeridianKind) -> Result<Mesh, String
     spec.validate()?;
     let (annulus, _) = super::disc::annulus_radii(spec);
     let np = pad_cells(spec, &annulus);
+    if np > MAX_PAD_CELLS {
+        return Err(format!(
+            "disc mesh: the pad would take {np} radial cells of the size of the annulus's first \
+             cell (more than {MAX_PAD_CELLS}): lower `grading` or `radial`, or give the annulus \
+             more room (pad_radius {} of radius {})",
+            spec.pad_radius, spec.radius
+        ));
+    }
     let mut rs = uniform(0.0, spec.pad_radius, np);
     rs.extend_from_slice(&annulus[1..]);
     let zs = uniform(0.0, spec.thickness, spec.layers);
@@ -353,6 +365,27 @@ mod tests {
         assert_eq!(m.node_sets["axis"], m.node_sets["inner"]);
         assert!(rectangle_mesh(0.5, 0.2, 1.0, 2, 2, MeridianKind::Quad4).is_err());
         assert!(rectangle_mesh(0.0, 1.0, 1.0, 0, 2, MeridianKind::Quad4).is_err());
+    }
+
+    /// A disc graded so steeply that its pad would need more cells than any machine holds is
+    /// refused with a message, not a failed allocation (found by the scenario fuzz test with
+    /// `grading = 9223372036854775807`).
+    #[test]
+    fn a_disc_whose_pad_needs_too_many_cells_is_refused() {
+        let spec = |grading: f64| crate::mesh::disc::DiscSpec {
+            radius: 17.5e-3,
+            thickness: 1e-3,
+            pad_radius: 3.75e-3,
+            electrode_radius: 7.5e-3,
+            radial: 12,
+            layers: 2,
+            quarter: true,
+            grading,
+            kind: crate::mesh::ElementKind::Hex8,
+        };
+        assert!(disc_meridian(&spec(2.0), MeridianKind::Quad4).is_ok());
+        let e = disc_meridian(&spec(9.223372036854776e18), MeridianKind::Quad4).unwrap_err();
+        assert!(e.contains("lower `grading`"), "{e}");
     }
 
     /// The half shell: its volume to the discretisation of the arc (quadratic kinds closer),

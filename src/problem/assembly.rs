@@ -147,6 +147,44 @@ pub struct CellShare {
 /// Sums a vector over the processes in place, every process receiving the same bits.
 pub type SumOverProcesses = Box<dyn Fn(&mut [f64]) -> Result<(), String> + Send + Sync>;
 
+impl CellShare {
+    /// Sums `v` over the processes after a pass over their cells in which this process's cell
+    /// `failed` failed (if any): every process then fails alike when a cell failed on any (so
+    /// that all take the same path), with this process's own message when the cell was its
+    /// own. The caller reports its own failure; `Ok` here means no other process failed.
+    pub fn sum_unless_failed(&self, v: &mut [f64], failed: Option<usize>) -> Result<(), String> {
+        // two more slots: the count of failed processes and the sum of their failed cells + 1
+        let mut w = Vec::with_capacity(v.len() + 2);
+        w.extend_from_slice(v);
+        w.extend_from_slice(&failed.map_or([0.0, 0.0], |c| [1.0, c as f64 + 1.0]));
+        (self.sum)(&mut w)?;
+        v.copy_from_slice(&w[..v.len()]);
+        let (count, cell) = (w[v.len()], w[v.len() + 1]);
+        if count == 0.0 || failed.is_some() {
+            Ok(())
+        } else if count == 1.0 {
+            Err(format!(
+                "cell {}: the kernel failed on another MPI rank (its message is on that rank)",
+                cell as usize - 1
+            ))
+        } else {
+            Err(format!("cell kernels failed on {count} MPI ranks"))
+        }
+    }
+
+    /// Every process's `local` (of the same length on every process), in rank order.
+    pub fn gather(&self, local: &[f64]) -> Result<Vec<Vec<f64>>, String> {
+        let m = local.len();
+        if m == 0 {
+            return Ok(vec![Vec::new(); self.size]);
+        }
+        let mut all = vec![0.0; m * self.size];
+        all[self.rank * m..(self.rank + 1) * m].copy_from_slice(local);
+        (self.sum)(&mut all)?;
+        Ok(all.chunks(m).map(<[f64]>::to_vec).collect())
+    }
+}
+
 impl std::fmt::Debug for CellShare {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("CellShare")
@@ -404,25 +442,8 @@ impl Assembler {
         let Some(share) = &self.share else {
             return local;
         };
-        // two more slots: the count of failed processes and the sum of their failed cells + 1
-        let mut v = Vec::with_capacity(r.len() + 2);
-        v.extend_from_slice(r);
-        let failed = failed_cell.map_or([0.0, 0.0], |c| [1.0, c as f64 + 1.0]);
-        v.extend_from_slice(&failed);
-        (share.sum)(&mut v)?;
-        r.copy_from_slice(&v[..r.len()]);
-        local?;
-        let (count, cell) = (v[r.len()], v[r.len() + 1]);
-        if count == 0.0 {
-            Ok(())
-        } else if count == 1.0 {
-            Err(format!(
-                "cell {}: the kernel failed on another MPI rank (its message is on that rank)",
-                cell as usize - 1
-            ))
-        } else {
-            Err(format!("cell kernels failed on {count} MPI ranks"))
-        }
+        share.sum_unless_failed(r, failed_cell)?;
+        local
     }
 
     /// A zeroed matrix with the assembler's pattern (the structure shared, not copied).
@@ -636,6 +657,49 @@ impl Assembler {
         }
         true
     }
+}
+
+/// Processes simulated by threads, for tests of what the processes that share the cells do
+/// together: calls `f(rank, sum)` on `size` threads and returns their results in rank order,
+/// where `sum` adds a vector over the threads in rank order, each receiving the same bits, as
+/// the sum over MPI ranks does.
+#[cfg(test)]
+pub(crate) fn on_threads<T: Send>(
+    size: usize,
+    f: impl Fn(usize, SumOverProcesses) -> T + Sync,
+) -> Vec<T> {
+    use std::sync::{Barrier, Mutex};
+    let shared = Arc::new((Mutex::new(vec![Vec::new(); size]), Barrier::new(size)));
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..size)
+            .map(|rank| {
+                let shared = Arc::clone(&shared);
+                let f = &f;
+                scope.spawn(move || {
+                    let sum: SumOverProcesses = Box::new(move |v: &mut [f64]| {
+                        let (slots, barrier) = &*shared;
+                        slots.lock().map_err(|e| e.to_string())?[rank] = v.to_vec();
+                        barrier.wait();
+                        {
+                            let slots = slots.lock().map_err(|e| e.to_string())?;
+                            v.copy_from_slice(&slots[0]);
+                            for other in &slots[1..] {
+                                v.iter_mut().zip(other).for_each(|(a, b)| *a += b);
+                            }
+                        }
+                        // nobody writes the next sum's slot before all have read this one
+                        barrier.wait();
+                        Ok(())
+                    });
+                    f(rank, sum)
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("a simulated process panicked"))
+            .collect()
+    })
 }
 
 #[cfg(test)]

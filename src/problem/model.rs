@@ -220,14 +220,21 @@ impl Model {
     pub fn for_each_cell<E>(
         &self,
         state: &[f64],
+        f: impl FnMut(usize, &CellGeometry, &dyn Material, &[f64]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        self.for_each_cell_where(state, |_| true, f)
+    }
+
+    /// [`Model::for_each_cell`] over the cells `keep` accepts only.
+    pub fn for_each_cell_where<E>(
+        &self,
+        state: &[f64],
+        keep: impl Fn(usize) -> bool,
         mut f: impl FnMut(usize, &CellGeometry, &dyn Material, &[f64]) -> Result<(), E>,
-    ) -> Result<(), E>
-    where
-        E: From<String>,
-    {
+    ) -> Result<(), E> {
         let npc = self.mesh.kind.nodes_per_cell();
         let mut local = vec![0.0; npc * FIELDS];
-        for c in 0..self.mesh.n_cells() {
+        for c in (0..self.mesh.n_cells()).filter(|&c| keep(c)) {
             for (a, &node) in self.mesh.cell(c).iter().enumerate() {
                 local[a * FIELDS..(a + 1) * FIELDS]
                     .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
@@ -240,6 +247,12 @@ impl Model {
             )?;
         }
         Ok(())
+    }
+
+    /// Whether this process evaluates cell `c`: every cell, unless processes share the cells
+    /// ([`Model::share`]).
+    pub fn owns(&self, c: usize) -> bool {
+        self.share.as_ref().is_none_or(|s| s.owned[c])
     }
 
     /// The conditions every axisymmetric model carries: the unused third displacement slot held

@@ -323,6 +323,7 @@ pub fn nodal_reactions_with(
 const PARALLEL_MIN_RECORD_CELLS: usize = 128;
 
 /// What the record of a state needs of the cells (see [`record_with`]).
+#[derive(Debug)]
 pub struct CellsRecord {
     /// The nodal reactions of [`nodal_reactions_with`] (at Δt = 0).
     pub reactions: Vec<f64>,
@@ -334,15 +335,45 @@ pub struct CellsRecord {
 
 /// What the record of a state needs, in one pass over the cells (see
 /// [`CellKernel::record`](crate::element::CellKernel::record)), at committed point states.
+///
+/// When processes share the cells ([`Model::share`]), each evaluates its own cells only: the
+/// reactions and energies are summed over the processes (every process receiving the same
+/// bits), and the fields of the other processes' cells are zero, except in an axisymmetric
+/// model, whose fields are summed too (its revolved view is written whole by one process; its
+/// meshes are small). A cell failing on any process fails the record on every process.
 pub fn record_with(
     model: &Model,
     state: &[f64],
     points: &PointStates,
 ) -> Result<CellsRecord, String> {
+    use crate::element::MAX_LOCAL;
+    let n_cells = model.mesh.n_cells();
+    let share = model.share.as_deref();
+    let owned = |c: usize| model.owns(c);
+    let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+    // one cell's residual, energy split and fields
+    let eval = |c: usize| {
+        let mut local = [0.0; MAX_LOCAL];
+        for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+            local[a * FIELDS..(a + 1) * FIELDS]
+                .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
+        }
+        let mut r = [0.0; MAX_LOCAL];
+        let m = model.cell_material[c];
+        let input = CellInput {
+            geom: &model.geometry(c),
+            mat: model.materials[m].as_ref(),
+            hist: points.cell(c, m, 0.0),
+            local: &local[..nl],
+        };
+        let out = model.kernel().record(&input, &mut r);
+        out.map(|(split, f)| (r, split, f))
+            .map_err(|e| (c, format!("cell {c}: {}", e.error)))
+    };
     let mut out = CellsRecord {
         reactions: vec![0.0; state.len()],
         energies: (0.0, 0.0),
-        fields: Vec::with_capacity(model.mesh.n_cells()),
+        fields: Vec::with_capacity(n_cells),
     };
     // one cell's contributions, added in cell order on either path
     let mut add = |c: usize, r: &[f64], (a, b): (f64, f64), f: CellFields| {
@@ -355,55 +386,73 @@ pub fn record_with(
         out.energies.1 += b;
         out.fields.push(f);
     };
-    if model.mesh.n_cells() >= PARALLEL_MIN_RECORD_CELLS && rayon::current_num_threads() > 1 {
+    let mut failure = None;
+    if n_cells >= PARALLEL_MIN_RECORD_CELLS && rayon::current_num_threads() > 1 {
         // the cells on the pool, their contributions added in cell order as below
-        use crate::element::MAX_LOCAL;
         use rayon::prelude::*;
-        let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
-        let cells: Vec<_> = (0..model.mesh.n_cells())
+        let cells: Vec<_> = (0..n_cells)
             .into_par_iter()
-            .map(|c| {
-                let mut local = [0.0; MAX_LOCAL];
-                for (a, &node) in model.mesh.cell(c).iter().enumerate() {
-                    local[a * FIELDS..(a + 1) * FIELDS]
-                        .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
-                }
-                let mut r = [0.0; MAX_LOCAL];
-                let m = model.cell_material[c];
-                let input = CellInput {
-                    geom: &model.geometry(c),
-                    mat: model.materials[m].as_ref(),
-                    hist: points.cell(c, m, 0.0),
-                    local: &local[..nl],
-                };
-                let out = model.kernel().record(&input, &mut r);
-                out.map(|(split, f)| (r, split, f))
-                    .map_err(|e| format!("cell {c}: {}", e.error))
-            })
+            .map(|c| owned(c).then(|| eval(c)))
             .collect();
         for (c, cell) in cells.into_iter().enumerate() {
-            let (r, split, f) = cell?;
-            add(c, &r, split, f);
+            match cell {
+                None => add(c, &[0.0; MAX_LOCAL], (0.0, 0.0), CellFields::zero()),
+                Some(Ok((r, split, f))) => add(c, &r, split, f),
+                Some(Err(e)) => {
+                    failure = Some(e);
+                    break;
+                }
+            }
         }
-        return Ok(out);
+    } else {
+        for c in 0..n_cells {
+            if !owned(c) {
+                add(c, &[0.0; MAX_LOCAL], (0.0, 0.0), CellFields::zero());
+                continue;
+            }
+            match eval(c) {
+                Ok((r, split, f)) => add(c, &r, split, f),
+                Err(e) => {
+                    failure = Some(e);
+                    break;
+                }
+            }
+        }
     }
-    let mut r = vec![0.0; crate::element::MAX_LOCAL];
-    model.for_each_cell(state, |c, g, mat, local| {
-        let (split, f) = model
-            .kernel()
-            .record(
-                &CellInput {
-                    geom: g,
-                    mat,
-                    hist: points.cell(c, model.cell_material[c], 0.0),
-                    local,
-                },
-                &mut r,
-            )
-            .map_err(|e| format!("cell {c}: {}", e.error))?;
-        add(c, &r, split, f);
-        Ok::<(), String>(())
-    })?;
+    let Some(share) = share else {
+        return match failure {
+            Some((_, message)) => Err(message),
+            None => Ok(out),
+        };
+    };
+    // the processes' sums: reactions, the two energies and, in an axisymmetric model, the
+    // fields
+    let whole_fields = model.is_axisymmetric() && failure.is_none();
+    let mut v = std::mem::take(&mut out.reactions);
+    v.extend_from_slice(&[out.energies.0, out.energies.1]);
+    if model.is_axisymmetric() {
+        let zero = CellFields::zero();
+        for c in 0..n_cells {
+            v.extend_from_slice(&out.fields.get(c).unwrap_or(&zero).to_array());
+        }
+    }
+    share.sum_unless_failed(&mut v, failure.as_ref().map(|f| f.0))?;
+    if let Some((_, message)) = failure {
+        return Err(message);
+    }
+    let n = state.len();
+    if whole_fields {
+        for (f, values) in out
+            .fields
+            .iter_mut()
+            .zip(v[n + 2..].chunks(CellFields::VALUES))
+        {
+            *f = CellFields::from_array(values);
+        }
+    }
+    out.energies = (v[n], v[n + 1]);
+    v.truncate(n);
+    out.reactions = v;
     Ok(out)
 }
 
@@ -634,5 +683,151 @@ impl LoadedSystem for StaticProblem<'_> {
         }
         self.committed_load = self.s;
         Ok(history)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{ElementKind, MeridianKind, Mesh};
+    use crate::problem::assembly::{on_threads, CellShare};
+    use std::sync::Arc;
+
+    /// A smooth, small displacement and potential over the model's nodes.
+    fn state_of(model: &Model) -> Vec<f64> {
+        (0..model.mesh.n_nodes() * FIELDS)
+            .map(|d| {
+                let x = model.mesh.nodes[d / FIELDS];
+                let wave = (300.0 * x[0] + 500.0 * x[1] + 700.0 * x[2] + d as f64).sin();
+                if d % FIELDS == PHI {
+                    1000.0 * wave
+                } else {
+                    1e-6 * wave
+                }
+            })
+            .collect()
+    }
+
+    /// The record of `model` at `state` by `size` processes sharing its cells in contiguous
+    /// blocks, one record per process.
+    fn shared_records(
+        model: &Model,
+        state: &[f64],
+        size: usize,
+    ) -> Vec<Result<CellsRecord, String>> {
+        let n = model.mesh.n_cells();
+        on_threads(size, |rank, sum| {
+            let mut m = model.clone();
+            let owned: Vec<bool> = (0..n).map(|c| c * size / n == rank).collect();
+            m.hold_geometry_of(|c| owned[c]);
+            m.share = Some(Arc::new(CellShare {
+                owned,
+                rank,
+                size,
+                sum,
+            }));
+            record_with(&m, state, &PointStates::default())
+        })
+    }
+
+    fn largest(v: &[f64]) -> f64 {
+        v.iter().fold(0.0_f64, |m, x| m.max(x.abs()))
+    }
+
+    #[test]
+    fn processes_sharing_the_cells_record_what_one_records() {
+        let model = crate::problem::examples::film([4, 4, 3], ElementKind::Hex8, 1000.0).unwrap();
+        let state = state_of(&model);
+        let whole = record_with(&model, &state, &PointStates::default()).unwrap();
+        let n = model.mesh.n_cells();
+        for size in [2, 3] {
+            let parts = shared_records(&model, &state, size);
+            let first = parts[0].as_ref().unwrap();
+            for (rank, part) in parts.iter().enumerate() {
+                let part = part.as_ref().unwrap();
+                // the same bits on every process
+                assert_eq!(part.reactions, first.reactions);
+                assert_eq!(part.energies, first.energies);
+                for c in 0..n {
+                    let expected = if c * size / n == rank {
+                        whole.fields[c]
+                    } else {
+                        CellFields::zero()
+                    };
+                    assert_eq!(part.fields[c], expected, "{size} processes, cell {c}");
+                }
+            }
+            let scale = largest(&whole.reactions);
+            for (a, b) in first.reactions.iter().zip(&whole.reactions) {
+                assert!((a - b).abs() <= 1e-13 * scale, "{size}: {a} against {b}");
+            }
+            for (a, b) in [
+                (first.energies.0, whole.energies.0),
+                (first.energies.1, whole.energies.1),
+            ] {
+                assert!((a - b).abs() <= 1e-13 * b.abs(), "{size}: {a} against {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_cell_failing_on_one_process_fails_the_record_on_every_process() {
+        let model = crate::problem::examples::film([4, 4, 3], ElementKind::Hex8, 1000.0).unwrap();
+        let mut state = state_of(&model);
+        // the last cell turned inside out: its top corner pushed far through its bottom
+        let c = model.mesh.n_cells() - 1;
+        let node = model.mesh.cell(c)[6];
+        state[node * FIELDS + 2] = -0.1;
+        let own = record_with(&model, &state, &PointStates::default()).unwrap_err();
+        let parts = shared_records(&model, &state, 2);
+        let messages: Vec<String> = parts.into_iter().map(|p| p.err().unwrap()).collect();
+        // the cell's owner reports its own failure, the other the owner's cell
+        assert_eq!(messages[1], own);
+        assert!(
+            messages[0].contains("failed on another MPI rank"),
+            "{}",
+            messages[0]
+        );
+    }
+
+    #[test]
+    fn an_axisymmetric_record_holds_every_cells_fields_on_every_process() {
+        // a 4 × 3 quad4 meridian section, R from 0 to 4 mm, Z from 0 to 0.6 mm
+        let (nr, nz) = (4, 3);
+        let mut nodes = Vec::new();
+        for j in 0..=nz {
+            for i in 0..=nr {
+                nodes.push([1e-3 * i as f64, 0.2e-3 * j as f64, 0.0]);
+            }
+        }
+        let mut connectivity = Vec::new();
+        for j in 0..nz {
+            for i in 0..nr {
+                let a = j * (nr + 1) + i;
+                connectivity.extend([a, a + 1, a + nr + 2, a + nr + 1]);
+            }
+        }
+        let mesh = Mesh {
+            kind: ElementKind::Meridian(MeridianKind::Quad4),
+            nodes,
+            connectivity,
+            node_sets: Default::default(),
+            face_sets: Default::default(),
+            cell_sets: Default::default(),
+        };
+        let material = Arc::new(crate::material::ElectroNeoHooke::new(1e5, 1e7, 4.7));
+        let model = Model::new(mesh, material).unwrap();
+        let mut state = state_of(&model);
+        // the unused third displacement slot of a meridian node
+        (0..model.mesh.n_nodes()).for_each(|n| state[n * FIELDS + 2] = 0.0);
+        let whole = record_with(&model, &state, &PointStates::default()).unwrap();
+        for part in shared_records(&model, &state, 3) {
+            let part = part.unwrap();
+            assert_eq!(part.fields, whole.fields);
+            let scale = largest(&whole.reactions);
+            for (a, b) in part.reactions.iter().zip(&whole.reactions) {
+                assert!((a - b).abs() <= 1e-13 * scale, "{a} against {b}");
+            }
+        }
     }
 }

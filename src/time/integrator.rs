@@ -291,34 +291,52 @@ impl<'m> TimeStep<'m> {
     }
 
     /// Dissipation power ∫ Jη d:d dV + Σ c|v|² (W) at the evaluation point of the current iterate.
+    /// When processes share the cells, each adds its own cells' power and the sum is over the
+    /// processes.
     pub fn dissipation_power(&mut self) -> Result<f64, String> {
         self.evaluation_point();
-        if let Some((q, q_prev, dt, power)) = &self.power_cache {
-            if *dt == self.dt && *q == self.q && *q_prev == self.prev.q {
-                return Ok(power + damper_power(self.model, &self.work_v));
+        let model = self.model;
+        let share = model.share.as_deref();
+        // this process's cells' power: the assembly's, when it evaluated the same point
+        let cached = match &self.power_cache {
+            Some((q, q_prev, dt, power))
+                if *dt == self.dt && *q == self.q && *q_prev == self.prev.q =>
+            {
+                Some(*power)
+            }
+            _ => None,
+        };
+        let (qv, vv) = (&self.work_q, &self.work_v);
+        let mut cells = [0.0];
+        let mut failure = None;
+        match cached {
+            Some(p) => cells[0] = p,
+            None => {
+                let mut r = vec![0.0; MAX_LOCAL];
+                let mut vel = vec![0.0; MAX_LOCAL];
+                let viscosity = &self.viscosity;
+                let keep = |c: usize| viscosity[model.cell_material[c]] != 0.0 && model.owns(c);
+                let outcome = model.for_each_cell_where(qv, keep, |c, g, _, local| {
+                    let eta = viscosity[model.cell_material[c]];
+                    for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                        vel[a * FIELDS..(a + 1) * FIELDS]
+                            .copy_from_slice(&vv[node * FIELDS..(node + 1) * FIELDS]);
+                    }
+                    cells[0] += KelvinVoigtKernel { eta }
+                        .forces(g, local, &vel[..local.len()], &mut r, None)
+                        .map_err(|e| (c, format!("cell {c}: {}", e.error)))?;
+                    Ok::<(), (usize, String)>(())
+                });
+                failure = outcome.err();
             }
         }
-        let mut total = 0.0;
-        let mut r = vec![0.0; MAX_LOCAL];
-        let (qv, vv) = (&self.work_q, &self.work_v);
-        let model = self.model;
-        let mut vel = vec![0.0; MAX_LOCAL];
-        model.for_each_cell(qv, |c, g, _, local| {
-            let eta = self.viscosity[model.cell_material[c]];
-            if eta == 0.0 {
-                return Ok::<(), String>(());
-            }
-            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
-                vel[a * FIELDS..(a + 1) * FIELDS]
-                    .copy_from_slice(&vv[node * FIELDS..(node + 1) * FIELDS]);
-            }
-            total += KelvinVoigtKernel { eta }
-                .forces(g, local, &vel[..local.len()], &mut r, None)
-                .map_err(|e| format!("cell {c}: {}", e.error))?;
-            Ok(())
-        })?;
-        total += damper_power(model, vv);
-        Ok(total)
+        if let Some(s) = share {
+            s.sum_unless_failed(&mut cells, failure.as_ref().map(|f| f.0))?;
+        }
+        if let Some((_, message)) = failure {
+            return Err(message);
+        }
+        Ok(cells[0] + damper_power(model, vv))
     }
 
     /// Internal, viscous and dead-load forces f_int + f_vis − f_ext at configuration `q` and
@@ -494,18 +512,13 @@ impl NonlinearSystem for TimeStep<'_> {
             &mut self.cell_energy,
         );
         self.assembler.combine(r, cells)?;
-        // the power summed in cell order, as `dissipation_power` does; with shared cells this
-        // process holds only its own cells' powers, so there is nothing to keep
-        self.power_cache = if self.assembler.is_shared() {
-            None
-        } else {
-            let power = self.cell_energy.iter().fold(0.0, |t, p| t + p);
-            let mut cache = self.power_cache.take().unwrap_or_default();
-            cache.0.clone_from(&self.q);
-            cache.1.clone_from(&self.prev.q);
-            (cache.2, cache.3) = (dt, power);
-            Some(cache)
-        };
+        // the power of this process's cells summed in cell order, as `dissipation_power` does
+        let power = self.cell_energy.iter().fold(0.0, |t, p| t + p);
+        let mut cache = self.power_cache.take().unwrap_or_default();
+        cache.0.clone_from(&self.q);
+        cache.1.clone_from(&self.prev.q);
+        (cache.2, cache.3) = (dt, power);
+        self.power_cache = Some(cache);
         // the terms below are no cell terms: in the residual everywhere, in the tangent once
         let mut k = self.assembler.global_terms(k);
         // dead loads at full value, with the factor of the internal forces: −f_r·f_ext
