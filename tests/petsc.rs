@@ -549,7 +549,7 @@ fn pull_in_is_found_on_two_mpi_ranks() {
 fn dielectric_breakdown_is_found_over_every_ranks_cells() {
     let dir = common::tempdir("petsc-mpi-breakdown");
     let text = example("diaphragm-3d").unwrap();
-    std::fs::write(dir.join("serial.toml"), &text).unwrap();
+    std::fs::write(dir.join("serial.toml"), text).unwrap();
     std::fs::write(
         dir.join("petsc.toml"),
         format!("{text}\n[solver]\nkind = \"petsc\"\n"),
