@@ -12,10 +12,12 @@
 //! part over the processes (every process then holds the same full residual, so the nonlinear
 //! solvers run unchanged), and the tangent stays this process's part, to be summed by a
 //! distributed linear solver. That part has a pattern of its own: the couplings of the owned
-//! cells, and the whole rows of one contiguous range of equations ([`Assembler::term_rows`]),
-//! into which this process adds the tangent's terms that are not cell terms
-//! ([`Assembler::global_terms`]); the ranges of the processes cover every equation once. So no
-//! process holds the whole tangent or its whole pattern. Without a share nothing changes.
+//! cells, and the whole rows of its term equations ([`Assembler::term_rows`]), into which this
+//! process adds the tangent's terms that are not cell terms ([`Assembler::global_terms`]). An
+//! equation is a term equation of the process that owns the first cell (in cell order) at its
+//! node, so the term equations of the processes cover every equation once and each lies among
+//! the process's own cells' rows. So no process holds the whole tangent or its whole pattern,
+//! nor more rows than its cells touch. Without a share nothing changes.
 
 use crate::element::{LocalMatrix, MAX_LOCAL};
 use crate::mesh::Mesh;
@@ -137,8 +139,7 @@ pub struct CellShare {
     pub owned: Vec<bool>,
     /// This process's index among the processes ...
     pub rank: usize,
-    /// ... and their number: each adds the non-cell terms of the tangent's rows in its own
-    /// contiguous range of equations.
+    /// ... and their number.
     pub size: usize,
     /// Sums a vector over the processes in place; every process receives the same bits.
     pub sum: SumOverProcesses,
@@ -215,9 +216,9 @@ pub struct Assembler {
     nodes_per_cell: usize,
     /// The share of the cells of this process, if the cells are shared.
     share: Option<std::sync::Arc<CellShare>>,
-    /// The equations whose tangent rows take this process's non-cell terms (all without a
-    /// share).
-    term_rows: std::ops::Range<usize>,
+    /// Per equation: whether its tangent row takes this process's non-cell terms (`None`: all
+    /// do, without a share).
+    term_rows: Option<Arc<Vec<bool>>>,
 }
 
 /// A pointer that may be shared between threads because the colouring guarantees that concurrent
@@ -234,29 +235,20 @@ impl SharedMut {
     }
 }
 
-/// The equations of process `rank` among `size` whose tangent rows take its non-cell terms:
-/// contiguous, split at multiples of 4 (a node's unknowns stay together when all are free), as
-/// even as possible; the ranges of all processes cover `0..n` once.
-fn term_rows(n: usize, rank: usize, size: usize) -> std::ops::Range<usize> {
-    let blocks = n.div_ceil(4);
-    let at = |r: usize| (blocks * r / size * 4).min(n);
-    at(rank)..at(rank + 1)
-}
-
 /// The tangent as it takes the terms that are not cell terms (loads, pressures, inertia,
 /// circuits): on this process, only the rows of [`Assembler::term_rows`], so that the processes
 /// sharing the cells add each such term once between them.
 #[derive(Debug)]
 pub struct GlobalTerms<'a> {
     k: &'a mut CsrMatrix,
-    rows: std::ops::Range<usize>,
+    rows: Option<Arc<Vec<bool>>>,
 }
 
 impl GlobalTerms<'_> {
     /// Position of entry (i, j) in the tangent's values when this process adds the non-cell
     /// terms of row i and the entry is in the pattern.
     pub fn position(&self, i: usize, j: usize) -> Option<usize> {
-        if self.rows.contains(&i) {
+        if self.rows.as_ref().is_none_or(|r| r[i]) {
             self.k.position(i, j)
         } else {
             None
@@ -298,10 +290,6 @@ impl Assembler {
                 .as_ref()
                 .is_none_or(|s| s.owned.get(c).copied().unwrap_or(false))
         };
-        let term_rows = match &share {
-            Some(s) => term_rows(dofs.n_free, s.rank, s.size),
-            None => 0..dofs.n_free,
-        };
         // node adjacency through cells
         let mut node_cells: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
         for c in 0..mesh.n_cells() {
@@ -309,6 +297,16 @@ impl Assembler {
                 node_cells[n].push(c);
             }
         }
+        // an equation is a term equation of the process owning the first cell at its nodes
+        // (process 0 takes the equations of nodes in no cell)
+        let takes_terms = |nodes: &[usize]| match &share {
+            None => true,
+            Some(s) => match nodes.iter().filter_map(|&n| node_cells[n].first()).min() {
+                Some(&c) => owned(c),
+                None => s.rank == 0,
+            },
+        };
+        let mut terms = share.as_ref().map(|_| vec![false; dofs.n_free]);
         let mut row_ptr = Vec::with_capacity(dofs.n_free + 1);
         let mut col_idx = Vec::new();
         row_ptr.push(0);
@@ -336,8 +334,11 @@ impl Assembler {
             }
             let nodes: Vec<usize> = order[i..j].iter().map(|p| p.1).collect();
             debug_assert_eq!(row_ptr.len() - 1, e, "equations are numbered densely");
-            // a row of the term range couples through every cell, another through the owned
-            let whole = term_rows.contains(&e);
+            // a term equation's row couples through every cell, another through the owned
+            let whole = takes_terms(&nodes);
+            if let Some(t) = terms.as_mut() {
+                t[e] = whole;
+            }
             // consecutive equations of one node (or one tie) share their columns
             if nodes != last.0 || whole != last.1 {
                 neighbours.clear();
@@ -396,14 +397,14 @@ impl Assembler {
             pattern: CsrMatrix::new(dofs.n_free, row_ptr, col_idx, Vec::new()),
             nodes_per_cell: npc,
             share,
-            term_rows,
+            term_rows: terms.map(Arc::new),
         }
     }
 
-    /// The equations whose tangent rows take this process's non-cell terms: all of them
-    /// without a share.
-    pub fn term_rows(&self) -> std::ops::Range<usize> {
-        self.term_rows.clone()
+    /// The equations whose tangent rows take this process's non-cell terms, ascending: all of
+    /// them without a share.
+    pub fn term_rows(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.pattern.n).filter(|&e| self.term_rows.as_ref().is_none_or(|t| t[e]))
     }
 
     /// Whether the cells are shared between processes.
@@ -805,21 +806,50 @@ mod tests {
             k
         };
         let whole = assemble(&Assembler::new(&mesh, &dofs));
-        for size in [2, 3] {
+        // the cells in blocks of cell order (slabs across the thickness), and in slices across
+        // x as a graph partition cuts a plate (not aligned with the equations' order)
+        let slabs = |c: usize, size: usize| c * size / mesh.n_cells();
+        let slices = |c: usize, size: usize| {
+            let x = mesh.cell_centroid(c)[0];
+            ((x * size as f64) as usize).min(size - 1)
+        };
+        for (size, part_of) in [
+            (2, &slabs as &dyn Fn(usize, usize) -> usize),
+            (3, &slabs),
+            (2, &slices),
+            (3, &slices),
+        ] {
             let mut sum = whole.zeros_like();
             let mut covered = vec![0; dofs.n_free];
             for rank in 0..size {
+                let owned: Vec<bool> = (0..mesh.n_cells())
+                    .map(|c| part_of(c, size) == rank)
+                    .collect();
+                // the rows of the owned cells' equations
+                let mut touched = vec![false; dofs.n_free];
+                for c in (0..mesh.n_cells()).filter(|&c| owned[c]) {
+                    for &node in mesh.cell(c) {
+                        for f in 0..FIELDS {
+                            let e = dofs.eq[node * FIELDS + f];
+                            if e != CONSTRAINED {
+                                touched[e] = true;
+                            }
+                        }
+                    }
+                }
                 let share = Arc::new(CellShare {
-                    owned: (0..mesh.n_cells())
-                        .map(|c| c * size / mesh.n_cells() == rank)
-                        .collect(),
+                    owned,
                     rank,
                     size,
                     sum: Box::new(|_| Ok(())),
                 });
                 let asm = Assembler::shared(&mesh, &dofs, share);
                 asm.term_rows().for_each(|e| covered[e] += 1);
+                // a part holds only the rows of its own cells
+                assert!(asm.term_rows().all(|e| touched[e]), "{size} processes");
                 let part = assemble(&asm);
+                let rows = (0..part.n).filter(|&i| part.row_ptr[i + 1] > part.row_ptr[i]);
+                assert!(rows.clone().all(|i| touched[i]), "{size} processes");
                 assert!(
                     part.nnz() < whole.nnz(),
                     "{size} processes: a part is smaller"
