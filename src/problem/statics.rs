@@ -386,36 +386,40 @@ pub fn record_with(
         out.energies.1 += b;
         out.fields.push(f);
     };
+    // a cell's outcome (`None`: another process's cell), added in cell order on either path;
+    // false after a failure, which ends the pass
     let mut failure = None;
+    type Outcome = Result<([f64; MAX_LOCAL], (f64, f64), CellFields), (usize, String)>;
+    let mut take = |c: usize, cell: Option<Outcome>| match cell {
+        None => {
+            add(c, &[0.0; MAX_LOCAL], (0.0, 0.0), CellFields::zero());
+            true
+        }
+        Some(Ok((r, split, f))) => {
+            add(c, &r, split, f);
+            true
+        }
+        Some(Err(e)) => {
+            failure = Some(e);
+            false
+        }
+    };
     if n_cells >= PARALLEL_MIN_RECORD_CELLS && rayon::current_num_threads() > 1 {
-        // the cells on the pool, their contributions added in cell order as below
+        // the cells on the pool
         use rayon::prelude::*;
         let cells: Vec<_> = (0..n_cells)
             .into_par_iter()
             .map(|c| owned(c).then(|| eval(c)))
             .collect();
         for (c, cell) in cells.into_iter().enumerate() {
-            match cell {
-                None => add(c, &[0.0; MAX_LOCAL], (0.0, 0.0), CellFields::zero()),
-                Some(Ok((r, split, f))) => add(c, &r, split, f),
-                Some(Err(e)) => {
-                    failure = Some(e);
-                    break;
-                }
+            if !take(c, cell) {
+                break;
             }
         }
     } else {
         for c in 0..n_cells {
-            if !owned(c) {
-                add(c, &[0.0; MAX_LOCAL], (0.0, 0.0), CellFields::zero());
-                continue;
-            }
-            match eval(c) {
-                Ok((r, split, f)) => add(c, &r, split, f),
-                Err(e) => {
-                    failure = Some(e);
-                    break;
-                }
+            if !take(c, owned(c).then(|| eval(c))) {
+                break;
             }
         }
     }
