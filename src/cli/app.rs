@@ -3,7 +3,7 @@
 
 use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};
-use crate::io::checkpoint::{CheckpointWriter, ScenarioSource};
+use crate::io::checkpoint::{CheckpointCadence, CheckpointWriter, ScenarioSource};
 use crate::io::examples::{example, DEFAULT, EXAMPLES};
 use crate::io::lock::DirLock;
 use crate::io::output::OutputWriter;
@@ -347,7 +347,7 @@ pub fn cmd_run(
         if !ranks_agree(true) {
             return EXIT_BAD_INPUT;
         }
-        return run_secondary_rank(&plan, &dir, pieces, None);
+        return run_secondary_rank(&plan, &dir, pieces, None, checkpoint_every);
     }
     let prepared = prepare_output(&dir, &plan.name, overwrite);
     if ranks > 1 && !ranks_agree(prepared.is_ok()) {
@@ -501,6 +501,7 @@ fn run_secondary_rank(
     dir: &Path,
     pieces: Option<Pieces>,
     start: Option<RunState>,
+    checkpoint_every: Option<usize>,
 ) -> i32 {
     let mut writer = match OutputWriter::new(dir) {
         Ok(w) => w,
@@ -512,7 +513,13 @@ fn run_secondary_rank(
     if let Some(p) = pieces {
         writer.split_fields(p, true);
     }
-    let summary = run_with(plan, &NewtonSettings::default(), &mut [&mut writer], start);
+    // rank 0 writes the checkpoints; this rank takes part in making their state
+    let mut cadence = checkpoint_every.map(|every| CheckpointCadence { every });
+    let mut observers: Vec<&mut dyn Observer> = vec![&mut writer];
+    if let Some(c) = cadence.as_mut() {
+        observers.push(c);
+    }
+    let summary = run_with(plan, &NewtonSettings::default(), &mut observers, start);
     mpi_barrier();
     if let Some(f) = writer.write_failure() {
         eprintln!("error: {f}");
@@ -576,7 +583,8 @@ pub fn cmd_resume(
             checkpoint.ranks = ranks as u64;
             let pieces = distribute(&mut plan, rank, ranks);
             if rank > 0 {
-                return run_secondary_rank(&plan, dir, pieces, Some(state));
+                let every = Some(checkpoint.every);
+                return run_secondary_rank(&plan, dir, pieces, Some(state), every);
             }
             let mut writer = match OutputWriter::new(dir) {
                 Ok(w) => w,

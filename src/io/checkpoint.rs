@@ -265,6 +265,30 @@ pub fn latest(out_dir: &Path) -> Result<(Checkpoint, PathBuf, Vec<String>), Chec
     )))
 }
 
+/// A checkpoint writer's cadence on an MPI rank that does not write the checkpoints: it asks
+/// for the run state at the same steps as the writer on rank 0, because making the state is
+/// collective (every rank contributes its own cells' internal variables), and drops it.
+#[derive(Debug, Clone, Copy)]
+pub struct CheckpointCadence {
+    /// The writer's interval, in accepted steps.
+    pub every: usize,
+}
+
+impl Observer for CheckpointCadence {
+    fn step(&mut self, _: &Plan, _: &StepRecord, _: &[f64], _: &[crate::element::CellFields]) {}
+
+    fn finished(&mut self, _: &Plan, _: &crate::job::run::RunSummary) {}
+
+    fn wants_state(&self, accepted: usize, stopping: bool) -> bool {
+        checkpoint_due(self.every, accepted, stopping)
+    }
+}
+
+/// Whether a checkpoint is due after `accepted` steps at an interval of `every`.
+fn checkpoint_due(every: usize, accepted: usize, stopping: bool) -> bool {
+    stopping || accepted.is_multiple_of(every.max(1))
+}
+
 /// The observer that writes checkpoints: every `every` accepted steps and when the run stops on
 /// a signal.
 #[derive(Debug, Clone)]
@@ -290,7 +314,7 @@ impl Observer for CheckpointWriter {
     }
 
     fn wants_state(&self, accepted: usize, stopping: bool) -> bool {
-        stopping || accepted.is_multiple_of(self.every.max(1))
+        checkpoint_due(self.every, accepted, stopping)
     }
 
     fn run_state(&mut self, _: &Plan, state: &RunState) -> Result<(), String> {

@@ -284,7 +284,8 @@ impl<'p, 'o> Job<'p, 'o> {
         job
     }
 
-    /// The run state at an accepted step of the current stage.
+    /// The run state at an accepted step of the current stage (collective when processes share
+    /// the cells: the point states are merged from their owners).
     fn state(
         &self,
         model: &Model,
@@ -292,8 +293,14 @@ impl<'p, 'o> Job<'p, 'o> {
         step_no: usize,
         position: StagePosition,
         q: &[f64],
-    ) -> RunState {
-        RunState {
+    ) -> Result<RunState, String> {
+        let mut position = position;
+        if let StagePosition::Dynamic { driver, .. } = &mut position {
+            if let Some(f) = driver.step_factor.as_mut() {
+                f.points = self.points.merge(model, &f.points)?;
+            }
+        }
+        Ok(RunState {
             accepted: self.accepted,
             stage,
             stage_time: self.time,
@@ -304,7 +311,7 @@ impl<'p, 'o> Job<'p, 'o> {
             q: q.to_vec(),
             v: self.v.clone(),
             a: self.a.clone(),
-            points: self.points.data.clone(),
+            points: self.points.merged(model)?,
             dissipated: self.dissipated,
             dead_load_start: model.dead_load_start,
             pressure_start: self.pressure_fraction.clone(),
@@ -313,14 +320,18 @@ impl<'p, 'o> Job<'p, 'o> {
             warnings: self.summary.warnings.clone(),
             records: self.rec.history.clone(),
             wall_s: self.wall_before + self.started.elapsed().as_secs_f64(),
-        }
+        })
     }
 
     /// Sends the run state to the observers that want it now.
-    fn offer_state(&mut self, stopping: bool, state: impl FnOnce(&Self) -> RunState) {
+    fn offer_state(
+        &mut self,
+        stopping: bool,
+        state: impl FnOnce(&Self) -> Result<RunState, String>,
+    ) {
         if self.observer.wants_state(self.accepted, stopping) {
-            let s = state(self);
-            if let Err(e) = self.observer.run_state(self.plan, &s) {
+            let written = state(self).and_then(|s| self.observer.run_state(self.plan, &s));
+            if let Err(e) = written {
                 self.rec
                     .warnings
                     .push(format!("checkpoint not written: {e}"));
@@ -342,8 +353,13 @@ impl<'p, 'o> Job<'p, 'o> {
         kinetic: f64,
     ) -> Option<StepRecord> {
         if !self.points.is_empty() {
-            let means = self.points.cell_means(&self.plan.model);
-            self.observer.point_states(self.plan, &means);
+            match self.points.cell_means(&self.plan.model) {
+                Ok(means) => self.observer.point_states(self.plan, &means),
+                Err(e) => self
+                    .rec
+                    .warnings
+                    .push(format!("internal variables not written: {e}")),
+            }
         }
         match self.rec.record(
             q,

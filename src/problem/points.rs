@@ -1,6 +1,8 @@
 //! The internal variables of the material points: for every cell, `n_qp × size` values of its
 //! material (none for elastic materials). The run commits them after an accepted step; a step
-//! that is cut back never touches them.
+//! that is cut back never touches them. When processes share the cells ([`Model::share`]), each
+//! updates its own cells' values only: the others' stay as they were until
+//! [`PointStates::merged`] collects every cell's values from its owner (for a checkpoint).
 
 use super::model::Model;
 use crate::element::{CellHistory, CellInput};
@@ -79,9 +81,11 @@ impl PointStates {
 
     /// Cell means of every internal variable, by name (the names of all materials, in order of
     /// first appearance; 0 in cells whose material has no such variable): for field output.
-    pub fn cell_means(&self, model: &Model) -> Vec<(String, Vec<f64>)> {
+    /// Over this process's own cells when processes share the cells (0 in the others'); summed
+    /// over the processes for an axisymmetric model, whose revolved view one process writes whole.
+    pub fn cell_means(&self, model: &Model) -> Result<Vec<(String, Vec<f64>)>, String> {
         if self.is_empty() {
-            return Vec::new();
+            return Ok(Vec::new());
         }
         let mut out: Vec<(String, Vec<f64>)> = Vec::new();
         let n_cells = model.mesh.n_cells();
@@ -101,7 +105,7 @@ impl PointStates {
             columns.push(cols);
         }
         let n_qp = model.reference.n_qp;
-        for c in 0..n_cells {
+        for c in (0..n_cells).filter(|&c| model.owns(c)) {
             let m = model.cell_material[c];
             let s = self.sizes[m];
             let g = model.geometry(c);
@@ -115,25 +119,56 @@ impl PointStates {
                 out[col].1[c] = mean;
             }
         }
-        out
+        if let Some(share) = model.share.as_deref().filter(|_| model.is_axisymmetric()) {
+            let mut all: Vec<f64> = out.iter().flat_map(|(_, v)| v.iter().copied()).collect();
+            (share.sum)(&mut all)?;
+            for ((_, v), chunk) in out.iter_mut().zip(all.chunks(n_cells)) {
+                v.copy_from_slice(chunk);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Every cell's values, each from the process that owns the cell (the values themselves
+    /// without a share): what a checkpoint holds. Collective when processes share the cells.
+    pub fn merged(&self, model: &Model) -> Result<Vec<f64>, String> {
+        self.merge(model, &self.data)
+    }
+
+    /// [`PointStates::merged`] of values `data` laid out as this store's (a copy kept from
+    /// another step); other data is returned as it is.
+    pub fn merge(&self, model: &Model, data: &[f64]) -> Result<Vec<f64>, String> {
+        let Some(share) = model
+            .share
+            .as_deref()
+            .filter(|_| !self.is_empty() && data.len() == self.data.len())
+        else {
+            return Ok(data.to_vec());
+        };
+        // the owner's values plus zeros from the others: the sum is the owner's bits
+        let mut all = vec![0.0; data.len()];
+        for c in (0..model.mesh.n_cells()).filter(|&c| model.owns(c)) {
+            let range = self.offsets[c]..self.offsets[c + 1];
+            all[range.clone()].copy_from_slice(&data[range]);
+        }
+        (share.sum)(&mut all)?;
+        Ok(all)
     }
 
     /// Commits the state of an accepted step to `state` (u, Φ; `FIELDS` per node) over `dt`:
-    /// every point's variables are updated from its deformation. Returns the energy dissipated
-    /// (J).
+    /// every point's variables are updated from its deformation (this process's own cells'
+    /// points when processes share the cells). Returns the energy dissipated (J), summed over
+    /// the processes; a cell failing on any process fails the commit on all.
     pub fn commit(&mut self, model: &Model, state: &[f64], dt: f64) -> Result<f64, String> {
         if self.is_empty() {
             return Ok(0.0);
         }
         let mut new = self.data.clone();
-        let mut dissipated = 0.0;
+        let mut dissipated = [0.0];
         let mut points = [(Mat3::identity(), Vec3::zeros()); MAX_QP];
-        model.for_each_cell(state, |c, g: &CellGeometry, mat, local| {
-            let m = model.cell_material[c];
-            let s = self.sizes[m];
-            if s == 0 {
-                return Ok(());
-            }
+        let keep = |c: usize| model.owns(c) && self.sizes[model.cell_material[c]] != 0;
+        let outcome = model.for_each_cell_where(state, keep, |c, g: &CellGeometry, mat, local| {
+            let s = self.sizes[model.cell_material[c]];
             model
                 .kernel()
                 .point_deformations(
@@ -145,21 +180,116 @@ impl PointStates {
                     },
                     &mut points,
                 )
-                .map_err(|e| format!("cell {c}: {}", e.error))?;
+                .map_err(|e| (c, format!("cell {c}: {}", e.error)))?;
             for (q, (f, e0)) in points[..g.n_qp].iter().enumerate() {
                 let at = self.offsets[c] + q * s;
                 let h = PointHistory {
                     state: &self.data[at..at + s],
                     dt,
                 };
-                dissipated += g.weights[q]
+                dissipated[0] += g.weights[q]
                     * mat
                         .update_state(f, e0, h, &mut new[at..at + s])
-                        .map_err(|e| format!("cell {c}, quadrature point {q}: {e}"))?;
+                        .map_err(|e| (c, format!("cell {c}, quadrature point {q}: {e}")))?;
             }
-            Ok::<(), String>(())
-        })?;
+            Ok::<(), (usize, String)>(())
+        });
+        let failure = outcome.err();
+        if let Some(share) = model.share.as_deref() {
+            share.sum_unless_failed(&mut dissipated, failure.as_ref().map(|f| f.0))?;
+        }
+        if let Some((_, message)) = failure {
+            return Err(message);
+        }
         self.data = new;
-        Ok(dissipated)
+        Ok(dissipated[0])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::registry::{build, preset};
+    use crate::mesh::ElementKind;
+    use crate::problem::assembly::{on_threads, CellShare};
+    use crate::problem::dofs::{FIELDS, PHI};
+    use std::sync::Arc;
+
+    /// The film of the examples made of viscoelastic VHB 4910 (three Maxwell branches).
+    fn viscous_film() -> Model {
+        let mut model = crate::problem::examples::film([3, 3, 2], ElementKind::Hex8, 1000.0)
+            .expect("the film builds");
+        let (name, p) = preset("vhb4910-wang2016").expect("the preset exists");
+        let (material, _) = build(name, &p).expect("the preset builds");
+        model.materials = vec![material];
+        model.cell_material = vec![0; model.mesh.n_cells()];
+        model
+    }
+
+    /// A stretch of a few per cent that varies from cell to cell, and a potential.
+    fn deformed(model: &Model) -> Vec<f64> {
+        (0..model.mesh.n_nodes() * FIELDS)
+            .map(|d| {
+                let x = model.mesh.nodes[d / FIELDS];
+                let wave = (300.0 * x[0] + 500.0 * x[1] + 700.0 * x[2] + d as f64).sin();
+                if d % FIELDS == PHI {
+                    500.0 * wave
+                } else {
+                    2e-2 * x[d % FIELDS] + 1e-6 * wave
+                }
+            })
+            .collect()
+    }
+
+    /// Processes that share the cells each update their own cells' points: the energy they
+    /// dissipate is summed to what one process dissipates, and the merged values are one
+    /// process's, cell by cell (two steps, so that a stale value would show).
+    #[test]
+    fn processes_sharing_the_cells_commit_what_one_commits() {
+        let model = viscous_film();
+        let state = deformed(&model);
+        let half: Vec<f64> = state.iter().map(|v| 0.5 * v).collect();
+        let mut whole = PointStates::new(&model);
+        assert!(!whole.is_empty());
+        let serial = [
+            whole.commit(&model, &half, 0.05).unwrap(),
+            whole.commit(&model, &state, 0.05).unwrap(),
+        ];
+        assert!(serial.iter().all(|&w| w > 0.0), "{serial:?}");
+        let n = model.mesh.n_cells();
+        for size in [2, 3] {
+            let parts = on_threads(size, |rank, sum| {
+                let mut m = model.clone();
+                let owned: Vec<bool> = (0..n).map(|c| c * size / n == rank).collect();
+                m.share = Some(Arc::new(CellShare {
+                    owned,
+                    rank,
+                    size,
+                    sum,
+                }));
+                let mut points = PointStates::new(&m);
+                let dissipated = [
+                    points.commit(&m, &half, 0.05).unwrap(),
+                    points.commit(&m, &state, 0.05).unwrap(),
+                ];
+                let means = points.cell_means(&m).unwrap();
+                (dissipated, points.merged(&m).unwrap(), means)
+            });
+            let whole_means = whole.cell_means(&model).unwrap();
+            for (rank, (dissipated, merged, means)) in parts.iter().enumerate() {
+                for (a, b) in dissipated.iter().zip(&serial) {
+                    assert!((a - b).abs() <= 1e-13 * b, "{size}: {a} against {b}");
+                }
+                assert_eq!(dissipated, &parts[0].0, "the same bits on every process");
+                assert_eq!(merged, &whole.data, "{size} processes, rank {rank}");
+                // a 3-D model's means: this process's cells only
+                for ((name, v), (_, w)) in means.iter().zip(&whole_means) {
+                    for c in 0..n {
+                        let expected = if c * size / n == rank { w[c] } else { 0.0 };
+                        assert_eq!(v[c], expected, "{name}, cell {c}");
+                    }
+                }
+            }
+        }
     }
 }

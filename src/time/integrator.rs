@@ -341,7 +341,8 @@ impl<'m> TimeStep<'m> {
 
     /// Internal, viscous and dead-load forces f_int + f_vis − f_ext at configuration `q` and
     /// velocity `v` (N, 4 per node; potential entries are ∂Π/∂Φ), all dofs, with the committed
-    /// internal variables (no relaxation). Dead loads at full value.
+    /// internal variables (no relaxation). Dead loads at full value. When processes share the
+    /// cells, each evaluates its own and the cell forces are summed over the processes.
     pub fn forces_at(&mut self, q: &[f64], v: &[f64]) -> Result<Vec<f64>, String> {
         let model = self.model;
         let mut out = vec![0.0; q.len()];
@@ -349,40 +350,51 @@ impl<'m> TimeStep<'m> {
         let mut rv = vec![0.0; MAX_LOCAL];
         let mut vel = vec![0.0; MAX_LOCAL];
         let points = &self.points;
-        model.for_each_cell(q, |c, g, mat, local| {
-            let nl = local.len();
-            model
-                .kernel()
-                .residual_tangent(
-                    &CellInput {
-                        geom: g,
-                        mat,
-                        hist: points.cell(c, model.cell_material[c], 0.0),
-                        local,
-                    },
-                    &mut r,
-                    None,
-                )
-                .map_err(|e| format!("cell {c}: {}", e.error))?;
-            let m = model.cell_material[c];
-            let eta = self.viscosity[m];
-            rv[..nl].iter_mut().for_each(|x| *x = 0.0);
-            if eta > 0.0 {
+        let outcome = model.for_each_cell_where(
+            q,
+            |c| model.owns(c),
+            |c, g, mat, local| {
+                let nl = local.len();
+                model
+                    .kernel()
+                    .residual_tangent(
+                        &CellInput {
+                            geom: g,
+                            mat,
+                            hist: points.cell(c, model.cell_material[c], 0.0),
+                            local,
+                        },
+                        &mut r,
+                        None,
+                    )
+                    .map_err(|e| (c, format!("cell {c}: {}", e.error)))?;
+                let m = model.cell_material[c];
+                let eta = self.viscosity[m];
+                rv[..nl].iter_mut().for_each(|x| *x = 0.0);
+                if eta > 0.0 {
+                    for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                        vel[a * FIELDS..(a + 1) * FIELDS]
+                            .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
+                    }
+                    KelvinVoigtKernel { eta }
+                        .forces(g, local, &vel[..nl], &mut rv, None)
+                        .map_err(|e| (c, format!("cell {c}: {}", e.error)))?;
+                }
                 for (a, &node) in model.mesh.cell(c).iter().enumerate() {
-                    vel[a * FIELDS..(a + 1) * FIELDS]
-                        .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
+                    for f in 0..FIELDS {
+                        out[node * FIELDS + f] += r[a * FIELDS + f] + rv[a * FIELDS + f];
+                    }
                 }
-                KelvinVoigtKernel { eta }
-                    .forces(g, local, &vel[..nl], &mut rv, None)
-                    .map_err(|e| format!("cell {c}: {}", e.error))?;
-            }
-            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
-                for f in 0..FIELDS {
-                    out[node * FIELDS + f] += r[a * FIELDS + f] + rv[a * FIELDS + f];
-                }
-            }
-            Ok::<(), String>(())
-        })?;
+                Ok::<(), (usize, String)>(())
+            },
+        );
+        let failure = outcome.err();
+        if let Some(share) = model.share.as_deref() {
+            share.sum_unless_failed(&mut out, failure.as_ref().map(|f| f.0))?;
+        }
+        if let Some((_, message)) = failure {
+            return Err(message);
+        }
         for (o, f) in out.iter_mut().zip(&self.dead_load) {
             *o -= f;
         }
@@ -420,8 +432,9 @@ impl<'m> TimeStep<'m> {
             points.clone()
         };
         let mut r = vec![0.0; self.dofs.n_free];
-        let result = self
-            .evaluate(&mut r, Some(k))
+        // a shared assembly's solver needs the layout before its first factorisation
+        let result = crate::solve::newton::prepare_solver(&*self, solver)
+            .and_then(|()| self.evaluate(&mut r, Some(k)))
             .and_then(|()| solver.factor(k).map(|_| ()).map_err(|e| e.to_string()));
         self.prev = prev;
         self.q = q;

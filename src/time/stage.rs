@@ -219,6 +219,8 @@ impl<'m> Projector<'m> {
         self.problem.state.copy_from_slice(state);
         let mut r = vec![0.0; self.problem.n()];
         self.problem.evaluate(&mut r, Some(&mut self.k))?;
+        // a shared assembly's solver needs the layout before its first factorisation
+        crate::solve::newton::prepare_solver(&self.problem, self.solver.as_mut())?;
         self.solver.factor(&self.k).map_err(|e| e.to_string())?;
         self.problem.factored();
         Ok(())

@@ -82,30 +82,37 @@ impl<'m> TrapezoidalStep<'m> {
     }
 }
 
-/// Viscous dissipation power ∫ Jη d:d dV (W) at configuration `q` and velocity `v`.
+/// Viscous dissipation power ∫ Jη d:d dV (W) at configuration `q` and velocity `v`. When
+/// processes share the cells, each evaluates its own and the power is summed over them.
 pub fn dissipation_power(
     model: &Model,
     viscosity: &[f64],
     q: &[f64],
     v: &[f64],
 ) -> Result<f64, String> {
-    let mut total = 0.0;
+    let mut total = [0.0];
     let mut r = vec![0.0; MAX_LOCAL];
     let mut vel = vec![0.0; MAX_LOCAL];
-    model.for_each_cell(q, |c, g, _, local| {
+    let keep = |c: usize| viscosity[model.cell_material[c]] > 0.0 && model.owns(c);
+    let outcome = model.for_each_cell_where(q, keep, |c, g, _, local| {
         let eta = viscosity[model.cell_material[c]];
-        if eta > 0.0 {
-            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
-                vel[a * FIELDS..(a + 1) * FIELDS]
-                    .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
-            }
-            total += KelvinVoigtKernel { eta }
-                .forces(g, local, &vel[..local.len()], &mut r, None)
-                .map_err(|e| format!("cell {c}: {}", e.error))?;
+        for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+            vel[a * FIELDS..(a + 1) * FIELDS]
+                .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
         }
-        Ok::<(), String>(())
-    })?;
-    Ok(total)
+        total[0] += KelvinVoigtKernel { eta }
+            .forces(g, local, &vel[..local.len()], &mut r, None)
+            .map_err(|e| (c, format!("cell {c}: {}", e.error)))?;
+        Ok::<(), (usize, String)>(())
+    });
+    let failure = outcome.err();
+    if let Some(share) = model.share.as_deref() {
+        share.sum_unless_failed(&mut total, failure.as_ref().map(|f| f.0))?;
+    }
+    if let Some((_, message)) = failure {
+        return Err(message);
+    }
+    Ok(total[0])
 }
 
 impl NonlinearSystem for TrapezoidalStep<'_> {
