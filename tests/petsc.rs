@@ -156,6 +156,55 @@ fn history_probes(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     )
 }
 
+/// The largest difference of the probes (and the dissipated energy) of two `history.csv` files
+/// at any step, relative to that column's largest finite magnitude in the first; a NaN in both
+/// (a capacitance at 0 V) is no difference.
+fn history_difference(a: &Path, b: &Path) -> f64 {
+    let (names, x) = history_probes(a);
+    let (names_b, y) = history_probes(b);
+    assert_eq!(names, names_b);
+    assert_eq!(x.len(), y.len(), "different numbers of steps");
+    let mut worst: f64 = 0.0;
+    for k in 0..names.len() {
+        let scale = x
+            .iter()
+            .map(|r| r[k])
+            .filter(|v| v.is_finite())
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        if scale == 0.0 {
+            continue;
+        }
+        for (rx, ry) in x.iter().zip(&y) {
+            if !(rx[k].is_nan() && ry[k].is_nan()) {
+                worst = worst.max((rx[k] - ry[k]).abs() / scale);
+            }
+        }
+    }
+    worst
+}
+
+/// The largest difference of two sets of field arrays (same names, same order), relative to
+/// each array's largest magnitude in `a`, the stresses to `stress_scale`.
+fn arrays_difference(a: &[(String, Vec<f64>)], b: &[(String, Vec<f64>)], stress_scale: f64) -> f64 {
+    assert_eq!(a.len(), b.len());
+    let largest = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut worst: f64 = 0.0;
+    for ((name, x), (name_b, y)) in a.iter().zip(b) {
+        assert_eq!((name, x.len()), (name_b, y.len()));
+        let scale = if name.ends_with("stress") {
+            stress_scale
+        } else {
+            largest(x)
+        };
+        if scale > 0.0 {
+            for (u, v) in x.iter().zip(y) {
+                worst = worst.max((u - v).abs() / scale);
+            }
+        }
+    }
+    worst
+}
+
 /// Runs `example` serially with the default solver and under `mpirun -np 2` with the PETSc
 /// solver: every rank runs the program, the linear system is one PETSc system distributed by rows
 /// over the two ranks, rank 0 writes. Returns the largest difference of any probe at any step
@@ -361,27 +410,10 @@ fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, Stri
         t.elapsed().as_secs_f64()
     );
 
-    let (names, a) = history_probes(&dir.join("serial/history.csv"));
-    let (names_mpi, b) = history_probes(&dir.join("mpi/history.csv"));
-    assert_eq!(names, names_mpi);
-    assert_eq!(a.len(), b.len(), "different numbers of steps");
-    let mut worst: f64 = 0.0;
-    for k in 0..names.len() {
-        let scale = a
-            .iter()
-            .map(|r| r[k])
-            .filter(|v| v.is_finite())
-            .fold(0.0f64, |m, v| m.max(v.abs()));
-        if scale == 0.0 {
-            continue;
-        }
-        for (ra, rb) in a.iter().zip(&b) {
-            if ra[k].is_nan() && rb[k].is_nan() {
-                continue;
-            }
-            worst = worst.max((ra[k] - rb[k]).abs() / scale);
-        }
-    }
+    let worst = history_difference(
+        &dir.join("serial/history.csv"),
+        &dir.join("mpi/history.csv"),
+    );
     eprintln!(
         "{example_name}: largest relative probe difference {ranks} ranks (PETSc) vs serial LDLT: {worst:.2e}"
     );
@@ -406,28 +438,14 @@ fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, Stri
         // the collection lists the indexes
         let pvd = std::fs::read_to_string(dir.join("mpi/fields.pvd")).unwrap();
         assert!(pvd.contains(".pvtu\"") && !pvd.contains(".vtu\""), "{pvd}");
-        assert_eq!(a.len(), b.len());
-        let largest = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         // the total (Cauchy) stress is the mechanical minus the Maxwell stress, which cancel on
         // a free film (28 kPa each, 6e-9 Pa left): stresses are measured on their common scale
         let stress_scale = a
             .iter()
             .filter(|(name, _)| name.ends_with("stress"))
-            .map(|(_, x)| largest(x))
+            .map(|(_, x)| x.iter().fold(0.0f64, |m, v| m.max(v.abs())))
             .fold(0.0f64, f64::max);
-        for ((name, x), (name_b, y)) in a.iter().zip(&b) {
-            assert_eq!((name, x.len()), (name_b, y.len()));
-            let scale = if name.ends_with("stress") {
-                stress_scale
-            } else {
-                largest(x)
-            };
-            if scale > 0.0 {
-                for (u, v) in x.iter().zip(y) {
-                    fields = fields.max((u - v).abs() / scale);
-                }
-            }
-        }
+        fields = arrays_difference(&a, &b, stress_scale);
         // an axisymmetric model's revolved view: every cell's fields, those of the other
         // ranks' cells summed into rank 0's
         if let Some(r) = last_revolved(&dir.join("serial")) {
@@ -435,20 +453,7 @@ fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, Stri
             assert_eq!(r.file_name(), m.file_name());
             let a = whole_arrays(&read_vtu(&r).unwrap());
             let b = whole_arrays(&read_vtu(&m).unwrap());
-            assert_eq!(a.len(), b.len());
-            for ((name, x), (name_b, y)) in a.iter().zip(&b) {
-                assert_eq!((name, x.len()), (name_b, y.len()));
-                let scale = if name.ends_with("stress") {
-                    stress_scale
-                } else {
-                    largest(x)
-                };
-                if scale > 0.0 {
-                    for (u, v) in x.iter().zip(y) {
-                        fields = fields.max((u - v).abs() / scale);
-                    }
-                }
-            }
+            fields = fields.max(arrays_difference(&a, &b, stress_scale));
         }
         eprintln!(
             "{example_name}: largest relative difference of the final fields {ranks} ranks vs \
@@ -731,20 +736,11 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
         assert!(!out.join("fields/step_99999_p0001.vtu").exists());
         // MUMPS schedules its work on several ranks by their load, so two runs agree to
         // round-off, not bit for bit
-        let (names, x) = history_probes(&dir.join("full/history.csv"));
-        let (_, y) = history_probes(&out.join("history.csv"));
-        assert_eq!(x.len(), y.len());
-        for k in 0..names.len() {
-            let scale = x.iter().fold(0.0f64, |m, r| m.max(r[k].abs()));
-            for (rx, ry) in x.iter().zip(&y) {
-                let same = rx[k].is_nan() && ry[k].is_nan();
-                assert!(
-                    same || (rx[k] - ry[k]).abs() <= 1e-10 * scale,
-                    "{}",
-                    names[k]
-                );
-            }
-        }
+        let d = history_difference(&dir.join("full/history.csv"), &out.join("history.csv"));
+        assert!(
+            d <= 1e-10,
+            "resumed on {ranks} ranks against uninterrupted: {d:e}"
+        );
         if ranks == 2 {
             assert!(!log(&resumed).contains("written on"), "{}", log(&resumed));
             let mut files = 0;
@@ -831,24 +827,6 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
         assert!(dir.join("one").join(f).is_file(), "{f}");
     }
     let _ = std::fs::remove_dir_all(&dir);
-}
-
-/// The largest difference of two history files' probes, relative to each probe's largest
-/// magnitude.
-fn history_difference(a: &Path, b: &Path) -> f64 {
-    let (names, x) = history_probes(a);
-    let (names_b, y) = history_probes(b);
-    assert_eq!((&names, x.len()), (&names_b, y.len()));
-    let mut worst: f64 = 0.0;
-    for k in 0..names.len() {
-        let scale = x.iter().fold(0.0f64, |m, r| m.max(r[k].abs()));
-        for (rx, ry) in x.iter().zip(&y) {
-            if !(rx[k].is_nan() && ry[k].is_nan()) && scale > 0.0 {
-                worst = worst.max((rx[k] - ry[k]).abs() / scale);
-            }
-        }
-    }
-    worst
 }
 
 /// A viscoelastic model on 2 ranks: each rank updates the internal variables of its own cells

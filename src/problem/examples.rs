@@ -219,3 +219,22 @@ pub fn membrane(n: usize, volts: f64) -> Result<Model, ModelError> {
 pub fn membrane_material() -> ElectroNeoHooke {
     ElectroNeoHooke::new(1e5, 1e7, 4.7)
 }
+
+/// A state of `model` for tests of the cell passes: a uniform stretch of `stretch` in every
+/// direction plus a smooth displacement wave of amplitude `wave` (m), and a potential wave of
+/// amplitude `potential` (V), different at every node and field.
+#[cfg(test)]
+pub(crate) fn wavy_state(model: &Model, stretch: f64, wave: f64, potential: f64) -> Vec<f64> {
+    use crate::problem::dofs::PHI;
+    (0..model.mesh.n_nodes() * FIELDS)
+        .map(|d| {
+            let x = model.mesh.nodes[d / FIELDS];
+            let w = (300.0 * x[0] + 500.0 * x[1] + 700.0 * x[2] + d as f64).sin();
+            if d % FIELDS == PHI {
+                potential * w
+            } else {
+                stretch * x[d % FIELDS] + wave * w
+            }
+        })
+        .collect()
+}

@@ -249,6 +249,24 @@ impl Model {
         Ok(())
     }
 
+    /// Finishes a pass over this process's cells whose sums are `v` and which stopped at
+    /// `failure` (the cell and its message), if any: sums `v` over the processes that share the
+    /// cells (nothing without a share), and fails on every process when a cell failed on any,
+    /// with this process's own message for its own cell ([`CellShare::sum_unless_failed`]).
+    pub fn sum_over_processes(
+        &self,
+        v: &mut [f64],
+        failure: Option<(usize, String)>,
+    ) -> Result<(), String> {
+        if let Some(share) = self.share.as_deref() {
+            share.sum_unless_failed(v, failure.as_ref().map(|f| f.0))?;
+        }
+        match failure {
+            Some((_, message)) => Err(message),
+            None => Ok(()),
+        }
+    }
+
     /// Whether this process evaluates cell `c`: every cell, unless processes share the cells
     /// ([`Model::share`]).
     pub fn owns(&self, c: usize) -> bool {

@@ -194,13 +194,7 @@ impl PointStates {
             }
             Ok::<(), (usize, String)>(())
         });
-        let failure = outcome.err();
-        if let Some(share) = model.share.as_deref() {
-            share.sum_unless_failed(&mut dissipated, failure.as_ref().map(|f| f.0))?;
-        }
-        if let Some((_, message)) = failure {
-            return Err(message);
-        }
+        model.sum_over_processes(&mut dissipated, outcome.err())?;
         self.data = new;
         Ok(dissipated[0])
     }
@@ -212,7 +206,6 @@ mod tests {
     use crate::material::registry::{build, preset};
     use crate::mesh::ElementKind;
     use crate::problem::assembly::{on_threads, CellShare};
-    use crate::problem::dofs::{FIELDS, PHI};
     use std::sync::Arc;
 
     /// The film of the examples made of viscoelastic VHB 4910 (three Maxwell branches).
@@ -226,28 +219,14 @@ mod tests {
         model
     }
 
-    /// A stretch of a few per cent that varies from cell to cell, and a potential.
-    fn deformed(model: &Model) -> Vec<f64> {
-        (0..model.mesh.n_nodes() * FIELDS)
-            .map(|d| {
-                let x = model.mesh.nodes[d / FIELDS];
-                let wave = (300.0 * x[0] + 500.0 * x[1] + 700.0 * x[2] + d as f64).sin();
-                if d % FIELDS == PHI {
-                    500.0 * wave
-                } else {
-                    2e-2 * x[d % FIELDS] + 1e-6 * wave
-                }
-            })
-            .collect()
-    }
-
     /// Processes that share the cells each update their own cells' points: the energy they
     /// dissipate is summed to what one process dissipates, and the merged values are one
     /// process's, cell by cell (two steps, so that a stale value would show).
     #[test]
     fn processes_sharing_the_cells_commit_what_one_commits() {
         let model = viscous_film();
-        let state = deformed(&model);
+        // a stretch of 2 % with a wave that varies from cell to cell, and a potential
+        let state = crate::problem::examples::wavy_state(&model, 2e-2, 1e-6, 500.0);
         let half: Vec<f64> = state.iter().map(|v| 0.5 * v).collect();
         let mut whole = PointStates::new(&model);
         assert!(!whole.is_empty());

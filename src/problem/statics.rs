@@ -699,17 +699,7 @@ mod tests {
 
     /// A smooth, small displacement and potential over the model's nodes.
     fn state_of(model: &Model) -> Vec<f64> {
-        (0..model.mesh.n_nodes() * FIELDS)
-            .map(|d| {
-                let x = model.mesh.nodes[d / FIELDS];
-                let wave = (300.0 * x[0] + 500.0 * x[1] + 700.0 * x[2] + d as f64).sin();
-                if d % FIELDS == PHI {
-                    1000.0 * wave
-                } else {
-                    1e-6 * wave
-                }
-            })
-            .collect()
+        crate::problem::examples::wavy_state(model, 0.0, 1e-6, 1000.0)
     }
 
     /// The record of `model` at `state` by `size` processes sharing its cells in contiguous

@@ -24,6 +24,7 @@ use crate::problem::statics::discretize;
 use crate::problem::system::DofLayout;
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
+use crate::time::trapezoidal::own_cells_power;
 
 /// A time integration scheme.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -296,7 +297,6 @@ impl<'m> TimeStep<'m> {
     pub fn dissipation_power(&mut self) -> Result<f64, String> {
         self.evaluation_point();
         let model = self.model;
-        let share = model.share.as_deref();
         // this process's cells' power: the assembly's, when it evaluated the same point
         let cached = match &self.power_cache {
             Some((q, q_prev, dt, power))
@@ -307,35 +307,12 @@ impl<'m> TimeStep<'m> {
             _ => None,
         };
         let (qv, vv) = (&self.work_q, &self.work_v);
-        let mut cells = [0.0];
-        let mut failure = None;
-        match cached {
-            Some(p) => cells[0] = p,
-            None => {
-                let mut r = vec![0.0; MAX_LOCAL];
-                let mut vel = vec![0.0; MAX_LOCAL];
-                let viscosity = &self.viscosity;
-                let keep = |c: usize| viscosity[model.cell_material[c]] != 0.0 && model.owns(c);
-                let outcome = model.for_each_cell_where(qv, keep, |c, g, _, local| {
-                    let eta = viscosity[model.cell_material[c]];
-                    for (a, &node) in model.mesh.cell(c).iter().enumerate() {
-                        vel[a * FIELDS..(a + 1) * FIELDS]
-                            .copy_from_slice(&vv[node * FIELDS..(node + 1) * FIELDS]);
-                    }
-                    cells[0] += KelvinVoigtKernel { eta }
-                        .forces(g, local, &vel[..local.len()], &mut r, None)
-                        .map_err(|e| (c, format!("cell {c}: {}", e.error)))?;
-                    Ok::<(), (usize, String)>(())
-                });
-                failure = outcome.err();
-            }
-        }
-        if let Some(s) = share {
-            s.sum_unless_failed(&mut cells, failure.as_ref().map(|f| f.0))?;
-        }
-        if let Some((_, message)) = failure {
-            return Err(message);
-        }
+        let (power, failure) = match cached {
+            Some(p) => (p, None),
+            None => own_cells_power(model, &self.viscosity, qv, vv),
+        };
+        let mut cells = [power];
+        model.sum_over_processes(&mut cells, failure)?;
         Ok(cells[0] + damper_power(model, vv))
     }
 
@@ -388,13 +365,7 @@ impl<'m> TimeStep<'m> {
                 Ok::<(), (usize, String)>(())
             },
         );
-        let failure = outcome.err();
-        if let Some(share) = model.share.as_deref() {
-            share.sum_unless_failed(&mut out, failure.as_ref().map(|f| f.0))?;
-        }
-        if let Some((_, message)) = failure {
-            return Err(message);
-        }
+        model.sum_over_processes(&mut out, outcome.err())?;
         for (o, f) in out.iter_mut().zip(&self.dead_load) {
             *o -= f;
         }

@@ -90,7 +90,21 @@ pub fn dissipation_power(
     q: &[f64],
     v: &[f64],
 ) -> Result<f64, String> {
-    let mut total = [0.0];
+    let (power, failure) = own_cells_power(model, viscosity, q, v);
+    let mut total = [power];
+    model.sum_over_processes(&mut total, failure)?;
+    Ok(total[0])
+}
+
+/// The Kelvin–Voigt power of this process's own cells (all cells without a share), not summed
+/// over the processes, and the cell that failed with its message, if one did.
+pub(crate) fn own_cells_power(
+    model: &Model,
+    viscosity: &[f64],
+    q: &[f64],
+    v: &[f64],
+) -> (f64, Option<(usize, String)>) {
+    let mut total = 0.0;
     let mut r = vec![0.0; MAX_LOCAL];
     let mut vel = vec![0.0; MAX_LOCAL];
     let keep = |c: usize| viscosity[model.cell_material[c]] > 0.0 && model.owns(c);
@@ -100,19 +114,12 @@ pub fn dissipation_power(
             vel[a * FIELDS..(a + 1) * FIELDS]
                 .copy_from_slice(&v[node * FIELDS..(node + 1) * FIELDS]);
         }
-        total[0] += KelvinVoigtKernel { eta }
+        total += KelvinVoigtKernel { eta }
             .forces(g, local, &vel[..local.len()], &mut r, None)
             .map_err(|e| (c, format!("cell {c}: {}", e.error)))?;
-        Ok::<(), (usize, String)>(())
+        Ok(())
     });
-    let failure = outcome.err();
-    if let Some(share) = model.share.as_deref() {
-        share.sum_unless_failed(&mut total, failure.as_ref().map(|f| f.0))?;
-    }
-    if let Some((_, message)) = failure {
-        return Err(message);
-    }
-    Ok(total[0])
+    (total, outcome.err())
 }
 
 impl NonlinearSystem for TrapezoidalStep<'_> {
