@@ -138,12 +138,15 @@ fn a_krylov_solve_that_cannot_converge_is_an_error() {
 /// The probe columns and the dissipated energy of a `history.csv`: names and one row of values
 /// per step.
 fn history_probes(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    csv_columns(path, |h| h.starts_with("probe:") || h == "dissipated")
+}
+
+/// The columns of a CSV file whose header passes `keep`: their names and the rows of numbers.
+fn csv_columns(path: &Path, keep: impl Fn(&str) -> bool) -> (Vec<String>, Vec<Vec<f64>>) {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let columns: Vec<usize> = (0..header.len())
-        .filter(|&i| header[i].starts_with("probe:") || header[i] == "dissipated")
-        .collect();
+    let columns: Vec<usize> = (0..header.len()).filter(|&i| keep(header[i])).collect();
     let rows = lines
         .map(|l| {
             let cells: Vec<&str> = l.split(',').collect();
@@ -160,10 +163,23 @@ fn history_probes(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
 /// at any step, relative to that column's largest finite magnitude in the first; a NaN in both
 /// (a capacitance at 0 V) is no difference.
 fn history_difference(a: &Path, b: &Path) -> f64 {
-    let (names, x) = history_probes(a);
-    let (names_b, y) = history_probes(b);
+    columns_difference(history_probes(a), history_probes(b))
+}
+
+/// As [`history_difference`] for the columns of two CSV files that pass `keep`.
+fn csv_difference(a: &Path, b: &Path, keep: impl Fn(&str) -> bool + Copy) -> f64 {
+    columns_difference(csv_columns(a, keep), csv_columns(b, keep))
+}
+
+/// The largest difference of two tables of the same columns, relative to each column's largest
+/// finite magnitude in the first; a NaN in both is no difference.
+fn columns_difference(
+    (names, x): (Vec<String>, Vec<Vec<f64>>),
+    (names_b, y): (Vec<String>, Vec<Vec<f64>>),
+) -> f64 {
     assert_eq!(names, names_b);
-    assert_eq!(x.len(), y.len(), "different numbers of steps");
+    assert!(!names.is_empty(), "no columns to compare");
+    assert_eq!(x.len(), y.len(), "different numbers of rows");
     let mut worst: f64 = 0.0;
     for k in 0..names.len() {
         let scale = x
@@ -188,11 +204,23 @@ fn history_difference(a: &Path, b: &Path) -> f64 {
 fn arrays_difference(a: &[(String, Vec<f64>)], b: &[(String, Vec<f64>)], stress_scale: f64) -> f64 {
     assert_eq!(a.len(), b.len());
     let largest = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // a tensor written as one array per component (`A1_xx` … `A1_zz`): the largest of them, so
+    // that components at round-off (a stretch's shears) are measured on the tensor's scale
+    let tensor = |name: &str| {
+        name.rsplit_once('_')
+            .filter(|(_, c)| c.len() == 2 && c.chars().all(|ch| "xyz".contains(ch)))
+            .map(|(t, _)| t.to_string())
+    };
     let mut worst: f64 = 0.0;
     for ((name, x), (name_b, y)) in a.iter().zip(b) {
         assert_eq!((name, x.len()), (name_b, y.len()));
         let scale = if name.ends_with("stress") {
             stress_scale
+        } else if let Some(t) = tensor(name) {
+            a.iter()
+                .filter(|(n, _)| tensor(n).as_ref() == Some(&t))
+                .map(|(_, v)| largest(v))
+                .fold(0.0, f64::max)
         } else {
             largest(x)
         };
@@ -367,8 +395,20 @@ fn mpirun(ranks: usize, dir: &Path, args: &[&str]) -> std::process::Output {
 /// the largest difference of the final fields (every array of the last VTU file, relative to
 /// that array's largest magnitude).
 fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, String, String) {
-    let dir = common::tempdir(&format!("petsc-mpi-{example_name}"));
     let text = example(example_name).unwrap();
+    on_ranks_of(ranks, example_name, text, extra, |_, _| {})
+}
+
+/// [`on_ranks`] of the scenario `text` (named `example_name` in messages); `compare` sees the
+/// serial and the distributed run's output directories before they are removed.
+fn on_ranks_of(
+    ranks: usize,
+    example_name: &str,
+    text: &str,
+    extra: &[&str],
+    compare: impl FnOnce(&Path, &Path),
+) -> (f64, f64, String, String) {
+    let dir = common::tempdir(&format!("petsc-mpi-{example_name}"));
     std::fs::write(dir.join("serial.toml"), text).unwrap();
     std::fs::write(
         dir.join("petsc.toml"),
@@ -459,6 +499,9 @@ fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, Stri
             "{example_name}: largest relative difference of the final fields {ranks} ranks vs \
              serial: {fields:.2e} (cells per rank {counts:?})"
         );
+    }
+    if serial.status.success() {
+        compare(&dir.join("serial"), &dir.join("mpi"));
     }
     let _ = std::fs::remove_dir_all(&dir);
     (worst, fields, serial_log, log)
@@ -889,6 +932,67 @@ fn a_viscoelastic_run_on_two_mpi_ranks_agrees_with_the_serial_run_and_resumes() 
     let d = history_difference(&dir.join("full/history.csv"), &out.join("history.csv"));
     assert!(d < 1e-10, "resumed against uninterrupted: {d:e}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The natural frequencies and the frequency response (every real and imaginary part and
+/// magnitude; the phases, ill-conditioned where a response is nearly real, follow from them) of
+/// two runs, each relative to its column's largest magnitude.
+fn linear_analyses_difference(serial: &Path, mpi: &Path) -> (f64, f64) {
+    let modes = csv_difference(&serial.join("modes.csv"), &mpi.join("modes.csv"), |h| {
+        h == "frequency_hz"
+    });
+    let response = csv_difference(
+        &serial.join("frequency_response.csv"),
+        &mpi.join("frequency_response.csv"),
+        |h| h.ends_with(":magnitude") || h.ends_with(":real") || h.ends_with(":imag"),
+    );
+    (modes, response)
+}
+
+/// The linear analyses about a biased state on two ranks: the modes of the 3-D diaphragm
+/// carrying its mass at 2 kV (4 modes, the pad mode at 31 Hz) and its frequency response, then
+/// the film made of VHB 4910 with three Maxwell branches, whose response carries each branch's
+/// complex modulus at the branch's relaxed state on every cell, the other rank's too.
+#[test]
+fn modes_and_the_frequency_response_on_two_mpi_ranks_agree_with_the_serial_run() {
+    let on_two = |label: &str, text: &str, extra: &[&str]| {
+        let mut found = None;
+        let (d, fields, serial, mpi) = on_ranks_of(2, label, text, extra, |a, b| {
+            found = Some(linear_analyses_difference(a, b));
+        });
+        assert!(
+            d < 1e-9 && fields < 1e-9,
+            "{label}: history {d:e}, fields {fields:e}\n{serial}\n{mpi}"
+        );
+        let (modes, response) = found.unwrap_or_else(|| panic!("{label} failed:\n{serial}"));
+        eprintln!("{label} on 2 ranks: modes {modes:.2e}, frequency response {response:.2e}");
+        assert!(
+            modes < 1e-9 && response < 1e-8,
+            "{label}: modes {modes:e}, response {response:e}"
+        );
+    };
+    on_two(
+        "diaphragm-response",
+        example("diaphragm-response").unwrap(),
+        &["stages.3.points=20"],
+    );
+    // the film of `film-modes` made of VHB 4910 (Arruda–Boyce and three Maxwell branches) at 3 kV
+    let film = example("film-modes").unwrap();
+    let start = film.find("[materials.elastomer]").unwrap();
+    let end = start + film[start..].find("[[constraints]]").unwrap();
+    let visco = format!(
+        "{}[materials.elastomer]\npreset = \"vhb4910-wang2016\"\ndensity = 960.0\n\
+         viscosity = 5.0\n\n{}",
+        &film[..start],
+        &film[end..]
+    )
+    .replace("voltage = 20e3", "voltage = 3e3");
+    assert!(visco.contains("voltage = 3e3"));
+    on_two(
+        "film-modes-visco",
+        &visco,
+        &["mesh.divisions=[8,8,2]", "stages.2.points=20"],
+    );
 }
 
 /// GAMG on the whole coupled tangent: GMRES to 1e-12.

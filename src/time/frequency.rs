@@ -182,8 +182,14 @@ fn branch_tangents(
     if longest <= 0.0 {
         return Ok(out);
     }
-    let mut points = crate::problem::points::PointStates::new(model);
-    points.commit(model, state, 1e30 * longest)?;
+    // the relaxed variables of every cell: the tangent below is assembled over every cell, also
+    // where processes share the cells (each would otherwise update its own cells only)
+    let every_cell = Model {
+        share: None,
+        ..model.clone()
+    };
+    let mut points = crate::problem::points::PointStates::new(&every_cell);
+    points.commit(&every_cell, state, 1e30 * longest)?;
     let n = k.n;
     let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
     for (mi, material) in model.materials.iter().enumerate() {
