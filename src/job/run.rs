@@ -277,7 +277,9 @@ impl<'p, 'o> Job<'p, 'o> {
                 job.points = p;
             }
             // the fields of the last recorded state, for writers that complete a stage's files
-            let fields = crate::problem::statics::cell_fields_with(&plan.model, &s.q, &job.points)
+            // (of this process's cells when processes share them, as a step's record gives them)
+            let fields = crate::problem::statics::record_with(&plan.model, &s.q, &job.points)
+                .map(|r| r.fields)
                 .unwrap_or_default();
             job.observer.resumed(plan, &s.records, &s.q, &fields);
         }

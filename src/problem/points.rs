@@ -1,62 +1,95 @@
 //! The internal variables of the material points: for every cell, `n_qp × size` values of its
 //! material (none for elastic materials). The run commits them after an accepted step; a step
 //! that is cut back never touches them. When processes share the cells ([`Model::share`]), each
-//! updates its own cells' values only: the others' stay as they were until
-//! [`PointStates::merged`] collects every cell's values from its owner (for a checkpoint).
+//! holds and updates its own cells' values only, so that the internal variables of a large
+//! viscoelastic model divide among the processes; [`PointStates::merged`] collects every cell's
+//! values from its owner (for a checkpoint), [`PointStates::with_data`] takes a process's own
+//! part of them back.
 
 use super::model::Model;
 use crate::element::{CellHistory, CellInput};
 use crate::fem::{CellGeometry, MAX_QP};
 use crate::material::{Mat3, PointHistory, Vec3};
 
-/// Committed internal variables of every quadrature point.
+/// Committed internal variables of every quadrature point of this process's cells.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PointStates {
-    /// Start of each cell's values in `data` (length `n_cells + 1`); empty when no material has
-    /// internal variables.
+    /// Start of each cell's values in `data` (length `n_cells + 1`; a cell another process owns
+    /// has none); empty when no material has internal variables.
     offsets: Vec<usize>,
     /// Values per point of each material.
     sizes: Vec<usize>,
+    /// Each material's initial values at every point of a cell: what a cell without values of
+    /// its own (another process's) is evaluated with.
+    virgin: Vec<Vec<f64>>,
     pub data: Vec<f64>,
 }
 
 impl PointStates {
-    /// The virgin state of a model's materials.
+    /// The virgin state of a model's materials, for this process's own cells.
     pub fn new(model: &Model) -> Self {
         let sizes: Vec<usize> = model.materials.iter().map(|m| m.state_size()).collect();
         if sizes.iter().all(|&s| s == 0) {
             return PointStates::default();
         }
         let n_qp = model.reference.n_qp;
-        let mut offsets = Vec::with_capacity(model.mesh.n_cells() + 1);
-        offsets.push(0);
-        for c in 0..model.mesh.n_cells() {
-            let last = *offsets.last().expect("starts with 0");
-            offsets.push(last + n_qp * sizes[model.cell_material[c]]);
-        }
+        let virgin: Vec<Vec<f64>> = model
+            .materials
+            .iter()
+            .zip(&sizes)
+            .map(|(m, &s)| {
+                let mut v = vec![0.0; n_qp * s];
+                for q in 0..n_qp {
+                    m.initial_state(&mut v[q * s..(q + 1) * s]);
+                }
+                v
+            })
+            .collect();
+        let offsets = cell_offsets(model, &sizes, |c| model.owns(c));
         let mut data = vec![0.0; *offsets.last().expect("non-empty")];
         for c in 0..model.mesh.n_cells() {
-            let m = model.cell_material[c];
-            let s = sizes[m];
-            for q in 0..n_qp {
-                let at = offsets[c] + q * s;
-                model.materials[m].initial_state(&mut data[at..at + s]);
+            let range = offsets[c]..offsets[c + 1];
+            if !range.is_empty() {
+                data[range].copy_from_slice(&virgin[model.cell_material[c]]);
             }
         }
         PointStates {
             offsets,
             sizes,
+            virgin,
             data,
         }
     }
 
-    /// A store with these values (a resumed run); `None` when the length does not fit the model.
-    pub fn with_data(model: &Model, data: Vec<f64>) -> Option<Self> {
+    /// A store with this process's part of `whole`, the values of every cell (as
+    /// [`PointStates::merged`] gives them: a resumed run's); `None` when the length does not fit
+    /// the model.
+    pub fn with_data(model: &Model, whole: Vec<f64>) -> Option<Self> {
         let mut s = PointStates::new(model);
-        (s.data.len() == data.len()).then(|| {
-            s.data = data;
-            s
-        })
+        let own = s.own_part(model, &whole)?;
+        s.data = own;
+        Some(s)
+    }
+
+    /// This process's part, in this store's layout, of `whole` (every cell's values); `None`
+    /// when `whole` is not of the model's length.
+    pub fn own_part(&self, model: &Model, whole: &[f64]) -> Option<Vec<f64>> {
+        if self.is_empty() {
+            return whole.is_empty().then(Vec::new);
+        }
+        let every = cell_offsets(model, &self.sizes, |_| true);
+        if whole.len() != every.last().copied().unwrap_or(0) {
+            return None;
+        }
+        if model.share.is_none() {
+            return Some(whole.to_vec());
+        }
+        let mut own = vec![0.0; self.data.len()];
+        for c in (0..model.mesh.n_cells()).filter(|&c| model.owns(c)) {
+            own[self.offsets[c]..self.offsets[c + 1]]
+                .copy_from_slice(&whole[every[c]..every[c + 1]]);
+        }
+        Some(own)
     }
 
     /// True when no material has internal variables.
@@ -72,8 +105,16 @@ impl PointStates {
                 ..CellHistory::NONE
             };
         }
+        let range = self.offsets[c]..self.offsets[c + 1];
+        let state = if range.is_empty() {
+            // another process's cell: only linear analyses pass over every cell, and they hold
+            // a store of their own for every cell
+            &self.virgin[m]
+        } else {
+            &self.data[range]
+        };
         CellHistory {
-            state: &self.data[self.offsets[c]..self.offsets[c + 1]],
+            state,
             size: self.sizes[m],
             dt,
         }
@@ -146,10 +187,11 @@ impl PointStates {
             return Ok(data.to_vec());
         };
         // the owner's values plus zeros from the others: the sum is the owner's bits
-        let mut all = vec![0.0; data.len()];
+        let every = cell_offsets(model, &self.sizes, |_| true);
+        let mut all = vec![0.0; *every.last().expect("non-empty")];
         for c in (0..model.mesh.n_cells()).filter(|&c| model.owns(c)) {
-            let range = self.offsets[c]..self.offsets[c + 1];
-            all[range.clone()].copy_from_slice(&data[range]);
+            all[every[c]..every[c + 1]]
+                .copy_from_slice(&data[self.offsets[c]..self.offsets[c + 1]]);
         }
         (share.sum)(&mut all)?;
         Ok(all)
@@ -198,6 +240,24 @@ impl PointStates {
         self.data = new;
         Ok(dissipated[0])
     }
+}
+
+/// The start of each cell's values (length `n_cells + 1`) when the cells `holds` accepts have
+/// `n_qp × size` values of their material and the others none.
+fn cell_offsets(model: &Model, sizes: &[usize], holds: impl Fn(usize) -> bool) -> Vec<usize> {
+    let n_qp = model.reference.n_qp;
+    let mut offsets = Vec::with_capacity(model.mesh.n_cells() + 1);
+    offsets.push(0);
+    for c in 0..model.mesh.n_cells() {
+        let last = *offsets.last().expect("starts with 0");
+        let own = if holds(c) {
+            n_qp * sizes[model.cell_material[c]]
+        } else {
+            0
+        };
+        offsets.push(last + own);
+    }
+    offsets
 }
 
 #[cfg(test)]
@@ -252,10 +312,18 @@ mod tests {
                     points.commit(&m, &state, 0.05).unwrap(),
                 ];
                 let means = points.cell_means(&m).unwrap();
-                (dissipated, points.merged(&m).unwrap(), means)
+                let merged = points.merged(&m).unwrap();
+                // a resumed store takes its own part of the merged values back
+                let resumed = PointStates::with_data(&m, merged.clone()).unwrap();
+                assert_eq!(resumed, points, "{size} processes, rank {rank}");
+                (dissipated, merged, means, points.data.len())
             });
             let whole_means = whole.cell_means(&model).unwrap();
-            for (rank, (dissipated, merged, means)) in parts.iter().enumerate() {
+            // each process holds its own cells' values only
+            let own: Vec<usize> = parts.iter().map(|p| p.3).collect();
+            assert_eq!(own.iter().sum::<usize>(), whole.data.len(), "{own:?}");
+            assert!(own.iter().all(|&l| l < whole.data.len()), "{own:?}");
+            for (rank, (dissipated, merged, means, _)) in parts.iter().enumerate() {
                 for (a, b) in dissipated.iter().zip(&serial) {
                     assert!((a - b).abs() <= 1e-13 * b, "{size}: {a} against {b}");
                 }

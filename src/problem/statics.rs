@@ -254,6 +254,8 @@ pub fn energies(model: &Model, state: &[f64]) -> Result<(f64, f64), String> {
 }
 
 /// [`energies`] with the committed point states (the branches' stored energy included).
+/// Every cell is evaluated: for a model whose cells no processes share ([`record_with`] is the
+/// pass of a shared one).
 pub fn energies_with(
     model: &Model,
     state: &[f64],
@@ -285,6 +287,8 @@ pub fn nodal_reactions(model: &Model, state: &[f64]) -> Result<Vec<f64>, String>
 }
 
 /// [`nodal_reactions`] of a step of `dt` from committed point states.
+/// Every cell is evaluated: for a model whose cells no processes share ([`record_with`] is the
+/// pass of a shared one).
 pub fn nodal_reactions_with(
     model: &Model,
     state: &[f64],
@@ -466,6 +470,8 @@ pub fn cell_fields(model: &Model, state: &[f64]) -> Result<Vec<CellFields>, Stri
 }
 
 /// [`cell_fields`] at committed point states.
+/// Every cell is evaluated: for a model whose cells no processes share ([`record_with`] is the
+/// pass of a shared one).
 pub fn cell_fields_with(
     model: &Model,
     state: &[f64],

@@ -396,6 +396,11 @@ impl<'m> TimeStep<'m> {
         );
         let q = std::mem::replace(&mut self.q, point.q.clone());
         let dt = std::mem::replace(&mut self.dt, point.dt);
+        // a checkpoint holds every cell's variables: this process's part of them
+        let mut point = point.clone();
+        if let Some(own) = self.points.own_part(self.model, &point.points) {
+            point.points = own;
+        }
         let points = std::mem::take(&mut self.points.data);
         self.points.data = if point.points.len() == points.len() {
             point.points.clone()
@@ -412,7 +417,7 @@ impl<'m> TimeStep<'m> {
         self.dt = dt;
         self.points.data = points;
         result?;
-        self.factor_point = Some(point.clone());
+        self.factor_point = Some(point);
         Ok(())
     }
 }
