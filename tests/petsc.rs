@@ -375,6 +375,15 @@ fn without_mpi_variables(command: &mut Command) -> &mut Command {
     command
 }
 
+/// Writes `text` with the PETSc solver chosen as `petsc.toml` into `dir`.
+fn write_petsc_scenario(dir: &Path, text: &str) {
+    std::fs::write(
+        dir.join("petsc.toml"),
+        format!("{text}\n[solver]\nkind = \"petsc\"\n"),
+    )
+    .unwrap();
+}
+
 /// Runs deasim with `args` in `dir` under `mpirun -np ranks`.
 fn mpirun(ranks: usize, dir: &Path, args: &[&str]) -> std::process::Output {
     let mut mpirun = Command::new("mpirun");
@@ -410,11 +419,7 @@ fn on_ranks_of(
 ) -> (f64, f64, String, String) {
     let dir = common::tempdir(&format!("petsc-mpi-{example_name}"));
     std::fs::write(dir.join("serial.toml"), text).unwrap();
-    std::fs::write(
-        dir.join("petsc.toml"),
-        format!("{text}\n[solver]\nkind = \"petsc\"\n"),
-    )
-    .unwrap();
+    write_petsc_scenario(&dir, text);
     let mut sets = vec![
         "--set",
         "output.plots=false",
@@ -654,11 +659,7 @@ fn dielectric_breakdown_is_found_over_every_ranks_cells() {
     let dir = common::tempdir("petsc-mpi-breakdown");
     let text = example("diaphragm-3d").unwrap();
     std::fs::write(dir.join("serial.toml"), text).unwrap();
-    std::fs::write(
-        dir.join("petsc.toml"),
-        format!("{text}\n[solver]\nkind = \"petsc\"\n"),
-    )
-    .unwrap();
+    write_petsc_scenario(&dir, text);
     let sets = [
         "--set",
         "output.plots=false",
@@ -730,11 +731,7 @@ fn checkpoints(out: &Path) -> Vec<std::path::PathBuf> {
 fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
     let dir = common::tempdir("petsc-mpi-resume");
     let text = example("film").unwrap();
-    std::fs::write(
-        dir.join("petsc.toml"),
-        format!("{text}\n[solver]\nkind = \"petsc\"\n"),
-    )
-    .unwrap();
+    write_petsc_scenario(&dir, text);
     let full = mpirun(
         2,
         &dir,
@@ -893,11 +890,7 @@ fn a_viscoelastic_run_on_two_mpi_ranks_agrees_with_the_serial_run_and_resumes() 
 
     let dir = common::tempdir("petsc-mpi-visco-resume");
     let text = example("diaphragm-visco").unwrap();
-    std::fs::write(
-        dir.join("petsc.toml"),
-        format!("{text}\n[solver]\nkind = \"petsc\"\n"),
-    )
-    .unwrap();
+    write_petsc_scenario(&dir, text);
     let mut args = vec![
         "run",
         "petsc.toml",
