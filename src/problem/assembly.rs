@@ -407,6 +407,11 @@ impl Assembler {
         (0..self.pattern.n).filter(|&e| self.term_rows.as_ref().is_none_or(|t| t[e]))
     }
 
+    /// With a share, one flag per equation: whether it is among [`Assembler::term_rows`].
+    pub fn term_flags(&self) -> Option<Arc<Vec<bool>>> {
+        self.term_rows.clone()
+    }
+
     /// Whether the cells are shared between processes.
     pub fn is_shared(&self) -> bool {
         self.share.is_some()

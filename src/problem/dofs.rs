@@ -163,6 +163,7 @@ impl DofMap {
             coords: coords.to_vec(),
             axisymmetric,
             shared: false,
+            owned: None,
         }
     }
 

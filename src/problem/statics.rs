@@ -655,6 +655,7 @@ impl NonlinearSystem for StaticProblem<'_> {
             .dofs
             .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
         layout.shared = self.assembler.is_shared();
+        layout.owned = self.assembler.term_flags();
         Some(layout)
     }
 }

@@ -37,6 +37,10 @@ pub struct DofLayout {
     /// with a pattern of its own, and a distributed solver sums every entry of every process's
     /// part (otherwise the tangent is whole on every process).
     pub shared: bool,
+    /// With shared cells, the unknowns whose equations take this process's non-cell terms (each
+    /// unknown is one process's): a distributed solver gives those rows to this process, so that
+    /// most of its cells' entries stay on it.
+    pub owned: Option<std::sync::Arc<Vec<bool>>>,
 }
 
 /// A nonlinear system R(x) = 0 with a symmetric tangent.

@@ -605,6 +605,7 @@ mod tests {
             coords: vec![],
             axisymmetric: false,
             shared: false,
+            owned: None,
         };
         for i in 0..m {
             for j in 0..m {

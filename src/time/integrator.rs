@@ -634,6 +634,7 @@ impl NonlinearSystem for TimeStep<'_> {
             .dofs
             .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
         layout.shared = self.assembler.is_shared();
+        layout.owned = self.assembler.term_flags();
         Some(layout)
     }
 
