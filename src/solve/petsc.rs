@@ -512,7 +512,8 @@ pub fn rigid_body_modes(layout: &DofLayout) -> Vec<Vec<f64>> {
 /// rows are the unknowns.
 #[derive(Debug, Clone, PartialEq)]
 struct Numbering {
-    /// PETSc's row of each free unknown, increasing (empty: the identity).
+    /// PETSc's row of each free unknown, increasing unless ordered by owners (empty: the
+    /// identity).
     row: Vec<usize>,
     /// The free unknown of each PETSc row, [`PADDING`] for a padding row (empty: the identity).
     unknown: Vec<usize>,
@@ -667,6 +668,7 @@ struct System {
     /// Number of unknowns (PETSc's rows are `numbering.n`).
     n: usize,
     nnz: usize,
+    /// Where the unknowns sit among PETSc's rows.
     numbering: Numbering,
     /// Whether the matrix is this rank's part of a shared assembly (it passes every entry),
     /// else the whole matrix (it passes its rows').
