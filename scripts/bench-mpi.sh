@@ -9,11 +9,13 @@
 # environment:
 #   DEASIM         the deasim binary (default target/release/deasim, built with --features petsc)
 #   STEPS          voltage steps (default 3)
+#   SIZE           the body's extents in m, x,y,z (default 5e-3,5e-3,1e-3: the film's quarter;
+#                  5e-3,5e-3,5e-3 with NxNxN divisions is a cube of cubic cells)
 #   PETSC_OPTIONS  PETSc options (default: GMRES + GAMG with the rigid-body modes, rtol 1e-8)
 #   OUT            scratch directory (default a new temporary one)
 set -euo pipefail
 if [ $# -lt 2 ]; then
-    sed -n '2,15p' "$0"
+    sed -n '2,16p' "$0"
     exit 2
 fi
 ranks=$1
@@ -21,6 +23,7 @@ shift
 root=$(cd "$(dirname "$0")/.." && pwd)
 deasim=${DEASIM:-$root/target/release/deasim}
 steps=${STEPS:-3}
+size=${SIZE:-5e-3,5e-3,1e-3}
 options=${PETSC_OPTIONS:--ksp_type gmres -pc_type gamg -ksp_rtol 1e-8 -ksp_atol 0 -ksp_gmres_restart 100}
 out=${OUT:-$(mktemp -d)}
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
@@ -33,8 +36,8 @@ for mesh in "$@"; do
     dir="$out/$mesh"
     mpirun --oversubscribe -np "$ranks" /usr/bin/time -f "peak %M KB" \
         "$deasim" run "$out/film.toml" --out "$dir" --overwrite \
-        --set 'mesh.size=[5e-3,5e-3,1e-3]' --set "mesh.divisions=$divisions" \
-        --set 'probes.inplane_stretch.at=[5e-3,5e-3,1e-3]' --set "stages.0.steps=$steps" \
+        --set "mesh.size=[$size]" --set "mesh.divisions=$divisions" \
+        --set "probes.inplane_stretch.at=[$size]" --set "stages.0.steps=$steps" \
         --set output.plots=false --set output.fields_every=0 \
         --set 'solver.kind="petsc"' --set "solver.petsc_options=\"$options\"" \
         >"$out/$mesh.log" 2>&1 || { echo "$mesh: failed, see $out/$mesh.log"; continue; }
