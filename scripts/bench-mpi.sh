@@ -15,7 +15,7 @@
 #   OUT            scratch directory (default a new temporary one)
 set -euo pipefail
 if [ $# -lt 2 ]; then
-    sed -n '2,16p' "$0"
+    sed -n '2,15p' "$0"
     exit 2
 fi
 ranks=$1
