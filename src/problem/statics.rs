@@ -74,6 +74,16 @@ pub struct VolumeControl {
     pub level: f64,
 }
 
+/// The layout of the free unknowns of `model` numbered by `dofs`, with the share of the cells
+/// that `assembler` makes (whether the processes share them, and which equations are this
+/// process's).
+pub fn layout_of(model: &Model, dofs: &DofMap, assembler: &Assembler) -> DofLayout {
+    let mut layout = dofs.layout(&model.mesh.nodes, model.is_axisymmetric());
+    layout.shared = assembler.is_shared();
+    layout.owned = assembler.term_flags();
+    layout
+}
+
 /// The dof map (constraints of `model.dirichlet`), the assembler with its CSR pattern, and the
 /// absolute residual floor (N) of a model: h²·max(10⁻¹¹ μ, 4ε·K·√n) with the largest shear and
 /// bulk moduli of the materials.
@@ -651,12 +661,7 @@ impl NonlinearSystem for StaticProblem<'_> {
     }
 
     fn layout(&self) -> Option<DofLayout> {
-        let mut layout = self
-            .dofs
-            .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
-        layout.shared = self.assembler.is_shared();
-        layout.owned = self.assembler.term_flags();
-        Some(layout)
+        Some(layout_of(self.model, &self.dofs, &self.assembler))
     }
 }
 

@@ -20,7 +20,7 @@ use crate::problem::circuit::CircuitStep;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
-use crate::problem::statics::discretize;
+use crate::problem::statics::{discretize, layout_of};
 use crate::problem::system::DofLayout;
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
@@ -630,12 +630,7 @@ impl NonlinearSystem for TimeStep<'_> {
     }
 
     fn layout(&self) -> Option<DofLayout> {
-        let mut layout = self
-            .dofs
-            .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
-        layout.shared = self.assembler.is_shared();
-        layout.owned = self.assembler.term_flags();
-        Some(layout)
+        Some(layout_of(self.model, &self.dofs, &self.assembler))
     }
 
     fn factored(&mut self) {

@@ -12,7 +12,7 @@ use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::{Assembler, CsrMatrix};
 use crate::problem::dofs::{Dirichlet, DofMap, Field, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
-use crate::problem::statics::discretize;
+use crate::problem::statics::{discretize, layout_of};
 use crate::solve::newton::NonlinearSystem;
 
 /// The velocity equation of one trapezoidal step; the unknown is u_{n+1} (the potential is held).
@@ -224,11 +224,6 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
     }
 
     fn layout(&self) -> Option<crate::problem::system::DofLayout> {
-        let mut layout = self
-            .dofs
-            .layout(&self.model.mesh.nodes, self.model.is_axisymmetric());
-        layout.shared = self.assembler.is_shared();
-        layout.owned = self.assembler.term_flags();
-        Some(layout)
+        Some(layout_of(&self.model, &self.dofs, &self.assembler))
     }
 }
