@@ -376,7 +376,11 @@ impl Geometries {
 
     /// These geometries restricted to the held cells that `keep` names.
     fn restricted(&self, keep: impl Fn(usize) -> bool) -> Self {
-        let mut held = Vec::new();
+        // the exact size: grown by doubling, the vector would hold up to twice the geometry
+        let count = (0..self.slot.len())
+            .filter(|&c| keep(c) && self.held(c).is_some())
+            .count();
+        let mut held = Vec::with_capacity(count);
         let slot = (0..self.slot.len())
             .map(|c| match self.held(c) {
                 Some(g) if keep(c) => {

@@ -71,8 +71,55 @@ pub fn mass_matrix(mass: &NodalMass, dofs: &DofMap, k: &CsrMatrix) -> CsrMatrix 
     m
 }
 
+/// M x in the equation space of `dofs` (PᵀMP x, P the map from equations to dofs: tied dofs
+/// share an equation), from the nodal mass itself: no matrix is built, so a distributed run,
+/// whose processes hold the tangent of their own cells only, multiplies by the whole mass.
+/// The same operator as [`mass_matrix`] on a pattern that holds every mass coupling.
+pub struct EquationMass<'a> {
+    mass: &'a NodalMass,
+    dofs: &'a DofMap,
+    x: Vec<f64>,
+    y: Vec<f64>,
+}
+
+impl<'a> EquationMass<'a> {
+    pub fn new(mass: &'a NodalMass, dofs: &'a DofMap) -> Self {
+        let n = dofs.eq.len();
+        EquationMass {
+            mass,
+            dofs,
+            x: vec![0.0; n],
+            y: vec![0.0; n],
+        }
+    }
+
+    /// y = M x (equation space; the potential rows of y are 0).
+    pub fn mul(&mut self, x: &[f64], y: &mut [f64]) {
+        let eq = &self.dofs.eq;
+        for (d, v) in self.x.iter_mut().enumerate() {
+            *v = if d % FIELDS != PHI && eq[d] != CONSTRAINED {
+                x[eq[d]]
+            } else {
+                0.0
+            };
+        }
+        self.mass.mul(&self.x, &mut self.y);
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for (d, &v) in self.y.iter().enumerate() {
+            if d % FIELDS != PHI && eq[d] != CONSTRAINED {
+                y[eq[d]] += v;
+            }
+        }
+    }
+}
+
 /// The natural modes of `model` (its Dirichlet conditions hold the supports and the electrode
 /// voltages) about the equilibrium `state` (`FIELDS` values per node), with the mass `mass`.
+///
+/// With a distributed solver and a model whose cells are shared between processes, each process
+/// assembles the tangent of its own cells only and adds the mass on the rows it takes the
+/// non-cell terms of; the solver sums the parts. The Lanczos vectors are whole on every process
+/// (the solver returns the whole solution), so every process computes the same modes.
 pub fn modes(
     model: &Model,
     state: &[f64],
@@ -81,14 +128,59 @@ pub fn modes(
     settings: &ModeSettings,
 ) -> Result<Vec<Mode>, String> {
     let mut problem = StaticProblem::new(model, Some(state.to_vec()));
-    // the tangent itself is used here, not only handed to a (distributed) solver
-    problem.assemble_every_cell();
+    let mut lin = solver.build();
+    if !lin.sums_shared_entries() {
+        // this solver takes the whole tangent
+        problem.assemble_every_cell();
+    }
     let n = problem.n();
-    let mut k = problem.new_matrix();
+    let mut a = problem.new_matrix();
     let mut r = vec![0.0; n];
-    problem.evaluate(&mut r, Some(&mut k))?;
-    let m = mass_matrix(mass, &problem.dofs, &k);
-    modes_of(&k, &m, &problem.dofs, solver, settings)
+    problem.evaluate(&mut r, Some(&mut a))?;
+    drop(r);
+    if lin.needs_layout(n) {
+        if let Some(layout) = problem.layout() {
+            lin.set_layout(layout);
+        }
+    }
+    // K − σM, the mass once between the processes (on the rows of the non-cell terms)
+    let sigma = shift(settings);
+    if sigma != 0.0 {
+        let mut terms = problem
+            .assembler()
+            .global_terms(Some(&mut a))
+            .expect("a matrix was given");
+        let positions = mass.positions_in(&problem.dofs, |i, j| terms.position(i, j));
+        let values = terms.values_mut();
+        for (pos, p) in positions {
+            values[pos] -= sigma * mass.values[p];
+        }
+    }
+    factor_shifted(lin.as_mut(), &a, settings)?;
+    drop(a);
+    let mut m = EquationMass::new(mass, &problem.dofs);
+    lanczos_modes(lin, &mut |x, y| m.mul(x, y), &problem.dofs, sigma, settings)
+}
+
+/// σ = (2π f_shift)² (rad²/s²).
+fn shift(settings: &ModeSettings) -> f64 {
+    let omega_s = 2.0 * std::f64::consts::PI * settings.shift_hz;
+    omega_s * omega_s
+}
+
+/// Factors K − σM with the message of a failure.
+fn factor_shifted(
+    lin: &mut dyn LinearSolver,
+    a: &CsrMatrix,
+    settings: &ModeSettings,
+) -> Result<(), String> {
+    lin.factor(a).map_err(|e| {
+        format!(
+            "factoring K − σM at the shift {} Hz: {e}",
+            settings.shift_hz
+        )
+    })?;
+    Ok(())
 }
 
 /// [`modes`] of an assembled coupled tangent `k` and mass `m` (same pattern, equation space of
@@ -100,7 +192,27 @@ pub fn modes_of(
     solver: &SolverSettings,
     settings: &ModeSettings,
 ) -> Result<Vec<Mode>, String> {
-    let n = k.n;
+    let sigma = shift(settings);
+    let mut a = k.clone();
+    for (v, mv) in a.values.iter_mut().zip(&m.values) {
+        *v -= sigma * mv;
+    }
+    let mut lin = solver.build();
+    factor_shifted(lin.as_mut(), &a, settings)?;
+    drop(a);
+    lanczos_modes(lin, &mut |x, y| m.mul_vec(x, y), dofs, sigma, settings)
+}
+
+/// The modes nearest to the shift σ by shift-invert Lanczos, with `lin` holding the factored
+/// K − σM and `m` the product with the mass (equation space of `dofs`).
+fn lanczos_modes(
+    mut lin: Box<dyn LinearSolver>,
+    m: &mut dyn FnMut(&[f64], &mut [f64]),
+    dofs: &DofMap,
+    sigma: f64,
+    settings: &ModeSettings,
+) -> Result<Vec<Mode>, String> {
+    let n = dofs.n_free;
     let is_u: Vec<bool> = dofs.field_of_equation().iter().map(|&f| f != PHI).collect();
     let n_u = is_u.iter().filter(|&&u| u).count();
     if settings.count == 0 || settings.count > n_u {
@@ -109,21 +221,10 @@ pub fn modes_of(
             settings.count
         ));
     }
-    let omega_s = 2.0 * std::f64::consts::PI * settings.shift_hz;
-    let sigma = omega_s * omega_s;
-    let mut a = k.clone();
-    for (v, mv) in a.values.iter_mut().zip(&m.values) {
-        *v -= sigma * mv;
-    }
-    let mut lin = solver.build();
-    lin.factor(&a).map_err(|e| {
-        format!(
-            "factoring K − σM at the shift {} Hz: {e}",
-            settings.shift_hz
-        )
-    })?;
+    // the products with M share one closure: interior mutability through a cell
+    let m = std::cell::RefCell::new(m);
     let op = |x: &[f64], y: &mut [f64], lin: &mut Box<dyn LinearSolver>| -> Result<(), String> {
-        m.mul_vec(x, y);
+        (m.borrow_mut())(x, y);
         lin.solve_in_place(y).map_err(|e| e.to_string())?;
         // the potential part is the condensed response: the vectors live on the displacements
         for (v, &u) in y.iter_mut().zip(&is_u) {
@@ -134,7 +235,7 @@ pub fn modes_of(
         Ok(())
     };
     let m_dot = |x: &[f64], y: &[f64], work: &mut [f64]| -> f64 {
-        m.mul_vec(y, work);
+        (m.borrow_mut())(y, work);
         x.iter().zip(work.iter()).map(|(a, b)| a * b).sum()
     };
     // deterministic start vector in the range of the operator
@@ -204,7 +305,8 @@ pub fn modes_of(
                 .into_iter()
                 .map(|(theta, x, _)| {
                     let eigenvalue = sigma + 1.0 / theta;
-                    let (shape, residual) = shape_of(dofs, m, &x, theta, &mut lin)?;
+                    let (shape, residual) =
+                        shape_of(dofs, &mut **m.borrow_mut(), &x, theta, &mut lin)?;
                     Ok(Mode {
                         frequency: eigenvalue.max(0.0).sqrt() / (2.0 * std::f64::consts::PI),
                         eigenvalue,
@@ -280,13 +382,13 @@ fn lanczos(
 /// the true relative residual ‖y_u − θ x_u‖_M / |θ| of the pair.
 fn shape_of(
     dofs: &DofMap,
-    m: &CsrMatrix,
+    m: &mut dyn FnMut(&[f64], &mut [f64]),
     x: &[f64],
     theta: f64,
     lin: &mut Box<dyn LinearSolver>,
 ) -> Result<(Vec<f64>, f64), String> {
     let mut y = vec![0.0; x.len()];
-    m.mul_vec(x, &mut y);
+    m(x, &mut y);
     lin.solve_in_place(&mut y).map_err(|e| e.to_string())?;
     let fields = dofs.field_of_equation();
     let diff: Vec<f64> = (0..x.len())
@@ -299,7 +401,7 @@ fn shape_of(
         })
         .collect();
     let mut md = vec![0.0; x.len()];
-    m.mul_vec(&diff, &mut md);
+    m(&diff, &mut md);
     let residual = diff
         .iter()
         .zip(&md)
@@ -319,4 +421,56 @@ fn shape_of(
         }
     }
     Ok((out, residual))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::ElectroNeoHooke;
+    use crate::mesh::{generate::box_mesh, ElementKind};
+    use crate::problem::dofs::{Dirichlet, Field, Tie};
+    use crate::time::mass::MassKind;
+    use std::sync::Arc;
+
+    /// The mass product from the nodal mass equals the assembled equation-space mass matrix,
+    /// with held displacements and potentials and a tie (a rigid region's translation).
+    #[test]
+    fn the_equation_mass_is_the_assembled_mass_matrix() {
+        let mesh = box_mesh([2.0, 1.0, 0.5], [3, 2, 2], ElementKind::Hex8);
+        let mut model = Model::new(mesh, Arc::new(ElectroNeoHooke::new(1.0, 1.0, 1.0))).unwrap();
+        let x0 = model.mesh.set_nodes("x0").unwrap();
+        let x1 = model.mesh.set_nodes("x1").unwrap();
+        for field in [Field::Ux, Field::Phi] {
+            model.dirichlet.push(Dirichlet {
+                nodes: x0.clone(),
+                field,
+                value: 0.0,
+            });
+        }
+        model.ties.push(Tie {
+            nodes: x1.clone(),
+            field: Field::Uz,
+        });
+        let problem = StaticProblem::new(&model, None);
+        let dofs = &problem.dofs;
+        for kind in [MassKind::Consistent, MassKind::Lumped] {
+            let mass = NodalMass::new(&model, &[7.0], kind);
+            let k = problem.new_matrix();
+            let m = mass_matrix(&mass, dofs, &k);
+            let x: Vec<f64> = (0..dofs.n_free)
+                .map(|e| ((e * 7) % 13) as f64 - 6.0)
+                .collect();
+            let (mut assembled, mut nodal) = (vec![0.0; x.len()], vec![0.0; x.len()]);
+            m.mul_vec(&x, &mut assembled);
+            EquationMass::new(&mass, dofs).mul(&x, &mut nodal);
+            let scale = assembled.iter().fold(0.0_f64, |s, v| s.max(v.abs()));
+            assert!(scale > 0.0);
+            for (e, (a, b)) in assembled.iter().zip(&nodal).enumerate() {
+                assert!(
+                    (a - b).abs() <= 1e-14 * scale,
+                    "{kind:?} equation {e}: {a} {b}"
+                );
+            }
+        }
+    }
 }
