@@ -944,7 +944,8 @@ fn linear_analyses_difference(serial: &Path, mpi: &Path) -> (f64, f64) {
 
 /// The linear analyses about a biased state on two ranks, each rank assembling the tangent of
 /// its own cells: the modes of the 3-D diaphragm carrying its mass at 2 kV (the 4 modes nearest
-/// to 500 Hz) and its frequency response, then
+/// to 500 Hz) and its frequency response (each rank's part of the real form, factored by
+/// MUMPS), then
 /// the film made of VHB 4910 with three Maxwell branches, whose response carries each branch's
 /// complex modulus at the branch's relaxed state on every cell, the other rank's too.
 #[test]
@@ -959,6 +960,16 @@ fn modes_and_the_frequency_response_on_two_mpi_ranks_agree_with_the_serial_run()
             "{label}: history {d:e}, fields {fields:e}\n{serial}\n{mpi}"
         );
         let (modes, response) = found.unwrap_or_else(|| panic!("{label} failed:\n{serial}"));
+        // the response by each rank's part of the real form, the serial run's by a complex LU
+        assert!(
+            mpi.contains("solved by the real form [[A, B], [B, −A]]")
+                && mpi.contains("each process holding its own cells' part"),
+            "{label}:\n{mpi}"
+        );
+        assert!(
+            serial.contains("solved by a complex sparse LU"),
+            "{label}:\n{serial}"
+        );
         eprintln!("{label} on 2 ranks: modes {modes:.2e}, frequency response {response:.2e}");
         assert!(
             modes < 1e-9 && response < 1e-8,

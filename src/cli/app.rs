@@ -214,6 +214,11 @@ impl Observer for Progress {
     }
 
     fn frequency_response(&mut self, _plan: &Plan, stage: &str, r: &FrequencyResponse) {
+        self.say(&format!(
+            "  {stage}: {} frequencies, solved by {}",
+            r.frequencies.len(),
+            r.solved_by
+        ));
         for (name, values) in &r.probes {
             let (k, peak) = values
                 .iter()

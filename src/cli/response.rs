@@ -238,6 +238,7 @@ pub fn prepare(
         &mass,
         &plan.viscosities,
         &plan.electrodes[driven].nodes,
+        None,
     )
     .map_err(failed)?;
     if !lin.drives_motion() {
@@ -312,6 +313,7 @@ pub fn response(args: &ResponseArgs) -> Result<Outcome, (i32, String)> {
         frequencies,
         probes: p.names().into_iter().zip(values).collect(),
         method: ResponseMethod::Direct,
+        solved_by: p.lin.solved_by(),
         warning: None,
     };
     let dir: PathBuf = args

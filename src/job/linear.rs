@@ -218,6 +218,8 @@ pub struct FrequencyResponse {
     /// Per probe: its name and (real, imaginary) part per volt at each frequency.
     pub probes: Vec<(String, Vec<(f64, f64)>)>,
     pub method: ResponseMethod,
+    /// How the linear systems were solved, for the run's report.
+    pub solved_by: String,
     /// Set when the drive reaches no motion to first order (zero bias).
     pub warning: Option<String>,
 }
@@ -245,7 +247,20 @@ pub fn frequency_response_at(
     let mass = device_mass(plan, &model);
     let electrode = &plan.electrodes[driven];
     let bias = state[electrode.nodes[0] * FIELDS + PHI];
-    let mut lin = linearise(&model, state, &mass, &plan.viscosities, &electrode.nodes)?;
+    // the direct method in a distributed run: each process's part, solved in real form by the
+    // distributed solver; the modal method needs the whole matrices
+    let solver = match method {
+        ResponseMethod::Direct => plan.solver.distributed_direct(),
+        ResponseMethod::Modal { .. } => None,
+    };
+    let mut lin = linearise(
+        &model,
+        state,
+        &mass,
+        &plan.viscosities,
+        &electrode.nodes,
+        solver,
+    )?;
     let map = ProbeMap {
         plan,
         model: &relaxed,
@@ -261,6 +276,12 @@ pub fn frequency_response_at(
         frequencies: frequencies.to_vec(),
         probes: map.names().into_iter().zip(values).collect(),
         method,
+        solved_by: match method {
+            ResponseMethod::Direct => lin.solved_by(),
+            ResponseMethod::Modal { count } => {
+                format!("the reduced model of {count} modes and the static correction")
+            }
+        },
         warning,
     })
 }

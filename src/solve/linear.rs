@@ -300,6 +300,20 @@ impl SolverSettings {
         }
     }
 
+    /// For a solver that sums the parts of processes that share the cells: an exact direct
+    /// solver of the same kind for symmetric indefinite matrices whose diagonal may vanish
+    /// (pivoting), whatever the options of the run's solver: PETSc with MUMPS's LDLᵀ. `None` for
+    /// the kinds that take whole matrices.
+    pub fn distributed_direct(&self) -> Option<Box<dyn LinearSolver>> {
+        match self.kind {
+            SolverKind::Direct | SolverKind::Auto | SolverKind::Iterative => None,
+            #[cfg(feature = "petsc")]
+            SolverKind::Petsc => Some(Box::new(super::petsc::PetscSolver::new(
+                "-ksp_type preonly -pc_type cholesky -pc_factor_mat_solver_type mumps",
+            ))),
+        }
+    }
+
     /// Whether the solver gives the inertia of the tangent (the stability test of static stages:
     /// without it, limit points show only as Newton failures).
     pub fn gives_inertia(&self) -> bool {

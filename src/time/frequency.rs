@@ -17,14 +17,18 @@
 //! The complex symmetric system is factored by faer's sparse LU with partial pivoting (the
 //! symbolic analysis once, the numeric factorisation per frequency): a symmetric indefinite LDLᵀ
 //! without pivoting meets zero pivots where a diagonal entry of K − ω²M crosses zero, and an LU
-//! does not.
+//! does not. A distributed run (processes that share the cells) instead hands each process's
+//! part of the equivalent real symmetric system of twice the size ([`RealForm`]) to its
+//! distributed solver (MUMPS's LDLᵀ with pivoting), so that no process holds the whole
+//! matrices or a whole factor.
 
 use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::CsrMatrix;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
-use crate::problem::system::NonlinearSystem;
+use crate::problem::system::{DofLayout, NonlinearSystem};
+use crate::solve::linear::LinearSolver;
 use crate::time::mass::NodalMass;
 use faer::c64;
 use faer::linalg::solvers::Solve;
@@ -46,6 +50,98 @@ pub struct Linearisation {
     pub branches: Vec<(f64, CsrMatrix)>,
     /// The symbolic LU of the pattern, computed at the first frequency.
     symbolic: Option<SymbolicLu<usize>>,
+    /// The real form and its solver, when the linearisation was given a solver.
+    real: Option<RealForm>,
+}
+
+/// (A + iB) x = f in real form for a solver of real symmetric matrices: with y = −Im x,
+///
+/// ```text
+/// [ A   B ] [Re x]   [f]
+/// [ B  −A ] [  y ] = [0],
+/// ```
+///
+/// symmetric (indefinite) as A and B are. The unknowns are interleaved (2e: Re x_e, 2e + 1: y_e),
+/// so each node's unknowns stay together; a process that holds part of A and B (its own cells)
+/// holds the same part of this matrix, and a solver that sums the processes' parts gets it whole.
+struct RealForm {
+    solver: Box<dyn LinearSolver>,
+    /// Whether each process holds its own cells' part (the solver sums them).
+    parts: bool,
+    /// The pattern of K doubled, built at the first frequency.
+    matrix: Option<CsrMatrix>,
+}
+
+impl RealForm {
+    /// The real form's pattern from the pattern of `k` (zero values).
+    fn pattern(k: &CsrMatrix) -> CsrMatrix {
+        let nnz = k.nnz();
+        let mut row_ptr = Vec::with_capacity(2 * k.n + 1);
+        let mut col_idx = Vec::with_capacity(4 * nnz);
+        row_ptr.push(0);
+        for i in 0..k.n {
+            let cols = &k.col_idx[k.row_ptr[i]..k.row_ptr[i + 1]];
+            for _ in 0..2 {
+                col_idx.extend(cols.iter().flat_map(|&j| [2 * j, 2 * j + 1]));
+                row_ptr.push(col_idx.len());
+            }
+        }
+        CsrMatrix::new(2 * k.n, row_ptr, col_idx, vec![0.0; 4 * nnz])
+    }
+
+    /// The layout of the real form's unknowns from that of the equations: the two copies of a
+    /// node's unknowns are two nodes at its place (2N, 2N + 1), each with the node's fields, and
+    /// each copy's rows go to the process that takes the node's terms.
+    fn layout(layout: DofLayout) -> DofLayout {
+        let twice =
+            |v: &[usize]| -> Vec<usize> { v.iter().flat_map(|&n| [2 * n, 2 * n + 1]).collect() };
+        DofLayout {
+            node: twice(&layout.node),
+            field: layout.field.iter().flat_map(|&f| [f, f]).collect(),
+            coords: layout.coords.iter().flat_map(|&c| [c, c]).collect(),
+            axisymmetric: layout.axisymmetric,
+            shared: layout.shared,
+            owned: layout
+                .owned
+                .map(|o| std::sync::Arc::new(o.iter().flat_map(|&own| [own, own]).collect())),
+        }
+    }
+
+    /// Fills the values from those of A and B (entry by entry on K's pattern), factors, and
+    /// solves for the right-hand side `f`: (Re x, Im x).
+    fn solve(
+        &mut self,
+        k: &CsrMatrix,
+        a: &[f64],
+        b: &[f64],
+        f: &[f64],
+    ) -> Result<(Vec<f64>, Vec<f64>), String> {
+        let matrix = self.matrix.get_or_insert_with(|| Self::pattern(k));
+        for i in 0..k.n {
+            let (start, end) = (k.row_ptr[i], k.row_ptr[i + 1]);
+            let width = 2 * (end - start);
+            // rows 2i and 2i + 1 start at 4·start (each earlier row of K gave two rows twice as
+            // long)
+            let (upper, lower) =
+                matrix.values[4 * start..4 * start + 2 * width].split_at_mut(width);
+            for p in start..end {
+                let q = 2 * (p - start);
+                upper[q] = a[p];
+                upper[q + 1] = b[p];
+                lower[q] = b[p];
+                lower[q + 1] = -a[p];
+            }
+        }
+        self.solver.factor(matrix).map_err(|e| e.to_string())?;
+        let mut rhs: Vec<f64> = f.iter().flat_map(|&v| [v, 0.0]).collect();
+        self.solver
+            .solve_in_place(&mut rhs)
+            .map_err(|e| e.to_string())?;
+        Ok((
+            rhs.iter().step_by(2).copied().collect(),
+            rhs.iter().skip(1).step_by(2).map(|&y| -y).collect(),
+        ))
+    }
 }
 
 /// `model` with every material replaced by the elastic material it relaxes to (the same model
@@ -69,23 +165,35 @@ pub fn relaxed_model(model: &Model) -> Model {
 /// vanishes for every F, so a small harmonic δF moves A by δA = (∂C̄⁻¹/∂F δF)/(1 + iωτ) and the
 /// branch stress by ∂S/∂F|_A (1 − 1/(1 + iωτ)) δF: the instantaneous branch tangent times
 /// iωτ/(1 + iωτ) (a standard linear solid per branch), exact to first order.
+///
+/// With a `solver`, each frequency is solved in real form by it ([`RealForm`]); a solver that
+/// sums the shared entries of processes that share the cells then gets each process's part of
+/// the matrices (its own cells, the mass and dashpots on the rows of its non-cell terms), and
+/// `k`, `m`, `c` and the branch tangents are parts too. Without one, or for a solver of whole
+/// matrices, they are whole on every process (the modal method needs them whole).
 pub fn linearise(
     model: &Model,
     state: &[f64],
     mass: &NodalMass,
     viscosity: &[f64],
     driven: &[usize],
+    solver: Option<Box<dyn LinearSolver>>,
 ) -> Result<Linearisation, String> {
     let relaxed = relaxed_model(model);
     let mut problem = StaticProblem::new(&relaxed, Some(state.to_vec()));
-    // the tangent itself is used here, not only handed to a (distributed) solver
-    problem.assemble_every_cell();
+    if solver.as_ref().is_none_or(|s| !s.sums_shared_entries()) {
+        // the tangent itself is used here, not only handed to a solver that sums the parts
+        problem.assemble_every_cell();
+    }
     let n = problem.n();
     let mut k = problem.new_matrix();
     let mut r = vec![0.0; n];
     problem.evaluate(&mut r, Some(&mut k))?;
     let dofs = problem.dofs.clone();
-    let m = super::modal::mass_matrix(mass, &dofs, &k);
+    // the mass once between the processes: on the rows of this process's non-cell terms (every
+    // row without a share)
+    let mut m = k.zeros_like();
+    super::modal::add_mass_on_term_rows(&problem, mass, 1.0, &mut m);
     // Kelvin–Voigt tangent ∂f_vis/∂v at the state, and the dashpots
     let mut c = k.clone();
     let npc = model.mesh.kind.nodes_per_cell();
@@ -121,12 +229,18 @@ pub fn linearise(
             &mut energy,
         )
         .map_err(|f| format!("cell {}: {}", f.cell, f.error))?;
-    for &(node, damping) in &model.point_dampers {
-        for i in 0..3 {
-            let e = dofs.eq[node * FIELDS + i];
-            if e != CONSTRAINED {
-                let pos = c.position(e, e).ok_or("dashpot outside the pattern")?;
-                c.values[pos] += damping;
+    {
+        let mut terms = problem
+            .assembler()
+            .global_terms(Some(&mut c))
+            .expect("a matrix was given");
+        for &(node, damping) in &model.point_dampers {
+            for i in 0..3 {
+                let e = dofs.eq[node * FIELDS + i];
+                if e != CONSTRAINED {
+                    // once: by the process that takes the row's terms
+                    terms.add(e, e, damping);
+                }
             }
         }
     }
@@ -148,6 +262,19 @@ pub fn linearise(
         .map(|(p, q)| -(p - q) / (2.0 * h))
         .collect();
     let branches = branch_tangents(model, &relaxed, state, &problem, &k)?;
+    let parts = problem.shares_cells();
+    let real = solver.map(|mut solver| {
+        if solver.needs_layout(2 * n) {
+            if let Some(layout) = problem.layout() {
+                solver.set_layout(RealForm::layout(layout));
+            }
+        }
+        RealForm {
+            solver,
+            parts,
+            matrix: None,
+        }
+    });
     Ok(Linearisation {
         dofs,
         k,
@@ -157,6 +284,7 @@ pub fn linearise(
         driven: driven.to_vec(),
         branches,
         symbolic: None,
+        real,
     })
 }
 
@@ -284,13 +412,6 @@ impl Linearisation {
     pub fn response(&mut self, omega: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
         let n = self.k.n;
         let hz = omega / (2.0 * std::f64::consts::PI);
-        // K, M, C are symmetric with one pattern: their CSR arrays are also the CSC arrays
-        let pattern =
-            SymbolicSparseColMatRef::new_checked(n, n, &self.k.row_ptr, None, &self.k.col_idx);
-        if self.symbolic.is_none() {
-            self.symbolic =
-                Some(SymbolicLu::try_new(pattern).map_err(|e| format!("symbolic LU: {e:?}"))?);
-        }
         // iωτ/(1 + iωτ) = (ω²τ² + iωτ)/(1 + ω²τ²) per branch
         let factors: Vec<(f64, f64)> = self
             .branches
@@ -300,33 +421,69 @@ impl Linearisation {
                 (x * x / (1.0 + x * x), x / (1.0 + x * x))
             })
             .collect();
-        let values: Vec<c64> = (0..self.k.values.len())
-            .map(|p| {
-                let (mut re, mut im) = (
-                    self.k.values[p] - omega * omega * self.m.values[p],
-                    omega * self.c.values[p],
-                );
-                for ((_, kb), (fr, fi)) in self.branches.iter().zip(&factors) {
-                    re += fr * kb.values[p];
-                    im += fi * kb.values[p];
-                }
-                c64::new(re, im)
-            })
-            .collect();
-        let matrix = SparseColMatRef::new(pattern, &values);
-        let symbolic = self.symbolic.clone().expect("set above");
-        let lu = Lu::try_new_with_symbolic(symbolic, matrix)
-            .map_err(|e| format!("factoring K − ω²M + iωC at {hz} Hz: {e:?}"))?;
-        let mut rhs = faer::Mat::<c64>::from_fn(n, 1, |i, _| c64::new(self.force[i], 0.0));
-        lu.solve_in_place(rhs.as_mut());
-        let xr: Vec<f64> = (0..n).map(|i| rhs[(i, 0)].re).collect();
-        let xi: Vec<f64> = (0..n).map(|i| rhs[(i, 0)].im).collect();
+        // A + iB = K − ω²M + iωC + Σ (the branches' complex moduli), entry by entry
+        let entry = |p: usize| {
+            let (mut re, mut im) = (
+                self.k.values[p] - omega * omega * self.m.values[p],
+                omega * self.c.values[p],
+            );
+            for ((_, kb), (fr, fi)) in self.branches.iter().zip(&factors) {
+                re += fr * kb.values[p];
+                im += fi * kb.values[p];
+            }
+            (re, im)
+        };
+        let (xr, xi) = if let Some(real) = &mut self.real {
+            let (a, b): (Vec<f64>, Vec<f64>) = (0..self.k.values.len()).map(entry).unzip();
+            real.solve(&self.k, &a, &b, &self.force)
+                .map_err(|e| format!("solving K − ω²M + iωC at {hz} Hz in real form: {e}"))?
+        } else {
+            // K, M, C are symmetric with one pattern: their CSR arrays are also the CSC arrays
+            let pattern =
+                SymbolicSparseColMatRef::new_checked(n, n, &self.k.row_ptr, None, &self.k.col_idx);
+            if self.symbolic.is_none() {
+                self.symbolic =
+                    Some(SymbolicLu::try_new(pattern).map_err(|e| format!("symbolic LU: {e:?}"))?);
+            }
+            let values: Vec<c64> = (0..self.k.values.len())
+                .map(|p| {
+                    let (re, im) = entry(p);
+                    c64::new(re, im)
+                })
+                .collect();
+            let matrix = SparseColMatRef::new(pattern, &values);
+            let symbolic = self.symbolic.clone().expect("set above");
+            let lu = Lu::try_new_with_symbolic(symbolic, matrix)
+                .map_err(|e| format!("factoring K − ω²M + iωC at {hz} Hz: {e:?}"))?;
+            let mut rhs = faer::Mat::<c64>::from_fn(n, 1, |i, _| c64::new(self.force[i], 0.0));
+            lu.solve_in_place(rhs.as_mut());
+            (
+                (0..n).map(|i| rhs[(i, 0)].re).collect(),
+                (0..n).map(|i| rhs[(i, 0)].im).collect(),
+            )
+        };
         if xr.iter().chain(&xi).any(|v| !v.is_finite()) {
             return Err(format!(
                 "singular system at {hz} Hz (an undamped resonance?)"
             ));
         }
         Ok((self.to_dofs(&xr, 1.0), self.to_dofs(&xi, 0.0)))
+    }
+
+    /// How each frequency is solved, for reports.
+    pub fn solved_by(&self) -> String {
+        match &self.real {
+            Some(real) => format!(
+                "the real form [[A, B], [B, −A]] of (A + iB) x = f with {}{}",
+                real.solver.name(),
+                if real.parts {
+                    ", each process holding its own cells' part"
+                } else {
+                    ""
+                }
+            ),
+            None => "a complex sparse LU (faer) of K − ω²M + iωC".into(),
+        }
     }
 
     /// A vector of the equation space as dof values, with `volts` on the driven electrode.

@@ -71,6 +71,26 @@ pub fn mass_matrix(mass: &NodalMass, dofs: &DofMap, k: &CsrMatrix) -> CsrMatrix 
     m
 }
 
+/// Adds `scale`·M to `a` (a tangent of `problem`'s pattern) on the rows of the process's non-cell
+/// terms (every row without a share), so that processes that share the cells add the mass once
+/// between them.
+pub fn add_mass_on_term_rows(
+    problem: &StaticProblem,
+    mass: &NodalMass,
+    scale: f64,
+    a: &mut CsrMatrix,
+) {
+    let mut terms = problem
+        .assembler()
+        .global_terms(Some(a))
+        .expect("a matrix was given");
+    let positions = mass.positions_in(&problem.dofs, |i, j| terms.position(i, j));
+    let values = terms.values_mut();
+    for (pos, p) in positions {
+        values[pos] += scale * mass.values[p];
+    }
+}
+
 /// M x in the equation space of `dofs` (PᵀMP x, P the map from equations to dofs: tied dofs
 /// share an equation), from the nodal mass itself: no matrix is built, so a distributed run,
 /// whose processes hold the tangent of their own cells only, multiplies by the whole mass.
@@ -146,15 +166,7 @@ pub fn modes(
     // K − σM, the mass once between the processes (on the rows of the non-cell terms)
     let sigma = shift(settings);
     if sigma != 0.0 {
-        let mut terms = problem
-            .assembler()
-            .global_terms(Some(&mut a))
-            .expect("a matrix was given");
-        let positions = mass.positions_in(&problem.dofs, |i, j| terms.position(i, j));
-        let values = terms.values_mut();
-        for (pos, p) in positions {
-            values[pos] -= sigma * mass.values[p];
-        }
+        add_mass_on_term_rows(&problem, mass, -sigma, &mut a);
     }
     factor_shifted(lin.as_mut(), &a, settings)?;
     drop(a);
