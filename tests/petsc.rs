@@ -393,6 +393,8 @@ fn mpirun(ranks: usize, dir: &Path, args: &[&str]) -> std::process::Output {
         .args(args)
         .current_dir(dir)
         .env("RAYON_NUM_THREADS", "1")
+        // each rank reports where the entries it passes lie (checked by `on_ranks_of`)
+        .env("DEASIM_PETSC_VERBOSE", "1")
         // Open MPI refuses root unless told (containers, CI)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
@@ -461,6 +463,33 @@ fn on_ranks_of(
     );
     eprintln!(
         "{example_name}: largest relative probe difference {ranks} ranks (PETSc) vs serial LDLT: {worst:.2e}"
+    );
+    // the rows follow the cells: each rank reports, per linear system, where the entries it
+    // passes lie; over the ranks, most lie in the passing rank's own rows, and at least as many
+    // as with the rows split evenly (a rank with fewer rows may keep fewer of its own)
+    let (mut all, mut own, mut even) = (0.0, 0.0, 0.0);
+    for r in 0..ranks {
+        for part in log.split(&format!("rank {r}: PETSc rows ")).skip(1) {
+            let number = |after: &str| -> f64 {
+                let tail = part.split(after).nth(1).unwrap_or_else(|| panic!("{part}"));
+                tail.split_whitespace().next().unwrap().parse().unwrap()
+            };
+            let entries = number("of the ");
+            all += entries;
+            own += entries * number("entries it passes, ") / 100.0;
+            even += entries * number("own rows (") / 100.0;
+        }
+    }
+    let (own, even) = (own / all, even / all);
+    eprintln!(
+        "{example_name}: {:.1} % of the entries passed lie in the passing rank's rows ({:.1} % \
+         with the rows split evenly)",
+        100.0 * own,
+        100.0 * even
+    );
+    assert!(
+        all > 0.0 && own >= 0.8 && own >= even - 0.005,
+        "{example_name}: {own} of the entries in own rows ({even} split evenly):\n{log}"
     );
     // the cells really were shared: each rank assembled some
     let counts: Vec<usize> = log

@@ -799,6 +799,9 @@ impl System {
         }
         let _guard = lock();
         let rows = numbering.owned(rank, size);
+        if shared && std::env::var_os("DEASIM_PETSC_VERBOSE").is_some() {
+            report_locality(a, &numbering, &rows, rank, size);
+        }
         // SAFETY throughout: PETSc is initialised, every handle is created before it is used
         // and owned by a wrapper that destroys it
         unsafe {
@@ -986,6 +989,39 @@ impl System {
         }
         Ok(())
     }
+}
+
+/// Prints on stderr how many of the entries this rank passes (its own cells' part of a shared
+/// assembly) lie in the PETSc rows it owns, and how many would with the rows split evenly: with
+/// the rows following the cell partition, most entries need no communication.
+fn report_locality(
+    a: &CsrMatrix,
+    numbering: &Numbering,
+    rows: &std::ops::Range<usize>,
+    rank: usize,
+    size: usize,
+) {
+    let even = owned_rows(numbering.n, numbering.block_size, rank, size);
+    let (mut all, mut own, mut split) = (0usize, 0usize, 0usize);
+    for i in passed_unknowns(numbering, rows, a.n, true) {
+        let (r, len) = (numbering.row(i), a.row_ptr[i + 1] - a.row_ptr[i]);
+        all += len;
+        own += usize::from(rows.contains(&r)) * len;
+        split += usize::from(even.contains(&r)) * len;
+    }
+    let percent = |k: usize| 100.0 * k as f64 / all.max(1) as f64;
+    let line = format!(
+        "deasim: rank {rank}: PETSc rows {}..{} of {}; of the {all} entries it passes, {:.1} % in \
+         its own rows ({:.1} % with the rows split evenly)\n",
+        rows.start,
+        rows.end,
+        numbering.n,
+        percent(own),
+        percent(split)
+    );
+    // one write, so that the ranks' lines do not interleave
+    use std::io::Write;
+    let _ = std::io::stderr().write_all(line.as_bytes());
 }
 
 /// The unknowns of `a` whose rows this rank passes to PETSc: every unknown of a shared assembly
