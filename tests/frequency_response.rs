@@ -162,18 +162,23 @@ fn response_equals_the_steady_state_of_time_domain_runs() {
     }
 }
 
+/// The coarse diaphragm linearised about 1.5 kV (as `deasim response --bias 1500`), in a new
+/// directory named after `label`.
+fn biased(label: &str) -> deasim::cli::response::Prepared {
+    let sets: Vec<String> = SETS.iter().map(|s| s.to_string()).collect();
+    let dir = tempdir(label);
+    std::fs::write(dir.join("d.toml"), scenario(5.0, 1.0)).unwrap();
+    deasim::cli::response::prepare(Some(&dir.join("d.toml")), &sets, None, Some(1500.0)).unwrap()
+}
+
 /// The reduced model (4 modes and the static Ritz vector) reproduces the direct frequency response
 /// of the pad deflection: exact at ω → 0 (7e-10), within 2 % up to 100 Hz (measured 6.8e-4 at
 /// 5 Hz, 7.8e-3 at the 30.6 Hz resonance, 1.5e-2 at 100 Hz: one static vector stands for the
 /// overdamped truncated modes, exactly only at ω → 0).
 #[test]
 fn reduced_model_matches_the_direct_response() {
-    use deasim::cli::response::prepare;
     use deasim::time::reduced::{Outputs, ReducedModel};
-    let sets: Vec<String> = SETS.iter().map(|s| s.to_string()).collect();
-    let dir = tempdir("reduced-direct");
-    std::fs::write(dir.join("d.toml"), scenario(5.0, 1.0)).unwrap();
-    let mut p = prepare(Some(&dir.join("d.toml")), &sets, None, Some(1500.0)).unwrap();
+    let mut p = biased("reduced-direct");
     let names = p.names();
     let k = names.iter().position(|n| n == "center_deflection").unwrap();
     let offsets = p.offsets().unwrap();
@@ -211,14 +216,10 @@ fn reduced_model_matches_the_direct_response() {
 /// resonance: displacements and potentials each to 1e-9 of their largest value.
 #[test]
 fn the_real_form_gives_the_complex_response() {
-    use deasim::cli::response::prepare;
     use deasim::job::linear::device_mass;
     use deasim::solve::linear::FaerLdlt;
     use deasim::time::frequency::linearise;
-    let sets: Vec<String> = SETS.iter().map(|s| s.to_string()).collect();
-    let dir = tempdir("real-form");
-    std::fs::write(dir.join("d.toml"), scenario(5.0, 1.0)).unwrap();
-    let mut p = prepare(Some(&dir.join("d.toml")), &sets, None, Some(1500.0)).unwrap();
+    let mut p = biased("real-form");
     let driven = p
         .plan
         .electrodes

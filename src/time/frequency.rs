@@ -35,11 +35,17 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 
-/// The linearised system about a biased state, in the equation space of its dof map.
+/// The linearised system about a biased state, in the equation space of its dof map. `k`, `m`,
+/// `c` and the branch tangents are whole, or this process's part when [`linearise`] was given a
+/// solver that sums the parts of processes sharing the cells (then only [`Linearisation::response`]
+/// may use them).
 pub struct Linearisation {
     pub dofs: DofMap,
+    /// The coupled tangent K.
     pub k: CsrMatrix,
+    /// The mass M (zero on the potential rows).
     pub m: CsrMatrix,
+    /// The damping C: the Kelvin–Voigt tangent ∂f_vis/∂v and the dashpots.
     pub c: CsrMatrix,
     /// −∂r/∂V of the driven electrode, per volt (equation space, scaled rows).
     pub force: Vec<f64>,

@@ -61,16 +61,6 @@ impl Default for ModeSettings {
     }
 }
 
-/// The mass matrix in the equation space of `dofs`, on the pattern of `k` (zero elsewhere).
-pub fn mass_matrix(mass: &NodalMass, dofs: &DofMap, k: &CsrMatrix) -> CsrMatrix {
-    let mut m = k.clone();
-    m.values.iter_mut().for_each(|v| *v = 0.0);
-    for (pos, p) in mass.positions_in(dofs, |i, j| k.position(i, j)) {
-        m.values[pos] += mass.values[p];
-    }
-    m
-}
-
 /// Adds `scale`·M to `a` (a tangent of `problem`'s pattern) on the rows of the process's non-cell
 /// terms (every row without a share), so that processes that share the cells add the mass once
 /// between them.
@@ -94,7 +84,8 @@ pub fn add_mass_on_term_rows(
 /// M x in the equation space of `dofs` (PᵀMP x, P the map from equations to dofs: tied dofs
 /// share an equation), from the nodal mass itself: no matrix is built, so a distributed run,
 /// whose processes hold the tangent of their own cells only, multiplies by the whole mass.
-/// The same operator as [`mass_matrix`] on a pattern that holds every mass coupling.
+/// The same operator as the matrix of [`add_mass_on_term_rows`] on a pattern that holds every
+/// mass coupling.
 pub struct EquationMass<'a> {
     mass: &'a NodalMass,
     dofs: &'a DofMap,
@@ -467,8 +458,8 @@ mod tests {
         let dofs = &problem.dofs;
         for kind in [MassKind::Consistent, MassKind::Lumped] {
             let mass = NodalMass::new(&model, &[7.0], kind);
-            let k = problem.new_matrix();
-            let m = mass_matrix(&mass, dofs, &k);
+            let mut m = problem.new_matrix();
+            add_mass_on_term_rows(&problem, &mass, 1.0, &mut m);
             let x: Vec<f64> = (0..dofs.n_free)
                 .map(|e| ((e * 7) % 13) as f64 - 6.0)
                 .collect();
