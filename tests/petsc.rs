@@ -465,11 +465,32 @@ fn on_ranks_of(
         "{example_name}: largest relative probe difference {ranks} ranks (PETSc) vs serial LDLT: {worst:.2e}"
     );
     // the rows follow the cells: each rank reports, per linear system, where the entries it
-    // passes lie; over the ranks, most lie in the passing rank's own rows, and at least as many
-    // as with the rows split evenly (a rank with fewer rows may keep fewer of its own)
+    // passes lie; over the ranks, most lie in the passing rank's own rows (three quarters: on
+    // the 32-cell film a fifth of the entries lie at the partition's interface), and at least as
+    // many as with the rows split evenly
     let (mut all, mut own, mut even) = (0.0, 0.0, 0.0);
+    let mut first_unknowns = Vec::new();
     for r in 0..ranks {
         for part in log.split(&format!("rank {r}: PETSc rows ")).skip(1) {
+            // the partition balancing the unknowns and the boundary dealt out: each rank holds
+            // about its share of the unknowns (held ones pad PETSc's rows to whole nodes)
+            let counts: Vec<f64> = part
+                .split(" unknowns)")
+                .next()
+                .and_then(|t| t.rsplit('(').next())
+                .unwrap()
+                .split(" of ")
+                .map(|v| v.parse().unwrap())
+                .collect();
+            let (mine, total) = (counts[0], counts[1]);
+            let share = mine / total;
+            if first_unknowns.len() == r {
+                first_unknowns.push(format!("{mine} of {total}"));
+            }
+            assert!(
+                (share * ranks as f64 - 1.0).abs() <= 0.1,
+                "{example_name}: rank {r} holds {mine} of {total} unknowns:\n{log}"
+            );
             let number = |after: &str| -> f64 {
                 let tail = part.split(after).nth(1).unwrap_or_else(|| panic!("{part}"));
                 tail.split_whitespace().next().unwrap().parse().unwrap()
@@ -483,12 +504,13 @@ fn on_ranks_of(
     let (own, even) = (own / all, even / all);
     eprintln!(
         "{example_name}: {:.1} % of the entries passed lie in the passing rank's rows ({:.1} % \
-         with the rows split evenly)",
+         with the rows split evenly); the first system's unknowns per rank: {}",
         100.0 * own,
-        100.0 * even
+        100.0 * even,
+        first_unknowns.join(", ")
     );
     assert!(
-        all > 0.0 && own >= 0.8 && own >= even - 0.005,
+        all > 0.0 && own >= 0.75 && own >= even - 0.005,
         "{example_name}: {own} of the entries in own rows ({even} split evenly):\n{log}"
     );
     // the cells really were shared: each rank assembled some
@@ -591,7 +613,7 @@ fn the_partition_of_the_3d_diaphragm_cuts_its_special_sets() {
     let plan = build(&scenario, "test.toml", None).unwrap();
     let mesh = &plan.model.mesh;
     let ranks_on = |parts: usize, nodes: &[usize]| -> usize {
-        let part = deasim::mesh::partition::partition_cells(mesh, parts);
+        let part = plan.partition(parts);
         let mut on = vec![false; mesh.n_nodes()];
         nodes.iter().for_each(|&n| on[n] = true);
         let mut ranks: Vec<usize> = (0..mesh.n_cells())
@@ -1028,6 +1050,48 @@ fn modes_and_the_frequency_response_on_two_mpi_ranks_agree_with_the_serial_run()
         &visco,
         &["mesh.divisions=[8,8,2]", "stages.2.points=20"],
     );
+}
+
+/// `PETSC_OPTIONS` that choose an iterative method for the static steps leave the frequency
+/// response's indefinite real form to MUMPS's LDLᵀ: the run names that method and gives the
+/// serial run's response.
+#[test]
+fn the_frequency_response_keeps_its_direct_method_under_petsc_options() {
+    let dir = common::tempdir("petsc-response-options");
+    let text = example("film-modes").unwrap();
+    std::fs::write(dir.join("serial.toml"), text).unwrap();
+    write_petsc_scenario(&dir, text);
+    let sets = ["--set", "output.plots=false", "--set", "stages.2.points=12"];
+    let mut args = vec!["run", "serial.toml", "--out", "serial"];
+    args.extend(sets);
+    let serial = common::deasim(&args, &dir);
+    assert!(serial.status.success(), "{serial:?}");
+    let mut args = vec!["run", "petsc.toml", "--out", "petsc"];
+    args.extend(sets);
+    let petsc = without_mpi_variables(&mut Command::new(env!("CARGO_BIN_EXE_deasim")))
+        .args(&args)
+        .current_dir(&dir)
+        .env(
+            "PETSC_OPTIONS",
+            "-ksp_type gmres -pc_type jacobi -ksp_rtol 1e-12 -ksp_atol 0 -ksp_max_it 20000 \
+             -ksp_gmres_restart 200",
+        )
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&petsc.stderr).into_owned()
+        + &String::from_utf8_lossy(&petsc.stdout);
+    assert!(petsc.status.success(), "{log}");
+    assert!(
+        log.contains("with PETSc (KSP preonly, PC cholesky (mumps))"),
+        "{log}"
+    );
+    let (modes, response) = linear_analyses_difference(&dir.join("serial"), &dir.join("petsc"));
+    eprintln!("film-modes under PETSC_OPTIONS (GMRES, Jacobi): modes {modes:.2e}, response {response:.2e}");
+    assert!(
+        modes < 1e-8 && response < 1e-7,
+        "modes {modes:e}, response {response:e}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// GAMG on the whole coupled tangent: GMRES to 1e-12.

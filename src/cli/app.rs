@@ -429,8 +429,9 @@ fn distribute(plan: &mut Plan, rank: usize, ranks: usize) -> Option<Pieces> {
             plan.model.mesh.n_cells()
         );
     }
-    let owned = plan.model.share.as_ref()?;
-    Some(Pieces::new(&plan.model.mesh, &owned.owned, rank, ranks))
+    let share = plan.model.share.as_ref()?;
+    let owned: Vec<bool> = (0..share.part.len()).map(|c| share.owns(c)).collect();
+    Some(Pieces::new(&plan.model.mesh, &owned, rank, ranks))
 }
 
 /// Whether every rank of a distributed run says `ok` (a collective call: every rank makes it at

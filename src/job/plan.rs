@@ -219,9 +219,39 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// The part of every cell when `ranks` processes share them: METIS's partition balancing
+    /// both the cells and the unknowns of their nodes
+    /// ([`partition_cells`](crate::mesh::partition::partition_cells)); the same on every process.
+    /// A node's unknowns here leave out what no stage solves for node by node: the supports, the
+    /// potential of an electrode (prescribed, or one unknown for all its nodes) and the
+    /// displacements of a rigid region (a few unknowns for all its nodes).
+    pub fn partition(&self, ranks: usize) -> Vec<usize> {
+        use crate::problem::dofs::{constrained_flags, FIELDS, PHI};
+        let mesh = &self.model.mesh;
+        let mut conditions = self.model.dirichlet.clone();
+        conditions.extend(self.supports.iter().cloned());
+        conditions.extend(self.model.axisymmetric_supports());
+        let mut held = constrained_flags(mesh.n_nodes(), &conditions);
+        for e in &self.electrodes {
+            e.nodes.iter().for_each(|&n| held[n * FIELDS + PHI] = true);
+        }
+        for r in &self.rigid {
+            for &n in &r.nodes {
+                (0..FIELDS)
+                    .filter(|&f| f != PHI)
+                    .for_each(|f| held[n * FIELDS + f] = true);
+            }
+        }
+        let unknowns: Vec<usize> = held
+            .chunks(FIELDS)
+            .map(|h| h.iter().filter(|&&held| !held).count())
+            .collect();
+        crate::mesh::partition::partition_cells(mesh, ranks, Some(&unknowns))
+    }
+
     /// Shares the cells of the model between `ranks` processes, of which this is `rank`: a
-    /// METIS partition of the cells ([`partition_cells`](crate::mesh::partition::partition_cells),
-    /// the same on every process), of which this process assembles its part; `sum` adds a
+    /// METIS partition of the cells ([`Plan::partition`], the same on every process), of which
+    /// this process assembles its part; `sum` adds a
     /// vector over the processes (every process receiving the same bits). Every system built
     /// from the model afterwards assembles only this process's cells, and the model holds the
     /// reference geometry of those cells only. Returns the number of cells of each process.
@@ -231,14 +261,14 @@ impl Plan {
         ranks: usize,
         sum: crate::problem::assembly::SumOverProcesses,
     ) -> Vec<usize> {
-        let part = crate::mesh::partition::partition_cells(&self.model.mesh, ranks);
+        let part = self.partition(ranks);
         let mut counts = vec![0; ranks];
         for &p in &part {
             counts[p] += 1;
         }
         self.model.hold_geometry_of(|c| part[c] == rank);
         self.model.share = Some(std::sync::Arc::new(crate::problem::assembly::CellShare {
-            owned: part.iter().map(|&p| p == rank).collect(),
+            part,
             rank,
             size: ranks,
             sum,

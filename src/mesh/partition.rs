@@ -1,7 +1,10 @@
 //! Partition of a mesh's cells over processes, for an assembly shared between MPI ranks.
 
 use super::Mesh;
-use metis_sys::{idx_t, METIS_PartMeshDual, METIS_SetDefaultOptions, METIS_NOPTIONS};
+use metis_sys::{
+    idx_t, METIS_Free, METIS_MeshToDual, METIS_PartGraphKway, METIS_PartMeshDual,
+    METIS_SetDefaultOptions, METIS_NOPTIONS,
+};
 
 /// METIS keeps its random state in process globals: every call of METIS in this crate (the
 /// partitions here, the orderings of the sparse factorisations) holds this lock, so that an
@@ -10,29 +13,51 @@ pub(crate) static METIS: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// The part (0..`parts`) of every cell: METIS's k-way partition of the cells' dual graph, in
 /// which two cells are adjacent when they share a node, so that the parts' interfaces (the
-/// unknowns that several processes add to) are small. METIS runs with its default (fixed) seed:
-/// the same mesh gives the same partition on every process. When METIS cannot partition (fewer
-/// cells than parts, indices beyond 32 bits, a METIS error) the cells are split into contiguous
-/// blocks of their numbering instead.
-pub fn partition_cells(mesh: &Mesh, parts: usize) -> Vec<usize> {
+/// unknowns that several processes add to) are small. With `unknowns` (the free unknowns of each
+/// node) the parts balance two things at once (METIS's multi-constraint partitioning): their
+/// cells, the work of assembly, and their share of the unknowns, the rows of the linear systems
+/// (each node's unknowns divided among its cells); a mesh with many held nodes, such as a
+/// clamped rim, otherwise gives one part far more rows than the other. METIS runs with its
+/// default (fixed) seed: the same mesh gives the same partition on every process. When METIS
+/// cannot partition (fewer cells than parts, indices beyond 32 bits, a METIS error) the cells are
+/// split into contiguous blocks of their numbering instead.
+pub fn partition_cells(mesh: &Mesh, parts: usize, unknowns: Option<&[usize]>) -> Vec<usize> {
     let n = mesh.n_cells();
     if parts <= 1 || n == 0 {
         return vec![0; n];
     }
-    metis_parts(mesh, parts).unwrap_or_else(|| (0..n).map(|c| c * parts / n).collect())
+    let unknowns = unknowns.filter(|u| u.len() == mesh.n_nodes());
+    metis_parts(mesh, parts, unknowns).unwrap_or_else(|| (0..n).map(|c| c * parts / n).collect())
 }
 
-fn metis_parts(mesh: &Mesh, parts: usize) -> Option<Vec<usize>> {
+/// Per cell: its share of its nodes' unknowns, each node's divided evenly among its cells, in
+/// units of 1/840 (840 is divisible by 1 to 8, the cells at a node of a structured mesh).
+fn row_weights(mesh: &Mesh, unknowns: &[usize]) -> Vec<idx_t> {
+    let mut cells_at = vec![0usize; mesh.n_nodes()];
+    for c in 0..mesh.n_cells() {
+        mesh.cell(c).iter().for_each(|&v| cells_at[v] += 1);
+    }
+    (0..mesh.n_cells())
+        .map(|c| {
+            mesh.cell(c)
+                .iter()
+                .map(|&v| (840 * unknowns[v] + cells_at[v] / 2) / cells_at[v])
+                .sum::<usize>()
+                .min(idx_t::MAX as usize / mesh.n_cells()) as idx_t
+        })
+        .collect()
+}
+
+fn metis_parts(mesh: &Mesh, parts: usize, unknowns: Option<&[usize]>) -> Option<Vec<usize>> {
     let n = mesh.n_cells();
     let npc = mesh.kind.nodes_per_cell();
     if n < parts || n * npc >= idx_t::MAX as usize || mesh.n_nodes() >= idx_t::MAX as usize {
         return None;
     }
-    let eptr: Vec<idx_t> = (0..=n).map(|c| (c * npc) as idx_t).collect();
-    let eind: Vec<idx_t> = (0..n)
+    let mut eptr: Vec<idx_t> = (0..=n).map(|c| (c * npc) as idx_t).collect();
+    let mut eind: Vec<idx_t> = (0..n)
         .flat_map(|c| mesh.cell(c).iter().map(|&v| v as idx_t))
         .collect();
-    let (mut eptr, mut eind) = (eptr, eind);
     let mut ne = n as idx_t;
     let mut nn = mesh.n_nodes() as idx_t;
     let mut ncommon: idx_t = 1;
@@ -40,27 +65,80 @@ fn metis_parts(mesh: &Mesh, parts: usize) -> Option<Vec<usize>> {
     let mut options = vec![0 as idx_t; METIS_NOPTIONS as usize];
     let mut objval: idx_t = 0;
     let mut epart = vec![0 as idx_t; n];
-    let mut npart = vec![0 as idx_t; mesh.n_nodes()];
     let _one_at_a_time = METIS.lock().unwrap_or_else(|e| e.into_inner());
-    // SAFETY: the arrays have the sizes METIS documents (eptr ne+1, eind eptr[ne], epart ne,
-    // npart nn, options METIS_NOPTIONS) and outlive the call; the weights may be null.
-    let status = unsafe {
-        METIS_SetDefaultOptions(options.as_mut_ptr());
-        METIS_PartMeshDual(
-            &mut ne,
-            &mut nn,
-            eptr.as_mut_ptr(),
-            eind.as_mut_ptr(),
-            std::ptr::null_mut(),
-            std::ptr::null_mut(),
-            &mut ncommon,
-            &mut nparts,
-            std::ptr::null_mut(),
-            options.as_mut_ptr(),
-            &mut objval,
-            epart.as_mut_ptr(),
-            npart.as_mut_ptr(),
-        )
+    let status = if let Some(unknowns) = unknowns {
+        // two weights per cell: 1 (its assembly) and its share of the rows
+        let mut vwgt: Vec<idx_t> = row_weights(mesh, unknowns)
+            .into_iter()
+            .flat_map(|w| [1, w.max(1)])
+            .collect();
+        let mut ncon: idx_t = 2;
+        let mut numflag: idx_t = 0;
+        let (mut xadj, mut adjncy): (*mut idx_t, *mut idx_t) =
+            (std::ptr::null_mut(), std::ptr::null_mut());
+        // SAFETY: the arrays have the sizes METIS documents (eptr ne+1, eind eptr[ne], vwgt
+        // ncon·ne, epart ne, options METIS_NOPTIONS) and outlive the calls; the dual graph is
+        // allocated by METIS (xadj ne+1 entries, adjncy xadj[ne]), read only by METIS and freed
+        // by METIS_Free; null weights and targets mean METIS's defaults
+        unsafe {
+            METIS_SetDefaultOptions(options.as_mut_ptr());
+            let mut status = METIS_MeshToDual(
+                &mut ne,
+                &mut nn,
+                eptr.as_mut_ptr(),
+                eind.as_mut_ptr(),
+                &mut ncommon,
+                &mut numflag,
+                &mut xadj,
+                &mut adjncy,
+            );
+            if status == metis_sys::rstatus_et_METIS_OK {
+                status = METIS_PartGraphKway(
+                    &mut ne,
+                    &mut ncon,
+                    xadj,
+                    adjncy,
+                    vwgt.as_mut_ptr(),
+                    std::ptr::null_mut(),
+                    std::ptr::null_mut(),
+                    &mut nparts,
+                    std::ptr::null_mut(),
+                    std::ptr::null_mut(),
+                    options.as_mut_ptr(),
+                    &mut objval,
+                    epart.as_mut_ptr(),
+                );
+            }
+            if !xadj.is_null() {
+                METIS_Free(xadj.cast());
+            }
+            if !adjncy.is_null() {
+                METIS_Free(adjncy.cast());
+            }
+            status
+        }
+    } else {
+        let mut npart = vec![0 as idx_t; mesh.n_nodes()];
+        // SAFETY: the arrays have the sizes METIS documents (eptr ne+1, eind eptr[ne], epart ne,
+        // npart nn, options METIS_NOPTIONS) and outlive the call; the weights may be null.
+        unsafe {
+            METIS_SetDefaultOptions(options.as_mut_ptr());
+            METIS_PartMeshDual(
+                &mut ne,
+                &mut nn,
+                eptr.as_mut_ptr(),
+                eind.as_mut_ptr(),
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
+                &mut ncommon,
+                &mut nparts,
+                std::ptr::null_mut(),
+                options.as_mut_ptr(),
+                &mut objval,
+                epart.as_mut_ptr(),
+                npart.as_mut_ptr(),
+            )
+        }
     };
     if status != metis_sys::rstatus_et_METIS_OK {
         return None;
@@ -78,8 +156,8 @@ mod tests {
     #[test]
     fn cells_split_into_connected_balanced_parts() {
         let mesh = box_mesh([1.0, 1.0, 0.25], [8, 8, 2], ElementKind::Hex8);
-        let part = partition_cells(&mesh, 2);
-        assert_eq!(part, partition_cells(&mesh, 2), "deterministic");
+        let part = partition_cells(&mesh, 2, None);
+        assert_eq!(part, partition_cells(&mesh, 2, None), "deterministic");
         let count = |p: usize| part.iter().filter(|&&q| q == p).count();
         assert_eq!(count(0) + count(1), 128);
         assert!(
@@ -88,9 +166,33 @@ mod tests {
             count(0),
             count(1)
         );
-        assert_eq!(partition_cells(&mesh, 1), vec![0; 128]);
+        assert_eq!(partition_cells(&mesh, 1, None), vec![0; 128]);
+        // a third of the nodes held (x < 1/3): the parts balance the cells and the unknowns
+        let unknowns: Vec<usize> = mesh
+            .nodes
+            .iter()
+            .map(|x| if x[0] < 0.3 { 0 } else { 4 })
+            .collect();
+        for parts in [2, 3] {
+            let part = partition_cells(&mesh, parts, Some(&unknowns));
+            let mut cells = vec![0usize; parts];
+            part.iter().for_each(|&p| cells[p] += 1);
+            // each part's share of the unknowns (a node's divided among its cells)
+            let mut rows = vec![0usize; parts];
+            for (c, w) in row_weights(&mesh, &unknowns).into_iter().enumerate() {
+                rows[part[c]] += w as usize;
+            }
+            let total: usize = rows.iter().sum();
+            let even = |v: &[usize], all: usize, slack: f64| {
+                v.iter()
+                    .all(|&x| (x as f64 * parts as f64 / all as f64 - 1.0).abs() <= slack)
+            };
+            assert!(even(&cells, 128, 0.1), "{parts} parts: cells {cells:?}");
+            assert!(even(&rows, total, 0.1), "{parts} parts: rows {rows:?}");
+            eprintln!("{parts} parts: cells {cells:?}, rows {rows:?}");
+        }
         // more parts than cells: contiguous blocks
         let tiny = box_mesh([1.0, 1.0, 1.0], [1, 1, 2], ElementKind::Hex8);
-        assert_eq!(partition_cells(&tiny, 3), vec![0, 1]);
+        assert_eq!(partition_cells(&tiny, 3, None), vec![0, 1]);
     }
 }

@@ -14,10 +14,11 @@
 //! distributed linear solver. That part has a pattern of its own: the couplings of the owned
 //! cells, and the whole rows of its term equations ([`Assembler::term_rows`]), into which this
 //! process adds the tangent's terms that are not cell terms ([`Assembler::global_terms`]). An
-//! equation is a term equation of the process that owns the first cell (in cell order) at its
-//! node, so the term equations of the processes cover every equation once and each lies among
-//! the process's own cells' rows. So no process holds the whole tangent or its whole pattern,
-//! nor more rows than its cells touch. Without a share nothing changes.
+//! equation is a term equation of one process whose cells meet its node, the nodes on the
+//! partition's boundary dealt out so that the processes get nearly equal numbers of equations
+//! (`term_processes`), so the term equations of the processes cover every equation once and
+//! each lies among the process's own cells' rows. So no process holds the whole tangent or its
+//! whole pattern, nor more rows than its cells touch. Without a share nothing changes.
 
 use crate::element::{LocalMatrix, MAX_LOCAL};
 use crate::mesh::Mesh;
@@ -135,8 +136,8 @@ impl CsrMatrix {
 /// The cells this process assembles, and how its partial sums meet the other processes'.
 /// Built by the run set-up; the physics sees only this.
 pub struct CellShare {
-    /// Per cell: whether this process assembles it.
-    pub owned: Vec<bool>,
+    /// Per cell: the process that assembles it (the same on every process).
+    pub part: Vec<usize>,
     /// This process's index among the processes ...
     pub rank: usize,
     /// ... and their number.
@@ -149,6 +150,11 @@ pub struct CellShare {
 pub type SumOverProcesses = Box<dyn Fn(&mut [f64]) -> Result<(), String> + Send + Sync>;
 
 impl CellShare {
+    /// Whether this process assembles cell `c`.
+    pub fn owns(&self, c: usize) -> bool {
+        self.part.get(c) == Some(&self.rank)
+    }
+
     /// Sums `v` over the processes after a pass over their cells in which this process's cell
     /// `failed` failed (if any): every process then fails alike when a cell failed on any (so
     /// that all take the same path), with this process's own message when the cell was its
@@ -189,11 +195,80 @@ impl CellShare {
 impl std::fmt::Debug for CellShare {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("CellShare")
-            .field("owned", &self.owned.iter().filter(|&&o| o).count())
+            .field(
+                "owned",
+                &(0..self.part.len()).filter(|&c| self.owns(c)).count(),
+            )
             .field("rank", &self.rank)
             .field("size", &self.size)
             .finish()
     }
+}
+
+/// The process that takes the non-cell terms (and, in a distributed solver, the rows) of each
+/// node: always one whose cells meet the node, so that a process's term rows lie among its own
+/// cells' rows. A node inside one process's cells goes to that process; the nodes on the
+/// partition's boundary are dealt out so that the processes get nearly equal numbers of free
+/// unknowns, where a fixed rule (e.g. the process of the node's first cell) gives one process
+/// the whole boundary: first each to whichever of its cells' processes has the fewest so far (in
+/// node order, the lowest rank on a tie), then moved one by one to a less loaded process of its
+/// cells while that evens the loads. Nodes in no cell go to process 0. The same on every
+/// process.
+fn term_processes(dofs: &DofMap, share: &CellShare, node_cells: &[Vec<usize>]) -> Vec<usize> {
+    const BOUNDARY: usize = usize::MAX;
+    let free = |n: usize| {
+        (0..FIELDS)
+            .filter(|&f| dofs.eq[n * FIELDS + f] != CONSTRAINED)
+            .count()
+    };
+    let mut load = vec![0usize; share.size.max(1)];
+    let mut owner: Vec<usize> = node_cells
+        .iter()
+        .enumerate()
+        .map(|(n, cells)| {
+            let mut parts = cells.iter().map(|&c| share.part[c]);
+            let first = parts.next().unwrap_or(0);
+            if parts.all(|p| p == first) {
+                load[first] += free(n);
+                first
+            } else {
+                BOUNDARY
+            }
+        })
+        .collect();
+    // the least loaded process among those whose cells meet node n
+    let lightest = |n: usize, load: &[usize]| {
+        node_cells[n]
+            .iter()
+            .map(|&c| share.part[c])
+            .min_by_key(|&p| (load[p], p))
+            .expect("a boundary node has cells")
+    };
+    let boundary: Vec<usize> = (0..owner.len()).filter(|&n| owner[n] == BOUNDARY).collect();
+    for &n in &boundary {
+        let best = lightest(n, &load);
+        load[best] += free(n);
+        owner[n] = best;
+    }
+    // that order can leave a process short (its boundary dealt before another process's load
+    // was known): move boundary nodes to a less loaded process while that lowers the sum of
+    // squared loads (so this ends), in passes over the boundary
+    for _ in 0..100 {
+        let mut moved = false;
+        for &n in &boundary {
+            let (w, from, to) = (free(n), owner[n], lightest(n, &load));
+            if w > 0 && load[to] + w < load[from] {
+                load[from] -= w;
+                load[to] += w;
+                owner[n] = to;
+                moved = true;
+            }
+        }
+        if !moved {
+            break;
+        }
+    }
+    owner
 }
 
 /// A cell kernel failed.
@@ -285,11 +360,7 @@ impl Assembler {
 
     fn build(mesh: &Mesh, dofs: &DofMap, share: Option<Arc<CellShare>>) -> Self {
         let npc = mesh.kind.nodes_per_cell();
-        let owned = |c: usize| {
-            share
-                .as_ref()
-                .is_none_or(|s| s.owned.get(c).copied().unwrap_or(false))
-        };
+        let owned = |c: usize| share.as_ref().is_none_or(|s| s.owns(c));
         // node adjacency through cells
         let mut node_cells: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
         for c in 0..mesh.n_cells() {
@@ -297,14 +368,11 @@ impl Assembler {
                 node_cells[n].push(c);
             }
         }
-        // an equation is a term equation of the process owning the first cell at its nodes
-        // (process 0 takes the equations of nodes in no cell)
-        let takes_terms = |nodes: &[usize]| match &share {
-            None => true,
-            Some(s) => match nodes.iter().filter_map(|&n| node_cells[n].first()).min() {
-                Some(&c) => owned(c),
-                None => s.rank == 0,
-            },
+        // an equation is a term equation of the process that takes its lowest node
+        let node_owner = share.as_ref().map(|s| term_processes(dofs, s, &node_cells));
+        let takes_terms = |nodes: &[usize]| match (&share, &node_owner) {
+            (Some(s), Some(owner)) => nodes.iter().min().is_some_and(|&n| owner[n] == s.rank),
+            _ => true,
         };
         let mut terms = share.as_ref().map(|_| vec![false; dofs.n_free]);
         let mut row_ptr = Vec::with_capacity(dofs.n_free + 1);
@@ -826,10 +894,10 @@ mod tests {
         ] {
             let mut sum = whole.zeros_like();
             let mut covered = vec![0; dofs.n_free];
+            let mut term_counts = Vec::new();
+            let part: Vec<usize> = (0..mesh.n_cells()).map(|c| part_of(c, size)).collect();
             for rank in 0..size {
-                let owned: Vec<bool> = (0..mesh.n_cells())
-                    .map(|c| part_of(c, size) == rank)
-                    .collect();
+                let owned: Vec<bool> = part.iter().map(|&p| p == rank).collect();
                 // the rows of the owned cells' equations
                 let mut touched = vec![false; dofs.n_free];
                 for c in (0..mesh.n_cells()).filter(|&c| owned[c]) {
@@ -843,13 +911,14 @@ mod tests {
                     }
                 }
                 let share = Arc::new(CellShare {
-                    owned,
+                    part: part.clone(),
                     rank,
                     size,
                     sum: Box::new(|_| Ok(())),
                 });
                 let asm = Assembler::shared(&mesh, &dofs, share);
                 asm.term_rows().for_each(|e| covered[e] += 1);
+                term_counts.push(asm.term_rows().count());
                 // a part holds only the rows of its own cells
                 assert!(asm.term_rows().all(|e| touched[e]), "{size} processes");
                 let part = assemble(&asm);
@@ -867,6 +936,17 @@ mod tests {
                 }
             }
             assert!(covered.iter().all(|&c| c == 1), "the term rows cover once");
+            // the boundary's rows dealt out: nearly equal rows per process
+            let (least, most) = (
+                *term_counts.iter().min().unwrap(),
+                *term_counts.iter().max().unwrap(),
+            );
+            eprintln!("{size} processes: term rows {term_counts:?}");
+            assert!(
+                most - least <= dofs.n_free / 20,
+                "{size} processes: term rows {term_counts:?} of {}",
+                dofs.n_free
+            );
             let scale = whole.values.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
             for (a, b) in sum.values.iter().zip(&whole.values) {
                 assert!(

@@ -270,7 +270,7 @@ impl Model {
     /// Whether this process evaluates cell `c`: every cell, unless processes share the cells
     /// ([`Model::share`]).
     pub fn owns(&self, c: usize) -> bool {
-        self.share.as_ref().is_none_or(|s| s.owned[c])
+        self.share.as_ref().is_none_or(|s| s.owns(c))
     }
 
     /// The conditions every axisymmetric model carries: the unused third displacement slot held

@@ -299,9 +299,8 @@ mod tests {
         for size in [2, 3] {
             let parts = on_threads(size, |rank, sum| {
                 let mut m = model.clone();
-                let owned: Vec<bool> = (0..n).map(|c| c * size / n == rank).collect();
                 m.share = Some(Arc::new(CellShare {
-                    owned,
+                    part: (0..n).map(|c| c * size / n).collect(),
                     rank,
                     size,
                     sum,

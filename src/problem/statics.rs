@@ -94,7 +94,7 @@ pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
     // shared cells of another mesh (never the case: the stages share the mesh) would leave
     // cells out; every process then assembles everything, as without a share
     let assembler = match &model.share {
-        Some(share) if share.owned.len() == model.mesh.n_cells() => {
+        Some(share) if share.part.len() == model.mesh.n_cells() => {
             Assembler::shared(&model.mesh, &dofs, share.clone())
         }
         _ => Assembler::new(&model.mesh, &dofs),
@@ -724,10 +724,10 @@ mod tests {
         let n = model.mesh.n_cells();
         on_threads(size, |rank, sum| {
             let mut m = model.clone();
-            let owned: Vec<bool> = (0..n).map(|c| c * size / n == rank).collect();
-            m.hold_geometry_of(|c| owned[c]);
+            let part: Vec<usize> = (0..n).map(|c| c * size / n).collect();
+            m.hold_geometry_of(|c| part[c] == rank);
             m.share = Some(Arc::new(CellShare {
-                owned,
+                part,
                 rank,
                 size,
                 sum,

@@ -93,6 +93,11 @@ pub trait LinearSolver: Send {
     fn set_operator(&mut self, a: &CsrMatrix) -> Result<(), LinearSolverError> {
         self.factor(a).map(|_| ())
     }
+    /// The method in use, where the solver's options choose it (e.g. PETSc's KSP and PC, known
+    /// after the first factorisation), for reports.
+    fn method(&self) -> Option<String> {
+        None
+    }
     /// Counts of the work done so far, for reports and benchmarks.
     fn stats(&self) -> SolverStats {
         SolverStats::default()
@@ -302,15 +307,13 @@ impl SolverSettings {
 
     /// For a solver that sums the parts of processes that share the cells: an exact direct
     /// solver of the same kind for symmetric indefinite matrices whose diagonal may vanish
-    /// (pivoting), whatever the options of the run's solver: PETSc with MUMPS's LDLᵀ. `None` for
-    /// the kinds that take whole matrices.
+    /// (pivoting), whatever the options of the run's solver or `PETSC_OPTIONS` say: PETSc with
+    /// MUMPS's LDLᵀ. `None` for the kinds that take whole matrices.
     pub fn distributed_direct(&self) -> Option<Box<dyn LinearSolver>> {
         match self.kind {
             SolverKind::Direct | SolverKind::Auto | SolverKind::Iterative => None,
             #[cfg(feature = "petsc")]
-            SolverKind::Petsc => Some(Box::new(super::petsc::PetscSolver::new(
-                "-ksp_type preonly -pc_type cholesky -pc_factor_mat_solver_type mumps",
-            ))),
+            SolverKind::Petsc => Some(Box::new(super::petsc::PetscSolver::mumps_ldlt())),
         }
     }
 

@@ -34,8 +34,9 @@
 //! ([`DofLayout::shared`]): the rank's tangent is then its part, with a pattern of its own, and
 //! it passes every entry of it, wherever the rows are (`MatSetValues`, adding); PETSc sends the
 //! entries of other ranks' rows to them and sums them at assembly. Each rank owns the rows of the
-//! nodes whose equations take its non-cell terms ([`DofLayout::owned`]: the nodes whose first
-//! cell is its own), so only the entries on the partition's boundary travel. Without a layout the
+//! nodes whose equations take its non-cell terms ([`DofLayout::owned`]: nodes of its own cells,
+//! those on the partition's boundary dealt out evenly), so only the entries on the partition's
+//! boundary travel. Without a layout the
 //! block size is agreed between the ranks. [`sum_over_ranks`] sums the residual.
 //!
 //! **Near-null space.** From the system's [`DofLayout`] the solver builds the rigid-body modes
@@ -752,6 +753,7 @@ impl System {
     fn new(
         a: &CsrMatrix,
         options: &str,
+        fixed: bool,
         layout: Option<&DofLayout>,
     ) -> Result<System, LinearSolverError> {
         if ffi::PetscInt::try_from(a.n).is_err() {
@@ -764,7 +766,7 @@ impl System {
         let layout = layout.filter(|l| l.node.len() == a.n);
         let shared = layout.is_some_and(|l| l.shared);
         // with shared cells, each rank owns the rows of the equations it takes the terms of
-        // (those at nodes whose first cell is its own), so that most of its entries stay on it
+        // (at nodes of its own cells), so that most of its entries stay on it
         let mut owner: Option<Vec<usize>> = None;
         if let Some(owned) = layout.and_then(|l| l.owned.as_ref()).filter(|_| shared) {
             let mut ranks: Vec<f64> = owned
@@ -820,7 +822,7 @@ impl System {
                 ffi::VecScatterCreateToAll(x.0, &mut scatter.0, &mut x_all.0),
                 "VecScatterCreateToAll",
             )?;
-            let (ksp, mut description, gives_inertia) = create_ksp(comm, &mat, options)?;
+            let (ksp, mut description, gives_inertia) = create_ksp(comm, &mat, options, fixed)?;
             let mut modes = 0;
             // a factorisation needs no modes
             let direct = description.contains("PC cholesky") || description.contains("PC lu");
@@ -1010,12 +1012,22 @@ fn report_locality(
         split += usize::from(even.contains(&r)) * len;
     }
     let percent = |k: usize| 100.0 * k as f64 / all.max(1) as f64;
+    // the rows that are unknowns, not padding of a node's held ones
+    let unknowns = if numbering.unknown.is_empty() {
+        rows.len()
+    } else {
+        numbering.unknown[rows.clone()]
+            .iter()
+            .filter(|&&u| u != PADDING)
+            .count()
+    };
     let line = format!(
-        "deasim: rank {rank}: PETSc rows {}..{} of {}; of the {all} entries it passes, {:.1} % in \
-         its own rows ({:.1} % with the rows split evenly)\n",
+        "deasim: rank {rank}: PETSc rows {}..{} of {} ({unknowns} of {} unknowns); of the {all} \
+         entries it passes, {:.1} % in its own rows ({:.1} % with the rows split evenly)\n",
         rows.start,
         rows.end,
         numbering.n,
+        a.n,
         percent(own),
         percent(split)
     );
@@ -1307,7 +1319,8 @@ unsafe fn attach_modes(
 }
 
 /// The KSP on `mat`: deasim's default (MUMPS Cholesky, i.e. LDLᵀ), then the scenario's options
-/// and `PETSC_OPTIONS` inserted into the current (the solver's own) database and applied.
+/// and `PETSC_OPTIONS` inserted into the current (the solver's own) database and applied; with
+/// `fixed` the default method is kept whatever they say (only MUMPS's parameters apply).
 /// Returns it with a description and whether its factorisation gives the inertia.
 ///
 /// # Safety
@@ -1316,6 +1329,7 @@ unsafe fn create_ksp(
     comm: ffi::MPI_Comm,
     mat: &Mat,
     options: &str,
+    fixed: bool,
 ) -> Result<(Ksp, String, bool), LinearSolverError> {
     let mut ksp = Ksp(ptr::null_mut());
     check(ffi::KSPCreate(comm, &mut ksp.0), "KSPCreate")?;
@@ -1339,6 +1353,23 @@ unsafe fn create_ksp(
         insert_options(&env, "PETSC_OPTIONS")?;
     }
     check(ffi::KSPSetFromOptions(ksp.0), "KSPSetFromOptions")?;
+    if fixed {
+        // the method again, whatever the options chose; MUMPS's own options (`-mat_mumps_…`)
+        // are read when the factor is made, so they still apply
+        check(
+            ffi::KSPSetType(ksp.0, ffi::KSPPREONLY.as_ptr().cast()),
+            "KSPSetType",
+        )?;
+        check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
+        check(
+            ffi::PCSetType(pc, ffi::PCCHOLESKY.as_ptr().cast()),
+            "PCSetType",
+        )?;
+        check(
+            ffi::PCFactorSetMatSolverType(pc, ffi::MATSOLVERMUMPS.as_ptr().cast()),
+            "PCFactorSetMatSolverType",
+        )?;
+    }
 
     let mut ksp_type: ffi::KSPType = ptr::null();
     check(ffi::KSPGetType(ksp.0, &mut ksp_type), "KSPGetType")?;
@@ -1378,6 +1409,8 @@ unsafe fn create_ksp(
 /// distributed by rows over the ranks of `PETSC_COMM_WORLD`.
 pub struct PetscSolver {
     options: String,
+    /// Whether the method is MUMPS's LDLᵀ whatever the options say ([`PetscSolver::mumps_ldlt`]).
+    fixed: bool,
     system: Option<System>,
     factored: bool,
     /// The layout of the current system's unknowns (near-null space, fields, shared entries).
@@ -1404,10 +1437,21 @@ impl PetscSolver {
     pub fn new(options: &str) -> Self {
         PetscSolver {
             options: options.to_string(),
+            fixed: false,
             system: None,
             factored: false,
             layout: None,
             stats: SolverStats::default(),
+        }
+    }
+
+    /// MUMPS's LDLᵀ (exact, with pivoting, for symmetric indefinite matrices), kept whatever
+    /// `PETSC_OPTIONS` says of the KSP and PC: for systems that no iterative method tuned for
+    /// the static steps would suit. MUMPS's own options (`-mat_mumps_icntl_…`) still apply.
+    pub fn mumps_ldlt() -> Self {
+        PetscSolver {
+            fixed: true,
+            ..PetscSolver::new("")
         }
     }
 
@@ -1434,7 +1478,12 @@ impl LinearSolver for PetscSolver {
         let same = matches!(&self.system, Some(s) if s.n == a.n && s.nnz == a.nnz());
         if !same {
             self.system = None;
-            self.system = Some(System::new(a, &self.options, self.layout.as_ref())?);
+            self.system = Some(System::new(
+                a,
+                &self.options,
+                self.fixed,
+                self.layout.as_ref(),
+            )?);
         }
         let system = self.system.as_mut().expect("set above");
         let inertia = system.factor(a)?;
@@ -1475,6 +1524,10 @@ impl LinearSolver for PetscSolver {
             self.system = None;
             self.factored = false;
         }
+    }
+
+    fn method(&self) -> Option<String> {
+        PetscSolver::method(self).map(str::to_string)
     }
 
     fn name(&self) -> &'static str {

@@ -480,8 +480,12 @@ impl Linearisation {
     pub fn solved_by(&self) -> String {
         match &self.real {
             Some(real) => format!(
-                "the real form [[A, B], [B, −A]] of (A + iB) x = f with {}{}",
+                "the real form [[A, B], [B, −A]] of (A + iB) x = f with {}{}{}",
                 real.solver.name(),
+                real.solver
+                    .method()
+                    .map(|m| format!(" ({m})"))
+                    .unwrap_or_default(),
                 if real.parts {
                     ", each process holding its own cells' part"
                 } else {
