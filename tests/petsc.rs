@@ -1033,6 +1033,30 @@ fn modes_and_the_frequency_response_on_two_mpi_ranks_agree_with_the_serial_run()
         example("diaphragm-response").unwrap(),
         &["stages.3.points=20", "stages.2.shift=500.0"],
     );
+    // the modal method (6 modes and the static correction), projected from each rank's part
+    let mut found = None;
+    let (d, _, serial, mpi) = on_ranks_of(
+        2,
+        "diaphragm-response-modal",
+        example("diaphragm-response").unwrap(),
+        &[
+            "stages.3.points=20",
+            "stages.3.method=\"modal\"",
+            "stages.3.count=6",
+        ],
+        |a, b| found = Some(linear_analyses_difference(a, b)),
+    );
+    let (_, response) = found.unwrap_or_else(|| panic!("the modal run failed:\n{serial}"));
+    assert!(
+        mpi.contains("the reduced model of 6 modes and the static correction, projected from each process's own cells' part")
+            && serial.contains("the reduced model of 6 modes and the static correction\n"),
+        "{mpi}\n{serial}"
+    );
+    eprintln!("diaphragm-response, modal method, on 2 ranks: frequency response {response:.2e}");
+    assert!(
+        d < 1e-9 && response < 1e-8,
+        "history {d:e}, response {response:e}"
+    );
     // the film of `film-modes` made of VHB 4910 (Arruda–Boyce and three Maxwell branches) at 3 kV
     let film = example("film-modes").unwrap();
     let start = film.find("[materials.elastomer]").unwrap();

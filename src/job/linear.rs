@@ -247,12 +247,9 @@ pub fn frequency_response_at(
     let mass = device_mass(plan, &model);
     let electrode = &plan.electrodes[driven];
     let bias = state[electrode.nodes[0] * FIELDS + PHI];
-    // the direct method in a distributed run: each process's part, solved in real form by the
-    // distributed solver; the modal method needs the whole matrices
-    let solver = match method {
-        ResponseMethod::Direct => plan.solver.distributed_direct(),
-        ResponseMethod::Modal { .. } => None,
-    };
+    // in a distributed run each process's part, solved by the distributed solver (the direct
+    // method in real form)
+    let solver = plan.solver.distributed_direct();
     let mut lin = linearise(
         &model,
         state,
@@ -278,9 +275,14 @@ pub fn frequency_response_at(
         method,
         solved_by: match method {
             ResponseMethod::Direct => lin.solved_by(),
-            ResponseMethod::Modal { count } => {
-                format!("the reduced model of {count} modes and the static correction")
-            }
+            ResponseMethod::Modal { count } => format!(
+                "the reduced model of {count} modes and the static correction{}",
+                if lin.is_part() {
+                    ", projected from each process's own cells' part"
+                } else {
+                    ""
+                }
+            ),
         },
         warning,
     })

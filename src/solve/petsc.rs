@@ -1318,6 +1318,27 @@ unsafe fn attach_modes(
     Ok(())
 }
 
+/// Makes `ksp` a direct solve by MUMPS's Cholesky (LDLᵀ for symmetric indefinite matrices).
+///
+/// # Safety
+/// PETSc is initialised and `ksp` is a live KSP.
+unsafe fn set_mumps_ldlt(ksp: &Ksp) -> Result<(), LinearSolverError> {
+    check(
+        ffi::KSPSetType(ksp.0, ffi::KSPPREONLY.as_ptr().cast()),
+        "KSPSetType",
+    )?;
+    let mut pc: ffi::PC = ptr::null_mut();
+    check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
+    check(
+        ffi::PCSetType(pc, ffi::PCCHOLESKY.as_ptr().cast()),
+        "PCSetType",
+    )?;
+    check(
+        ffi::PCFactorSetMatSolverType(pc, ffi::MATSOLVERMUMPS.as_ptr().cast()),
+        "PCFactorSetMatSolverType",
+    )
+}
+
 /// The KSP on `mat`: deasim's default (MUMPS Cholesky, i.e. LDLᵀ), then the scenario's options
 /// and `PETSC_OPTIONS` inserted into the current (the solver's own) database and applied; with
 /// `fixed` the default method is kept whatever they say (only MUMPS's parameters apply).
@@ -1334,20 +1355,7 @@ unsafe fn create_ksp(
     let mut ksp = Ksp(ptr::null_mut());
     check(ffi::KSPCreate(comm, &mut ksp.0), "KSPCreate")?;
     check(ffi::KSPSetOperators(ksp.0, mat.0, mat.0), "KSPSetOperators")?;
-    check(
-        ffi::KSPSetType(ksp.0, ffi::KSPPREONLY.as_ptr().cast()),
-        "KSPSetType",
-    )?;
-    let mut pc: ffi::PC = ptr::null_mut();
-    check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
-    check(
-        ffi::PCSetType(pc, ffi::PCCHOLESKY.as_ptr().cast()),
-        "PCSetType",
-    )?;
-    check(
-        ffi::PCFactorSetMatSolverType(pc, ffi::MATSOLVERMUMPS.as_ptr().cast()),
-        "PCFactorSetMatSolverType",
-    )?;
+    set_mumps_ldlt(&ksp)?;
     insert_options(options, "[solver] petsc_options")?;
     if let Ok(env) = std::env::var("PETSC_OPTIONS") {
         insert_options(&env, "PETSC_OPTIONS")?;
@@ -1356,20 +1364,10 @@ unsafe fn create_ksp(
     if fixed {
         // the method again, whatever the options chose; MUMPS's own options (`-mat_mumps_…`)
         // are read when the factor is made, so they still apply
-        check(
-            ffi::KSPSetType(ksp.0, ffi::KSPPREONLY.as_ptr().cast()),
-            "KSPSetType",
-        )?;
-        check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
-        check(
-            ffi::PCSetType(pc, ffi::PCCHOLESKY.as_ptr().cast()),
-            "PCSetType",
-        )?;
-        check(
-            ffi::PCFactorSetMatSolverType(pc, ffi::MATSOLVERMUMPS.as_ptr().cast()),
-            "PCFactorSetMatSolverType",
-        )?;
+        set_mumps_ldlt(&ksp)?;
     }
+    let mut pc: ffi::PC = ptr::null_mut();
+    check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
 
     let mut ksp_type: ffi::KSPType = ptr::null();
     check(ffi::KSPGetType(ksp.0, &mut ksp_type), "KSPGetType")?;

@@ -23,22 +23,25 @@
 //! matrices or a whole factor.
 
 use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
-use crate::problem::assembly::CsrMatrix;
+use crate::problem::assembly::{CellShare, CsrMatrix};
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
 use crate::problem::system::{DofLayout, NonlinearSystem};
-use crate::solve::linear::LinearSolver;
+use crate::solve::linear::{LinearSolver, SolverSettings};
 use crate::time::mass::NodalMass;
+use crate::time::modal::EquationMass;
 use faer::c64;
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use std::sync::Arc;
 
 /// The linearised system about a biased state, in the equation space of its dof map. `k`, `m`,
 /// `c` and the branch tangents are whole, or this process's part when [`linearise`] was given a
-/// solver that sums the parts of processes sharing the cells (then only [`Linearisation::response`]
-/// may use them).
+/// solver that sums the parts of processes sharing the cells ([`Linearisation::is_part`]; then
+/// products with them are summed by [`Linearisation::sum_parts`] and they are solved by the
+/// solvers of [`Linearisation::new_solver`]).
 pub struct Linearisation {
     pub dofs: DofMap,
     /// The coupled tangent K.
@@ -58,6 +61,22 @@ pub struct Linearisation {
     symbolic: Option<SymbolicLu<usize>>,
     /// The real form and its solver, when the linearisation was given a solver.
     real: Option<RealForm>,
+    /// When `k`, `m`, `c` and the branch tangents are this process's parts: how they meet.
+    parts: Option<Parts>,
+}
+
+/// y = M x in the equation space ([`Linearisation::mass_product`]).
+pub type MassProduct<'a> = Box<dyn FnMut(&[f64], &mut [f64]) + 'a>;
+
+/// What a process needs to use its parts of the linearised matrices in a distributed run.
+struct Parts {
+    /// The share of the cells, whose sum adds a vector over the processes.
+    share: Arc<CellShare>,
+    /// The layout of the equations, for new distributed solvers; its `owned` flags are the rows
+    /// of this process's non-cell terms.
+    layout: DofLayout,
+    /// The nodal mass, whole on every process (products with M without a sum).
+    mass: NodalMass,
 }
 
 /// (A + iB) x = f in real form for a solver of real symmetric matrices: with y = −Im x,
@@ -72,8 +91,6 @@ pub struct Linearisation {
 /// holds the same part of this matrix, and a solver that sums the processes' parts gets it whole.
 struct RealForm {
     solver: Box<dyn LinearSolver>,
-    /// Whether each process holds its own cells' part (the solver sums them).
-    parts: bool,
     /// The pattern of K doubled, built at the first frequency.
     matrix: Option<CsrMatrix>,
 }
@@ -268,7 +285,14 @@ pub fn linearise(
         .map(|(p, q)| -(p - q) / (2.0 * h))
         .collect();
     let branches = branch_tangents(model, &relaxed, state, &problem, &k)?;
-    let parts = problem.shares_cells();
+    let parts = match (&model.share, problem.shares_cells(), problem.layout()) {
+        (Some(share), true, Some(layout)) => Some(Parts {
+            share: share.clone(),
+            layout,
+            mass: mass.clone(),
+        }),
+        _ => None,
+    };
     let real = solver.map(|mut solver| {
         if solver.needs_layout(2 * n) {
             if let Some(layout) = problem.layout() {
@@ -277,7 +301,6 @@ pub fn linearise(
         }
         RealForm {
             solver,
-            parts,
             matrix: None,
         }
     });
@@ -291,6 +314,7 @@ pub fn linearise(
         branches,
         symbolic: None,
         real,
+        parts,
     })
 }
 
@@ -476,6 +500,60 @@ impl Linearisation {
         Ok((self.to_dofs(&xr, 1.0), self.to_dofs(&xi, 0.0)))
     }
 
+    /// Whether `k`, `m`, `c` and the branch tangents are this process's parts of a distributed
+    /// run's matrices (the processes' parts add up to them).
+    pub fn is_part(&self) -> bool {
+        self.parts.is_some()
+    }
+
+    /// Sums `v` over the processes whose parts the matrices are; nothing when they are whole.
+    pub fn sum_parts(&self, v: &mut [f64]) -> Result<(), String> {
+        match &self.parts {
+            Some(p) => (p.share.sum)(v),
+            None => Ok(()),
+        }
+    }
+
+    /// The product y = M x (equation space), whole on every process: with parts from the
+    /// nodal mass itself, else with `m`.
+    pub fn mass_product(&self) -> MassProduct<'_> {
+        match &self.parts {
+            Some(p) => {
+                let mut m = EquationMass::new(&p.mass, &self.dofs);
+                Box::new(move |x, y| m.mul(x, y))
+            }
+            None => Box::new(|x, y| self.m.mul_vec(x, y)),
+        }
+    }
+
+    /// A new solver for matrices of the linearisation's pattern: the run's (`settings`), or for
+    /// parts the distributed direct solver ([`SolverSettings::distributed_direct`]) with the
+    /// equations' layout.
+    pub fn new_solver(&self, settings: &SolverSettings) -> Result<Box<dyn LinearSolver>, String> {
+        let Some(parts) = &self.parts else {
+            return Ok(settings.build());
+        };
+        let mut solver = settings.distributed_direct().ok_or_else(|| {
+            format!(
+                "the matrices are parts of a distributed run, which the `{}` solver cannot sum",
+                settings.kind.name()
+            )
+        })?;
+        if solver.needs_layout(self.k.n) {
+            solver.set_layout(parts.layout.clone());
+        }
+        Ok(solver)
+    }
+
+    /// Whether this process adds the terms of equation `e` that are added once between the
+    /// processes (every equation when the matrices are whole).
+    pub fn takes_terms_of(&self, e: usize) -> bool {
+        self.parts
+            .as_ref()
+            .and_then(|p| p.layout.owned.as_ref())
+            .is_none_or(|owned| owned[e])
+    }
+
     /// How each frequency is solved, for reports.
     pub fn solved_by(&self) -> String {
         match &self.real {
@@ -486,7 +564,7 @@ impl Linearisation {
                     .method()
                     .map(|m| format!(" ({m})"))
                     .unwrap_or_default(),
-                if real.parts {
+                if self.parts.is_some() {
                     ", each process holding its own cells' part"
                 } else {
                     ""

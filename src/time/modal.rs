@@ -187,12 +187,14 @@ fn factor_shifted(
 }
 
 /// [`modes`] of an assembled coupled tangent `k` and mass `m` (same pattern, equation space of
-/// `dofs`).
+/// `dofs`; whole, or a process's parts when `lin` sums them), factored by `lin`, with
+/// `mass_product` the whole product y = M x.
 pub fn modes_of(
     k: &CsrMatrix,
     m: &CsrMatrix,
     dofs: &DofMap,
-    solver: &SolverSettings,
+    mut lin: Box<dyn LinearSolver>,
+    mass_product: &mut dyn FnMut(&[f64], &mut [f64]),
     settings: &ModeSettings,
 ) -> Result<Vec<Mode>, String> {
     let sigma = shift(settings);
@@ -200,10 +202,9 @@ pub fn modes_of(
     for (v, mv) in a.values.iter_mut().zip(&m.values) {
         *v -= sigma * mv;
     }
-    let mut lin = solver.build();
     factor_shifted(lin.as_mut(), &a, settings)?;
     drop(a);
-    lanczos_modes(lin, &mut |x, y| m.mul_vec(x, y), dofs, sigma, settings)
+    lanczos_modes(lin, mass_product, dofs, sigma, settings)
 }
 
 /// The modes nearest to the shift σ by shift-invert Lanczos, with `lin` holding the factored

@@ -67,11 +67,15 @@ impl ReducedModel {
         electrode: &str,
         bias_v: f64,
     ) -> Result<Self, String> {
+        // in a distributed run the matrices are this process's parts: the solvers sum them, and
+        // products with them are summed (M's is whole on every process)
+        let mut mass_product = lin.mass_product();
         let modes = modes_of(
             &lin.k,
             &lin.m,
             &lin.dofs,
-            solver,
+            lin.new_solver(solver)?,
+            &mut *mass_product,
             &ModeSettings {
                 count,
                 ..Default::default()
@@ -91,16 +95,16 @@ impl ReducedModel {
         };
         let vecs: Vec<Vec<f64>> = modes.iter().map(|m| eq(&m.shape)).collect();
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-        let m_dot = |a: &[f64], b: &[f64]| {
-            let mut mb = vec![0.0; n];
-            lin.m.mul_vec(b, &mut mb);
+        let mut mb = vec![0.0; n];
+        let mut m_dot = |a: &[f64], b: &[f64]| {
+            mass_product(b, &mut mb);
             dot(a, &mb)
         };
         // the direct potential response z = [0; K_ΦΦ⁻¹ f_Φ] (the field change at fixed u)
-        let z = potential_response(&lin.k, &lin.dofs, &lin.force, solver)?;
+        let z = potential_response(lin, solver)?;
         // the static correction as a Ritz vector: ψ = K⁻¹f − z (its potential is the condensed
         // one of its displacements), M-orthogonalised against the modes and normalised
-        let mut solver_k = solver.build();
+        let mut solver_k = lin.new_solver(solver)?;
         solver_k.factor(&lin.k).map_err(|e| e.to_string())?;
         let mut psi = lin.force.clone();
         solver_k
@@ -131,20 +135,23 @@ impl ReducedModel {
             psi.iter_mut().for_each(|x| *x /= norm);
             basis.push(psi);
         }
-        // Galerkin projection: M_r = I, K_r, C_r, f_r
+        // Galerkin projection: M_r = I, K_r, C_r, f_r (VᵀKV and VᵀCV summed over the processes'
+        // parts in a distributed run)
         let nb = basis.len();
-        let mut kr = DMatrix::<f64>::zeros(nb, nb);
-        let mut cr = DMatrix::<f64>::zeros(nb, nb);
+        let mut projected = vec![0.0; 2 * nb * nb];
         let mut kv = vec![0.0; n];
         let mut cv = vec![0.0; n];
         for j in 0..nb {
             lin.k.mul_vec(&basis[j], &mut kv);
             lin.c.mul_vec(&basis[j], &mut cv);
             for i in 0..nb {
-                kr[(i, j)] = dot(&basis[i], &kv);
-                cr[(i, j)] = dot(&basis[i], &cv);
+                projected[i * nb + j] = dot(&basis[i], &kv);
+                projected[nb * nb + i * nb + j] = dot(&basis[i], &cv);
             }
         }
+        lin.sum_parts(&mut projected)?;
+        let kr = DMatrix::from_row_slice(nb, nb, &projected[..nb * nb]);
+        let cr = DMatrix::from_row_slice(nb, nb, &projected[nb * nb..]);
         let kr = (&kr + kr.transpose()) * 0.5;
         let fr: Vec<f64> = basis.iter().map(|v| dot(v, &lin.force)).collect();
         // outputs along each basis vector, and along the direct response (z and the 1 V itself)
@@ -277,19 +284,40 @@ impl ReducedModel {
 }
 
 /// The potential at fixed displacements that the drive alone sets up: z = [0; K_ΦΦ⁻¹ f_Φ] in the
-/// equation space (zero without free potential unknowns).
-fn potential_response(
-    k: &crate::problem::assembly::CsrMatrix,
-    dofs: &crate::problem::dofs::DofMap,
-    force: &[f64],
-    solver: &SolverSettings,
-) -> Result<Vec<f64>, String> {
+/// equation space (zero without free potential unknowns). With whole matrices K_ΦΦ is factored
+/// on its own; with a process's parts, the matrix of K's pattern that holds K_ΦΦ and the identity
+/// on the displacements (added once between the processes) is, so that the distributed solver
+/// keeps the equations' layout.
+fn potential_response(lin: &Linearisation, solver: &SolverSettings) -> Result<Vec<f64>, String> {
+    let (k, dofs, force) = (&lin.k, &lin.dofs, &lin.force);
     let n = k.n;
     let fields = dofs.field_of_equation();
     let phi: Vec<usize> = (0..n).filter(|&e| fields[e] == PHI).collect();
     let mut z = vec![0.0; n];
     if phi.is_empty() {
         return Ok(z);
+    }
+    if lin.is_part() {
+        let mut a = k.clone();
+        for i in 0..n {
+            for p in a.row_ptr[i]..a.row_ptr[i + 1] {
+                let j = a.col_idx[p];
+                a.values[p] = if fields[i] == PHI && fields[j] == PHI {
+                    k.values[p]
+                } else if i == j && lin.takes_terms_of(i) {
+                    1.0
+                } else {
+                    0.0
+                };
+            }
+        }
+        let mut s = lin.new_solver(solver)?;
+        s.factor(&a).map_err(|e| e.to_string())?;
+        let mut rhs: Vec<f64> = (0..n)
+            .map(|e| if fields[e] == PHI { force[e] } else { 0.0 })
+            .collect();
+        s.solve_in_place(&mut rhs).map_err(|e| e.to_string())?;
+        return Ok(rhs);
     }
     let mut index = vec![usize::MAX; n];
     for (i, &e) in phi.iter().enumerate() {
@@ -308,10 +336,10 @@ fn potential_response(
         row_ptr.push(col_idx.len());
     }
     let block = crate::problem::assembly::CsrMatrix::new(phi.len(), row_ptr, col_idx, values);
-    let mut lin = solver.build();
-    lin.factor(&block).map_err(|e| e.to_string())?;
+    let mut s = solver.build();
+    s.factor(&block).map_err(|e| e.to_string())?;
     let mut rhs: Vec<f64> = phi.iter().map(|&e| force[e]).collect();
-    lin.solve_in_place(&mut rhs).map_err(|e| e.to_string())?;
+    s.solve_in_place(&mut rhs).map_err(|e| e.to_string())?;
     for (&e, v) in phi.iter().zip(rhs) {
         z[e] = v;
     }
