@@ -18,16 +18,19 @@ pub(crate) static METIS: std::sync::Mutex<()> = std::sync::Mutex::new(());
 /// cells, the work of assembly, and their share of the unknowns, the rows of the linear systems
 /// (each node's unknowns divided among its cells); a mesh with many held nodes, such as a
 /// clamped rim, otherwise gives one part far more rows than the other. METIS runs with its
-/// default (fixed) seed: the same mesh gives the same partition on every process. When METIS
-/// cannot partition (fewer cells than parts, indices beyond 32 bits, a METIS error) the cells are
-/// split into contiguous blocks of their numbering instead.
+/// default (fixed) seed: the same mesh gives the same partition on every process. When the
+/// two-constraint partition fails, the cells alone are balanced; when METIS cannot partition at
+/// all (fewer cells than parts, indices beyond 32 bits, a METIS error) the cells are split into
+/// contiguous blocks of their numbering instead.
 pub fn partition_cells(mesh: &Mesh, parts: usize, unknowns: Option<&[usize]>) -> Vec<usize> {
     let n = mesh.n_cells();
     if parts <= 1 || n == 0 {
         return vec![0; n];
     }
     let unknowns = unknowns.filter(|u| u.len() == mesh.n_nodes());
-    metis_parts(mesh, parts, unknowns).unwrap_or_else(|| (0..n).map(|c| c * parts / n).collect())
+    metis_parts(mesh, parts, unknowns)
+        .or_else(|| unknowns.and_then(|_| metis_parts(mesh, parts, None)))
+        .unwrap_or_else(|| (0..n).map(|c| c * parts / n).collect())
 }
 
 /// Per cell: its share of its nodes' unknowns, each node's divided evenly among its cells, in
