@@ -402,7 +402,8 @@ fn mpirun(ranks: usize, dir: &Path, args: &[&str]) -> std::process::Output {
         .expect("mpirun not found: install Open MPI (scripts/install-petsc.sh)")
 }
 
-/// As [`two_ranks`] on `ranks` ranks, with more `--set` overrides for both runs; also returns
+/// As [`two_ranks`] on `ranks` ranks, with more `--set` overrides (those of `solver.` for the
+/// distributed run only, the others for both); also returns
 /// the largest difference of the final fields (every array of the last VTU file, relative to
 /// that array's largest magnitude).
 fn on_ranks(ranks: usize, example_name: &str, extra: &[&str]) -> (f64, f64, String, String) {
@@ -430,8 +431,14 @@ fn on_ranks_of(
         "--set",
         "output.vtu_format=\"ascii\"",
     ];
+    // settings of the solver are the distributed run's: the serial run keeps the default solver
+    let mut solver = Vec::new();
     for e in extra {
-        sets.extend(["--set", e]);
+        if e.starts_with("solver.") {
+            solver.extend(["--set", e]);
+        } else {
+            sets.extend(["--set", e]);
+        }
     }
     let mut args = vec!["run", "serial.toml", "--out", "serial"];
     args.extend(&sets);
@@ -440,6 +447,7 @@ fn on_ranks_of(
     let t = Instant::now();
     let mut args = vec!["run", "petsc.toml", "--out", "mpi"];
     args.extend(&sets);
+    args.extend(&solver);
     let mpi = mpirun(ranks, &dir, &args);
     let log = String::from_utf8_lossy(&mpi.stderr).into_owned();
     assert!(
@@ -1228,6 +1236,120 @@ fn the_rigid_body_modes_help_algebraic_multigrid() {
     if let Ok((_, without)) = without {
         assert!(with < without, "{with} vs {without}");
     }
+}
+
+/// The near-null space is built on each process's own rows and orthonormalised with sums over
+/// the processes: two threads standing for two processes (their sums exchanged through a
+/// barrier) give, row for row, the one-process modes of the film's layout; those are
+/// orthonormal, zero on the padding rows and span the raw rigid-body motions.
+#[test]
+fn the_near_null_space_is_built_on_each_processs_rows() {
+    use deasim::problem::statics::StaticProblem;
+    use deasim::problem::system::NonlinearSystem;
+    use deasim::solve::linear::LinearSolverError;
+    use deasim::solve::petsc::near_null_modes;
+    use std::sync::{Barrier, Mutex};
+    let scenario = parse(example("film").unwrap(), "test.toml", &[]).unwrap();
+    let plan = build(&scenario, "test.toml", None).unwrap();
+    let p = StaticProblem::new(&plan.model, None);
+    let layout = p.layout().unwrap();
+    let n = layout.node.len();
+    // rows in reverse order of the unknowns, with a padding row after every fifth
+    let rows: Vec<Option<usize>> = (0..n)
+        .rev()
+        .flat_map(|e| {
+            if e % 5 == 0 {
+                vec![Some(e), None]
+            } else {
+                vec![Some(e)]
+            }
+        })
+        .collect();
+    let (whole, rigid) = near_null_modes(&layout, &rows, &mut |_| Ok(())).unwrap();
+    assert_eq!((whole.len(), rigid), (7, 6));
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    for (i, a) in whole.iter().enumerate() {
+        for (j, b) in whole.iter().enumerate() {
+            let expected = if i == j { 1.0 } else { 0.0 };
+            assert!(
+                (dot(a, b) - expected).abs() < 1e-12,
+                "modes {i}, {j}: {}",
+                dot(a, b)
+            );
+        }
+        for (r, e) in rows.iter().enumerate() {
+            assert!(e.is_some() || a[r] == 0.0);
+        }
+    }
+    // a rotation about the z axis through the origin lies in the span of the first six
+    let rotation: Vec<f64> = rows
+        .iter()
+        .map(|e| {
+            e.map_or(0.0, |e| {
+                let x = layout.coords[layout.node[e]];
+                match layout.field[e] {
+                    0 => -x[1],
+                    1 => x[0],
+                    _ => 0.0,
+                }
+            })
+        })
+        .collect();
+    let mut rest = rotation.clone();
+    for m in &whole[..rigid] {
+        let c = dot(&rest, m);
+        rest.iter_mut().zip(m).for_each(|(v, w)| *v -= c * w);
+    }
+    assert!(dot(&rest, &rest).sqrt() < 1e-12 * dot(&rotation, &rotation).sqrt());
+
+    // two "processes": the first 40 % of the rows and the rest
+    let split = 2 * rows.len() / 5;
+    let parts = [&rows[..split], &rows[split..]];
+    let slots: Mutex<[Vec<f64>; 2]> = Mutex::new([Vec::new(), Vec::new()]);
+    let barrier = Barrier::new(2);
+    let halves: Vec<Vec<Vec<f64>>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..2)
+            .map(|rank| {
+                let (slots, barrier, layout, part) = (&slots, &barrier, &layout, parts[rank]);
+                scope.spawn(move || {
+                    let mut sum = |v: &mut [f64]| -> Result<(), LinearSolverError> {
+                        slots.lock().unwrap()[rank] = v.to_vec();
+                        barrier.wait();
+                        let both = slots.lock().unwrap().clone();
+                        for (i, x) in v.iter_mut().enumerate() {
+                            *x = both[0][i] + both[1][i];
+                        }
+                        barrier.wait();
+                        Ok(())
+                    };
+                    near_null_modes(layout, part, &mut sum).unwrap().0
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!((halves[0].len(), halves[1].len()), (7, 7));
+    for (m, w) in whole.iter().enumerate() {
+        let joined: Vec<f64> = halves[0][m].iter().chain(&halves[1][m]).copied().collect();
+        let d = joined
+            .iter()
+            .zip(w)
+            .fold(0.0f64, |d, (a, b)| d.max((a - b).abs()));
+        assert!(d < 1e-14, "mode {m}: {d:e}");
+    }
+}
+
+/// GAMG with the near-null space on 2 ranks (each rank's modes on its own rows): the film agrees
+/// with the serial run.
+#[test]
+fn film_with_gamg_on_two_mpi_ranks_agrees_with_the_serial_run() {
+    let options = format!("solver.petsc_options=\"{GAMG}\"");
+    let (d, fields, _, log) = on_ranks(2, "film", &[&options]);
+    assert!(
+        log.contains("near-null space of 6 rigid-body modes"),
+        "{log}"
+    );
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
 /// A Krylov method with GAMG and the rigid-body modes through a whole run: the film agrees

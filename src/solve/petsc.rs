@@ -434,22 +434,37 @@ unsafe fn scatter(s: &Scatter, x: &Vector, y: &Vector) -> Result<(), LinearSolve
     Ok(())
 }
 
-/// The rigid-body modes of the free displacements of `layout` over its `n` unknowns,
-/// orthonormal: 3 translations and 3 rotations about the centroid in 3-D, the axial translation
-/// in the meridian plane; zero on the potential rows. A tie's unknown moves with its first node.
-/// Modes that the free unknowns cannot tell apart are dropped.
-pub fn rigid_body_modes(layout: &DofLayout) -> Vec<Vec<f64>> {
-    let n = layout.node.len();
+/// This process's part of the orthonormal near-null space of `layout`'s system: the rigid-body
+/// modes of the free displacements (3 translations and 3 rotations about the centroid in 3-D,
+/// the axial translation in the meridian plane; zero on the potential rows), then, if there are
+/// potentials, the constant potential (the near-null vector of the electrostatic Laplacian).
+///
+/// The modes are built on the rows whose unknowns `unknowns` lists (`None`: a padding row,
+/// zero), and orthonormalised over every process's rows: `sum` adds a few numbers over the
+/// processes (the dot products of classical Gram–Schmidt, twice for orthogonality to
+/// round-off). No process holds a whole mode, which would cost 8 bytes per mode and unknown of
+/// the whole problem. A tie's unknown moves with its first node. Modes that the free unknowns
+/// cannot tell apart are dropped (on every process alike: the sums are the same on each).
+/// Returns the modes and how many of them are rigid-body modes (the constant comes last).
+pub fn near_null_modes(
+    layout: &DofLayout,
+    unknowns: &[Option<usize>],
+    sum: &mut dyn FnMut(&mut [f64]) -> Result<(), LinearSolverError>,
+) -> Result<(Vec<Vec<f64>>, usize), LinearSolverError> {
     let is_u = |e: usize| layout.field[e] < 3;
-    let mut modes: Vec<Vec<f64>> = Vec::new();
+    let on_rows = |value: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        unknowns.iter().map(|u| u.map_or(0.0, value)).collect()
+    };
+    let mut rigid: Vec<Vec<f64>> = Vec::new();
     if layout.axisymmetric {
-        modes.push((0..n).map(|e| f64::from(layout.field[e] == 1)).collect());
+        rigid.push(on_rows(&|e| f64::from(layout.field[e] == 1)));
     } else {
         for f in 0..3u8 {
-            modes.push((0..n).map(|e| f64::from(layout.field[e] == f)).collect());
+            rigid.push(on_rows(&|e| f64::from(layout.field[e] == f)));
         }
+        // the centroid of the free displacements' nodes, from the layout every process holds
         let (mut c, mut count) = ([0.0; 3], 0.0);
-        for e in (0..n).filter(|&e| is_u(e)) {
+        for e in (0..layout.node.len()).filter(|&e| is_u(e)) {
             let x = layout.coords[layout.node[e]];
             (0..3).for_each(|i| c[i] += x[i]);
             count += 1.0;
@@ -459,47 +474,53 @@ pub fn rigid_body_modes(layout: &DofLayout) -> Vec<Vec<f64>> {
         }
         // u = ω × (x − c) for ω along each axis
         for axis in 0..3 {
-            let mode = (0..n)
-                .map(|e| {
-                    if !is_u(e) {
-                        return 0.0;
-                    }
-                    let x = layout.coords[layout.node[e]];
-                    let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
-                    let mut w = [0.0; 3];
-                    w[axis] = 1.0;
-                    let u = [
-                        w[1] * d[2] - w[2] * d[1],
-                        w[2] * d[0] - w[0] * d[2],
-                        w[0] * d[1] - w[1] * d[0],
-                    ];
-                    u[layout.field[e] as usize]
-                })
-                .collect();
-            modes.push(mode);
+            rigid.push(on_rows(&|e| {
+                if !is_u(e) {
+                    return 0.0;
+                }
+                let x = layout.coords[layout.node[e]];
+                let d = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+                let mut w = [0.0; 3];
+                w[axis] = 1.0;
+                let u = [
+                    w[1] * d[2] - w[2] * d[1],
+                    w[2] * d[0] - w[0] * d[2],
+                    w[0] * d[1] - w[1] * d[0],
+                ];
+                u[layout.field[e] as usize]
+            }));
         }
     }
-    // modified Gram-Schmidt, twice for orthogonality to round-off
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
     let mut basis: Vec<Vec<f64>> = Vec::new();
-    for mut m in modes {
-        let before = dot(&m, &m).sqrt();
-        if before == 0.0 {
+    for mut m in rigid {
+        let mut before = [dot(&m, &m)];
+        sum(&mut before)?;
+        if before[0] == 0.0 {
             continue;
         }
-        for _ in 0..2 {
-            for b in &basis {
-                let p = dot(&m, b);
+        for _ in 0..if basis.is_empty() { 0 } else { 2 } {
+            let mut p: Vec<f64> = basis.iter().map(|b| dot(&m, b)).collect();
+            sum(&mut p)?;
+            for (b, p) in basis.iter().zip(&p) {
                 m.iter_mut().zip(b).for_each(|(v, w)| *v -= p * w);
             }
         }
-        let after = dot(&m, &m).sqrt();
-        if after > 1e-10 * before {
-            m.iter_mut().for_each(|v| *v /= after);
+        let mut after = [dot(&m, &m)];
+        sum(&mut after)?;
+        if after[0] > 1e-20 * before[0] {
+            let norm = after[0].sqrt();
+            m.iter_mut().for_each(|v| *v /= norm);
             basis.push(m);
         }
     }
-    basis
+    let rigid = basis.len();
+    let potentials = layout.field.iter().filter(|&&f| f == 3).count();
+    if potentials > 0 {
+        let v = 1.0 / (potentials as f64).sqrt();
+        basis.push(on_rows(&|e| if layout.field[e] == 3 { v } else { 0.0 }));
+    }
+    Ok((basis, rigid))
 }
 
 /// Where the free unknowns sit among PETSc's rows.
@@ -646,13 +667,6 @@ impl Numbering {
     /// The padding rows among `rows`.
     fn padding_in(&self, rows: std::ops::Range<usize>) -> impl Iterator<Item = usize> + '_ {
         rows.filter(|&r| self.unknown(r).is_none())
-    }
-
-    /// `v` (one value per unknown) on PETSc's rows, zero on the padding.
-    fn spread(&self, v: &[f64]) -> Vec<f64> {
-        (0..self.n)
-            .map(|r| self.unknown(r).map_or(0.0, |e| v[e]))
-            .collect()
     }
 }
 
@@ -827,10 +841,24 @@ impl System {
             // a factorisation needs no modes
             let direct = description.contains("PC cholesky") || description.contains("PC lu");
             if let Some(layout) = layout.filter(|_| !direct) {
-                let rigid = rigid_body_modes(layout);
-                modes = rigid.len();
-                attach_modes(comm, &ksp, &mat, layout, &numbering, &rigid, rows.clone())?;
+                let unknowns: Vec<Option<usize>> =
+                    rows.clone().map(|r| numbering.unknown(r)).collect();
+                let (space, rigid) = near_null_modes(layout, &unknowns, &mut sum_over_ranks)?;
+                modes = rigid;
+                attach_modes(
+                    comm,
+                    &ksp,
+                    &mat,
+                    layout,
+                    &numbering,
+                    &space,
+                    rigid,
+                    rows.clone(),
+                )?;
                 description.push_str(&format!(", near-null space of {modes} rigid-body modes"));
+            }
+            if rank == 0 && std::env::var_os("DEASIM_PETSC_VERBOSE").is_some() {
+                eprintln!("deasim: PETSc solves by {description}");
             }
             drop(scope);
             Ok(System {
@@ -1190,25 +1218,22 @@ unsafe fn create_matrix(
     Ok(mat)
 }
 
-/// Distributed vectors of the rows `rows` of `modes` (this rank's part, `local` rows picked by
-/// `keep` of the rows in order), for a null space on `comm`.
+/// Distributed vectors of `modes`, each this rank's part (the same length on every mode), for a
+/// null space on `comm`.
 ///
 /// # Safety
 /// PETSc is initialised and the caller holds the lock.
 unsafe fn mode_vectors(
     comm: ffi::MPI_Comm,
     modes: &[Vec<f64>],
-    rows: std::ops::Range<usize>,
-    keep: impl Fn(usize) -> bool,
 ) -> Result<NullSpace, LinearSolverError> {
-    let picked: Vec<usize> = rows.filter(|&e| keep(e)).collect();
     let mut vectors: Vec<Vector> = Vec::with_capacity(modes.len());
     for m in modes {
         let mut v = Vector(ptr::null_mut());
         check(
             ffi::VecCreateMPI(
                 comm,
-                picked.len() as ffi::PetscInt,
+                m.len() as ffi::PetscInt,
                 ffi::PETSC_DECIDE as ffi::PetscInt,
                 &mut v.0,
             ),
@@ -1216,10 +1241,7 @@ unsafe fn mode_vectors(
         )?;
         let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
         check(ffi::VecGetArray(v.0, &mut arr), "VecGetArray")?;
-        let local = std::slice::from_raw_parts_mut(arr, picked.len());
-        for (x, &e) in local.iter_mut().zip(&picked) {
-            *x = m[e];
-        }
+        std::slice::from_raw_parts_mut(arr, m.len()).copy_from_slice(m);
         check(ffi::VecRestoreArray(v.0, &mut arr), "VecRestoreArray")?;
         vectors.push(v);
     }
@@ -1239,44 +1261,32 @@ unsafe fn mode_vectors(
     Ok(space)
 }
 
-/// Attaches the orthonormal rigid-body `modes` (over all unknowns of `layout`) and the constant
-/// potential, on `numbering`'s rows (zero on padding), as the near-null space of `mat`, and names
-/// the fields for a field-split preconditioner: split `u` (the displacement rows, with the modes
-/// restricted to them as its near-null space) and split `p` (the potential rows), when both are
-/// present.
+/// Attaches `space` (this rank's rows `rows` of the orthonormal near-null space of
+/// [`near_null_modes`], the first `rigid` of them rigid-body modes) as the near-null space of
+/// `mat`, and names the fields for a field-split preconditioner: split `u` (the displacement
+/// rows, with the rigid-body modes restricted to them as its near-null space) and split `p`
+/// (the potential rows), when both are present.
 ///
 /// # Safety
 /// PETSc is initialised, the caller holds the lock and has pushed the solver's database.
+#[allow(clippy::too_many_arguments)]
 unsafe fn attach_modes(
     comm: ffi::MPI_Comm,
     ksp: &Ksp,
     mat: &Mat,
     layout: &DofLayout,
     numbering: &Numbering,
-    modes: &[Vec<f64>],
+    space: &[Vec<f64>],
+    rigid: usize,
     rows: std::ops::Range<usize>,
 ) -> Result<(), LinearSolverError> {
-    // the whole matrix: the rigid-body modes and, for the potential rows, the constant (the
-    // near-null vector of the electrostatic Laplacian)
-    let mut whole: Vec<Vec<f64>> = modes.iter().map(|m| numbering.spread(m)).collect();
-    let potentials = layout.field.iter().filter(|&&f| f == 3).count();
-    if potentials > 0 {
-        let v = 1.0 / (potentials as f64).sqrt();
-        let constant: Vec<f64> = layout
-            .field
-            .iter()
-            .map(|&f| if f == 3 { v } else { 0.0 })
-            .collect();
-        whole.push(numbering.spread(&constant));
-    }
     // the field of each row: a padding row's is its place in the node's block
     let field = |r: usize| match numbering.unknown(r) {
         Some(e) => layout.field[e],
         None => (r % FIELDS) as u8,
     };
-    if !whole.is_empty() {
-        let space = mode_vectors(comm, &whole, rows.clone(), |_| true)?;
-        drop(whole);
+    if !space.is_empty() {
+        let space = mode_vectors(comm, space)?;
         check(
             ffi::MatSetNearNullSpace(mat.0, space.0),
             "MatSetNearNullSpace",
@@ -1296,10 +1306,20 @@ unsafe fn attach_modes(
             .map(|r| r as ffi::PetscInt)
             .collect();
         let is = index_set(comm, &rows_of)?;
-        if !potential && !modes.is_empty() {
-            // the displacement block's modes: the sub-matrix's rows are the IS's, in order
-            let spread: Vec<Vec<f64>> = modes.iter().map(|m| numbering.spread(m)).collect();
-            let space = mode_vectors(comm, &spread, rows.clone(), |r| field(r) < 3)?;
+        if !potential && rigid > 0 {
+            // the displacement block's modes: the sub-matrix's rows are the IS's, in order (the
+            // rigid-body modes are zero on the potential rows, so they stay orthonormal)
+            let restricted: Vec<Vec<f64>> = space[..rigid]
+                .iter()
+                .map(|m| {
+                    rows.clone()
+                        .zip(m)
+                        .filter(|&(r, _)| field(r) < 3)
+                        .map(|(_, &v)| v)
+                        .collect()
+                })
+                .collect();
+            let space = mode_vectors(comm, &restricted)?;
             check(
                 ffi::PetscObjectCompose(
                     is.0 as ffi::PetscObject,
@@ -1635,10 +1655,6 @@ mod tests {
         assert_eq!(numbering.unknowns_in(&(0..4)), 0..2);
         assert_eq!(numbering.unknowns_in(&(4..8)), 2..5);
         assert_eq!(numbering.padding_in(0..8).collect::<Vec<_>>(), [1, 2, 4]);
-        assert_eq!(
-            numbering.spread(&[1.0, 2.0, 3.0, 4.0, 5.0]),
-            [1.0, 0.0, 0.0, 2.0, 0.0, 3.0, 4.0, 5.0]
-        );
         // without a layout, or with one of other unknowns, the rows are the unknowns
         let plain = Numbering::new(&a, None, None, 1);
         assert_eq!((plain.n, plain.block_size, plain.row(3)), (5, 1, 3));
