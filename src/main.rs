@@ -280,6 +280,13 @@ fn main() {
             std::process::exit(code);
         }
     };
+    // under an MPI launcher only `run` shares its work between the processes
+    if !matches!(cli.command, Command::Run { .. }) {
+        let command = std::env::args().nth(1).unwrap_or_default();
+        if let Some(code) = deasim::cli::app::refuse_under_mpi(&command) {
+            std::process::exit(code);
+        }
+    }
     let code = match cli.command {
         Command::Run {
             scenario,

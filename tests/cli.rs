@@ -1048,3 +1048,58 @@ fn errors_name_the_override_and_use_one_key_style() {
     assert!(said.contains("key `stages.0.stepz`"), "{said}");
     assert!(!said.contains("[0]") && !said.contains("--set"), "{said}");
 }
+
+/// Under an MPI launcher that started several processes (its variables set here by hand), a
+/// command that runs in one process, and a run whose solver is not PETSc's, refuse with a message
+/// from the first process only, before writing anything: each process would otherwise do the
+/// whole work and write the same files.
+#[test]
+fn several_mpi_processes_are_refused_where_they_would_repeat_the_work() {
+    let dir = common::tempdir("cli-mpi-refusal");
+    std::fs::write(
+        dir.join("film.toml"),
+        deasim::io::examples::example("film").unwrap(),
+    )
+    .unwrap();
+    let launched = |rank: &str, args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_deasim"))
+            .args(args)
+            .current_dir(&dir)
+            .env("OMPI_COMM_WORLD_SIZE", "2")
+            .env("OMPI_COMM_WORLD_RANK", rank)
+            .output()
+            .unwrap()
+    };
+    for args in [
+        &["response", "film.toml", "--out", "r"][..],
+        &["modes", "film.toml"][..],
+        &["run", "film.toml", "--out", "o"][..],
+    ] {
+        let first = launched("0", args);
+        let other = launched("1", args);
+        let message = stderr(&first);
+        // exit 2, bad input, on every process
+        assert!(
+            first.status.code() == Some(2) && other.status.code() == Some(2),
+            "{args:?}: {message}"
+        );
+        assert!(stderr(&other).is_empty(), "{args:?}: {}", stderr(&other));
+        let expected = if args[0] == "run" {
+            "an MPI launcher started 2 processes, but `[solver] kind = \"auto\"`"
+        } else {
+            "runs in one process, but an MPI launcher started 2"
+        };
+        assert!(message.contains(expected), "{args:?}: {message}");
+    }
+    assert!(!dir.join("r").exists() && !dir.join("o").exists());
+    // one process under a launcher is a plain run
+    let one = Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args(["check", "film.toml"])
+        .current_dir(&dir)
+        .env("OMPI_COMM_WORLD_SIZE", "1")
+        .env("OMPI_COMM_WORLD_RANK", "0")
+        .output()
+        .unwrap();
+    assert!(one.status.success(), "{}", stderr(&one));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -337,9 +337,11 @@ pub fn cmd_run(
     // a distributed PETSc solve: every rank runs the whole program, rank 0 writes the outputs
     // and every rank its piece of the field files
     let (rank, ranks) = match mpi_ranks(&plan) {
-        Err(e) => {
-            eprintln!("error: {e}");
-            return EXIT_SOLVE_FAILED;
+        Err((code, e)) => {
+            if !e.is_empty() {
+                eprintln!("error: {e}");
+            }
+            return code;
         }
         Ok(r) => r,
     };
@@ -454,13 +456,60 @@ fn ranks_agree(ok: bool) -> bool {
 
 /// This process's rank and the number of ranks when the plan's solver is distributed (PETSc,
 /// which initialises MPI here); `(0, 1)` otherwise.
-fn mpi_ranks(plan: &Plan) -> Result<(usize, usize), String> {
+///
+/// Several processes started by an MPI launcher for a solver that is not PETSc's would each
+/// solve the whole problem and write the same files: an error (the empty message on all ranks
+/// but the first, so that it is printed once).
+fn mpi_ranks(plan: &Plan) -> Result<(usize, usize), (i32, String)> {
     #[cfg(feature = "petsc")]
     if plan.solver.kind == crate::solve::linear::SolverKind::Petsc {
-        return crate::solve::petsc::world().map_err(|e| e.to_string());
+        return crate::solve::petsc::world().map_err(|e| (EXIT_SOLVE_FAILED, e.to_string()));
     }
-    let _ = plan;
+    let launched = launched_size();
+    if launched > 1 {
+        let message = if launched_rank() == 0 {
+            format!(
+                "an MPI launcher started {launched} processes, but `[solver] kind = \"{}\"` \
+                 solves the whole problem in each, and each would write the same files: a \
+                 distributed run needs `kind = \"petsc\"` (a build with `--features petsc`); \
+                 otherwise run deasim without the launcher",
+                plan.solver.kind.name()
+            )
+        } else {
+            String::new()
+        };
+        return Err((EXIT_BAD_INPUT, message));
+    }
     Ok((0, 1))
+}
+
+/// Number of processes an MPI launcher started (Open MPI's or a PMI launcher's variable); 1
+/// without a launcher.
+fn launched_size() -> usize {
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE"]
+        .iter()
+        .find_map(|v| std::env::var(v).ok()?.parse().ok())
+        .unwrap_or(1)
+}
+
+/// `deasim COMMAND` for a command other than `run` under an MPI launcher that started several
+/// processes: each would do the whole work and write the same files, so the command refuses
+/// (the first process says why). `None` without a launcher or with one process.
+pub fn refuse_under_mpi(command: &str) -> Option<i32> {
+    let size = launched_size();
+    if size < 2 {
+        return None;
+    }
+    if launched_rank() == 0 {
+        eprintln!(
+            "error: `deasim {command}` runs in one process, but an MPI launcher started {size}: \
+             each would do the whole work and write the same files. Run it without the \
+             launcher; under MPI only `deasim run` (with `[solver] kind = \"petsc\"`) shares \
+             its work, and its `modes` and `frequency-response` stages are the distributed form \
+             of `deasim modes`, `response` and `reduce`"
+        );
+    }
+    Some(EXIT_BAD_INPUT)
 }
 
 /// Shares the cells of a distributed run between its `ranks` ranks (this one `rank`): each
@@ -572,9 +621,11 @@ pub fn cmd_resume(
     match prepare_resume(dir, scenario, overrides, checkpoint_every, first) {
         Ok((mut plan, mut checkpoint, state)) => {
             let (rank, ranks) = match mpi_ranks(&plan) {
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    return EXIT_SOLVE_FAILED;
+                Err((code, e)) => {
+                    if !e.is_empty() {
+                        eprintln!("error: {e}");
+                    }
+                    return code;
                 }
                 Ok(r) => r,
             };

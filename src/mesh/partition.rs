@@ -170,14 +170,14 @@ mod tests {
             count(1)
         );
         assert_eq!(partition_cells(&mesh, 1, None), vec![0; 128]);
-        // a third of the nodes held (x < 1/3): the parts balance the cells and the unknowns
-        let unknowns: Vec<usize> = mesh
-            .nodes
-            .iter()
-            .map(|x| if x[0] < 0.3 { 0 } else { 4 })
-            .collect();
-        for parts in [2, 3] {
-            let part = partition_cells(&mesh, parts, Some(&unknowns));
+        // held nodes (no unknowns) in one corner: the parts balance the cells and the unknowns
+        let shares = |held: &dyn Fn(&[f64; 3]) -> bool, parts: usize, weighted: bool| {
+            let unknowns: Vec<usize> = mesh
+                .nodes
+                .iter()
+                .map(|x| if held(x) { 0 } else { 4 })
+                .collect();
+            let part = partition_cells(&mesh, parts, weighted.then_some(&unknowns[..]));
             let mut cells = vec![0usize; parts];
             part.iter().for_each(|&p| cells[p] += 1);
             // each part's share of the unknowns (a node's divided among its cells)
@@ -185,15 +185,35 @@ mod tests {
             for (c, w) in row_weights(&mesh, &unknowns).into_iter().enumerate() {
                 rows[part[c]] += w as usize;
             }
-            let total: usize = rows.iter().sum();
-            let even = |v: &[usize], all: usize, slack: f64| {
-                v.iter()
-                    .all(|&x| (x as f64 * parts as f64 / all as f64 - 1.0).abs() <= slack)
-            };
-            assert!(even(&cells, 128, 0.1), "{parts} parts: cells {cells:?}");
-            assert!(even(&rows, total, 0.1), "{parts} parts: rows {rows:?}");
+            (cells, rows)
+        };
+        // the largest relative departure from an even share
+        let uneven = |v: &[usize]| {
+            let all: usize = v.iter().sum();
+            v.iter()
+                .map(|&x| (x as f64 * v.len() as f64 / all as f64 - 1.0).abs())
+                .fold(0.0, f64::max)
+        };
+        let third = |x: &[f64; 3]| x[0] < 0.3;
+        let quadrant = |x: &[f64; 3]| x[0] < 0.55 && x[1] < 0.55;
+        for (held, parts) in [
+            (&third as &dyn Fn(&[f64; 3]) -> bool, 2),
+            (&third, 3),
+            (&quadrant, 2),
+        ] {
+            let (cells, rows) = shares(held, parts, true);
+            assert!(uneven(&cells) <= 0.1, "{parts} parts: cells {cells:?}");
+            assert!(uneven(&rows) <= 0.1, "{parts} parts: rows {rows:?}");
             eprintln!("{parts} parts: cells {cells:?}, rows {rows:?}");
         }
+        // the weights are what balances them: a cut of the cells alone leaves the held corner
+        // on one part, which then holds far fewer unknowns
+        let (cells, rows) = shares(&quadrant, 2, false);
+        eprintln!("cells alone: cells {cells:?}, rows {rows:?}");
+        assert!(
+            uneven(&cells) <= 0.1 && uneven(&rows) > 0.2,
+            "{cells:?} {rows:?}"
+        );
         // more parts than cells: contiguous blocks
         let tiny = box_mesh([1.0, 1.0, 1.0], [1, 1, 2], ElementKind::Hex8);
         assert_eq!(partition_cells(&tiny, 3, None), vec![0, 1]);
