@@ -499,7 +499,8 @@ pub fn near_null_modes(
         if before[0] == 0.0 {
             continue;
         }
-        for _ in 0..if basis.is_empty() { 0 } else { 2 } {
+        // (nothing to project out of the first mode)
+        for _ in 0..(if basis.is_empty() { 0 } else { 2 }) {
             let mut p: Vec<f64> = basis.iter().map(|b| dot(&m, b)).collect();
             sum(&mut p)?;
             for (b, p) in basis.iter().zip(&p) {
@@ -841,20 +842,7 @@ impl System {
             // a factorisation needs no modes
             let direct = description.contains("PC cholesky") || description.contains("PC lu");
             if let Some(layout) = layout.filter(|_| !direct) {
-                let unknowns: Vec<Option<usize>> =
-                    rows.clone().map(|r| numbering.unknown(r)).collect();
-                let (space, rigid) = near_null_modes(layout, &unknowns, &mut sum_over_ranks)?;
-                modes = rigid;
-                attach_modes(
-                    comm,
-                    &ksp,
-                    &mat,
-                    layout,
-                    &numbering,
-                    &space,
-                    rigid,
-                    rows.clone(),
-                )?;
+                modes = attach_modes(comm, &ksp, &mat, layout, &numbering, rows.clone())?;
                 description.push_str(&format!(", near-null space of {modes} rigid-body modes"));
             }
             if rank == 0 && std::env::var_os("DEASIM_PETSC_VERBOSE").is_some() {
@@ -1261,32 +1249,31 @@ unsafe fn mode_vectors(
     Ok(space)
 }
 
-/// Attaches `space` (this rank's rows `rows` of the orthonormal near-null space of
-/// [`near_null_modes`], the first `rigid` of them rigid-body modes) as the near-null space of
-/// `mat`, and names the fields for a field-split preconditioner: split `u` (the displacement
-/// rows, with the rigid-body modes restricted to them as its near-null space) and split `p`
-/// (the potential rows), when both are present.
+/// Attaches the orthonormal near-null space of [`near_null_modes`] on this rank's rows `rows`
+/// as the near-null space of `mat`, and names the fields for a field-split preconditioner:
+/// split `u` (the displacement rows, with the rigid-body modes restricted to them as its
+/// near-null space) and split `p` (the potential rows), when both are present. Returns the
+/// number of rigid-body modes.
 ///
 /// # Safety
 /// PETSc is initialised, the caller holds the lock and has pushed the solver's database.
-#[allow(clippy::too_many_arguments)]
 unsafe fn attach_modes(
     comm: ffi::MPI_Comm,
     ksp: &Ksp,
     mat: &Mat,
     layout: &DofLayout,
     numbering: &Numbering,
-    space: &[Vec<f64>],
-    rigid: usize,
     rows: std::ops::Range<usize>,
-) -> Result<(), LinearSolverError> {
+) -> Result<usize, LinearSolverError> {
+    let unknowns: Vec<Option<usize>> = rows.clone().map(|r| numbering.unknown(r)).collect();
+    let (space, rigid) = near_null_modes(layout, &unknowns, &mut sum_over_ranks)?;
     // the field of each row: a padding row's is its place in the node's block
     let field = |r: usize| match numbering.unknown(r) {
         Some(e) => layout.field[e],
         None => (r % FIELDS) as u8,
     };
     if !space.is_empty() {
-        let space = mode_vectors(comm, space)?;
+        let space = mode_vectors(comm, &space)?;
         check(
             ffi::MatSetNearNullSpace(mat.0, space.0),
             "MatSetNearNullSpace",
@@ -1295,7 +1282,7 @@ unsafe fn attach_modes(
     let has_u = layout.field.iter().any(|&f| f < 3);
     let has_p = layout.field.contains(&3);
     if !(has_u && has_p) {
-        return Ok(());
+        return Ok(rigid);
     }
     let mut pc: ffi::PC = ptr::null_mut();
     check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
@@ -1335,7 +1322,7 @@ unsafe fn attach_modes(
             "PCFieldSplitSetIS",
         )?;
     }
-    Ok(())
+    Ok(rigid)
 }
 
 /// Makes `ksp` a direct solve by MUMPS's Cholesky (LDLᵀ for symmetric indefinite matrices).

@@ -7,7 +7,8 @@
 //! its quadratic convergence. The solver refactors when the Krylov work since the last
 //! factorisation has cost about as much as a factorisation (operation counts from the symbolic
 //! analysis, a streamed entry weighed as [`STREAMING_COST`] flops, so the choice is the same on
-//! every machine and run), or when a solve does not converge. [`LinearSolver::factor`] always factors, so the inertia of a stability test is exact.
+//! every machine and run), or when a solve does not converge. [`LinearSolver::factor`] always
+//! factors, so the inertia of a stability test is exact.
 //! When adaptive, a Krylov solve stops at Newton's forcing term where that is looser than its
 //! own tolerance (Eisenstat & Walker, SIAM J. Sci. Comput. 17 (1996) 16–32): fewer sweeps over
 //! the factor, which are bound by memory traffic, in the Newton iterations that need little.
