@@ -12,10 +12,12 @@
 #   SIZE           the body's extents in m, x,y,z (default 5e-3,5e-3,1e-3: the film's quarter;
 #                  5e-3,5e-3,5e-3 with NxNxN divisions is a cube of cubic cells)
 #   PETSC_OPTIONS  PETSc options (default: GMRES + GAMG with the rigid-body modes, rtol 1e-8)
+#   FORCING        [solver] forcing: adaptive (the default: each Krylov solve stops at Newton's
+#                  forcing term when that is looser than -ksp_rtol) or fixed
 #   OUT            scratch directory (default a new temporary one)
 set -euo pipefail
 if [ $# -lt 2 ]; then
-    sed -n '2,15p' "$0"
+    sed -n '2,17p' "$0"
     exit 2
 fi
 ranks=$1
@@ -34,11 +36,14 @@ printf '%12s %9s %6s %6s %8s %12s  %s\n' mesh dofs newton krylov run_s per_newto
 for mesh in "$@"; do
     divisions="[${mesh//x/,}]"
     dir="$out/$mesh"
-    mpirun --oversubscribe -np "$ranks" /usr/bin/time -f "peak %M KB" \
+    # each rank appends its own line (a separate file: the ranks' stderr lines may interleave)
+    rm -f "$out/$mesh.peak"
+    mpirun --oversubscribe -np "$ranks" /usr/bin/time -a -o "$out/$mesh.peak" -f "peak %M KB" \
         "$deasim" run "$out/film.toml" --out "$dir" --overwrite \
         --set "mesh.size=[$size]" --set "mesh.divisions=$divisions" \
         --set "probes.inplane_stretch.at=[$size]" --set "stages.0.steps=$steps" \
         --set output.plots=false --set output.fields_every=0 \
+        --set "solver.forcing=\"${FORCING:-adaptive}\"" \
         --set 'solver.kind="petsc"' --set "solver.petsc_options=\"$options\"" \
         >"$out/$mesh.log" 2>&1 || { echo "$mesh: failed, see $out/$mesh.log"; continue; }
     summary="$dir/summary.json"
@@ -47,7 +52,7 @@ for mesh in "$@"; do
     newton=$(num newton_iterations)
     krylov=$(num krylov_iterations)
     wall=$(num wall_s)
-    peaks=$(grep -o 'peak [0-9]*' "$out/$mesh.log" | awk '{printf "%.0f ", $2 / 1024}')
+    peaks=$(grep -o 'peak [0-9]*' "$out/$mesh.peak" | awk '{printf "%.0f ", $2 / 1024}')
     printf '%12s %9s %6s %6s %8.1f %12.2f  %s\n' "$mesh" "$dofs" "$newton" "$krylov" "$wall" \
         "$(awk -v w="$wall" -v n="$newton" 'BEGIN { print w / n }')" "$peaks"
 done

@@ -377,7 +377,7 @@ fn rotations_about_the_axis_leave_the_response_unchanged() {
         [0.5e-4, 2e-5, 0.0],
     ];
     let phi = [0.0, 50.0, 900.0, 1000.0];
-    let (f, e0) = meridian_kinematics(&g.grad[0][..4], &g.hoop[0][..4], &u, &phi);
+    let (f, e0) = meridian_kinematics(&g.grad[0][..4], &g.hoop(0)[..4], &u, &phi);
     let mat = ElectroNeoHooke::new(FILM_MU, FILM_LAMBDA, FILM_EPS_R);
     let s = mat.stress_at(&f, &e0, PointHistory::NONE).unwrap();
     for angle in [0.3f64, 1.2, 2.9] {

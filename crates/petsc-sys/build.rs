@@ -24,15 +24,16 @@ const FUNCTIONS: &[&str] = &[
     "MPI_Comm_rank",
     "MPI_Comm_size",
     "MPI_Barrier",
-    "Vec(Create|CreateMPI|SetSizes|SetBlockSize|SetFromOptions|Destroy|GetOwnershipRange|GetLocalSize|GetSize|GetArray|GetArrayRead|RestoreArray|RestoreArrayRead|Set|SetValues|AssemblyBegin|AssemblyEnd|Duplicate|Norm)",
+    "Vec(Create|CreateMPI|CreateMPIWithArray|CreateSeqWithArray|PlaceArray|ResetArray|SetSizes|SetBlockSize|SetFromOptions|Destroy|GetOwnershipRange|GetLocalSize|GetSize|GetArray|GetArrayRead|RestoreArray|RestoreArrayRead|Set|SetValues|AssemblyBegin|AssemblyEnd|Duplicate|Norm)",
     "VecScatter(Create|CreateToAll|Begin|End|Destroy)",
     "Mat(Create|SetSizes|SetType|SetBlockSize|SetFromOptions|SetUp|Destroy|GetOwnershipRange|GetSize|SetValues|ZeroEntries|PreallocatorPreallocate|AssemblyBegin|AssemblyEnd|SetOption|GetInertia|Mult|SetNearNullSpace|CreateVecs)",
     "MatNullSpace(CreateRigidBody|Create|Destroy)",
     "MatMumps(SetIcntl|GetInfog)",
-    "KSP(Create|Destroy|SetOperators|SetType|GetType|GetPC|SetFromOptions|SetUp|Solve|GetConvergedReason|GetIterationNumber|GetResidualNorm|SetTolerances|SetInitialGuessNonzero|ConvergedReasons)",
+    "KSP(Create|Destroy|SetOperators|SetType|GetType|GetPC|SetFromOptions|SetUp|Solve|GetConvergedReason|GetIterationNumber|GetResidualNorm|SetTolerances|GetTolerances|SetInitialGuessNonzero|ConvergedReasons)",
     "PC(SetType|GetType|GetFailedReason|FactorSetMatSolverType|FactorGetMatSolverType|FactorSetUpMatSolverType|FactorGetMatrix|FieldSplitSetIS)",
     "IS(CreateGeneral|Destroy)",
     "PetscObjectCompose",
+    "PetscObjectGetComm",
 ];
 
 /// Types and constants named in deasim's code.

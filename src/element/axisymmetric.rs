@@ -31,7 +31,7 @@ fn split(n: usize, local: &[f64]) -> ([[f64; 3]; MAX_NODES], [f64; MAX_NODES]) {
 fn point(geom: &CellGeometry, q: usize, local: &[f64]) -> (Mat3, Vec3) {
     let n = geom.n_nodes;
     let (u, phi) = split(n, local);
-    meridian_kinematics(&geom.grad[q][..n], &geom.hoop[q][..n], &u[..n], &phi[..n])
+    meridian_kinematics(&geom.grad[q][..n], &geom.hoop(q)[..n], &u[..n], &phi[..n])
 }
 
 /// δF of unknown (b, k) at point q as three (row-major index of F, value) pairs: e_k ⊗ ∇₀N_b
@@ -43,7 +43,7 @@ pub(crate) fn delta_f(geom: &CellGeometry, q: usize, b: usize, k: usize) -> [(us
         return [(k * 3, g[0]), (k * 3 + 1, g[1]), (k * 3 + 2, g[2])];
     }
     match k {
-        0 => [(0, g[0]), (1, g[1]), (8, geom.hoop[q][b])],
+        0 => [(0, g[0]), (1, g[1]), (8, geom.hoop(q)[b])],
         1 => [(3, g[0]), (4, g[1]), (8, 0.0)],
         _ => [(0, 0.0), (1, 0.0), (8, 0.0)],
     }
@@ -259,7 +259,7 @@ pub(crate) fn cell_viscous_meridian(
             for i in 0..2 {
                 h[a][i] = finv[(0, i)] * g[a][0] + finv[(1, i)] * g[a][1];
             }
-            s[a] = geom.hoop[q][a] * finv[(2, 2)];
+            s[a] = geom.hoop(q)[a] * finv[(2, 2)];
         }
         let mut l = [[0.0; 2]; 2];
         let mut d_hoop = 0.0;

@@ -159,7 +159,7 @@ impl MdKinematics {
         let mut v = 0.0;
         for q in 0..geom.n_qp {
             let (f, e0) = if geom.axisymmetric {
-                meridian_kinematics(&geom.grad[q][..n], &geom.hoop[q][..n], &u[..n], &phi[..n])
+                meridian_kinematics(&geom.grad[q][..n], &geom.hoop(q)[..n], &u[..n], &phi[..n])
             } else {
                 kinematics(&geom.grad[q][..n], &u[..n], &phi[..n])
             };

@@ -167,9 +167,10 @@ pub fn meridian_geometry(
         n_qp: rule.len(),
         grad: [[[0.0; 3]; MAX_NODES]; MAX_QP],
         weights: [0.0; MAX_QP],
-        hoop: [[0.0; MAX_NODES]; MAX_QP],
+        hoop: None,
         axisymmetric: true,
     };
+    let mut hoop = Box::new([[0.0; MAX_NODES]; MAX_QP]);
     for (q, (xi, wq)) in rule.iter().enumerate() {
         let (nv, dn) = meridian_shape_functions(kind, *xi);
         let mut jac = [[0.0; 2]; 2];
@@ -195,10 +196,11 @@ pub fn meridian_geometry(
             for j in 0..2 {
                 g.grad[q][a][j] = dn[a][0] * inv[0][j] + dn[a][1] * inv[1][j];
             }
-            g.hoop[q][a] = nv[a] / r;
+            hoop[q][a] = nv[a] / r;
         }
         g.weights[q] = 2.0 * std::f64::consts::PI * r * det * wq;
     }
+    g.hoop = Some(hoop);
     Ok(g)
 }
 

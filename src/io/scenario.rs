@@ -110,8 +110,8 @@ pub struct SolverSpec {
     /// `iterative` (and `auto` once it has switched to it): the relative residual of each
     /// linear solve (default 1e-8).
     pub rtol: Option<f64>,
-    /// `iterative`, and `auto` wherever it runs FGMRES: `adaptive` (default) stops each solve at
-    /// Newton's forcing term when that is looser than the solver's own tolerance; `fixed` solves
+    /// `iterative`, `auto` wherever it runs FGMRES, and `petsc` with a Krylov method:
+    /// `adaptive` (default) stops each solve at Newton's forcing term when that is looser than the solver's own tolerance; `fixed` solves
     /// every time to that tolerance.
     pub forcing: Option<String>,
     /// `auto`, `direct`: the largest sparse factor to hold, bytes (default: 80 % of the memory

@@ -28,8 +28,22 @@ pub fn partition_cells(mesh: &Mesh, parts: usize, unknowns: Option<&[usize]>) ->
         return vec![0; n];
     }
     let unknowns = unknowns.filter(|u| u.len() == mesh.n_nodes());
-    metis_parts(mesh, parts, unknowns)
-        .or_else(|| unknowns.and_then(|_| metis_parts(mesh, parts, None)))
+    with_fallbacks(n, parts, unknowns, |weights| {
+        metis_parts(mesh, parts, weights)
+    })
+}
+
+/// The partition of `n` cells by `partition` (given the unknowns of the nodes, or `None` for
+/// the cells alone): with the unknowns when there are any, else, or when that fails, the cells
+/// alone, and when that fails too, contiguous blocks of the numbering.
+fn with_fallbacks<'a>(
+    n: usize,
+    parts: usize,
+    unknowns: Option<&'a [usize]>,
+    partition: impl Fn(Option<&'a [usize]>) -> Option<Vec<usize>>,
+) -> Vec<usize> {
+    partition(unknowns)
+        .or_else(|| unknowns.and_then(|_| partition(None)))
         .unwrap_or_else(|| (0..n).map(|c| c * parts / n).collect())
 }
 
@@ -214,6 +228,26 @@ mod tests {
             uneven(&cells) <= 0.1 && uneven(&rows) > 0.2,
             "{cells:?} {rows:?}"
         );
+        // a failed two-constraint partition falls back to the cells alone, a failed METIS to
+        // contiguous blocks
+        let unknowns = vec![4; mesh.n_nodes()];
+        let calls = std::cell::RefCell::new(Vec::new());
+        let cells_alone = partition_cells(&mesh, 2, None);
+        let fallback = with_fallbacks(128, 2, Some(&unknowns), |w| {
+            calls.borrow_mut().push(w.is_some());
+            w.is_none().then(|| cells_alone.clone())
+        });
+        assert_eq!(fallback, cells_alone);
+        assert_eq!(*calls.borrow(), [true, false]);
+        let blocks = with_fallbacks(6, 3, Some(&unknowns), |_| None);
+        assert_eq!(blocks, [0, 0, 1, 1, 2, 2]);
+        // without unknowns METIS is asked once
+        calls.borrow_mut().clear();
+        with_fallbacks(6, 3, None, |w| {
+            calls.borrow_mut().push(w.is_some());
+            None
+        });
+        assert_eq!(*calls.borrow(), [false]);
         // more parts than cells: contiguous blocks
         let tiny = box_mesh([1.0, 1.0, 1.0], [1, 1, 2], ElementKind::Hex8);
         assert_eq!(partition_cells(&tiny, 3, None), vec![0, 1]);

@@ -242,9 +242,9 @@ pub struct SolverSettings {
     /// `iterative`, and `auto` once it has switched to it: relative residual of each solve.
     #[serde(default = "default_rtol")]
     pub rtol: f64,
-    /// `iterative`, and `auto` wherever it runs FGMRES: stop each solve at Newton's forcing term
-    /// when that is looser than the solver's own tolerance (Eisenstat–Walker); false: every
-    /// solve to that tolerance.
+    /// `iterative`, `auto` wherever it runs FGMRES, and `petsc` with an iterating KSP: stop each
+    /// solve at Newton's forcing term when that is looser than the solver's own tolerance
+    /// (Eisenstat–Walker); false: every solve to that tolerance.
     #[serde(default = "default_adaptive")]
     pub adaptive: bool,
     /// `auto` and `direct`: the largest factor (bytes) to hold; `None`: 80 % of the memory
@@ -301,7 +301,9 @@ impl SolverSettings {
             }
             SolverKind::Iterative => Box::new(AmgGmres::new(self.rtol).adaptive(self.adaptive)),
             #[cfg(feature = "petsc")]
-            SolverKind::Petsc => Box::new(super::petsc::PetscSolver::new(&self.petsc_options)),
+            SolverKind::Petsc => Box::new(
+                super::petsc::PetscSolver::new(&self.petsc_options).adaptive(self.adaptive),
+            ),
         }
     }
 

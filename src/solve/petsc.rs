@@ -269,14 +269,16 @@ struct IndexSet(ffi::IS);
 /// The exchanges of [`sum_over_ranks`], one per vector length.
 struct Gather {
     n: usize,
-    /// This rank's vector as block `rank` of a vector of `size` blocks.
+    /// This rank's vector as block `rank` of a vector of `size` blocks: no storage of its own,
+    /// the caller's vector is placed in it for each sum.
     parts: Vector,
     /// This rank's chunk of every rank's vector, block after block in rank order.
     mine: Vector,
     to_mine: Scatter,
     /// The summed chunk of this rank (a distributed vector of length `n`).
     sum: Vector,
-    /// The whole sum, on every rank.
+    /// The whole sum, on every rank: no storage of its own either, the caller's vector
+    /// receives it.
     all: Vector,
     to_all: Scatter,
 }
@@ -292,8 +294,10 @@ fn chunk(n: usize, r: usize, size: usize) -> std::ops::Range<usize> {
 /// a vector of the same length). Each rank receives one chunk of every rank's vector and adds
 /// them in rank order, then the summed chunks are gathered on every rank: all ranks receive the
 /// same bits, and the same from run to run (a reduction tree may round differently on different
-/// ranks, which would let their Newton iterations part). Memory and traffic are a few times
-/// `len` per rank, whatever the number of ranks.
+/// ranks, which would let their Newton iterations part). `v` itself is sent and receives the
+/// sum (PETSc vectors without storage of their own, `v`'s array placed in them), so the buffers
+/// held per vector length are the received chunks (`len` values) and the summed chunk
+/// (`len`/ranks), whatever the number of ranks.
 pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
     let (rank, size) = world()?;
     if size == 1 {
@@ -314,6 +318,19 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
     unsafe {
         if !gathers.iter().any(|g| g.n == n) {
             let comm = ffi::comm_world();
+            // a distributed vector of this rank's `n` values whose array is placed for each sum
+            let mut parts = Vector(ptr::null_mut());
+            check(
+                ffi::VecCreateMPIWithArray(
+                    comm,
+                    1,
+                    int(n)?,
+                    ffi::PETSC_DECIDE as ffi::PetscInt,
+                    ptr::null(),
+                    &mut parts.0,
+                ),
+                "VecCreateMPIWithArray",
+            )?;
             let mpi_vector = |local: usize| -> Result<Vector, LinearSolverError> {
                 let mut x = Vector(ptr::null_mut());
                 check(
@@ -327,7 +344,6 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
                 )?;
                 Ok(x)
             };
-            let parts = mpi_vector(n)?;
             let mine = mpi_vector(size * own.len())?;
             let sum = mpi_vector(own.len())?;
             // block q of `mine` on this rank is chunk `own` of rank q's vector
@@ -344,11 +360,24 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
                 ffi::VecScatterCreate(parts.0, is_from.0, mine.0, is_to.0, &mut to_mine.0),
                 "VecScatterCreate",
             )?;
-            let (mut to_all, mut all) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
+            let (mut to_all, mut whole) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
             check(
-                ffi::VecScatterCreateToAll(sum.0, &mut to_all.0, &mut all.0),
+                ffi::VecScatterCreateToAll(sum.0, &mut to_all.0, &mut whole.0),
                 "VecScatterCreateToAll",
             )?;
+            // the scatter's target made anew without storage, on the same (one-process)
+            // communicator, so that no whole vector is held between sums
+            let mut own_comm: ffi::MPI_Comm = std::mem::zeroed();
+            check(
+                ffi::PetscObjectGetComm(whole.0 as ffi::PetscObject, &mut own_comm),
+                "PetscObjectGetComm",
+            )?;
+            let mut all = Vector(ptr::null_mut());
+            check(
+                ffi::VecCreateSeqWithArray(own_comm, 1, int(n)?, ptr::null(), &mut all.0),
+                "VecCreateSeqWithArray",
+            )?;
+            drop(whole);
             gathers.push(Gather {
                 n,
                 parts,
@@ -360,16 +389,18 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
             });
         }
         let g = gathers.iter_mut().find(|g| g.n == n).expect("made above");
-        let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
-        check(ffi::VecGetArray(g.parts.0, &mut arr), "VecGetArray")?;
-        std::slice::from_raw_parts_mut(arr, n).copy_from_slice(v);
-        check(ffi::VecRestoreArray(g.parts.0, &mut arr), "VecRestoreArray")?;
-        scatter(&g.to_mine, &g.parts, &g.mine)?;
+        // `v` is read by the first scatter and written by the second: placed in the storage-less
+        // vectors for their duration only
+        check(ffi::VecPlaceArray(g.parts.0, v.as_ptr()), "VecPlaceArray")?;
+        let sent = scatter(&g.to_mine, &g.parts, &g.mine);
+        check(ffi::VecResetArray(g.parts.0), "VecResetArray")?;
+        sent?;
         // this rank's chunk, summed in rank order
         let m = own.len();
         let mut mine: *const ffi::PetscScalar = ptr::null();
         check(ffi::VecGetArrayRead(g.mine.0, &mut mine), "VecGetArrayRead")?;
         let blocks = std::slice::from_raw_parts(mine, m * size);
+        let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
         check(ffi::VecGetArray(g.sum.0, &mut arr), "VecGetArray")?;
         for (k, x) in std::slice::from_raw_parts_mut(arr, m)
             .iter_mut()
@@ -386,14 +417,13 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
             ffi::VecRestoreArrayRead(g.mine.0, &mut mine),
             "VecRestoreArrayRead",
         )?;
-        scatter(&g.to_all, &g.sum, &g.all)?;
-        let mut arr: *const ffi::PetscScalar = ptr::null();
-        check(ffi::VecGetArrayRead(g.all.0, &mut arr), "VecGetArrayRead")?;
-        v.copy_from_slice(std::slice::from_raw_parts(arr, n));
         check(
-            ffi::VecRestoreArrayRead(g.all.0, &mut arr),
-            "VecRestoreArrayRead",
+            ffi::VecPlaceArray(g.all.0, v.as_mut_ptr().cast_const()),
+            "VecPlaceArray",
         )?;
+        let received = scatter(&g.to_all, &g.sum, &g.all);
+        check(ffi::VecResetArray(g.all.0), "VecResetArray")?;
+        received?;
     }
     Ok(())
 }
@@ -698,6 +728,9 @@ struct System {
     /// Whether the preconditioner is a MUMPS Cholesky (LDLᵀ) factorisation, which gives the
     /// inertia.
     gives_inertia: bool,
+    /// Whether the KSP iterates (not `preonly`): only then may a solve stop at Newton's
+    /// forcing term.
+    iterates: bool,
     description: String,
 }
 
@@ -838,6 +871,7 @@ impl System {
                 "VecScatterCreateToAll",
             )?;
             let (ksp, mut description, gives_inertia) = create_ksp(comm, &mat, options, fixed)?;
+            let iterates = ksp_type(&ksp)? != "preonly";
             let mut modes = 0;
             // a factorisation needs no modes
             let direct = description.contains("PC cholesky") || description.contains("PC lu");
@@ -865,6 +899,7 @@ impl System {
                 iterations: 0,
                 rows,
                 gives_inertia,
+                iterates,
                 description,
             })
         }
@@ -950,8 +985,11 @@ impl System {
         }
     }
 
-    /// Solves with this rank's part of `b` and overwrites all of `b` with the solution.
-    fn solve(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
+    /// Solves with this rank's part of `b` and overwrites all of `b` with the solution. An
+    /// iterating KSP stops at the relative residual `forcing` when that is looser than its own
+    /// tolerance (as PETSc's SNES does with `-snes_ksp_ew`: the KSP's own norm, by default the
+    /// preconditioned residual's for GMRES); its tolerances are restored afterwards.
+    fn solve(&mut self, b: &mut [f64], forcing: Option<f64>) -> Result<(), LinearSolverError> {
         let _guard = lock();
         let _scope = Scope::push(&self.options)?;
         // SAFETY: the handles are live; arrays obtained from PETSc are restored before return
@@ -965,7 +1003,29 @@ impl System {
             }
             check(ffi::VecRestoreArray(self.b.0, &mut arr), "VecRestoreArray")?;
 
-            check(ffi::KSPSolve(self.ksp.0, self.b.0, self.x.0), "KSPSolve")?;
+            let mut own = None;
+            if let Some(eta) = forcing.filter(|_| self.iterates) {
+                let (mut rtol, mut atol, mut dtol, mut its) = (0.0, 0.0, 0.0, 0);
+                check(
+                    ffi::KSPGetTolerances(self.ksp.0, &mut rtol, &mut atol, &mut dtol, &mut its),
+                    "KSPGetTolerances",
+                )?;
+                if eta > rtol {
+                    check(
+                        ffi::KSPSetTolerances(self.ksp.0, eta, atol, dtol, its),
+                        "KSPSetTolerances",
+                    )?;
+                    own = Some((rtol, atol, dtol, its));
+                }
+            }
+            let solved = check(ffi::KSPSolve(self.ksp.0, self.b.0, self.x.0), "KSPSolve");
+            if let Some((rtol, atol, dtol, its)) = own {
+                check(
+                    ffi::KSPSetTolerances(self.ksp.0, rtol, atol, dtol, its),
+                    "KSPSetTolerances",
+                )?;
+            }
+            solved?;
             let mut its: ffi::PetscInt = 0;
             check(
                 ffi::KSPGetIterationNumber(self.ksp.0, &mut its),
@@ -1376,11 +1436,10 @@ unsafe fn create_ksp(
     let mut pc: ffi::PC = ptr::null_mut();
     check(ffi::KSPGetPC(ksp.0, &mut pc), "KSPGetPC")?;
 
-    let mut ksp_type: ffi::KSPType = ptr::null();
-    check(ffi::KSPGetType(ksp.0, &mut ksp_type), "KSPGetType")?;
+    let ksp_type = ksp_type(&ksp)?;
     let mut pc_type: ffi::PCType = ptr::null();
     check(ffi::PCGetType(pc, &mut pc_type), "PCGetType")?;
-    let (ksp_type, pc_type) = (type_name(ksp_type), type_name(pc_type));
+    let pc_type = type_name(pc_type);
     let mut solver_type = String::new();
     if pc_type == "cholesky" || pc_type == "lu" {
         let mut t: ffi::MatSolverType = ptr::null();
@@ -1410,6 +1469,16 @@ unsafe fn create_ksp(
     Ok((ksp, description, mumps && pc_type == "cholesky"))
 }
 
+/// The type name of `ksp` (`gmres`, `preonly`, ...).
+///
+/// # Safety
+/// PETSc is initialised, the caller holds the lock and `ksp` is live.
+unsafe fn ksp_type(ksp: &Ksp) -> Result<String, LinearSolverError> {
+    let mut t: ffi::KSPType = ptr::null();
+    check(ffi::KSPGetType(ksp.0, &mut t), "KSPGetType")?;
+    Ok(type_name(t))
+}
+
 /// A [`LinearSolver`] by PETSc: KSP and PC from the options (default MUMPS LDLᵀ), the matrix
 /// distributed by rows over the ranks of `PETSC_COMM_WORLD`.
 pub struct PetscSolver {
@@ -1421,6 +1490,11 @@ pub struct PetscSolver {
     /// The layout of the current system's unknowns (near-null space, fields, shared entries).
     layout: Option<DofLayout>,
     stats: SolverStats,
+    /// Whether an iterating KSP stops at Newton's forcing term when that is looser than its
+    /// own tolerance.
+    adaptive: bool,
+    /// Newton's forcing term for the next solves.
+    forcing: Option<f64>,
 }
 
 impl std::fmt::Debug for PetscSolver {
@@ -1447,7 +1521,17 @@ impl PetscSolver {
             factored: false,
             layout: None,
             stats: SolverStats::default(),
+            adaptive: false,
+            forcing: None,
         }
+    }
+
+    /// Lets an iterating KSP stop each solve at Newton's forcing term when that is looser than
+    /// its own tolerance (`-ksp_rtol`), which then bounds it from below
+    /// ([`LinearSolver::set_forcing`]); a direct solve (`preonly`) is unaffected.
+    pub fn adaptive(mut self, adaptive: bool) -> Self {
+        self.adaptive = adaptive;
+        self
     }
 
     /// MUMPS's LDLᵀ (exact, with pivoting, for symmetric indefinite matrices), kept whatever
@@ -1502,7 +1586,7 @@ impl LinearSolver for PetscSolver {
             return Err(LinearSolverError::NotFactored);
         }
         let system = self.system.as_mut().ok_or(LinearSolverError::NotFactored)?;
-        system.solve(b)?;
+        system.solve(b, self.forcing.filter(|_| self.adaptive))?;
         self.stats.solves += 1;
         self.stats.krylov_iterations += system.iterations;
         Ok(())
@@ -1545,6 +1629,10 @@ impl LinearSolver for PetscSolver {
 
     fn invalidate(&mut self) {
         self.factored = false;
+    }
+
+    fn set_forcing(&mut self, rtol: Option<f64>) {
+        self.forcing = rtol;
     }
 }
 

@@ -89,13 +89,18 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
         out.rtol = r;
     }
     if let Some(f) = &spec.forcing {
-        if !matches!(out.kind, SolverKind::Iterative | SolverKind::Auto) {
+        if !matches!(out.kind, SolverKind::Iterative | SolverKind::Auto) && !petsc(out.kind) {
             return Err(ctx.err(
                 "solver.forcing",
-                "applies to kind = \"iterative\" or \"auto\" only (the direct kind solves exactly)",
+                "applies to kind = \"iterative\", \"auto\" or \"petsc\" only (the direct kind \
+                 solves exactly)",
             ));
         }
         out.adaptive = choice(ctx, "forcing", f, [("adaptive", true), ("fixed", false)])?;
+    } else if petsc(out.kind) {
+        // every Newton iteration sets PETSc's preconditioner up anew: the Newton iterations a
+        // loose forcing term adds can cost more than the Krylov iterations it saves
+        out.adaptive = false;
     }
     if let Some(p) = &spec.precision {
         if out.kind != SolverKind::Auto {
@@ -107,6 +112,17 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
         out.single_precision = choice(ctx, "precision", p, [("double", false), ("single", true)])?;
     }
     Ok(out)
+}
+
+/// Whether `kind` is PETSc's (never in a build without the `petsc` feature).
+fn petsc(kind: SolverKind) -> bool {
+    #[cfg(feature = "petsc")]
+    return kind == SolverKind::Petsc;
+    #[cfg(not(feature = "petsc"))]
+    {
+        let _ = kind;
+        false
+    }
 }
 
 /// The setting of one of two named choices of `solver.<key>`, or an error listing them.
@@ -265,6 +281,10 @@ mod tests {
         assert_eq!(s.kind, SolverKind::Petsc);
         assert_eq!(s.petsc_options, "-ksp_type minres");
         assert!(s.describe(0).starts_with("PETSc"), "{}", s.describe(0));
+        // every solve to PETSc's own tolerance unless told otherwise
+        assert!(!s.adaptive);
+        let s = solver("[solver]\nkind = \"petsc\"\nforcing = \"adaptive\"").unwrap();
+        assert!(s.adaptive);
     }
 
     #[test]
@@ -293,7 +313,7 @@ mod tests {
         assert_rejected(
             &[("solver", "[solver]\nkind = \"direct\"\nforcing = \"fixed\"")],
             "solver.forcing",
-            "applies to kind = \"iterative\" or \"auto\" only",
+            "applies to kind = \"iterative\", \"auto\" or \"petsc\" only",
         );
     }
 
