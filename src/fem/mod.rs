@@ -321,18 +321,9 @@ mod tests {
     /// words (2264 bytes; 2976 when every cell carried the meridian cells' hoop row).
     #[test]
     fn a_3d_cell_holds_no_hoop_row() {
-        let x = [
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [1.0, 0.0, 1.0],
-            [1.0, 1.0, 1.0],
-            [0.0, 1.0, 1.0],
-        ];
+        // the reference cube [-1, 1]³ as the cell
         let g = ReferenceElement::new(ElementKind::Hex8)
-            .geometry(&x)
+            .geometry(&HEX_CORNERS)
             .unwrap();
         assert!(g.hoop.is_none() && !g.axisymmetric);
         assert!((0..g.n_qp).all(|q| g.hoop(q).iter().all(|&v| v == 0.0)));
