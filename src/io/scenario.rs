@@ -111,7 +111,7 @@ pub struct SolverSpec {
     /// linear solve (default 1e-8).
     pub rtol: Option<f64>,
     /// `iterative`, `auto` wherever it runs FGMRES, and `petsc` with a Krylov method:
-    /// `adaptive` (default) stops each solve at Newton's forcing term when that is looser than the solver's own tolerance; `fixed` solves
+    /// `adaptive` (the default, but `fixed` for `petsc`) stops each solve at Newton's forcing term when that is looser than the solver's own tolerance; `fixed` solves
     /// every time to that tolerance.
     pub forcing: Option<String>,
     /// `auto`, `direct`: the largest sparse factor to hold, bytes (default: 80 % of the memory

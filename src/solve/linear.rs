@@ -244,7 +244,8 @@ pub struct SolverSettings {
     pub rtol: f64,
     /// `iterative`, `auto` wherever it runs FGMRES, and `petsc` with an iterating KSP: stop each
     /// solve at Newton's forcing term when that is looser than the solver's own tolerance
-    /// (Eisenstat–Walker); false: every solve to that tolerance.
+    /// (Eisenstat–Walker); false: every solve to that tolerance. A scenario's default is true,
+    /// and false for `petsc` (its preconditioner is set up at every Newton iteration).
     #[serde(default = "default_adaptive")]
     pub adaptive: bool,
     /// `auto` and `direct`: the largest factor (bytes) to hold; `None`: 80 % of the memory
@@ -386,6 +387,9 @@ impl SolverSettings {
                 }
                 if !env.trim().is_empty() {
                     s.push_str(&format!(", PETSC_OPTIONS \"{}\"", env.trim()));
+                }
+                if self.adaptive {
+                    s.push_str("; a Krylov method stops at Newton's forcing term when looser");
                 }
                 s
             }

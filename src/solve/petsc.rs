@@ -318,34 +318,24 @@ pub fn sum_over_ranks(v: &mut [f64]) -> Result<(), LinearSolverError> {
     unsafe {
         if !gathers.iter().any(|g| g.n == n) {
             let comm = ffi::comm_world();
-            // a distributed vector of this rank's `n` values whose array is placed for each sum
-            let mut parts = Vector(ptr::null_mut());
-            check(
-                ffi::VecCreateMPIWithArray(
-                    comm,
-                    1,
-                    int(n)?,
-                    ffi::PETSC_DECIDE as ffi::PetscInt,
-                    ptr::null(),
-                    &mut parts.0,
-                ),
-                "VecCreateMPIWithArray",
-            )?;
-            let mpi_vector = |local: usize| -> Result<Vector, LinearSolverError> {
+            // a distributed vector of `local` values on this rank, with its own storage or
+            // without (an array is then placed in it for each sum)
+            let mpi_vector = |local: usize, stored: bool| -> Result<Vector, LinearSolverError> {
                 let mut x = Vector(ptr::null_mut());
+                let (local, all) = (int(local)?, ffi::PETSC_DECIDE as ffi::PetscInt);
                 check(
-                    ffi::VecCreateMPI(
-                        comm,
-                        int(local)?,
-                        ffi::PETSC_DECIDE as ffi::PetscInt,
-                        &mut x.0,
-                    ),
+                    if stored {
+                        ffi::VecCreateMPI(comm, local, all, &mut x.0)
+                    } else {
+                        ffi::VecCreateMPIWithArray(comm, 1, local, all, ptr::null(), &mut x.0)
+                    },
                     "VecCreateMPI",
                 )?;
                 Ok(x)
             };
-            let mine = mpi_vector(size * own.len())?;
-            let sum = mpi_vector(own.len())?;
+            let parts = mpi_vector(n, false)?;
+            let mine = mpi_vector(size * own.len(), true)?;
+            let sum = mpi_vector(own.len(), true)?;
             // block q of `mine` on this rank is chunk `own` of rank q's vector
             let before: usize = (0..rank).map(|r| size * chunk(n, r, size).len()).sum();
             let from: Vec<ffi::PetscInt> = (0..size)

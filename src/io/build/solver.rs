@@ -281,10 +281,17 @@ mod tests {
         assert_eq!(s.kind, SolverKind::Petsc);
         assert_eq!(s.petsc_options, "-ksp_type minres");
         assert!(s.describe(0).starts_with("PETSc"), "{}", s.describe(0));
-        // every solve to PETSc's own tolerance unless told otherwise
+        // every solve to PETSc's own tolerance unless told otherwise, and the solver line says
+        // which
         assert!(!s.adaptive);
+        assert!(!s.describe(0).contains("forcing"), "{}", s.describe(0));
         let s = solver("[solver]\nkind = \"petsc\"\nforcing = \"adaptive\"").unwrap();
         assert!(s.adaptive);
+        assert!(
+            s.describe(0).contains("Newton's forcing term"),
+            "{}",
+            s.describe(0)
+        );
     }
 
     #[test]
