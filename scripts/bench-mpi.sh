@@ -14,10 +14,13 @@
 #   PETSC_OPTIONS  PETSc options (default: GMRES + GAMG with the rigid-body modes, rtol 1e-8)
 #   FORCING        [solver] forcing: adaptive (the default: each Krylov solve stops at Newton's
 #                  forcing term when that is looser than -ksp_rtol) or fixed
+#   PRECONDITIONER [solver] preconditioner: kept (the default: a Krylov method keeps its
+#                  preconditioner until the iterations per decade double or a solve fails) or
+#                  renewed (set up with every tangent)
 #   OUT            scratch directory (default a new temporary one)
 set -euo pipefail
 if [ $# -lt 2 ]; then
-    sed -n '2,17p' "$0"
+    sed -n '2,20p' "$0"
     exit 2
 fi
 ranks=$1
@@ -44,6 +47,7 @@ for mesh in "$@"; do
         --set "probes.inplane_stretch.at=[$size]" --set "stages.0.steps=$steps" \
         --set output.plots=false --set output.fields_every=0 \
         --set "solver.forcing=\"${FORCING:-adaptive}\"" \
+        --set "solver.preconditioner=\"${PRECONDITIONER:-kept}\"" \
         --set 'solver.kind="petsc"' --set "solver.petsc_options=\"$options\"" \
         >"$out/$mesh.log" 2>&1 || { echo "$mesh: failed, see $out/$mesh.log"; continue; }
     summary="$dir/summary.json"

@@ -1360,29 +1360,52 @@ fn film_with_gamg_and_the_rigid_body_modes_agrees_with_the_direct_solver() {
     let (plan, reference_summary, reference) = run_example("film", None);
     assert!(reference_summary.converged, "{:?}", reference_summary.error);
     let mut krylov = Vec::new();
-    for forcing in ["fixed", "adaptive"] {
+    let mut setups = Vec::new();
+    for (forcing, preconditioner) in [
+        ("fixed", "renewed"),
+        ("adaptive", "renewed"),
+        ("adaptive", "kept"),
+    ] {
         let (_, summary, gamg) = run_example(
             "film",
             Some(&format!(
-                "kind = \"petsc\"\npetsc_options = \"{GAMG}\"\nforcing = \"{forcing}\""
+                "kind = \"petsc\"\npetsc_options = \"{GAMG}\"\nforcing = \"{forcing}\"\n\
+                 preconditioner = \"{preconditioner}\""
             )),
         );
-        assert!(summary.converged, "{forcing}: {:?}", summary.error);
+        assert!(
+            summary.converged,
+            "{forcing}, {preconditioner}: {:?}",
+            summary.error
+        );
         let d = probe_difference(&plan, &reference, &gamg);
-        let (its, newton): (usize, usize) = summary.stages.iter().fold((0, 0), |(k, n), s| {
-            (k + s.linear.krylov_iterations, n + s.newton_iterations)
+        let (its, newton, factors) = summary.stages.iter().fold((0, 0, 0), |(k, n, f), s| {
+            (
+                k + s.linear.krylov_iterations,
+                n + s.newton_iterations,
+                f + s.linear.factorizations,
+            )
         });
         eprintln!(
-            "film with GAMG, forcing {forcing}: largest relative probe difference vs LDLT \
-             {d:.2e}, {newton} Newton and {its} Krylov iterations"
+            "film with GAMG, forcing {forcing}, preconditioner {preconditioner}: largest \
+             relative probe difference vs LDLT {d:.2e}, {newton} Newton and {its} Krylov \
+             iterations, {factors} preconditioner set-ups"
         );
-        assert!(d < 1e-10, "{forcing}: {d:e}");
+        assert!(d < 1e-10, "{forcing}, {preconditioner}: {d:e}");
         krylov.push(its);
+        setups.push(factors);
     }
     assert!(
         (krylov[1] as f64) < 0.8 * krylov[0] as f64,
         "Krylov iterations: fixed {}, adaptive {}",
         krylov[0],
         krylov[1]
+    );
+    // a kept preconditioner is set up again only when it has grown stale
+    assert!(
+        setups[2] > 0 && 2 * setups[2] <= setups[1],
+        "preconditioner set-ups: renewed {}, kept {}",
+        setups[1],
+        setups[2]
     );
 }

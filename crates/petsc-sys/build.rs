@@ -29,7 +29,7 @@ const FUNCTIONS: &[&str] = &[
     "Mat(Create|SetSizes|SetType|SetBlockSize|SetFromOptions|SetUp|Destroy|GetOwnershipRange|GetSize|SetValues|ZeroEntries|PreallocatorPreallocate|AssemblyBegin|AssemblyEnd|SetOption|GetInertia|Mult|SetNearNullSpace|CreateVecs)",
     "MatNullSpace(CreateRigidBody|Create|Destroy)",
     "MatMumps(SetIcntl|GetInfog)",
-    "KSP(Create|Destroy|SetOperators|SetType|GetType|GetPC|SetFromOptions|SetUp|Solve|GetConvergedReason|GetIterationNumber|GetResidualNorm|SetTolerances|GetTolerances|SetInitialGuessNonzero|ConvergedReasons)",
+    "KSP(Create|Destroy|SetOperators|SetType|GetType|GetPC|SetFromOptions|SetUp|Solve|GetConvergedReason|GetIterationNumber|GetResidualNorm|SetTolerances|GetTolerances|SetInitialGuessNonzero|SetReusePreconditioner|GetReusePreconditioner|ConvergedReasons)",
     "PC(SetType|GetType|GetFailedReason|FactorSetMatSolverType|FactorGetMatSolverType|FactorSetUpMatSolverType|FactorGetMatrix|FieldSplitSetIS)",
     "IS(CreateGeneral|Destroy)",
     "PetscObjectCompose",

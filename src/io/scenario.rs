@@ -117,6 +117,9 @@ pub struct SolverSpec {
     /// `auto`, `direct`: the largest sparse factor to hold, bytes (default: 80 % of the memory
     /// available). Above it `auto` switches to `iterative` and `direct` stops with an error.
     pub memory_limit: Option<f64>,
+    /// `petsc` with a Krylov method: `kept` keeps the preconditioner across Newton iterations
+    /// and steps until it grows stale; `renewed` sets it up with every tangent.
+    pub preconditioner: Option<String>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

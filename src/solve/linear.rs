@@ -252,6 +252,11 @@ pub struct SolverSettings {
     /// available when the factorisation starts. `auto` switches to `iterative` above it.
     #[serde(default)]
     pub memory_limit: Option<usize>,
+    /// `petsc` with an iterating KSP: keep the preconditioner across Newton iterations and
+    /// steps, set up anew only when it has grown stale or a solve fails; false: set up with
+    /// every tangent.
+    #[serde(default)]
+    pub keep_preconditioner: bool,
 }
 
 fn default_rtol() -> f64 {
@@ -273,6 +278,7 @@ impl Default for SolverSettings {
             rtol: default_rtol(),
             adaptive: default_adaptive(),
             memory_limit: None,
+            keep_preconditioner: false,
         }
     }
 }
@@ -303,7 +309,9 @@ impl SolverSettings {
             SolverKind::Iterative => Box::new(AmgGmres::new(self.rtol).adaptive(self.adaptive)),
             #[cfg(feature = "petsc")]
             SolverKind::Petsc => Box::new(
-                super::petsc::PetscSolver::new(&self.petsc_options).adaptive(self.adaptive),
+                super::petsc::PetscSolver::new(&self.petsc_options)
+                    .adaptive(self.adaptive)
+                    .keep_preconditioner(self.keep_preconditioner),
             ),
         }
     }
@@ -390,6 +398,17 @@ impl SolverSettings {
                 }
                 if self.adaptive {
                     s.push_str("; a Krylov method stops at Newton's forcing term when looser");
+                }
+                // PETSc uses the last -ksp_type given; PETSC_OPTIONS comes after the scenario's
+                let krylov = [env.as_str(), self.petsc_options.as_str()]
+                    .iter()
+                    .find_map(|o| last_option_value(o, "-ksp_type"))
+                    .is_some_and(|t| t != "preonly");
+                if self.keep_preconditioner && krylov {
+                    s.push_str(
+                        "; a Krylov method keeps its preconditioner until the iterations double \
+                         or a solve fails",
+                    );
                 }
                 s
             }

@@ -711,8 +711,11 @@ struct System {
     shared: bool,
     /// Number of rigid-body modes attached as the near-null space.
     modes: usize,
-    /// Krylov iterations of the last solve.
+    /// Krylov iterations of the last solve (of both attempts when a kept preconditioner was
+    /// renewed during it).
     iterations: usize,
+    /// Decades of residual reduction the last solve was asked for (0 for a direct solve).
+    decades: f64,
     /// The PETSc rows this rank owns.
     rows: std::ops::Range<usize>,
     /// Whether the preconditioner is a MUMPS Cholesky (LDLᵀ) factorisation, which gives the
@@ -721,7 +724,69 @@ struct System {
     /// Whether the KSP iterates (not `preonly`): only then may a solve stop at Newton's
     /// forcing term.
     iterates: bool,
+    /// The preconditioner's life across matrices ([`Renewal`]).
+    renewal: Renewal,
+    /// Rank 0 with `DEASIM_PETSC_VERBOSE` set: a line per solve on stderr.
+    verbose: bool,
     description: String,
+}
+
+/// When an iterating KSP's preconditioner is set up anew. Setting up algebraic multigrid costs
+/// several Krylov iterations' worth (a whole hierarchy of Galerkin products), and a
+/// preconditioner of a nearby tangent usually still serves: the tangents of one run change
+/// slowly between Newton iterations and load steps.
+#[derive(Debug, Clone, Default)]
+struct Renewal {
+    /// Keep the preconditioner across matrices, setting it up anew only when it has grown
+    /// stale (else: at every matrix, PETSc's default).
+    keeps: bool,
+    /// Whether a preconditioner has been set up at all.
+    set_up: bool,
+    /// The next matrix gets a fresh preconditioner.
+    due: bool,
+    /// The preconditioner was set up with the current matrix.
+    fresh: bool,
+    /// Krylov iterations per decade of residual reduction of the first solve after the last
+    /// set-up: the measure of a fresh preconditioner's quality.
+    baseline: Option<f64>,
+    /// Preconditioner set-ups so far.
+    setups: usize,
+}
+
+/// A kept preconditioner is renewed once a solve needs this many times the Krylov iterations per
+/// decade of the first solve after its set-up.
+const STALE_GROWTH: f64 = 2.0;
+
+impl Renewal {
+    /// Whether the next set-up keeps the preconditioner.
+    fn keep_next(&self) -> bool {
+        self.keeps && self.set_up && !self.due
+    }
+
+    /// Records a set-up: fresh (`kept` false) or the old preconditioner kept.
+    fn record_set_up(&mut self, kept: bool) {
+        self.fresh = !kept;
+        if !kept {
+            self.set_up = true;
+            self.due = false;
+            self.baseline = None;
+            self.setups += 1;
+        }
+    }
+
+    /// Records a converged solve of `iterations` Krylov iterations that reduced the residual by
+    /// `decades` decades; marks the preconditioner due for renewal when it has grown stale.
+    fn record_solve(&mut self, iterations: usize, decades: f64) {
+        let rate = iterations as f64 / decades.max(1.0);
+        match self.baseline {
+            None => self.baseline = Some(rate.max(1.0)),
+            Some(base) => {
+                if self.keeps && rate > STALE_GROWTH * base {
+                    self.due = true;
+                }
+            }
+        }
+    }
 }
 
 /// While alive, `options` is PETSc's default options database (the lock must be held).
@@ -792,6 +857,7 @@ impl System {
         a: &CsrMatrix,
         options: &str,
         fixed: bool,
+        keep: bool,
         layout: Option<&DofLayout>,
     ) -> Result<System, LinearSolverError> {
         if ffi::PetscInt::try_from(a.n).is_err() {
@@ -862,6 +928,16 @@ impl System {
             )?;
             let (ksp, mut description, gives_inertia) = create_ksp(comm, &mat, options, fixed)?;
             let iterates = ksp_type(&ksp)? != "preonly";
+            // a kept preconditioner only under a Krylov method, never for the inertia (that
+            // needs the current matrix's factor), and not against PETSc's own
+            // `-ksp_reuse_preconditioner`, which keeps it for good
+            let renewal = Renewal {
+                keeps: keep
+                    && iterates
+                    && !gives_inertia
+                    && !has_option(c"-ksp_reuse_preconditioner")?,
+                ..Renewal::default()
+            };
             let mut modes = 0;
             // a factorisation needs no modes
             let direct = description.contains("PC cholesky") || description.contains("PC lu");
@@ -887,9 +963,12 @@ impl System {
                 shared,
                 modes,
                 iterations: 0,
+                decades: 0.0,
                 rows,
                 gives_inertia,
                 iterates,
+                renewal,
+                verbose: rank == 0 && std::env::var_os("DEASIM_PETSC_VERBOSE").is_some(),
                 description,
             })
         }
@@ -940,25 +1019,12 @@ impl System {
                     "MatSetOption",
                 )?;
             }
-            check(ffi::KSPSetUp(self.ksp.0), "KSPSetUp")?;
-            let mut pc: ffi::PC = ptr::null_mut();
-            check(ffi::KSPGetPC(self.ksp.0, &mut pc), "KSPGetPC")?;
-            let mut failed: ffi::PCFailedReason = ffi::PC_NOERROR;
-            check(ffi::PCGetFailedReason(pc, &mut failed), "PCGetFailedReason")?;
-            if failed == ffi::PC_FACTOR_STRUCT_ZEROPIVOT
-                || failed == ffi::PC_FACTOR_NUMERIC_ZEROPIVOT
-            {
-                return Err(LinearSolverError::Singular(0));
-            }
-            if failed != ffi::PC_NOERROR {
-                return Err(LinearSolverError::Failed(format!(
-                    "PETSc preconditioner set-up failed ({}; PCFailedReason {failed})",
-                    self.description
-                )));
-            }
+            self.set_up(self.renewal.keep_next())?;
             if !self.gives_inertia {
                 return Ok(None);
             }
+            let mut pc: ffi::PC = ptr::null_mut();
+            check(ffi::KSPGetPC(self.ksp.0, &mut pc), "KSPGetPC")?;
             let mut factor: ffi::Mat = ptr::null_mut();
             check(ffi::PCFactorGetMatrix(pc, &mut factor), "PCFactorGetMatrix")?;
             let mut negative: ffi::PetscInt = 0;
@@ -975,6 +1041,64 @@ impl System {
         }
     }
 
+    /// Sets the KSP up for the current matrix: the preconditioner anew, or the old one kept
+    /// (`keep`, with [`Renewal::keeps`] only; the Krylov method then runs on the new matrix).
+    ///
+    /// # Safety
+    /// The caller holds the lock and has pushed the solver's options.
+    unsafe fn set_up(&mut self, keep: bool) -> Result<(), LinearSolverError> {
+        if self.renewal.keeps {
+            check(
+                ffi::KSPSetReusePreconditioner(
+                    self.ksp.0,
+                    if keep {
+                        ffi::PETSC_TRUE
+                    } else {
+                        ffi::PETSC_FALSE
+                    },
+                ),
+                "KSPSetReusePreconditioner",
+            )?;
+        }
+        check(ffi::KSPSetUp(self.ksp.0), "KSPSetUp")?;
+        let mut pc: ffi::PC = ptr::null_mut();
+        check(ffi::KSPGetPC(self.ksp.0, &mut pc), "KSPGetPC")?;
+        let mut failed: ffi::PCFailedReason = ffi::PC_NOERROR;
+        check(ffi::PCGetFailedReason(pc, &mut failed), "PCGetFailedReason")?;
+        if failed == ffi::PC_FACTOR_STRUCT_ZEROPIVOT || failed == ffi::PC_FACTOR_NUMERIC_ZEROPIVOT {
+            return Err(LinearSolverError::Singular(0));
+        }
+        if failed != ffi::PC_NOERROR {
+            return Err(LinearSolverError::Failed(format!(
+                "PETSc preconditioner set-up failed ({}; PCFailedReason {failed})",
+                self.description
+            )));
+        }
+        self.renewal.record_set_up(keep);
+        Ok(())
+    }
+
+    /// Runs the KSP on the filled right-hand side: its iterations and converged reason.
+    ///
+    /// # Safety
+    /// The caller holds the lock and has pushed the solver's options.
+    unsafe fn krylov(&mut self) -> Result<(usize, ffi::KSPConvergedReason), LinearSolverError> {
+        check(ffi::KSPSolve(self.ksp.0, self.b.0, self.x.0), "KSPSolve")?;
+        let mut its: ffi::PetscInt = 0;
+        check(
+            ffi::KSPGetIterationNumber(self.ksp.0, &mut its),
+            "KSPGetIterationNumber",
+        )?;
+        let mut reason: ffi::KSPConvergedReason = 0;
+        check(
+            ffi::KSPGetConvergedReason(self.ksp.0, &mut reason),
+            "KSPGetConvergedReason",
+        )?;
+        let its = its.max(0) as usize;
+        self.iterations += its;
+        Ok((its, reason))
+    }
+
     /// Solves with this rank's part of `b` and overwrites all of `b` with the solution. An
     /// iterating KSP stops at the relative residual `forcing` when that is looser than its own
     /// tolerance (as PETSc's SNES does with `-snes_ksp_ew`: the KSP's own norm, by default the
@@ -984,6 +1108,7 @@ impl System {
         let _scope = Scope::push(&self.options)?;
         // SAFETY: the handles are live; arrays obtained from PETSc are restored before return
         // and have the local (for b) or global (for x_all) length
+        self.iterations = 0;
         unsafe {
             let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
             check(ffi::VecGetArray(self.b.0, &mut arr), "VecGetArray")?;
@@ -993,44 +1118,37 @@ impl System {
             }
             check(ffi::VecRestoreArray(self.b.0, &mut arr), "VecRestoreArray")?;
 
-            let mut own = None;
-            if let Some(eta) = forcing.filter(|_| self.iterates) {
-                let (mut rtol, mut atol, mut dtol, mut its) = (0.0, 0.0, 0.0, 0);
+            let (mut rtol, mut atol, mut dtol, mut max_its) = (0.0, 0.0, 0.0, 0);
+            check(
+                ffi::KSPGetTolerances(self.ksp.0, &mut rtol, &mut atol, &mut dtol, &mut max_its),
+                "KSPGetTolerances",
+            )?;
+            // the tolerance of this solve: Newton's forcing term when looser than the KSP's
+            let loose = forcing.filter(|&eta| self.iterates && eta > rtol);
+            let target = loose.unwrap_or(rtol);
+            if let Some(eta) = loose {
                 check(
-                    ffi::KSPGetTolerances(self.ksp.0, &mut rtol, &mut atol, &mut dtol, &mut its),
-                    "KSPGetTolerances",
-                )?;
-                if eta > rtol {
-                    check(
-                        ffi::KSPSetTolerances(self.ksp.0, eta, atol, dtol, its),
-                        "KSPSetTolerances",
-                    )?;
-                    own = Some((rtol, atol, dtol, its));
-                }
-            }
-            let solved = check(ffi::KSPSolve(self.ksp.0, self.b.0, self.x.0), "KSPSolve");
-            if let Some((rtol, atol, dtol, its)) = own {
-                check(
-                    ffi::KSPSetTolerances(self.ksp.0, rtol, atol, dtol, its),
+                    ffi::KSPSetTolerances(self.ksp.0, eta, atol, dtol, max_its),
                     "KSPSetTolerances",
                 )?;
             }
-            solved?;
-            let mut its: ffi::PetscInt = 0;
-            check(
-                ffi::KSPGetIterationNumber(self.ksp.0, &mut its),
-                "KSPGetIterationNumber",
-            )?;
-            self.iterations = its.max(0) as usize;
-            let mut reason: ffi::KSPConvergedReason = 0;
-            check(
-                ffi::KSPGetConvergedReason(self.ksp.0, &mut reason),
-                "KSPGetConvergedReason",
-            )?;
+            let mut solved = self.krylov();
+            if matches!(solved, Ok((_, reason)) if reason <= 0)
+                && self.renewal.keeps
+                && !self.renewal.fresh
+            {
+                // a kept preconditioner no longer serves: once more with a fresh one
+                solved = self.set_up(false).and_then(|()| self.krylov());
+            }
+            if loose.is_some() {
+                check(
+                    ffi::KSPSetTolerances(self.ksp.0, rtol, atol, dtol, max_its),
+                    "KSPSetTolerances",
+                )?;
+            }
+            let (its, reason) = solved?;
             if reason <= 0 {
-                let mut its: ffi::PetscInt = 0;
                 let mut rnorm: ffi::PetscReal = 0.0;
-                ffi::KSPGetIterationNumber(self.ksp.0, &mut its);
                 ffi::KSPGetResidualNorm(self.ksp.0, &mut rnorm);
                 let name = type_name(*ffi::KSPConvergedReasons.offset(reason as isize));
                 return Err(LinearSolverError::Failed(format!(
@@ -1038,6 +1156,18 @@ impl System {
                      norm {rnorm:.3e}",
                     self.description
                 )));
+            }
+            if self.verbose {
+                eprintln!(
+                    "deasim: PETSc solve: {its} Krylov iterations to {target:.1e} with a {} \
+                     preconditioner",
+                    if self.renewal.fresh { "fresh" } else { "kept" }
+                );
+            }
+            self.decades = 0.0;
+            if self.iterates && target > 0.0 {
+                self.decades = -target.log10();
+                self.renewal.record_solve(its, self.decades);
             }
 
             scatter(&self.scatter, &self.x, &self.x_all)?;
@@ -1485,6 +1615,8 @@ pub struct PetscSolver {
     adaptive: bool,
     /// Newton's forcing term for the next solves.
     forcing: Option<f64>,
+    /// Whether an iterating KSP keeps its preconditioner across matrices until it grows stale.
+    keep: bool,
 }
 
 impl std::fmt::Debug for PetscSolver {
@@ -1513,6 +1645,7 @@ impl PetscSolver {
             stats: SolverStats::default(),
             adaptive: false,
             forcing: None,
+            keep: false,
         }
     }
 
@@ -1521,6 +1654,15 @@ impl PetscSolver {
     /// ([`LinearSolver::set_forcing`]); a direct solve (`preonly`) is unaffected.
     pub fn adaptive(mut self, adaptive: bool) -> Self {
         self.adaptive = adaptive;
+        self
+    }
+
+    /// Lets an iterating KSP keep its preconditioner across matrices (Newton iterations, load
+    /// and time steps) and set it up anew only when a solve needs twice the Krylov iterations
+    /// per decade of the first solve after the last set-up, or fails (then solved once more with
+    /// a fresh one). A factorisation that gives the inertia is always renewed.
+    pub fn keep_preconditioner(mut self, keep: bool) -> Self {
+        self.keep = keep;
         self
     }
 
@@ -1561,12 +1703,16 @@ impl LinearSolver for PetscSolver {
                 a,
                 &self.options,
                 self.fixed,
+                self.keep,
                 self.layout.as_ref(),
             )?);
         }
         let system = self.system.as_mut().expect("set above");
-        let inertia = system.factor(a)?;
-        self.stats.factorizations += 1;
+        let before = system.renewal.setups;
+        let inertia = system.factor(a);
+        // a kept preconditioner is no factorisation
+        self.stats.factorizations += system.renewal.setups - before;
+        let inertia = inertia?;
         self.factored = true;
         Ok(inertia)
     }
@@ -1576,9 +1722,13 @@ impl LinearSolver for PetscSolver {
             return Err(LinearSolverError::NotFactored);
         }
         let system = self.system.as_mut().ok_or(LinearSolverError::NotFactored)?;
-        system.solve(b, self.forcing.filter(|_| self.adaptive))?;
-        self.stats.solves += 1;
+        let before = system.renewal.setups;
+        let solved = system.solve(b, self.forcing.filter(|_| self.adaptive));
+        self.stats.factorizations += system.renewal.setups - before;
         self.stats.krylov_iterations += system.iterations;
+        solved?;
+        self.stats.solves += 1;
+        self.stats.krylov_decades += system.decades;
         Ok(())
     }
 
@@ -1782,6 +1932,93 @@ mod tests {
         assert_eq!(owned_rows(12, 4, 0, 2), 0..4);
         assert_eq!(owned_rows(12, 4, 1, 2), 4..12);
         assert_eq!(owned_rows(7, 1, 1, 2), 3..7);
+    }
+
+    #[test]
+    fn a_kept_preconditioner_is_due_once_the_iterations_per_decade_double() {
+        let mut r = Renewal {
+            keeps: true,
+            ..Renewal::default()
+        };
+        assert!(!r.keep_next(), "nothing to keep before the first set-up");
+        r.record_set_up(false);
+        assert!(r.fresh && r.setups == 1);
+        r.record_solve(8, 8.0); // the baseline: 1 iteration per decade
+        r.record_set_up(true);
+        assert!(!r.fresh && r.setups == 1 && r.keep_next());
+        r.record_solve(2, 1.0); // twice the baseline: still kept
+        r.record_solve(16, 8.0);
+        assert!(r.keep_next());
+        r.record_solve(17, 8.0);
+        assert!(!r.keep_next(), "more than twice the baseline");
+        r.record_set_up(false);
+        assert!(r.fresh && r.setups == 2 && r.baseline.is_none() && r.keep_next());
+        // PETSc's default: a set-up at every matrix, however the iterations go
+        let mut every = Renewal::default();
+        every.record_set_up(false);
+        every.record_solve(1, 8.0);
+        every.record_solve(100, 8.0);
+        assert!(!every.keep_next() && !every.due);
+    }
+
+    #[test]
+    fn a_kept_preconditioner_that_fails_is_renewed_and_the_solve_retried() {
+        // an exact LU under GMRES limited to one iteration: only the current matrix's own
+        // factor solves within it
+        let tridiagonal = |d: f64| {
+            let mut e = Vec::new();
+            for i in 0..6 {
+                e.push((i, i, d + i as f64));
+                if i > 0 {
+                    e.push((i, i - 1, -1.0));
+                    e.push((i - 1, i, -1.0));
+                }
+            }
+            csr(6, &e)
+        };
+        let mut s = PetscSolver::new(
+            "-ksp_type gmres -pc_type lu -pc_factor_mat_solver_type mumps -ksp_max_it 1 \
+             -ksp_rtol 1e-12",
+        )
+        .keep_preconditioner(true);
+        let residual = |a: &CsrMatrix, x: &[f64], b: &[f64]| {
+            let mut ax = vec![0.0; b.len()];
+            a.mul_vec(x, &mut ax);
+            ax.iter()
+                .zip(b)
+                .map(|(p, q)| (p - q).abs())
+                .fold(0.0, f64::max)
+        };
+        let b = vec![1.0, 2.0, 0.0, -1.0, 3.0, 0.5];
+        let first = tridiagonal(4.0);
+        s.factor(&first).unwrap();
+        let mut x = b.clone();
+        s.solve_in_place(&mut x).unwrap();
+        assert!(residual(&first, &x, &b) < 1e-12);
+        assert_eq!(s.stats().factorizations, 1);
+        // another matrix of the same pattern: its factorisation keeps the first factor ...
+        let second = tridiagonal(9.0);
+        s.factor(&second).unwrap();
+        assert_eq!(s.stats().factorizations, 1, "the preconditioner was kept");
+        // ... which cannot solve it in one iteration: renewed, and solved again
+        let mut x = b.clone();
+        s.solve_in_place(&mut x).unwrap();
+        assert!(residual(&second, &x, &b) < 1e-12, "{x:?}");
+        let stats = s.stats();
+        assert_eq!(stats.factorizations, 2, "{stats:?}");
+        assert_eq!(
+            stats.krylov_iterations, 3,
+            "one, then one failed and one: {stats:?}"
+        );
+        // renewed: a solve that fails with a fresh preconditioner is an error as before
+        let mut never =
+            PetscSolver::new("-ksp_type gmres -pc_type jacobi -ksp_max_it 1 -ksp_rtol 1e-12")
+                .keep_preconditioner(true);
+        never.factor(&second).unwrap();
+        let mut x = b.clone();
+        let err = never.solve_in_place(&mut x).unwrap_err().to_string();
+        assert!(err.contains("DIVERGED_ITS"), "{err}");
+        assert_eq!(never.stats().factorizations, 1);
     }
 
     #[test]

@@ -102,6 +102,25 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
         // loose forcing term adds can cost more than the Krylov iterations it saves
         out.adaptive = false;
     }
+    if let Some(p) = &spec.preconditioner {
+        if !petsc(out.kind) {
+            return Err(ctx.err(
+                "solver.preconditioner",
+                "applies to kind = \"petsc\" only (deasim's own kinds renew theirs by their \
+                 own measures)",
+            ));
+        }
+        out.keep_preconditioner = choice(
+            ctx,
+            "preconditioner",
+            p,
+            [("kept", true), ("renewed", false)],
+        )?;
+    } else {
+        // a set-up of algebraic multigrid costs several Krylov iterations' worth, and the
+        // preconditioner of a nearby tangent still serves
+        out.keep_preconditioner = petsc(out.kind);
+    }
     if let Some(p) = &spec.precision {
         if out.kind != SolverKind::Auto {
             return Err(ctx.err(
@@ -291,6 +310,49 @@ mod tests {
             s.describe(0).contains("Newton's forcing term"),
             "{}",
             s.describe(0)
+        );
+    }
+
+    #[cfg(feature = "petsc")]
+    #[test]
+    fn a_petsc_krylov_method_keeps_its_preconditioner_unless_renewed() {
+        let gmres = "[solver]\nkind = \"petsc\"\npetsc_options = \"-ksp_type gmres\"";
+        let s = solver(gmres).unwrap();
+        assert!(s.keep_preconditioner);
+        assert!(
+            s.describe(0).contains("keeps its preconditioner"),
+            "{}",
+            s.describe(0)
+        );
+        let s = solver(&format!("{gmres}\npreconditioner = \"renewed\"")).unwrap();
+        assert!(!s.keep_preconditioner);
+        assert!(
+            !s.describe(0).contains("preconditioner"),
+            "{}",
+            s.describe(0)
+        );
+        // the direct default has nothing to keep, and its line does not say it keeps anything
+        let s = solver("[solver]\nkind = \"petsc\"").unwrap();
+        assert!(!s.describe(0).contains("keeps"), "{}", s.describe(0));
+        assert_rejected(
+            &[(
+                "solver",
+                format!("{gmres}\npreconditioner = \"stale\"").as_str(),
+            )],
+            "solver.preconditioner",
+            "unknown preconditioner `stale`; expected one of: kept, renewed",
+        );
+    }
+
+    #[test]
+    fn the_preconditioner_key_needs_the_petsc_kind() {
+        assert_rejected(
+            &[(
+                "solver",
+                "[solver]\nkind = \"iterative\"\npreconditioner = \"kept\"",
+            )],
+            "solver.preconditioner",
+            "applies to kind = \"petsc\" only",
         );
     }
 
