@@ -245,7 +245,7 @@ pub struct SolverSettings {
     /// `iterative`, `auto` wherever it runs FGMRES, and `petsc` with an iterating KSP: stop each
     /// solve at Newton's forcing term when that is looser than the solver's own tolerance
     /// (Eisenstat–Walker); false: every solve to that tolerance. A scenario's default is true,
-    /// and false for `petsc` (its preconditioner is set up at every Newton iteration).
+    /// and false for `petsc` (loose first directions can stall Newton on a large step).
     #[serde(default = "default_adaptive")]
     pub adaptive: bool,
     /// `auto` and `direct`: the largest factor (bytes) to hold; `None`: 80 % of the memory

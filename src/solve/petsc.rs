@@ -1102,7 +1102,8 @@ impl System {
     /// Solves with this rank's part of `b` and overwrites all of `b` with the solution. An
     /// iterating KSP stops at the relative residual `forcing` when that is looser than its own
     /// tolerance (as PETSc's SNES does with `-snes_ksp_ew`: the KSP's own norm, by default the
-    /// preconditioned residual's for GMRES); its tolerances are restored afterwards.
+    /// preconditioned residual's for GMRES); its tolerances are restored afterwards. A solve
+    /// that fails with a kept preconditioner is repeated once with a fresh one.
     fn solve(&mut self, b: &mut [f64], forcing: Option<f64>) -> Result<(), LinearSolverError> {
         let _guard = lock();
         let _scope = Scope::push(&self.options)?;

@@ -98,8 +98,8 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
         }
         out.adaptive = choice(ctx, "forcing", f, [("adaptive", true), ("fixed", false)])?;
     } else if petsc(out.kind) {
-        // every Newton iteration sets PETSc's preconditioner up anew: the Newton iterations a
-        // loose forcing term adds can cost more than the Krylov iterations it saves
+        // in one large step to a strongly nonlinear state, loose first directions can leave
+        // Newton creeping until it fails and the step is cut back (docs/petsc.md)
         out.adaptive = false;
     }
     if let Some(p) = &spec.preconditioner {
