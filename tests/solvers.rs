@@ -283,6 +283,9 @@ fn iterations_per_solve(divisions: &str) -> f64 {
     let its = linear["krylov_iterations"].as_f64().unwrap();
     let solves = linear["solves"].as_f64().unwrap();
     assert!(solves > 0.0, "{summary}");
+    // every Krylov solve reduces its residual by at least its forcing term's factor
+    let decades = linear["krylov_decades"].as_f64().unwrap();
+    assert!(decades >= 1.0 && decades.is_finite(), "{summary}");
     its / solves
 }
 

@@ -737,6 +737,7 @@ impl OutputWriter {
                 "linear": {
                     "factorizations": s.linear.factorizations, "solves": s.linear.solves,
                     "krylov_iterations": s.linear.krylov_iterations,
+                    "krylov_decades": json_number(s.linear.krylov_decades),
                 },
             })).collect::<Vec<_>>(),
             "probes": probes,

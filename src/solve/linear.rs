@@ -396,14 +396,15 @@ impl SolverSettings {
                 if !env.trim().is_empty() {
                     s.push_str(&format!(", PETSC_OPTIONS \"{}\"", env.trim()));
                 }
-                if self.adaptive {
-                    s.push_str("; a Krylov method stops at Newton's forcing term when looser");
-                }
                 // PETSc uses the last -ksp_type given; PETSC_OPTIONS comes after the scenario's
                 let krylov = [env.as_str(), self.petsc_options.as_str()]
                     .iter()
                     .find_map(|o| last_option_value(o, "-ksp_type"))
                     .is_some_and(|t| t != "preonly");
+                // both only act on a Krylov method, so a direct solve does not mention them
+                if self.adaptive && krylov {
+                    s.push_str("; a Krylov method stops at Newton's forcing term when looser");
+                }
                 if self.keep_preconditioner && krylov {
                     s.push_str(
                         "; a Krylov method keeps its preconditioner until the iterations double \

@@ -304,8 +304,14 @@ mod tests {
         // which
         assert!(!s.adaptive);
         assert!(!s.describe(0).contains("forcing"), "{}", s.describe(0));
+        // the forcing term acts on a Krylov method only: the direct default does not mention it
         let s = solver("[solver]\nkind = \"petsc\"\nforcing = \"adaptive\"").unwrap();
         assert!(s.adaptive);
+        assert!(!s.describe(0).contains("forcing"), "{}", s.describe(0));
+        let s = solver(
+            "[solver]\nkind = \"petsc\"\nforcing = \"adaptive\"\npetsc_options = \"-ksp_type gmres\"",
+        )
+        .unwrap();
         assert!(
             s.describe(0).contains("Newton's forcing term"),
             "{}",
