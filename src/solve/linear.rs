@@ -407,8 +407,8 @@ impl SolverSettings {
                 }
                 if self.keep_preconditioner && krylov {
                     s.push_str(
-                        "; a Krylov method keeps its preconditioner until the iterations double \
-                         or a solve fails",
+                        "; a Krylov method keeps its preconditioner until its iterations per \
+                         decade of residual reduction double or a solve fails",
                     );
                 }
                 s
