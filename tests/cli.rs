@@ -487,6 +487,24 @@ fn film_vibration_runs_undamped_and_damped() {
         "oscillates about the static state: mean {mean}"
     );
     assert!((times.last().unwrap() - 0.01).abs() < 1e-12);
+    // the dynamic stage reports its linear work: a solve per Newton iteration at least, and the
+    // modified Newton iteration reuses its factorisations
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("u/summary.json")).unwrap())
+            .unwrap();
+    let stage = summary["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["kind"] == "dynamic")
+        .expect("a dynamic stage");
+    let count = |key: &str| stage["linear"][key].as_u64().unwrap();
+    let newton = stage["newton_iterations"].as_u64().unwrap();
+    assert!(newton > 0 && count("solves") >= newton, "{stage}");
+    assert!(
+        count("factorizations") >= 1 && count("factorizations") < count("solves"),
+        "{stage}"
+    );
     let energy: Vec<f64> = rows[1..]
         .iter()
         .map(|r| value(r, "kinetic") + value(r, "stored") - value(r, "electric"))

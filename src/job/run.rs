@@ -1128,6 +1128,8 @@ impl<'p, 'o> Job<'p, 'o> {
         let mut mv = vec![0.0; self.q.len()];
         let time = self.time;
         let model_ref: &Model = model;
+        // the stage's linear work up to its last accepted step
+        let mut linear = Default::default();
         let outcome = run_dynamic_from(
             model_ref,
             &inputs,
@@ -1137,6 +1139,7 @@ impl<'p, 'o> Job<'p, 'o> {
             resume,
             |level, info| {
                 step_no += 1;
+                linear = info.linear;
                 self.dissipated += info.dissipated;
                 if let Some(p) = info.points {
                     self.points.clone_from(p);
@@ -1183,10 +1186,12 @@ impl<'p, 'o> Job<'p, 'o> {
         let (level, failure) = match outcome {
             Ok((level, its)) => {
                 summary.newton_iterations = its;
+                summary.linear = linear;
                 (level, None)
             }
             Err((level, f)) => {
                 summary.newton_iterations = f.newton_iterations;
+                summary.linear = f.linear;
                 if crate::solve::interrupt::requested() {
                     self.v.clone_from(&level.v);
                     self.a.clone_from(&level.a);

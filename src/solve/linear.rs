@@ -144,6 +144,20 @@ pub struct SolverStats {
     pub krylov_decades: f64,
 }
 
+impl std::ops::Add for SolverStats {
+    type Output = SolverStats;
+
+    /// The work of two solvers together (e.g. a time step's and its projection's).
+    fn add(self, other: SolverStats) -> SolverStats {
+        SolverStats {
+            factorizations: self.factorizations + other.factorizations,
+            solves: self.solves + other.solves,
+            krylov_iterations: self.krylov_iterations + other.krylov_iterations,
+            krylov_decades: self.krylov_decades + other.krylov_decades,
+        }
+    }
+}
+
 /// Fill-reducing ordering of [`FaerLdlt`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Ordering {

@@ -12,7 +12,7 @@ use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
 use crate::problem::system::NonlinearSystem;
-use crate::solve::linear::{LinearSolver, SolverSettings};
+use crate::solve::linear::{LinearSolver, SolverSettings, SolverStats};
 use crate::solve::newton::{newton, NewtonSettings};
 use crate::waveform::Waveform;
 
@@ -74,6 +74,9 @@ pub struct DynamicStepInfo<'a> {
     pub last_h: f64,
     pub step_factor: Option<&'a FactorPoint>,
     pub projection_factor: Option<&'a [f64]>,
+    /// The linear solvers' work of the stage so far (the steps' and the projections'), failed
+    /// attempts included.
+    pub linear: SolverStats,
 }
 
 impl DynamicStepInfo<'_> {
@@ -114,6 +117,8 @@ pub struct DynamicFailure {
     pub t: f64,
     pub reason: String,
     pub newton_iterations: usize,
+    /// The linear solvers' work of the stage up to the failure.
+    pub linear: SolverStats,
 }
 
 /// Everything a dynamic stage needs besides the model.
@@ -157,6 +162,8 @@ trait Stepper {
     fn easy(&self, iterations: usize, easy_iterations: usize) -> bool;
     /// Size of the last attempted step and the points of the held factorisations.
     fn position(&self) -> (f64, Option<&FactorPoint>, Option<&[f64]>);
+    /// The work of the step's and the projection's linear solvers so far.
+    fn linear(&self) -> SolverStats;
 }
 
 /// The electrostatic projection: every displacement held, the potential solved for with the
@@ -368,6 +375,10 @@ impl Stepper for ImplicitStepper<'_, '_> {
         };
         (self.last_h, step, self.projector.factor_point())
     }
+
+    fn linear(&self) -> SolverStats {
+        self.solver.stats() + self.projector.solver.stats()
+    }
 }
 
 /// The explicit trapezoidal (Störmer–Verlet) scheme; see `trapezoidal.rs`.
@@ -476,9 +487,15 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
     fn position(&self) -> (f64, Option<&FactorPoint>, Option<&[f64]>) {
         (self.last_h, None, self.projector.factor_point())
     }
+
+    fn linear(&self) -> SolverStats {
+        self.solver.stats() + self.projector.solver.stats()
+    }
 }
 
 /// The adaptive step loop shared by every scheme: `on_step` sees every accepted level.
+// one result per stage: the size of its failure (the last level and what stopped it) costs nothing
+#[allow(clippy::result_large_err)]
 fn step_loop(
     stepper: &mut dyn Stepper,
     settings: &DynamicSettings,
@@ -497,6 +514,7 @@ fn step_loop(
                     t: t0,
                     reason,
                     newton_iterations: total,
+                    linear: stepper.linear(),
                 },
             ));
         }
@@ -518,6 +536,7 @@ fn step_loop(
                     last_h,
                     step_factor,
                     projection_factor,
+                    linear: stepper.linear(),
                 };
                 on_step(&a.level, &info);
                 stepper.accept(a.level, a.points);
@@ -529,6 +548,7 @@ fn step_loop(
                         t: t0,
                         reason,
                         newton_iterations: total + iterations,
+                        linear: stepper.linear(),
                     },
                 ));
             }
@@ -543,6 +563,7 @@ fn step_loop(
                                 "time step fell below {min_dt:e} s at t = {t0:.6e} s; last failure: {failure}"
                             ),
                             newton_iterations: total,
+                            linear: stepper.linear(),
                         },
                     ));
                 }
@@ -556,6 +577,8 @@ fn step_loop(
 /// conditions are added here). Calls `on_step` after every accepted step with the new level, whose
 /// potential is in electrostatic equilibrium. Returns the final level, or the failure together
 /// with the last accepted level.
+// one result per stage: the size of its failure (the last level and what stopped it) costs nothing
+#[allow(clippy::result_large_err)]
 pub fn run_dynamic(
     model: &Model,
     inputs: &DynamicInputs,
@@ -577,6 +600,8 @@ pub fn run_dynamic(
 
 /// [`run_dynamic`], resumable from a [`DynamicResume`] recorded by an earlier run
 /// ([`DynamicStepInfo::resume_point`]).
+// one result per stage: the size of its failure (the last level and what stopped it) costs nothing
+#[allow(clippy::result_large_err)]
 pub fn run_dynamic_from(
     model: &Model,
     inputs: &DynamicInputs,
@@ -595,6 +620,7 @@ pub fn run_dynamic_from(
                          variables (Maxwell branches); use scheme = \"midpoint\" or \"newmark\""
                     .to_string(),
                 newton_iterations: 0,
+                linear: SolverStats::default(),
             },
         ));
     }
@@ -615,6 +641,7 @@ pub fn run_dynamic_from(
                 t: level.t,
                 reason,
                 newton_iterations: 0,
+                linear: SolverStats::default(),
             },
         )
     };
