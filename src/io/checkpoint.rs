@@ -366,6 +366,12 @@ mod tests {
                         last_h: 1e-5,
                         step_factor: None,
                         projection_factor: Some(vec![0.5, -1.0]),
+                        linear: crate::solve::linear::SolverStats {
+                            factorizations: 2,
+                            solves: 40,
+                            krylov_iterations: 0,
+                            krylov_decades: 0.0,
+                        },
                     },
                 },
                 q: vec![1.0, -0.0, f64::NAN, 3.5],

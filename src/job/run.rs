@@ -1124,6 +1124,7 @@ impl<'p, 'o> Job<'p, 'o> {
             last_h: f64::NAN,
             step_factor: None,
             projection_factor: None,
+            linear: Default::default(),
         });
         let mut mv = vec![0.0; self.q.len()];
         let time = self.time;

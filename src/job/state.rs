@@ -87,8 +87,8 @@ pub struct StageSummary {
     /// Natural frequencies (Hz) found by a `modes` stage (empty for other kinds).
     #[serde(default)]
     pub modes_hz: Vec<f64>,
-    /// The linear solvers' work (static and dynamic stages, since the stage began or the run
-    /// resumed; zero for modes and frequency-response stages).
+    /// The linear solvers' work (static and dynamic stages; a resumed static stage's from its
+    /// checkpoint on; zero for modes and frequency-response stages).
     #[serde(default)]
     pub linear: crate::solve::linear::SolverStats,
 }

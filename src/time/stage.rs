@@ -75,7 +75,7 @@ pub struct DynamicStepInfo<'a> {
     pub step_factor: Option<&'a FactorPoint>,
     pub projection_factor: Option<&'a [f64]>,
     /// The linear solvers' work of the stage so far (the steps' and the projections'), failed
-    /// attempts included.
+    /// attempts included; a resumed stage's includes the work before its checkpoint.
     pub linear: SolverStats,
 }
 
@@ -89,6 +89,7 @@ impl DynamicStepInfo<'_> {
             last_h: self.last_h,
             step_factor: self.step_factor.cloned(),
             projection_factor: self.projection_factor.map(<[f64]>::to_vec),
+            linear: self.linear,
         }
     }
 }
@@ -108,6 +109,9 @@ pub struct DynamicResume {
     pub last_h: f64,
     pub step_factor: Option<FactorPoint>,
     pub projection_factor: Option<Vec<f64>>,
+    /// The linear solvers' work of the stage so far (absent in older checkpoints: zero).
+    #[serde(default)]
+    pub linear: SolverStats,
 }
 
 /// The stage stopped before its end.
@@ -501,7 +505,8 @@ fn step_loop(
     settings: &DynamicSettings,
     t_end: f64,
     mut dt: f64,
-    mut total: usize,
+    // the Newton iterations and linear work of the stage before this run (a resumed one)
+    (mut total, base): (usize, SolverStats),
     mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
     let min_dt = settings.dt * settings.min_fraction;
@@ -514,7 +519,7 @@ fn step_loop(
                     t: t0,
                     reason,
                     newton_iterations: total,
-                    linear: stepper.linear(),
+                    linear: base + stepper.linear(),
                 },
             ));
         }
@@ -536,7 +541,7 @@ fn step_loop(
                     last_h,
                     step_factor,
                     projection_factor,
-                    linear: stepper.linear(),
+                    linear: base + stepper.linear(),
                 };
                 on_step(&a.level, &info);
                 stepper.accept(a.level, a.points);
@@ -548,7 +553,7 @@ fn step_loop(
                         t: t0,
                         reason,
                         newton_iterations: total + iterations,
-                        linear: stepper.linear(),
+                        linear: base + stepper.linear(),
                     },
                 ));
             }
@@ -563,7 +568,7 @@ fn step_loop(
                                 "time step fell below {min_dt:e} s at t = {t0:.6e} s; last failure: {failure}"
                             ),
                             newton_iterations: total,
-                            linear: stepper.linear(),
+                            linear: base + stepper.linear(),
                         },
                     ));
                 }
@@ -653,6 +658,7 @@ pub fn run_dynamic_from(
     let t_end = resume.as_ref().map_or(start.t, |r| r.t_start) + settings.duration;
     let dt = resume.as_ref().map_or(settings.dt, |r| r.dt);
     let total = resume.as_ref().map_or(0, |r| r.iterations);
+    let base = resume.as_ref().map_or(SolverStats::default(), |r| r.linear);
     let last_h = resume.as_ref().map_or(f64::NAN, |r| r.last_h);
     let mut start = start;
     let scheme = match settings.scheme {
@@ -702,7 +708,7 @@ pub fn run_dynamic_from(
                 model: &step_model,
                 last_h,
             };
-            return step_loop(&mut stepper, settings, t_end, dt, total, on_step);
+            return step_loop(&mut stepper, settings, t_end, dt, (total, base), on_step);
         }
     };
     if let (Scheme::Newmark { .. }, None) = (scheme, &resume) {
@@ -777,5 +783,5 @@ pub fn run_dynamic_from(
             .refactor_at(point, s.solver.as_mut(), &mut s.k)
             .map_err(|e| fail(&s.step.prev, format!("re-factoring at the checkpoint: {e}")))?;
     }
-    step_loop(&mut stepper, settings, t_end, dt, total, on_step)
+    step_loop(&mut stepper, settings, t_end, dt, (total, base), on_step)
 }
