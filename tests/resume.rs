@@ -51,7 +51,7 @@ fn checkpoints(out: &Path) -> Vec<PathBuf> {
 }
 
 /// summary.json without its wall times and the linear solver's work counts (a resumed stage
-/// counts the solves since the resume, and factors its start again).
+/// factors its start again, and a static one counts its solves from the resume only).
 fn summary(out: &Path) -> serde_json::Value {
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
@@ -209,6 +209,24 @@ fn checkpoints_change_no_number() {
         let (plain, with) = (format!("plain{i}"), format!("with{i}"));
         run(&plain, None);
         run(&with, Some("7"));
+        // every integrator reports its linear work: a solve per Newton iteration at least (the
+        // explicit scheme's come from its electrostatic solves), and some factorisation
+        let full: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.join(&plain).join("summary.json")).unwrap(),
+        )
+        .unwrap();
+        for stage in full["stages"].as_array().unwrap() {
+            if stage["kind"] != "dynamic" {
+                continue;
+            }
+            let count = |key: &str| stage["linear"][key].as_u64().unwrap();
+            let newton = stage["newton_iterations"].as_u64().unwrap();
+            assert!(newton > 0 && count("solves") >= newton, "{sets:?}: {stage}");
+            assert!(
+                count("factorizations") >= 1 && count("factorizations") <= count("solves"),
+                "{sets:?}: {stage}"
+            );
+        }
         assert!(!checkpoints(&dir.join(&with)).is_empty(), "{name} {sets:?}");
         assert_same_results(&dir.join(&plain), &dir.join(&with));
     }
