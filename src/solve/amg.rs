@@ -149,8 +149,8 @@ pub enum AmgError {
 // ---------------------------------------------------------------------------------------------
 // Sparse matrices
 
-/// Column index types: the caller's matrix uses `usize`, the hierarchy's own matrices `u32`
-/// (a third less memory per entry).
+/// Column index types: the matrices here (the caller's and the hierarchy's own) use `u32`, a
+/// third less memory per entry than `usize`; `usize` serves the tests' small matrices.
 trait Idx: Copy + Send + Sync {
     fn ix(self) -> usize;
 }
@@ -256,7 +256,7 @@ impl Csr {
 /// The operator of one level: the caller's matrix on the finest level, ours below.
 #[derive(Clone, Copy)]
 enum Op<'m> {
-    Fine(View<'m, usize>),
+    Fine(View<'m, u32>),
     Coarse(View<'m, u32>),
 }
 
@@ -655,7 +655,7 @@ impl BlockMatrix {
                         continue;
                     }
                     for p in a.row_ptr[e]..a.row_ptr[e + 1] {
-                        let c = row[a.col_idx[p]];
+                        let c = row[a.col_idx[p] as usize];
                         if c == usize::MAX {
                             continue;
                         }
@@ -683,8 +683,7 @@ impl BlockMatrix {
     /// The stored entries that are not zero, and every diagonal entry, in scalar CSR.
     pub fn to_csr(&self) -> CsrMatrix {
         let c = self.m.to_compact();
-        let cols = c.col.iter().map(|&j| j as usize).collect();
-        CsrMatrix::new(c.nrows, c.row_ptr, cols, c.val)
+        CsrMatrix::new(c.nrows, c.row_ptr, c.col, c.val)
     }
 }
 
@@ -2051,7 +2050,7 @@ mod tests {
             }
             row_ptr.push(col_idx.len());
         }
-        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
+        CsrMatrix::from_usize(n_rows, row_ptr, col_idx, values)
     }
 
     /// The 7-point Laplacian on the interior points of an n³ grid (Dirichlet boundary eliminated).
@@ -2185,7 +2184,7 @@ mod tests {
             }
         }
         let values = vec![0.0; col_idx.len()];
-        let mut a = CsrMatrix::new(n_rows, row_ptr, col_idx, values);
+        let mut a = CsrMatrix::from_usize(n_rows, row_ptr, col_idx, values);
         for k in 0..nz {
             for j in 0..ny {
                 for i in 0..nx {
@@ -2417,7 +2416,7 @@ mod tests {
         csr_from_rows(rows)
     }
 
-    fn view(a: &CsrMatrix) -> View<'_, usize> {
+    fn view(a: &CsrMatrix) -> View<'_, u32> {
         View {
             nrows: a.n,
             ncols: a.n,
@@ -2516,8 +2515,8 @@ mod tests {
                         .map(|r| match eq[r] {
                             usize::MAX => vec![(r, pad)],
                             e => (a.row_ptr[e]..a.row_ptr[e + 1])
-                                .filter(|&p| row[a.col_idx[p]] != usize::MAX)
-                                .map(|p| (row[a.col_idx[p]], a.values[p]))
+                                .filter(|&p| row[a.col_idx[p] as usize] != usize::MAX)
+                                .map(|p| (row[a.col_idx[p] as usize], a.values[p]))
                                 .collect(),
                         })
                         .collect(),
@@ -2557,7 +2556,7 @@ mod tests {
             let mut wide: Vec<Vec<(usize, f64)>> = (0..n)
                 .map(|i| {
                     (a.row_ptr[i]..a.row_ptr[i + 1])
-                        .map(|p| (a.col_idx[p], a.values[p]))
+                        .map(|p| (a.col_idx[p] as usize, a.values[p]))
                         .collect()
                 })
                 .collect();
@@ -2696,7 +2695,7 @@ mod tests {
         ));
         let mut cols = a.col_idx.to_vec();
         let last = cols.len() - 1;
-        cols[last] = a.n + 2;
+        cols[last] = (a.n + 2) as u32;
         let wide = CsrMatrix::new(a.n, a.row_ptr.to_vec(), cols, a.values.clone());
         let e = Amg::new(&wide, 1, &ones, &p).expect_err("not square");
         assert!(matches!(e, AmgError::NotSquare { .. }), "{e}");

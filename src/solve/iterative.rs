@@ -44,7 +44,7 @@ use super::krylov::{fgmres, KrylovSettings};
 use super::linear::{
     forced_tolerance, FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats,
 };
-use crate::problem::assembly::CsrMatrix;
+use crate::problem::assembly::{col, Col, CsrMatrix};
 use crate::problem::system::DofLayout;
 
 /// Default relative residual of each solve. Newton's tolerance is 1e-10 of its first residual;
@@ -541,7 +541,7 @@ fn extract(
     rows: &[usize],
     col_of: &[usize],
     pad: f64,
-) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
+) -> (Vec<usize>, Vec<Col>, Vec<f64>) {
     let mut row_ptr = Vec::with_capacity(rows.len() + 1);
     row_ptr.push(0);
     let mut cols = Vec::new();
@@ -553,7 +553,7 @@ fn extract(
             entries.push((r, pad));
         } else {
             for p in k.row_ptr[e]..k.row_ptr[e + 1] {
-                let c = col_of[k.col_idx[p]];
+                let c = col_of[k.col_idx[p] as usize];
                 if c != NONE {
                     entries.push((c, k.values[p]));
                 }
@@ -561,7 +561,7 @@ fn extract(
             entries.sort_unstable_by_key(|x| x.0);
         }
         for &(c, v) in &entries {
-            cols.push(c);
+            cols.push(col(c));
             vals.push(v);
         }
         row_ptr.push(cols.len());
@@ -587,7 +587,7 @@ mod tests {
             }
             row_ptr.push(col_idx.len());
         }
-        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
+        CsrMatrix::from_usize(n_rows, row_ptr, col_idx, values)
     }
 
     /// A coupled tangent on an m³ grid of nodes, four unknowns per node (u, Φ), node-major:

@@ -450,7 +450,9 @@ fn last_option_value<'a>(options: &'a str, name: &str) -> Option<&'a str> {
 /// analysis is computed at the first factorisation and reused for every later one.
 pub struct FaerLdlt {
     ordering: Ordering,
-    symbolic: Option<SymbolicCholesky<usize>>,
+    symbolic: Option<SymbolicCholesky<u32>>,
+    /// The matrix's row pointers in the 32 bits of its columns (faer takes one index type).
+    row_ptr: Vec<u32>,
     l_values: Vec<f64>,
     factored: bool,
     par: Par,
@@ -465,7 +467,7 @@ pub struct FaerLdlt {
 }
 
 type SupernodalSymbolic =
-    faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky<usize>;
+    faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky<u32>;
 
 /// Solves L D Lᵀ x = P b in place for one right-hand side with faer's supernodal factor `l`
 /// (per supernode a column-major block: the unit lower diagonal block, D on its diagonal, over the
@@ -475,7 +477,7 @@ type SupernodalSymbolic =
 /// vector and a supernode's pattern values.
 fn supernodal_ldlt_solve(
     sn: &SupernodalSymbolic,
-    perm: Option<(&[usize], &[usize])>,
+    perm: Option<(&[u32], &[u32])>,
     l: &[f64],
     b: &mut [f64],
     work: &mut Vec<f64>,
@@ -484,23 +486,24 @@ fn supernodal_ldlt_solve(
     let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
     let (row_ptr, val_ptr, rows) = (sn.col_ptr_for_row_idx(), sn.col_ptr_for_val(), sn.row_idx());
     let n_super = sn.n_supernodes();
+    let u = |i: u32| i as usize;
     let widest = (0..n_super)
-        .map(|s| row_ptr[s + 1] - row_ptr[s])
+        .map(|s| u(row_ptr[s + 1]) - u(row_ptr[s]))
         .max()
         .unwrap_or(0);
     work.clear();
     work.resize(n + widest, 0.0);
     let (x, tmp) = work.split_at_mut(n);
     match perm {
-        Some((fwd, _)) => x.iter_mut().zip(fwd).for_each(|(xi, &f)| *xi = b[f]),
+        Some((fwd, _)) => x.iter_mut().zip(fwd).for_each(|(xi, &f)| *xi = b[u(f)]),
         None => x.copy_from_slice(b),
     }
     // L y = b: the diagonal block, then the update of the rows below, through `tmp`
     for s in 0..n_super {
-        let (start, size) = (begin[s], end[s] - begin[s]);
-        let pattern = &rows[row_ptr[s]..row_ptr[s + 1]];
+        let (start, size) = (u(begin[s]), u(end[s]) - u(begin[s]));
+        let pattern = &rows[u(row_ptr[s])..u(row_ptr[s + 1])];
         let m = pattern.len();
-        let ls = &l[val_ptr[s]..val_ptr[s + 1]];
+        let ls = &l[u(val_ptr[s])..u(val_ptr[s + 1])];
         let nrows = size + m;
         for j in 0..size {
             let xj = x[start + j];
@@ -519,28 +522,28 @@ fn supernodal_ldlt_solve(
             }
         }
         for (&i, &t) in pattern.iter().zip(tmp.iter()) {
-            x[i] -= t;
+            x[u(i)] -= t;
         }
     }
     // D z = y
     for s in 0..n_super {
-        let (start, size) = (begin[s], end[s] - begin[s]);
-        let nrows = size + (row_ptr[s + 1] - row_ptr[s]);
-        let ls = &l[val_ptr[s]..val_ptr[s + 1]];
+        let (start, size) = (u(begin[s]), u(end[s]) - u(begin[s]));
+        let nrows = size + (u(row_ptr[s + 1]) - u(row_ptr[s]));
+        let ls = &l[u(val_ptr[s])..u(val_ptr[s + 1])];
         for j in 0..size {
             x[start + j] *= ls[j * nrows + j].recip();
         }
     }
     // Lᵀ x = z, supernodes in reverse
     for s in (0..n_super).rev() {
-        let (start, size) = (begin[s], end[s] - begin[s]);
-        let pattern = &rows[row_ptr[s]..row_ptr[s + 1]];
+        let (start, size) = (u(begin[s]), u(end[s]) - u(begin[s]));
+        let pattern = &rows[u(row_ptr[s])..u(row_ptr[s + 1])];
         let m = pattern.len();
-        let ls = &l[val_ptr[s]..val_ptr[s + 1]];
+        let ls = &l[u(val_ptr[s])..u(val_ptr[s + 1])];
         let nrows = size + m;
         let tmp = &mut tmp[..m];
         for (t, &i) in tmp.iter_mut().zip(pattern) {
-            *t = x[i];
+            *t = x[u(i)];
         }
         for j in 0..size {
             let col = &ls[j * nrows + size..(j + 1) * nrows];
@@ -556,7 +559,7 @@ fn supernodal_ldlt_solve(
         }
     }
     match perm {
-        Some((_, inv)) => b.iter_mut().zip(inv).for_each(|(bi, &v)| *bi = x[v]),
+        Some((_, inv)) => b.iter_mut().zip(inv).for_each(|(bi, &v)| *bi = x[u(v)]),
         None => b.copy_from_slice(x),
     }
 }
@@ -617,6 +620,7 @@ impl FaerLdlt {
         FaerLdlt {
             ordering,
             symbolic: None,
+            row_ptr: Vec::new(),
             l_values: Vec::new(),
             factored: false,
             par: if threads > 1 {
@@ -639,10 +643,15 @@ impl FaerLdlt {
         self
     }
 
-    fn matrix(a: &CsrMatrix) -> SparseColMatRef<'_, usize, f64> {
-        // A symmetric matrix in CSR is the same matrix in CSC.
-        let sym = SymbolicSparseColMatRef::new_checked(a.n, a.n, &a.row_ptr, None, &a.col_idx);
-        SparseColMatRef::new(sym, &a.values)
+    /// `a` in faer's form, its row pointers from `row_ptr` (32 bits). A symmetric matrix in CSR
+    /// is the same matrix in CSC.
+    fn matrix<'a, T>(
+        a: &'a CsrMatrix,
+        row_ptr: &'a [u32],
+        values: &'a [T],
+    ) -> SparseColMatRef<'a, u32, T> {
+        let sym = SymbolicSparseColMatRef::new_checked(a.n, a.n, row_ptr, None, &a.col_idx);
+        SparseColMatRef::new(sym, values)
     }
 
     /// Factors and solves in single precision: half the memory of the factor and of every
@@ -702,7 +711,7 @@ impl FaerLdlt {
             SymbolicCholeskyRaw::Simplicial(s) => {
                 let cp = s.col_ptr();
                 for j in 0..s.nrows() {
-                    d.push(self.l_value(cp[j]));
+                    d.push(self.l_value(cp[j] as usize));
                 }
             }
             SymbolicCholeskyRaw::Supernodal(s) => {
@@ -711,9 +720,9 @@ impl FaerLdlt {
                 let end = s.supernode_end();
                 let nnz = s.nnz_per_super();
                 for sn in 0..s.n_supernodes() {
-                    let ncols = end[sn] - begin[sn];
-                    let nrows = nnz[sn] + ncols;
-                    let base = cp[sn];
+                    let ncols = (end[sn] - begin[sn]) as usize;
+                    let nrows = nnz[sn] as usize + ncols;
+                    let base = cp[sn] as usize;
                     for j in 0..ncols {
                         d.push(self.l_value(base + j * nrows + j));
                     }
@@ -727,7 +736,15 @@ impl FaerLdlt {
 impl LinearSolver for FaerLdlt {
     fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
         self.factored = false;
-        let mat = Self::matrix(a);
+        if self.symbolic.is_none() || self.row_ptr.len() != a.n + 1 {
+            self.row_ptr = a.row_ptr_u32().ok_or_else(|| {
+                LinearSolverError::Symbolic(format!(
+                    "the matrix has {} stored entries, more than a direct factorisation here takes (2^32)",
+                    a.nnz()
+                ))
+            })?;
+        }
+        let mat = Self::matrix(a, &self.row_ptr, &a.values);
         if self.symbolic.is_none() {
             let nd = match self.ordering {
                 Ordering::NestedDissection => {
@@ -735,10 +752,11 @@ impl LinearSolver for FaerLdlt {
                 }
                 Ordering::Amd => None,
             };
+            let nd: Option<Vec<u32>> = nd.map(|p| p.into_iter().map(|i| i as u32).collect());
             let inverse = nd.as_ref().map(|p| {
-                let mut inv = vec![0usize; p.len()];
+                let mut inv = vec![0u32; p.len()];
                 for (new, &old) in p.iter().enumerate() {
-                    inv[old] = new;
+                    inv[old as usize] = new as u32;
                 }
                 inv
             });
@@ -802,12 +820,10 @@ impl LinearSolver for FaerLdlt {
             Some(s) => {
                 s.a.clear();
                 s.a.extend(a.values.iter().map(|&v| v as f32));
-                let sym =
-                    SymbolicSparseColMatRef::new_checked(a.n, a.n, &a.row_ptr, None, &a.col_idx);
                 symbolic
                     .factorize_numeric_ldlt(
                         &mut s.l,
-                        SparseColMatRef::new(sym, &s.a),
+                        Self::matrix(a, &self.row_ptr, &s.a),
                         Side::Lower,
                         LdltRegularization::default(),
                         self.par,
@@ -948,7 +964,7 @@ mod tests {
             }
             row_ptr.push(col_idx.len());
         }
-        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
+        CsrMatrix::from_usize(n_rows, row_ptr, col_idx, values)
     }
 
     /// The hand-written supernodal solve gives faer's solution with the same factor, up to
@@ -1001,7 +1017,7 @@ mod tests {
             values.extend(r.iter().map(|e| e.1));
             row_ptr.push(col_idx.len());
         }
-        let a = CsrMatrix::new(n, row_ptr, col_idx, values);
+        let a = CsrMatrix::from_usize(n, row_ptr, col_idx, values);
         let mut s = FaerLdlt::new();
         s.factor(&a).unwrap();
         assert_eq!(s.par, Par::Seq);

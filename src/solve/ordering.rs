@@ -9,7 +9,7 @@ use metis_sys::{idx_t, METIS_NodeND, METIS_SetDefaultOptions, METIS_NOPTIONS};
 
 /// The nested-dissection permutation of a symmetric pattern in CSR form: `perm[new] = old`.
 /// Returns `None` when METIS fails or the graph is too large for 32-bit indices.
-pub fn nested_dissection(n: usize, row_ptr: &[usize], col_idx: &[usize]) -> Option<Vec<usize>> {
+pub fn nested_dissection(n: usize, row_ptr: &[usize], col_idx: &[u32]) -> Option<Vec<usize>> {
     if n == 0 {
         return Some(Vec::new());
     }
@@ -21,7 +21,7 @@ pub fn nested_dissection(n: usize, row_ptr: &[usize], col_idx: &[usize]) -> Opti
     xadj.push(0);
     for i in 0..n {
         for &j in &col_idx[row_ptr[i]..row_ptr[i + 1]] {
-            if j != i {
+            if j as usize != i {
                 adjncy.push(j as idx_t);
             }
         }
@@ -97,6 +97,7 @@ mod tests {
                 row_ptr.push(col_idx.len());
             }
         }
+        let col_idx = crate::problem::assembly::to_cols(col_idx);
         let perm = nested_dissection(n, &row_ptr, &col_idx).unwrap();
         let mut sorted = perm.clone();
         sorted.sort();

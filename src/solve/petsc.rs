@@ -826,8 +826,9 @@ pub fn block_size(a: &CsrMatrix) -> usize {
             return 1;
         }
         for chunk in cols.chunks(BS) {
-            if !chunk[0].is_multiple_of(BS)
-                || chunk.iter().enumerate().any(|(k, &c)| c != chunk[0] + k)
+            let c0 = chunk[0] as usize;
+            if !c0.is_multiple_of(BS)
+                || chunk.iter().enumerate().any(|(k, &c)| c as usize != c0 + k)
             {
                 return 1;
             }
@@ -1287,7 +1288,7 @@ unsafe fn set_rows(
         cols.extend(
             a.col_idx[span.clone()]
                 .iter()
-                .map(|&j| numbering.row(j) as ffi::PetscInt),
+                .map(|&j| numbering.row(j as usize) as ffi::PetscInt),
         );
         let row = numbering.row(i) as ffi::PetscInt;
         check(
@@ -1796,7 +1797,7 @@ mod tests {
             }
             row_ptr.push(col_idx.len());
         }
-        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
+        CsrMatrix::from_usize(n_rows, row_ptr, col_idx, values)
     }
 
     #[test]

@@ -268,7 +268,7 @@ mod tests {
                 row_ptr.push(col_idx.len());
             }
         }
-        CsrMatrix::new(n_rows, row_ptr, col_idx, values)
+        CsrMatrix::from_usize(n_rows, row_ptr, col_idx, values)
     }
 
     fn exact(a: &CsrMatrix, b: &[f64]) -> Vec<f64> {

@@ -58,7 +58,7 @@ pub struct Linearisation {
     /// relaxed state (pattern of `k`); the stiffness at ω is K + Σ iωτ/(1 + iωτ) K_b.
     pub branches: Vec<(f64, CsrMatrix)>,
     /// The symbolic LU of the pattern, computed at the first frequency.
-    symbolic: Option<SymbolicLu<usize>>,
+    symbolic: Option<SymbolicLu<u32>>,
     /// The real form and its solver, when the linearisation was given a solver.
     real: Option<RealForm>,
     /// When `k`, `m`, `c` and the branch tangents are this process's parts: how they meet.
@@ -469,8 +469,12 @@ impl Linearisation {
                 .map_err(|e| format!("solving K − ω²M + iωC at {hz} Hz in real form: {e}"))?
         } else {
             // K, M, C are symmetric with one pattern: their CSR arrays are also the CSC arrays
+            let row_ptr = self
+                .k
+                .row_ptr_u32()
+                .ok_or("the tangent has more than 2^32 entries: too many for the complex LU")?;
             let pattern =
-                SymbolicSparseColMatRef::new_checked(n, n, &self.k.row_ptr, None, &self.k.col_idx);
+                SymbolicSparseColMatRef::new_checked(n, n, &row_ptr, None, &self.k.col_idx);
             if self.symbolic.is_none() {
                 self.symbolic =
                     Some(SymbolicLu::try_new(pattern).map_err(|e| format!("symbolic LU: {e:?}"))?);

@@ -301,7 +301,7 @@ fn potential_response(lin: &Linearisation, solver: &SolverSettings) -> Result<Ve
         let mut a = k.clone();
         for i in 0..n {
             for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                let j = a.col_idx[p];
+                let j = a.col_idx[p] as usize;
                 a.values[p] = if fields[i] == PHI && fields[j] == PHI {
                     k.values[p]
                 } else if i == j && lin.takes_terms_of(i) {
@@ -327,9 +327,9 @@ fn potential_response(lin: &Linearisation, solver: &SolverSettings) -> Result<Ve
     let (mut col_idx, mut values) = (Vec::new(), Vec::new());
     for &e in &phi {
         for p in k.row_ptr[e]..k.row_ptr[e + 1] {
-            let j = index[k.col_idx[p]];
+            let j = index[k.col_idx[p] as usize];
             if j != usize::MAX {
-                col_idx.push(j);
+                col_idx.push(crate::problem::assembly::col(j));
                 values.push(k.values[p]);
             }
         }

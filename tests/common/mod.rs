@@ -78,7 +78,7 @@ pub fn tangent_fd_error<S: deasim::solve::newton::NonlinearSystem>(p: &mut S, st
     }
     for i in 0..n {
         for q in k.row_ptr[i]..k.row_ptr[i + 1] {
-            let j = k.col_idx[q];
+            let j = k.col_idx[q] as usize;
             let kji = k.values[k.position(j, i).unwrap()];
             assert!(
                 (k.values[q] - kji).abs() <= 1e-12 * kmax,
