@@ -54,8 +54,8 @@ pub struct CsrMatrix {
     pub values: Vec<f64>,
 }
 
-/// The columns of a matrix as [`Col`]s. Panics only past 2³² columns, where no vector of the
-/// problem would fit in a process's memory.
+/// The columns of a matrix as [`Col`]s. Panics only past 2³² columns: a scenario's mesh is
+/// refused beyond 2·10⁶ cells (some 10⁷ unknowns), long before.
 pub fn to_cols(cols: impl IntoIterator<Item = usize>) -> Vec<Col> {
     cols.into_iter().map(col).collect()
 }

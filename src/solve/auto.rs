@@ -3,7 +3,8 @@
 //!
 //! The size of the factor is known exactly after the symbolic analysis, before any numeric work:
 //! the factorisation refuses to start when it exceeds the memory limit
-//! ([`LinearSolverError::OutOfMemory`]), and from then on this solver hands every system to
+//! ([`LinearSolverError::OutOfMemory`]) or the 2³² entries its indices count
+//! ([`LinearSolverError::TooLarge`]), and from then on this solver hands every system to
 //! [`AmgGmres`], whose memory is linear in the unknowns.
 
 use super::iterative::AmgGmres;
@@ -58,7 +59,7 @@ impl AutoSolver {
             return f(it);
         }
         match f(&mut self.direct) {
-            Err(e @ LinearSolverError::OutOfMemory { .. }) => {
+            Err(e @ (LinearSolverError::OutOfMemory { .. } | LinearSolverError::TooLarge)) => {
                 let Some(layout) = self.layout.clone() else {
                     return Err(e);
                 };

@@ -51,6 +51,13 @@ pub enum LinearSolverError {
         *needed as f64 / 1e9, *limit as f64 / 1e9
     )]
     OutOfMemory { needed: usize, limit: usize },
+    /// The matrix or its factor has more entries than the direct solver's 32-bit indices count
+    /// (2³², a factor of 34 GB and more).
+    #[error(
+        "the sparse factor would have more than 2^32 entries (34 GB and more), more than the \
+         direct solver indexes; kind = \"iterative\" needs memory linear in the unknowns"
+    )]
+    TooLarge,
 }
 
 /// Memory the system can still give (bytes; Linux's `MemAvailable`), `None` where unknown.
@@ -737,12 +744,7 @@ impl LinearSolver for FaerLdlt {
     fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
         self.factored = false;
         if self.symbolic.is_none() || self.row_ptr.len() != a.n + 1 {
-            self.row_ptr = a.row_ptr_u32().ok_or_else(|| {
-                LinearSolverError::Symbolic(format!(
-                    "the matrix has {} stored entries, more than a direct factorisation here takes (2^32)",
-                    a.nnz()
-                ))
-            })?;
+            self.row_ptr = a.row_ptr_u32().ok_or(LinearSolverError::TooLarge)?;
         }
         let mat = Self::matrix(a, &self.row_ptr, &a.values);
         if self.symbolic.is_none() {
@@ -772,7 +774,10 @@ impl LinearSolver for FaerLdlt {
                 ord,
                 CholeskySymbolicParams::default(),
             )
-            .map_err(|e| LinearSolverError::Symbolic(format!("{e:?}")))?;
+            .map_err(|e| match e {
+                faer::sparse::FaerError::IndexOverflow => LinearSolverError::TooLarge,
+                e => LinearSolverError::Symbolic(format!("{e:?}")),
+            })?;
             let bytes = symbolic.len_val() * if self.single.is_some() { 4 } else { 8 };
             let limit = self.memory_limit.unwrap_or_else(default_memory_limit);
             if bytes > limit {
