@@ -77,8 +77,9 @@ impl CsrMatrix {
         }
     }
 
-    /// [`CsrMatrix::new`] from `usize` column indices.
-    pub fn from_usize(
+    /// [`CsrMatrix::new`] from `usize` column indices (the unit tests' small matrices).
+    #[cfg(test)]
+    pub(crate) fn from_usize(
         n: usize,
         row_ptr: Vec<usize>,
         col_idx: Vec<usize>,

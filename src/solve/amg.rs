@@ -149,31 +149,13 @@ pub enum AmgError {
 // ---------------------------------------------------------------------------------------------
 // Sparse matrices
 
-/// Column index types: the matrices here (the caller's and the hierarchy's own) use `u32`, a
-/// third less memory per entry than `usize`; `usize` serves the tests' small matrices.
-trait Idx: Copy + Send + Sync {
-    fn ix(self) -> usize;
-}
-impl Idx for usize {
-    #[inline(always)]
-    fn ix(self) -> usize {
-        self
-    }
-}
-impl Idx for u32 {
-    #[inline(always)]
-    fn ix(self) -> usize {
-        self as usize
-    }
-}
-
 /// A borrowed CSR matrix (columns sorted within each row).
 #[derive(Clone, Copy)]
-struct View<'m, I> {
+struct View<'m> {
     nrows: usize,
     ncols: usize,
     row_ptr: &'m [usize],
-    col: &'m [I],
+    col: &'m [u32],
     val: &'m [f64],
 }
 
@@ -188,7 +170,7 @@ struct Csr {
 }
 
 impl Csr {
-    fn view(&self) -> View<'_, u32> {
+    fn view(&self) -> View<'_> {
         View {
             nrows: self.nrows,
             ncols: self.ncols,
@@ -256,8 +238,8 @@ impl Csr {
 /// The operator of one level: the caller's matrix on the finest level, ours below.
 #[derive(Clone, Copy)]
 enum Op<'m> {
-    Fine(View<'m, u32>),
-    Coarse(View<'m, u32>),
+    Fine(View<'m>),
+    Coarse(View<'m>),
 }
 
 impl Op<'_> {
@@ -281,14 +263,14 @@ impl Op<'_> {
 }
 
 /// y_i ← f(i, (A x)_i, y_i); each row is summed in storage order whatever the threads.
-fn spmv_with<I: Idx, F>(a: View<'_, I>, x: &[f64], y: &mut [f64], f: F)
+fn spmv_with<F>(a: View<'_>, x: &[f64], y: &mut [f64], f: F)
 where
     F: Fn(usize, f64, &mut f64) + Sync,
 {
     let row = |i: usize| {
         let mut s = 0.0;
         for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-            s += a.val[p] * x[a.col[p].ix()];
+            s += a.val[p] * x[a.col[p] as usize];
         }
         s
     };
@@ -348,7 +330,7 @@ struct Bsr {
 impl Bsr {
     /// The blocks of `a` (n a multiple of `b`, columns sorted within each row), or `None` when
     /// the dense blocks would store more than `max_fill` times the entries of `a`.
-    fn from_csr<I: Idx>(a: View<'_, I>, b: usize, single: bool, max_fill: f64) -> Option<Bsr> {
+    fn from_csr(a: View<'_>, b: usize, single: bool, max_fill: f64) -> Option<Bsr> {
         if b == 0 || !a.nrows.is_multiple_of(b) || a.nrows != a.ncols {
             return None;
         }
@@ -367,7 +349,7 @@ impl Bsr {
                         row.extend(
                             a.col[a.row_ptr[i]..a.row_ptr[i + 1]]
                                 .iter()
-                                .map(|c| (c.ix() / b) as u32),
+                                .map(|c| (*c as usize / b) as u32),
                         );
                     }
                     row.sort_unstable();
@@ -392,8 +374,8 @@ impl Bsr {
             return None;
         }
         // values, per chunk of block rows in parallel, each into its own slice
-        fn fill<I: Idx, T: Copy + Send>(
-            a: View<'_, I>,
+        fn fill<T: Copy + Send>(
+            a: View<'_>,
             b: usize,
             per: usize,
             row_ptr: &[usize],
@@ -413,7 +395,7 @@ impl Bsr {
                             // the row's columns are sorted, and so are the blocks: walk both forward
                             let mut q = 0;
                             for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                                let j = a.col[p].ix();
+                                let j = a.col[p] as usize;
                                 while blocks[q] as usize != j / b {
                                     q += 1;
                                 }
@@ -722,12 +704,7 @@ struct ProductScratch {
 /// allocated once at its final size (collecting chunks and concatenating them held the product
 /// twice, which set the peak memory of a large hierarchy's set-up). Each row's sums run in a
 /// fixed order, so the result does not depend on the threads.
-fn product<IA: Idx, IB: Idx>(
-    a: View<'_, IA>,
-    b: View<'_, IB>,
-    add: Option<View<'_, u32>>,
-    scale: Option<&[f64]>,
-) -> Csr {
+fn product(a: View<'_>, b: View<'_>, add: Option<View<'_>>, scale: Option<&[f64]>) -> Csr {
     let n = a.nrows;
     let ncols = b.ncols;
     let nchunks = n.div_ceil(CHUNK);
@@ -753,10 +730,10 @@ fn product<IA: Idx, IB: Idx>(
         }
         let d = scale.map_or(1.0, |d| d[i]);
         for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-            let k = a.col[p].ix();
+            let k = a.col[p] as usize;
             let aik = d * a.val[p];
             for q in b.row_ptr[k]..b.row_ptr[k + 1] {
-                push(b.col[q].ix(), aik * b.val[q]);
+                push(b.col[q] as usize, aik * b.val[q]);
             }
         }
     };
@@ -832,7 +809,7 @@ fn product<IA: Idx, IB: Idx>(
 // ---------------------------------------------------------------------------------------------
 // Input checks
 
-fn check_matrix<I: Idx>(a: View<'_, I>, indefinite: bool) -> Result<(), AmgError> {
+fn check_matrix(a: View<'_>, indefinite: bool) -> Result<(), AmgError> {
     let n = a.nrows;
     if n == 0 {
         return Err(AmgError::Empty);
@@ -863,7 +840,7 @@ fn check_matrix<I: Idx>(a: View<'_, I>, indefinite: bool) -> Result<(), AmgError
         let mut diag = None;
         let mut last = None;
         for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-            let j = a.col[p].ix();
+            let j = a.col[p] as usize;
             if j >= n {
                 return Err(AmgError::NotSquare { row: i, col: j, n });
             }
@@ -922,14 +899,14 @@ struct Strength {
     value: Vec<f64>,
 }
 
-fn strength<I: Idx>(a: View<'_, I>, block: usize, theta: f64) -> Strength {
+fn strength(a: View<'_>, block: usize, theta: f64) -> Strength {
     let nodes = a.nrows / block;
     // ‖A_ii‖_F of the diagonal blocks
     let mut diag = vec![0.0f64; nodes];
     for (node, d) in diag.iter_mut().enumerate() {
         for i in node * block..(node + 1) * block {
             for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                if a.col[p].ix() / block == node {
+                if a.col[p] as usize / block == node {
                     *d += a.val[p] * a.val[p];
                 }
             }
@@ -949,7 +926,7 @@ fn strength<I: Idx>(a: View<'_, I>, block: usize, theta: f64) -> Strength {
         touched.clear();
         for i in node * block..(node + 1) * block {
             for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                let j = a.col[p].ix() / block;
+                let j = a.col[p] as usize / block;
                 if j == node {
                     continue;
                 }
@@ -1274,13 +1251,13 @@ struct CoarseSolver {
 }
 
 impl CoarseSolver {
-    fn new<I: Idx>(a: View<'_, I>, indefinite: bool) -> Result<CoarseSolver, AmgError> {
+    fn new(a: View<'_>, indefinite: bool) -> Result<CoarseSolver, AmgError> {
         let n = a.nrows;
         let mut dense = Mat::<f64>::zeros(n, n);
         let mut dmax = 0.0f64;
         for i in 0..n {
             for p in a.row_ptr[i]..a.row_ptr[i + 1] {
-                dense[(i, a.col[p].ix())] = a.val[p];
+                dense[(i, a.col[p] as usize)] = a.val[p];
             }
             dmax = dmax.max(dense[(i, i)].abs());
         }
@@ -1789,11 +1766,11 @@ impl<'a> Amg<'a> {
 /// Inverse of the diagonal of a level operator (0 where the diagonal is zero, or not positive
 /// unless `indefinite`).
 fn diagonal_inverse(op: Op<'_>, indefinite: bool) -> Vec<f64> {
-    fn diag<I: Idx>(a: View<'_, I>, indefinite: bool) -> Vec<f64> {
+    fn diag(a: View<'_>, indefinite: bool) -> Vec<f64> {
         (0..a.nrows)
             .map(|i| {
                 let cols = &a.col[a.row_ptr[i]..a.row_ptr[i + 1]];
-                let p = cols.iter().position(|c| c.ix() == i);
+                let p = cols.iter().position(|c| *c as usize == i);
                 let d = p.map_or(0.0, |p| a.val[a.row_ptr[i] + p]);
                 if d > 0.0 || (indefinite && d < 0.0) {
                     1.0 / d
@@ -2416,7 +2393,7 @@ mod tests {
         csr_from_rows(rows)
     }
 
-    fn view(a: &CsrMatrix) -> View<'_, u32> {
+    fn view(a: &CsrMatrix) -> View<'_> {
         View {
             nrows: a.n,
             ncols: a.n,

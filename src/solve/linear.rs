@@ -744,11 +744,7 @@ impl LinearSolver for FaerLdlt {
     fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
         self.factored = false;
         // O(n), against the factorisation's O(entries of the factor)
-        self.row_ptr.clear();
-        for &p in a.row_ptr.iter() {
-            self.row_ptr
-                .push(u32::try_from(p).map_err(|_| LinearSolverError::TooLarge)?);
-        }
+        self.row_ptr = a.row_ptr_u32().ok_or(LinearSolverError::TooLarge)?;
         let mat = Self::matrix(a, &self.row_ptr, &a.values);
         if self.symbolic.is_none() {
             let nd = match self.ordering {
