@@ -34,6 +34,8 @@ use crate::time::modal::EquationMass;
 use faer::c64;
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::sparse::linalg::LuError;
+use faer::sparse::FaerError;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use std::sync::Arc;
 
@@ -476,8 +478,10 @@ impl Linearisation {
             let pattern =
                 SymbolicSparseColMatRef::new_checked(n, n, &row_ptr, None, &self.k.col_idx);
             if self.symbolic.is_none() {
-                self.symbolic =
-                    Some(SymbolicLu::try_new(pattern).map_err(|e| format!("symbolic LU: {e:?}"))?);
+                self.symbolic = Some(
+                    SymbolicLu::try_new(pattern)
+                        .map_err(|e| format!("analysing the complex LU: {}", lu_failure(e)))?,
+                );
             }
             let values: Vec<c64> = (0..self.k.values.len())
                 .map(|p| {
@@ -487,8 +491,15 @@ impl Linearisation {
                 .collect();
             let matrix = SparseColMatRef::new(pattern, &values);
             let symbolic = self.symbolic.clone().expect("set above");
-            let lu = Lu::try_new_with_symbolic(symbolic, matrix)
-                .map_err(|e| format!("factoring K − ω²M + iωC at {hz} Hz: {e:?}"))?;
+            let lu = Lu::try_new_with_symbolic(symbolic, matrix).map_err(|e| {
+                let why = match e {
+                    LuError::Generic(e) => lu_failure(e),
+                    LuError::SymbolicSingular { index } => {
+                        format!("no pivot in column {index} (a structurally singular matrix)")
+                    }
+                };
+                format!("factoring K − ω²M + iωC at {hz} Hz: {why}")
+            })?;
             let mut rhs = faer::Mat::<c64>::from_fn(n, 1, |i, _| c64::new(self.force[i], 0.0));
             lu.solve_in_place(rhs.as_mut());
             (
@@ -590,5 +601,34 @@ impl Linearisation {
             out[node * FIELDS + PHI] = volts;
         }
         out
+    }
+}
+
+/// A failure of faer's sparse complex LU, in words.
+fn lu_failure(e: FaerError) -> String {
+    match e {
+        FaerError::IndexOverflow => "the factor would have more than 2^32 entries (34 GB and \
+             more), more than the direct method indexes; method = \"modal\" needs only the \
+             tangent's modes"
+            .into(),
+        FaerError::OutOfMemory => "not enough memory for the factor; method = \"modal\" needs \
+             only the tangent's modes"
+            .into(),
+        e => format!("{e:?}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// faer's index overflow and allocation failure reach the user in words, with the way out.
+    #[test]
+    fn lu_failures_are_worded() {
+        let overflow = lu_failure(FaerError::IndexOverflow);
+        assert!(overflow.contains("2^32 entries") && overflow.contains("method = \"modal\""));
+        let memory = lu_failure(FaerError::OutOfMemory);
+        assert!(memory.contains("not enough memory") && memory.contains("method = \"modal\""));
+        assert!(!overflow.contains("IndexOverflow") && !memory.contains("OutOfMemory"));
     }
 }
