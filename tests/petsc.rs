@@ -758,6 +758,37 @@ fn pull_in_is_found_on_two_mpi_ranks() {
     assert!(d < 1e-10, "{d:e}");
 }
 
+/// Arc-length continuation on 2 ranks (`film-arc`): the bordered system's extra row and column
+/// and the arc-length constraint's dot products run on the whole-problem vectors that every
+/// rank holds; the path through the limit point and the limit voltage agree with the serial run.
+/// On 4 × 4 × 2 cells, so that each rank has some (the example has one).
+#[test]
+fn arc_length_on_two_mpi_ranks_passes_the_same_limit_point() {
+    let (d, fields, serial, mpi) = on_ranks(2, "film-arc", &["mesh.divisions=[4,4,2]"]);
+    let limit = |log: &str| -> f64 {
+        log.split("maximum of voltage_top = ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("no limit point in: {log}"))
+    };
+    let (a, b) = (limit(&serial), limit(&mpi));
+    eprintln!("film-arc: limit point serial {a} V, 2 ranks {b} V");
+    assert!(
+        (a - b).abs() < 1e-6 * a && (a - 33_695.33).abs() < 10.0,
+        "{a} {b}"
+    );
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
+/// Charge control on 2 ranks (`film-charge`): the electrode's charge is a global constraint
+/// whose row and column span every rank's electrode nodes (4 × 4 × 2 cells, as above).
+#[test]
+fn charge_control_on_two_mpi_ranks_agrees_with_the_serial_run() {
+    let (d, fields, _, _) = on_ranks(2, "film-charge", &["mesh.divisions=[4,4,2]"]);
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
 /// Each rank records its own cells only: where the true field first exceeds the dielectric
 /// strength is found over every rank's cells, so the 3-D diaphragm on 3 ranks warns about the
 /// same cell at the same step as the serial run, and every rank stops there.
