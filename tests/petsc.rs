@@ -135,6 +135,34 @@ fn a_krylov_solve_that_cannot_converge_is_an_error() {
     );
 }
 
+/// A method PETSc does not know is refused with the scenario, naming the key, before any step
+/// (not reported as a failure of the first load step after its cut-backs); so is a
+/// preconditioner. A method it knows is accepted.
+#[test]
+fn a_misspelt_petsc_method_is_refused_with_the_scenario() {
+    let build_with = |options: &str| {
+        let mut text = example("film").unwrap().to_string();
+        text.push_str(&format!(
+            "\n[solver]\nkind = \"petsc\"\npetsc_options = \"{options}\"\n"
+        ));
+        let scenario = parse(&text, "test.toml", &[]).unwrap_or_else(|e| panic!("{e}"));
+        build(&scenario, "test.toml", None).map(|_| ())
+    };
+    for (options, name) in [
+        ("-ksp_type nonsense", "nonsense"),
+        ("-ksp_type gmres -pc_type nopc", "nopc"),
+    ] {
+        let error = build_with(options).expect_err(options).to_string();
+        assert!(
+            error.contains("test.toml")
+                && error.contains("solver.petsc_options")
+                && error.contains(name),
+            "{error}"
+        );
+    }
+    build_with("-ksp_type gmres -pc_type gamg").unwrap();
+}
+
 /// The probe columns and the dissipated energy of a `history.csv`: names and one row of values
 /// per step.
 fn history_probes(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {

@@ -205,6 +205,30 @@ fn insert_options(options: &str, origin: &str) -> Result<(), LinearSolverError> 
     )
 }
 
+/// Sets up a Krylov solver from the scenario's `options` and then the `PETSC_OPTIONS`
+/// environment variable, as the solver does at its first factorisation, and returns PETSc's
+/// refusal: a misspelt method or preconditioner is then reported with the scenario, before the
+/// first step, instead of failing every attempt of the first load step. Collective: every rank
+/// reads the same scenario and calls it.
+pub fn check_options(options: &str) -> Result<(), LinearSolverError> {
+    initialize()?;
+    let _guard = lock();
+    // SAFETY: PETSc is initialised; the handles are owned by wrappers that destroy them (the
+    // solver first, then the database is popped and destroyed)
+    unsafe {
+        let mut db = Options(ptr::null_mut());
+        check(ffi::PetscOptionsCreate(&mut db.0), "PetscOptionsCreate")?;
+        let _scope = Scope::push(&db)?;
+        insert_options(options, "[solver] petsc_options")?;
+        if let Ok(env) = std::env::var("PETSC_OPTIONS") {
+            insert_options(&env, "PETSC_OPTIONS")?;
+        }
+        let mut ksp = Ksp(ptr::null_mut());
+        check(ffi::KSPCreate(ffi::comm_world(), &mut ksp.0), "KSPCreate")?;
+        check(ffi::KSPSetFromOptions(ksp.0), "KSPSetFromOptions")
+    }
+}
+
 fn has_option(name: &CStr) -> Result<bool, LinearSolverError> {
     let mut set = ffi::PETSC_FALSE;
     // SAFETY: valid C string, out-pointer to a local

@@ -33,6 +33,21 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
         }
         out.petsc_options = o.clone();
     }
+    #[cfg(feature = "petsc")]
+    if out.kind == SolverKind::Petsc {
+        crate::solve::petsc::check_options(&out.petsc_options).map_err(|e| {
+            let env = std::env::var("PETSC_OPTIONS")
+                .map(|v| format!(", then PETSC_OPTIONS = \"{v}\" from the environment"))
+                .unwrap_or_default();
+            ctx.err(
+                "solver.petsc_options",
+                format!(
+                    "PETSc refuses the solver these options choose (\"{}\"{env}): {e}",
+                    out.petsc_options
+                ),
+            )
+        })?;
+    }
     if let Some(o) = &spec.ordering {
         out.ordering = Ordering::from_name(o).ok_or_else(|| {
             ctx.err(
