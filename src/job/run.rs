@@ -815,6 +815,7 @@ impl<'p, 'o> Job<'p, 'o> {
                         "non-finite (NaN or infinite) residual or update".to_string()
                     }
                     FailureCause::Material(m) => format!("material limit ({m})"),
+                    FailureCause::LinearSolver(m) => format!("linear solver failure ({m})"),
                     _ if f.limit_point && electric => {
                         "electromechanical instability (pull-in)".to_string()
                     }

@@ -87,6 +87,10 @@ pub enum NewtonError {
     Singular { iteration: usize },
     #[error("evaluation failed at iteration {iteration}: {message}")]
     Evaluation { iteration: usize, message: String },
+    /// The linear solver failed other than by a singular matrix (an iterative solve that did not
+    /// converge, a solver library's error, a solver that cannot take the system).
+    #[error("the linear solver failed at iteration {iteration}: {message}")]
+    LinearSolve { iteration: usize, message: String },
 }
 
 fn norm(v: &[f64]) -> f64 {
@@ -113,7 +117,7 @@ fn solve_copy(
 ) -> Result<Vec<f64>, NewtonError> {
     solver
         .solve_in_place(&mut v)
-        .map_err(|e| NewtonError::Evaluation {
+        .map_err(|e| NewtonError::LinearSolve {
             iteration,
             message: e.to_string(),
         })?;
@@ -210,7 +214,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
     } else {
         Vec::new()
     };
-    prepare_solver(system, solver).map_err(|message| NewtonError::Evaluation {
+    prepare_solver(system, solver).map_err(|message| NewtonError::LinearSolve {
         iteration: 0,
         message,
     })?;
@@ -282,7 +286,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
             }
             solver.set_operator(k).map_err(|e| match e {
                 LinearSolverError::Singular(_) => NewtonError::Singular { iteration },
-                other => NewtonError::Evaluation {
+                other => NewtonError::LinearSolve {
                     iteration,
                     message: other.to_string(),
                 },
@@ -297,7 +301,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
         forced = Some((rn, eta));
         solver
             .solve_in_place(&mut dx)
-            .map_err(|e| NewtonError::Evaluation {
+            .map_err(|e| NewtonError::LinearSolve {
                 iteration,
                 message: e.to_string(),
             })?;
@@ -453,7 +457,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
             }
             Err(LinearSolverError::Singular(_)) => stable = false,
             Err(e) => {
-                return Err(NewtonError::Evaluation {
+                return Err(NewtonError::LinearSolve {
                     iteration,
                     message: e.to_string(),
                 })

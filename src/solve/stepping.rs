@@ -97,6 +97,8 @@ pub enum FailureCause {
     NonFinite,
     /// A material could not be evaluated (the message names why).
     Material(String),
+    /// The linear solver failed other than by a singular matrix (the message names how).
+    LinearSolver(String),
     /// Stopped by a signal, or anything else.
     Other,
 }
@@ -118,6 +120,16 @@ impl FailureCause {
             } if !m.contains("volume ratio") => FailureCause::Material(m.clone()),
             NewtonError::Diverged { .. } | NewtonError::MaxIterations { .. } => {
                 FailureCause::NoConvergence
+            }
+            // a solver library's zero pivot is a singular tangent, as faer's is
+            NewtonError::LinearSolve { message, .. } => {
+                if message.contains("singular") || message.contains("pivot") {
+                    FailureCause::Singular
+                } else if message.contains("NaN") || message.contains("non-finite") {
+                    FailureCause::NonFinite
+                } else {
+                    FailureCause::LinearSolver(message.clone())
+                }
             }
             NewtonError::Evaluation { message, .. } => {
                 if message.contains("singular") || message.contains("pivot") {
@@ -294,7 +306,8 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
                     NewtonError::MaxIterations { iterations, .. } => *iterations,
                     NewtonError::Diverged { iteration, .. }
                     | NewtonError::Singular { iteration }
-                    | NewtonError::Evaluation { iteration, .. } => *iteration,
+                    | NewtonError::Evaluation { iteration, .. }
+                    | NewtonError::LinearSolve { iteration, .. } => *iteration,
                 };
                 last_cause = FailureCause::of(&e);
                 e.to_string()
@@ -384,8 +397,8 @@ mod tests {
 
     /// Each Newton failure maps to its cause: a singular tangent or a solver's zero pivot, a
     /// non-finite residual, a material outside its domain (directly, or as what held full steps
-    /// back), and plain non-convergence (inverted elements included: a step too long near a limit
-    /// point).
+    /// back), plain non-convergence (inverted elements included: a step too long near a limit
+    /// point), and any other failure of the linear solver.
     #[test]
     fn newton_failures_are_classified() {
         let eval = |m: &str| NewtonError::Evaluation {
@@ -440,6 +453,20 @@ mod tests {
         assert_eq!(
             FailureCause::of(&eval("cell 0: non-positive volume ratio J = -1e-2")),
             FailureCause::NoConvergence
+        );
+        // the linear solver's failures: a zero pivot is a singular tangent, the rest its own
+        let linear = |m: &str| NewtonError::LinearSolve {
+            iteration: 1,
+            message: m.into(),
+        };
+        assert_eq!(
+            FailureCause::of(&linear("PETSc error 71: Zero pivot in LU factorization")),
+            FailureCause::Singular
+        );
+        let krylov = "PETSc solve did not converge (KSP cg, PC gamg): DIVERGED_ITS after 3";
+        assert_eq!(
+            FailureCause::of(&linear(krylov)),
+            FailureCause::LinearSolver(krylov.into())
         );
     }
 }
