@@ -764,18 +764,21 @@ fn an_explicit_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
     assert!(d < 1e-9 && fields < 1e-9, "{d:e} {fields:e}");
 }
 
+/// The number that follows the first `marker` in a run's log.
+fn number_after(log: &str, marker: &str) -> f64 {
+    log.split(marker)
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no number after `{marker}` in: {log}"))
+}
+
 #[test]
 fn pull_in_is_found_on_two_mpi_ranks() {
     // the stability test reads MUMPS's count of negative pivots (MatGetInertia, with ICNTL(13)
     // so that it is exact on several ranks): both runs stop at the same limit point
     let (d, serial, mpi) = two_ranks("film-pull-in");
-    let last = |log: &str| -> f64 {
-        log.split("last converged voltage ")
-            .nth(1)
-            .and_then(|t| t.split(' ').next())
-            .and_then(|t| t.parse().ok())
-            .unwrap_or_else(|| panic!("no last converged voltage in: {log}"))
-    };
+    let last = |log: &str| number_after(log, "last converged voltage ");
     let (a, b) = (last(&serial), last(&mpi));
     eprintln!("pull-in: serial {a} V, 2 ranks {b} V");
     assert!(mpi.contains("pull-in"), "{mpi}");
@@ -793,13 +796,7 @@ fn pull_in_is_found_on_two_mpi_ranks() {
 #[test]
 fn arc_length_on_two_mpi_ranks_passes_the_same_limit_point() {
     let (d, fields, serial, mpi) = on_ranks(2, "film-arc", &["mesh.divisions=[4,4,2]"]);
-    let limit = |log: &str| -> f64 {
-        log.split("maximum of voltage_top = ")
-            .nth(1)
-            .and_then(|t| t.split(' ').next())
-            .and_then(|t| t.parse().ok())
-            .unwrap_or_else(|| panic!("no limit point in: {log}"))
-    };
+    let limit = |log: &str| number_after(log, "maximum of voltage_top = ");
     let (a, b) = (limit(&serial), limit(&mpi));
     eprintln!("film-arc: limit point serial {a} V, 2 ranks {b} V");
     assert!(

@@ -104,6 +104,17 @@ pub enum FailureCause {
 }
 
 impl FailureCause {
+    /// A singular matrix (a zero pivot) or a non-finite value, by the failure's message.
+    fn numerical(message: &str) -> Option<Self> {
+        if message.contains("singular") || message.contains("pivot") {
+            Some(FailureCause::Singular)
+        } else if message.contains("NaN") || message.contains("non-finite") {
+            Some(FailureCause::NonFinite)
+        } else {
+            None
+        }
+    }
+
     /// The cause of a Newton failure.
     pub fn of(e: &NewtonError) -> Self {
         match e {
@@ -122,20 +133,11 @@ impl FailureCause {
                 FailureCause::NoConvergence
             }
             // a solver library's zero pivot is a singular tangent, as faer's is
-            NewtonError::LinearSolve { message, .. } => {
-                if message.contains("singular") || message.contains("pivot") {
-                    FailureCause::Singular
-                } else if message.contains("NaN") || message.contains("non-finite") {
-                    FailureCause::NonFinite
-                } else {
-                    FailureCause::LinearSolver(message.clone())
-                }
-            }
+            NewtonError::LinearSolve { message, .. } => Self::numerical(message)
+                .unwrap_or_else(|| FailureCause::LinearSolver(message.clone())),
             NewtonError::Evaluation { message, .. } => {
-                if message.contains("singular") || message.contains("pivot") {
-                    FailureCause::Singular
-                } else if message.contains("NaN") || message.contains("non-finite") {
-                    FailureCause::NonFinite
+                if let Some(cause) = Self::numerical(message) {
+                    cause
                 } else if message.contains("volume ratio") {
                     // an inverted element: the step went too far, as near a limit point
                     FailureCause::NoConvergence
