@@ -608,11 +608,11 @@ impl Linearisation {
 fn lu_failure(e: FaerError) -> String {
     match e {
         FaerError::IndexOverflow => "the factor would have more than 2^32 entries (34 GB and \
-             more), more than the direct method indexes; method = \"modal\" needs only the \
-             tangent's modes"
+             more), more than the direct method indexes; method = \"modal\" needs no complex \
+             factor (it projects onto the tangent's modes)"
             .into(),
         FaerError::OutOfMemory => "not enough memory for the factor; method = \"modal\" needs \
-             only the tangent's modes"
+             no complex factor (it projects onto the tangent's modes)"
             .into(),
         e => format!("{e:?}"),
     }

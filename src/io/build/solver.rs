@@ -35,15 +35,18 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
     }
     #[cfg(feature = "petsc")]
     if out.kind == SolverKind::Petsc {
+        crate::solve::petsc::initialize()
+            .map_err(|e| ctx.err("solver.kind", format!("PETSc could not start: {e}")))?;
         crate::solve::petsc::check_options(&out.petsc_options).map_err(|e| {
-            let env = std::env::var("PETSC_OPTIONS")
-                .map(|v| format!(", then PETSC_OPTIONS = \"{v}\" from the environment"))
-                .unwrap_or_default();
+            let mut sources = vec![format!("\"{}\"", out.petsc_options)];
+            if let Ok(v) = std::env::var("PETSC_OPTIONS") {
+                sources.push(format!("then PETSC_OPTIONS = \"{v}\" from the environment"));
+            }
             ctx.err(
                 "solver.petsc_options",
                 format!(
-                    "PETSc refuses the solver these options choose (\"{}\"{env}): {e}",
-                    out.petsc_options
+                    "PETSc refuses the solver these options choose ({}): {e}",
+                    sources.join(", ")
                 ),
             )
         })?;
