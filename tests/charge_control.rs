@@ -124,6 +124,84 @@ fn charge_controlled_film_follows_the_closed_form_past_the_voltage_maximum() {
     assert!(last[c_v] < 0.6 * highest);
 }
 
+/// On 4 × 4 × 2 cells the charged film turns unstable to an inhomogeneous mode before its voltage
+/// maximum. The run's error names that instability and what the stage controls: the charge of the
+/// electrode at the last converged and the attempted load factor and the potential the electrode
+/// took, which are the last history row's charge probe and voltage (not the grounded electrode's
+/// 0 V, which an earlier message printed as "the" voltage).
+#[test]
+fn a_charged_film_that_turns_unstable_reports_its_charge_and_voltage() {
+    let dir = tempdir("charge-unstable");
+    let out = deasim(
+        &[
+            "run",
+            "film-charge",
+            "--out",
+            "o",
+            "--set",
+            "mesh.divisions=[4,4,2]",
+            "--set",
+            "output.plots=false",
+            "--set",
+            "output.fields_every=0",
+        ],
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("electromechanical instability under charge control in stage `charge`"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("last converged voltage"), "{stderr}");
+    let number = |marker: &str| -> f64 {
+        let rest = stderr
+            .split(marker)
+            .nth(1)
+            .unwrap_or_else(|| panic!("no `{marker}` in {stderr}"));
+        let end = rest
+            .find(|c: char| !(c.is_ascii_digit() || "+-.e".contains(c)))
+            .unwrap_or(rest.len());
+        rest[..end]
+            .parse()
+            .unwrap_or_else(|e| panic!("{e}: `{marker}` in {stderr}"))
+    };
+    let (q_ok, v_ok, q_failed) = (
+        number("last converged charge of `top` "),
+        number(" C at "),
+        number(" V, failed at "),
+    );
+    let (s_ok, s_failed) = (
+        number("no stable equilibrium beyond load factor "),
+        number("(tried "),
+    );
+    let text = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let last: Vec<f64> = text
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap_or(f64::NAN))
+        .collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let charge = last[col("probe:charge")];
+    assert!((q_ok - charge).abs() < 1e-6 * charge, "{q_ok} vs {charge}");
+    assert!(
+        (v_ok - last[col("voltage")]).abs() < 0.01,
+        "{v_ok} vs {}",
+        last[col("voltage")]
+    );
+    assert!(v_ok > 1e4, "{v_ok}");
+    // the charge ramps from 0 with the load factor (3.6 µC at the stage's end); the load factors
+    // are printed to six decimals (3.4e-6 of 0.146)
+    assert!((q_ok - 3.6e-6 * s_ok).abs() < 1e-5 * q_ok, "{q_ok} {s_ok}");
+    assert!(
+        (q_failed - 3.6e-6 * s_failed).abs() < 1e-5 * q_failed && q_failed > q_ok,
+        "{q_failed} {s_failed}"
+    );
+}
+
 #[test]
 fn charge_control_is_refused_where_it_cannot_act() {
     let dir = tempdir("charge-refused");

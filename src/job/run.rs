@@ -803,6 +803,10 @@ impl<'p, 'o> Job<'p, 'o> {
                     .zip(&targets)
                     .any(|(a, b)| a != b || *b != 0.0)
                     || quasi_static;
+                let charged = plan
+                    .electrodes
+                    .iter()
+                    .any(|e| e.charge.is_some_and(|q| q != 0.0));
                 use crate::solve::stepping::FailureCause;
                 let what = match &f.cause {
                     FailureCause::Singular if f.last_converged == 0.0 => {
@@ -819,6 +823,9 @@ impl<'p, 'o> Job<'p, 'o> {
                     _ if f.limit_point && electric => {
                         "electromechanical instability (pull-in)".to_string()
                     }
+                    _ if f.limit_point && charged => {
+                        "electromechanical instability under charge control".to_string()
+                    }
                     _ if f.limit_point => "limit point (loss of stability)".to_string(),
                     _ if f.reason == crate::solve::interrupt::MESSAGE => {
                         "interrupted by a signal (the last accepted step is in the outputs)"
@@ -826,15 +833,38 @@ impl<'p, 'o> Job<'p, 'o> {
                     }
                     _ => "solve failed".to_string(),
                 };
+                // what the stage controls, at the last converged and the attempted load factor:
+                // the prescribed voltages (unless all are zero beside charged electrodes) and each
+                // charged electrode's charge, with the potential it took (an unknown)
+                let mut controls = Vec::new();
+                if electric || !charged {
+                    controls.push(format!(
+                        "last converged voltage {:.2} V, failed at {:.2} V",
+                        voltage_at(f.last_converged),
+                        voltage_at(f.attempted)
+                    ));
+                }
+                let t0 = model.dead_load_start;
+                let charge_at = |q: f64, s: f64| q * (t0 + s * (1.0 - t0));
+                for e in &plan.electrodes {
+                    if let Some(q) = e.charge {
+                        controls.push(format!(
+                            "last converged charge of `{}` {:.6e} C at {:.2} V, failed at {:.6e} C",
+                            e.name,
+                            charge_at(q, f.last_converged),
+                            self.q[e.nodes[0] * FIELDS + 3],
+                            charge_at(q, f.attempted)
+                        ));
+                    }
+                }
                 Some(format!(
                     "{what} in stage `{}` at t = {:.6} s: no stable equilibrium beyond load factor {:.6} \
-                     (tried {:.6}); last converged voltage {:.2} V, failed at {:.2} V; last failure: {}",
+                     (tried {:.6}); {}; last failure: {}",
                     stage.name,
                     self.time + f.last_converged * stage.duration,
                     f.last_converged,
                     f.attempted,
-                    voltage_at(f.last_converged),
-                    voltage_at(f.attempted),
+                    controls.join("; "),
                     f.reason
                 ))
             }
