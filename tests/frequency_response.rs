@@ -210,6 +210,50 @@ fn reduced_model_matches_the_direct_response() {
     }
 }
 
+/// A sweep (`responses`) takes the frequencies in parallel, one complex LU per thread, reusing
+/// each LU's storage: on one thread and on two it gives the same bits as the frequencies solved
+/// one by one, in the order asked, and a failing frequency is reported by the sweep.
+#[test]
+fn a_sweep_in_parallel_gives_the_bits_of_single_frequencies() {
+    let mut p = biased("sweep");
+    let omegas: Vec<f64> = [1e-3, 5.0, 30.6, 100.0, 1000.0, 7.0, 1e4]
+        .iter()
+        .map(|f| 2.0 * std::f64::consts::PI * f)
+        .collect();
+    let single: Vec<(Vec<f64>, Vec<f64>)> =
+        omegas.iter().map(|&w| p.lin.response(w).unwrap()).collect();
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let swept = pool
+            .install(|| {
+                p.lin
+                    .responses(&omegas, |xr, xi| Ok((xr.to_vec(), xi.to_vec())))
+            })
+            .unwrap();
+        assert_eq!(swept.len(), omegas.len());
+        for (k, ((sr, si), (xr, xi))) in swept.iter().zip(&single).enumerate() {
+            assert!(sr == xr && si == xi, "{threads} threads, frequency {k}");
+        }
+        // the error of the first frequency that fails, whichever thread met it
+        let failed = pool.install(|| {
+            p.lin.responses(&omegas, |xr, _| {
+                if xr == single[2].0.as_slice() || xr == single[5].0.as_slice() {
+                    Err(format!(
+                        "frequency {}",
+                        if xr == single[2].0.as_slice() { 2 } else { 5 }
+                    ))
+                } else {
+                    Ok(())
+                }
+            })
+        });
+        assert_eq!(failed.unwrap_err(), "frequency 2", "{threads} threads");
+    }
+}
+
 /// The real form [[A, B], [B, −A]] of (A + iB) x = f, which distributed runs hand to their
 /// solver, here solved by the serial LDLᵀ on the whole matrices, gives the complex LU's response
 /// of the coarse diaphragm (Kelvin–Voigt and the pad's dashpot) below, at and above the pad

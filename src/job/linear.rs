@@ -308,9 +308,13 @@ pub fn response_values(
     let mut out = vec![Vec::with_capacity(frequencies.len()); map.probes.len()];
     match method {
         ResponseMethod::Direct => {
-            for &f in frequencies {
-                let (xr, xi) = lin.response(2.0 * std::f64::consts::PI * f)?;
-                let (gr, gi) = (map.gradient(&xr)?, map.gradient(&xi)?);
+            let omegas: Vec<f64> = frequencies
+                .iter()
+                .map(|f| 2.0 * std::f64::consts::PI * f)
+                .collect();
+            let gradients =
+                lin.responses(&omegas, |xr, xi| Ok((map.gradient(xr)?, map.gradient(xi)?)))?;
+            for (gr, gi) in gradients {
                 for (j, o) in out.iter_mut().enumerate() {
                     o.push((gr[j], gi[j]));
                 }

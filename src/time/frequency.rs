@@ -17,7 +17,9 @@
 //! The complex symmetric system is factored by faer's sparse LU with partial pivoting (the
 //! symbolic analysis once, the numeric factorisation per frequency): a symmetric indefinite LDLᵀ
 //! without pivoting meets zero pivots where a diagonal entry of K − ω²M crosses zero, and an LU
-//! does not. A distributed run (processes that share the cells) instead hands each process's
+//! does not. A sweep keeps each LU's storage from one frequency to the next and, for systems
+//! small enough that one factorisation cannot use the threads well, takes the frequencies in
+//! parallel (one LU per thread, the same bits on any number of threads). A distributed run (processes that share the cells) instead hands each process's
 //! part of the equivalent real symmetric system of twice the size ([`RealForm`]) to its
 //! distributed solver (MUMPS's LDLᵀ with pivoting), so that no process holds the whole
 //! matrices or a whole factor.
@@ -32,11 +34,13 @@ use crate::solve::linear::{LinearSolver, SolverSettings};
 use crate::time::mass::NodalMass;
 use crate::time::modal::EquationMass;
 use faer::c64;
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::lu::{factorize_symbolic_lu, NumericLu, SymbolicLu};
 use faer::sparse::linalg::LuError;
 use faer::sparse::FaerError;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, Par};
+use rayon::prelude::*;
 use std::sync::Arc;
 
 /// The linearised system about a biased state, in the equation space of its dof map. `k`, `m`,
@@ -59,8 +63,12 @@ pub struct Linearisation {
     /// Maxwell branches: relaxation time τ (s) and the branch's instantaneous tangent about the
     /// relaxed state (pattern of `k`); the stiffness at ω is K + Σ iωτ/(1 + iωτ) K_b.
     pub branches: Vec<(f64, CsrMatrix)>,
-    /// The symbolic LU of the pattern, computed at the first frequency.
-    symbolic: Option<SymbolicLu<u32>>,
+    /// The symbolic LU of the pattern and its 32-bit column pointers, computed at the first
+    /// frequency.
+    symbolic: Option<(SymbolicLu<u32>, Vec<u32>)>,
+    /// The numeric LU and its workspace of [`Linearisation::response`], kept between
+    /// frequencies (a fresh one per frequency spent a fifth of the time in page faults).
+    work: Option<LuWork>,
     /// The real form and its solver, when the linearisation was given a solver.
     real: Option<RealForm>,
     /// When `k`, `m`, `c` and the branch tangents are this process's parts: how they meet.
@@ -79,6 +87,19 @@ struct Parts {
     layout: DofLayout,
     /// The nodal mass, whole on every process (products with M without a sum).
     mass: NodalMass,
+}
+
+/// Below this many equations [`Linearisation::responses`] takes the frequencies in parallel (one
+/// complex LU per thread); above it one at a time, each factorisation using the threads.
+const PARALLEL_FREQUENCIES_BELOW: usize = 20_000;
+
+/// A complex LU's numeric factor, values and workspace, reused from one frequency to the next.
+#[derive(Default)]
+struct LuWork {
+    numeric: NumericLu<u32, c64>,
+    values: Vec<c64>,
+    /// The workspace and the size it was made for.
+    mem: Option<(faer::dyn_stack::StackReq, MemBuffer)>,
 }
 
 /// (A + iB) x = f in real form for a solver of real symmetric matrices: with y = −Im x,
@@ -315,6 +336,7 @@ pub fn linearise(
         driven: driven.to_vec(),
         branches,
         symbolic: None,
+        work: None,
         real,
         parts,
     })
@@ -442,77 +464,78 @@ impl Linearisation {
     /// of the state perturbation, `FIELDS` values per node (u in m/V, Φ in V/V; the driven
     /// electrode's nodes carry the applied 1 V in the real part).
     pub fn response(&mut self, omega: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
-        let n = self.k.n;
         let hz = omega / (2.0 * std::f64::consts::PI);
-        // iωτ/(1 + iωτ) = (ω²τ² + iωτ)/(1 + ω²τ²) per branch
-        let factors: Vec<(f64, f64)> = self
-            .branches
-            .iter()
-            .map(|(tau, _)| {
-                let x = omega * tau;
-                (x * x / (1.0 + x * x), x / (1.0 + x * x))
+        if let Some(mut real) = self.real.take() {
+            let (a, b): (Vec<f64>, Vec<f64>) = (0..self.k.values.len())
+                .map(self.view().entries(omega))
+                .unzip();
+            let x = real.solve(&self.k, &a, &b, &self.force);
+            self.real = Some(real);
+            let (xr, xi) =
+                x.map_err(|e| format!("solving K − ω²M + iωC at {hz} Hz in real form: {e}"))?;
+            return self.view().finish(hz, xr, xi);
+        }
+        self.analyse()?;
+        let mut work = self.work.take().unwrap_or_default();
+        let x = self
+            .view()
+            .complex_solve(omega, &mut work, faer::get_global_parallelism());
+        self.work = Some(work);
+        x
+    }
+
+    /// [`Linearisation::response`] at each of `omegas`, each response handed to `then` (which may
+    /// run on any thread); the results in the order of `omegas`, or the error of the first
+    /// frequency that failed. Small systems solved by the complex LU take the frequencies in
+    /// parallel, one LU per thread (each factorisation on its thread alone, so the results are
+    /// the same bits on any number of threads); large ones, and the real form of a distributed
+    /// run (whose processes must meet in the same order), one after the other.
+    pub fn responses<T: Send>(
+        &mut self,
+        omegas: &[f64],
+        then: impl Fn(&[f64], &[f64]) -> Result<T, String> + Sync,
+    ) -> Result<Vec<T>, String> {
+        if self.real.is_some() || self.k.n >= PARALLEL_FREQUENCIES_BELOW {
+            return omegas
+                .iter()
+                .map(|&omega| {
+                    let (xr, xi) = self.response(omega)?;
+                    then(&xr, &xi)
+                })
+                .collect();
+        }
+        self.analyse()?;
+        let this = self.view();
+        let results: Vec<Result<T, String>> = omegas
+            .par_iter()
+            .map_init(LuWork::default, |work, &omega| {
+                let (xr, xi) = this.complex_solve(omega, work, Par::Seq)?;
+                then(&xr, &xi)
             })
             .collect();
-        // A + iB = K − ω²M + iωC + Σ (the branches' complex moduli), entry by entry
-        let entry = |p: usize| {
-            let (mut re, mut im) = (
-                self.k.values[p] - omega * omega * self.m.values[p],
-                omega * self.c.values[p],
-            );
-            for ((_, kb), (fr, fi)) in self.branches.iter().zip(&factors) {
-                re += fr * kb.values[p];
-                im += fi * kb.values[p];
-            }
-            (re, im)
-        };
-        let (xr, xi) = if let Some(real) = &mut self.real {
-            let (a, b): (Vec<f64>, Vec<f64>) = (0..self.k.values.len()).map(entry).unzip();
-            real.solve(&self.k, &a, &b, &self.force)
-                .map_err(|e| format!("solving K − ω²M + iωC at {hz} Hz in real form: {e}"))?
-        } else {
+        results.into_iter().collect()
+    }
+
+    /// The symbolic analysis of the complex LU, once.
+    fn analyse(&mut self) -> Result<(), String> {
+        if self.symbolic.is_none() {
             // K, M, C are symmetric with one pattern: their CSR arrays are also the CSC arrays
             let row_ptr = self
                 .k
                 .row_ptr_u32()
                 .ok_or("the tangent has more than 2^32 entries: too many for the complex LU")?;
-            let pattern =
-                SymbolicSparseColMatRef::new_checked(n, n, &row_ptr, None, &self.k.col_idx);
-            if self.symbolic.is_none() {
-                self.symbolic = Some(
-                    SymbolicLu::try_new(pattern)
-                        .map_err(|e| format!("analysing the complex LU: {}", lu_failure(e)))?,
-                );
-            }
-            let values: Vec<c64> = (0..self.k.values.len())
-                .map(|p| {
-                    let (re, im) = entry(p);
-                    c64::new(re, im)
-                })
-                .collect();
-            let matrix = SparseColMatRef::new(pattern, &values);
-            let symbolic = self.symbolic.clone().expect("set above");
-            let lu = Lu::try_new_with_symbolic(symbolic, matrix).map_err(|e| {
-                let why = match e {
-                    LuError::Generic(e) => lu_failure(e),
-                    LuError::SymbolicSingular { index } => {
-                        format!("no pivot in column {index} (a structurally singular matrix)")
-                    }
-                };
-                format!("factoring K − ω²M + iωC at {hz} Hz: {why}")
-            })?;
-            let mut rhs = faer::Mat::<c64>::from_fn(n, 1, |i, _| c64::new(self.force[i], 0.0));
-            lu.solve_in_place(rhs.as_mut());
-            (
-                (0..n).map(|i| rhs[(i, 0)].re).collect(),
-                (0..n).map(|i| rhs[(i, 0)].im).collect(),
-            )
-        };
-        if xr.iter().chain(&xi).any(|v| !v.is_finite()) {
-            return Err(format!(
-                "singular system at {hz} Hz (an undamped resonance?)"
-            ));
+            let pattern = SymbolicSparseColMatRef::new_checked(
+                self.k.n,
+                self.k.n,
+                &row_ptr,
+                None,
+                &self.k.col_idx,
+            );
+            let symbolic = factorize_symbolic_lu(pattern, Default::default())
+                .map_err(|e| format!("analysing the complex LU: {}", lu_failure(e)))?;
+            self.symbolic = Some((symbolic, row_ptr));
         }
-        Ok((self.to_dofs(&xr, 1.0), self.to_dofs(&xi, 0.0)))
+        Ok(())
     }
 
     /// Whether `k`, `m`, `c` and the branch tangents are this process's parts of a distributed
@@ -589,6 +612,128 @@ impl Linearisation {
         }
     }
 
+    /// What a frequency's solve reads, apart from the real form's solver (which is not shared
+    /// between threads).
+    fn view(&self) -> View<'_> {
+        View {
+            k: &self.k,
+            m: &self.m,
+            c: &self.c,
+            branches: &self.branches,
+            force: &self.force,
+            dofs: &self.dofs,
+            driven: &self.driven,
+            symbolic: self.symbolic.as_ref(),
+        }
+    }
+}
+
+/// The parts of a [`Linearisation`] that a frequency's solve reads.
+struct View<'a> {
+    k: &'a CsrMatrix,
+    m: &'a CsrMatrix,
+    c: &'a CsrMatrix,
+    branches: &'a [(f64, CsrMatrix)],
+    force: &'a [f64],
+    dofs: &'a DofMap,
+    driven: &'a [usize],
+    symbolic: Option<&'a (SymbolicLu<u32>, Vec<u32>)>,
+}
+
+impl View<'_> {
+    /// The entries of A + iB = K − ω²M + iωC + Σ (the branches' complex moduli), by position in
+    /// the pattern of K.
+    fn entries(&self, omega: f64) -> impl Fn(usize) -> (f64, f64) + '_ {
+        // iωτ/(1 + iωτ) = (ω²τ² + iωτ)/(1 + ω²τ²) per branch
+        let factors: Vec<(f64, f64)> = self
+            .branches
+            .iter()
+            .map(|(tau, _)| {
+                let x = omega * tau;
+                (x * x / (1.0 + x * x), x / (1.0 + x * x))
+            })
+            .collect();
+        move |p: usize| {
+            let (mut re, mut im) = (
+                self.k.values[p] - omega * omega * self.m.values[p],
+                omega * self.c.values[p],
+            );
+            for ((_, kb), (fr, fi)) in self.branches.iter().zip(&factors) {
+                re += fr * kb.values[p];
+                im += fi * kb.values[p];
+            }
+            (re, im)
+        }
+    }
+
+    /// One frequency by the complex LU (the view of an analysed linearisation) in `work`, the
+    /// factorisation and the solve run with `par`.
+    fn complex_solve(
+        &self,
+        omega: f64,
+        work: &mut LuWork,
+        par: Par,
+    ) -> Result<(Vec<f64>, Vec<f64>), String> {
+        let n = self.k.n;
+        let hz = omega / (2.0 * std::f64::consts::PI);
+        let (symbolic, row_ptr) = self.symbolic.expect("analysed");
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, row_ptr, None, &self.k.col_idx);
+        let entry = self.entries(omega);
+        work.values.clear();
+        work.values.extend((0..self.k.values.len()).map(|p| {
+            let (re, im) = entry(p);
+            c64::new(re, im)
+        }));
+        let req = symbolic
+            .factorize_numeric_lu_scratch::<c64>(par, Default::default())
+            .or(symbolic.solve_in_place_scratch::<c64>(1, par));
+        if work.mem.as_ref().is_none_or(|(r, _)| *r != req) {
+            let buffer = MemBuffer::try_new(req).map_err(|_| {
+                format!(
+                    "factoring K − ω²M + iωC at {hz} Hz: {}",
+                    lu_failure(FaerError::OutOfMemory)
+                )
+            })?;
+            work.mem = Some((req, buffer));
+        }
+        let (_, buffer) = work.mem.as_mut().expect("set above");
+        let matrix = SparseColMatRef::new(pattern, &work.values);
+        let lu = symbolic
+            .factorize_numeric_lu(
+                &mut work.numeric,
+                matrix,
+                par,
+                MemStack::new(buffer),
+                Default::default(),
+            )
+            .map_err(|e| {
+                let why = match e {
+                    LuError::Generic(e) => lu_failure(e),
+                    LuError::SymbolicSingular { index } => {
+                        format!("no pivot in column {index} (a structurally singular matrix)")
+                    }
+                };
+                format!("factoring K − ω²M + iωC at {hz} Hz: {why}")
+            })?;
+        let mut rhs = faer::Mat::<c64>::from_fn(n, 1, |i, _| c64::new(self.force[i], 0.0));
+        lu.solve_in_place_with_conj(Conj::No, rhs.as_mut(), par, MemStack::new(buffer));
+        self.finish(
+            hz,
+            (0..n).map(|i| rhs[(i, 0)].re).collect(),
+            (0..n).map(|i| rhs[(i, 0)].im).collect(),
+        )
+    }
+
+    /// The response as dof values, or the error of a non-finite solution.
+    fn finish(&self, hz: f64, xr: Vec<f64>, xi: Vec<f64>) -> Result<(Vec<f64>, Vec<f64>), String> {
+        if xr.iter().chain(&xi).any(|v| !v.is_finite()) {
+            return Err(format!(
+                "singular system at {hz} Hz (an undamped resonance?)"
+            ));
+        }
+        Ok((self.to_dofs(&xr, 1.0), self.to_dofs(&xi, 0.0)))
+    }
+
     /// A vector of the equation space as dof values, with `volts` on the driven electrode.
     fn to_dofs(&self, x: &[f64], volts: f64) -> Vec<f64> {
         let mut out = vec![0.0; self.dofs.eq.len()];
@@ -597,7 +742,7 @@ impl Linearisation {
                 out[d] = x[e] * self.dofs.scale[d % FIELDS];
             }
         }
-        for &node in &self.driven {
+        for &node in self.driven {
             out[node * FIELDS + PHI] = volts;
         }
         out
