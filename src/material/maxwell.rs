@@ -62,11 +62,13 @@ impl Viscoelastic {
         want_tangent: bool,
     ) -> Result<(f64, Mat3, Mat9), MaterialError> {
         let (mut w, mut p, mut a) = (0.0, Mat3::zeros(), Mat9::zeros());
+        // J^(−2/3) and F⁻ᵀ once for all branches (each branch would compute the same values)
+        let kin = BranchKinematics::new(f)?;
         for i in 0..self.branches.len() {
             let b = self.branch(i);
             let hi = Self::state_of(h, i);
             let committed = MaxwellBranch::<&dyn Material>::committed(&hi);
-            let (wi, pi, ai) = b.branch(f, &committed, b.k(&hi), want_tangent)?;
+            let (wi, pi, ai) = b.branch_at(f, &kin, &committed, b.k(&hi), want_tangent)?;
             w += wi;
             p += pi;
             if let Some(ai) = ai {
@@ -168,12 +170,14 @@ impl Material for Viscoelastic {
     ) -> Result<(f64, f64), MaterialError> {
         let (mut mech, elec) = self.equilibrium.energy_split(f, e0)?;
         let h = PointHistory { state, dt: 0.0 };
+        let kin = BranchKinematics::new(f)?;
         for i in 0..self.branches.len() {
             let b = self.branch(i);
             let hi = Self::state_of(&h, i);
             mech += b
-                .branch(
+                .branch_at(
                     f,
+                    &kin,
                     &MaxwellBranch::<&dyn Material>::committed(&hi),
                     0.0,
                     false,
@@ -197,6 +201,28 @@ impl Material for Viscoelastic {
                 .update(f, &Self::state_of(&h, i), &mut new[9 * i..9 * (i + 1)])?;
         }
         Ok(d)
+    }
+}
+
+/// What every branch's stress at F uses: J^(−2/3) and F⁻ᵀ.
+struct BranchKinematics {
+    alpha: f64,
+    fit: Mat3,
+}
+
+impl BranchKinematics {
+    fn new(f: &Mat3) -> Result<Self, MaterialError> {
+        let j = f.determinant();
+        if !(j > 0.0 && j.is_finite()) {
+            return Err(MaterialError::NonPositiveJ(j));
+        }
+        Ok(Self {
+            alpha: j.powf(-2.0 / 3.0),
+            fit: f
+                .try_inverse()
+                .ok_or(MaterialError::NonPositiveJ(j))?
+                .transpose(),
+        })
     }
 }
 
@@ -235,18 +261,22 @@ impl<M> MaxwellBranch<M> {
         k: f64,
         want_tangent: bool,
     ) -> Result<(f64, Mat3, Option<Mat9>), MaterialError> {
-        let j = f.determinant();
-        if !(j > 0.0 && j.is_finite()) {
-            return Err(MaterialError::NonPositiveJ(j));
-        }
+        self.branch_at(f, &BranchKinematics::new(f)?, a, k, want_tangent)
+    }
+
+    /// [`MaxwellBranch::branch`] with the kinematics of F computed beforehand.
+    fn branch_at(
+        &self,
+        f: &Mat3,
+        kin: &BranchKinematics,
+        a: &Mat3,
+        k: f64,
+        want_tangent: bool,
+    ) -> Result<(f64, Mat3, Option<Mat9>), MaterialError> {
+        let (alpha, fit) = (kin.alpha, &kin.fit);
         let c = self.g / (2.0 * (1.0 + k));
-        let alpha = j.powf(-2.0 / 3.0);
         let fa = f * a;
         let ia = (f.transpose() * fa).trace();
-        let fit = f
-            .try_inverse()
-            .ok_or(MaterialError::NonPositiveJ(j))?
-            .transpose();
         let w = c * (alpha * ia - 3.0);
         let p = (fa * 2.0 - fit * (2.0 / 3.0 * ia)) * (c * alpha);
         let t = want_tangent.then(|| {
