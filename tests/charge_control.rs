@@ -124,6 +124,26 @@ fn charge_controlled_film_follows_the_closed_form_past_the_voltage_maximum() {
     assert!(last[c_v] < 0.6 * highest);
 }
 
+/// The last row of a history file, column by name.
+fn last_row(path: &std::path::Path) -> impl Fn(&str) -> f64 {
+    let text = std::fs::read_to_string(path).unwrap();
+    let header: Vec<String> = text
+        .lines()
+        .next()
+        .unwrap()
+        .split(',')
+        .map(String::from)
+        .collect();
+    let last: Vec<f64> = text
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap_or(f64::NAN))
+        .collect();
+    move |n| last[header.iter().position(|h| h == n).unwrap()]
+}
+
 /// On 4 × 4 × 2 cells the charged film turns unstable to an inhomogeneous mode before its voltage
 /// maximum. The run's error names that instability and what the stage controls: the charge of the
 /// electrode at the last converged and the attempted load factor and the potential the electrode
@@ -175,23 +195,10 @@ fn a_charged_film_that_turns_unstable_reports_its_charge_and_voltage() {
         number("no stable equilibrium beyond load factor "),
         number("(tried "),
     );
-    let text = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
-    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-    let last: Vec<f64> = text
-        .lines()
-        .last()
-        .unwrap()
-        .split(',')
-        .map(|v| v.parse().unwrap_or(f64::NAN))
-        .collect();
-    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
-    let charge = last[col("probe:charge")];
+    let last = last_row(&dir.join("o/history.csv"));
+    let (charge, voltage) = (last("probe:charge"), last("voltage"));
     assert!((q_ok - charge).abs() < 1e-6 * charge, "{q_ok} vs {charge}");
-    assert!(
-        (v_ok - last[col("voltage")]).abs() < 0.01,
-        "{v_ok} vs {}",
-        last[col("voltage")]
-    );
+    assert!((v_ok - voltage).abs() < 0.01, "{v_ok} vs {voltage}");
     assert!(v_ok > 1e4, "{v_ok}");
     // the charge ramps from 0 with the load factor (3.6 µC at the stage's end); the load factors
     // are printed to six decimals (3.4e-6 of 0.146)
@@ -288,18 +295,7 @@ fn a_charged_film_rings_down_onto_the_static_charge_controlled_state() {
         .collect::<Vec<_>>()
         .join("\n");
     std::fs::write(dir.join("d.toml"), &text).unwrap();
-    let last = |out: &str| -> std::collections::HashMap<String, f64> {
-        let t = std::fs::read_to_string(dir.join(out).join("history.csv")).unwrap();
-        let header: Vec<&str> = t.lines().next().unwrap().split(',').collect();
-        let row: Vec<f64> = t
-            .lines()
-            .last()
-            .unwrap()
-            .split(',')
-            .map(|x| x.parse().unwrap_or(f64::NAN))
-            .collect();
-        header.iter().map(|h| h.to_string()).zip(row).collect()
-    };
+    let last = |out: &str| last_row(&dir.join(out).join("history.csv"));
     let quiet = [
         "--set",
         "output.plots=false",
@@ -365,11 +361,11 @@ fn a_charged_film_rings_down_onto_the_static_charge_controlled_state() {
             "probe:thickness_stretch",
             "probe:inplane_stretch",
         ] {
-            let (a, b) = (end[key], reference[key]);
+            let (a, b) = (end(key), reference(key));
             assert!((a / b - 1.0).abs() < 1e-9, "{integrator} {key}: {a} vs {b}");
         }
         assert!(
-            end["kinetic"] < 1e-12 * end["stored"],
+            end("kinetic") < 1e-12 * end("stored"),
             "{integrator}: rung down"
         );
     }
@@ -496,16 +492,7 @@ fn floating_electrodes_take_the_capacitive_divider_potentials() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let text = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
-    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
-    let last: Vec<f64> = text
-        .lines()
-        .last()
-        .unwrap()
-        .split(',')
-        .map(|x| x.parse().unwrap_or(f64::NAN))
-        .collect();
-    let col = |n: &str| last[header.iter().position(|h| *h == n).unwrap()];
+    let col = last_row(&dir.join("o/history.csv"));
     assert!(
         (col("probe:first") - v / 3.0).abs() < 1e-10 * v,
         "{}",

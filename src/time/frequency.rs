@@ -19,9 +19,10 @@
 //! without pivoting meets zero pivots where a diagonal entry of K − ω²M crosses zero, and an LU
 //! does not. A sweep keeps each LU's storage from one frequency to the next and, for systems
 //! small enough that one factorisation cannot use the threads well, takes the frequencies in
-//! parallel (one LU per thread, the same bits on any number of threads). A distributed run (processes that share the cells) instead hands each process's
-//! part of the equivalent real symmetric system of twice the size ([`RealForm`]) to its
-//! distributed solver (MUMPS's LDLᵀ with pivoting), so that no process holds the whole
+//! parallel (each thread factoring its frequencies alone, so the bits are the same on any
+//! number of threads). A distributed run (processes that share the cells) instead hands each
+//! process's part of the equivalent real symmetric system of twice the size ([`RealForm`]) to
+//! its distributed solver (MUMPS's LDLᵀ with pivoting), so that no process holds the whole
 //! matrices or a whole factor.
 
 use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
@@ -89,8 +90,9 @@ struct Parts {
     mass: NodalMass,
 }
 
-/// Below this many equations [`Linearisation::responses`] takes the frequencies in parallel (one
-/// complex LU per thread); above it one at a time, each factorisation using the threads.
+/// Below this many equations [`Linearisation::responses`] takes the frequencies in parallel (each
+/// complex LU on one thread); above it one at a time, each factorisation using the threads (the
+/// same bound below which the real LDLᵀ factors on one thread).
 const PARALLEL_FREQUENCIES_BELOW: usize = 20_000;
 
 /// A complex LU's numeric factor, values and workspace, reused from one frequency to the next.
@@ -487,9 +489,10 @@ impl Linearisation {
     /// [`Linearisation::response`] at each of `omegas`, each response handed to `then` (which may
     /// run on any thread); the results in the order of `omegas`, or the error of the first
     /// frequency that failed. Small systems solved by the complex LU take the frequencies in
-    /// parallel, one LU per thread (each factorisation on its thread alone, so the results are
-    /// the same bits on any number of threads); large ones, and the real form of a distributed
-    /// run (whose processes must meet in the same order), one after the other.
+    /// parallel, each piece of the sweep reusing one LU's storage (each factorisation on its
+    /// thread alone, so the results are the same bits on any number of threads); large ones, and
+    /// the real form of a distributed run (whose processes must meet in the same order), one
+    /// after the other.
     pub fn responses<T: Send>(
         &mut self,
         omegas: &[f64],
