@@ -847,7 +847,9 @@ fn charge_control_on_two_mpi_ranks_agrees_with_the_serial_run() {
     let (a, b) = (stop(&serial), stop(&mpi));
     eprintln!("film-charge: unstable beyond load factor {a} (serial), {b} (2 ranks)");
     assert!(
-        mpi.contains("loss of stability") && (a - b).abs() < 1e-6,
+        mpi.contains("electromechanical instability under charge control")
+            && mpi.contains("last converged charge of `top` ")
+            && (a - b).abs() < 1e-6,
         "{mpi}"
     );
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
