@@ -144,8 +144,8 @@ fn last_row(path: &std::path::Path) -> impl Fn(&str) -> f64 {
     move |n| last[header.iter().position(|h| h == n).unwrap()]
 }
 
-/// On 4 × 4 × 2 cells the charged film turns unstable to an inhomogeneous mode before its voltage
-/// maximum. The run's error names that instability and what the stage controls: the charge of the
+/// On 4 × 4 × 2 cells the charged film turns unstable to an inhomogeneous mode soon after its
+/// voltage maximum (the voltage already falling). The run's error names that instability and what the stage controls: the charge of the
 /// electrode at the last converged and the attempted load factor and the potential the electrode
 /// took, which are the last history row's charge probe and voltage (not the grounded electrode's
 /// 0 V, which an earlier message printed as "the" voltage).

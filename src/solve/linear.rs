@@ -606,8 +606,9 @@ impl std::fmt::Debug for FaerLdlt {
     }
 }
 
-/// Below this many unknowns the factorisation and the solves run on the calling thread.
-const PARALLEL_MIN_UNKNOWNS: usize = 20_000;
+/// Below this many unknowns the factorisation and the solves run on the calling thread (and a
+/// frequency sweep factors its frequencies in parallel, each on one thread).
+pub(crate) const PARALLEL_MIN_UNKNOWNS: usize = 20_000;
 
 impl Default for FaerLdlt {
     fn default() -> Self {

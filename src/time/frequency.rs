@@ -31,7 +31,7 @@ use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
 use crate::problem::system::{DofLayout, NonlinearSystem};
-use crate::solve::linear::{LinearSolver, SolverSettings};
+use crate::solve::linear::{LinearSolver, SolverSettings, PARALLEL_MIN_UNKNOWNS};
 use crate::time::mass::NodalMass;
 use crate::time::modal::EquationMass;
 use faer::c64;
@@ -68,7 +68,7 @@ pub struct Linearisation {
     /// frequency.
     symbolic: Option<(SymbolicLu<u32>, Vec<u32>)>,
     /// The numeric LU and its workspace of [`Linearisation::response`], kept between
-    /// frequencies (a fresh one per frequency spent a fifth of the time in page faults).
+    /// frequencies (allocated afresh per frequency, they cost page faults: docs/validation.md).
     work: Option<LuWork>,
     /// The real form and its solver, when the linearisation was given a solver.
     real: Option<RealForm>,
@@ -89,11 +89,6 @@ struct Parts {
     /// The nodal mass, whole on every process (products with M without a sum).
     mass: NodalMass,
 }
-
-/// Below this many equations [`Linearisation::responses`] takes the frequencies in parallel (each
-/// complex LU on one thread); above it one at a time, each factorisation using the threads (the
-/// same bound below which the real LDLᵀ factors on one thread).
-const PARALLEL_FREQUENCIES_BELOW: usize = 20_000;
 
 /// A complex LU's numeric factor, values and workspace, reused from one frequency to the next.
 #[derive(Default)]
@@ -498,7 +493,8 @@ impl Linearisation {
         omegas: &[f64],
         then: impl Fn(&[f64], &[f64]) -> Result<T, String> + Sync,
     ) -> Result<Vec<T>, String> {
-        if self.real.is_some() || self.k.n >= PARALLEL_FREQUENCIES_BELOW {
+        // one frequency at a time for the real form and where one factorisation uses the threads
+        if self.real.is_some() || self.k.n >= PARALLEL_MIN_UNKNOWNS {
             return omegas
                 .iter()
                 .map(|&omega| {
