@@ -351,7 +351,31 @@ pub fn cell_viscous(
 /// the point's blocks A = ∂P/∂F (9×9), B = ∂P/∂E₀ (9×3) and G = ∂²Ψ/∂E₀² (3×3):
 /// K_{ai,bk} = Σ ∂N_a/∂X_J A_{iJ,kL} ∂N_b/∂X_L, K_{ai,bΦ} = −Σ ∂N_a/∂X_J B_{iJ,K} ∂N_b/∂X_K,
 /// K_{aΦ,bk} its symmetric partner and K_{aΦ,bΦ} = Σ ∂N_a/∂X_J G_JK ∂N_b/∂X_K.
+///
+/// The entries of one row segment are formed for all nodes b at once, from the gradients held by
+/// component (contiguous over b), so the compiler vectorises the loop over b; each entry is the
+/// same expression as when formed one by one, so the sums are the same bits.
 pub(crate) fn add_point_tangent(
+    g: &[[f64; 3]; MAX_NODES],
+    n: usize,
+    w: f64,
+    a_blk: &crate::material::Mat9,
+    b_blk: &crate::material::Mat93,
+    g_blk: &crate::material::Mat3,
+    k: &mut [f64],
+) {
+    // the node count as a constant for the common cells, so that the loops over b unroll
+    match n {
+        8 => point_tangent::<8>(g, 8, w, a_blk, b_blk, g_blk, k),
+        4 => point_tangent::<4>(g, 4, w, a_blk, b_blk, g_blk, k),
+        10 => point_tangent::<10>(g, 10, w, a_blk, b_blk, g_blk, k),
+        _ => point_tangent::<MAX_NODES>(g, n, w, a_blk, b_blk, g_blk, k),
+    }
+}
+
+/// [`add_point_tangent`] for cells of `n ≤ N` nodes (`n = N` known where it is inlined).
+#[inline(always)]
+fn point_tangent<const N: usize>(
     g: &[[f64; 3]; MAX_NODES],
     n: usize,
     w: f64,
@@ -382,24 +406,143 @@ pub(crate) fn add_point_tangent(
             gg[a][c] = g[a][0] * g_blk[(0, c)] + g[a][1] * g_blk[(1, c)] + g[a][2] * g_blk[(2, c)];
         }
     }
-    for a in 0..n {
-        for b in 0..n {
-            let gbv = g[b];
-            for i in 0..3 {
-                let row = (a * 4 + i) * nl + b * 4;
-                for kk in 0..3 {
-                    let c = &ga[a][i][kk * 3..kk * 3 + 3];
-                    k[row + kk] += w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
-                }
-                let c = &gb[a][i];
-                k[row + 3] -= w * (c[0] * gbv[0] + c[1] * gbv[1] + c[2] * gbv[2]);
-            }
-            let row = (a * 4 + 3) * nl + b * 4;
+    // by component, contiguous over the node b: gt[L][b] = ∂N_b/∂X_L, gbt[k][K][b] = gb[b][k][K]
+    let mut gt = [[0.0; N]; 3];
+    let mut gbt = [[[0.0; N]; 3]; 3];
+    for b in 0..n {
+        for l in 0..3 {
+            gt[l][b] = g[b][l];
             for kk in 0..3 {
-                let c = &gb[b][kk];
-                k[row + kk] -= w * (c[0] * g[a][0] + c[1] * g[a][1] + c[2] * g[a][2]);
+                gbt[kk][l][b] = gb[b][kk][l];
             }
-            k[row + 3] += w * (gg[a][0] * gbv[0] + gg[a][1] * gbv[1] + gg[a][2] * gbv[2]);
+        }
+    }
+    // one row segment: seg[f][b] is the entry of column (b, f)
+    let mut seg = [[0.0; N]; FIELDS];
+    let dot_b = |out: &mut [f64; N], c: [f64; 3], t: &[[f64; N]; 3]| {
+        for b in 0..n {
+            out[b] = w * (c[0] * t[0][b] + c[1] * t[1][b] + c[2] * t[2][b]);
+        }
+    };
+    for a in 0..n {
+        for i in 0..3 {
+            for (kk, out) in seg[..3].iter_mut().enumerate() {
+                let c = &ga[a][i][kk * 3..kk * 3 + 3];
+                dot_b(out, [c[0], c[1], c[2]], &gt);
+            }
+            dot_b(&mut seg[3], gb[a][i], &gt);
+            let row = &mut k[(a * 4 + i) * nl..(a * 4 + i) * nl + nl];
+            for (b, kb) in row.chunks_exact_mut(FIELDS).enumerate() {
+                kb[0] += seg[0][b];
+                kb[1] += seg[1][b];
+                kb[2] += seg[2][b];
+                kb[3] -= seg[3][b];
+            }
+        }
+        // the Φ row: −w gb[b][k]·∇N_a (the product's factors commuted, the same value)
+        let ga_a = g[a];
+        for (kk, out) in seg[..3].iter_mut().enumerate() {
+            dot_b(out, ga_a, &gbt[kk]);
+        }
+        dot_b(&mut seg[3], gg[a], &gt);
+        let row = &mut k[(a * 4 + 3) * nl..(a * 4 + 3) * nl + nl];
+        for (b, kb) in row.chunks_exact_mut(FIELDS).enumerate() {
+            kb[0] -= seg[0][b];
+            kb[1] -= seg[1][b];
+            kb[2] -= seg[2][b];
+            kb[3] += seg[3][b];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::{Mat3, Mat9, Mat93};
+
+    /// The point tangent formed entry by entry, the form `add_point_tangent` reorders.
+    fn point_tangent_entrywise(
+        g: &[[f64; 3]; MAX_NODES],
+        n: usize,
+        w: f64,
+        a_blk: &Mat9,
+        b_blk: &Mat93,
+        g_blk: &Mat3,
+        k: &mut [f64],
+    ) {
+        let nl = n * FIELDS;
+        for a in 0..n {
+            for b in 0..n {
+                for i in 0..3 {
+                    let row = (a * 4 + i) * nl + b * 4;
+                    for kk in 0..3 {
+                        let mut c = [0.0; 3];
+                        for (l, cl) in c.iter_mut().enumerate() {
+                            for jj in 0..3 {
+                                *cl += g[a][jj] * a_blk[(i * 3 + jj, kk * 3 + l)];
+                            }
+                        }
+                        k[row + kk] += w * (c[0] * g[b][0] + c[1] * g[b][1] + c[2] * g[b][2]);
+                    }
+                    let mut c = [0.0; 3];
+                    for (l, cl) in c.iter_mut().enumerate() {
+                        for jj in 0..3 {
+                            *cl += g[a][jj] * b_blk[(i * 3 + jj, l)];
+                        }
+                    }
+                    k[row + 3] -= w * (c[0] * g[b][0] + c[1] * g[b][1] + c[2] * g[b][2]);
+                }
+                let row = (a * 4 + 3) * nl + b * 4;
+                for kk in 0..3 {
+                    let mut c = [0.0; 3];
+                    for (l, cl) in c.iter_mut().enumerate() {
+                        for jj in 0..3 {
+                            *cl += g[b][jj] * b_blk[(kk * 3 + jj, l)];
+                        }
+                    }
+                    k[row + kk] -= w * (c[0] * g[a][0] + c[1] * g[a][1] + c[2] * g[a][2]);
+                }
+                let gg: Vec<f64> = (0..3)
+                    .map(|c| {
+                        g[a][0] * g_blk[(0, c)] + g[a][1] * g_blk[(1, c)] + g[a][2] * g_blk[(2, c)]
+                    })
+                    .collect();
+                k[row + 3] += w * (gg[0] * g[b][0] + gg[1] * g[b][1] + gg[2] * g[b][2]);
+            }
+        }
+    }
+
+    /// A small deterministic generator of values in (−1, 1).
+    fn generator() -> impl FnMut() -> f64 {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        }
+    }
+
+    #[test]
+    fn point_tangent_has_the_bits_of_its_entrywise_form() {
+        let mut next = generator();
+        for n in [4, 6, 8, 10] {
+            let mut g = [[0.0; 3]; MAX_NODES];
+            g.iter_mut().flatten().for_each(|v| *v = 1e3 * next());
+            let a_blk = Mat9::from_fn(|_, _| 1e5 * next());
+            let b_blk = Mat93::from_fn(|_, _| 1e-6 * next());
+            let g_blk = Mat3::from_fn(|_, _| -1e-11 * next().abs());
+            let w = 1e-9 * (1.5 + next());
+            let nl = n * FIELDS;
+            let start: Vec<f64> = (0..nl * nl).map(|_| next()).collect();
+            let (mut fast, mut reference) = (start.clone(), start);
+            for _ in 0..2 {
+                add_point_tangent(&g, n, w, &a_blk, &b_blk, &g_blk, &mut fast);
+                point_tangent_entrywise(&g, n, w, &a_blk, &b_blk, &g_blk, &mut reference);
+            }
+            for (i, (x, y)) in fast.iter().zip(&reference).enumerate() {
+                assert_eq!(x.to_bits(), y.to_bits(), "n = {n}, entry {i}: {x} vs {y}");
+            }
         }
     }
 }
