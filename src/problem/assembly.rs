@@ -672,7 +672,22 @@ impl Assembler {
                     }
                 }
                 let order = &order[..m];
-                // where each column sat in the previous row: the rows of one node have the same
+                // runs of consecutive equations among those columns (a node's free dofs, or
+                // several nodes numbered one after the other): (first index in `order`, length).
+                // A row holds a run's columns side by side (its columns are sorted and every cell
+                // coupling is among them), so a run is found once and added as one stretch
+                let mut runs = [(0usize, 0usize); MAX_LOCAL];
+                let mut n_runs = 0;
+                for t in 0..m {
+                    if t > 0 && eqs[order[t]] == eqs[order[t - 1]] + 1 {
+                        runs[n_runs - 1].1 += 1;
+                    } else {
+                        runs[n_runs] = (t, 1);
+                        n_runs += 1;
+                    }
+                }
+                let runs = &runs[..n_runs];
+                // where each run started in the previous row: the rows of one node have the same
                 // columns, so after a node's first row every position is a guess that holds
                 let mut rel = [0usize; MAX_LOCAL];
                 for i in 0..nl {
@@ -682,23 +697,29 @@ impl Assembler {
                     }
                     let start = row_ptr[ei];
                     let cols = &col_idx[start..row_ptr[ei + 1]];
+                    let kl_row = &kl[i * nl..(i + 1) * nl];
                     let mut prev = 0;
-                    for (t, &j) in order.iter().enumerate() {
-                        // an equation of the pattern, whose columns were checked to fit a Col
-                        let ej = eqs[j] as Col;
-                        let pos = if cols.get(rel[t]) == Some(&ej) {
-                            rel[t]
-                        } else if t > 0 && cols.get(prev + 1) == Some(&ej) {
-                            prev + 1
+                    for (&(t0, len), guess) in runs.iter().zip(rel.iter_mut()) {
+                        let run = &order[t0..t0 + len];
+                        // equations of the pattern, whose columns were checked to fit a Col
+                        let (first, last) = (eqs[run[0]] as Col, eqs[run[len - 1]] as Col);
+                        let pos = if cols.get(*guess) == Some(&first) {
+                            *guess
                         } else {
                             prev + cols[prev..]
-                                .binary_search(&ej)
+                                .binary_search(&first)
                                 .expect("pattern holds every cell coupling")
                         };
-                        rel[t] = pos;
-                        prev = pos;
-                        // SAFETY: as above, row ei belongs to a node of this cell only.
-                        unsafe { kp.add(start + pos, scale[i] * scale[j] * kl[i * nl + j]) };
+                        assert!(
+                            cols.get(pos + len - 1) == Some(&last),
+                            "pattern holds every cell coupling"
+                        );
+                        *guess = pos;
+                        prev = pos + len - 1;
+                        for (u, &j) in run.iter().enumerate() {
+                            // SAFETY: as above, row ei belongs to a node of this cell only.
+                            unsafe { kp.add(start + pos + u, scale[i] * scale[j] * kl_row[j]) };
+                        }
                     }
                 }
             }
