@@ -7,7 +7,8 @@
 //! (values that cross zero have no relative error of their own); a dynamic run amplifies
 //! round-off over its steps, and 200 steps of the film vibration stay far below this.
 
-use std::path::{Path, PathBuf};
+mod common;
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn deasim(args: &[&str], dir: &Path, threads: &str) -> Output {
@@ -19,11 +20,8 @@ fn deasim(args: &[&str], dir: &Path, threads: &str) -> Output {
         .expect("run deasim")
 }
 
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deasim-det-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempdir(name: &str) -> common::TempDir {
+    common::TempDir::new(&format!("deasim-det-{name}"))
 }
 
 fn text(o: &Output) -> String {

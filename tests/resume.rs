@@ -8,6 +8,7 @@
 //! Tolerance: none (bitwise). The run state holds where the reused (modified Newton) matrices were
 //! factored, and a resumed run factors them there again, so it makes the same decisions.
 
+mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -21,11 +22,8 @@ fn deasim(args: &[&str], dir: &Path) -> Output {
         .expect("run deasim")
 }
 
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("deasim-resume-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempdir(name: &str) -> common::TempDir {
+    common::TempDir::new(&format!("deasim-resume-{name}"))
 }
 
 fn text(o: &Output) -> String {
