@@ -423,7 +423,8 @@ pub fn cell_residual_tangent_md(
     let vol = kin.volume;
 
     // pass 1: material tangents at F̄ and the cell's θ̄-derivative H = Σ w s/(3θ̄)
-    let mut tans: Vec<Tangent> = Vec::with_capacity(nq);
+    // on the stack: no allocation per cell
+    let mut tans: [Option<Tangent>; MAX_QP] = Default::default();
     let mut s = [0.0; MAX_QP];
     let mut energy = 0.0;
     let mut h = 0.0;
@@ -435,7 +436,7 @@ pub fn cell_residual_tangent_md(
         energy += geom.weights[q] * t.energy;
         s[q] = t.p.dot(&fbar);
         h += geom.weights[q] * s[q] / (3.0 * theta);
-        tans.push(t);
+        tans[q] = Some(t);
     }
     let pm = h / vol;
 
@@ -445,8 +446,8 @@ pub fn cell_residual_tangent_md(
     let mut ev = [0.0; MAX_NODES];
     let mut dd = 0.0;
 
-    for q in 0..nq {
-        let t = &tans[q];
+    for (q, t) in tans[..nq].iter().enumerate() {
+        let t = t.as_ref().expect("set in pass 1");
         let g = &geom.grad[q];
         let w = geom.weights[q];
         let (alpha, j) = (kin.alpha[q], kin.j[q]);
