@@ -1119,5 +1119,4 @@ fn several_mpi_processes_are_refused_where_they_would_repeat_the_work() {
         .output()
         .unwrap();
     assert!(one.status.success(), "{}", stderr(&one));
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -341,7 +341,6 @@ fn run_and_lumped_commands_on_the_diaphragm() {
     // a scenario the lumped model does not describe is refused with exit 2
     let film = deasim(&["lumped", "--set", "mesh.generator=box"], &dir);
     assert_eq!(film.status.code(), Some(2));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `deasim sweep` over the voltage amplitude: one row per value in sweep.csv, a plot per probe,
@@ -437,7 +436,6 @@ fn sweep_over_the_voltage() {
         &dir,
     );
     assert_eq!(unequal.status.code(), Some(2));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A dielectric strength below the 3 kV field (≈ 1.2e7 V/m): a warning naming the time, the

@@ -176,7 +176,6 @@ fn scenario_with_a_gmsh_file_runs() {
         let vtu = std::fs::read_dir(&fields).unwrap().next().unwrap().unwrap();
         let d = deasim::io::vtu::read_vtu(&vtu.path()).unwrap();
         assert!(d.types.iter().all(|&t| t == vtk), "{:?}", d.types);
-        let _ = std::fs::remove_dir_all(&out_dir);
     }
 }
 
@@ -217,7 +216,6 @@ fn axisymmetric_scenario_with_a_gmsh_meridian_file_runs() {
                 (t - s.t).abs() < 1e-8 && (l - s.lambda).abs() < 1e-8,
                 "{file}: {t} {l}"
             );
-            let _ = std::fs::remove_dir_all(&out_dir);
         }
     }
 }

@@ -189,7 +189,6 @@ fn a_misspelt_petsc_method_is_refused_with_the_scenario() {
             && !stderr.contains("no stable equilibrium"),
         "{stderr}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The probe columns and the dissipated energy of a `history.csv`: names and one row of values
@@ -624,7 +623,6 @@ fn on_ranks_of(
     if serial.status.success() {
         compare(&dir.join("serial"), &dir.join("mpi"));
     }
-    let _ = std::fs::remove_dir_all(&dir);
     (worst, fields, serial_log, log)
 }
 
@@ -913,7 +911,6 @@ fn dielectric_breakdown_is_found_over_every_ranks_cells() {
             .count()
     };
     assert_eq!(rows("serial"), rows("mpi"));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The checkpoint files of run directory `out`, oldest first.
@@ -1070,7 +1067,6 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
     for f in files {
         assert!(dir.join("one").join(f).is_file(), "{f}");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A viscoelastic model on 2 ranks: each rank updates the internal variables of its own cells
@@ -1128,7 +1124,6 @@ fn a_viscoelastic_run_on_two_mpi_ranks_agrees_with_the_serial_run_and_resumes() 
     assert!(resumed.status.success(), "{}", log(&resumed));
     let d = history_difference(&dir.join("full/history.csv"), &out.join("history.csv"));
     assert!(d < 1e-10, "resumed against uninterrupted: {d:e}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The natural frequencies and the frequency response (every real and imaginary part and
@@ -1268,7 +1263,6 @@ fn the_frequency_response_keeps_its_direct_method_under_petsc_options() {
         modes < 1e-8 && response < 1e-7,
         "modes {modes:e}, response {response:e}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// GAMG on the whole coupled tangent: GMRES to 1e-12.
