@@ -113,7 +113,8 @@ pub fn point_deformations_md(
     local: &[f64],
     out: &mut [(Mat3, Vec3)],
 ) -> Result<(), PointFailure> {
-    let k = MdKinematics::new(geom, local)?;
+    let mut k = MdKinematics::identity();
+    k.compute(geom, local)?;
     for q in 0..geom.n_qp {
         out[q] = (k.fbar(q), k.e0[q]);
     }
@@ -140,13 +141,10 @@ fn fail(qp: usize) -> impl Fn(MaterialError) -> PointFailure {
 }
 
 impl MdKinematics {
-    /// The kinematics of the cell at its local values. Inlined into its callers: the struct
-    /// (about 2 kB) is then built in place instead of being copied out of the `Result`.
+    /// The kinematics of the undeformed cell, to be filled by [`MdKinematics::compute`].
     #[inline(always)]
-    fn new(geom: &CellGeometry, local: &[f64]) -> Result<Self, PointFailure> {
-        let n = geom.n_nodes;
-        let (u, phi) = split_local(n, local);
-        let mut k = MdKinematics {
+    fn identity() -> Self {
+        MdKinematics {
             f: [Mat3::identity(); MAX_QP],
             e0: [Vec3::zeros(); MAX_QP],
             j: [1.0; MAX_QP],
@@ -155,7 +153,16 @@ impl MdKinematics {
             theta: 1.0,
             theta_m23: 1.0,
             volume: 0.0,
-        };
+        }
+    }
+
+    /// The kinematics of the cell at its local values, written in place: the struct (about
+    /// 2 kB) returned inside a `Result` was copied out of it in every cell of every pass.
+    #[inline(always)]
+    fn compute(&mut self, geom: &CellGeometry, local: &[f64]) -> Result<(), PointFailure> {
+        let k = self;
+        let n = geom.n_nodes;
+        let (u, phi) = split_local(n, local);
         let mut v = 0.0;
         for q in 0..geom.n_qp {
             let (f, e0) = if geom.axisymmetric {
@@ -185,7 +192,7 @@ impl MdKinematics {
         }
         let r = k.theta.cbrt();
         k.theta_m23 = 1.0 / (r * r);
-        Ok(k)
+        Ok(())
     }
 
     /// F̄ = (θ̄/J)^{1/3} F at point q.
@@ -250,7 +257,8 @@ pub fn cell_energy_md(
     hist: CellHistory,
     local: &[f64],
 ) -> Result<f64, PointFailure> {
-    let k = MdKinematics::new(geom, local)?;
+    let mut k = MdKinematics::identity();
+    k.compute(geom, local)?;
     let mut e = 0.0;
     for q in 0..geom.n_qp {
         e += geom.weights[q]
@@ -269,7 +277,8 @@ pub fn cell_energy_split_md(
     hist: CellHistory,
     local: &[f64],
 ) -> Result<(f64, f64), PointFailure> {
-    let k = MdKinematics::new(geom, local)?;
+    let mut k = MdKinematics::identity();
+    k.compute(geom, local)?;
     energy_split_md(geom, mat, hist, &k)
 }
 
@@ -413,7 +422,8 @@ pub fn cell_residual_tangent_md(
     let n = geom.n_nodes;
     let nl = n * FIELDS;
     let nq = geom.n_qp;
-    let kin = MdKinematics::new(geom, local)?;
+    let mut kin = MdKinematics::identity();
+    kin.compute(geom, local)?;
     let Some(k) = k else {
         return md_residual(geom, mat, hist, &kin, r, &mut [Mat3::zeros(); MAX_QP]);
     };
@@ -550,7 +560,8 @@ pub fn cell_dynamic_residual_md(
 ) -> Result<(f64, f64), PointFailure> {
     debug_assert!(!geom.axisymmetric);
     let n = geom.n_nodes;
-    let kin = MdKinematics::new(geom, local)?;
+    let mut kin = MdKinematics::identity();
+    kin.compute(geom, local)?;
     let mut p = [Mat3::zeros(); MAX_QP];
     let mut d0 = [Vec3::zeros(); MAX_QP];
     let energy = md_stresses(geom, mat, hist, &kin, &mut p, &mut d0)?;
@@ -604,7 +615,8 @@ pub fn cell_fields_md(
     hist: CellHistory,
     local: &[f64],
 ) -> Result<CellFields, PointFailure> {
-    let k = MdKinematics::new(geom, local)?;
+    let mut k = MdKinematics::identity();
+    k.compute(geom, local)?;
     let (mut p, mut p_mech) = ([Mat3::zeros(); MAX_QP], [Mat3::zeros(); MAX_QP]);
     let mut d0 = [Vec3::zeros(); MAX_QP];
     md_record_points(geom, mat, hist, &k, &mut p, &mut p_mech, &mut d0)?;
@@ -619,7 +631,8 @@ pub fn cell_potential_residual_md(
     local: &[f64],
     r: &mut [f64],
 ) -> Result<(), PointFailure> {
-    let k = MdKinematics::new(geom, local)?;
+    let mut k = MdKinematics::identity();
+    k.compute(geom, local)?;
     r[..geom.n_nodes * FIELDS].iter_mut().for_each(|v| *v = 0.0);
     let no_stress = Mat3::zeros();
     for q in 0..geom.n_qp {
@@ -640,7 +653,8 @@ pub fn cell_record_md(
     local: &[f64],
     r: &mut [f64],
 ) -> Result<((f64, f64), CellFields), PointFailure> {
-    let k = MdKinematics::new(geom, local)?;
+    let mut k = MdKinematics::identity();
+    k.compute(geom, local)?;
     let (mut p, mut p_mech) = ([Mat3::zeros(); MAX_QP], [Mat3::zeros(); MAX_QP]);
     let mut d0 = [Vec3::zeros(); MAX_QP];
     let split = md_record_points(geom, mat, hist, &k, &mut p, &mut p_mech, &mut d0)?;

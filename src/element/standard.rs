@@ -24,7 +24,7 @@ pub struct PointFailure {
 }
 
 /// Splits the local values (node-major, 4 per node) into displacements and potentials.
-#[inline]
+#[inline(always)]
 pub(crate) fn split_local(n: usize, local: &[f64]) -> ([[f64; 3]; MAX_NODES], [f64; MAX_NODES]) {
     let mut u = [[0.0; 3]; MAX_NODES];
     let mut phi = [0.0; MAX_NODES];
