@@ -26,9 +26,10 @@ use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS};
 use rayon::prelude::*;
 use std::sync::Arc;
 
-/// Below this many cells the assembly runs on the calling thread: handing colours to the pool
-/// costs more than assembling the cells.
-const PARALLEL_MIN_CELLS: usize = 2048;
+/// Below this many cells the assembly with the tangent runs on the calling thread: handing
+/// colours to the pool costs more than assembling the cells. On the film (hex8, 2 threads) the
+/// pool already halves the assembly of 128 cells (docs/validation.md); 2048 before.
+const PARALLEL_MIN_CELLS: usize = 128;
 
 /// From this many cells a residual without tangent is computed on the pool: the cells' local
 /// residuals go into one buffer in parallel (a single hand-off per assembly), then are added in
