@@ -8,17 +8,9 @@
 //! round-off over its steps, and 200 steps of the film vibration stay far below this.
 
 mod common;
+use common::deasim_on_threads as deasim;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn deasim(args: &[&str], dir: &Path, threads: &str) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_deasim"))
-        .args(args)
-        .current_dir(dir)
-        .env("RAYON_NUM_THREADS", threads)
-        .output()
-        .expect("run deasim")
-}
+use std::process::Output;
 
 fn tempdir(name: &str) -> common::TempDir {
     common::TempDir::new(&format!("deasim-det-{name}"))

@@ -14,12 +14,7 @@ use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 fn deasim(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_deasim"))
-        .args(args)
-        .current_dir(dir)
-        .env("RAYON_NUM_THREADS", "2")
-        .output()
-        .expect("run deasim")
+    common::deasim_on_threads(args, dir, "2")
 }
 
 fn tempdir(name: &str) -> common::TempDir {

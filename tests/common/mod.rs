@@ -14,6 +14,16 @@ pub fn deasim(args: &[&str], dir: &Path) -> Output {
         .expect("run deasim")
 }
 
+/// [`deasim`] on a thread pool of `threads` threads (`RAYON_NUM_THREADS`).
+pub fn deasim_on_threads(args: &[&str], dir: &Path, threads: &str) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_deasim"))
+        .args(args)
+        .current_dir(dir)
+        .env("RAYON_NUM_THREADS", threads)
+        .output()
+        .expect("run deasim")
+}
+
 /// A fresh, empty directory for one test (named after the test and the process).
 pub fn tempdir(name: &str) -> TempDir {
     TempDir::new(&format!("deasim-test-{name}"))
