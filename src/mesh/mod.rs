@@ -3,6 +3,7 @@
 //! Coordinates are in metres (reference configuration). Generators live in submodules.
 
 pub mod disc;
+pub mod distribute;
 pub mod generate;
 pub mod gmsh;
 pub mod meridian;

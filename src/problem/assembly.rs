@@ -258,19 +258,24 @@ impl std::fmt::Debug for CellShare {
 /// node order, the lowest rank on a tie), then moved one by one to a less loaded process of its
 /// cells while that evens the loads. Nodes in no cell go to process 0. The same on every
 /// process.
-fn term_processes(dofs: &DofMap, share: &CellShare, node_cells: &[Vec<usize>]) -> Vec<usize> {
+fn term_processes(
+    dofs: &DofMap,
+    part: &[usize],
+    size: usize,
+    node_cells: &[Vec<usize>],
+) -> Vec<usize> {
     const BOUNDARY: usize = usize::MAX;
     let free = |n: usize| {
         (0..FIELDS)
             .filter(|&f| dofs.eq[n * FIELDS + f] != CONSTRAINED)
             .count()
     };
-    let mut load = vec![0usize; share.size.max(1)];
+    let mut load = vec![0usize; size.max(1)];
     let mut owner: Vec<usize> = node_cells
         .iter()
         .enumerate()
         .map(|(n, cells)| {
-            let mut parts = cells.iter().map(|&c| share.part[c]);
+            let mut parts = cells.iter().map(|&c| part[c]);
             let first = parts.next().unwrap_or(0);
             if parts.all(|p| p == first) {
                 load[first] += free(n);
@@ -284,7 +289,7 @@ fn term_processes(dofs: &DofMap, share: &CellShare, node_cells: &[Vec<usize>]) -
     let lightest = |n: usize, load: &[usize]| {
         node_cells[n]
             .iter()
-            .map(|&c| share.part[c])
+            .map(|&c| part[c])
             .min_by_key(|&p| (load[p], p))
             .expect("a boundary node has cells")
     };
@@ -313,6 +318,20 @@ fn term_processes(dofs: &DofMap, share: &CellShare, node_cells: &[Vec<usize>]) -
         }
     }
     owner
+}
+
+/// The process that owns each node of `mesh` when `size` processes share its cells by `part`
+/// (the rule of the shared assembly's term equations, `term_processes`): always one whose cells
+/// meet the node, the partition's boundary dealt out so that the processes own nearly equal
+/// numbers of the free unknowns of `dofs`. The same on every process.
+pub fn node_processes(mesh: &Mesh, dofs: &DofMap, part: &[usize], size: usize) -> Vec<usize> {
+    let mut node_cells: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
+    for c in 0..mesh.n_cells() {
+        for &n in mesh.cell(c) {
+            node_cells[n].push(c);
+        }
+    }
+    term_processes(dofs, part, size, &node_cells)
 }
 
 /// A cell kernel failed.
@@ -413,7 +432,9 @@ impl Assembler {
             }
         }
         // an equation is a term equation of the process that takes its lowest node
-        let node_owner = share.as_ref().map(|s| term_processes(dofs, s, &node_cells));
+        let node_owner = share
+            .as_ref()
+            .map(|s| term_processes(dofs, &s.part, s.size, &node_cells));
         let takes_terms = |nodes: &[usize]| match (&share, &node_owner) {
             (Some(s), Some(owner)) => nodes.iter().min().is_some_and(|&n| owner[n] == s.rank),
             _ => true,

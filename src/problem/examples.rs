@@ -20,7 +20,12 @@ pub const FILM_EPS_R: f64 = 4.7;
 /// The film: quarter-symmetric block (symmetry on x0 and y0), bottom face z0 held in z and
 /// grounded, top face z1 at potential `voltage` (V), lateral faces free.
 pub fn film(divisions: [usize; 3], kind: ElementKind, voltage: f64) -> Result<Model, ModelError> {
-    let mesh = box_mesh(FILM_SIZE, divisions, kind);
+    film_on(box_mesh(FILM_SIZE, divisions, kind), voltage)
+}
+
+/// The film's material and conditions on `mesh` (a box mesh of the film, or a rank's part of
+/// one), by its sets `x0`, `y0`, `z0`, `z1`.
+pub fn film_on(mesh: crate::mesh::Mesh, voltage: f64) -> Result<Model, ModelError> {
     let material = Arc::new(ElectroNeoHooke::new(FILM_MU, FILM_LAMBDA, FILM_EPS_R));
     let mut model = Model::new(mesh, material)?;
     model.fix("x0", Field::Ux, 0.0)?;

@@ -3,6 +3,7 @@
 
 pub mod assembly;
 pub mod circuit;
+pub mod distributed;
 pub mod dofs;
 pub mod examples;
 pub mod faces;
