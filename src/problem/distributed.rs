@@ -12,9 +12,18 @@
 //! What is summed over the ranks: the cell terms at the nodes they share. What a rank's model
 //! must not hold twice: the terms that are not cell terms (point forces and charges, dashpots,
 //! circuits) at a node another rank holds too; they belong to the owner of their equation.
+//!
+//! [`OwnedSystem`] is a rank's nonlinear system over the unknowns it owns, in their global order
+//! (the rank's part of a distributed vector): it evaluates the rank's model, adds the ghosts'
+//! contributions into their owners' entries, and hands the owners' updates to the ghosts, all
+//! through an [`Exchange`]; Newton's norms are sums over the ranks. So Newton, the load ramp and
+//! the linear solver's vectors hold only the rank's part of the problem.
 
 use crate::mesh::distribute::{LocalMesh, Numbering};
+use crate::problem::assembly::{CsrMatrix, SumOverProcesses};
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS};
+use crate::problem::system::{DofLayout, LoadedSystem, NonlinearSystem};
+use std::sync::Arc;
 
 /// The owner of each equation of `dofs`: the owner of its lowest node (`node_owner` per node).
 pub fn equation_owners(dofs: &DofMap, node_owner: &[usize]) -> Vec<usize> {
@@ -30,6 +39,8 @@ pub fn equation_owners(dofs: &DofMap, node_owner: &[usize]) -> Vec<usize> {
 /// A rank's equations in the whole problem's numbering.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LocalEquations {
+    /// This rank.
+    pub rank: usize,
     /// The global number of each of the rank's equations (in the contiguous numbering).
     pub global: Vec<usize>,
     /// Whether the rank owns each of its equations.
@@ -87,6 +98,7 @@ impl LocalEquations {
             })
             .collect();
         Ok(LocalEquations {
+            rank: local.rank,
             global,
             owned,
             start: numbering.start.clone(),
@@ -97,6 +109,290 @@ impl LocalEquations {
     pub fn n_owned(&self) -> usize {
         self.owned.iter().filter(|&&o| o).count()
     }
+
+    /// The number of equations of the whole problem.
+    pub fn n_global(&self) -> usize {
+        self.start.last().copied().unwrap_or(0)
+    }
+
+    /// The index of each local equation among the rank's owned ones (its global number less
+    /// the rank's first), `None` for a ghost.
+    pub fn slots(&self) -> Vec<Option<usize>> {
+        let first = self.start[self.rank];
+        self.global
+            .iter()
+            .zip(&self.owned)
+            .map(|(&g, &o)| o.then(|| g - first))
+            .collect()
+    }
+}
+
+/// How the ranks that divide a problem's unknowns exchange their parts of a vector. Every call
+/// is collective: every rank makes it at the same point.
+pub trait Exchange: Send + Sync {
+    /// `local` holds this rank's values at its equations (owned and ghosts); on return each
+    /// owned entry holds the sum of every rank's value at that equation (ghost entries are then
+    /// unspecified).
+    fn add_to_owners(&self, local: &mut [f64]) -> Result<(), String>;
+    /// `local`'s owned entries given, its ghost entries are set to their owners' values.
+    fn to_ghosts(&self, local: &mut [f64]) -> Result<(), String>;
+    /// Sums `values` over the ranks, every rank receiving the same bits.
+    fn sum(&self, values: &mut [f64]) -> Result<(), String>;
+}
+
+/// An [`Exchange`] through a sum over the ranks of vectors of the whole problem's length: simple
+/// and exact, but each rank moves the whole problem's length at every exchange (a reference for
+/// tests, and for ranks on one machine; a distributed run exchanges with its neighbours only).
+pub struct SumExchange {
+    equations: Arc<LocalEquations>,
+    sum: SumOverProcesses,
+}
+
+impl SumExchange {
+    /// The exchange of the rank whose equations are `equations`, through `sum`.
+    pub fn new(equations: Arc<LocalEquations>, sum: SumOverProcesses) -> Self {
+        SumExchange { equations, sum }
+    }
+
+    /// Every rank's entries of `local` (those `keep` keeps) summed at their global numbers.
+    fn whole(&self, local: &[f64], keep: impl Fn(usize) -> bool) -> Result<Vec<f64>, String> {
+        let mut whole = vec![0.0; self.equations.n_global()];
+        for (e, &g) in self.equations.global.iter().enumerate() {
+            if keep(e) {
+                whole[g] += local[e];
+            }
+        }
+        (self.sum)(&mut whole)?;
+        Ok(whole)
+    }
+}
+
+impl Exchange for SumExchange {
+    fn add_to_owners(&self, local: &mut [f64]) -> Result<(), String> {
+        let whole = self.whole(local, |_| true)?;
+        for (e, &g) in self.equations.global.iter().enumerate() {
+            local[e] = whole[g];
+        }
+        Ok(())
+    }
+
+    fn to_ghosts(&self, local: &mut [f64]) -> Result<(), String> {
+        let owned = &self.equations.owned;
+        let whole = self.whole(local, |e| owned[e])?;
+        for (e, &g) in self.equations.global.iter().enumerate() {
+            local[e] = whole[g];
+        }
+        Ok(())
+    }
+
+    fn sum(&self, values: &mut [f64]) -> Result<(), String> {
+        (self.sum)(values)
+    }
+}
+
+/// A rank's part of a nonlinear system whose unknowns the ranks divide: the system of the
+/// rank's model (`local`, over its owned and ghost equations) seen over its owned unknowns only,
+/// in their global order. Every method that Newton calls is collective.
+pub struct OwnedSystem<S> {
+    /// The system of the rank's model.
+    pub local: S,
+    equations: Arc<LocalEquations>,
+    exchange: Arc<dyn Exchange>,
+    /// Per local equation, its index among the owned ones.
+    slots: Vec<Option<usize>>,
+    n_owned: usize,
+    floor: f64,
+    negative: usize,
+    /// A local vector to work in.
+    work: Vec<f64>,
+    /// An exchange that failed where no error could be returned (an increment): reported by
+    /// the next evaluation.
+    failed: Option<String>,
+}
+
+impl<S: NonlinearSystem> OwnedSystem<S> {
+    /// The rank's part of the system whose rank's model has the system `local`, its equations
+    /// `equations` in the whole problem, exchanging through `exchange`; `floor` is the whole
+    /// problem's residual floor (the same on every rank). Collective. Fails on every rank when
+    /// a rank owns no equation or its system does not fit its equations, or has a bordering
+    /// unknown (not divided between the ranks yet).
+    pub fn new(
+        local: S,
+        equations: Arc<LocalEquations>,
+        exchange: Arc<dyn Exchange>,
+        floor: f64,
+    ) -> Result<Self, String> {
+        let slots = equations.slots();
+        let n_owned = equations.n_owned();
+        let groups = local.groups();
+        let problem = if local.n() != equations.global.len() {
+            Some(format!(
+                "rank {}: the system has {} unknowns for {} equations",
+                equations.rank,
+                local.n(),
+                equations.global.len()
+            ))
+        } else if n_owned == 0 {
+            Some(format!(
+                "rank {} owns no unknown: the problem is too small for this many ranks",
+                equations.rank
+            ))
+        } else if local.border().is_some() {
+            Some(
+                "a volume-controlled pressure (a bordering unknown) is not divided between the \
+                 ranks yet"
+                    .to_string(),
+            )
+        } else {
+            None
+        };
+        let owned_potentials = slots
+            .iter()
+            .zip(&groups)
+            .filter(|(s, &g)| s.is_some() && g == 1)
+            .count();
+        let mut counts = [problem.is_some() as u8 as f64, owned_potentials as f64];
+        exchange.sum(&mut counts)?;
+        if let Some(p) = problem {
+            return Err(p);
+        }
+        if counts[0] > 0.0 {
+            return Err("the system does not fit its equations on another rank".into());
+        }
+        Ok(OwnedSystem {
+            work: vec![0.0; local.n()],
+            local,
+            equations,
+            exchange,
+            slots,
+            n_owned,
+            floor,
+            negative: counts[1] as usize,
+            failed: None,
+        })
+    }
+
+    /// The rank's equations in the whole problem.
+    pub fn equations(&self) -> &Arc<LocalEquations> {
+        &self.equations
+    }
+
+    /// Whether any rank's `outcome` failed (collective): this rank's error, or one naming the
+    /// other ranks.
+    fn agree<T>(&self, outcome: Result<T, String>) -> Result<T, String> {
+        let mut failed = [outcome.is_err() as u8 as f64];
+        self.exchange.sum(&mut failed)?;
+        match outcome {
+            Err(e) => Err(e),
+            Ok(_) if failed[0] > 0.0 => Err(format!(
+                "the evaluation failed on {} other rank(s) (the message is on those ranks)",
+                failed[0]
+            )),
+            ok => ok,
+        }
+    }
+}
+
+impl<S: NonlinearSystem> NonlinearSystem for OwnedSystem<S> {
+    fn n(&self) -> usize {
+        self.n_owned
+    }
+
+    fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
+        let mut work = std::mem::take(&mut self.work);
+        let outcome = match self.failed.take() {
+            Some(e) => Err(e),
+            None => self.local.evaluate(&mut work, k),
+        };
+        let outcome = self
+            .agree(outcome)
+            .and_then(|()| self.exchange.add_to_owners(&mut work));
+        if outcome.is_ok() {
+            for (e, slot) in self.slots.iter().enumerate() {
+                if let Some(i) = *slot {
+                    r[i] = work[e];
+                }
+            }
+        }
+        self.work = work;
+        outcome
+    }
+
+    fn increment(&mut self, dx: &[f64], alpha: f64) {
+        let mut work = std::mem::take(&mut self.work);
+        for (e, slot) in self.slots.iter().enumerate() {
+            work[e] = slot.map_or(0.0, |i| dx[i]);
+        }
+        match self.exchange.to_ghosts(&mut work) {
+            Ok(()) => self.local.increment(&work, alpha),
+            Err(e) => self.failed = Some(e),
+        }
+        self.work = work;
+    }
+
+    fn snapshot(&self) -> Vec<f64> {
+        self.local.snapshot()
+    }
+
+    fn restore(&mut self, s: &[f64]) {
+        self.local.restore(s)
+    }
+
+    fn new_matrix(&self) -> CsrMatrix {
+        self.local.new_matrix()
+    }
+
+    fn expected_negative_pivots(&self) -> usize {
+        self.negative
+    }
+
+    fn residual_floor(&self) -> f64 {
+        self.floor
+    }
+
+    fn groups(&self) -> Vec<u8> {
+        let mut groups = vec![0; self.n_owned];
+        for (g, slot) in self.local.groups().into_iter().zip(&self.slots) {
+            if let Some(i) = *slot {
+                groups[i] = g;
+            }
+        }
+        groups
+    }
+
+    fn shares_cells(&self) -> bool {
+        true
+    }
+
+    fn layout(&self) -> Option<DofLayout> {
+        let mut layout = self.local.layout()?;
+        layout.shared = true;
+        layout.equations = Some(Arc::clone(&self.equations));
+        Some(layout)
+    }
+
+    fn factored(&mut self) {
+        self.local.factored()
+    }
+
+    fn sum_over_processes(&self, values: &mut [f64]) -> Result<(), String> {
+        self.exchange.sum(values)
+    }
+}
+
+impl<S: LoadedSystem> LoadedSystem for OwnedSystem<S> {
+    fn set_load(&mut self, s: f64) {
+        self.local.set_load(s)
+    }
+
+    fn accept(&mut self) -> Result<bool, String> {
+        let outcome = self.local.accept();
+        let committed = matches!(outcome, Ok(true));
+        let outcome = self.agree(outcome)?;
+        let mut any = [committed as u8 as f64];
+        self.exchange.sum(&mut any)?;
+        Ok(outcome || any[0] > 0.0)
+    }
 }
 
 #[cfg(test)]
@@ -105,12 +401,14 @@ mod tests {
     use crate::mesh::generate::box_mesh;
     use crate::mesh::partition::partition_cells;
     use crate::mesh::{ElementKind, Mesh};
-    use crate::problem::assembly::node_processes;
+    use crate::problem::assembly::{node_processes, on_threads};
     use crate::problem::dofs::{Field, Tie};
     use crate::problem::examples::{film_on, wavy_state, FILM_SIZE};
     use crate::problem::model::Model;
     use crate::problem::statics::StaticProblem;
     use crate::problem::system::NonlinearSystem;
+    use crate::solve::linear::{Inertia, LinearSolver, LinearSolverError};
+    use crate::solve::newton::{newton, NewtonSettings};
 
     /// The film on `mesh`, with its top face's displacement tied in z when `tied` (as a rigid
     /// pad holds it), so that one equation spans the ranks.
@@ -193,6 +491,144 @@ mod tests {
                     for f in 0..n {
                         let h = numbering.number[f];
                         assert!((k_sum[g][h] - k[e][f]).abs() <= 1e-13 * ks);
+                    }
+                }
+            }
+        }
+    }
+
+    /// A direct solver for ranks simulated by threads: the ranks' parts of the tangent summed
+    /// into one dense matrix of the whole problem on every rank and factored by LU; each rank
+    /// keeps its owned part of the solution.
+    struct GatherSolver {
+        sum: Arc<SumOverProcesses>,
+        equations: Option<Arc<LocalEquations>>,
+        lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+    }
+
+    impl LinearSolver for GatherSolver {
+        fn factor(&mut self, a: &CsrMatrix) -> Result<Option<Inertia>, LinearSolverError> {
+            let eq = self
+                .equations
+                .as_ref()
+                .ok_or(LinearSolverError::NotFactored)?;
+            let n = eq.n_global();
+            let mut dense = vec![0.0; n * n];
+            for i in 0..a.n {
+                for q in a.row_ptr[i]..a.row_ptr[i + 1] {
+                    dense[eq.global[i] * n + eq.global[a.col_idx[q] as usize]] += a.values[q];
+                }
+            }
+            (self.sum)(&mut dense).map_err(LinearSolverError::Failed)?;
+            self.lu = Some(nalgebra::DMatrix::from_row_slice(n, n, &dense).lu());
+            Ok(None)
+        }
+
+        fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
+            let (eq, lu) = match (&self.equations, &self.lu) {
+                (Some(eq), Some(lu)) => (eq, lu),
+                _ => return Err(LinearSolverError::NotFactored),
+            };
+            let first = eq.start[eq.rank];
+            let mut whole = vec![0.0; eq.n_global()];
+            whole[first..first + b.len()].copy_from_slice(b);
+            (self.sum)(&mut whole).map_err(LinearSolverError::Failed)?;
+            let x = lu
+                .solve(&nalgebra::DVector::from_vec(whole))
+                .ok_or(LinearSolverError::Singular(0))?;
+            b.copy_from_slice(&x.as_slice()[first..first + b.len()]);
+            Ok(())
+        }
+
+        fn name(&self) -> &'static str {
+            "gather"
+        }
+
+        fn is_factored(&self) -> bool {
+            self.lu.is_some()
+        }
+
+        fn sums_shared_entries(&self) -> bool {
+            true
+        }
+
+        fn needs_layout(&self, _n: usize) -> bool {
+            true
+        }
+
+        fn set_layout(&mut self, layout: DofLayout) {
+            self.equations = layout.equations;
+        }
+    }
+
+    /// The film at 20 kV solved by Newton on 2 and 3 simulated ranks, each holding the vectors
+    /// of its owned unknowns only, reaches the serial solution to 1e-10 (of the largest
+    /// displacement and potential), in the same number of iterations, with the same residuals
+    /// to 1e-9 of the first (the last ones are round-off, which the ranks' sums change).
+    #[test]
+    fn newton_on_the_ranks_owned_unknowns_reaches_the_serial_solution() {
+        let voltage = 20e3;
+        let mesh = box_mesh(FILM_SIZE, [5, 5, 3], ElementKind::Hex8);
+        let whole = film_on(mesh.clone(), voltage).unwrap();
+        let settings = NewtonSettings {
+            check_stability: false,
+            ..NewtonSettings::default()
+        };
+        let mut serial = StaticProblem::new(&whole, None);
+        serial.set_load(1.0);
+        let floor = serial.residual_floor();
+        let mut k = serial.new_matrix();
+        let mut solver = crate::solve::linear::FaerLdlt::new();
+        let report = newton(&mut serial, &mut solver, &mut k, &settings).unwrap();
+        assert!(report.iterations >= 3, "a nonlinear solve: {report:?}");
+        let scale = |f: usize| {
+            (0..mesh.n_nodes())
+                .map(|n| serial.state[n * FIELDS + f].abs())
+                .fold(0.0_f64, f64::max)
+        };
+        let (u_scale, phi_scale) = (scale(2), scale(3));
+        let dofs = serial.dofs.clone();
+        for ranks in [2, 3] {
+            let part = partition_cells(&mesh, ranks, None);
+            let node_owner = node_processes(&mesh, &dofs, &part, ranks);
+            let numbering = Numbering::contiguous(&equation_owners(&dofs, &node_owner), ranks);
+            let results = on_threads(ranks, |rank, sum| {
+                let sum = Arc::new(sum);
+                let local = LocalMesh::of_rank(&mesh, &part, &node_owner, rank, ranks).unwrap();
+                let model = film_on(local.mesh.clone(), voltage).unwrap();
+                let mut problem = StaticProblem::new(&model, None);
+                problem.set_load(1.0);
+                let eqs = Arc::new(
+                    LocalEquations::new(&dofs, &numbering, &local, &problem.dofs).unwrap(),
+                );
+                let to_ranks = Arc::clone(&sum);
+                let exchange =
+                    SumExchange::new(Arc::clone(&eqs), Box::new(move |v: &mut [f64]| to_ranks(v)));
+                let mut system = OwnedSystem::new(problem, eqs, Arc::new(exchange), floor).unwrap();
+                assert!(system.n() < dofs.n_free);
+                let mut solver = GatherSolver {
+                    sum,
+                    equations: None,
+                    lu: None,
+                };
+                let mut k = system.new_matrix();
+                let report = newton(&mut system, &mut solver, &mut k, &settings).unwrap();
+                (local, system.local.state.clone(), report)
+            });
+            for (local, state, part_report) in results {
+                assert_eq!(part_report.iterations, report.iterations, "{ranks} ranks");
+                for (a, b) in part_report.residuals.iter().zip(&report.residuals) {
+                    let tol = 1e-9 * report.residuals[0];
+                    assert!((a - b).abs() <= tol, "{ranks} ranks: {a} against {b}");
+                }
+                for (l, &n) in local.nodes.iter().enumerate() {
+                    for f in 0..FIELDS {
+                        let (a, b) = (state[l * FIELDS + f], serial.state[n * FIELDS + f]);
+                        let s = if f == 3 { phi_scale } else { u_scale };
+                        assert!(
+                            (a - b).abs() <= 1e-10 * s,
+                            "{ranks} ranks, node {n}, field {f}: {a} against {b}"
+                        );
                     }
                 }
             }

@@ -164,6 +164,7 @@ impl DofMap {
             axisymmetric,
             shared: false,
             owned: None,
+            equations: None,
         }
     }
 

@@ -41,6 +41,11 @@ pub struct DofLayout {
     /// unknown is one process's): a distributed solver gives those rows to this process, so that
     /// most of its cells' entries stay on it.
     pub owned: Option<std::sync::Arc<Vec<bool>>>,
+    /// With the unknowns divided between the processes (each holding the vectors' entries of
+    /// the equations it owns, in their global order): this process's equations in the whole
+    /// problem. The tangent is then this process's part over its own equations (owned and
+    /// ghosts), to be summed at their global numbers.
+    pub equations: Option<std::sync::Arc<super::distributed::LocalEquations>>,
 }
 
 /// A nonlinear system R(x) = 0 with a symmetric tangent.
@@ -84,6 +89,12 @@ pub trait NonlinearSystem {
     }
     /// μ ← μ + δ (the snapshot holds μ).
     fn increment_border(&mut self, _delta: f64) {}
+    /// Sums `values` over the processes when each holds only its own part of the unknowns
+    /// (Newton's norms and its other decisions are then reductions over all of them, so that
+    /// every process takes the same path); nothing to do when the unknowns are all here.
+    fn sum_over_processes(&self, _values: &mut [f64]) -> Result<(), String> {
+        Ok(())
+    }
 }
 
 /// A nonlinear system driven by a load factor s ∈ [0, 1].

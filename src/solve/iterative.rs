@@ -606,6 +606,7 @@ mod tests {
             axisymmetric: false,
             shared: false,
             owned: None,
+            equations: None,
         };
         for i in 0..m {
             for j in 0..m {

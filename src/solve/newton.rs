@@ -97,12 +97,40 @@ fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
-fn group_norms(v: &[f64], groups: &[u8]) -> [f64; 2] {
+/// The norm of a vector of `system`'s unknowns: over every process's part of them
+/// ([`NonlinearSystem::sum_over_processes`]); the plain norm when they are all here.
+fn system_norm<S: NonlinearSystem + ?Sized>(
+    system: &S,
+    v: &[f64],
+    iteration: usize,
+) -> Result<f64, NewtonError> {
+    let mut s = [v.iter().map(|x| x * x).sum::<f64>()];
+    reduce(system, &mut s, iteration)?;
+    Ok(s[0].sqrt())
+}
+
+/// [`NonlinearSystem::sum_over_processes`], its failure a Newton error at `iteration`.
+fn reduce<S: NonlinearSystem + ?Sized>(
+    system: &S,
+    values: &mut [f64],
+    iteration: usize,
+) -> Result<(), NewtonError> {
+    system
+        .sum_over_processes(values)
+        .map_err(|message| NewtonError::Evaluation { iteration, message })
+}
+
+fn group_norms<S: NonlinearSystem + ?Sized>(
+    system: &S,
+    v: &[f64],
+    groups: &[u8],
+) -> Result<[f64; 2], NewtonError> {
     let mut s = [0.0; 2];
     for (x, &g) in v.iter().zip(groups) {
         s[g as usize] += x * x;
     }
-    [s[0].sqrt(), s[1].sqrt()]
+    reduce(system, &mut s, 0)?;
+    Ok([s[0].sqrt(), s[1].sqrt()])
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -228,7 +256,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
             iteration: 0,
             message,
         })?;
-    let r0 = norm(&r);
+    let r0 = system_norm(system, &r, 0)?;
     if !r0.is_finite() {
         return Err(NewtonError::Diverged {
             iteration: 0,
@@ -245,7 +273,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
         eprintln!(
             "    it   |r|         |r|/|r0|    |r_u|       |r_phi|     |dx_u|      |dx_phi|  alpha"
         );
-        let g = group_norms(&r, &groups);
+        let g = group_norms(system, &r, &groups)?;
         eprintln!(
             "    {:>2}   {:.3e}   {:.3e}   {:.3e}   {:.3e}",
             0, r0, 1.0, g[0], g[1]
@@ -305,7 +333,10 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
                 iteration,
                 message: e.to_string(),
             })?;
-        if dx.iter().any(|v| !v.is_finite()) {
+        // every process's part of the step, so that all take the same path
+        let mut not_finite = [dx.iter().filter(|v| !v.is_finite()).count() as f64];
+        reduce(system, &mut not_finite, iteration)?;
+        if not_finite[0] > 0.0 {
             return Err(NewtonError::Singular { iteration });
         }
         // the bordering unknown: its step, and the weight of g in the merit
@@ -354,7 +385,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
                 blocked = Some(m.clone());
             }
             if evaluated.is_ok() {
-                let tn = norm(&trial);
+                let tn = system_norm(system, &trial, iteration)?;
                 if alpha == 1.0 && tn.is_finite() {
                     full_step_ok = true;
                 }
@@ -398,13 +429,13 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
             k_fresh = !reuse;
         }
         let previous = rn;
-        rn = norm(&r);
+        rn = system_norm(system, &r, iteration)?;
         border = system.border();
         refactor = !reuse || rn > 0.1 * previous;
         residuals.push(rn);
         if settings.verbose {
-            let g = group_norms(&r, &groups);
-            let d = group_norms(&dx, &groups);
+            let g = group_norms(system, &r, &groups)?;
+            let d = group_norms(system, &dx, &groups)?;
             eprintln!(
                 "    {:>2}   {:.3e}   {:.3e}   {:.3e}   {:.3e}   {:.3e}   {:.3e}  {}",
                 iteration,

@@ -1847,6 +1847,7 @@ mod tests {
             axisymmetric: false,
             shared: false,
             owned: None,
+            equations: None,
         }
     }
 

@@ -147,6 +147,8 @@ impl RealForm {
             owned: layout
                 .owned
                 .map(|o| std::sync::Arc::new(o.iter().flat_map(|&own| [own, own]).collect())),
+            // the frequency response runs on a replicated state
+            equations: None,
         }
     }
 
