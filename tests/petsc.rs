@@ -1500,3 +1500,139 @@ fn film_with_gamg_and_the_rigid_body_modes_agrees_with_the_direct_solver() {
         setups[2]
     );
 }
+
+/// The rank-local film of [`newton_on_each_ranks_own_unknowns_on_two_mpi_ranks`]: run on every
+/// rank under `mpirun` (ignored in a plain test run). Each rank builds its own part of the film
+/// (5 × 5 × 3 hex8 cells at 20 kV, its top face's displacement tied as a rigid pad holds it, so
+/// that one equation spans the ranks) on its part of the mesh, solves it by Newton over the
+/// unknowns it owns with PETSc (MUMPS's LDLᵀ with its inertia, then GMRES with GAMG and the
+/// rigid-body modes), and compares its nodes with the serial solution that it also computes.
+#[test]
+#[ignore = "run on each rank by newton_on_each_ranks_own_unknowns_on_two_mpi_ranks"]
+fn rank_part_of_the_distributed_film() {
+    use deasim::mesh::distribute::{LocalMesh, Numbering};
+    use deasim::mesh::generate::box_mesh;
+    use deasim::mesh::partition::partition_cells;
+    use deasim::mesh::ElementKind;
+    use deasim::problem::assembly::node_processes;
+    use deasim::problem::distributed::{equation_owners, LocalEquations, OwnedSystem};
+    use deasim::problem::dofs::{Field, Tie, FIELDS};
+    use deasim::problem::examples::{film_on, FILM_SIZE};
+    use deasim::problem::statics::StaticProblem;
+    use deasim::problem::system::{LoadedSystem, NonlinearSystem};
+    use deasim::solve::linear::FaerLdlt;
+    use deasim::solve::newton::newton;
+    use deasim::solve::petsc::{world, PetscExchange, PetscSolver};
+    use std::sync::Arc;
+
+    let voltage = 20e3;
+    let film = |mesh| {
+        let mut model = film_on(mesh, voltage).unwrap();
+        let nodes = model.mesh.set_nodes("z1").unwrap();
+        model.ties.push(Tie {
+            nodes,
+            field: Field::Uz,
+        });
+        model
+    };
+    let mesh = box_mesh(FILM_SIZE, [5, 5, 3], ElementKind::Hex8);
+    let whole = film(mesh.clone());
+    let settings = NewtonSettings::default();
+    let mut serial = StaticProblem::new(&whole, None);
+    serial.set_load(1.0);
+    let floor = serial.residual_floor();
+    let mut k = serial.new_matrix();
+    let serial_report = newton(&mut serial, &mut FaerLdlt::new(), &mut k, &settings).unwrap();
+    let scale = |f: usize| {
+        (0..mesh.n_nodes())
+            .map(|n| serial.state[n * FIELDS + f].abs())
+            .fold(0.0_f64, f64::max)
+    };
+    let (u_scale, phi_scale) = (scale(2), scale(3));
+
+    let (rank, ranks) = world().unwrap();
+    assert!(ranks > 1, "run under mpirun with several ranks");
+    let dofs = serial.dofs.clone();
+    let part = partition_cells(&mesh, ranks, None);
+    let node_owner = node_processes(&mesh, &dofs, &part, ranks);
+    let numbering = Numbering::contiguous(&equation_owners(&dofs, &node_owner), ranks);
+    let local = LocalMesh::of_rank(&mesh, &part, &node_owner, rank, ranks).unwrap();
+    let model = film(local.mesh.clone());
+    let equations = Arc::new({
+        let probe = StaticProblem::new(&model, None);
+        LocalEquations::new(&dofs, &numbering, &local, &probe.dofs).unwrap()
+    });
+    assert!(equations.n_owned() < dofs.n_free);
+    let ghosts = equations.owned.iter().filter(|&&o| !o).count();
+    let exchange = Arc::new(PetscExchange::new(&equations).unwrap());
+    for options in [
+        "",
+        "-ksp_type gmres -pc_type gamg -ksp_rtol 1e-12 -ksp_atol 0",
+    ] {
+        let mut problem = StaticProblem::new(&model, None);
+        problem.set_load(1.0);
+        let mut system =
+            OwnedSystem::new(problem, Arc::clone(&equations), exchange.clone(), floor).unwrap();
+        let mut solver = PetscSolver::new(options);
+        let mut k = system.new_matrix();
+        let report = newton(&mut system, &mut solver, &mut k, &settings).unwrap();
+        let mut worst: f64 = 0.0;
+        for (l, &n) in local.nodes.iter().enumerate() {
+            for f in 0..FIELDS {
+                let (a, b) = (
+                    system.local.state[l * FIELDS + f],
+                    serial.state[n * FIELDS + f],
+                );
+                worst = worst.max((a - b).abs() / if f == 3 { phi_scale } else { u_scale });
+            }
+        }
+        let inertia = report.inertia.map(|i| i.negative);
+        if options.is_empty() {
+            // MUMPS's count over the whole problem: one negative pivot per free potential
+            assert_eq!(inertia, Some(dofs.n_free_phi), "rank {rank}");
+            assert_eq!(report.iterations, serial_report.iterations, "rank {rank}");
+        }
+        assert!(worst <= 1e-10, "rank {rank}, `{options}`: {worst:e}");
+        println!(
+            "rank {rank}: {} of {} unknowns owned, {ghosts} ghosts, `{options}`: {} Newton \
+             iterations, negative pivots {inertia:?}, largest difference {worst:.1e}",
+            equations.n_owned(),
+            dofs.n_free,
+            report.iterations
+        );
+    }
+}
+
+/// Each rank holds only its own unknowns (owned and ghosts) through Newton and PETSc's solves:
+/// the film with a tie across the partition on 2 ranks reaches the serial solution to 1e-10 of
+/// its largest displacement and potential, with the inertia of the whole problem, both with
+/// MUMPS and with GAMG (the rigid-body modes about the centroid summed over the ranks).
+#[test]
+fn newton_on_each_ranks_own_unknowns_on_two_mpi_ranks() {
+    let mut mpirun = Command::new("mpirun");
+    let out = without_mpi_variables(&mut mpirun)
+        .args(["--oversubscribe", "-np", "2"])
+        .arg(std::env::current_exe().unwrap())
+        .args([
+            "rank_part_of_the_distributed_film",
+            "--exact",
+            "--ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env("RAYON_NUM_THREADS", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .output()
+        .expect("mpirun not found: install Open MPI (scripts/install-petsc.sh)");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    eprintln!("{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "the ranks failed");
+    for rank in 0..2 {
+        assert_eq!(
+            stdout.matches(&format!("rank {rank}: ")).count(),
+            2,
+            "rank {rank} solved both ways"
+        );
+    }
+}

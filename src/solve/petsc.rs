@@ -54,6 +54,7 @@
 use super::linear::{Inertia, LinearSolver, LinearSolverError, SolverStats};
 use crate::fem::FIELDS;
 use crate::problem::assembly::CsrMatrix;
+use crate::problem::distributed::{Exchange, LocalEquations};
 use crate::problem::system::DofLayout;
 use petsc_sys as ffi;
 use std::cell::Cell;
@@ -469,13 +470,217 @@ unsafe fn index_set(
 /// # Safety
 /// PETSc is initialised, the caller holds the lock, and `s` was made for `x` and `y`.
 unsafe fn scatter(s: &Scatter, x: &Vector, y: &Vector) -> Result<(), LinearSolverError> {
+    scatter_with(s, x, y, ffi::INSERT_VALUES, ffi::SCATTER_FORWARD)
+}
+
+/// `s` from `x` to `y` (forward) or from `y` to `x` (reverse, `x` and `y` as `s` was made),
+/// inserting or adding.
+///
+/// # Safety
+/// As [`scatter`].
+unsafe fn scatter_with(
+    s: &Scatter,
+    x: &Vector,
+    y: &Vector,
+    insert: ffi::InsertMode,
+    mode: ffi::ScatterMode,
+) -> Result<(), LinearSolverError> {
+    let (from, to) = if mode == ffi::SCATTER_REVERSE {
+        (y, x)
+    } else {
+        (x, y)
+    };
     for step in [ffi::VecScatterBegin, ffi::VecScatterEnd] {
-        check(
-            step(s.0, x.0, y.0, ffi::INSERT_VALUES, ffi::SCATTER_FORWARD),
-            "VecScatter",
-        )?;
+        check(step(s.0, from.0, to.0, insert, mode), "VecScatter")?;
     }
     Ok(())
+}
+
+/// The [`Exchange`] of a rank that holds its own equations ([`LocalEquations`]) by PETSc's
+/// vector scatters, between the distributed vector of the owned equations (PETSc's rows, the
+/// layout of Newton's vectors) and the ranks' stacks of their own equations (owned and ghosts):
+/// a rank sends and receives only the entries it shares with its neighbours, not vectors of the
+/// whole problem.
+pub struct PetscExchange {
+    /// The owned equations' entries, rank after rank (the global numbering's blocks).
+    owned: Vector,
+    /// Every rank's own equations, stacked.
+    stacked: Vector,
+    /// From `owned` to `stacked` (reversed: ghosts' contributions added to their owners).
+    scatter: Scatter,
+    /// The index among the owned of each local equation, `None` for a ghost.
+    slots: Vec<Option<usize>>,
+}
+
+// SAFETY: every call into PETSc holds the process-wide lock
+unsafe impl Sync for PetscExchange {}
+
+impl PetscExchange {
+    /// The exchange of the rank whose equations are `equations` (collective: every rank makes
+    /// its own at the same point).
+    pub fn new(equations: &LocalEquations) -> Result<Self, LinearSolverError> {
+        initialize()?;
+        let int = |k: usize| {
+            ffi::PetscInt::try_from(k).map_err(|_| {
+                LinearSolverError::Failed(format!(
+                    "{k} equations are too many for this PETSc's 32-bit indices"
+                ))
+            })
+        };
+        let (n_owned, n_local) = (equations.n_owned(), equations.global.len());
+        let global = int(equations.n_global())?;
+        let _guard = lock();
+        // SAFETY: PETSc is initialised; every handle is owned by a wrapper that destroys it
+        unsafe {
+            let comm = ffi::comm_world();
+            let mut owned = Vector(ptr::null_mut());
+            check(
+                ffi::VecCreateMPI(comm, int(n_owned)?, global, &mut owned.0),
+                "VecCreateMPI",
+            )?;
+            let (mut lo, mut hi) = (0, 0);
+            check(
+                ffi::VecGetOwnershipRange(owned.0, &mut lo, &mut hi),
+                "VecGetOwnershipRange",
+            )?;
+            let rank = equations.rank;
+            if (lo as usize, hi as usize) != (equations.start[rank], equations.start[rank + 1]) {
+                return Err(LinearSolverError::Failed(format!(
+                    "rank {rank}: PETSc's rows {lo}..{hi} are not the owned equations {}..{}",
+                    equations.start[rank],
+                    equations.start[rank + 1]
+                )));
+            }
+            let mut stacked = Vector(ptr::null_mut());
+            check(
+                ffi::VecCreateMPI(
+                    comm,
+                    int(n_local)?,
+                    ffi::PETSC_DECIDE as ffi::PetscInt,
+                    &mut stacked.0,
+                ),
+                "VecCreateMPI",
+            )?;
+            check(
+                ffi::VecGetOwnershipRange(stacked.0, &mut lo, &mut hi),
+                "VecGetOwnershipRange",
+            )?;
+            let from: Vec<ffi::PetscInt> = equations
+                .global
+                .iter()
+                .map(|&g| g as ffi::PetscInt)
+                .collect();
+            let to: Vec<ffi::PetscInt> = (lo..hi).collect();
+            let (is_from, is_to) = (index_set(comm, &from)?, index_set(comm, &to)?);
+            let mut scatter = Scatter(ptr::null_mut());
+            check(
+                ffi::VecScatterCreate(owned.0, is_from.0, stacked.0, is_to.0, &mut scatter.0),
+                "VecScatterCreate",
+            )?;
+            Ok(PetscExchange {
+                owned,
+                stacked,
+                scatter,
+                slots: equations.slots(),
+            })
+        }
+    }
+
+    /// Writes `values` into `v`'s local array (of the same length).
+    ///
+    /// # Safety
+    /// The caller holds the lock; `v` is live and its local part has `values.len()` entries.
+    unsafe fn write(v: &Vector, values: impl Iterator<Item = (usize, f64)>) -> Result<(), String> {
+        let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
+        check(ffi::VecGetArray(v.0, &mut arr), "VecGetArray").map_err(|e| e.to_string())?;
+        let mut len: ffi::PetscInt = 0;
+        ffi::VecGetLocalSize(v.0, &mut len);
+        let local = std::slice::from_raw_parts_mut(arr, len.max(0) as usize);
+        values.for_each(|(i, x)| local[i] = x);
+        check(ffi::VecRestoreArray(v.0, &mut arr), "VecRestoreArray").map_err(|e| e.to_string())
+    }
+
+    /// Calls `read` with `v`'s local array.
+    ///
+    /// # Safety
+    /// The caller holds the lock; `v` is live.
+    unsafe fn read(v: &Vector, read: impl FnOnce(&[f64])) -> Result<(), String> {
+        let mut arr: *const ffi::PetscScalar = ptr::null();
+        check(ffi::VecGetArrayRead(v.0, &mut arr), "VecGetArrayRead").map_err(|e| e.to_string())?;
+        let mut len: ffi::PetscInt = 0;
+        ffi::VecGetLocalSize(v.0, &mut len);
+        read(std::slice::from_raw_parts(arr, len.max(0) as usize));
+        check(
+            ffi::VecRestoreArrayRead(v.0, &mut arr),
+            "VecRestoreArrayRead",
+        )
+        .map_err(|e| e.to_string())
+    }
+
+    fn check_len(&self, local: &[f64]) -> Result<(), String> {
+        if local.len() == self.slots.len() {
+            Ok(())
+        } else {
+            Err(format!(
+                "a vector of {} values for this rank's {} equations",
+                local.len(),
+                self.slots.len()
+            ))
+        }
+    }
+}
+
+impl Exchange for PetscExchange {
+    fn add_to_owners(&self, local: &mut [f64]) -> Result<(), String> {
+        self.check_len(local)?;
+        let _guard = lock();
+        // SAFETY: the vectors are live and have the local lengths the slots were made for
+        unsafe {
+            Self::write(&self.stacked, local.iter().copied().enumerate())?;
+            check(ffi::VecSet(self.owned.0, 0.0), "VecSet").map_err(|e| e.to_string())?;
+            scatter_with(
+                &self.scatter,
+                &self.owned,
+                &self.stacked,
+                ffi::ADD_VALUES,
+                ffi::SCATTER_REVERSE,
+            )
+            .map_err(|e| e.to_string())?;
+            Self::read(&self.owned, |owned| {
+                for (x, slot) in local.iter_mut().zip(&self.slots) {
+                    if let Some(i) = *slot {
+                        *x = owned[i];
+                    }
+                }
+            })
+        }
+    }
+
+    fn to_ghosts(&self, local: &mut [f64]) -> Result<(), String> {
+        self.check_len(local)?;
+        let _guard = lock();
+        // SAFETY: as in `add_to_owners`
+        unsafe {
+            let owned = local
+                .iter()
+                .zip(&self.slots)
+                .filter_map(|(&x, slot)| slot.map(|i| (i, x)));
+            Self::write(&self.owned, owned)?;
+            scatter_with(
+                &self.scatter,
+                &self.owned,
+                &self.stacked,
+                ffi::INSERT_VALUES,
+                ffi::SCATTER_FORWARD,
+            )
+            .map_err(|e| e.to_string())?;
+            Self::read(&self.stacked, |stacked| local.copy_from_slice(stacked))
+        }
+    }
+
+    fn sum(&self, values: &mut [f64]) -> Result<(), String> {
+        sum_over_ranks(values).map_err(|e| e.to_string())
+    }
 }
 
 /// This process's part of the orthonormal near-null space of `layout`'s system: the rigid-body
@@ -506,12 +711,24 @@ pub fn near_null_modes(
         for f in 0..3u8 {
             rigid.push(on_rows(&|e| f64::from(layout.field[e] == f)));
         }
-        // the centroid of the free displacements' nodes, from the layout every process holds
+        // the centroid of the free displacements' nodes, from the layout every process holds,
+        // or, where each holds its own part, summed over the processes' rows
         let (mut c, mut count) = ([0.0; 3], 0.0);
-        for e in (0..layout.node.len()).filter(|&e| is_u(e)) {
+        let divided = layout.equations.is_some();
+        let counted: Vec<usize> = if divided {
+            unknowns.iter().flatten().copied().collect()
+        } else {
+            (0..layout.node.len()).collect()
+        };
+        for e in counted.into_iter().filter(|&e| is_u(e)) {
             let x = layout.coords[layout.node[e]];
             (0..3).for_each(|i| c[i] += x[i]);
             count += 1.0;
+        }
+        if divided {
+            let mut sums = [c[0], c[1], c[2], count];
+            sum(&mut sums)?;
+            (c, count) = ([sums[0], sums[1], sums[2]], sums[3]);
         }
         if count > 0.0 {
             c.iter_mut().for_each(|v| *v /= count);
@@ -590,6 +807,9 @@ struct Numbering {
     block_size: usize,
     /// With owners, the first row of each rank's and the end (empty: rows split evenly).
     starts: Vec<usize>,
+    /// The first row that `unknown` covers (0, or this rank's first when it covers its rows
+    /// only).
+    first: usize,
 }
 
 /// Marks a padding row in [`Numbering::unknown`].
@@ -612,6 +832,7 @@ impl Numbering {
             n: a.n,
             block_size,
             starts: Vec::new(),
+            first: 0,
         };
         let Some(layout) = layout.filter(|l| l.node.len() == a.n && a.n > 0) else {
             return identity(block_size(a));
@@ -669,6 +890,29 @@ impl Numbering {
             } else {
                 Vec::new()
             },
+            first: 0,
+        }
+    }
+
+    /// The rows of a system whose ranks each hold their own equations (`equations`, of `a`'s
+    /// unknowns): each unknown's row is its global number, this rank's rows its owned block
+    /// (one row an unknown, block size 1); `unknown` covers this rank's rows only.
+    fn of_equations(equations: &LocalEquations) -> Numbering {
+        let rank = equations.rank;
+        let first = equations.start[rank];
+        let mut unknown = vec![PADDING; equations.start[rank + 1] - first];
+        for (e, &g) in equations.global.iter().enumerate() {
+            if equations.owned[e] {
+                unknown[g - first] = e;
+            }
+        }
+        Numbering {
+            row: equations.global.clone(),
+            unknown,
+            n: equations.n_global(),
+            block_size: 1,
+            starts: equations.start.clone(),
+            first,
         }
     }
 
@@ -695,7 +939,7 @@ impl Numbering {
         if self.unknown.is_empty() {
             Some(r)
         } else {
-            Some(self.unknown[r]).filter(|&e| e != PADDING)
+            Some(self.unknown[r - self.first]).filter(|&e| e != PADDING)
         }
     }
 
@@ -718,15 +962,19 @@ impl Numbering {
 /// The PETSc objects of one matrix pattern. Fields drop in order: the solver before its matrix.
 struct System {
     ksp: Ksp,
-    scatter: Scatter,
-    /// The whole solution on every rank (sequential).
-    x_all: Vector,
+    /// The gather of the whole solution to every rank, and its sequential vector there; `None`
+    /// when each rank holds its own unknowns only ([`DofLayout::equations`]): the vectors are
+    /// then its rows' part.
+    gather: Option<(Scatter, Vector)>,
     x: Vector,
     b: Vector,
     mat: Mat,
     options: Options,
-    /// Number of unknowns (PETSc's rows are `numbering.n`).
+    /// Number of unknowns of the matrix passed (PETSc's rows are `numbering.n`).
     n: usize,
+    /// Number of unknowns of the whole problem (`n`, or with the unknowns divided between the
+    /// ranks all ranks' together).
+    total: usize,
     nnz: usize,
     /// Where the unknowns sit among PETSc's rows.
     numbering: Numbering,
@@ -894,6 +1142,8 @@ impl System {
         let (rank, size) = world()?;
         let layout = layout.filter(|l| l.node.len() == a.n);
         let shared = layout.is_some_and(|l| l.shared);
+        // each rank holds its own equations' entries of the vectors only
+        let divided = layout.and_then(|l| l.equations.as_ref());
         // with shared cells, each rank owns the rows of the equations it takes the terms of
         // (at nodes of its own cells), so that most of its entries stay on it
         let mut owner: Option<Vec<usize>> = None;
@@ -910,7 +1160,10 @@ impl System {
                     .collect(),
             );
         }
-        let mut numbering = Numbering::new(a, layout, owner.as_deref(), size);
+        let mut numbering = match divided {
+            Some(equations) => Numbering::of_equations(equations),
+            None => Numbering::new(a, layout, owner.as_deref(), size),
+        };
         drop(owner);
         if ffi::PetscInt::try_from(numbering.n).is_err() {
             return Err(LinearSolverError::Failed(format!(
@@ -946,11 +1199,16 @@ impl System {
                 ffi::MatCreateVecs(mat.0, &mut x.0, &mut b.0),
                 "MatCreateVecs",
             )?;
-            let (mut scatter, mut x_all) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
-            check(
-                ffi::VecScatterCreateToAll(x.0, &mut scatter.0, &mut x_all.0),
-                "VecScatterCreateToAll",
-            )?;
+            let gather = if divided.is_some() {
+                None
+            } else {
+                let (mut scatter, mut x_all) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
+                check(
+                    ffi::VecScatterCreateToAll(x.0, &mut scatter.0, &mut x_all.0),
+                    "VecScatterCreateToAll",
+                )?;
+                Some((scatter, x_all))
+            };
             let (ksp, mut description, gives_inertia) = create_ksp(comm, &mat, options, fixed)?;
             let iterates = ksp_type(&ksp)? != "preonly";
             // a kept preconditioner only under a Krylov method, never for the inertia (that
@@ -976,13 +1234,13 @@ impl System {
             drop(scope);
             Ok(System {
                 ksp,
-                scatter,
-                x_all,
+                gather,
                 x,
                 b,
                 mat,
                 options: db,
                 n: a.n,
+                total: if divided.is_some() { numbering.n } else { a.n },
                 nnz: a.nnz(),
                 numbering,
                 shared,
@@ -1059,7 +1317,7 @@ impl System {
             )?;
             let negative = negative as usize;
             Ok(Some(Inertia {
-                positive: self.n - negative.min(self.n),
+                positive: self.total - negative.min(self.total),
                 negative,
                 zero: 0,
             }))
@@ -1138,9 +1396,22 @@ impl System {
         unsafe {
             let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
             check(ffi::VecGetArray(self.b.0, &mut arr), "VecGetArray")?;
+            if self.gather.is_none() && b.len() != self.rows.len() {
+                check(ffi::VecRestoreArray(self.b.0, &mut arr), "VecRestoreArray")?;
+                return Err(LinearSolverError::Failed(format!(
+                    "a right-hand side of {} values for this rank's {} rows",
+                    b.len(),
+                    self.rows.len()
+                )));
+            }
             let local = std::slice::from_raw_parts_mut(arr, self.rows.len());
-            for (x, r) in local.iter_mut().zip(self.rows.clone()) {
-                *x = self.numbering.unknown(r).map_or(0.0, |e| b[e]);
+            if self.gather.is_some() {
+                for (x, r) in local.iter_mut().zip(self.rows.clone()) {
+                    *x = self.numbering.unknown(r).map_or(0.0, |e| b[e]);
+                }
+            } else {
+                // `b` is this rank's rows' part, in their order
+                local.copy_from_slice(b);
             }
             check(ffi::VecRestoreArray(self.b.0, &mut arr), "VecRestoreArray")?;
 
@@ -1196,18 +1467,25 @@ impl System {
                 self.renewal.record_solve(its, self.decades);
             }
 
-            scatter(&self.scatter, &self.x, &self.x_all)?;
+            let Some((gather, x_all)) = &self.gather else {
+                let mut arr: *const ffi::PetscScalar = ptr::null();
+                check(ffi::VecGetArrayRead(self.x.0, &mut arr), "VecGetArrayRead")?;
+                b.copy_from_slice(std::slice::from_raw_parts(arr, self.rows.len()));
+                check(
+                    ffi::VecRestoreArrayRead(self.x.0, &mut arr),
+                    "VecRestoreArrayRead",
+                )?;
+                return Ok(());
+            };
+            scatter(gather, &self.x, x_all)?;
             let mut arr: *const ffi::PetscScalar = ptr::null();
-            check(
-                ffi::VecGetArrayRead(self.x_all.0, &mut arr),
-                "VecGetArrayRead",
-            )?;
+            check(ffi::VecGetArrayRead(x_all.0, &mut arr), "VecGetArrayRead")?;
             let all = std::slice::from_raw_parts(arr, self.numbering.n);
             for (e, x) in b.iter_mut().enumerate().take(self.n) {
                 *x = all[self.numbering.row(e)];
             }
             check(
-                ffi::VecRestoreArrayRead(self.x_all.0, &mut arr),
+                ffi::VecRestoreArrayRead(x_all.0, &mut arr),
                 "VecRestoreArrayRead",
             )?;
         }
@@ -1238,9 +1516,8 @@ fn report_locality(
     let unknowns = if numbering.unknown.is_empty() {
         rows.len()
     } else {
-        numbering.unknown[rows.clone()]
-            .iter()
-            .filter(|&&u| u != PADDING)
+        rows.clone()
+            .filter(|&r| numbering.unknown(r).is_some())
             .count()
     };
     let line = format!(
