@@ -1506,7 +1506,8 @@ fn film_with_gamg_and_the_rigid_body_modes_agrees_with_the_direct_solver() {
 /// (5 × 5 × 3 hex8 cells at 20 kV, its top face's displacement tied as a rigid pad holds it, so
 /// that one equation spans the ranks) on its part of the mesh, solves it by Newton over the
 /// unknowns it owns with PETSc (MUMPS's LDLᵀ with its inertia, then GMRES with GAMG and the
-/// rigid-body modes), and compares its nodes with the serial solution that it also computes.
+/// rigid-body modes), and compares its nodes with the serial solution that it also computes;
+/// then ramps it past pull-in.
 #[test]
 #[ignore = "run on each rank by newton_on_each_ranks_own_unknowns_on_two_mpi_ranks"]
 fn rank_part_of_the_distributed_film() {
@@ -1523,6 +1524,7 @@ fn rank_part_of_the_distributed_film() {
     use deasim::solve::linear::FaerLdlt;
     use deasim::solve::newton::newton;
     use deasim::solve::petsc::{world, PetscExchange, PetscSolver};
+    use deasim::solve::stepping::{ramp, StepControl};
     use std::sync::Arc;
 
     let voltage = 20e3;
@@ -1601,12 +1603,63 @@ fn rank_part_of_the_distributed_film() {
             report.iterations
         );
     }
+
+    // pull-in: the film ramped to 40 kV in 4 steps stops at its limit point, found by the
+    // inertia of the whole problem, at the load factor of the serial ramp
+    let (pull_in_model, whole_pull_in) = {
+        let mut whole = whole.clone();
+        let mut part = model.clone();
+        for m in [&mut whole, &mut part] {
+            for d in m.dirichlet.iter_mut().filter(|d| d.value == voltage) {
+                d.value = 40e3;
+            }
+        }
+        (part, whole)
+    };
+    let control = StepControl {
+        steps: 4,
+        ..StepControl::default()
+    };
+    let mut serial = StaticProblem::new(&whole_pull_in, None);
+    let serial_ramp = ramp(
+        &mut serial,
+        &mut FaerLdlt::new(),
+        &settings,
+        &control,
+        |_, _| {},
+    )
+    .expect_err("pull-in below 40 kV");
+    let problem = StaticProblem::new(&pull_in_model, None);
+    let mut system = OwnedSystem::new(problem, Arc::clone(&equations), exchange, floor).unwrap();
+    let failure = ramp(
+        &mut system,
+        &mut PetscSolver::new(""),
+        &settings,
+        &control,
+        |_, _| {},
+    )
+    .expect_err("pull-in below 40 kV");
+    assert!(
+        failure.limit_point && serial_ramp.limit_point,
+        "{failure:?}"
+    );
+    let v = |s: f64| s * 40e3;
+    assert!(
+        (v(failure.last_converged) - v(serial_ramp.last_converged)).abs() <= 1e-6,
+        "rank {rank}: {failure:?} against {serial_ramp:?}"
+    );
+    println!(
+        "rank {rank}: pull-in past {:.4} V (serial {:.4} V)",
+        v(failure.last_converged),
+        v(serial_ramp.last_converged)
+    );
 }
 
 /// Each rank holds only its own unknowns (owned and ghosts) through Newton and PETSc's solves:
 /// the film with a tie across the partition on 2 ranks reaches the serial solution to 1e-10 of
 /// its largest displacement and potential, with the inertia of the whole problem, both with
-/// MUMPS and with GAMG (the rigid-body modes about the centroid summed over the ranks).
+/// MUMPS and with GAMG (the rigid-body modes about the centroid summed over the ranks); ramped
+/// past pull-in, it stops at the serial ramp's last stable load to 1 µV.
 #[test]
 fn newton_on_each_ranks_own_unknowns_on_two_mpi_ranks() {
     let mut mpirun = Command::new("mpirun");
@@ -1631,8 +1684,8 @@ fn newton_on_each_ranks_own_unknowns_on_two_mpi_ranks() {
     for rank in 0..2 {
         assert_eq!(
             stdout.matches(&format!("rank {rank}: ")).count(),
-            2,
-            "rank {rank} solved both ways"
+            3,
+            "rank {rank} solved both ways and found pull-in"
         );
     }
 }

@@ -383,7 +383,10 @@ fn predict<S: LoadedSystem + ?Sized>(
     solver.set_forcing(Some(H));
     let solved = solver.solve_in_place(work).is_ok();
     solver.set_forcing(None);
-    if solved && work.iter().all(|v| v.is_finite()) {
+    // every process's part of the prediction, so that all take the same path
+    let mut not_finite = [work.iter().filter(|v| !v.is_finite()).count() as f64];
+    let finite = system.sum_over_processes(&mut not_finite).is_ok() && not_finite[0] == 0.0;
+    if solved && finite {
         let before = system.snapshot();
         system.increment(work, 1.0);
         if system.evaluate(&mut r0, None).is_err() {
