@@ -97,6 +97,7 @@ fn tied_system_is_the_reduced_untied_one() {
         .map(|field| Tie {
             nodes: tied_nodes.clone(),
             field,
+            held: false,
         })
         .collect();
     let mut p = StaticProblem::new(&model, Some(state));

@@ -1504,7 +1504,8 @@ fn film_with_gamg_and_the_rigid_body_modes_agrees_with_the_direct_solver() {
 /// The rank-local film of [`newton_on_each_ranks_own_unknowns_on_two_mpi_ranks`]: run on every
 /// rank under `mpirun` (ignored in a plain test run). Each rank builds its own part of the film
 /// (5 × 5 × 3 hex8 cells at 20 kV, its top face's displacement tied as a rigid pad holds it, so
-/// that one equation spans the ranks) on its part of the mesh, solves it by Newton over the
+/// that one equation spans the ranks) on its part of the mesh (`Model::part`), solves it by
+/// Newton over the
 /// unknowns it owns with PETSc (MUMPS's LDLᵀ with its inertia, then GMRES with GAMG and the
 /// rigid-body modes), and compares its nodes with the serial solution that it also computes;
 /// then ramps it past pull-in.
@@ -1534,6 +1535,7 @@ fn rank_part_of_the_distributed_film() {
         model.ties.push(Tie {
             nodes,
             field: Field::Uz,
+            held: false,
         });
         model
     };
@@ -1559,7 +1561,7 @@ fn rank_part_of_the_distributed_film() {
     let node_owner = node_processes(&mesh, &dofs, &part, ranks);
     let numbering = Numbering::contiguous(&equation_owners(&dofs, &node_owner), ranks);
     let local = LocalMesh::of_rank(&mesh, &part, &node_owner, rank, ranks).unwrap();
-    let model = film(local.mesh.clone());
+    let model = whole.part(&local).unwrap();
     let equations = Arc::new({
         let probe = StaticProblem::new(&model, None);
         LocalEquations::new(&dofs, &numbering, &local, &probe.dofs).unwrap()

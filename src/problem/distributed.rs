@@ -419,6 +419,7 @@ mod tests {
             model.ties.push(Tie {
                 nodes,
                 field: Field::Uz,
+                held: false,
             });
         }
         model

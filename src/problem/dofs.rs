@@ -69,7 +69,7 @@ impl DofMap {
             let Some(&first) = dofs.iter().min() else {
                 continue;
             };
-            let held = dofs.iter().any(|&d| flags[d]);
+            let held = t.held || dofs.iter().any(|&d| flags[d]);
             for &d in &dofs {
                 leader[d] = first;
                 flags[d] |= held;
@@ -186,6 +186,9 @@ impl DofMap {
 pub struct Tie {
     pub nodes: Vec<usize>,
     pub field: Field,
+    /// Constrained as a whole whatever its members' conditions: it is a rank's part of a tie
+    /// that has a held member on another rank (see [`DofMap::with_ties`]).
+    pub held: bool,
 }
 
 /// A Dirichlet condition: `field` of every node in `nodes` equals `value` (m or V).

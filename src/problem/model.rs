@@ -329,6 +329,98 @@ impl Model {
         }
     }
 
+    /// This model's part on one rank's part of its mesh (`local`, cut from this model's mesh):
+    /// the rank's cells with their materials, the supports, ties and tractions restricted to
+    /// them, and the loads that are not cell terms (point forces and charges, dashpots) at the
+    /// nodes the rank owns only, so that the ranks' parts add up to the whole model with each
+    /// such load once. Follower pressures and circuits are refused (their faces and electrodes
+    /// are not divided between the ranks yet).
+    pub fn part(&self, local: &crate::mesh::distribute::LocalMesh) -> Result<Model, ModelError> {
+        if !self.pressures.is_empty() {
+            return Err(ModelError::Invalid(
+                "follower pressures are not divided between the ranks yet".into(),
+            ));
+        }
+        if !self.circuits.is_empty() {
+            return Err(ModelError::Invalid(
+                "circuit-driven electrodes are not divided between the ranks yet".into(),
+            ));
+        }
+        let mut at = vec![usize::MAX; self.mesh.n_nodes()];
+        for (l, &n) in local.nodes.iter().enumerate() {
+            at[n] = l;
+        }
+        let mut cell_at = vec![usize::MAX; self.mesh.n_cells()];
+        for (l, &c) in local.cells.iter().enumerate() {
+            cell_at[c] = l;
+        }
+        let nodes = |list: &[usize]| -> Vec<usize> {
+            list.iter()
+                .filter(|&&n| at[n] != usize::MAX)
+                .map(|&n| at[n])
+                .collect()
+        };
+        let owned = |n: usize| at[n] < local.owned;
+        // a tie with a held member is held as a whole, also on ranks without that member
+        let flags = crate::problem::dofs::constrained_flags(self.mesh.n_nodes(), &self.dirichlet);
+        let mut part = Model::new(local.mesh.clone(), self.materials[0].clone())?;
+        part.materials = self.materials.clone();
+        part.cell_material = local.cells.iter().map(|&c| self.cell_material[c]).collect();
+        part.formulation = self.formulation;
+        part.dirichlet = self
+            .dirichlet
+            .iter()
+            .map(|d| Dirichlet {
+                nodes: nodes(&d.nodes),
+                ..d.clone()
+            })
+            .filter(|d| !d.nodes.is_empty())
+            .collect();
+        part.ties = self
+            .ties
+            .iter()
+            .map(|t| Tie {
+                nodes: nodes(&t.nodes),
+                field: t.field,
+                held: t.held || t.nodes.iter().any(|&n| flags[n * FIELDS + t.field.index()]),
+            })
+            .filter(|t| !t.nodes.is_empty())
+            .collect();
+        part.tractions = self
+            .tractions
+            .iter()
+            .map(|t| Traction {
+                faces: t
+                    .faces
+                    .iter()
+                    .filter(|f| cell_at[f.cell] != usize::MAX)
+                    .map(|f| crate::mesh::FaceRef {
+                        cell: cell_at[f.cell],
+                        face: f.face,
+                    })
+                    .collect(),
+                value: t.value,
+            })
+            .collect();
+        part.body_force = self.body_force.clone();
+        part.dead_load_start = self.dead_load_start;
+        let on_owned = |list: &[(usize, f64)]| -> Vec<(usize, f64)> {
+            list.iter()
+                .filter(|(n, _)| owned(*n))
+                .map(|&(n, v)| (at[n], v))
+                .collect()
+        };
+        part.point_forces = self
+            .point_forces
+            .iter()
+            .filter(|(n, _)| owned(*n))
+            .map(|&(n, f)| (at[n], f))
+            .collect();
+        part.point_dampers = on_owned(&self.point_dampers);
+        part.point_charges = on_owned(&self.point_charges);
+        Ok(part)
+    }
+
     /// Keeps the reference geometry of the cells `keep` names only (the others are computed
     /// when asked for): a distributed run's process holds its own cells'.
     pub fn hold_geometry_of(&mut self, keep: impl Fn(usize) -> bool) {

@@ -409,6 +409,7 @@ mod tests {
                 let tie = crate::problem::dofs::Tie {
                     nodes: face.clone(),
                     field: crate::problem::dofs::Field::Uz,
+                    held: false,
                 };
                 let mut flags = vec![false; n];
                 flags[0] = true; // node 0 (on x0) holds ux: the tie on uz is unaffected

@@ -454,6 +454,7 @@ mod tests {
         model.ties.push(Tie {
             nodes: x1.clone(),
             field: Field::Uz,
+            held: false,
         });
         let problem = StaticProblem::new(&model, None);
         let dofs = &problem.dofs;

@@ -99,6 +99,7 @@ pub(super) fn charge_electrodes(
             model.ties.push(crate::problem::dofs::Tie {
                 nodes: e.nodes.clone(),
                 field: Field::Phi,
+                held: false,
             });
             model.point_charges.push((e.nodes[0], q / symmetry));
         }
@@ -107,6 +108,7 @@ pub(super) fn charge_electrodes(
             model.ties.push(crate::problem::dofs::Tie {
                 nodes: e.nodes.clone(),
                 field: Field::Phi,
+                held: false,
             });
             // the meshed part draws 1/symmetry of the current through the same voltage drop
             model.circuits.push(crate::problem::circuit::Circuit {

@@ -341,6 +341,7 @@ fn build_rigid(
             model.ties.push(Tie {
                 nodes: nodes.clone(),
                 field,
+                held: false,
             });
         }
         if r.damping > 0.0 {
