@@ -69,7 +69,7 @@ fn main() {
     let numbering = Numbering::contiguous(&equation_owners(&dofs, &node_owner), ranks);
     let local = LocalMesh::of_rank(&mesh, &part, &node_owner, rank, ranks).expect("a part");
     let model = film_on(local.mesh.clone(), voltage).expect("the film's part");
-    let mut problem = StaticProblem::new(&model, None);
+    let problem = StaticProblem::new(&model, None);
     let equations = Arc::new(
         LocalEquations::new(&dofs, &numbering, &local, &problem.dofs).expect("its equations"),
     );
