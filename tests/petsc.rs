@@ -1518,8 +1518,8 @@ fn rank_part_of_the_distributed_film() {
     use deasim::mesh::ElementKind;
     use deasim::problem::assembly::node_processes;
     use deasim::problem::distributed::{equation_owners, LocalEquations, OwnedSystem};
-    use deasim::problem::dofs::{Field, Tie, FIELDS};
-    use deasim::problem::examples::{film_on, FILM_SIZE};
+    use deasim::problem::dofs::FIELDS;
+    use deasim::problem::examples::{tied_film, FILM_SIZE};
     use deasim::problem::statics::StaticProblem;
     use deasim::problem::system::{LoadedSystem, NonlinearSystem};
     use deasim::solve::linear::FaerLdlt;
@@ -1529,18 +1529,8 @@ fn rank_part_of_the_distributed_film() {
     use std::sync::Arc;
 
     let voltage = 20e3;
-    let film = |mesh| {
-        let mut model = film_on(mesh, voltage).unwrap();
-        let nodes = model.mesh.set_nodes("z1").unwrap();
-        model.ties.push(Tie {
-            nodes,
-            field: Field::Uz,
-            held: false,
-        });
-        model
-    };
     let mesh = box_mesh(FILM_SIZE, [5, 5, 3], ElementKind::Hex8);
-    let whole = film(mesh.clone());
+    let whole = tied_film(mesh.clone(), voltage).unwrap();
     let settings = NewtonSettings::default();
     let mut serial = StaticProblem::new(&whole, None);
     serial.set_load(1.0);

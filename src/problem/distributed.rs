@@ -402,8 +402,8 @@ mod tests {
     use crate::mesh::partition::partition_cells;
     use crate::mesh::{ElementKind, Mesh};
     use crate::problem::assembly::{node_processes, on_threads};
-    use crate::problem::dofs::{Field, Tie};
-    use crate::problem::examples::{film_on, wavy_state, FILM_SIZE};
+    use crate::problem::dofs::Field;
+    use crate::problem::examples::{film_on, tied_film, wavy_state, FILM_SIZE};
     use crate::problem::model::Model;
     use crate::problem::statics::StaticProblem;
     use crate::problem::system::NonlinearSystem;
@@ -413,16 +413,11 @@ mod tests {
     /// The film on `mesh`, with its top face's displacement tied in z when `tied` (as a rigid
     /// pad holds it), so that one equation spans the ranks.
     fn film(mesh: Mesh, tied: bool) -> Model {
-        let mut model = film_on(mesh, 1000.0).unwrap();
         if tied {
-            let nodes = model.mesh.set_nodes("z1").unwrap();
-            model.ties.push(Tie {
-                nodes,
-                field: Field::Uz,
-                held: false,
-            });
+            tied_film(mesh, 1000.0).unwrap()
+        } else {
+            film_on(mesh, 1000.0).unwrap()
         }
-        model
     }
 
     /// Residual and dense tangent of `model` at `state` over its free unknowns.

@@ -36,6 +36,19 @@ pub fn film_on(mesh: crate::mesh::Mesh, voltage: f64) -> Result<Model, ModelErro
     Ok(model)
 }
 
+/// The film on `mesh` with its top face's displacement tied in z, as a rigid pad would hold it
+/// (one unknown that spans every rank holding a node of the top face).
+pub fn tied_film(mesh: crate::mesh::Mesh, voltage: f64) -> Result<Model, ModelError> {
+    let mut model = film_on(mesh, voltage)?;
+    let nodes = model.set_nodes("z1")?;
+    model.ties.push(crate::problem::dofs::Tie {
+        nodes,
+        field: Field::Uz,
+        held: false,
+    });
+    Ok(model)
+}
+
 /// The film's closed form (`analytic::Film`) with the film's parameters.
 pub fn film_closed_form() -> Film {
     Film {
