@@ -1570,6 +1570,8 @@ fn rank_part_of_the_distributed_film() {
         let mut solver = PetscSolver::new(options);
         let mut k = system.new_matrix();
         let report = newton(&mut system, &mut solver, &mut k, &settings).unwrap();
+        // whole nodes of four rows, held unknowns padding
+        assert_eq!(solver.matrix_block_size(), Some(4), "rank {rank}");
         let mut worst: f64 = 0.0;
         for (l, &n) in local.nodes.iter().enumerate() {
             for f in 0..FIELDS {

@@ -27,13 +27,52 @@ use std::sync::Arc;
 
 /// The owner of each equation of `dofs`: the owner of its lowest node (`node_owner` per node).
 pub fn equation_owners(dofs: &DofMap, node_owner: &[usize]) -> Vec<usize> {
+    lowest_nodes(dofs).iter().map(|&n| node_owner[n]).collect()
+}
+
+/// The lowest node of every equation of `dofs` (a tie's equation spans several nodes).
+fn lowest_nodes(dofs: &DofMap) -> Vec<usize> {
     let mut lowest = vec![usize::MAX; dofs.n_free];
     for (d, &e) in dofs.eq.iter().enumerate() {
         if e != CONSTRAINED {
             lowest[e] = lowest[e].min(d / FIELDS);
         }
     }
-    lowest.iter().map(|&n| node_owner[n]).collect()
+    lowest
+}
+
+/// The lowest node of every equation of `whole`; the block of four rows of every node that is
+/// the lowest node of an equation (`usize::MAX` for the others), the blocks rank after rank (a
+/// node's rank: its equations' owner under `numbering`), ascending within a rank; and the first
+/// row of each rank with the number of rows at the end.
+fn node_blocks(whole: &DofMap, numbering: &Numbering) -> (Vec<usize>, Vec<usize>, Vec<usize>) {
+    let ranks = numbering.start.len().saturating_sub(1);
+    let rank_of = |g: usize| numbering.start.partition_point(|&s| s <= g) - 1;
+    let lowest = lowest_nodes(whole);
+    let mut owner = vec![usize::MAX; whole.n_nodes];
+    for (e, &n) in lowest.iter().enumerate() {
+        owner[n] = rank_of(numbering.number[e]);
+    }
+    let mut start = vec![0usize; ranks + 1];
+    for &o in owner.iter().filter(|&&o| o != usize::MAX) {
+        start[o + 1] += 1;
+    }
+    for r in 0..ranks {
+        start[r + 1] += start[r];
+    }
+    let mut next = start.clone();
+    let block = owner
+        .iter()
+        .map(|&o| {
+            if o == usize::MAX {
+                usize::MAX
+            } else {
+                next[o] += 1;
+                next[o] - 1
+            }
+        })
+        .collect();
+    (lowest, block, start.iter().map(|&b| FIELDS * b).collect())
 }
 
 /// A rank's equations in the whole problem's numbering.
@@ -47,6 +86,14 @@ pub struct LocalEquations {
     pub owned: Vec<bool>,
     /// The first global number of each rank, and the number of equations at the end.
     pub start: Vec<usize>,
+    /// The row of each of the rank's equations among whole nodes of four rows: every node that
+    /// is the lowest node of an equation takes four consecutive rows (ux, uy, uz, Φ), rank after
+    /// rank, each rank's nodes ascending; an equation sits in its lowest node's block at its
+    /// field, and a node's held unknowns are padding. The layout of a node-blocked distributed
+    /// matrix (block size 4), whose multigrid aggregates whole nodes.
+    pub rows: Vec<usize>,
+    /// The first row of each rank, and the number of rows at the end.
+    pub row_start: Vec<usize>,
 }
 
 impl LocalEquations {
@@ -62,7 +109,10 @@ impl LocalEquations {
         local: &LocalMesh,
         local_dofs: &DofMap,
     ) -> Result<Self, String> {
+        let rank_of = |g: usize| numbering.start.partition_point(|&s| s <= g) - 1;
+        let (lowest, block, row_start) = node_blocks(whole, numbering);
         let mut global = vec![usize::MAX; local_dofs.n_free];
+        let mut rows = vec![usize::MAX; local_dofs.n_free];
         for (d, &e) in local_dofs.eq.iter().enumerate() {
             let (node, field) = (local.nodes[d / FIELDS], d % FIELDS);
             let g = whole.eq[node * FIELDS + field];
@@ -79,6 +129,7 @@ impl LocalEquations {
                     ))
                 }
             }
+            rows[e] = FIELDS * block[lowest[g]] + field;
             let g = numbering.number[g];
             if global[e] == usize::MAX {
                 global[e] = g;
@@ -90,18 +141,14 @@ impl LocalEquations {
                 ));
             }
         }
-        let owned = global
-            .iter()
-            .map(|&g| {
-                let r = numbering.start.partition_point(|&s| s <= g) - 1;
-                r == local.rank
-            })
-            .collect();
+        let owned = global.iter().map(|&g| rank_of(g) == local.rank).collect();
         Ok(LocalEquations {
             rank: local.rank,
             global,
             owned,
             start: numbering.start.clone(),
+            rows,
+            row_start,
         })
     }
 

@@ -895,23 +895,23 @@ impl Numbering {
     }
 
     /// The rows of a system whose ranks each hold their own equations (`equations`, of `a`'s
-    /// unknowns): each unknown's row is its global number, this rank's rows its owned block
-    /// (one row an unknown, block size 1); `unknown` covers this rank's rows only.
+    /// unknowns): whole nodes of four rows ([`LocalEquations::rows`], block size 4), this
+    /// rank's rows its owned nodes' blocks; `unknown` covers this rank's rows only.
     fn of_equations(equations: &LocalEquations) -> Numbering {
         let rank = equations.rank;
-        let first = equations.start[rank];
-        let mut unknown = vec![PADDING; equations.start[rank + 1] - first];
-        for (e, &g) in equations.global.iter().enumerate() {
+        let first = equations.row_start[rank];
+        let mut unknown = vec![PADDING; equations.row_start[rank + 1] - first];
+        for (e, &r) in equations.rows.iter().enumerate() {
             if equations.owned[e] {
-                unknown[g - first] = e;
+                unknown[r - first] = e;
             }
         }
         Numbering {
-            row: equations.global.clone(),
+            row: equations.rows.clone(),
             unknown,
-            n: equations.n_global(),
-            block_size: 1,
-            starts: equations.start.clone(),
+            n: equations.row_start.last().copied().unwrap_or(0),
+            block_size: FIELDS,
+            starts: equations.row_start.clone(),
             first,
         }
     }
@@ -966,6 +966,9 @@ struct System {
     /// when each rank holds its own unknowns only ([`DofLayout::equations`]): the vectors are
     /// then its rows' part.
     gather: Option<(Scatter, Vector)>,
+    /// Without the gather: the index in the vectors of the rank's owned unknowns of each of its
+    /// rows, [`PADDING`] for a padding row.
+    slots: Vec<usize>,
     x: Vector,
     b: Vector,
     mat: Mat,
@@ -1199,7 +1202,17 @@ impl System {
                 ffi::MatCreateVecs(mat.0, &mut x.0, &mut b.0),
                 "MatCreateVecs",
             )?;
-            let gather = if divided.is_some() {
+            let mut slots = Vec::new();
+            let gather = if let Some(equations) = divided {
+                let first = equations.start[rank];
+                slots = rows
+                    .clone()
+                    .map(|r| {
+                        numbering
+                            .unknown(r)
+                            .map_or(PADDING, |e| equations.global[e] - first)
+                    })
+                    .collect();
                 None
             } else {
                 let (mut scatter, mut x_all) = (Scatter(ptr::null_mut()), Vector(ptr::null_mut()));
@@ -1235,12 +1248,13 @@ impl System {
             Ok(System {
                 ksp,
                 gather,
+                slots,
                 x,
                 b,
                 mat,
                 options: db,
                 n: a.n,
-                total: if divided.is_some() { numbering.n } else { a.n },
+                total: divided.map_or(a.n, |e| e.n_global()),
                 nnz: a.nnz(),
                 numbering,
                 shared,
@@ -1396,12 +1410,12 @@ impl System {
         unsafe {
             let mut arr: *mut ffi::PetscScalar = ptr::null_mut();
             check(ffi::VecGetArray(self.b.0, &mut arr), "VecGetArray")?;
-            if self.gather.is_none() && b.len() != self.rows.len() {
+            let owned = self.slots.iter().filter(|&&s| s != PADDING).count();
+            if self.gather.is_none() && b.len() != owned {
                 check(ffi::VecRestoreArray(self.b.0, &mut arr), "VecRestoreArray")?;
                 return Err(LinearSolverError::Failed(format!(
-                    "a right-hand side of {} values for this rank's {} rows",
-                    b.len(),
-                    self.rows.len()
+                    "a right-hand side of {} values for this rank's {owned} unknowns",
+                    b.len()
                 )));
             }
             let local = std::slice::from_raw_parts_mut(arr, self.rows.len());
@@ -1410,8 +1424,10 @@ impl System {
                     *x = self.numbering.unknown(r).map_or(0.0, |e| b[e]);
                 }
             } else {
-                // `b` is this rank's rows' part, in their order
-                local.copy_from_slice(b);
+                // `b` holds this rank's owned unknowns
+                for (x, &slot) in local.iter_mut().zip(&self.slots) {
+                    *x = if slot == PADDING { 0.0 } else { b[slot] };
+                }
             }
             check(ffi::VecRestoreArray(self.b.0, &mut arr), "VecRestoreArray")?;
 
@@ -1470,7 +1486,12 @@ impl System {
             let Some((gather, x_all)) = &self.gather else {
                 let mut arr: *const ffi::PetscScalar = ptr::null();
                 check(ffi::VecGetArrayRead(self.x.0, &mut arr), "VecGetArrayRead")?;
-                b.copy_from_slice(std::slice::from_raw_parts(arr, self.rows.len()));
+                let x = std::slice::from_raw_parts(arr, self.rows.len());
+                for (&v, &slot) in x.iter().zip(&self.slots) {
+                    if slot != PADDING {
+                        b[slot] = v;
+                    }
+                }
                 check(
                     ffi::VecRestoreArrayRead(self.x.0, &mut arr),
                     "VecRestoreArrayRead",
