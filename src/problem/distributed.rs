@@ -53,26 +53,20 @@ fn node_blocks(whole: &DofMap, numbering: &Numbering) -> (Vec<usize>, Vec<usize>
     for (e, &n) in lowest.iter().enumerate() {
         owner[n] = rank_of(numbering.number[e]);
     }
-    let mut start = vec![0usize; ranks + 1];
-    for &o in owner.iter().filter(|&&o| o != usize::MAX) {
-        start[o + 1] += 1;
-    }
-    for r in 0..ranks {
-        start[r + 1] += start[r];
-    }
-    let mut next = start.clone();
-    let block = owner
-        .iter()
-        .map(|&o| {
-            if o == usize::MAX {
-                usize::MAX
-            } else {
-                next[o] += 1;
-                next[o] - 1
-            }
-        })
+    let nodes: Vec<usize> = (0..whole.n_nodes)
+        .filter(|&n| owner[n] != usize::MAX)
         .collect();
-    (lowest, block, start.iter().map(|&b| FIELDS * b).collect())
+    let owners: Vec<usize> = nodes.iter().map(|&n| owner[n]).collect();
+    let blocks = Numbering::contiguous(&owners, ranks.max(1));
+    let mut block = vec![usize::MAX; whole.n_nodes];
+    for (&n, &b) in nodes.iter().zip(&blocks.number) {
+        block[n] = b;
+    }
+    (
+        lowest,
+        block,
+        blocks.start.iter().map(|&b| FIELDS * b).collect(),
+    )
 }
 
 /// A rank's equations in the whole problem's numbering.
