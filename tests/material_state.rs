@@ -103,6 +103,7 @@ fn run_stage(
             ..Default::default()
         },
         newton,
+        None,
         |p, acc| {
             let r = p.nodal_reactions().unwrap();
             let force: f64 = x1.iter().map(|&n| r[n * 4]).sum();
@@ -318,6 +319,7 @@ fn resumed_ramp_with_point_states_is_bitwise() {
             ..Default::default()
         },
         &newton,
+        None,
         |p, acc| {
             count += 1;
             if count == 4 {

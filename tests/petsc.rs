@@ -476,7 +476,10 @@ fn on_ranks_of(
     extra: &[&str],
     compare: impl FnOnce(&Path, &Path),
 ) -> (f64, f64, String, String) {
-    let dir = common::tempdir(&format!("petsc-mpi-{example_name}"));
+    // one directory per call: tests of one example run side by side in this process
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = common::tempdir(&format!("petsc-mpi-{example_name}-{call}"));
     std::fs::write(dir.join("serial.toml"), text).unwrap();
     write_petsc_scenario(&dir, text);
     let mut sets = vec![
@@ -631,13 +634,15 @@ fn on_ranks_of(
 /// assembly's, so the results agree to round-off amplified by the Newton systems.
 #[test]
 fn film_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, _, _) = on_ranks(2, "film", &[]);
+    let (d, fields, _, log) = on_ranks(2, "film", &[]);
+    assert_parts(&log, 2);
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
 #[test]
 fn stack_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, _, _) = on_ranks(2, "stack", &[]);
+    let (d, fields, _, log) = on_ranks(2, "stack", &[]);
+    assert_parts(&log, 2);
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
@@ -645,7 +650,12 @@ fn stack_on_two_mpi_ranks_agrees_with_the_serial_run() {
 /// (see the next test). Its static `load` stage, then 5 ms of the dynamic stage.
 #[test]
 fn the_3d_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, _, _) = on_ranks(2, "diaphragm-3d", &["stages.1.duration=0.005"]);
+    let (d, fields, _, log) = on_ranks(2, "diaphragm-3d", &["stages.1.duration=0.005"]);
+    // a dynamic stage: the whole state on every rank
+    assert!(
+        log.contains("every rank holds the whole state: stage `actuate`"),
+        "{log}"
+    );
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
@@ -809,6 +819,7 @@ fn pull_in_is_found_on_two_mpi_ranks() {
     let (a, b) = (last(&serial), last(&mpi));
     eprintln!("pull-in: serial {a} V, 2 ranks {b} V");
     assert!(mpi.contains("pull-in"), "{mpi}");
+    assert_parts(&mpi, 2);
     assert!(
         (a - b).abs() < 1e-6 * a && (b - 33_695.33).abs() < 0.5,
         "{a} {b}"
@@ -850,6 +861,7 @@ fn charge_control_on_two_mpi_ranks_agrees_with_the_serial_run() {
             && (a - b).abs() < 1e-6,
         "{mpi}"
     );
+    assert_parts(&mpi, 2);
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
@@ -858,20 +870,40 @@ fn charge_control_on_two_mpi_ranks_agrees_with_the_serial_run() {
 /// same cell at the same step as the serial run, and every rank stops there.
 #[test]
 fn dielectric_breakdown_is_found_over_every_ranks_cells() {
-    let dir = common::tempdir("petsc-mpi-breakdown");
-    let text = example("diaphragm-3d").unwrap();
+    // below the largest field of the first pulse (1.2e7 V/m)
+    let log = breakdown_on_three_ranks("diaphragm-3d", "vhb", "1.1e7");
+    assert!(log.contains("every rank holds the whole state"), "{log}");
+}
+
+/// As above with each rank holding only its part of the plan (the stack: static stages), where
+/// the field concentrates at the electrodes' edges: the first cell over the ranks' parts, in
+/// the whole mesh's numbering, with its centre, is the serial run's.
+#[test]
+fn dielectric_breakdown_is_found_over_every_ranks_part() {
+    // the largest field is 1.8e7 V/m at the third step, 2.4e7 at the fourth
+    let log = breakdown_on_three_ranks("stack", "silicone", "2e7");
+    assert_parts(&log, 3);
+}
+
+/// Runs `example` serially and on 3 ranks with material `material`'s dielectric strength
+/// `strength` (V/m), stopping at breakdown; checks that both stop with the same warning after
+/// as many records. Returns the distributed run's log.
+fn breakdown_on_three_ranks(example_name: &str, material: &str, strength: &str) -> String {
+    let dir = common::tempdir(&format!("petsc-mpi-breakdown-{example_name}"));
+    let text = example(example_name).unwrap();
     std::fs::write(dir.join("serial.toml"), text).unwrap();
     write_petsc_scenario(&dir, text);
+    let strength = format!("materials.{material}.breakdown_field={strength}");
+    let stop = format!("materials.{material}.stop_at_breakdown=true");
     let sets = [
         "--set",
         "output.plots=false",
         "--set",
         "output.fields_every=0",
         "--set",
-        // below the largest field of the first pulse (1.2e7 V/m)
-        "materials.vhb.breakdown_field=1.1e7",
+        &strength,
         "--set",
-        "materials.vhb.stop_at_breakdown=true",
+        &stop,
     ];
     let mut args = vec!["run", "serial.toml", "--out", "serial"];
     args.extend(sets);
@@ -911,6 +943,28 @@ fn dielectric_breakdown_is_found_over_every_ranks_cells() {
             .count()
     };
     assert_eq!(rows("serial"), rows("mpi"));
+    log
+}
+
+/// Asserts that the distributed run of `log` ran on `ranks` ranks each holding only its part of
+/// the plan: each rank's part has fewer nodes and cells than the whole mesh.
+fn assert_parts(log: &str, ranks: usize) {
+    assert!(log.contains("each rank holds only its part"), "{log}");
+    for r in 0..ranks {
+        let line = log
+            .split(&format!("rank {r}: its part holds "))
+            .nth(1)
+            .unwrap_or_else(|| panic!("no part of rank {r} in: {log}"));
+        let n: Vec<usize> = line
+            .split_whitespace()
+            .filter_map(|w| w.parse().ok())
+            .take(4)
+            .collect();
+        assert!(
+            n.len() == 4 && n[0] < n[1] && n[2] < n[3],
+            "rank {r}: {line}"
+        );
+    }
 }
 
 /// The checkpoint files of run directory `out`, oldest first.
@@ -1436,6 +1490,7 @@ fn the_near_null_space_is_built_on_each_processs_rows() {
 fn film_with_gamg_on_two_mpi_ranks_agrees_with_the_serial_run() {
     let options = format!("solver.petsc_options=\"{GAMG}\"");
     let (d, fields, _, log) = on_ranks(2, "film", &[&options]);
+    assert_parts(&log, 2);
     assert!(
         log.contains("near-null space of 6 rigid-body modes"),
         "{log}"

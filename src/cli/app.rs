@@ -345,7 +345,13 @@ pub fn cmd_run(
         }
         Ok(r) => r,
     };
-    let pieces = distribute(&mut plan, rank, ranks);
+    let pieces = match divide(&mut plan, rank, ranks, checkpoint_every.is_some()) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: rank {rank}: {e}");
+            return EXIT_SOLVE_FAILED;
+        }
+    };
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(&plan.name));
@@ -410,6 +416,80 @@ fn prepare_output(
     let writer = OutputWriter::new(dir)
         .map_err(|e| format!("cannot create the output directory {}: {e}", dir.display()))?;
     Ok((lock, writer))
+}
+
+/// On several ranks: replaces `plan` by this rank's part of it when the plan can be divided
+/// ([`crate::job::part::divide`]: each rank then holds only its part of the mesh and the state),
+/// else shares its cells with the whole state on every rank ([`distribute`]); rank 0 says which.
+/// Returns this rank's piece of the field files; `None` on one rank. A run that writes
+/// checkpoints keeps the whole state (a checkpoint holds it).
+fn divide(
+    plan: &mut Plan,
+    rank: usize,
+    ranks: usize,
+    checkpoints: bool,
+) -> Result<Option<Pieces>, String> {
+    #[cfg(feature = "petsc")]
+    if ranks > 1 {
+        let why = if checkpoints {
+            Some("checkpoints are written from the whole state".to_string())
+        } else {
+            plan.parts_unsupported()
+        };
+        match why {
+            None => {
+                use crate::problem::distributed::Exchange;
+                let part = crate::job::part::divide(plan, rank, ranks, ranks_agree, |eq| {
+                    crate::solve::petsc::PetscExchange::new(eq)
+                        .map(|x| std::sync::Arc::new(x) as std::sync::Arc<dyn Exchange>)
+                        .map_err(|e| e.to_string())
+                })?;
+                *plan = part;
+                let cells = plan.model.mesh.n_cells();
+                if std::env::var_os("DEASIM_PETSC_VERBOSE").is_some() {
+                    let line = format!(
+                        "deasim: rank {rank}: its part holds {} of the {} nodes and {cells} of \
+                         the {} cells\n",
+                        plan.model.mesh.n_nodes(),
+                        plan.whole_nodes(),
+                        plan.whole_cells()
+                    );
+                    // one write, so that the ranks' lines do not interleave
+                    use std::io::Write;
+                    let _ = std::io::stderr().write_all(line.as_bytes());
+                }
+                let counts = match &plan.part {
+                    Some(p) => p.gather(&[cells as f64])?,
+                    None => Vec::new(),
+                };
+                if rank == 0 {
+                    eprintln!(
+                        "deasim: one linear system on {ranks} MPI ranks; each rank holds only its part of \
+                         the mesh and the state; rank 0 writes the outputs, each rank its piece \
+                         of the field files"
+                    );
+                    let counts: Vec<String> = counts.iter().map(|c| c[0].to_string()).collect();
+                    eprintln!(
+                        "deasim: the ranks assemble {} of the {} cells (METIS partition)",
+                        counts.join(", "),
+                        plan.whole_cells()
+                    );
+                }
+                return Ok(Some(Pieces::new(
+                    &plan.model.mesh,
+                    &vec![true; cells],
+                    rank,
+                    ranks,
+                )));
+            }
+            Some(why) if rank == 0 => {
+                eprintln!("deasim: every rank holds the whole state: {why}");
+            }
+            Some(_) => {}
+        }
+    }
+    let _ = checkpoints;
+    Ok(distribute(plan, rank, ranks))
 }
 
 /// On several ranks: shares the cells of `plan` between them (rank 0 says how) and returns this
@@ -802,10 +882,10 @@ fn execute(
     eprintln!(
         "deasim: scenario `{}`: {} nodes, {} {} cells, {} dofs; {} thread(s); output in {}",
         plan.name,
-        plan.model.mesh.n_nodes(),
-        plan.model.mesh.n_cells(),
+        plan.whole_nodes(),
+        plan.whole_cells(),
         plan.model.mesh.kind.name(),
-        plan.model.mesh.n_nodes() * 4,
+        plan.whole_nodes() * 4,
         rayon::current_num_threads(),
         dir.display()
     );

@@ -720,8 +720,8 @@ impl OutputWriter {
         let mut v = json!({
             "scenario": plan.name,
             "dofs": summary.dofs,
-            "nodes": plan.model.mesh.n_nodes(),
-            "elements": plan.model.mesh.n_cells(),
+            "nodes": plan.whole_nodes(),
+            "elements": plan.whole_cells(),
             "status": if summary.converged {
                 "finished"
             } else if summary.interrupted {
@@ -1218,7 +1218,7 @@ impl OutputWriter {
             error: Some("the run has not finished (it is running, or it was killed)".into()),
             stages: Vec::new(),
             wall_s: self.started.elapsed().as_secs_f64(),
-            dofs: plan.model.mesh.n_nodes() * crate::fem::FIELDS,
+            dofs: plan.whole_nodes() * crate::fem::FIELDS,
             warnings: Vec::new(),
             interrupted: false,
         };

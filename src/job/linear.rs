@@ -148,7 +148,9 @@ impl ProbeMap<'_> {
             .iter()
             .map(|e| (e.nodes.as_slice(), s[e.nodes[0] * FIELDS + PHI]))
             .collect();
+        let charges = crate::job::probes::electrode_charges(&electrodes, &reactions, &[]);
         let input = ProbeInput {
+            charges: &charges,
             state: s,
             reactions: &reactions,
             electrodes: &electrodes,

@@ -2,6 +2,7 @@
 //! and observers.
 
 pub mod linear;
+pub mod part;
 pub mod plan;
 mod prestretch;
 pub mod probes;

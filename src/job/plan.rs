@@ -216,6 +216,9 @@ pub struct Plan {
     /// Per pressure: the volume (m³, meshed part) it holds under volume control in the stages it
     /// acts in (its fraction of `value` is then an unknown), or `None` (pressure control).
     pub pressure_volumes: Vec<Option<f64>>,
+    /// On a rank's part of a plan divided between MPI ranks ([`crate::job::part::divide`]):
+    /// the whole problem and the other ranks. `None`: the plan is the whole problem.
+    pub part: Option<std::sync::Arc<crate::job::part::PlanPart>>,
 }
 
 impl Plan {

@@ -102,6 +102,7 @@ pub(super) fn prestretch(
                 None,
                 &control,
                 newton,
+                None,
                 |q, acc| {
                     dissipated += q.dissipated_step;
                     rec.points.clone_from(&q.points);

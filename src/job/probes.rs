@@ -175,48 +175,106 @@ pub struct ProbeInput<'a> {
     pub circuit_energy: &'a [(f64, f64)],
     /// Per pressure of the model: the pressure acting (Pa); empty where not known (0).
     pub pressures: &'a [f64],
+    /// Per electrode (plan order): its charge (C, meshed part) now and at the previous record
+    /// ([`electrode_charges`], summed over the processes that divide the model).
+    pub charges: &'a [(f64, f64)],
+}
+
+/// A probe's share of its value on one process's part of the model, and how the shares of
+/// the processes that divide a model combine (one process's share is its whole value).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Share {
+    /// Summed over the processes: [a, b] of a probe whose value follows from the two sums.
+    Sum([f64; 2]),
+    /// The largest over the processes.
+    Max(f64),
+    /// A probe of the inputs' whole-model values (energies, charges, the largest field): the
+    /// same on every process.
+    Whole,
 }
 
 impl Probe {
     /// The probe's value.
     pub fn evaluate(&self, inp: &ProbeInput) -> f64 {
-        let v = match &self.kind {
-            ProbeKind::Mean(q, nodes, weights) => {
+        let share = match self.share(inp) {
+            Share::Sum(v) => v,
+            Share::Max(m) => [m, 0.0],
+            Share::Whole => [0.0, 0.0],
+        };
+        self.value(inp, share)
+    }
+
+    /// This process's share of the probe's value. A probe over nodes takes the nodes it is
+    /// given: on a rank's part of a plan, the owned nodes of a mean or a deflection (each node
+    /// counted once), every node of the part for a reaction (each rank's reactions are those of
+    /// its own cells) or an extreme ([`crate::job::part`]).
+    pub fn share(&self, inp: &ProbeInput) -> Share {
+        match &self.kind {
+            ProbeKind::Mean(q, nodes, weights) => Share::Sum([
                 nodes
                     .iter()
                     .zip(weights)
                     .map(|(&n, w)| w * q.value(inp.state, n))
-                    .sum::<f64>()
-                    / weights.iter().sum::<f64>()
+                    .sum::<f64>(),
+                weights.iter().sum::<f64>(),
+            ]),
+            ProbeKind::Max(q, nodes) => Share::Max(
+                nodes
+                    .iter()
+                    .map(|&n| q.value(inp.state, n))
+                    .fold(f64::NEG_INFINITY, f64::max),
+            ),
+            // the largest of the negated values: the negated least
+            ProbeKind::Min(q, nodes) => Share::Max(
+                nodes
+                    .iter()
+                    .map(|&n| -q.value(inp.state, n))
+                    .fold(f64::NEG_INFINITY, f64::max),
+            ),
+            // a node that is not this process's (usize::MAX) adds nothing
+            ProbeKind::Point(q, n) => Share::Sum([
+                if *n == usize::MAX {
+                    0.0
+                } else {
+                    q.value(inp.state, *n)
+                },
+                0.0,
+            ]),
+            ProbeKind::Reaction(c, nodes) => {
+                Share::Sum([nodes.iter().map(|&n| inp.reactions[n * 4 + c]).sum(), 0.0])
             }
-            ProbeKind::Max(q, nodes) => nodes
-                .iter()
-                .map(|&n| q.value(inp.state, n))
-                .fold(f64::NEG_INFINITY, f64::max),
-            ProbeKind::Min(q, nodes) => nodes
-                .iter()
-                .map(|&n| q.value(inp.state, n))
-                .fold(f64::INFINITY, f64::min),
-            ProbeKind::Point(q, n) => q.value(inp.state, *n),
-            ProbeKind::Charge(e) => charge(inp, *e),
+            ProbeKind::Deflection(nodes, axial) => Share::Sum([
+                nodes
+                    .iter()
+                    .map(|&n| inp.state[n * 4 + axial] - inp.reference[n * 4 + axial])
+                    .sum::<f64>(),
+                nodes.len() as f64,
+            ]),
+            _ => Share::Whole,
+        }
+    }
+
+    /// The probe's value from the processes' combined shares (`combined`: the sums of a
+    /// [`Share::Sum`], the largest of a [`Share::Max`] first) and the inputs.
+    pub fn value(&self, inp: &ProbeInput, combined: [f64; 2]) -> f64 {
+        let [a, b] = combined;
+        let v = match &self.kind {
+            ProbeKind::Mean(..) => a / b,
+            ProbeKind::Max(..) => a,
+            ProbeKind::Min(..) => -a,
+            ProbeKind::Point(..) | ProbeKind::Reaction(..) => a,
+            ProbeKind::Deflection(..) => -a / b.max(1.0),
+            ProbeKind::Charge(e) => inp.charges[*e].0,
             ProbeKind::Capacitance(e) => {
                 let v = inp.electrodes[*e].1;
                 if v == 0.0 {
                     f64::NAN
                 } else {
-                    charge(inp, *e) / v
+                    inp.charges[*e].0 / v
                 }
             }
-            ProbeKind::Reaction(c, nodes) => nodes.iter().map(|&n| inp.reactions[n * 4 + c]).sum(),
             ProbeKind::StoredEnergy => inp.stored,
             ProbeKind::ElectricEnergy => inp.electric,
-            ProbeKind::Deflection(nodes, axial) => {
-                -nodes
-                    .iter()
-                    .map(|&n| inp.state[n * 4 + axial] - inp.reference[n * 4 + axial])
-                    .sum::<f64>()
-                    / nodes.len().max(1) as f64
-            }
             ProbeKind::MaxElectricField => inp.max_field,
             ProbeKind::Current(e) => current(inp, *e),
             ProbeKind::Power(e) => inp.electrodes[*e].1 * current(inp, *e),
@@ -249,7 +307,7 @@ pub fn electrode_values(inp: &ProbeInput, e: usize) -> [f64; 6] {
     // + 0.0: no negative zero in the tables
     [
         v,
-        charge(inp, e) * s + 0.0,
+        inp.charges[e].0 * s + 0.0,
         i + 0.0,
         v * i + 0.0,
         source,
@@ -257,13 +315,24 @@ pub fn electrode_values(inp: &ProbeInput, e: usize) -> [f64; 6] {
     ]
 }
 
-/// Charge on an electrode: Q = −Σ ∂Π/∂Φ_a over its nodes (the free charge the source supplies).
-fn charge(inp: &ProbeInput, e: usize) -> f64 {
-    -inp.electrodes[e]
-        .0
+/// Each electrode's charge Q = −Σ ∂Π/∂Φ_a over its nodes (the free charge the source supplies)
+/// at the reactions `reactions`, and at the previous record's `previous` (0 without one): on a
+/// rank's part, its own cells' share of both.
+pub fn electrode_charges(
+    electrodes: &[(&[usize], f64)],
+    reactions: &[f64],
+    previous: &[f64],
+) -> Vec<(f64, f64)> {
+    let charge = |nodes: &[usize], r: &[f64]| -> f64 {
+        if r.is_empty() {
+            return 0.0;
+        }
+        -nodes.iter().map(|&n| r[n * 4 + 3]).sum::<f64>()
+    };
+    electrodes
         .iter()
-        .map(|&n| inp.reactions[n * 4 + 3])
-        .sum::<f64>()
+        .map(|(nodes, _)| (charge(nodes, reactions), charge(nodes, previous)))
+        .collect()
 }
 
 /// Current into an electrode: (Q − Q_prev)/Δt over the last step, 0 without one.
@@ -272,10 +341,6 @@ fn current(inp: &ProbeInput, e: usize) -> f64 {
     if prev.is_empty() || dt <= 0.0 {
         return 0.0;
     }
-    let before = -inp.electrodes[e]
-        .0
-        .iter()
-        .map(|&n| prev[n * 4 + 3])
-        .sum::<f64>();
-    (charge(inp, e) - before) / dt
+    let (now, before) = inp.charges[e];
+    (now - before) / dt
 }

@@ -10,6 +10,10 @@ use crate::problem::dofs::FIELDS;
 use crate::problem::points::PointStates;
 use crate::problem::statics::record_with;
 
+/// Where a material's dielectric strength is first exceeded: the cell (in the whole mesh), its
+/// true field (V/m) and its centre (m).
+pub(super) type Breakdown = Option<(usize, f64, [f64; 3])>;
+
 /// Accumulates the work of the prescribed values and evaluates records.
 pub(super) struct Recorder<'p> {
     pub(super) plan: &'p Plan,
@@ -146,8 +150,20 @@ impl<'p> Recorder<'p> {
                 self.circuit_energy[i].1 += loss;
             }
         }
+        // on a rank's part each term is its own cells' share: the sums make the whole model's
+        let mut sums = [
+            stored,
+            electric,
+            gravity,
+            dissipated,
+            self.boundary_work,
+            self.load_change_work,
+        ];
+        self.plan.sum_over_ranks(&mut sums)?;
+        let [stored, electric, gravity, dissipated, boundary_work, load_change_work] = sums;
         let total = kinetic + stored - electric + gravity + dissipated;
         // the first record of a balance is its origin: the work up to it does not count
+        let origin = self.initial_potential.is_none();
         let initial = match self.initial_potential {
             Some(v) => v,
             None => {
@@ -157,13 +173,17 @@ impl<'p> Recorder<'p> {
                 total
             }
         };
-        let energy_error = total - initial - self.boundary_work - self.load_change_work;
-        let voltage = self
-            .plan
-            .electrodes
+        // the balance's origin: no work before it
+        let (boundary_work, load_change_work) = if origin {
+            (0.0, 0.0)
+        } else {
+            (boundary_work, load_change_work)
+        };
+        let energy_error = total - initial - boundary_work - load_change_work;
+        let voltages = self.plan.electrode_voltages(state)?;
+        let voltage = voltages
             .iter()
-            .map(|e| state[e.nodes[0] * FIELDS + 3])
-            .fold(0.0, |m: f64, v| if v.abs() > m.abs() { v } else { m });
+            .fold(0.0, |m: f64, &v| if v.abs() > m.abs() { v } else { m });
         let (max_electric_field, breakdowns) = self.field_extremes(&fields)?;
         self.check_breakdown(&breakdowns, time, stage);
         let (probes, electrodes) = self.probe_values(
@@ -172,7 +192,8 @@ impl<'p> Recorder<'p> {
             (stored, electric),
             max_electric_field,
             (&self.prev_reactions, dt),
-        );
+            &voltages,
+        )?;
         self.prev_reactions = reactions;
         self.prev_external = external;
         self.prev_state = state.to_vec();
@@ -203,8 +224,9 @@ impl<'p> Recorder<'p> {
     }
 
     /// The probes and the electrodes' values (`probes::electrode_values`) at a state with its
-    /// reactions, energies (mechanical, electric), largest field and the previous record's
-    /// reactions with the time since it (for rates).
+    /// reactions, energies (mechanical, electric), largest field, the previous record's
+    /// reactions with the time since it (for rates) and the electrodes' voltages. On a rank's
+    /// part, the charges and the probes' shares are combined over the ranks (collective).
     fn probe_values(
         &self,
         state: &[f64],
@@ -212,15 +234,23 @@ impl<'p> Recorder<'p> {
         (stored, electric): (f64, f64),
         max_field: f64,
         previous: (&[f64], f64),
-    ) -> (Vec<f64>, Vec<[f64; 6]>) {
-        let voltages: Vec<(&[usize], f64)> = self
-            .plan
+        voltages: &[f64],
+    ) -> Result<(Vec<f64>, Vec<[f64; 6]>), String> {
+        use super::probes::Share;
+        let plan = self.plan;
+        let electrodes: Vec<(&[usize], f64)> = plan
             .electrodes
             .iter()
-            .map(|e| (e.nodes.as_slice(), state[e.nodes[0] * FIELDS + 3]))
+            .zip(voltages)
+            .map(|(e, &v)| (e.nodes.as_slice(), v))
             .collect();
-        let pressures: Vec<f64> = self
-            .plan
+        let mut charges = super::probes::electrode_charges(&electrodes, reactions, previous.0);
+        if plan.part.is_some() {
+            let mut flat: Vec<f64> = charges.iter().flat_map(|&(a, b)| [a, b]).collect();
+            plan.sum_over_ranks(&mut flat)?;
+            charges = flat.chunks(2).map(|c| (c[0], c[1])).collect();
+        }
+        let pressures: Vec<f64> = plan
             .model
             .pressures
             .iter()
@@ -231,25 +261,46 @@ impl<'p> Recorder<'p> {
             pressures: &pressures,
             state,
             reactions,
-            electrodes: &voltages,
+            electrodes: &electrodes,
             stored,
             electric,
             reference: &self.reference,
             max_field,
-            symmetry: self.plan.symmetry_factor,
+            symmetry: plan.symmetry_factor,
             previous,
             circuit_energy: &self.circuit_energy,
+            charges: &charges,
         };
-        let probes = self
-            .plan
+        let shares: Vec<Share> = plan.probes.iter().map(|(_, p)| p.share(&input)).collect();
+        let mut sums: Vec<f64> = Vec::new();
+        let mut maxima: Vec<f64> = Vec::new();
+        for s in &shares {
+            match s {
+                Share::Sum(v) => sums.extend_from_slice(v),
+                Share::Max(m) => maxima.push(*m),
+                Share::Whole => {}
+            }
+        }
+        plan.sum_over_ranks(&mut sums)?;
+        plan.max_over_ranks(&mut maxima)?;
+        let (mut sums, mut maxima) = (sums.chunks(2), maxima.into_iter());
+        let probes = plan
             .probes
             .iter()
-            .map(|(_, p)| p.evaluate(&input))
+            .zip(&shares)
+            .map(|((_, p), s)| {
+                let combined = match s {
+                    Share::Sum(_) => sums.next().map_or([0.0; 2], |c| [c[0], c[1]]),
+                    Share::Max(_) => [maxima.next().unwrap_or(f64::NAN), 0.0],
+                    Share::Whole => [0.0; 2],
+                };
+                p.value(&input, combined)
+            })
             .collect();
-        let electrodes = (0..self.plan.electrodes.len())
+        let electrodes = (0..plan.electrodes.len())
             .map(|e| crate::job::probes::electrode_values(&input, e))
             .collect();
-        (probes, electrodes)
+        Ok((probes, electrodes))
     }
 
     /// The probes at a state that is not recorded (a located limit point): nothing is
@@ -258,9 +309,19 @@ impl<'p> Recorder<'p> {
         let model = &self.plan.model;
         let cells = record_with(model, state, &self.points)?;
         let (reactions, energies, fields) = (cells.reactions, cells.energies, cells.fields);
+        let mut energies = [energies.0, energies.1];
+        self.plan.sum_over_ranks(&mut energies)?;
         let (max_field, _) = self.field_extremes(&fields)?;
+        let voltages = self.plan.electrode_voltages(state)?;
         Ok(self
-            .probe_values(state, &reactions, energies, max_field, (&[], f64::NAN))
+            .probe_values(
+                state,
+                &reactions,
+                (energies[0], energies[1]),
+                max_field,
+                (&[], f64::NAN),
+                &voltages,
+            )?
             .0)
     }
 
@@ -314,40 +375,55 @@ impl Recorder<'_> {
     }
 
     /// The largest true field of a state's cell fields (V/m) and, per material with a
-    /// dielectric strength, the first cell where the field exceeds it, with that field. When
-    /// processes share the cells, each holds its own cells' fields: the result is then over
-    /// every process's cells, the same on each.
-    #[allow(clippy::type_complexity)]
-    fn field_extremes(
-        &self,
-        fields: &[CellFields],
-    ) -> Result<(f64, Vec<Option<(usize, f64)>>), String> {
+    /// dielectric strength, the first cell where the field exceeds it, with that field and the
+    /// cell's centre (m). When processes share the cells, or hold parts of the plan, each holds
+    /// its own cells' fields: the result is then over every process's cells (the first in the
+    /// whole mesh's numbering), the same on each.
+    fn field_extremes(&self, fields: &[CellFields]) -> Result<(f64, Vec<Breakdown>), String> {
         let plan = self.plan;
         let mut max = 0.0f64;
-        let mut first: Vec<Option<(usize, f64)>> = vec![None; plan.breakdown.len()];
+        let mut first: Vec<Breakdown> = vec![None; plan.breakdown.len()];
+        // a local cell's number in the whole mesh
+        let global = |c: usize| plan.part.as_ref().map_or(c, |p| p.cells[c]);
         for (c, f) in fields.iter().enumerate() {
             max = max.max(f.e_max);
             let m = plan.model.cell_material[c];
             if first[m].is_none() && plan.breakdown[m].is_some_and(|s| f.e_max > s) {
-                first[m] = Some((c, f.e_max));
+                first[m] = Some((global(c), f.e_max, plan.model.mesh.cell_centroid(c)));
             }
         }
-        let Some(share) = plan.model.share.as_deref() else {
-            return Ok((max, first));
+        let gather = |v: &[f64]| -> Option<Result<Vec<Vec<f64>>, String>> {
+            if let Some(share) = plan.model.share.as_deref() {
+                Some(share.gather(v))
+            } else {
+                plan.part.as_ref().map(|p| p.gather(v))
+            }
         };
-        // [largest field, per material: first cell + 1 (0: none) and its field]
+        // [largest field, per material: first cell + 1 (0: none), its field and centre]
         let mut local = vec![max];
         for f in &first {
-            local.extend_from_slice(&f.map_or([0.0, 0.0], |(c, e)| [c as f64 + 1.0, e]));
+            local.extend_from_slice(
+                &f.map_or([0.0; 5], |(c, e, x)| [c as f64 + 1.0, e, x[0], x[1], x[2]]),
+            );
         }
-        let all = share.gather(&local)?;
+        let Some(all) = gather(&local) else {
+            return Ok((max, first));
+        };
+        let all = all?;
         let max = all.iter().map(|v| v[0]).fold(0.0, f64::max);
         for (m, slot) in first.iter_mut().enumerate() {
+            let at = 1 + 5 * m;
             *slot = all
                 .iter()
-                .filter(|v| v[1 + 2 * m] > 0.0)
-                .map(|v| (v[1 + 2 * m] as usize - 1, v[2 + 2 * m]))
-                .min_by_key(|&(c, _)| c);
+                .filter(|v| v[at] > 0.0)
+                .map(|v| {
+                    (
+                        v[at] as usize - 1,
+                        v[at + 1],
+                        [v[at + 2], v[at + 3], v[at + 4]],
+                    )
+                })
+                .min_by_key(|&(c, _, _)| c);
         }
         Ok((max, first))
     }
@@ -355,21 +431,16 @@ impl Recorder<'_> {
     /// Warns (once per material) where the true field first exceeds a material's dielectric
     /// strength (`first`: per material, the first cell where it does and its field, from
     /// [`Recorder::field_extremes`]), and asks the driver to stop when the plan says so.
-    pub(super) fn check_breakdown(
-        &mut self,
-        first: &[Option<(usize, f64)>],
-        time: f64,
-        stage: &str,
-    ) {
+    pub(super) fn check_breakdown(&mut self, first: &[Breakdown], time: f64, stage: &str) {
         let plan = self.plan;
         // in cell order, as a pass over the cells meets them
-        let mut exceeded: Vec<(usize, f64, usize)> = first
+        let mut exceeded: Vec<(usize, f64, [f64; 3], usize)> = first
             .iter()
             .enumerate()
-            .filter_map(|(m, f)| f.map(|(c, e)| (c, e, m)))
+            .filter_map(|(m, f)| f.map(|(c, e, x)| (c, e, x, m)))
             .collect();
-        exceeded.sort_by_key(|&(c, _, _)| c);
-        for (c, e_max, m) in exceeded {
+        exceeded.sort_by_key(|&(c, _, _, _)| c);
+        for (c, e_max, centre, m) in exceeded {
             let Some(strength) = plan.breakdown[m] else {
                 continue;
             };
@@ -377,7 +448,6 @@ impl Recorder<'_> {
                 continue;
             }
             self.broken_down[m] = true;
-            let centre = plan.model.mesh.cell_centroid(c);
             let message = format!(
                 "dielectric breakdown: true field {:.4e} V/m exceeds the strength {:.4e} V/m of material `{}` at t = {:.6} s (stage `{stage}`), cell {c} at ({:.4e}, {:.4e}, {:.4e}) m",
                 e_max,

@@ -219,6 +219,7 @@ impl<'p, 'o> Job<'p, 'o> {
         start: Option<&RunState>,
     ) -> Self {
         let n = plan.model.mesh.n_nodes() * FIELDS;
+        let whole = plan.whole_nodes() * FIELDS;
         let mut job = Job {
             plan,
             newton,
@@ -229,7 +230,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 error: None,
                 stages: Vec::new(),
                 wall_s: 0.0,
-                dofs: n,
+                dofs: whole,
                 warnings: plan.warnings.clone(),
                 interrupted: false,
             },
@@ -385,38 +386,6 @@ impl<'p, 'o> Job<'p, 'o> {
         }
     }
 
-    /// The prescribed values of a stage's end: supports and electrodes at their end voltages.
-    /// In dynamic stages a circuit's electrode is free, but its potential counts as prescribed in
-    /// the flags: the circuit does work −Q·ΔV on the body, like a voltage electrode.
-    fn stage_conditions(&self, model: &mut Model, stage: &Stage) -> Vec<bool> {
-        let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
-        model.dirichlet = self.plan.supports.clone();
-        for e in self
-            .plan
-            .electrodes
-            .iter()
-            .filter(|e| e.prescribed(dynamic))
-        {
-            model.dirichlet.push(Dirichlet {
-                nodes: e.nodes.clone(),
-                field: Field::Phi,
-                value: stage_voltage(stage, &e.voltage, stage.duration),
-            });
-        }
-        let mut flags = constrained_flags(model.mesh.n_nodes(), &model.dirichlet);
-        for e in self
-            .plan
-            .electrodes
-            .iter()
-            .filter(|e| e.resistance.is_some())
-        {
-            for &n in &e.nodes {
-                flags[n * FIELDS + 3] = true;
-            }
-        }
-        flags
-    }
-
     /// Runs stage `si` (from `position` when resuming inside it); false when the run stops.
     fn stage(
         &mut self,
@@ -428,7 +397,7 @@ impl<'p, 'o> Job<'p, 'o> {
         let stage = &plan.stages[si];
         self.observer.stage_started(si, &stage.name);
         let stage_start = Instant::now();
-        let prescribed = self.stage_conditions(model, stage);
+        let prescribed = plan.stage_conditions(model, stage);
         // each pressure ramps from where the last stage left it to on (1) or off (0); a
         // volume-controlled one acting here starts from there and is an unknown
         let targets = plan.pressure_targets(si);
@@ -657,12 +626,16 @@ impl<'p, 'o> Job<'p, 'o> {
             ),
             _ => (self.q.clone(), None, self.first_step, 0.0),
         };
-        let start_voltages: Vec<f64> = plan
-            .electrodes
-            .iter()
-            .filter(|e| e.charge.is_none())
-            .map(|e| stage_start[e.nodes[0] * FIELDS + 3])
-            .collect();
+        let start_voltages: Vec<f64> = match plan.electrode_voltages(&stage_start) {
+            Ok(v) => plan
+                .electrodes
+                .iter()
+                .zip(v)
+                .filter(|(e, _)| e.charge.is_none())
+                .map(|(_, v)| v)
+                .collect(),
+            Err(e) => return Some(format!("stage `{}`: {e}", stage.name)),
+        };
         let targets: Vec<f64> = plan
             .electrodes
             .iter()
@@ -729,6 +702,7 @@ impl<'p, 'o> Job<'p, 'o> {
             resume_at,
             &control,
             self.newton,
+            plan.part.as_deref(),
             |p, acc| {
                 step_no += 1;
                 self.dissipated += p.dissipated_step;
@@ -846,13 +820,16 @@ impl<'p, 'o> Job<'p, 'o> {
                 }
                 let t0 = model.dead_load_start;
                 let charge_at = |q: f64, s: f64| q * (t0 + s * (1.0 - t0));
-                for e in &plan.electrodes {
+                let voltages = plan
+                    .electrode_voltages(&self.q)
+                    .unwrap_or_else(|_| vec![f64::NAN; plan.electrodes.len()]);
+                for (e, voltage) in plan.electrodes.iter().zip(voltages) {
                     if let Some(q) = e.charge {
                         controls.push(format!(
                             "last converged charge of `{}` {:.6e} C at {:.2} V, failed at {:.6e} C",
                             e.name,
                             charge_at(q, f.last_converged),
-                            self.q[e.nodes[0] * FIELDS + 3],
+                            voltage,
                             charge_at(q, f.attempted)
                         ));
                     }
@@ -1266,6 +1243,30 @@ impl<'p, 'o> Job<'p, 'o> {
         self.summary.interrupted = crate::solve::interrupt::requested() && !self.summary.converged;
         self.observer.finished(self.plan, &self.summary);
         self.summary
+    }
+}
+
+impl Plan {
+    /// The prescribed values of a stage's end: supports and electrodes at their end voltages.
+    /// In dynamic stages a circuit's electrode is free, but its potential counts as prescribed in
+    /// the flags: the circuit does work −Q·ΔV on the body, like a voltage electrode.
+    pub fn stage_conditions(&self, model: &mut Model, stage: &Stage) -> Vec<bool> {
+        let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
+        model.dirichlet = self.supports.clone();
+        for e in self.electrodes.iter().filter(|e| e.prescribed(dynamic)) {
+            model.dirichlet.push(Dirichlet {
+                nodes: e.nodes.clone(),
+                field: Field::Phi,
+                value: stage_voltage(stage, &e.voltage, stage.duration),
+            });
+        }
+        let mut flags = constrained_flags(model.mesh.n_nodes(), &model.dirichlet);
+        for e in self.electrodes.iter().filter(|e| e.resistance.is_some()) {
+            for &n in &e.nodes {
+                flags[n * FIELDS + 3] = true;
+            }
+        }
+        flags
     }
 }
 

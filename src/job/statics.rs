@@ -1,6 +1,8 @@
 //! Static stages: the load ramp of a model's prescribed values and dead loads, solved by load
 //! stepping with Newton.
 
+use super::part::PlanPart;
+use crate::problem::distributed::OwnedSystem;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
@@ -8,6 +10,7 @@ use crate::problem::system::LoadedSystem;
 use crate::solve::linear::{SolverSettings, SolverStats};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepControl};
+use std::sync::Arc;
 
 /// What a static stage runs in time: its duration (s; a load step Δs lasts Δs·duration for
 /// materials with internal variables), the committed point states it starts from, and the
@@ -58,6 +61,8 @@ pub fn solve_static(
 /// [`solve_static`] resumable: the ramp's prescribed values start from `stage_start`; with
 /// `resume = Some((state, position))` it continues from that converged state and ramp position.
 /// `history` says how the stage runs in time ([`StageTime`]).
+/// On a rank's part of a divided plan (`part`), Newton runs on the rank's owned unknowns and
+/// `on_step` sees the rank's part of the problem.
 /// The solver's factorisation after an accepted step is that of the converged state (Newton's
 /// stability test), which a resumed ramp factors again at its start: the two agree bit for bit.
 #[allow(clippy::too_many_arguments)]
@@ -69,8 +74,10 @@ pub fn solve_static_from(
     resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
     control: &StepControl,
     newton: &NewtonSettings,
+    part: Option<&PlanPart>,
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
+    let stage_state = stage_start.clone();
     let mut problem = StaticProblem::new(model, Some(stage_start));
     problem.duration = history.duration;
     problem.points = history.points;
@@ -82,20 +89,63 @@ pub fn solve_static_from(
         position
     });
     let mut solver = solver.build();
+    let Some(part) = part else {
+        let result = crate::solve::stepping::ramp_from(
+            &mut problem,
+            solver.as_mut(),
+            newton,
+            control,
+            position,
+            |p, s| {
+                on_step(p, s);
+                false
+            },
+        );
+        return StaticOutcome {
+            state: problem.state,
+            points: problem.points,
+            result,
+            linear: solver.stats(),
+        };
+    };
+    // a rank's part: Newton on the rank's owned unknowns, the ranks combining their parts
+    let mut system = match OwnedSystem::new(
+        problem,
+        Arc::clone(&part.equations),
+        Arc::clone(&part.exchange),
+        part.floor,
+    ) {
+        Ok(s) => s,
+        Err(reason) => {
+            return StaticOutcome {
+                state: stage_state,
+                points: PointStates::default(),
+                result: Err(RampFailure {
+                    last_converged: 0.0,
+                    attempted: 0.0,
+                    reason,
+                    limit_point: false,
+                    cause: crate::solve::stepping::FailureCause::NoConvergence,
+                    newton_iterations: 0,
+                }),
+                linear: solver.stats(),
+            }
+        }
+    };
     let result = crate::solve::stepping::ramp_from(
-        &mut problem,
+        &mut system,
         solver.as_mut(),
         newton,
         control,
         position,
-        |p, s| {
-            on_step(p, s);
+        |s, acc| {
+            on_step(&s.local, acc);
             false
         },
     );
     StaticOutcome {
-        state: problem.state,
-        points: problem.points,
+        state: system.local.state,
+        points: system.local.points,
         result,
         linear: solver.stats(),
     }

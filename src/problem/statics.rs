@@ -99,6 +99,13 @@ pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
         }
         _ => Assembler::new(&model.mesh, &dofs),
     };
+    let floor = residual_floor(model, dofs.n_free);
+    (dofs, assembler, floor)
+}
+
+/// The absolute residual floor (N) of `model` with `n_free` unknowns: h²·max(10⁻¹¹ μ, 4ε·K·√n)
+/// with the largest shear and bulk moduli of the materials and the mean cell size h.
+pub fn residual_floor(model: &Model, n_free: usize) -> f64 {
     let mu = model
         .materials
         .iter()
@@ -110,8 +117,8 @@ pub fn discretize(model: &Model) -> (DofMap, Assembler, f64) {
         .map(|m| m.bulk_modulus())
         .fold(0.0, f64::max);
     let h = model.cell_size();
-    let floor = (RESIDUAL_FLOOR * mu).max(ROUNDOFF_FLOOR * kappa * (dofs.n_free as f64).sqrt());
-    (dofs, assembler, floor * h * h)
+    let floor = (RESIDUAL_FLOOR * mu).max(ROUNDOFF_FLOOR * kappa * (n_free as f64).sqrt());
+    floor * h * h
 }
 
 impl<'m> StaticProblem<'m> {

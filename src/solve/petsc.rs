@@ -1187,7 +1187,8 @@ impl System {
         let _guard = lock();
         let rows = numbering.owned(rank, size);
         if shared && std::env::var_os("DEASIM_PETSC_VERBOSE").is_some() {
-            report_locality(a, &numbering, &rows, rank, size);
+            let total = divided.map_or(a.n, |e| e.n_global());
+            report_locality(a, &numbering, &rows, (rank, size), total);
         }
         // SAFETY throughout: PETSc is initialised, every handle is created before it is used
         // and owned by a wrapper that destroys it
@@ -1514,15 +1515,16 @@ impl System {
     }
 }
 
-/// Prints on stderr how many of the entries this rank passes (its own cells' part of a shared
+/// Prints on stderr how many of the whole problem's `total` unknowns this rank's rows hold, and
+/// how many of the entries this rank passes (its own cells' part of a shared
 /// assembly) lie in the PETSc rows it owns, and how many would with the rows split evenly: with
 /// the rows following the cell partition, most entries need no communication.
 fn report_locality(
     a: &CsrMatrix,
     numbering: &Numbering,
     rows: &std::ops::Range<usize>,
-    rank: usize,
-    size: usize,
+    (rank, size): (usize, usize),
+    total: usize,
 ) {
     let even = owned_rows(numbering.n, numbering.block_size, rank, size);
     let (mut all, mut own, mut split) = (0usize, 0usize, 0usize);
@@ -1547,7 +1549,7 @@ fn report_locality(
         rows.start,
         rows.end,
         numbering.n,
-        a.n,
+        total,
         percent(own),
         percent(split)
     );

@@ -127,6 +127,7 @@ pub fn cell_stress(
                 ..Default::default()
             },
             &newton,
+            None,
             |prob, _| {
                 // reaction on the moved face over the 1 mm² reference area
                 last = prob

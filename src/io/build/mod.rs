@@ -161,6 +161,7 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
         solver: solver::build_solver(&ctx, s)?,
         pressure_stages,
         pressure_volumes,
+        part: None,
     })
 }
 

@@ -496,6 +496,7 @@ mod tests {
             previous: (&[], 0.0),
             circuit_energy: &[],
             pressures: &[],
+            charges: &[],
         };
         let mean = probe.evaluate(&input);
         let exact = 0.01f64 * 0.01 / 3.0;

@@ -1,0 +1,543 @@
+//! A rank's part of a plan: the plan of the cells one MPI rank holds (its part of the mesh, the
+//! model, the sets and the probes), with the rank's equations in the whole problem and the
+//! exchange through which the ranks combine their parts. A run of such parts holds on each
+//! rank only its part's vectors: no rank holds the whole state.
+
+use super::plan::{Plan, StageKind};
+use super::probes::ProbeKind;
+use crate::mesh::distribute::{LocalMesh, Numbering};
+use crate::problem::distributed::{equation_owners, Exchange, LocalEquations};
+use crate::problem::dofs::{constrained_flags, DofMap, FIELDS};
+use std::sync::Arc;
+
+/// What a rank's plan knows of the whole problem and of the other ranks.
+pub struct PlanPart {
+    /// This rank and the number of ranks.
+    pub rank: usize,
+    pub ranks: usize,
+    /// The rank's equations in the whole problem.
+    pub equations: Arc<LocalEquations>,
+    /// How the ranks exchange their parts of vectors (collective calls).
+    pub exchange: Arc<dyn Exchange>,
+    /// The whole problem's residual floor (N).
+    pub floor: f64,
+    /// The whole mesh's node and cell counts.
+    pub whole_nodes: usize,
+    pub whole_cells: usize,
+    /// The global number of each local cell, and of each local node (owned, then ghosts).
+    pub cells: Vec<usize>,
+    pub nodes: Vec<usize>,
+    /// Per electrode (plan order): the local node of its first node when this rank owns it.
+    pub electrode_first: Vec<Option<usize>>,
+}
+
+impl std::fmt::Debug for PlanPart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PlanPart")
+            .field("rank", &self.rank)
+            .field("ranks", &self.ranks)
+            .field("owned equations", &self.equations.n_owned())
+            .field("whole_nodes", &self.whole_nodes)
+            .finish_non_exhaustive()
+    }
+}
+
+impl PlanPart {
+    /// The largest of each entry of `v` over the ranks (collective; every rank receives the same
+    /// values): each rank's values in its own slot of a sum, exact.
+    pub fn max(&self, v: &mut [f64]) -> Result<(), String> {
+        let all = self.gather(v)?;
+        for (i, x) in v.iter_mut().enumerate() {
+            *x = all.iter().map(|r| r[i]).fold(f64::NEG_INFINITY, f64::max);
+        }
+        Ok(())
+    }
+
+    /// Every rank's `v` (of one length on every rank), rank after rank (collective).
+    pub fn gather(&self, v: &[f64]) -> Result<Vec<Vec<f64>>, String> {
+        let k = v.len();
+        let mut all = vec![0.0; k * self.ranks];
+        all[self.rank * k..(self.rank + 1) * k].copy_from_slice(v);
+        self.exchange.sum(&mut all)?;
+        Ok(all
+            .chunks(k.max(1))
+            .take(self.ranks)
+            .map(<[f64]>::to_vec)
+            .collect())
+    }
+}
+
+impl Plan {
+    /// Sums `v` over the ranks of a plan divided between them (collective); nothing otherwise.
+    pub fn sum_over_ranks(&self, v: &mut [f64]) -> Result<(), String> {
+        match &self.part {
+            Some(p) => p.exchange.sum(v),
+            None => Ok(()),
+        }
+    }
+
+    /// The largest of each entry of `v` over the ranks of a divided plan (collective); nothing
+    /// otherwise.
+    pub fn max_over_ranks(&self, v: &mut [f64]) -> Result<(), String> {
+        match &self.part {
+            Some(p) => p.max(v),
+            None => Ok(()),
+        }
+    }
+
+    /// Each electrode's potential (V) in `state`, at its first node: on a rank's part, taken
+    /// from the rank that owns that node (collective).
+    pub fn electrode_voltages(&self, state: &[f64]) -> Result<Vec<f64>, String> {
+        let Some(part) = &self.part else {
+            return Ok(self
+                .electrodes
+                .iter()
+                .map(|e| state[e.nodes[0] * FIELDS + 3])
+                .collect());
+        };
+        let mut v: Vec<f64> = part
+            .electrode_first
+            .iter()
+            .map(|n| n.map_or(0.0, |n| state[n * FIELDS + 3]))
+            .collect();
+        part.exchange.sum(&mut v)?;
+        Ok(v)
+    }
+
+    /// The whole mesh's node count (of every rank's part together).
+    pub fn whole_nodes(&self) -> usize {
+        self.part
+            .as_ref()
+            .map_or(self.model.mesh.n_nodes(), |p| p.whole_nodes)
+    }
+
+    /// The whole mesh's cell count.
+    pub fn whole_cells(&self) -> usize {
+        self.part
+            .as_ref()
+            .map_or(self.model.mesh.n_cells(), |p| p.whole_cells)
+    }
+
+    /// Why the plan cannot yet be divided into rank parts (see [`divide`]), or `None`.
+    pub fn parts_unsupported(&self) -> Option<String> {
+        if let Some(s) = self.stages.iter().find(|s| {
+            !matches!(
+                s.kind,
+                StageKind::Static { .. } | StageKind::QuasiStatic { .. }
+            )
+        }) {
+            return Some(format!(
+                "stage `{}` is not static (only static and quasi-static stages run on parts \
+                 yet)",
+                s.name
+            ));
+        }
+        if self.prestretch.is_some() {
+            return Some("the pre-stretch phase does not run on parts yet".into());
+        }
+        if self.model.is_axisymmetric() {
+            return Some("an axisymmetric model is not divided into parts".into());
+        }
+        if !self.model.pressures.is_empty() {
+            return Some("follower pressures are not divided into parts yet".into());
+        }
+        if self.electrodes.iter().any(|e| e.resistance.is_some()) {
+            return Some("circuit-driven electrodes are not divided into parts yet".into());
+        }
+        if let Some((name, _)) = self.probes.iter().find(|(_, p)| {
+            matches!(
+                p.kind,
+                ProbeKind::AreaStrain(_) | ProbeKind::Volume(_) | ProbeKind::Pressure(_)
+            )
+        }) {
+            return Some(format!(
+                "probe `{name}` sums over faces, which are not divided into parts yet"
+            ));
+        }
+        None
+    }
+}
+
+/// The part of `plan` that rank `rank` of `ranks` holds: the plan's cells partitioned by METIS
+/// ([`Plan::partition`]), each node owned by one rank whose cells meet it, the whole problem's
+/// unknowns numbered rank after rank; the rank's plan over its cells and their nodes (owned
+/// first, then ghosts), with `exchange` (made for the rank's equations) combining the ranks.
+///
+/// The sets are restricted so that each contribution counts once over the ranks: supports and
+/// electrodes keep every node of the part; a probe's mean, point and deflection keep the owned
+/// nodes, its reaction and extremes every node of the part (each rank's reactions are those of its
+/// own cells). Every rank must call it with the same plan. The plan's stages all solve for the
+/// same unknowns (static stages: the supports and the electrodes, at their stages' values).
+///
+/// `agree(ok)` says whether every rank's set-up succeeded (collective): a rank whose part
+/// cannot be made fails, and the others with it, before the exchange is made.
+pub fn divide(
+    plan: &Plan,
+    rank: usize,
+    ranks: usize,
+    agree: impl Fn(bool) -> bool,
+    exchange: impl FnOnce(&Arc<LocalEquations>) -> Result<Arc<dyn Exchange>, String>,
+) -> Result<Plan, String> {
+    let set_up = rank_part(plan, rank, ranks);
+    if !agree(set_up.is_ok()) {
+        return Err(set_up.err().unwrap_or_else(|| {
+            "another rank could not make its part of the plan (its message is on that rank)".into()
+        }));
+    }
+    let RankPart {
+        mut plan_part,
+        equations,
+        floor,
+        electrode_first,
+        cells,
+        nodes,
+    } = set_up?;
+    let exchange = exchange(&equations)?;
+    plan_part.part = Some(Arc::new(PlanPart {
+        rank,
+        ranks,
+        cells,
+        nodes,
+        equations,
+        exchange,
+        floor,
+        whole_nodes: plan.model.mesh.n_nodes(),
+        whole_cells: plan.model.mesh.n_cells(),
+        electrode_first,
+    }));
+    Ok(plan_part)
+}
+
+/// What [`rank_part`] makes: the rank's plan, its equations in the whole problem, the whole
+/// problem's residual floor, the local first node of each electrode owned here and the global
+/// number of each local cell and node.
+struct RankPart {
+    plan_part: Plan,
+    equations: Arc<LocalEquations>,
+    floor: f64,
+    electrode_first: Vec<Option<usize>>,
+    cells: Vec<usize>,
+    nodes: Vec<usize>,
+}
+
+/// The rank's plan and equations of [`divide`], before any collective call.
+fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String> {
+    if let Some(why) = plan.parts_unsupported() {
+        return Err(why);
+    }
+    let Some(first) = plan.stages.first() else {
+        return Err("the plan has no stage".into());
+    };
+    // the whole problem's unknowns, as its first stage holds them
+    let mut whole = plan.model.clone();
+    let flags = plan.stage_conditions(&mut whole, first);
+    let mesh = &whole.mesh;
+    let dofs = DofMap::with_ties(
+        mesh.n_nodes(),
+        &constrained_flags(mesh.n_nodes(), &whole.dirichlet),
+        whole.potential_scale(),
+        &whole.ties,
+    );
+    drop(flags);
+    let floor = crate::problem::statics::residual_floor(&whole, dofs.n_free);
+    let cells = plan.partition(ranks);
+    let owner = crate::problem::assembly::node_processes(mesh, &dofs, &cells, ranks);
+    let numbering = Numbering::contiguous(&equation_owners(&dofs, &owner), ranks);
+    let local = LocalMesh::of_rank(mesh, &cells, &owner, rank, ranks).map_err(|e| e.to_string())?;
+    let part = plan_of(plan, &whole, &local)?;
+    // the rank's unknowns in the first stage, numbered as its problems number them
+    let mut first_stage = part.model.clone();
+    part.stage_conditions(&mut first_stage, first);
+    let (local_dofs, _, _) = crate::problem::statics::discretize(&first_stage);
+    let equations = Arc::new(LocalEquations::new(&dofs, &numbering, &local, &local_dofs)?);
+    let at = global_to_local(&local, mesh.n_nodes());
+    let electrode_first = plan
+        .electrodes
+        .iter()
+        .map(|e| {
+            let n = at[e.nodes[0]];
+            (n < local.owned).then_some(n)
+        })
+        .collect();
+    Ok(RankPart {
+        plan_part: part,
+        equations,
+        floor,
+        electrode_first,
+        cells: local.cells,
+        nodes: local.nodes,
+    })
+}
+
+/// Each whole-mesh node's local number on `local` (`usize::MAX`: not on the part).
+fn global_to_local(local: &LocalMesh, n_nodes: usize) -> Vec<usize> {
+    let mut at = vec![usize::MAX; n_nodes];
+    for (l, &n) in local.nodes.iter().enumerate() {
+        at[n] = l;
+    }
+    at
+}
+
+/// The plan of `local`'s part (without its [`PlanPart`]): `whole` is the plan's model with the
+/// first stage's conditions (for the ties it holds).
+fn plan_of(
+    plan: &Plan,
+    whole: &crate::problem::model::Model,
+    local: &LocalMesh,
+) -> Result<Plan, String> {
+    let at = global_to_local(local, whole.mesh.n_nodes());
+    let all = |list: &[usize]| -> Vec<usize> {
+        list.iter()
+            .filter(|&&n| at[n] != usize::MAX)
+            .map(|&n| at[n])
+            .collect()
+    };
+    let owned = |n: usize| at[n] < local.owned;
+    let mut part = plan.clone();
+    part.model = whole.part(local).map_err(|e| e.to_string())?;
+    part.supports = plan
+        .supports
+        .iter()
+        .map(|d| crate::problem::dofs::Dirichlet {
+            nodes: all(&d.nodes),
+            ..d.clone()
+        })
+        .collect();
+    for e in &mut part.electrodes {
+        e.nodes = all(&e.nodes);
+    }
+    for r in &mut part.rigid {
+        r.nodes = all(&r.nodes);
+    }
+    for (_, probe) in &mut part.probes {
+        probe.kind = match &probe.kind {
+            ProbeKind::Mean(q, nodes, weights) => {
+                let (n, w): (Vec<usize>, Vec<f64>) = nodes
+                    .iter()
+                    .zip(weights)
+                    .filter(|(&n, _)| owned(n))
+                    .map(|(&n, &w)| (at[n], w))
+                    .unzip();
+                ProbeKind::Mean(*q, n, w)
+            }
+            ProbeKind::Max(q, nodes) => ProbeKind::Max(*q, all(nodes)),
+            ProbeKind::Min(q, nodes) => ProbeKind::Min(*q, all(nodes)),
+            ProbeKind::Point(q, n) => {
+                ProbeKind::Point(*q, if owned(*n) { at[*n] } else { usize::MAX })
+            }
+            ProbeKind::Reaction(c, nodes) => ProbeKind::Reaction(*c, all(nodes)),
+            ProbeKind::Deflection(nodes, axial) => ProbeKind::Deflection(
+                nodes
+                    .iter()
+                    .filter(|&&n| owned(n))
+                    .map(|&n| at[n])
+                    .collect(),
+                *axial,
+            ),
+            other => other.clone(),
+        };
+    }
+    Ok(part)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::job::recorder::Recorder;
+    use crate::job::run::{Observer, RunSummary, StepRecord};
+    use crate::problem::assembly::on_threads;
+    use crate::problem::distributed::SumExchange;
+
+    /// The film (4 × 4 × 2 cells, 20 kV) with a probe of every kind a part divides: means over
+    /// a face set and a node set, a point, extremes, a reaction, a deflection, charges and the
+    /// energies and the largest field.
+    const FILM: &str = r#"
+name = "film-parts"
+[mesh]
+generator = "box"
+size = [10e-3, 10e-3, 1e-3]
+divisions = [4, 4, 2]
+element = "hex8"
+[materials.elastomer]
+model = "neo-hooke"
+mu = 1e5
+lambda = 1e7
+permittivity = 4.7
+density = 1000.0
+[[constraints]]
+set = "x0"
+fix = ["x"]
+[[constraints]]
+set = "y0"
+fix = ["y"]
+[[constraints]]
+set = "z0"
+fix = ["z"]
+[loads]
+gravity = [0.0, 0.0, -9.81]
+[electrodes.bottom]
+set = "z0"
+voltage = 0.0
+[electrodes.top]
+set = "z1"
+voltage = { waveform = "ramp", amplitude = 20e3 }
+[[stages]]
+name = "charge"
+kind = "static"
+steps = 4
+[probes.spread]
+kind = "mean"
+quantity = "ux"
+set = "z1"
+[probes.side]
+kind = "mean"
+quantity = "ux"
+set = "x1"
+[probes.corner]
+kind = "point"
+quantity = "ux"
+at = [10e-3, 10e-3, 1e-3]
+[probes.highest]
+kind = "max"
+quantity = "uz"
+set = "z1"
+[probes.lowest]
+kind = "min"
+quantity = "ux"
+set = "x1"
+[probes.support]
+kind = "reaction"
+quantity = "z"
+set = "z0"
+[probes.deflection]
+kind = "center_deflection"
+set = "x1"
+[probes.charge]
+kind = "charge"
+electrode = "top"
+[probes.capacitance]
+kind = "capacitance"
+electrode = "top"
+[probes.stored]
+kind = "energy"
+quantity = "stored"
+[probes.electric]
+kind = "energy"
+quantity = "electric"
+[probes.field]
+kind = "max_electric_field"
+"#;
+
+    /// The last recorded state of a run.
+    #[derive(Default)]
+    struct Last(Vec<f64>, Option<StepRecord>);
+
+    impl Observer for Last {
+        fn step(
+            &mut self,
+            _: &Plan,
+            r: &StepRecord,
+            state: &[f64],
+            _: &[crate::element::CellFields],
+        ) {
+            self.0 = state.to_vec();
+            self.1 = Some(r.clone());
+        }
+        fn finished(&mut self, _: &Plan, _: &RunSummary) {}
+    }
+
+    fn film() -> Plan {
+        let scenario = crate::io::scenario::parse(FILM, "film-parts.toml", &[]).unwrap();
+        crate::io::build::build(&scenario, "film-parts.toml", None).unwrap()
+    }
+
+    /// The record of `plan` at `state` (its first record: the energy balance's origin).
+    fn record(plan: &Plan, state: &[f64]) -> StepRecord {
+        let mut model = plan.model.clone();
+        let prescribed = plan.stage_conditions(&mut model, &plan.stages[0]);
+        let mut rec = Recorder::new(plan, false);
+        rec.external_factor = 1.0;
+        rec.record(state, &prescribed, 1.0, "charge", 4, 0, 0.25, 0.0, 0.0)
+            .unwrap()
+            .0
+    }
+
+    /// The ranks' records of their parts at the serial run's last state are the serial record:
+    /// each probe, the energies, the voltage and the electrodes' values, on 2 and 3 ranks.
+    #[test]
+    fn the_records_of_the_parts_are_the_whole_record() {
+        let plan = film();
+        let mut last = Last::default();
+        let summary = crate::job::run::run(&plan, &Default::default(), &mut last);
+        assert!(summary.converged, "{:?}", summary.error);
+        let whole = record(&plan, &last.0);
+        assert!(
+            whole.probes.iter().all(|p| p.is_finite()),
+            "{:?}",
+            whole.probes
+        );
+        for ranks in [2, 3] {
+            let records = on_threads(ranks, |rank, sum| {
+                let part = divide(
+                    &plan,
+                    rank,
+                    ranks,
+                    |ok| ok,
+                    |eq| Ok(Arc::new(SumExchange::new(Arc::clone(eq), sum)) as Arc<dyn Exchange>),
+                )
+                .unwrap();
+                let p = part.part.as_ref().unwrap();
+                assert!(part.model.mesh.n_nodes() < plan.model.mesh.n_nodes());
+                assert_eq!((p.whole_nodes, p.whole_cells), (75, 32));
+                let state: Vec<f64> = p
+                    .nodes
+                    .iter()
+                    .flat_map(|&n| last.0[n * FIELDS..(n + 1) * FIELDS].to_vec())
+                    .collect();
+                record(&part, &state)
+            });
+            for (rank, r) in records.iter().enumerate() {
+                let close = |a: f64, b: f64, what: &str| {
+                    assert!(
+                        (a - b).abs() <= 1e-12 * a.abs().max(b.abs()),
+                        "{ranks} ranks, rank {rank}: {what} {a:e} against {b:e}"
+                    )
+                };
+                for (i, (a, b)) in r.probes.iter().zip(&whole.probes).enumerate() {
+                    close(*a, *b, &plan.probes[i].0);
+                }
+                close(r.voltage, whole.voltage, "voltage");
+                close(r.energies.stored, whole.energies.stored, "stored energy");
+                close(
+                    r.energies.electric,
+                    whole.energies.electric,
+                    "electric energy",
+                );
+                close(r.energies.gravity, whole.energies.gravity, "gravity");
+                close(
+                    r.max_electric_field,
+                    whole.max_electric_field,
+                    "largest field",
+                );
+                for (a, b) in r.electrodes.iter().zip(&whole.electrodes) {
+                    for (x, y) in a.iter().zip(b) {
+                        close(*x, *y, "electrode value");
+                    }
+                }
+            }
+        }
+    }
+
+    /// A plan the parts cannot hold yet is refused with the reason, before any exchange.
+    #[test]
+    fn a_plan_with_a_dynamic_stage_is_not_divided() {
+        let mut plan = film();
+        plan.stages[0].kind = StageKind::Dynamic {
+            dt: 1e-3,
+            scheme: crate::time::stage::Method::Midpoint,
+            mass: crate::time::mass::MassKind::Consistent,
+        };
+        let e = divide(&plan, 0, 2, |ok| ok, |_| unreachable!("no exchange")).unwrap_err();
+        assert!(e.contains("stage `charge` is not static"), "{e}");
+    }
+}
