@@ -17,10 +17,12 @@
 #   PRECONDITIONER [solver] preconditioner: kept (the default: a Krylov method keeps its
 #                  preconditioner until the iterations per decade double or a solve fails) or
 #                  renewed (set up with every tangent)
+#   DEASIM_WHOLE_STATE  when set, every rank holds the whole state (as plans that cannot be
+#                  divided into rank parts run); unset, each rank holds only its part
 #   OUT            scratch directory (default a new temporary one)
 set -euo pipefail
 if [ $# -lt 2 ]; then
-    sed -n '2,20p' "$0"
+    sed -n '2,22p' "$0"
     exit 2
 fi
 ranks=$1

@@ -659,6 +659,31 @@ fn the_3d_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
+/// The 3-D diaphragm with a quasi-static `actuate` stage instead of its dynamic one: every
+/// stage static, so each rank holds only its part, through the pre-stretch, the hung mass and
+/// the voltage; the partition cuts the electrodes, the rigid pad and both symmetry planes (see
+/// `the_partition_of_the_3d_diaphragm_cuts_its_special_sets`).
+#[test]
+fn the_static_3d_diaphragm_on_two_mpi_ranks_in_parts_agrees_with_the_serial_run() {
+    let text = example("diaphragm-3d").unwrap();
+    let dynamic = "kind = \"dynamic\"\nduration = 1.0";
+    assert!(
+        text.contains(dynamic),
+        "the test assumes the example's dynamic stage"
+    );
+    let text = text
+        // ends in the square wave's first half period, the voltage on (its fields are not
+        // round-off about zero)
+        .replace(
+            dynamic,
+            "kind = \"quasi-static\"\nsteps = 5\nduration = 0.2",
+        )
+        .replace("dt = 1e-3", "");
+    let (d, fields, _, log) = on_ranks_of(2, "diaphragm-3d-static", &text, &[], |_, _| {});
+    assert_parts(&log, 2);
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
 /// A follower pressure under volume control (the balloon octant): the pressure's stiffness is
 /// a term that is not a cell term, which each rank adds in its own range of rows.
 ///

@@ -422,7 +422,8 @@ fn prepare_output(
 /// ([`crate::job::part::divide`]: each rank then holds only its part of the mesh and the state),
 /// else shares its cells with the whole state on every rank ([`distribute`]); rank 0 says which.
 /// Returns this rank's piece of the field files; `None` on one rank. A run that writes
-/// checkpoints keeps the whole state (a checkpoint holds it).
+/// checkpoints keeps the whole state (a checkpoint holds it), as does any run with the
+/// environment variable `DEASIM_WHOLE_STATE` set (to compare the two).
 fn divide(
     plan: &mut Plan,
     rank: usize,
@@ -433,6 +434,9 @@ fn divide(
     if ranks > 1 {
         let why = if checkpoints {
             Some("checkpoints are written from the whole state".to_string())
+        } else if std::env::var_os("DEASIM_WHOLE_STATE").is_some() {
+            // for comparisons (scripts/bench-mpi.sh)
+            Some("DEASIM_WHOLE_STATE is set".to_string())
         } else {
             plan.parts_unsupported()
         };

@@ -8,19 +8,29 @@ use super::probes::ProbeKind;
 use crate::mesh::distribute::{LocalMesh, Numbering};
 use crate::problem::distributed::{equation_owners, Exchange, LocalEquations};
 use crate::problem::dofs::{constrained_flags, DofMap, FIELDS};
+use crate::problem::model::Model;
 use std::sync::Arc;
 
-/// What a rank's plan knows of the whole problem and of the other ranks.
-pub struct PlanPart {
-    /// This rank and the number of ranks.
-    pub rank: usize,
-    pub ranks: usize,
+/// How the ranks divide the unknowns of one kind of problem of a plan (its stages', or its
+/// pre-stretch's, which holds other unknowns).
+pub struct Division {
     /// The rank's equations in the whole problem.
     pub equations: Arc<LocalEquations>,
     /// How the ranks exchange their parts of vectors (collective calls).
     pub exchange: Arc<dyn Exchange>,
     /// The whole problem's residual floor (N).
     pub floor: f64,
+}
+
+/// What a rank's plan knows of the whole problem and of the other ranks.
+pub struct PlanPart {
+    /// This rank and the number of ranks.
+    pub rank: usize,
+    pub ranks: usize,
+    /// The unknowns of the stages' problems.
+    pub stages: Division,
+    /// The unknowns of the pre-stretch's problem (`None`: the plan has no pre-stretch).
+    pub prestretch: Option<Division>,
     /// The whole mesh's node and cell counts.
     pub whole_nodes: usize,
     pub whole_cells: usize,
@@ -36,7 +46,7 @@ impl std::fmt::Debug for PlanPart {
         f.debug_struct("PlanPart")
             .field("rank", &self.rank)
             .field("ranks", &self.ranks)
-            .field("owned equations", &self.equations.n_owned())
+            .field("owned equations", &self.stages.equations.n_owned())
             .field("whole_nodes", &self.whole_nodes)
             .finish_non_exhaustive()
     }
@@ -58,7 +68,7 @@ impl PlanPart {
         let k = v.len();
         let mut all = vec![0.0; k * self.ranks];
         all[self.rank * k..(self.rank + 1) * k].copy_from_slice(v);
-        self.exchange.sum(&mut all)?;
+        self.stages.exchange.sum(&mut all)?;
         Ok(all
             .chunks(k.max(1))
             .take(self.ranks)
@@ -71,7 +81,7 @@ impl Plan {
     /// Sums `v` over the ranks of a plan divided between them (collective); nothing otherwise.
     pub fn sum_over_ranks(&self, v: &mut [f64]) -> Result<(), String> {
         match &self.part {
-            Some(p) => p.exchange.sum(v),
+            Some(p) => p.stages.exchange.sum(v),
             None => Ok(()),
         }
     }
@@ -100,7 +110,7 @@ impl Plan {
             .iter()
             .map(|n| n.map_or(0.0, |n| state[n * FIELDS + 3]))
             .collect();
-        part.exchange.sum(&mut v)?;
+        part.stages.exchange.sum(&mut v)?;
         Ok(v)
     }
 
@@ -131,9 +141,6 @@ impl Plan {
                  yet)",
                 s.name
             ));
-        }
-        if self.prestretch.is_some() {
-            return Some("the pre-stretch phase does not run on parts yet".into());
         }
         if self.model.is_axisymmetric() {
             return Some("an axisymmetric model is not divided into parts".into());
@@ -176,7 +183,7 @@ pub fn divide(
     rank: usize,
     ranks: usize,
     agree: impl Fn(bool) -> bool,
-    exchange: impl FnOnce(&Arc<LocalEquations>) -> Result<Arc<dyn Exchange>, String>,
+    exchange: impl Fn(&Arc<LocalEquations>) -> Result<Arc<dyn Exchange>, String>,
 ) -> Result<Plan, String> {
     let set_up = rank_part(plan, rank, ranks);
     if !agree(set_up.is_ok()) {
@@ -186,21 +193,26 @@ pub fn divide(
     }
     let RankPart {
         mut plan_part,
-        equations,
-        floor,
+        stages,
+        prestretch,
         electrode_first,
         cells,
         nodes,
     } = set_up?;
-    let exchange = exchange(&equations)?;
+    let division = |(equations, floor): (Arc<LocalEquations>, f64)| -> Result<Division, String> {
+        Ok(Division {
+            exchange: exchange(&equations)?,
+            equations,
+            floor,
+        })
+    };
     plan_part.part = Some(Arc::new(PlanPart {
         rank,
         ranks,
         cells,
         nodes,
-        equations,
-        exchange,
-        floor,
+        stages: division(stages)?,
+        prestretch: prestretch.map(division).transpose()?,
         whole_nodes: plan.model.mesh.n_nodes(),
         whole_cells: plan.model.mesh.n_cells(),
         electrode_first,
@@ -208,13 +220,13 @@ pub fn divide(
     Ok(plan_part)
 }
 
-/// What [`rank_part`] makes: the rank's plan, its equations in the whole problem, the whole
-/// problem's residual floor, the local first node of each electrode owned here and the global
-/// number of each local cell and node.
+/// What [`rank_part`] makes: the rank's plan; its equations in the whole problem and the whole
+/// problem's residual floor, of the stages and of the pre-stretch; the local first node of each
+/// electrode owned here and the global number of each local cell and node.
 struct RankPart {
     plan_part: Plan,
-    equations: Arc<LocalEquations>,
-    floor: f64,
+    stages: (Arc<LocalEquations>, f64),
+    prestretch: Option<(Arc<LocalEquations>, f64)>,
     electrode_first: Vec<Option<usize>>,
     cells: Vec<usize>,
     nodes: Vec<usize>,
@@ -230,26 +242,34 @@ fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String>
     };
     // the whole problem's unknowns, as its first stage holds them
     let mut whole = plan.model.clone();
-    let flags = plan.stage_conditions(&mut whole, first);
+    plan.stage_conditions(&mut whole, first);
+    let dofs = dofs_of(&whole);
     let mesh = &whole.mesh;
-    let dofs = DofMap::with_ties(
-        mesh.n_nodes(),
-        &constrained_flags(mesh.n_nodes(), &whole.dirichlet),
-        whole.potential_scale(),
-        &whole.ties,
-    );
-    drop(flags);
-    let floor = crate::problem::statics::residual_floor(&whole, dofs.n_free);
     let cells = plan.partition(ranks);
     let owner = crate::problem::assembly::node_processes(mesh, &dofs, &cells, ranks);
-    let numbering = Numbering::contiguous(&equation_owners(&dofs, &owner), ranks);
     let local = LocalMesh::of_rank(mesh, &cells, &owner, rank, ranks).map_err(|e| e.to_string())?;
     let part = plan_of(plan, &whole, &local)?;
-    // the rank's unknowns in the first stage, numbered as its problems number them
+    // the rank's equations of a problem on the whole model and on the part, numbered as their
+    // problems number them
+    let equations_of =
+        |whole: &Model, part: &Model| -> Result<(Arc<LocalEquations>, f64), String> {
+            let dofs = dofs_of(whole);
+            let numbering = Numbering::contiguous(&equation_owners(&dofs, &owner), ranks);
+            let (local_dofs, _, _) = crate::problem::statics::discretize(part);
+            let equations = LocalEquations::new(&dofs, &numbering, &local, &local_dofs)?;
+            let floor = crate::problem::statics::residual_floor(whole, dofs.n_free);
+            Ok((Arc::new(equations), floor))
+        };
     let mut first_stage = part.model.clone();
     part.stage_conditions(&mut first_stage, first);
-    let (local_dofs, _, _) = crate::problem::statics::discretize(&first_stage);
-    let equations = Arc::new(LocalEquations::new(&dofs, &numbering, &local, &local_dofs)?);
+    let stages = equations_of(&whole, &first_stage)?;
+    let prestretch = if plan.prestretch.is_some() {
+        let pre_whole = super::prestretch::prestretch_model(plan, &whole);
+        let pre_part = super::prestretch::prestretch_model(&part, &first_stage);
+        Some(equations_of(&pre_whole, &pre_part)?)
+    } else {
+        None
+    };
     let at = global_to_local(&local, mesh.n_nodes());
     let electrode_first = plan
         .electrodes
@@ -261,12 +281,23 @@ fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String>
         .collect();
     Ok(RankPart {
         plan_part: part,
-        equations,
-        floor,
+        stages,
+        prestretch,
         electrode_first,
         cells: local.cells,
         nodes: local.nodes,
     })
+}
+
+/// The numbering of `model`'s unknowns (its supports and ties), as its problems number them.
+fn dofs_of(model: &Model) -> DofMap {
+    let n = model.mesh.n_nodes();
+    DofMap::with_ties(
+        n,
+        &constrained_flags(n, &model.dirichlet),
+        model.potential_scale(),
+        &model.ties,
+    )
 }
 
 /// Each whole-mesh node's local number on `local` (`usize::MAX`: not on the part).
@@ -478,12 +509,19 @@ kind = "max_electric_field"
         );
         for ranks in [2, 3] {
             let records = on_threads(ranks, |rank, sum| {
+                // one sum for every exchange the division makes
+                let sum = Arc::new(sum);
                 let part = divide(
                     &plan,
                     rank,
                     ranks,
                     |ok| ok,
-                    |eq| Ok(Arc::new(SumExchange::new(Arc::clone(eq), sum)) as Arc<dyn Exchange>),
+                    |eq| {
+                        let sum = Arc::clone(&sum);
+                        let exchange =
+                            SumExchange::new(Arc::clone(eq), Box::new(move |v: &mut [f64]| sum(v)));
+                        Ok(Arc::new(exchange) as Arc<dyn Exchange>)
+                    },
                 )
                 .unwrap();
                 let p = part.part.as_ref().unwrap();

@@ -34,23 +34,9 @@ pub(super) fn prestretch(
     stage: &str,
     observer: &mut dyn Observer,
 ) -> Result<PrestretchOutcome, String> {
-    let mut pre = model.clone();
-    pre.body_force.clear();
-    pre.point_forces.clear();
-    pre.tractions.clear();
-    pre.ties.clear();
-    pre.dirichlet = plan.supports.clone();
-    for e in &plan.electrodes {
-        pre.dirichlet.push(Dirichlet {
-            nodes: e.nodes.clone(),
-            field: Field::Phi,
-            value: if plan.stages[0].electrodes_on {
-                e.voltage.value(0.0)
-            } else {
-                0.0
-            },
-        });
-    }
+    let pre = prestretch_model(plan, model);
+    // on a rank's part, how the ranks divide the pre-stretch's unknowns
+    let division = plan.part.as_ref().and_then(|p| p.prestretch.as_ref());
     let prescribed = constrained_flags(model.mesh.n_nodes(), &pre.dirichlet);
     let mut step_no = 0;
     let mut record_error = None;
@@ -102,7 +88,7 @@ pub(super) fn prestretch(
                 None,
                 &control,
                 newton,
-                None,
+                division,
                 |q, acc| {
                     dissipated += q.dissipated_step;
                     rec.points.clone_from(&q.points);
@@ -167,7 +153,27 @@ pub(super) fn prestretch(
         min_fraction: 1.0,
         ..Default::default()
     };
-    let direct = solve_static(&pre, Some(guess), &one, newton, |_, _| {});
+    // a rank's part solves with the plan's solver on its own unknowns
+    let static_solve = |initial: Vec<f64>,
+                        control: &StepControl,
+                        on_step: &mut dyn FnMut(
+        &crate::problem::statics::StaticProblem<'_>,
+        &crate::solve::stepping::AcceptedStep,
+    )| match division {
+        None => solve_static(&pre, Some(initial), control, newton, on_step),
+        Some(_) => solve_static_from(
+            &pre,
+            &plan.solver,
+            initial,
+            StageTime::default(),
+            None,
+            control,
+            newton,
+            division,
+            on_step,
+        ),
+    };
+    let direct = static_solve(guess, &one, &mut |_, _| {});
     let (final_state, iterations) = match direct.result {
         Ok(r) => {
             record(rec, &direct.state, r.newton_iterations, 0.0, 0.0, 0.0);
@@ -178,7 +184,7 @@ pub(super) fn prestretch(
                 steps: p.steps,
                 ..Default::default()
             };
-            let ramped = solve_static(&pre, Some(state.to_vec()), &control, newton, |q, acc| {
+            let ramped = static_solve(state.to_vec(), &control, &mut |q, acc| {
                 record(rec, &q.state, acc.newton.iterations, 0.0, 0.0, 0.0)
             });
             match ramped.result {
@@ -204,6 +210,32 @@ pub(super) fn prestretch(
         time: 0.0,
         dissipated: 0.0,
     })
+}
+
+/// The model the pre-stretch solves: `model` without dead loads and ties, held by the plan's
+/// supports and its electrodes at the first stage's initial voltages.
+pub(super) fn prestretch_model(
+    plan: &Plan,
+    model: &crate::problem::model::Model,
+) -> crate::problem::model::Model {
+    let mut pre = model.clone();
+    pre.body_force.clear();
+    pre.point_forces.clear();
+    pre.tractions.clear();
+    pre.ties.clear();
+    pre.dirichlet = plan.supports.clone();
+    for e in &plan.electrodes {
+        pre.dirichlet.push(Dirichlet {
+            nodes: e.nodes.clone(),
+            field: Field::Phi,
+            value: if plan.stages[0].electrodes_on {
+                e.voltage.value(0.0)
+            } else {
+                0.0
+            },
+        });
+    }
+    pre
 }
 
 /// The pre-stretched state and what the phase took.

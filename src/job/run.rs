@@ -702,7 +702,7 @@ impl<'p, 'o> Job<'p, 'o> {
             resume_at,
             &control,
             self.newton,
-            plan.part.as_deref(),
+            plan.part.as_ref().map(|p| &p.stages),
             |p, acc| {
                 step_no += 1;
                 self.dissipated += p.dissipated_step;

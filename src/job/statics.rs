@@ -1,7 +1,7 @@
 //! Static stages: the load ramp of a model's prescribed values and dead loads, solved by load
 //! stepping with Newton.
 
-use super::part::PlanPart;
+use super::part::Division;
 use crate::problem::distributed::OwnedSystem;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
@@ -74,7 +74,7 @@ pub fn solve_static_from(
     resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
     control: &StepControl,
     newton: &NewtonSettings,
-    part: Option<&PlanPart>,
+    part: Option<&Division>,
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let stage_state = stage_start.clone();
