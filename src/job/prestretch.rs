@@ -165,7 +165,12 @@ pub(super) fn prestretch(
             &pre,
             &plan.solver,
             initial,
-            StageTime::default(),
+            // an instantaneous phase from fresh internal variables, as `solve_static` starts
+            StageTime {
+                duration: 0.0,
+                points: PointStates::new(&pre),
+                drive: Vec::new(),
+            },
             None,
             control,
             newton,
