@@ -379,85 +379,38 @@ mod tests {
     use crate::problem::assembly::on_threads;
     use crate::problem::distributed::SumExchange;
 
-    /// The film (4 × 4 × 2 cells, 20 kV) with a probe of every kind a part divides: means over
-    /// a face set and a node set, a point, extremes, a reaction, a deflection, charges and the
-    /// energies and the largest field.
-    const FILM: &str = r#"
-name = "film-parts"
-[mesh]
-generator = "box"
-size = [10e-3, 10e-3, 1e-3]
-divisions = [4, 4, 2]
-element = "hex8"
-[materials.elastomer]
-model = "neo-hooke"
-mu = 1e5
-lambda = 1e7
-permittivity = 4.7
-density = 1000.0
-[[constraints]]
-set = "x0"
-fix = ["x"]
-[[constraints]]
-set = "y0"
-fix = ["y"]
-[[constraints]]
-set = "z0"
-fix = ["z"]
-[loads]
-gravity = [0.0, 0.0, -9.81]
-[electrodes.bottom]
-set = "z0"
-voltage = 0.0
-[electrodes.top]
-set = "z1"
-voltage = { waveform = "ramp", amplitude = 20e3 }
-[[stages]]
-name = "charge"
-kind = "static"
-steps = 4
-[probes.spread]
-kind = "mean"
-quantity = "ux"
-set = "z1"
-[probes.side]
-kind = "mean"
-quantity = "ux"
-set = "x1"
-[probes.corner]
-kind = "point"
-quantity = "ux"
-at = [10e-3, 10e-3, 1e-3]
-[probes.highest]
-kind = "max"
-quantity = "uz"
-set = "z1"
-[probes.lowest]
-kind = "min"
-quantity = "ux"
-set = "x1"
-[probes.support]
-kind = "reaction"
-quantity = "z"
-set = "z0"
-[probes.deflection]
-kind = "center_deflection"
-set = "x1"
-[probes.charge]
-kind = "charge"
-electrode = "top"
-[probes.capacitance]
-kind = "capacitance"
-electrode = "top"
-[probes.stored]
-kind = "energy"
-quantity = "stored"
-[probes.electric]
-kind = "energy"
-quantity = "electric"
-[probes.field]
-kind = "max_electric_field"
-"#;
+    /// The `film` example on 4 × 4 × 2 cells with its weight and a probe of every kind a part
+    /// divides: means over face sets of quantities that vary over them, a point, extremes, the
+    /// supports' reaction (the weight), a deflection, charges, the energies and the largest
+    /// field.
+    const OVERRIDES: &[&str] = &[
+        "mesh.divisions=[4,4,2]",
+        "stages.0.steps=4",
+        "materials.elastomer.density=1000.0",
+        "loads.gravity=[0.0,0.0,-9.81]",
+        "probes.spread.kind=\"mean\"",
+        "probes.spread.quantity=\"ux\"",
+        "probes.spread.set=\"z1\"",
+        "probes.side.kind=\"mean\"",
+        "probes.side.quantity=\"ux\"",
+        "probes.side.set=\"x1\"",
+        "probes.highest.kind=\"max\"",
+        "probes.highest.quantity=\"uz\"",
+        "probes.highest.set=\"z1\"",
+        "probes.lowest.kind=\"min\"",
+        "probes.lowest.quantity=\"ux\"",
+        "probes.lowest.set=\"x1\"",
+        "probes.support.kind=\"reaction\"",
+        "probes.support.quantity=\"z\"",
+        "probes.support.set=\"z0\"",
+        "probes.deflection.kind=\"center_deflection\"",
+        "probes.deflection.set=\"x1\"",
+        "probes.stored.kind=\"energy\"",
+        "probes.stored.quantity=\"stored\"",
+        "probes.electric.kind=\"energy\"",
+        "probes.electric.quantity=\"electric\"",
+        "probes.field.kind=\"max_electric_field\"",
+    ];
 
     /// The last recorded state of a run.
     #[derive(Default)]
@@ -478,8 +431,16 @@ kind = "max_electric_field"
     }
 
     fn film() -> Plan {
-        let scenario = crate::io::scenario::parse(FILM, "film-parts.toml", &[]).unwrap();
-        crate::io::build::build(&scenario, "film-parts.toml", None).unwrap()
+        let text = crate::io::examples::example("film").unwrap();
+        let overrides: Vec<String> = OVERRIDES.iter().map(|o| o.to_string()).collect();
+        let scenario = crate::io::scenario::parse(text, "film.toml", &overrides).unwrap();
+        let plan = crate::io::build::build(&scenario, "film.toml", None).unwrap();
+        assert_eq!(
+            plan.probes.len(),
+            13,
+            "the example's 4 probes and the 9 added"
+        );
+        plan
     }
 
     /// The record of `plan` at `state` (its first record: the energy balance's origin).
