@@ -9,6 +9,8 @@
 # environment:
 #   DEASIM         the deasim binary (default target/release/deasim, built with --features petsc)
 #   STEPS          voltage steps (default 3)
+#   DYNAMIC_STEPS  when set, the film's free vibration instead (`film-vibration`: the voltage
+#                  stepped on at t = 0, midpoint steps of 20 us) for that many time steps
 #   SIZE           the body's extents in m, x,y,z (default 5e-3,5e-3,1e-3: the film's quarter;
 #                  5e-3,5e-3,5e-3 with NxNxN divisions is a cube of cubic cells)
 #   PETSC_OPTIONS  PETSc options (default: GMRES + GAMG with the rigid-body modes, rtol 1e-8)
@@ -22,7 +24,7 @@
 #   OUT            scratch directory (default a new temporary one)
 set -euo pipefail
 if [ $# -lt 2 ]; then
-    sed -n '2,22p' "$0"
+    sed -n '2,24p' "$0"
     exit 2
 fi
 ranks=$1
@@ -36,7 +38,13 @@ out=${OUT:-$(mktemp -d)}
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 # one process per core: no extra threads
 export RAYON_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1
-"$deasim" example film >"$out/film.toml"
+example=film
+stage=(--set "stages.0.steps=$steps")
+if [ -n "${DYNAMIC_STEPS:-}" ]; then
+    example=film-vibration
+    stage=(--set "stages.0.duration=$(awk -v n="$DYNAMIC_STEPS" 'BEGIN { print n * 2e-5 }')")
+fi
+"$deasim" example "$example" >"$out/film.toml"
 printf '%12s %9s %6s %6s %8s %12s  %s\n' mesh dofs newton krylov run_s per_newton_s "peak MiB per rank"
 for mesh in "$@"; do
     divisions="[${mesh//x/,}]"
@@ -46,7 +54,7 @@ for mesh in "$@"; do
     mpirun --oversubscribe -np "$ranks" /usr/bin/time -a -o "$out/$mesh.peak" -f "peak %M KB" \
         "$deasim" run "$out/film.toml" --out "$dir" --overwrite \
         --set "mesh.size=[$size]" --set "mesh.divisions=$divisions" \
-        --set "probes.inplane_stretch.at=[$size]" --set "stages.0.steps=$steps" \
+        --set "probes.inplane_stretch.at=[$size]" "${stage[@]}" \
         --set output.plots=false --set output.fields_every=0 \
         --set "solver.forcing=\"${FORCING:-adaptive}\"" \
         --set "solver.preconditioner=\"${PRECONDITIONER:-kept}\"" \

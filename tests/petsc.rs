@@ -197,6 +197,28 @@ fn history_probes(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     csv_columns(path, |h| h.starts_with("probe:") || h == "dissipated")
 }
 
+/// As [`on_ranks`], also returning the largest difference of the kinetic energy over the
+/// history (relative to its largest value): a dynamic run's, summed over the ranks' parts.
+fn on_ranks_with_kinetic(
+    ranks: usize,
+    example_name: &str,
+    extra: &[&str],
+) -> (f64, f64, f64, String, String) {
+    let mut kinetic = f64::NAN;
+    let (d, fields, serial, log) = on_ranks_of(
+        ranks,
+        example_name,
+        example(example_name).unwrap(),
+        extra,
+        |a, b| {
+            kinetic = csv_difference(&a.join("history.csv"), &b.join("history.csv"), |h| {
+                h == "kinetic"
+            })
+        },
+    );
+    (d, fields, kinetic, serial, log)
+}
+
 /// The columns of a CSV file whose header passes `keep`: their names and the rows of numbers.
 fn csv_columns(path: &Path, keep: impl Fn(&str) -> bool) -> (Vec<String>, Vec<Vec<f64>>) {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -442,8 +464,19 @@ fn write_petsc_scenario(dir: &Path, text: &str) {
 
 /// Runs deasim with `args` in `dir` under `mpirun -np ranks`.
 fn mpirun(ranks: usize, dir: &Path, args: &[&str]) -> std::process::Output {
+    mpirun_with(ranks, dir, args, &[])
+}
+
+/// [`mpirun`] with more environment variables for the ranks.
+fn mpirun_with(
+    ranks: usize,
+    dir: &Path,
+    args: &[&str],
+    vars: &[(&str, &str)],
+) -> std::process::Output {
     let mut mpirun = Command::new("mpirun");
     without_mpi_variables(&mut mpirun)
+        .envs(vars.iter().copied())
         .args(["--oversubscribe", "-np", &ranks.to_string()])
         .arg(env!("CARGO_BIN_EXE_deasim"))
         .args(args)
@@ -646,17 +679,20 @@ fn stack_on_two_mpi_ranks_agrees_with_the_serial_run() {
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
-/// The 3-D diaphragm on 2 ranks: the electrodes and both symmetry planes cross the partition
-/// (see the next test). Its static `load` stage, then 5 ms of the dynamic stage.
+/// The 3-D diaphragm on 2 ranks, each holding its part: the electrodes, the rigid pad and both
+/// symmetry planes cross the partition (see `the_partition_of_the_3d_diaphragm_cuts_its_special_sets`).
+/// Its pre-stretch and static `load` stage, then 5 ms of the dynamic stage: the midpoint steps
+/// and the electrostatic projections on the ranks' owned unknowns, the pad's mass and dashpot
+/// on one rank, the kinetic energy and the Kelvin–Voigt dissipation summed over the ranks.
 #[test]
 fn the_3d_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, _, log) = on_ranks(2, "diaphragm-3d", &["stages.1.duration=0.005"]);
-    // a dynamic stage: the whole state on every rank
+    let (d, fields, kinetic, _, log) =
+        on_ranks_with_kinetic(2, "diaphragm-3d", &["stages.1.duration=0.005"]);
+    assert_parts(&log, 2);
     assert!(
-        log.contains("every rank holds the whole state: stage `actuate`"),
-        "{log}"
+        d < 1e-10 && fields < 1e-10 && kinetic < 1e-10,
+        "{d:e} {fields:e} {kinetic:e}"
     );
-    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 
 /// The 3-D diaphragm with a quasi-static `actuate` stage instead of its dynamic one: every
@@ -802,10 +838,39 @@ fn the_axisymmetric_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
     assert!(d < 1e-9, "{d:e}");
 }
 
+/// The film's free vibration on 2 ranks, each holding its part (probes and the kinetic energy
+/// over the whole history; the final fields).
 #[test]
 fn a_dynamic_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, _, _) = two_ranks("film-vibration");
-    assert!(d < 1e-9, "{d:e}");
+    let (d, fields, kinetic, _, log) = on_ranks_with_kinetic(2, "film-vibration", &[]);
+    assert_parts(&log, 2);
+    assert!(
+        d < 1e-9 && fields < 1e-9 && kinetic < 1e-9,
+        "{d:e} {fields:e} {kinetic:e}"
+    );
+}
+
+/// Newmark on 2 ranks in parts with Kelvin–Voigt damping and a Maxwell branch: the consistent
+/// initial acceleration (the ranks' forces and masses, solved over the ranks), each rank's
+/// internal variables of its own cells, and the dissipation of both summed over the ranks.
+#[test]
+fn a_viscoelastic_newmark_run_on_two_mpi_ranks_in_parts_agrees_with_the_serial_run() {
+    let (d, fields, kinetic, serial, log) = on_ranks_with_kinetic(
+        2,
+        "film-vibration",
+        &[
+            "stages.0.integrator=\"newmark\"",
+            "stages.0.duration=2e-3",
+            "materials.elastomer.viscosity=20.0",
+            "materials.elastomer.branches=[{mu=5e4,tau=1e-3}]",
+        ],
+    );
+    assert_parts(&log, 2);
+    assert!(serial.contains("finished in"), "{serial}");
+    assert!(
+        d < 1e-9 && fields < 1e-9 && kinetic < 1e-9,
+        "{d:e} {fields:e} {kinetic:e}"
+    );
 }
 
 /// The explicit integrator (Störmer–Verlet) with Kelvin–Voigt damping: each rank evaluates
@@ -813,7 +878,7 @@ fn a_dynamic_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
 /// over the ranks.
 #[test]
 fn an_explicit_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, _, _) = on_ranks(
+    let (d, fields, _, log) = on_ranks(
         2,
         "film-vibration",
         &[
@@ -822,6 +887,11 @@ fn an_explicit_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
             "stages.0.duration=4e-4",
             "materials.elastomer.viscosity=20.0",
         ],
+    );
+    // the explicit scheme keeps the whole state on every rank
+    assert!(
+        log.contains("every rank holds the whole state: stage `vibrate` is neither static"),
+        "{log}"
     );
     assert!(d < 1e-9 && fields < 1e-9, "{d:e} {fields:e}");
 }
@@ -891,30 +961,46 @@ fn charge_control_on_two_mpi_ranks_agrees_with_the_serial_run() {
 }
 
 /// Each rank records its own cells only: where the true field first exceeds the dielectric
-/// strength is found over every rank's cells, so the 3-D diaphragm on 3 ranks warns about the
-/// same cell at the same step as the serial run, and every rank stops there.
+/// strength is found over every rank's cells, so the 3-D diaphragm on 3 ranks, each holding
+/// the whole state, warns about the same cell at the same step as the serial run, and every
+/// rank stops there.
 #[test]
 fn dielectric_breakdown_is_found_over_every_ranks_cells() {
     // below the largest field of the first pulse (1.2e7 V/m)
-    let log = breakdown_on_three_ranks("diaphragm-3d", "vhb", "1.1e7");
-    assert!(log.contains("every rank holds the whole state"), "{log}");
+    let log = breakdown_on_three_ranks("diaphragm-3d", "vhb", "1.1e7", true);
+    assert!(
+        log.contains("every rank holds the whole state: DEASIM_WHOLE_STATE is set"),
+        "{log}"
+    );
 }
 
-/// As above with each rank holding only its part of the plan (the stack: static stages), where
-/// the field concentrates at the electrodes' edges: the first cell over the ranks' parts, in
-/// the whole mesh's numbering, with its centre, is the serial run's.
+/// As above with each rank holding only its part of the plan, where the field concentrates
+/// at the electrodes' edges: the first cell over the ranks' parts, in the whole mesh's
+/// numbering, with its centre, is the serial run's, in a static stage (the stack) and in a
+/// dynamic one (the 3-D diaphragm).
 #[test]
 fn dielectric_breakdown_is_found_over_every_ranks_part() {
     // the largest field is 1.8e7 V/m at the third step, 2.4e7 at the fourth
-    let log = breakdown_on_three_ranks("stack", "silicone", "2e7");
+    let log = breakdown_on_three_ranks("stack", "silicone", "2e7", false);
+    assert_parts(&log, 3);
+    let log = breakdown_on_three_ranks("diaphragm-3d", "vhb", "1.1e7", false);
     assert_parts(&log, 3);
 }
 
 /// Runs `example` serially and on 3 ranks with material `material`'s dielectric strength
-/// `strength` (V/m), stopping at breakdown; checks that both stop with the same warning after
-/// as many records. Returns the distributed run's log.
-fn breakdown_on_three_ranks(example_name: &str, material: &str, strength: &str) -> String {
-    let dir = common::tempdir(&format!("petsc-mpi-breakdown-{example_name}"));
+/// `strength` (V/m), stopping at breakdown, each rank holding the whole state when
+/// `whole_state`; checks that both stop with the same warning after as many records. Returns
+/// the distributed run's log.
+fn breakdown_on_three_ranks(
+    example_name: &str,
+    material: &str,
+    strength: &str,
+    whole_state: bool,
+) -> String {
+    let dir = common::tempdir(&format!(
+        "petsc-mpi-breakdown-{example_name}-{}",
+        if whole_state { "whole" } else { "parts" }
+    ));
     let text = example(example_name).unwrap();
     std::fs::write(dir.join("serial.toml"), text).unwrap();
     write_petsc_scenario(&dir, text);
@@ -935,7 +1021,12 @@ fn breakdown_on_three_ranks(example_name: &str, material: &str, strength: &str) 
     let serial = common::deasim(&args, &dir);
     let mut args = vec!["run", "petsc.toml", "--out", "mpi"];
     args.extend(sets);
-    let mpi = mpirun(3, &dir, &args);
+    let vars: &[(&str, &str)] = if whole_state {
+        &[("DEASIM_WHOLE_STATE", "1")]
+    } else {
+        &[]
+    };
+    let mpi = mpirun_with(3, &dir, &args, vars);
     let log = String::from_utf8_lossy(&mpi.stderr).into_owned();
     // both stop at the breakdown (exit status 1)
     assert_eq!(

@@ -530,6 +530,7 @@ pub fn bench_dynamic(
         ],
         circuits: Vec::new(),
         points: Default::default(),
+        part: None,
     };
     let n = model.mesh.n_nodes() * 4;
     let start = TimeLevel {

@@ -6,21 +6,11 @@
 use super::plan::{Plan, StageKind};
 use super::probes::ProbeKind;
 use crate::mesh::distribute::{LocalMesh, Numbering};
+pub use crate::problem::distributed::Division;
 use crate::problem::distributed::{equation_owners, Exchange, LocalEquations};
 use crate::problem::dofs::{constrained_flags, DofMap, FIELDS};
 use crate::problem::model::Model;
 use std::sync::Arc;
-
-/// How the ranks divide the unknowns of one kind of problem of a plan (its stages', or its
-/// pre-stretch's, which holds other unknowns).
-pub struct Division {
-    /// The rank's equations in the whole problem.
-    pub equations: Arc<LocalEquations>,
-    /// How the ranks exchange their parts of vectors (collective calls).
-    pub exchange: Arc<dyn Exchange>,
-    /// The whole problem's residual floor (N).
-    pub floor: f64,
-}
 
 /// What a rank's plan knows of the whole problem and of the other ranks.
 pub struct PlanPart {
@@ -31,6 +21,9 @@ pub struct PlanPart {
     pub stages: Division,
     /// The unknowns of the pre-stretch's problem (`None`: the plan has no pre-stretch).
     pub prestretch: Option<Division>,
+    /// The unknowns of the dynamic stages' electrostatic projection, the potentials with every
+    /// displacement held (`None`: the plan has no dynamic stage).
+    pub projection: Option<Division>,
     /// The whole mesh's node and cell counts.
     pub whole_nodes: usize,
     pub whole_cells: usize,
@@ -130,15 +123,21 @@ impl Plan {
 
     /// Why the plan cannot yet be divided into rank parts (see [`divide`]), or `None`.
     pub fn parts_unsupported(&self) -> Option<String> {
+        use crate::time::stage::Method;
         if let Some(s) = self.stages.iter().find(|s| {
             !matches!(
                 s.kind,
-                StageKind::Static { .. } | StageKind::QuasiStatic { .. }
+                StageKind::Static { .. }
+                    | StageKind::QuasiStatic { .. }
+                    | StageKind::Dynamic {
+                        scheme: Method::Midpoint | Method::Newmark { .. },
+                        ..
+                    }
             )
         }) {
             return Some(format!(
-                "stage `{}` is not static (only static and quasi-static stages run on parts \
-                 yet)",
+                "stage `{}` is neither static nor implicit dynamic (only static, quasi-static \
+                 and implicit dynamic stages run on parts yet)",
                 s.name
             ));
         }
@@ -195,6 +194,7 @@ pub fn divide(
         mut plan_part,
         stages,
         prestretch,
+        projection,
         electrode_first,
         cells,
         nodes,
@@ -213,6 +213,7 @@ pub fn divide(
         nodes,
         stages: division(stages)?,
         prestretch: prestretch.map(division).transpose()?,
+        projection: projection.map(division).transpose()?,
         whole_nodes: plan.model.mesh.n_nodes(),
         whole_cells: plan.model.mesh.n_cells(),
         electrode_first,
@@ -227,6 +228,7 @@ struct RankPart {
     plan_part: Plan,
     stages: (Arc<LocalEquations>, f64),
     prestretch: Option<(Arc<LocalEquations>, f64)>,
+    projection: Option<(Arc<LocalEquations>, f64)>,
     electrode_first: Vec<Option<usize>>,
     cells: Vec<usize>,
     nodes: Vec<usize>,
@@ -251,9 +253,12 @@ fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String>
     let part = plan_of(plan, &whole, &local)?;
     // the rank's equations of a problem on the whole model and on the part, numbered as their
     // problems number them
+    // each problem's equations dealt out by the rule of its own unknowns (the projection's
+    // potentials lie elsewhere than the stages' unknowns), over the same parts
     let equations_of =
         |whole: &Model, part: &Model| -> Result<(Arc<LocalEquations>, f64), String> {
             let dofs = dofs_of(whole);
+            let owner = crate::problem::assembly::node_processes(mesh, &dofs, &cells, ranks);
             let numbering = Numbering::contiguous(&equation_owners(&dofs, &owner), ranks);
             let (local_dofs, _, _) = crate::problem::statics::discretize(part);
             let equations = LocalEquations::new(&dofs, &numbering, &local, &local_dofs)?;
@@ -270,6 +275,22 @@ fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String>
     } else {
         None
     };
+    // the dynamic stages' projection: every stage holds the same potentials (supports and
+    // prescribed electrodes), so the first dynamic stage's stand for all
+    let projection = match plan
+        .stages
+        .iter()
+        .find(|s| matches!(s.kind, StageKind::Dynamic { .. }))
+    {
+        Some(stage) => {
+            let (mut w, mut p) = (plan.model.clone(), part.model.clone());
+            plan.stage_conditions(&mut w, stage);
+            part.stage_conditions(&mut p, stage);
+            use crate::time::stage::projection_model;
+            Some(equations_of(&projection_model(&w), &projection_model(&p))?)
+        }
+        None => None,
+    };
     let at = global_to_local(&local, mesh.n_nodes());
     let electrode_first = plan
         .electrodes
@@ -283,6 +304,7 @@ fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String>
         plan_part: part,
         stages,
         prestretch,
+        projection,
         electrode_first,
         cells: local.cells,
         nodes: local.nodes,
@@ -338,6 +360,11 @@ fn plan_of(
         e.nodes = all(&e.nodes);
     }
     for r in &mut part.rigid {
+        // the attached mass acts once: on the rank that owns the region's first node, which
+        // stays its first node here
+        if !r.nodes.first().is_some_and(|&n| owned(n)) {
+            r.mass = 0.0;
+        }
         r.nodes = all(&r.nodes);
     }
     for (_, probe) in &mut part.probes {
@@ -529,14 +556,78 @@ mod tests {
 
     /// A plan the parts cannot hold yet is refused with the reason, before any exchange.
     #[test]
-    fn a_plan_with_a_dynamic_stage_is_not_divided() {
+    fn a_plan_with_an_explicit_stage_is_not_divided() {
         let mut plan = film();
         plan.stages[0].kind = StageKind::Dynamic {
             dt: 1e-3,
-            scheme: crate::time::stage::Method::Midpoint,
+            scheme: crate::time::stage::Method::Trapezoidal,
             mass: crate::time::mass::MassKind::Consistent,
         };
         let e = divide(&plan, 0, 2, |ok| ok, |_| unreachable!("no exchange")).unwrap_err();
-        assert!(e.contains("stage `charge` is not static"), "{e}");
+        assert!(
+            e.contains("stage `charge` is neither static nor implicit dynamic"),
+            "{e}"
+        );
+    }
+
+    /// The parts of the 3-D diaphragm (a static and a dynamic stage, a rigid pad with its
+    /// mass): the projection's potentials and the stages' unknowns are each owned once over
+    /// the ranks, in as many equations as the whole problem's, and the pad's mass is carried
+    /// by one rank.
+    #[test]
+    fn a_dynamic_plan_divides_its_projection_and_its_attached_mass_once() {
+        let text = crate::io::examples::example("diaphragm-3d").unwrap();
+        let scenario = crate::io::scenario::parse(text, "diaphragm-3d.toml", &[]).unwrap();
+        let plan = crate::io::build::build(&scenario, "diaphragm-3d.toml", None).unwrap();
+        let dynamic = plan
+            .stages
+            .iter()
+            .find(|s| matches!(s.kind, StageKind::Dynamic { .. }))
+            .expect("the example has a dynamic stage");
+        // the whole problem's unknowns: the stages' and the projection's
+        let mut whole = plan.model.clone();
+        plan.stage_conditions(&mut whole, dynamic);
+        let stage_free = dofs_of(&whole).n_free;
+        let projection_free = dofs_of(&crate::time::stage::projection_model(&whole)).n_free;
+        assert!(0 < projection_free && projection_free < stage_free);
+        let mass: f64 = plan.rigid.iter().map(|r| r.mass).sum();
+        assert!(mass > 0.0, "the example's pad carries a mass");
+        let ranks = 2;
+        let parts = on_threads(ranks, |rank, sum| {
+            let sum = Arc::new(sum);
+            let part = divide(
+                &plan,
+                rank,
+                ranks,
+                |ok| ok,
+                |eq| {
+                    let sum = Arc::clone(&sum);
+                    let exchange =
+                        SumExchange::new(Arc::clone(eq), Box::new(move |v: &mut [f64]| sum(v)));
+                    Ok(Arc::new(exchange) as Arc<dyn Exchange>)
+                },
+            )
+            .unwrap();
+            let p = part.part.as_ref().unwrap();
+            let projection = p.projection.as_ref().expect("a division of the projection");
+            (
+                p.stages.equations.n_owned(),
+                projection.equations.n_owned(),
+                projection.equations.n_global(),
+                part.rigid.iter().map(|r| r.mass).sum::<f64>(),
+            )
+        });
+        let total =
+            |f: fn(&(usize, usize, usize, f64)) -> usize| parts.iter().map(f).sum::<usize>();
+        assert_eq!(total(|p| p.0), stage_free);
+        assert_eq!(total(|p| p.1), projection_free);
+        assert!(parts.iter().all(|p| p.2 == projection_free));
+        let carried: Vec<f64> = parts.iter().map(|p| p.3).collect();
+        assert_eq!(
+            carried.iter().filter(|&&m| m > 0.0).count(),
+            1,
+            "{carried:?}"
+        );
+        assert_eq!(carried.iter().sum::<f64>(), mass);
     }
 }

@@ -152,6 +152,7 @@ impl<'p> Recorder<'p> {
         }
         // on a rank's part each term is its own cells' share: the sums make the whole model's
         let mut sums = [
+            kinetic,
             stored,
             electric,
             gravity,
@@ -160,7 +161,8 @@ impl<'p> Recorder<'p> {
             self.load_change_work,
         ];
         self.plan.sum_over_ranks(&mut sums)?;
-        let [stored, electric, gravity, dissipated, boundary_work, load_change_work] = sums;
+        let [kinetic, stored, electric, gravity, dissipated, boundary_work, load_change_work] =
+            sums;
         let total = kinetic + stored - electric + gravity + dissipated;
         // the first record of a balance is its origin: the work up to it does not count
         let origin = self.initial_potential.is_none();

@@ -25,7 +25,9 @@ use crate::solve::stepping::{RampPosition, StepControl};
 use crate::time::integrator::TimeLevel;
 use crate::time::mass::NodalMass;
 use crate::time::modal::{Mode, ModeSettings};
-use crate::time::stage::{run_dynamic_from, DynamicInputs, DynamicResume, DynamicSettings};
+use crate::time::stage::{
+    run_dynamic_from, DynamicInputs, DynamicResume, DynamicSettings, StageParts,
+};
 use std::time::Instant;
 
 /// The outcome of a run.
@@ -1087,6 +1089,23 @@ impl<'p, 'o> Job<'p, 'o> {
             }
         }
         model.dirichlet = plan.supports.clone();
+        // on a rank's part: the step's and the projection's division of the unknowns
+        let part = match &plan.part {
+            None => None,
+            Some(p) => match &p.projection {
+                Some(projection) => Some(StageParts {
+                    step: &p.stages,
+                    projection,
+                }),
+                None => {
+                    return Some(format!(
+                        "dynamic stage `{}`: the rank's part has no division of the \
+                         projection's unknowns",
+                        stage.name
+                    ))
+                }
+            },
+        };
         let inputs = DynamicInputs {
             mass: &mass,
             viscosity: plan.viscosities.clone(),
@@ -1104,6 +1123,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 })
                 .collect(),
             points: self.points.clone(),
+            part,
         };
         let settings = DynamicSettings {
             duration: stage.duration,
@@ -1154,6 +1174,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     self.points.clone_from(p);
                     self.rec.points.clone_from(p);
                 }
+                // on a rank's part, its cells' and owned masses' share (the records sum them)
                 mass.mul(&level.v, &mut mv);
                 let kinetic = 0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
                 self.rec.external_factor = 1.0;

@@ -254,7 +254,8 @@ pub struct OwnedSystem<S> {
 impl<S: NonlinearSystem> OwnedSystem<S> {
     /// The rank's part of the system whose rank's model has the system `local`, its equations
     /// `equations` in the whole problem, exchanging through `exchange`; `floor` is the whole
-    /// problem's residual floor (the same on every rank). Collective. Fails on every rank when
+    /// problem's static residual floor (the same on every rank; a time step scales it by its
+    /// [`NonlinearSystem::residual_factor`]). Collective. Fails on every rank when
     /// a rank owns no equation or its system does not fit its equations, or has a bordering
     /// unknown (not divided between the ranks yet).
     pub fn new(
@@ -318,18 +319,87 @@ impl<S: NonlinearSystem> OwnedSystem<S> {
         &self.equations
     }
 
-    /// Whether any rank's `outcome` failed (collective): this rank's error, or one naming the
-    /// other ranks.
     fn agree<T>(&self, outcome: Result<T, String>) -> Result<T, String> {
-        let mut failed = [outcome.is_err() as u8 as f64];
-        self.exchange.sum(&mut failed)?;
-        match outcome {
-            Err(e) => Err(e),
-            Ok(_) if failed[0] > 0.0 => Err(format!(
-                "the evaluation failed on {} other rank(s) (the message is on those ranks)",
-                failed[0]
-            )),
-            ok => ok,
+        agree(self.exchange.as_ref(), outcome)
+    }
+}
+
+/// Whether any rank's `outcome` failed (collective): this rank's error, or one naming the other
+/// ranks, so that every rank takes the same path.
+pub fn agree<T>(exchange: &dyn Exchange, outcome: Result<T, String>) -> Result<T, String> {
+    let mut failed = [outcome.is_err() as u8 as f64];
+    exchange.sum(&mut failed)?;
+    match outcome {
+        Err(e) => Err(e),
+        Ok(_) if failed[0] > 0.0 => Err(format!(
+            "the evaluation failed on {} other rank(s) (the message is on those ranks)",
+            failed[0]
+        )),
+        ok => ok,
+    }
+}
+
+/// How the ranks divide the unknowns of one kind of problem (a plan's stages', its
+/// pre-stretch's, or the electrostatic projection's of its dynamic stages).
+pub struct Division {
+    /// The rank's equations in the whole problem.
+    pub equations: Arc<LocalEquations>,
+    /// How the ranks exchange their parts of vectors (collective calls).
+    pub exchange: Arc<dyn Exchange>,
+    /// The whole problem's static residual floor (N).
+    pub floor: f64,
+}
+
+/// A nonlinear system of the whole problem, or of a rank's part seen over its owned unknowns
+/// ([`OwnedSystem`]): one type for drivers that run either way.
+pub enum Held<S> {
+    Whole(S),
+    Owned(OwnedSystem<S>),
+}
+
+impl<S: NonlinearSystem> Held<S> {
+    /// `system` whole, or over the rank's owned unknowns of `part` (collective; see
+    /// [`OwnedSystem::new`]).
+    pub fn new(system: S, part: Option<&Division>) -> Result<Self, String> {
+        Ok(match part {
+            None => Held::Whole(system),
+            Some(d) => Held::Owned(OwnedSystem::new(
+                system,
+                Arc::clone(&d.equations),
+                Arc::clone(&d.exchange),
+                d.floor,
+            )?),
+        })
+    }
+
+    /// The system of the whole problem or of the rank's model.
+    pub fn inner(&self) -> &S {
+        match self {
+            Held::Whole(s) => s,
+            Held::Owned(o) => &o.local,
+        }
+    }
+
+    pub fn inner_mut(&mut self) -> &mut S {
+        match self {
+            Held::Whole(s) => s,
+            Held::Owned(o) => &mut o.local,
+        }
+    }
+
+    /// The system Newton solves.
+    pub fn system(&mut self) -> &mut dyn NonlinearSystem {
+        match self {
+            Held::Whole(s) => s,
+            Held::Owned(o) => o,
+        }
+    }
+
+    /// [`agree`] over the ranks of a part; `outcome` itself for the whole problem.
+    pub fn agree<T>(&self, outcome: Result<T, String>) -> Result<T, String> {
+        match self {
+            Held::Whole(_) => outcome,
+            Held::Owned(o) => o.agree(outcome),
         }
     }
 }
@@ -388,7 +458,11 @@ impl<S: NonlinearSystem> NonlinearSystem for OwnedSystem<S> {
     }
 
     fn residual_floor(&self) -> f64 {
-        self.floor
+        self.floor * self.local.residual_factor()
+    }
+
+    fn residual_factor(&self) -> f64 {
+        self.local.residual_factor()
     }
 
     fn groups(&self) -> Vec<u8> {

@@ -66,6 +66,12 @@ pub trait NonlinearSystem {
     fn expected_negative_pivots(&self) -> usize;
     /// Absolute residual norm below which the state is converged whatever the first residual.
     fn residual_floor(&self) -> f64;
+    /// The factor the residual carries relative to a static residual of the same model (a time
+    /// step's ½Δt or βΔt²; 1 by default): a floor computed for the static problem, such as the
+    /// whole problem's on a rank's part, scales by it.
+    fn residual_factor(&self) -> f64 {
+        1.0
+    }
     /// For each unknown, its field group (0: displacement, 1: potential), for the printed table.
     fn groups(&self) -> Vec<u8>;
     /// Whether this process assembles only its share of the cells (a distributed run): the

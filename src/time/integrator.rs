@@ -609,12 +609,16 @@ impl NonlinearSystem for TimeStep<'_> {
     }
 
     fn residual_floor(&self) -> f64 {
+        self.floor * self.residual_factor()
+    }
+
+    fn residual_factor(&self) -> f64 {
         // the residual carries the factor of the internal forces
         let f = match self.scheme {
             Scheme::Midpoint => 0.5 * self.dt,
             Scheme::Newmark { beta, .. } => beta * self.dt * self.dt,
         };
-        self.floor * f.max(1e-300)
+        f.max(1e-300)
     }
 
     fn groups(&self) -> Vec<u8> {

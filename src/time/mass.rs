@@ -8,6 +8,7 @@
 //! and would give a singular matrix.
 
 use crate::mesh::Mesh;
+use crate::problem::distributed::{Exchange, LocalEquations};
 use crate::problem::dofs::{DofMap, CONSTRAINED};
 use crate::problem::model::Model;
 
@@ -261,10 +262,40 @@ impl NodalMass {
     /// preconditioner: the consistent mass matrix is well conditioned, so a few dozen iterations
     /// reach `rtol`.
     pub fn solve(&self, b: &[f64], dofs: &DofMap, rtol: f64) -> Vec<f64> {
+        match self.solve_on(b, dofs, rtol, None) {
+            Ok(x) => x,
+            Err(e) => unreachable!("a solve without exchanges cannot fail: {e}"),
+        }
+    }
+
+    /// [`NodalMass::solve`], on a rank's part of the mesh when `part` gives the rank's equations
+    /// and the exchange between the ranks (collective): this mass and `b` are the part's shares
+    /// (its cells' masses, its forces), the equations' sums are taken by their owners, the dot
+    /// products over the owned equations summed over the ranks, and every rank returns the
+    /// solution at its own nodes.
+    pub fn solve_on(
+        &self,
+        b: &[f64],
+        dofs: &DofMap,
+        rtol: f64,
+        part: Option<(&LocalEquations, &dyn Exchange)>,
+    ) -> Result<Vec<f64>, String> {
         let n = b.len();
         let ne = dofs.n_free;
         let is_u = |d: usize| d % 4 != 3 && dofs.eq[d] != CONSTRAINED;
-        // Pᵀ v (equation space) and P y (dof space)
+        let owned: Vec<bool> = part.map_or_else(|| vec![true; ne], |(eq, _)| eq.owned.clone());
+        // the owners' sums of the ranks' shares, the owners' values at the ghosts, a sum
+        let combine = |v: &mut [f64]| part.map_or(Ok(()), |(_, x)| x.add_to_owners(v));
+        let spread = |v: &mut [f64]| part.map_or(Ok(()), |(_, x)| x.to_ghosts(v));
+        let dot = |a: &[f64], b: &[f64]| -> Result<f64, String> {
+            let mut s = [(0..ne)
+                .filter(|&e| owned[e])
+                .map(|e| a[e] * b[e])
+                .sum::<f64>()];
+            part.map_or(Ok(()), |(_, x)| x.sum(&mut s))?;
+            Ok(s[0])
+        };
+        // Pᵀ v (equation space, the owners' sums) and P y (dof space)
         let restrict = |v: &[f64], out: &mut [f64]| {
             out.iter_mut().for_each(|x| *x = 0.0);
             for d in 0..n {
@@ -272,6 +303,7 @@ impl NodalMass {
                     out[dofs.eq[d]] += v[d];
                 }
             }
+            combine(out)
         };
         let prolong = |y: &[f64], out: &mut [f64]| {
             for d in 0..n {
@@ -289,35 +321,37 @@ impl NodalMass {
             }
         }
         let mut diag = vec![0.0; ne];
-        restrict(&diag_dof, &mut diag);
-        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        restrict(&diag_dof, &mut diag)?;
         let precond = |r: &[f64], z: &mut [f64]| {
             for e in 0..ne {
                 z[e] = if diag[e] > 0.0 { r[e] / diag[e] } else { 0.0 };
             }
         };
-        let (mut full, mut mfull) = (vec![0.0; n], vec![0.0; n]);
+        let (mut full, mut mfull, mut spread_y) = (vec![0.0; n], vec![0.0; n], vec![0.0; ne]);
         let mut apply = |y: &[f64], out: &mut [f64]| {
-            prolong(y, &mut full);
+            spread_y.copy_from_slice(y);
+            spread(&mut spread_y)?;
+            prolong(&spread_y, &mut full);
             self.mul(&full, &mut mfull);
-            restrict(&mfull, out);
+            restrict(&mfull, out)
         };
         let mut y = vec![0.0; ne];
         let mut r = vec![0.0; ne];
-        restrict(b, &mut r);
-        let norm0 = dot(&r, &r).sqrt();
+        restrict(b, &mut r)?;
+        let norm0 = dot(&r, &r)?.sqrt();
         let mut x = vec![0.0; n];
         if norm0 == 0.0 {
-            return x;
+            return Ok(x);
         }
         let mut z = vec![0.0; ne];
         precond(&r, &mut z);
         let mut p = z.clone();
-        let mut rz = dot(&r, &z);
+        let mut rz = dot(&r, &z)?;
         let mut ap = vec![0.0; ne];
-        for _ in 0..10 * ne.max(10) {
-            apply(&p, &mut ap);
-            let pap = dot(&p, &ap);
+        let n_all = part.map_or(ne, |(eq, _)| eq.n_global());
+        for _ in 0..10 * n_all.max(10) {
+            apply(&p, &mut ap)?;
+            let pap = dot(&p, &ap)?;
             if pap <= 0.0 {
                 break;
             }
@@ -326,19 +360,20 @@ impl NodalMass {
                 y[e] += alpha * p[e];
                 r[e] -= alpha * ap[e];
             }
-            if dot(&r, &r).sqrt() <= rtol * norm0 {
+            if dot(&r, &r)?.sqrt() <= rtol * norm0 {
                 break;
             }
             precond(&r, &mut z);
-            let rz_new = dot(&r, &z);
+            let rz_new = dot(&r, &z)?;
             let beta = rz_new / rz;
             rz = rz_new;
             for e in 0..ne {
                 p[e] = z[e] + beta * p[e];
             }
         }
+        spread(&mut y)?;
         prolong(&y, &mut x);
-        x
+        Ok(x)
     }
 }
 
@@ -377,6 +412,113 @@ mod tests {
     use crate::material::ElectroNeoHooke;
     use crate::mesh::{generate::box_mesh, ElementKind};
     use std::sync::Arc;
+
+    /// An exchange whose sums reach the owners only: the ghosts' entries become NaN, as no
+    /// distributed vector promises them (a solve must send the owners' values to the ghosts).
+    struct OwnersOnly(crate::problem::distributed::SumExchange, Vec<bool>);
+
+    impl Exchange for OwnersOnly {
+        fn add_to_owners(&self, local: &mut [f64]) -> Result<(), String> {
+            self.0.add_to_owners(local)?;
+            for (x, &owned) in local.iter_mut().zip(&self.1) {
+                if !owned {
+                    *x = f64::NAN;
+                }
+            }
+            Ok(())
+        }
+        fn to_ghosts(&self, local: &mut [f64]) -> Result<(), String> {
+            self.0.to_ghosts(local)
+        }
+        fn sum(&self, values: &mut [f64]) -> Result<(), String> {
+            self.0.sum(values)
+        }
+    }
+
+    /// On 2 and 3 ranks simulated by threads, each holding its part of the mesh (its cells'
+    /// mass, its owned nodes' share of the right-hand side), the solve over the ranks gives the
+    /// whole solve at every node of every part, with a tie across the partition's cut.
+    #[test]
+    fn the_solve_over_the_ranks_parts_is_the_whole_solve() {
+        use crate::mesh::distribute::{LocalMesh, Numbering};
+        use crate::problem::assembly::{node_processes, on_threads};
+        use crate::problem::distributed::{equation_owners, LocalEquations, SumExchange};
+        use crate::problem::dofs::{Field, Tie};
+        let material = Arc::new(ElectroNeoHooke::new(1.0, 1.0, 1.0));
+        for mk in [MassKind::Consistent, MassKind::Lumped] {
+            let mesh = box_mesh([2.0, 1.0, 0.5], [6, 4, 2], ElementKind::Hex8);
+            let n = mesh.n_nodes() * 4;
+            let tie = |nodes: Vec<usize>| Tie {
+                nodes,
+                field: Field::Uz,
+                held: false,
+            };
+            let face = mesh.set_nodes("x1").unwrap();
+            // the x = 0 face's x displacement held
+            let mut held = vec![false; n];
+            for &node in &mesh.set_nodes("x0").unwrap() {
+                held[node * 4] = true;
+            }
+            let whole_dofs = DofMap::with_ties(n / 4, &held, 1.0, &[tie(face.clone())]);
+            let model = Model::new(mesh.clone(), material.clone()).unwrap();
+            let whole_mass = NodalMass::new(&model, &[7.0], mk);
+            let b: Vec<f64> = (0..n).map(|d| ((d * 7) % 13) as f64 - 6.0).collect();
+            let whole = whole_mass.solve(&b, &whole_dofs, 1e-13);
+            let scale = whole.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            for ranks in [2, 3] {
+                let cells = crate::mesh::partition::partition_cells(&mesh, ranks, None);
+                let owner = node_processes(&mesh, &whole_dofs, &cells, ranks);
+                let numbering = Numbering::contiguous(&equation_owners(&whole_dofs, &owner), ranks);
+                let parts = on_threads(ranks, |rank, sum| {
+                    let local = LocalMesh::of_rank(&mesh, &cells, &owner, rank, ranks).unwrap();
+                    let nl = local.nodes.len();
+                    let at = |g: usize| local.nodes.iter().position(|&l| l == g);
+                    let local_face: Vec<usize> = face.iter().filter_map(|&g| at(g)).collect();
+                    let local_held: Vec<bool> = local
+                        .nodes
+                        .iter()
+                        .flat_map(|&g| held[g * 4..(g + 1) * 4].to_vec())
+                        .collect();
+                    let dofs = DofMap::with_ties(nl, &local_held, 1.0, &[tie(local_face)]);
+                    let equations = Arc::new(
+                        LocalEquations::new(&whole_dofs, &numbering, &local, &dofs).unwrap(),
+                    );
+                    let exchange = OwnersOnly(
+                        SumExchange::new(Arc::clone(&equations), sum),
+                        equations.owned.clone(),
+                    );
+                    let part_model = Model::new(local.mesh.clone(), material.clone()).unwrap();
+                    let mass = NodalMass::new(&part_model, &[7.0], mk);
+                    // the owned nodes' forces: each acts once over the ranks
+                    let share: Vec<f64> = (0..nl * 4)
+                        .map(|d| {
+                            if d / 4 < local.owned {
+                                b[local.nodes[d / 4] * 4 + d % 4]
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect();
+                    let x = mass
+                        .solve_on(&share, &dofs, 1e-13, Some((&equations, &exchange)))
+                        .unwrap();
+                    (local.nodes.clone(), x)
+                });
+                for (rank, (nodes, x)) in parts.iter().enumerate() {
+                    for (l, &g) in nodes.iter().enumerate() {
+                        for f in 0..4 {
+                            let (a, e) = (x[l * 4 + f], whole[g * 4 + f]);
+                            assert!(
+                                (a - e).abs() <= 1e-10 * scale,
+                                "{mk:?}, {ranks} ranks, rank {rank}, node {g}, field {f}: \
+                                 {a:e} against {e:e}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn mass_totals_and_solve() {

@@ -7,6 +7,7 @@
 use super::integrator::{FactorPoint, Scheme, TimeLevel, TimeStep};
 use super::mass::NodalMass;
 use crate::problem::assembly::CsrMatrix;
+use crate::problem::distributed::{agree, Division, Exchange, Held, LocalEquations};
 use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
@@ -135,6 +136,33 @@ pub struct DynamicInputs<'a> {
     /// The committed internal variables of the material points at the start level (empty for
     /// elastic materials).
     pub points: PointStates,
+    /// On a rank's part of a divided plan: how the ranks divide the unknowns (`None`: the whole
+    /// problem is here). The model, the mass, the start level and the points are then the
+    /// part's.
+    pub part: Option<StageParts<'a>>,
+}
+
+/// How the ranks divide the unknowns of a dynamic stage: the step's (displacements and
+/// potentials) and the electrostatic projection's (the potentials alone).
+#[derive(Clone, Copy)]
+pub struct StageParts<'a> {
+    pub step: &'a Division,
+    pub projection: &'a Division,
+}
+
+impl<'a> StageParts<'a> {
+    /// The step's equations and exchange, for a mass solve over the ranks.
+    fn step_division(self) -> (&'a LocalEquations, &'a dyn Exchange) {
+        (self.step.equations.as_ref(), self.step.exchange.as_ref())
+    }
+}
+
+/// `outcome`, agreed over the ranks of a part (every rank fails when one does).
+fn agreed<T>(part: Option<StageParts>, outcome: Result<T, String>) -> Result<T, String> {
+    match part {
+        Some(p) => agree(p.step.exchange.as_ref(), outcome),
+        None => outcome,
+    }
 }
 
 /// Why an attempted step did not give a new level.
@@ -170,25 +198,34 @@ trait Stepper {
     fn linear(&self) -> SolverStats;
 }
 
+/// The model of a dynamic stage's electrostatic projection, from the stage's model with its
+/// conditions: every displacement held, the potential prescribed where the stage prescribes it.
+pub fn projection_model(step_model: &Model) -> Model {
+    Projector::model(step_model)
+}
+
 /// The electrostatic projection: every displacement held, the potential solved for with the
 /// electrodes at their voltages (Gauss's law at a time level).
 struct Projector<'m> {
-    problem: StaticProblem<'m>,
+    problem: Held<StaticProblem<'m>>,
     solver: Box<dyn LinearSolver>,
     k: CsrMatrix,
     settings: NewtonSettings,
 }
 
 impl<'m> Projector<'m> {
+    /// On a rank's part (`part`: the projection's division) Newton runs on the rank's owned
+    /// potentials (collective).
     fn new(
         model: &'m Model,
         start: &[f64],
         settings: &DynamicSettings,
         newton_settings: &NewtonSettings,
-    ) -> Self {
-        let problem = StaticProblem::new(model, Some(start.to_vec()));
-        let k = problem.new_matrix();
-        Projector {
+        part: Option<&Division>,
+    ) -> Result<Self, String> {
+        let problem = Held::new(StaticProblem::new(model, Some(start.to_vec())), part)?;
+        let k = problem.inner().new_matrix();
+        Ok(Projector {
             problem,
             solver: settings.solver.build(),
             k,
@@ -197,7 +234,7 @@ impl<'m> Projector<'m> {
                 reuse_factorization: settings.reuse_factorization,
                 ..newton_settings.clone()
             },
-        }
+        })
     }
 
     /// The model of the projection: all displacements held, the potential prescribed where
@@ -227,13 +264,14 @@ impl<'m> Projector<'m> {
 
     /// Factors the projection's matrix at a recorded state (a resumed run).
     fn refactor_at(&mut self, state: &[f64]) -> Result<(), String> {
-        self.problem.state.copy_from_slice(state);
-        let mut r = vec![0.0; self.problem.n()];
-        self.problem.evaluate(&mut r, Some(&mut self.k))?;
+        self.problem.inner_mut().state.copy_from_slice(state);
+        let system = self.problem.system();
+        let mut r = vec![0.0; system.n()];
+        system.evaluate(&mut r, Some(&mut self.k))?;
         // a shared assembly's solver needs the layout before its first factorisation
-        crate::solve::newton::prepare_solver(&self.problem, self.solver.as_mut())?;
+        crate::solve::newton::prepare_solver(system, self.solver.as_mut())?;
         self.solver.factor(&self.k).map_err(|e| e.to_string())?;
-        self.problem.factored();
+        system.factored();
         Ok(())
     }
 
@@ -247,7 +285,7 @@ impl<'m> Projector<'m> {
         t: f64,
         charges: Vec<(usize, f64)>,
     ) -> Result<(), String> {
-        let p = &mut self.problem;
+        let p = self.problem.inner_mut();
         p.extra_charges = charges;
         p.state.copy_from_slice(q);
         for (nodes, w) in &inputs.electrodes {
@@ -256,8 +294,14 @@ impl<'m> Projector<'m> {
                 p.state[node * FIELDS + PHI] = v;
             }
         }
-        newton(p, self.solver.as_mut(), &mut self.k, &self.settings)
-            .map_err(|e| format!("electrostatic projection: {e}"))?;
+        newton(
+            self.problem.system(),
+            self.solver.as_mut(),
+            &mut self.k,
+            &self.settings,
+        )
+        .map_err(|e| format!("electrostatic projection: {e}"))?;
+        let p = self.problem.inner();
         for node in 0..q.len() / FIELDS {
             q[node * FIELDS + PHI] = p.state[node * FIELDS + PHI];
         }
@@ -266,7 +310,7 @@ impl<'m> Projector<'m> {
 
     fn factor_point(&self) -> Option<&[f64]> {
         if self.solver.is_factored() {
-            self.problem.factored_at.as_deref()
+            self.problem.inner().factored_at.as_deref()
         } else {
             None
         }
@@ -275,7 +319,7 @@ impl<'m> Projector<'m> {
 
 /// Midpoint and Newmark: Newton on the step equation of [`TimeStep`].
 struct ImplicitStepper<'a, 'm> {
-    step: TimeStep<'m>,
+    step: Held<TimeStep<'m>>,
     solver: Box<dyn LinearSolver>,
     k: CsrMatrix,
     settings: NewtonSettings,
@@ -287,25 +331,25 @@ struct ImplicitStepper<'a, 'm> {
 
 impl Stepper for ImplicitStepper<'_, '_> {
     fn level(&self) -> &TimeLevel {
-        &self.step.prev
+        &self.step.inner().prev
     }
 
     fn attempt(&mut self, h: f64) -> Result<Attempt, StepError> {
-        let t0 = self.step.prev.t;
+        let t0 = self.step.inner().prev.t;
         let voltages: Vec<(&[usize], f64, f64)> = self
             .inputs
             .electrodes
             .iter()
             .map(|(n, w)| (n.as_slice(), w.value(t0 + 0.5 * h), w.value(t0 + h)))
             .collect();
-        self.step.begin(h, &voltages);
+        self.step.inner_mut().begin(h, &voltages);
         let sources: Vec<[f64; 3]> = self
             .inputs
             .circuits
             .iter()
             .map(|w| [w.value(t0), w.value(t0 + 0.5 * h), w.value(t0 + h)])
             .collect();
-        if let Err(e) = self.step.begin_circuits(&sources) {
+        if let Err(e) = self.step.inner_mut().begin_circuits(&sources) {
             return Err(StepError::Fatal(e, 0));
         }
         if h != self.last_h {
@@ -314,39 +358,44 @@ impl Stepper for ImplicitStepper<'_, '_> {
             self.last_h = h;
         }
         let rep = match newton(
-            &mut self.step,
+            self.step.system(),
             self.solver.as_mut(),
             &mut self.k,
             &self.settings,
         ) {
             Ok(rep) => rep,
             Err(e) => {
-                self.step.q = self.step.prev.q.clone();
+                let step = self.step.inner_mut();
+                step.q = step.prev.q.clone();
                 return Err(StepError::Retry(e.to_string()));
             }
         };
-        let dissipated = match self.step.dissipation_power() {
+        // on a rank's part: its own cells' and dashpots' power (the records sum the ranks')
+        let power = self.step.inner_mut().dissipation_power();
+        let dissipated = match self.step.agree(power) {
             Ok(p) => p * h,
             Err(e) => return Err(StepError::Fatal(e, rep.iterations)),
         };
         // the internal variables follow the update whose stresses the step used; a failure here
         // (an inadmissible evaluation point) is a step to retry smaller
-        let (points, dissipated) = if self.step.points.is_empty() {
+        let (points, dissipated) = if self.step.inner().points.is_empty() {
             (None, dissipated)
         } else {
-            match self.step.updated_points() {
+            let updated = self.step.inner_mut().updated_points();
+            match self.step.agree(updated) {
                 Ok((p, d)) => (Some(p), dissipated + d),
                 Err(e) => {
-                    self.step.q = self.step.prev.q.clone();
+                    let step = self.step.inner_mut();
+                    step.q = step.prev.q.clone();
                     return Err(StepError::Retry(e));
                 }
             }
         };
-        let mut level = self.step.end_level();
+        let mut level = self.step.inner().end_level();
         if self.scheme == Scheme::Midpoint {
             // Gauss's law at t_{n+1}: solve for the potential with u_{n+1} held
             let t1 = level.t;
-            let charges = self.step.end_charges();
+            let charges = self.step.inner_mut().end_charges();
             self.projector
                 .project(&mut level.q, self.inputs, t1, charges)
                 .map_err(|e| StepError::Fatal(e, rep.iterations))?;
@@ -360,10 +409,11 @@ impl Stepper for ImplicitStepper<'_, '_> {
     }
 
     fn accept(&mut self, level: TimeLevel, points: Option<PointStates>) {
-        self.step.q = level.q.clone();
-        self.step.prev = level;
+        let step = self.step.inner_mut();
+        step.q = level.q.clone();
+        step.prev = level;
         if let Some(p) = points {
-            self.step.points = p;
+            step.points = p;
         }
     }
 
@@ -373,7 +423,7 @@ impl Stepper for ImplicitStepper<'_, '_> {
 
     fn position(&self) -> (f64, Option<&FactorPoint>, Option<&[f64]>) {
         let step = if self.solver.is_factored() {
-            self.step.factor_point.as_ref()
+            self.step.inner().factor_point.as_ref()
         } else {
             None
         };
@@ -629,16 +679,6 @@ pub fn run_dynamic_from(
             },
         ));
     }
-    let mut step_model = model.clone();
-    for (nodes, w) in &inputs.electrodes {
-        step_model.dirichlet.push(Dirichlet {
-            nodes: nodes.clone(),
-            field: Field::Phi,
-            value: w.value(start.t),
-        });
-    }
-    let proj_model = Projector::model(&step_model);
-    let mut projector = Projector::new(&proj_model, &start.q, settings, newton_settings);
     let fail = |level: &TimeLevel, reason: String| {
         (
             level.clone(),
@@ -650,6 +690,32 @@ pub fn run_dynamic_from(
             },
         )
     };
+    let part = inputs.part;
+    if part.is_some() && (settings.scheme == Method::Trapezoidal || resume.is_some()) {
+        return Err(fail(
+            &start,
+            "a rank's part runs the implicit schemes from a stage's start only (the explicit \
+             scheme and resumed stages keep the whole state on every rank)"
+                .to_string(),
+        ));
+    }
+    let mut step_model = model.clone();
+    for (nodes, w) in &inputs.electrodes {
+        step_model.dirichlet.push(Dirichlet {
+            nodes: nodes.clone(),
+            field: Field::Phi,
+            value: w.value(start.t),
+        });
+    }
+    let proj_model = Projector::model(&step_model);
+    let mut projector = Projector::new(
+        &proj_model,
+        &start.q,
+        settings,
+        newton_settings,
+        part.map(|p| p.projection),
+    )
+    .map_err(|e| fail(&start, e))?;
     if let Some(q) = resume.as_ref().and_then(|r| r.projection_factor.as_ref()) {
         projector
             .refactor_at(q)
@@ -748,21 +814,25 @@ pub fn run_dynamic_from(
             start.clone(),
         );
         probe.points = inputs.points.clone();
-        let forces = probe
-            .forces_at(&start.q, &start.v)
-            .map_err(|e| fail(&start, e))?;
+        // on a rank's part: its share of the forces and of the mass, solved over the ranks
+        let forces =
+            agreed(part, probe.forces_at(&start.q, &start.v)).map_err(|e| fail(&start, e))?;
         let rhs: Vec<f64> = forces.iter().map(|f| -f).collect();
-        start.a = inputs.mass.solve(&rhs, &probe.dofs, 1e-12);
+        start.a = inputs
+            .mass
+            .solve_on(&rhs, &probe.dofs, 1e-12, part.map(|p| p.step_division()))
+            .map_err(|e| fail(&start, e))?;
     }
     let mut step = TimeStep::new(
         &step_model,
         inputs.mass,
         inputs.viscosity.clone(),
         scheme,
-        start,
+        start.clone(),
     );
     step.points = inputs.points.clone();
-    let k = step.new_matrix();
+    let step = Held::new(step, part.map(|p| p.step)).map_err(|e| fail(&start, e))?;
+    let k = step.inner().new_matrix();
     let mut stepper = ImplicitStepper {
         step,
         solver: settings.solver.build(),
@@ -779,9 +849,9 @@ pub fn run_dynamic_from(
     };
     if let Some(point) = resume.as_ref().and_then(|r| r.step_factor.as_ref()) {
         let s = &mut stepper;
-        s.step
-            .refactor_at(point, s.solver.as_mut(), &mut s.k)
-            .map_err(|e| fail(&s.step.prev, format!("re-factoring at the checkpoint: {e}")))?;
+        let step = s.step.inner_mut();
+        step.refactor_at(point, s.solver.as_mut(), &mut s.k)
+            .map_err(|e| fail(&step.prev, format!("re-factoring at the checkpoint: {e}")))?;
     }
     step_loop(&mut stepper, settings, t_end, dt, (total, base), on_step)
 }

@@ -50,6 +50,7 @@ pub fn simulate(
         ],
         circuits: Vec::new(),
         points: Default::default(),
+        part: None,
     };
     let n = model.mesh.n_nodes() * FIELDS;
     let start = TimeLevel {
