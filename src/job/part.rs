@@ -470,6 +470,30 @@ mod tests {
         plan
     }
 
+    /// Rank `rank`'s part of `plan` on a thread of [`on_threads`], its exchanges summing over
+    /// the threads by `sum` (one sum for every exchange the division makes).
+    fn divide_on_thread(
+        plan: &Plan,
+        rank: usize,
+        ranks: usize,
+        sum: crate::problem::assembly::SumOverProcesses,
+    ) -> Plan {
+        let sum = Arc::new(sum);
+        divide(
+            plan,
+            rank,
+            ranks,
+            |ok| ok,
+            |eq| {
+                let sum = Arc::clone(&sum);
+                let exchange =
+                    SumExchange::new(Arc::clone(eq), Box::new(move |v: &mut [f64]| sum(v)));
+                Ok(Arc::new(exchange) as Arc<dyn Exchange>)
+            },
+        )
+        .unwrap()
+    }
+
     /// The record of `plan` at `state` (its first record: the energy balance's origin).
     fn record(plan: &Plan, state: &[f64]) -> StepRecord {
         let mut model = plan.model.clone();
@@ -497,21 +521,7 @@ mod tests {
         );
         for ranks in [2, 3] {
             let records = on_threads(ranks, |rank, sum| {
-                // one sum for every exchange the division makes
-                let sum = Arc::new(sum);
-                let part = divide(
-                    &plan,
-                    rank,
-                    ranks,
-                    |ok| ok,
-                    |eq| {
-                        let sum = Arc::clone(&sum);
-                        let exchange =
-                            SumExchange::new(Arc::clone(eq), Box::new(move |v: &mut [f64]| sum(v)));
-                        Ok(Arc::new(exchange) as Arc<dyn Exchange>)
-                    },
-                )
-                .unwrap();
+                let part = divide_on_thread(&plan, rank, ranks, sum);
                 let p = part.part.as_ref().unwrap();
                 assert!(part.model.mesh.n_nodes() < plan.model.mesh.n_nodes());
                 assert_eq!((p.whole_nodes, p.whole_cells), (75, 32));
@@ -594,20 +604,7 @@ mod tests {
         assert!(mass > 0.0, "the example's pad carries a mass");
         let ranks = 2;
         let parts = on_threads(ranks, |rank, sum| {
-            let sum = Arc::new(sum);
-            let part = divide(
-                &plan,
-                rank,
-                ranks,
-                |ok| ok,
-                |eq| {
-                    let sum = Arc::clone(&sum);
-                    let exchange =
-                        SumExchange::new(Arc::clone(eq), Box::new(move |v: &mut [f64]| sum(v)));
-                    Ok(Arc::new(exchange) as Arc<dyn Exchange>)
-                },
-            )
-            .unwrap();
+            let part = divide_on_thread(&plan, rank, ranks, sum);
             let p = part.part.as_ref().unwrap();
             let projection = p.projection.as_ref().expect("a division of the projection");
             (
