@@ -509,6 +509,18 @@ fn on_ranks_of(
     extra: &[&str],
     compare: impl FnOnce(&Path, &Path),
 ) -> (f64, f64, String, String) {
+    on_ranks_with(ranks, example_name, text, extra, &[], compare)
+}
+
+/// [`on_ranks_of`] with more environment variables `vars` for the ranks.
+fn on_ranks_with(
+    ranks: usize,
+    example_name: &str,
+    text: &str,
+    extra: &[&str],
+    vars: &[(&str, &str)],
+    compare: impl FnOnce(&Path, &Path),
+) -> (f64, f64, String, String) {
     // one directory per call: tests of one example run side by side in this process
     static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -540,7 +552,7 @@ fn on_ranks_of(
     let mut args = vec!["run", "petsc.toml", "--out", "mpi"];
     args.extend(&sets);
     args.extend(&solver);
-    let mpi = mpirun(ranks, &dir, &args);
+    let mpi = mpirun_with(ranks, &dir, &args, vars);
     let log = String::from_utf8_lossy(&mpi.stderr).into_owned();
     assert!(
         log.contains(&format!("one linear system on {ranks} MPI ranks")),
@@ -777,10 +789,32 @@ fn a_pressure_load_on_two_mpi_ranks_agrees_with_the_serial_run() {
 }
 
 /// On 3 ranks the partition also cuts the rigid pad (one tied unknown per direction shared by
-/// cells of two ranks); METIS's 2-way partition keeps the pad whole. The static `load` stage.
+/// cells of two ranks); METIS's 2-way partition keeps the pad whole. The static `load` stage
+/// and 1 ms of the dynamic one, each rank holding its part.
 #[test]
 fn the_3d_diaphragm_on_three_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, _, _) = on_ranks(3, "diaphragm-3d", &["stages.1.duration=0.001"]);
+    let (d, fields, _, log) = on_ranks(3, "diaphragm-3d", &["stages.1.duration=0.001"]);
+    assert_parts(&log, 3);
+    assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
+}
+
+/// The 3-D diaphragm's dynamic run on 2 ranks each holding the whole state (as a run with
+/// checkpoints does): every rank assembles its own cells into the shared system.
+#[test]
+fn the_3d_diaphragm_on_two_mpi_ranks_holding_the_whole_state_agrees_with_the_serial_run() {
+    let text = example("diaphragm-3d").unwrap();
+    let (d, fields, _, log) = on_ranks_with(
+        2,
+        "diaphragm-3d-whole",
+        text,
+        &["stages.1.duration=0.005"],
+        &[("DEASIM_WHOLE_STATE", "1")],
+        |_, _| {},
+    );
+    assert!(
+        log.contains("every rank holds the whole state: DEASIM_WHOLE_STATE is set"),
+        "{log}"
+    );
     assert!(d < 1e-10 && fields < 1e-10, "{d:e} {fields:e}");
 }
 

@@ -902,7 +902,7 @@ fn execute(
     let mut progress = Progress::new(plan);
     eprintln!(
         "deasim: linear solver: {}",
-        plan.solver.describe(plan.model.mesh.n_nodes() * 4)
+        plan.solver.describe(plan.whole_nodes() * 4)
     );
     let mut checkpoint = checkpoint;
     let mut observers: Vec<&mut dyn Observer> = vec![&mut writer, &mut progress];

@@ -380,6 +380,7 @@ impl<S: NonlinearSystem> Held<S> {
         }
     }
 
+    /// [`Held::inner`], to change its state between solves.
     pub fn inner_mut(&mut self) -> &mut S {
         match self {
             Held::Whole(s) => s,
