@@ -377,6 +377,7 @@ fn run_exports_checkpoints_and_resumes_point_states() {
             },
             fingerprint: plan.fingerprint(),
             ranks: 1,
+            part: None,
         };
         let mut obs: Vec<&mut dyn Observer> = vec![&mut writer, &mut ck];
         let summary = run_with(&plan, &NewtonSettings::default(), &mut obs, start);

@@ -1117,59 +1117,85 @@ fn assert_parts(log: &str, ranks: usize) {
     }
 }
 
-/// The checkpoint files of run directory `out`, oldest first.
+/// The checkpoint files of run directory `out` written by rank 0, oldest first.
 fn checkpoints(out: &Path) -> Vec<std::path::PathBuf> {
     let mut ck: Vec<_> = std::fs::read_dir(out.join("checkpoint"))
         .unwrap_or_else(|e| panic!("{}: {e}", out.display()))
         .map(|e| e.unwrap().path())
+        .filter(|p| !p.to_string_lossy().contains(".rank-"))
         .collect();
     ck.sort();
     ck
 }
 
-/// A run on 2 ranks with checkpoints, cut back to its older checkpoint as a killed run would
-/// leave it (newer rows and field files, a stale piece), resumed under `mpirun -np 2`: it ends
-/// with the uninterrupted run's history and field files (the same `.pvtu` indexes, every rank's
-/// pieces with the same values to round-off). Resuming on 3 ranks works too, with a warning, and
-/// so does a run begun in one process and resumed on 2 ranks.
+/// Copies the checkpoint of rank 0's file `first` and the files of the other ranks at its step
+/// (a run of rank parts) into run directory `out`; returns how many files.
+fn copy_checkpoint(first: &Path, out: &Path) -> usize {
+    let step = first.file_stem().unwrap().to_string_lossy().into_owned();
+    std::fs::create_dir_all(out.join("checkpoint")).unwrap();
+    let mut copied = 0;
+    for e in std::fs::read_dir(first.parent().unwrap())
+        .unwrap()
+        .flatten()
+    {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name == format!("{step}.bin") || name.starts_with(&format!("{step}.rank-")) {
+            std::fs::copy(e.path(), out.join("checkpoint").join(&name)).unwrap();
+            copied += 1;
+        }
+    }
+    copied
+}
+
+/// A run on 2 ranks with checkpoints, each rank holding its part and writing its part's file,
+/// cut back to its older checkpoint as a killed run would leave it (newer rows and field files,
+/// a stale piece), resumed under `mpirun -np 2`: it ends with the uninterrupted run's history
+/// and field files (the same `.pvtu` indexes, every rank's pieces with the same values to
+/// round-off). On 3 ranks that checkpoint is refused with the reason; a checkpoint of the whole
+/// state (`DEASIM_WHOLE_STATE`) resumes on 3 ranks, with a warning, and so does a run begun in
+/// one process and resumed on 2 ranks.
 #[test]
 fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
     let dir = common::tempdir("petsc-mpi-resume");
     let text = example("film").unwrap();
     write_petsc_scenario(&dir, text);
-    let full = mpirun(
-        2,
-        &dir,
-        &[
+    let log = |o: &std::process::Output| String::from_utf8_lossy(&o.stderr).into_owned();
+    let run = |out: &str, vars: &[(&str, &str)]| {
+        let args = [
             "run",
             "petsc.toml",
             "--out",
-            "full",
+            out,
             "--checkpoint-every",
             "4",
             "--set",
             "output.plots=false",
             "--set",
             "output.vtu_format=\"ascii\"",
-        ],
-    );
-    let log = |o: &std::process::Output| String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(full.status.success(), "{}", log(&full));
-    let ck = checkpoints(&dir.join("full"));
-    assert_eq!(ck.len(), 2, "{ck:?}");
-    for (cut, ranks) in [("cut2", 2), ("cut3", 3)] {
+        ];
+        let full = mpirun_with(2, &dir, &args, vars);
+        assert!(full.status.success(), "{}", log(&full));
+        full
+    };
+    let full = run("full", &[]);
+    assert_parts(&log(&full), 2);
+    run("whole", &[("DEASIM_WHOLE_STATE", "1")]);
+    for (cut, ranks, written) in [
+        ("cut2", 2, "full"),
+        ("cut3", 3, "full"),
+        ("whole3", 3, "whole"),
+    ] {
+        let ck = checkpoints(&dir.join(written));
+        assert_eq!(ck.len(), 2, "{ck:?}");
         let out = dir.join(cut);
-        std::fs::create_dir_all(out.join("checkpoint")).unwrap();
         std::fs::create_dir_all(out.join("fields")).unwrap();
-        std::fs::copy(
-            &ck[0],
-            out.join("checkpoint").join(ck[0].file_name().unwrap()),
-        )
-        .unwrap();
-        let history = std::fs::read_to_string(dir.join("full/history.csv")).unwrap();
+        // the parts' run: a file of each rank
+        let files = if written == "full" { 2 } else { 1 };
+        assert_eq!(copy_checkpoint(&ck[0], &out), files);
+        let history = std::fs::read_to_string(dir.join(written).join("history.csv")).unwrap();
         let rows: Vec<&str> = history.lines().collect();
         std::fs::write(out.join("history.csv"), rows[..rows.len() - 2].join("\n")).unwrap();
-        for e in std::fs::read_dir(dir.join("full/fields"))
+        for e in std::fs::read_dir(dir.join(written).join("fields"))
             .unwrap()
             .flatten()
         {
@@ -1177,16 +1203,32 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
         }
         std::fs::write(out.join("fields/step_99999_p0001.vtu"), "stale").unwrap();
         let resumed = mpirun(ranks, &dir, &["run", "--resume", cut]);
+        if cut == "cut3" {
+            assert!(!resumed.status.success());
+            assert!(
+                log(&resumed).contains(
+                    "the checkpoint holds the parts of 2 MPI rank(s), this run has 3: a run \
+                     whose ranks held their parts resumes on as many ranks"
+                ),
+                "{}",
+                log(&resumed)
+            );
+            continue;
+        }
         assert!(resumed.status.success(), "{}", log(&resumed));
         assert!(!out.join("fields/step_99999_p0001.vtu").exists());
         // MUMPS schedules its work on several ranks by their load, so two runs agree to
         // round-off, not bit for bit
-        let d = history_difference(&dir.join("full/history.csv"), &out.join("history.csv"));
+        let d = history_difference(
+            &dir.join(written).join("history.csv"),
+            &out.join("history.csv"),
+        );
         assert!(
             d <= 1e-10,
             "resumed on {ranks} ranks against uninterrupted: {d:e}"
         );
         if ranks == 2 {
+            assert_parts(&log(&resumed), 2);
             assert!(!log(&resumed).contains("written on"), "{}", log(&resumed));
             let mut files = 0;
             for e in std::fs::read_dir(dir.join("full/fields"))
@@ -1271,6 +1313,57 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
     for f in files {
         assert!(dir.join("one").join(f).is_file(), "{f}");
     }
+}
+
+/// A dynamic run of rank parts with checkpoints on 2 ranks, cut back as a run killed while
+/// its ranks wrote their newer checkpoint would leave it (rank 0's file of that step, not rank
+/// 1's): the resumed run skips that step with a warning, takes up the older one, each rank its
+/// part (re-factoring the modified-Newton matrix where it was factored), and ends with the
+/// uninterrupted run's history.
+#[test]
+fn a_dynamic_run_of_rank_parts_resumes_from_its_checkpoint() {
+    let dir = common::tempdir("petsc-mpi-dynamic-resume");
+    write_petsc_scenario(&dir, example("film-vibration").unwrap());
+    let log = |o: &std::process::Output| String::from_utf8_lossy(&o.stderr).into_owned();
+    let args = [
+        "run",
+        "petsc.toml",
+        "--out",
+        "full",
+        "--checkpoint-every",
+        "30",
+        "--set",
+        "stages.0.duration=2e-3",
+        "--set",
+        "output.plots=false",
+        "--set",
+        "output.fields_every=1000000",
+    ];
+    let full = mpirun(2, &dir, &args);
+    assert!(full.status.success(), "{}", log(&full));
+    assert_parts(&log(&full), 2);
+    // 100 steps: the checkpoints of steps 60 and 90 kept
+    let ck = checkpoints(&dir.join("full"));
+    assert_eq!(ck.len(), 2, "{ck:?}");
+    let out = dir.join("cut");
+    assert_eq!(copy_checkpoint(&ck[0], &out), 2);
+    std::fs::copy(
+        &ck[1],
+        out.join("checkpoint").join(ck[1].file_name().unwrap()),
+    )
+    .unwrap();
+    let resumed = mpirun(2, &dir, &["run", "--resume", "cut"]);
+    let text = log(&resumed);
+    assert!(resumed.status.success(), "{text}");
+    assert_parts(&text, 2);
+    assert!(
+        text.contains("skipping an incomplete checkpoint")
+            && text.contains("the part of rank 1 is missing")
+            && text.contains("resuming `film-vibration` from step 60"),
+        "{text}"
+    );
+    let d = history_difference(&dir.join("full/history.csv"), &out.join("history.csv"));
+    assert!(d < 1e-10, "resumed against uninterrupted: {d:e}");
 }
 
 /// A viscoelastic model on 2 ranks: each rank updates the internal variables of its own cells

@@ -345,7 +345,9 @@ pub fn cmd_run(
         }
         Ok(r) => r,
     };
-    let pieces = match divide(&mut plan, rank, ranks, checkpoint_every.is_some()) {
+    // the whole plan's: a resumed run rebuilds the whole plan first
+    let fingerprint = plan.fingerprint();
+    let pieces = match divide(&mut plan, rank, ranks) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: rank {rank}: {e}");
@@ -355,12 +357,26 @@ pub fn cmd_run(
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(&plan.name));
+    // on rank parts every rank writes its part's checkpoints; else rank 0 the whole state
+    let checkpoint = checkpoint_every.map(|every| CheckpointWriter {
+        dir: dir.clone(),
+        every,
+        source: ScenarioSource {
+            text,
+            file: name,
+            base_dir: base.map(|b| b.display().to_string()),
+            overrides: overrides.to_vec(),
+        },
+        fingerprint,
+        ranks: ranks as u64,
+        part: plan.part.as_ref().map(|_| rank as u64),
+    });
     if rank > 0 {
         // rank 0 prepares the directory first
         if !ranks_agree(true) {
             return EXIT_BAD_INPUT;
         }
-        return run_secondary_rank(&plan, &dir, pieces, None, checkpoint_every);
+        return run_secondary_rank(&plan, &dir, pieces, None, checkpoint);
     }
     let prepared = prepare_output(&dir, &plan.name, overwrite);
     if ranks > 1 && !ranks_agree(prepared.is_ok()) {
@@ -381,18 +397,6 @@ pub fn cmd_run(
     if let Some(p) = pieces {
         writer.split_fields(p, false);
     }
-    let checkpoint = checkpoint_every.map(|every| CheckpointWriter {
-        dir: dir.clone(),
-        every,
-        source: ScenarioSource {
-            text,
-            file: name,
-            base_dir: base.map(|b| b.display().to_string()),
-            overrides: overrides.to_vec(),
-        },
-        fingerprint: plan.fingerprint(),
-        ranks: ranks as u64,
-    });
     let status = execute(&plan, &dir, writer, checkpoint, None);
     if ranks > 1 {
         mpi_barrier();
@@ -410,7 +414,7 @@ fn prepare_output(
     let lock = DirLock::acquire(dir).map_err(|e| e.to_string())?;
     OutputWriter::check_directory(dir, name, overwrite)?;
     // checkpoints of an earlier run in this directory belong to other results
-    for old in crate::io::checkpoint::list(dir) {
+    for (_, _, old) in crate::io::checkpoint::checkpoint_files(dir) {
         std::fs::remove_file(&old).map_err(|e| format!("{}: {e}", old.display()))?;
     }
     let writer = OutputWriter::new(dir)
@@ -421,20 +425,12 @@ fn prepare_output(
 /// On several ranks: replaces `plan` by this rank's part of it when the plan can be divided
 /// ([`crate::job::part::divide`]: each rank then holds only its part of the mesh and the state),
 /// else shares its cells with the whole state on every rank ([`distribute`]); rank 0 says which.
-/// Returns this rank's piece of the field files; `None` on one rank. A run that writes
-/// checkpoints keeps the whole state (a checkpoint holds it), as does any run with the
-/// environment variable `DEASIM_WHOLE_STATE` set (to compare the two).
-fn divide(
-    plan: &mut Plan,
-    rank: usize,
-    ranks: usize,
-    checkpoints: bool,
-) -> Result<Option<Pieces>, String> {
+/// Returns this rank's piece of the field files; `None` on one rank. A run with the
+/// environment variable `DEASIM_WHOLE_STATE` set keeps the whole state (to compare the two).
+fn divide(plan: &mut Plan, rank: usize, ranks: usize) -> Result<Option<Pieces>, String> {
     #[cfg(feature = "petsc")]
     if ranks > 1 {
-        let why = if checkpoints {
-            Some("checkpoints are written from the whole state".to_string())
-        } else if std::env::var_os("DEASIM_WHOLE_STATE").is_some() {
+        let why = if std::env::var_os("DEASIM_WHOLE_STATE").is_some() {
             // for comparisons (scripts/bench-mpi.sh)
             Some("DEASIM_WHOLE_STATE is set".to_string())
         } else {
@@ -492,7 +488,6 @@ fn divide(
             Some(_) => {}
         }
     }
-    let _ = checkpoints;
     Ok(distribute(plan, rank, ranks))
 }
 
@@ -634,13 +629,13 @@ fn launched_rank() -> usize {
 
 /// A rank other than 0 of a distributed run: the same run (the same steps, so the same
 /// collective PETSc calls), silent, writing only its `pieces` of the field files into `dir`
-/// (from `start` when resuming).
+/// (from `start` when resuming), and its part's checkpoints when `checkpoint` says so.
 fn run_secondary_rank(
     plan: &Plan,
     dir: &Path,
     pieces: Option<Pieces>,
     start: Option<RunState>,
-    checkpoint_every: Option<usize>,
+    checkpoint: Option<CheckpointWriter>,
 ) -> i32 {
     let mut writer = match OutputWriter::new(dir) {
         Ok(w) => w,
@@ -652,9 +647,17 @@ fn run_secondary_rank(
     if let Some(p) = pieces {
         writer.split_fields(p, true);
     }
-    // rank 0 writes the checkpoints; this rank takes part in making their state
-    let mut cadence = checkpoint_every.map(|every| CheckpointCadence { every });
+    // rank 0 writes the whole state's checkpoints and this rank takes part in making their
+    // state; on rank parts this rank writes its own
+    let (mut own, mut cadence) = match checkpoint {
+        Some(c) if c.part.is_some() => (Some(c), None),
+        Some(c) => (None, Some(CheckpointCadence { every: c.every })),
+        None => (None, None),
+    };
     let mut observers: Vec<&mut dyn Observer> = vec![&mut writer];
+    if let Some(c) = own.as_mut() {
+        observers.push(c);
+    }
     if let Some(c) = cadence.as_mut() {
         observers.push(c);
     }
@@ -713,19 +716,32 @@ pub fn cmd_resume(
                 }
                 Ok(r) => r,
             };
-            if rank == 0 && checkpoint.ranks != ranks as u64 {
-                eprintln!(
-                    "warning: the checkpoint was written on {} MPI rank(s), this run has {ranks}: \
-                     the partition orders the sums, so the results agree to round-off, not bit \
-                     for bit",
-                    checkpoint.ranks
-                );
-            }
+            let (pieces, state) = if checkpoint.part.is_some() {
+                match resume_part(&mut plan, dir, &checkpoint, state, rank, ranks) {
+                    Ok(p) => p,
+                    Err(e) => {
+                        eprintln!(
+                            "error: rank {rank}: cannot resume from {}: {e}",
+                            dir.display()
+                        );
+                        return EXIT_BAD_INPUT;
+                    }
+                }
+            } else {
+                if rank == 0 && checkpoint.ranks != ranks as u64 {
+                    eprintln!(
+                        "warning: the checkpoint was written on {} MPI rank(s), this run has \
+                         {ranks}: the partition orders the sums, so the results agree to \
+                         round-off, not bit for bit",
+                        checkpoint.ranks
+                    );
+                }
+                (distribute(&mut plan, rank, ranks), state)
+            };
             checkpoint.ranks = ranks as u64;
-            let pieces = distribute(&mut plan, rank, ranks);
+            checkpoint.part = checkpoint.part.map(|_| rank as u64);
             if rank > 0 {
-                let every = Some(checkpoint.every);
-                return run_secondary_rank(&plan, dir, pieces, Some(state), every);
+                return run_secondary_rank(&plan, dir, pieces, Some(state), Some(checkpoint));
             }
             let mut writer = match OutputWriter::new(dir) {
                 Ok(w) => w,
@@ -751,8 +767,92 @@ pub fn cmd_resume(
     }
 }
 
-/// Reads the newest checkpoint of `dir` and checks it against the plan it rebuilds; `loud`:
-/// says so and warns (the process of rank 0).
+/// On rank parts: this rank's part of `plan` and its part's state at the checkpoint's step
+/// (rank 0's is `state`, the others read their own files), checked against the part.
+/// Collective: every rank fails when one does.
+fn resume_part(
+    plan: &mut Plan,
+    dir: &Path,
+    checkpoint: &CheckpointWriter,
+    state: RunState,
+    rank: usize,
+    ranks: usize,
+) -> Result<(Option<Pieces>, RunState), String> {
+    if checkpoint.ranks != ranks as u64 {
+        return Err(format!(
+            "the checkpoint holds the parts of {} MPI rank(s), this run has {ranks}: a run whose \
+             ranks held their parts resumes on as many ranks",
+            checkpoint.ranks
+        ));
+    }
+    let pieces = divide(plan, rank, ranks)?;
+    let own =
+        if plan.part.is_none() {
+            Err("the checkpoint holds rank parts, but this run keeps the whole state on every rank \
+             (is DEASIM_WHOLE_STATE set?)"
+            .to_string())
+        } else if rank == 0 {
+            Ok(state)
+        } else {
+            let path = crate::io::checkpoint::file_of(dir, state.accepted, rank);
+            crate::io::checkpoint::Checkpoint::read(&path)
+                .map_err(|e| e.to_string())
+                .and_then(|ck| {
+                    if ck.part != Some(rank as u64) || ck.fingerprint != checkpoint.fingerprint {
+                        Err(format!(
+                            "{}: not rank {rank}'s part of this run",
+                            path.display()
+                        ))
+                    } else {
+                        Ok(ck.state)
+                    }
+                })
+        };
+    let own = own.and_then(|st| check_state(plan, &st).map(|()| st));
+    if !ranks_agree(own.is_ok()) {
+        return Err(own.err().unwrap_or_else(|| {
+            "another rank could not take up its part (its message is on that rank)".to_string()
+        }));
+    }
+    Ok((pieces, own?))
+}
+
+/// Whether a checkpoint's run state fits `plan` (its stage kinds and vector sizes).
+fn check_state(plan: &Plan, st: &RunState) -> Result<(), String> {
+    use crate::job::state::StagePosition;
+    let n = plan.model.mesh.n_nodes() * crate::problem::dofs::FIELDS;
+    let stage = plan.stages.get(st.stage);
+    let kinds_match = matches!(
+        (stage.map(|s| &s.kind), &st.position),
+        (
+            Some(StageKind::Static { .. } | StageKind::QuasiStatic { .. }),
+            StagePosition::Static { stage_start, .. }
+        )
+            if stage_start.len() == n
+    ) || matches!(
+        (stage.map(|s| &s.kind), &st.position),
+        (
+            Some(StageKind::Dynamic { .. }),
+            StagePosition::Dynamic { .. }
+        )
+    );
+    let sizes_match = [st.q.len(), st.v.len(), st.a.len()].iter().all(|&l| l == n)
+        && st
+            .records
+            .iter()
+            .all(|r| r.probes.len() == plan.probes.len())
+        && st.recorder.broken_down.len() == plan.model.materials.len()
+        && st.recorder.reference.len() == n;
+    if kinds_match && sizes_match {
+        Ok(())
+    } else {
+        Err("the checkpoint does not match the scenario's model or stages".to_string())
+    }
+}
+
+/// Reads the newest checkpoint of `dir` and checks it against the plan it rebuilds (a
+/// checkpoint of rank parts: the rank's part, later); `loud`: says so and warns (the process of
+/// rank 0).
 fn prepare_resume(
     dir: &Path,
     scenario: Option<&Path>,
@@ -761,7 +861,6 @@ fn prepare_resume(
     loud: bool,
 ) -> Result<(Plan, CheckpointWriter, RunState), String> {
     use crate::io::checkpoint::latest;
-    use crate::job::state::StagePosition;
     // a run that ended converged wrote its summary.json (a new run deletes the earlier one)
     if let Ok(text) = std::fs::read_to_string(dir.join("summary.json")) {
         let v = serde_json::from_str::<serde_json::Value>(&text).ok();
@@ -820,33 +919,12 @@ fn prepare_resume(
             "the rebuilt model does not match the checkpoint (a mesh file changed?)".to_string(),
         );
     }
-    let n = plan.model.mesh.n_nodes() * crate::problem::dofs::FIELDS;
     let st = &ck.state;
-    let stage = plan.stages.get(st.stage);
-    let kinds_match = matches!(
-        (stage.map(|s| &s.kind), &st.position),
-        (
-            Some(StageKind::Static { .. } | StageKind::QuasiStatic { .. }),
-            StagePosition::Static { stage_start, .. }
-        )
-            if stage_start.len() == n
-    ) || matches!(
-        (stage.map(|s| &s.kind), &st.position),
-        (
-            Some(StageKind::Dynamic { .. }),
-            StagePosition::Dynamic { .. }
-        )
-    );
-    let sizes_match = [st.q.len(), st.v.len(), st.a.len()].iter().all(|&l| l == n)
-        && st
-            .records
-            .iter()
-            .all(|r| r.probes.len() == plan.probes.len())
-        && st.recorder.broken_down.len() == plan.model.materials.len()
-        && st.recorder.reference.len() == n
-        && ck.every >= 1;
-    if !kinds_match || !sizes_match {
-        return Err("the checkpoint does not match the scenario's model or stages".to_string());
+    if ck.every < 1 {
+        return Err("the checkpoint has no interval".to_string());
+    }
+    if ck.part.is_none() {
+        check_state(&plan, st)?;
     }
     let threads = rayon::current_num_threads() as u64;
     if loud && ck.threads != threads {
@@ -871,6 +949,7 @@ fn prepare_resume(
         source: ck.source.clone(),
         fingerprint: ck.fingerprint,
         ranks: ck.ranks,
+        part: ck.part,
     };
     Ok((plan, checkpoint, ck.state))
 }

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every checkpoint.
 pub const MAGIC: &[u8; 8] = b"DEASIMCK";
 /// Version of the layout; a file of another version is refused.
-pub const FORMAT_VERSION: u32 = 4;
+pub const FORMAT_VERSION: u32 = 5;
 /// The sub-directory of the output directory that holds the checkpoints.
 pub const SUBDIR: &str = "checkpoint";
 /// How many checkpoints are kept (older ones are deleted after a new one is written).
@@ -55,6 +55,9 @@ pub struct Checkpoint {
     pub ranks: u64,
     /// The checkpoint interval (accepted steps).
     pub every: u64,
+    /// The rank whose part of the run the file holds, when each rank held only its part (every
+    /// rank writes its own file; `None`: the whole state, written by rank 0).
+    pub part: Option<u64>,
     pub state: RunState,
 }
 
@@ -81,6 +84,8 @@ pub enum CheckpointError {
     },
     #[error("{path}: malformed checkpoint payload: {what}")]
     Payload { path: String, what: String },
+    #[error("{path}: the part of rank {rank} is missing (the run stopped while its ranks wrote their parts)")]
+    Incomplete { path: String, rank: usize },
     #[error("{0}")]
     Io(String),
 }
@@ -166,13 +171,15 @@ impl Checkpoint {
     }
 
     /// Writes the checkpoint atomically into `out_dir/checkpoint/` as
-    /// `checkpoint-<accepted, 9 digits>.bin`, then deletes all but the [`KEEP`] newest.
+    /// `checkpoint-<accepted, 9 digits>.bin` (a part's of rank r > 0:
+    /// `checkpoint-<accepted>.rank-<r>.bin`), then deletes all but the [`KEEP`] newest of its
+    /// rank.
     pub fn write(&self, out_dir: &Path) -> std::io::Result<PathBuf> {
-        let dir = out_dir.join(SUBDIR);
-        std::fs::create_dir_all(&dir)?;
-        let path = dir.join(format!("checkpoint-{:09}.bin", self.state.accepted));
+        let rank = self.part.unwrap_or(0) as usize;
+        std::fs::create_dir_all(out_dir.join(SUBDIR))?;
+        let path = file_of(out_dir, self.state.accepted, rank);
         write_atomic(&path, &self.encode())?;
-        let files = list(out_dir);
+        let files = list_of(out_dir, rank);
         if files.len() > KEEP {
             for old in &files[..files.len() - KEEP] {
                 if old != &path {
@@ -200,25 +207,54 @@ impl Checkpoint {
     }
 }
 
-/// The checkpoint files of an output directory, oldest first (by their step number).
+/// The checkpoint file of step `accepted` of rank `rank` (rank 0: the whole state's, or the
+/// first rank's part).
+pub fn file_of(out_dir: &Path, accepted: usize, rank: usize) -> PathBuf {
+    let name = if rank == 0 {
+        format!("checkpoint-{accepted:09}.bin")
+    } else {
+        format!("checkpoint-{accepted:09}.rank-{rank}.bin")
+    };
+    out_dir.join(SUBDIR).join(name)
+}
+
+/// The checkpoint files of an output directory written by rank 0 (the whole state, or rank 0's
+/// part), oldest first (by their step number).
 pub fn list(out_dir: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<(u64, PathBuf)> = std::fs::read_dir(out_dir.join(SUBDIR))
+    list_of(out_dir, 0)
+}
+
+/// [`list`] of rank `rank`'s files.
+fn list_of(out_dir: &Path, rank: usize) -> Vec<PathBuf> {
+    let mut files: Vec<(u64, PathBuf)> = checkpoint_files(out_dir)
+        .into_iter()
+        .filter(|(_, r, _)| *r == rank)
+        .map(|(n, _, p)| (n, p))
+        .collect();
+    files.sort();
+    files.into_iter().map(|(_, p)| p).collect()
+}
+
+/// Every checkpoint file of an output directory, of every rank (step, rank, path).
+pub fn checkpoint_files(out_dir: &Path) -> Vec<(u64, usize, PathBuf)> {
+    std::fs::read_dir(out_dir.join(SUBDIR))
         .into_iter()
         .flatten()
         .flatten()
         .filter_map(|e| {
             let name = e.file_name().to_string_lossy().into_owned();
-            let n = name
-                .strip_prefix("checkpoint-")
-                .and_then(|r| r.strip_suffix(".bin"))
+            let rest = name.strip_prefix("checkpoint-")?.strip_suffix(".bin")?;
+            let (digits, rank) = match rest.split_once(".rank-") {
+                Some((d, r)) => (d, r.parse().ok().filter(|&r| r > 0)?),
+                None => (rest, 0),
+            };
+            let n = Some(digits)
                 .filter(|d| d.len() == 9 && d.bytes().all(|b| b.is_ascii_digit()))?
                 .parse()
                 .ok()?;
-            Some((n, e.path()))
+            Some((n, rank, e.path()))
         })
-        .collect();
-    files.sort();
-    files.into_iter().map(|(_, p)| p).collect()
+        .collect()
 }
 
 /// The newest valid checkpoint of an output directory, its file, and a warning for every newer
@@ -236,12 +272,23 @@ pub fn latest(out_dir: &Path) -> Result<(Checkpoint, PathBuf, Vec<String>), Chec
     let mut skipped = Vec::new();
     for path in files.iter().rev() {
         match Checkpoint::read(path) {
+            // a run of rank parts stopped while its ranks wrote this step: an older one
+            Ok(ck) if missing_part(out_dir, &ck).is_some() => {
+                skipped.push(CheckpointError::Incomplete {
+                    path: path.display().to_string(),
+                    rank: missing_part(out_dir, &ck).unwrap_or_default(),
+                });
+            }
             Ok(ck) => {
                 let warnings = skipped
                     .iter()
                     .map(|e: &CheckpointError| {
+                        let what = match e {
+                            CheckpointError::Incomplete { .. } => "an incomplete",
+                            _ => "a corrupt",
+                        };
                         format!(
-                            "skipping a corrupt checkpoint: {e}; resuming from {}",
+                            "skipping {what} checkpoint: {e}; resuming from {}",
                             path.display()
                         )
                     })
@@ -263,6 +310,12 @@ pub fn latest(out_dir: &Path) -> Result<(Checkpoint, PathBuf, Vec<String>), Chec
             .join("\n  "),
         out_dir.display()
     )))
+}
+
+/// The first rank > 0 whose file of `ck`'s step is missing, for a checkpoint of rank parts.
+fn missing_part(out_dir: &Path, ck: &Checkpoint) -> Option<usize> {
+    ck.part?;
+    (1..ck.ranks as usize).find(|&r| !file_of(out_dir, ck.state.accepted, r).is_file())
 }
 
 /// A checkpoint writer's cadence on an MPI rank that does not write the checkpoints: it asks
@@ -302,6 +355,9 @@ pub struct CheckpointWriter {
     pub fingerprint: u64,
     /// MPI ranks sharing the run's assembly (1 when not distributed).
     pub ranks: u64,
+    /// This rank, when each rank holds only its part and writes its own file (`None`: the whole
+    /// state, written by rank 0).
+    pub part: Option<u64>,
 }
 
 impl Observer for CheckpointWriter {
@@ -325,6 +381,7 @@ impl Observer for CheckpointWriter {
             threads: rayon::current_num_threads() as u64,
             ranks: self.ranks,
             every: self.every as u64,
+            part: self.part,
             state: state.clone(),
         };
         ck.write(&self.dir).map(|_| ()).map_err(|e| e.to_string())
@@ -349,6 +406,7 @@ mod tests {
             threads: 2,
             ranks: 1,
             every: 5,
+            part: None,
             state: RunState {
                 accepted: 10,
                 stage: 1,
@@ -412,6 +470,50 @@ mod tests {
                 wall_s: 1.5,
             },
         }
+    }
+
+    /// Each rank of a run of parts writes and prunes its own files; rank 0's files are the
+    /// run's list, and a step whose part of another rank is missing is skipped with a warning.
+    #[test]
+    fn the_parts_of_a_step_are_kept_by_rank_and_an_incomplete_step_is_skipped() {
+        let dir = std::env::temp_dir().join(format!("deasim-ck-parts-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let part = |rank: u64, accepted: usize| {
+            let mut c = sample();
+            c.ranks = 2;
+            c.part = Some(rank);
+            c.state.accepted = accepted;
+            c.write(&dir).unwrap()
+        };
+        for accepted in [10, 20, 30] {
+            part(1, accepted);
+        }
+        part(0, 20);
+        part(0, 30);
+        // rank 0 wrote step 40, rank 1 had not yet
+        part(0, 40);
+        let steps = |rank: usize| -> Vec<u64> {
+            let mut s: Vec<u64> = checkpoint_files(&dir)
+                .into_iter()
+                .filter(|(_, r, _)| *r == rank)
+                .map(|(n, _, _)| n)
+                .collect();
+            s.sort();
+            s
+        };
+        assert_eq!(steps(1), [20, 30], "rank 1 keeps its {KEEP} newest");
+        assert_eq!(steps(0), [30, 40]);
+        assert_eq!(list(&dir), [file_of(&dir, 30, 0), file_of(&dir, 40, 0)]);
+        let (ck, path, warnings) = latest(&dir).unwrap();
+        assert_eq!((ck.state.accepted, ck.part), (30, Some(0)));
+        assert_eq!(path, file_of(&dir, 30, 0));
+        assert_eq!(warnings.len(), 1);
+        assert!(
+            warnings[0].starts_with("skipping an incomplete checkpoint")
+                && warnings[0].contains("the part of rank 1 is missing"),
+            "{warnings:?}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

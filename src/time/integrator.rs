@@ -377,14 +377,16 @@ impl<'m> TimeStep<'m> {
         Ok(out)
     }
 
-    /// Factors the iteration matrix at a recorded point (a resumed run), leaving the step as it
-    /// was otherwise.
-    pub fn refactor_at(
-        &mut self,
-        point: &FactorPoint,
-        solver: &mut dyn crate::solve::linear::LinearSolver,
-        k: &mut CsrMatrix,
-    ) -> Result<(), String> {
+    /// Puts the step at a recorded factor point (a resumed run re-factors its matrix there,
+    /// through whatever system holds the step); returns what [`TimeStep::leave_factor_point`]
+    /// puts back.
+    pub fn enter_factor_point(&mut self, point: &FactorPoint) -> FactorPoint {
+        // a checkpoint of shared cells holds every cell's variables: this process's part
+        let own = self.points.own_part(self.model, &point.points);
+        let points = match own {
+            Some(own) if own.len() == self.points.data.len() => own,
+            _ => self.points.data.clone(),
+        };
         let prev = std::mem::replace(
             &mut self.prev,
             TimeLevel {
@@ -394,31 +396,36 @@ impl<'m> TimeStep<'m> {
                 a: point.a_prev.clone(),
             },
         );
-        let q = std::mem::replace(&mut self.q, point.q.clone());
-        let dt = std::mem::replace(&mut self.dt, point.dt);
-        // a checkpoint holds every cell's variables: this process's part of them
-        let mut point = point.clone();
-        if let Some(own) = self.points.own_part(self.model, &point.points) {
-            point.points = own;
+        FactorPoint {
+            t: prev.t,
+            q_prev: prev.q,
+            v_prev: prev.v,
+            a_prev: prev.a,
+            q: std::mem::replace(&mut self.q, point.q.clone()),
+            dt: std::mem::replace(&mut self.dt, point.dt),
+            points: std::mem::replace(&mut self.points.data, points),
         }
-        let points = std::mem::take(&mut self.points.data);
-        self.points.data = if point.points.len() == points.len() {
-            point.points.clone()
-        } else {
-            points.clone()
+    }
+
+    /// Returns from [`TimeStep::enter_factor_point`] to the step as it was, the matrix the
+    /// solver now holds being that of the factor point.
+    pub fn leave_factor_point(&mut self, saved: FactorPoint) {
+        let at = FactorPoint {
+            t: self.prev.t,
+            q_prev: std::mem::take(&mut self.prev.q),
+            v_prev: std::mem::take(&mut self.prev.v),
+            a_prev: std::mem::take(&mut self.prev.a),
+            q: std::mem::replace(&mut self.q, saved.q),
+            dt: std::mem::replace(&mut self.dt, saved.dt),
+            points: std::mem::replace(&mut self.points.data, saved.points),
         };
-        let mut r = vec![0.0; self.dofs.n_free];
-        // a shared assembly's solver needs the layout before its first factorisation
-        let result = crate::solve::newton::prepare_solver(&*self, solver)
-            .and_then(|()| self.evaluate(&mut r, Some(k)))
-            .and_then(|()| solver.factor(k).map(|_| ()).map_err(|e| e.to_string()));
-        self.prev = prev;
-        self.q = q;
-        self.dt = dt;
-        self.points.data = points;
-        result?;
-        self.factor_point = Some(point);
-        Ok(())
+        self.prev = TimeLevel {
+            t: saved.t,
+            q: saved.q_prev,
+            v: saved.v_prev,
+            a: saved.a_prev,
+        };
+        self.factor_point = Some(at);
     }
 }
 

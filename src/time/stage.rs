@@ -691,11 +691,11 @@ pub fn run_dynamic_from(
         )
     };
     let part = inputs.part;
-    if part.is_some() && (settings.scheme == Method::Trapezoidal || resume.is_some()) {
+    if part.is_some() && settings.scheme == Method::Trapezoidal {
         return Err(fail(
             &start,
-            "a rank's part runs the implicit schemes from a stage's start only (the explicit \
-             scheme and resumed stages keep the whole state on every rank)"
+            "a rank's part runs the implicit schemes only (the explicit scheme keeps the whole \
+             state on every rank)"
                 .to_string(),
         ));
     }
@@ -849,9 +849,16 @@ pub fn run_dynamic_from(
     };
     if let Some(point) = resume.as_ref().and_then(|r| r.step_factor.as_ref()) {
         let s = &mut stepper;
+        let saved = s.step.inner_mut().enter_factor_point(point);
+        let system = s.step.system();
+        let mut r = vec![0.0; system.n()];
+        // a shared assembly's solver needs the layout before its first factorisation
+        let result = crate::solve::newton::prepare_solver(system, s.solver.as_mut())
+            .and_then(|()| system.evaluate(&mut r, Some(&mut s.k)))
+            .and_then(|()| s.solver.factor(&s.k).map(|_| ()).map_err(|e| e.to_string()));
         let step = s.step.inner_mut();
-        step.refactor_at(point, s.solver.as_mut(), &mut s.k)
-            .map_err(|e| fail(&step.prev, format!("re-factoring at the checkpoint: {e}")))?;
+        step.leave_factor_point(saved);
+        result.map_err(|e| fail(&step.prev, format!("re-factoring at the checkpoint: {e}")))?;
     }
     step_loop(&mut stepper, settings, t_end, dt, (total, base), on_step)
 }
