@@ -577,9 +577,10 @@ fn on_ranks_with(
         "{example_name}: largest relative probe difference {ranks} ranks (PETSc) vs serial LDLT: {worst:.2e}"
     );
     // the rows follow the cells: each rank reports, per linear system, where the entries it
-    // passes lie; over the ranks, most lie in the passing rank's own rows (three quarters: on
-    // the 32-cell film a fifth of the entries lie at the partition's interface), and at least as
-    // many as with the rows split evenly
+    // passes lie; over the ranks, most lie in the passing rank's own rows (seven in ten: on
+    // the 32-cell film a fifth of the entries lie at the partition's interface, and the
+    // explicit scheme's systems of the potentials alone and of the displacements alone, on
+    // rank parts, put 27 % there), and at least as many as with the rows split evenly
     let (mut all, mut own, mut even) = (0.0, 0.0, 0.0);
     let mut first_unknowns = Vec::new();
     for r in 0..ranks {
@@ -622,7 +623,7 @@ fn on_ranks_with(
         first_unknowns.join(", ")
     );
     assert!(
-        all > 0.0 && own >= 0.75 && own >= even - 0.005,
+        all > 0.0 && own >= 0.7 && own >= even - 0.005,
         "{example_name}: {own} of the entries in own rows ({even} split evenly):\n{log}"
     );
     // the cells really were shared: each rank assembled some
@@ -907,12 +908,13 @@ fn a_viscoelastic_newmark_run_on_two_mpi_ranks_in_parts_agrees_with_the_serial_r
     );
 }
 
-/// The explicit integrator (Störmer–Verlet) with Kelvin–Voigt damping: each rank evaluates
-/// the forces that update the velocities and the dissipated power over its own cells, summed
-/// over the ranks.
+/// The explicit integrator (Störmer–Verlet) with Kelvin–Voigt damping on 2 ranks, each
+/// holding its part: each rank evaluates the forces that update the velocities and the
+/// dissipated power over its own cells, the velocity equation and the mass solve run over the
+/// ranks' owned displacements.
 #[test]
 fn an_explicit_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, _, log) = on_ranks(
+    let (d, fields, kinetic, _, log) = on_ranks_with_kinetic(
         2,
         "film-vibration",
         &[
@@ -922,12 +924,11 @@ fn an_explicit_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
             "materials.elastomer.viscosity=20.0",
         ],
     );
-    // the explicit scheme keeps the whole state on every rank
+    assert_parts(&log, 2);
     assert!(
-        log.contains("every rank holds the whole state: stage `vibrate` is neither static"),
-        "{log}"
+        d < 1e-9 && fields < 1e-9 && kinetic < 1e-9,
+        "{d:e} {fields:e} {kinetic:e}"
     );
-    assert!(d < 1e-9 && fields < 1e-9, "{d:e} {fields:e}");
 }
 
 /// The number that follows the first `marker` in a run's log.

@@ -24,6 +24,9 @@ pub struct PlanPart {
     /// The unknowns of the dynamic stages' electrostatic projection, the potentials with every
     /// displacement held (`None`: the plan has no dynamic stage).
     pub projection: Option<Division>,
+    /// The unknowns of the explicit scheme's velocity equation, the displacements with every
+    /// potential held (`None`: the plan has no explicit dynamic stage).
+    pub explicit: Option<Division>,
     /// The whole mesh's node and cell counts.
     pub whole_nodes: usize,
     pub whole_cells: usize,
@@ -123,21 +126,17 @@ impl Plan {
 
     /// Why the plan cannot yet be divided into rank parts (see [`divide`]), or `None`.
     pub fn parts_unsupported(&self) -> Option<String> {
-        use crate::time::stage::Method;
         if let Some(s) = self.stages.iter().find(|s| {
             !matches!(
                 s.kind,
                 StageKind::Static { .. }
                     | StageKind::QuasiStatic { .. }
-                    | StageKind::Dynamic {
-                        scheme: Method::Midpoint | Method::Newmark { .. },
-                        ..
-                    }
+                    | StageKind::Dynamic { .. }
             )
         }) {
             return Some(format!(
-                "stage `{}` is neither static nor implicit dynamic (only static, quasi-static \
-                 and implicit dynamic stages run on parts yet)",
+                "stage `{}` is neither static nor dynamic (only static, quasi-static and \
+                 dynamic stages run on parts yet)",
                 s.name
             ));
         }
@@ -195,6 +194,7 @@ pub fn divide(
         stages,
         prestretch,
         projection,
+        explicit,
         electrode_first,
         cells,
         nodes,
@@ -214,6 +214,7 @@ pub fn divide(
         stages: division(stages)?,
         prestretch: prestretch.map(division).transpose()?,
         projection: projection.map(division).transpose()?,
+        explicit: explicit.map(division).transpose()?,
         whole_nodes: plan.model.mesh.n_nodes(),
         whole_cells: plan.model.mesh.n_cells(),
         electrode_first,
@@ -229,6 +230,7 @@ struct RankPart {
     stages: (Arc<LocalEquations>, f64),
     prestretch: Option<(Arc<LocalEquations>, f64)>,
     projection: Option<(Arc<LocalEquations>, f64)>,
+    explicit: Option<(Arc<LocalEquations>, f64)>,
     electrode_first: Vec<Option<usize>>,
     cells: Vec<usize>,
     nodes: Vec<usize>,
@@ -275,22 +277,27 @@ fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String>
     } else {
         None
     };
-    // the dynamic stages' projection: every stage holds the same potentials (supports and
-    // prescribed electrodes), so the first dynamic stage's stand for all
-    let projection = match plan
-        .stages
-        .iter()
-        .find(|s| matches!(s.kind, StageKind::Dynamic { .. }))
-    {
-        Some(stage) => {
-            let (mut w, mut p) = (plan.model.clone(), part.model.clone());
-            plan.stage_conditions(&mut w, stage);
-            part.stage_conditions(&mut p, stage);
-            use crate::time::stage::projection_model;
-            Some(equations_of(&projection_model(&w), &projection_model(&p))?)
-        }
-        None => None,
+    // the dynamic stages' projection and the explicit scheme's velocity equation: every
+    // stage holds the same supports and prescribed electrodes, so the first dynamic (explicit)
+    // stage's stand for all
+    let dynamic_problem = |explicit: bool, of: fn(&Model) -> Model| {
+        let stage = plan.stages.iter().find(|s| match s.kind {
+            StageKind::Dynamic { scheme, .. } => {
+                !explicit || scheme == crate::time::stage::Method::Trapezoidal
+            }
+            _ => false,
+        });
+        stage
+            .map(|stage| {
+                let (mut w, mut p) = (plan.model.clone(), part.model.clone());
+                plan.stage_conditions(&mut w, stage);
+                part.stage_conditions(&mut p, stage);
+                equations_of(&of(&w), &of(&p))
+            })
+            .transpose()
     };
+    let projection = dynamic_problem(false, crate::time::stage::projection_model)?;
+    let explicit = dynamic_problem(true, crate::time::trapezoidal::velocity_model)?;
     let at = global_to_local(&local, mesh.n_nodes());
     let electrode_first = plan
         .electrodes
@@ -305,6 +312,7 @@ fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String>
         stages,
         prestretch,
         projection,
+        explicit,
         electrode_first,
         cells: local.cells,
         nodes: local.nodes,
@@ -566,16 +574,15 @@ mod tests {
 
     /// A plan the parts cannot hold yet is refused with the reason, before any exchange.
     #[test]
-    fn a_plan_with_an_explicit_stage_is_not_divided() {
+    fn a_plan_with_a_modes_stage_is_not_divided() {
         let mut plan = film();
-        plan.stages[0].kind = StageKind::Dynamic {
-            dt: 1e-3,
-            scheme: crate::time::stage::Method::Trapezoidal,
-            mass: crate::time::mass::MassKind::Consistent,
+        plan.stages[0].kind = StageKind::Modes {
+            count: 3,
+            shift_hz: 0.0,
         };
         let e = divide(&plan, 0, 2, |ok| ok, |_| unreachable!("no exchange")).unwrap_err();
         assert!(
-            e.contains("stage `charge` is neither static nor implicit dynamic"),
+            e.contains("stage `charge` is neither static nor dynamic"),
             "{e}"
         );
     }

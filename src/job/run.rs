@@ -1096,6 +1096,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 Some(projection) => Some(StageParts {
                     step: &p.stages,
                     projection,
+                    explicit: p.explicit.as_ref(),
                 }),
                 None => {
                     return Some(format!(

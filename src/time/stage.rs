@@ -142,19 +142,19 @@ pub struct DynamicInputs<'a> {
     pub part: Option<StageParts<'a>>,
 }
 
-/// How the ranks divide the unknowns of a dynamic stage: the step's (displacements and
-/// potentials) and the electrostatic projection's (the potentials alone).
+/// How the ranks divide the unknowns of a dynamic stage: the implicit step's (displacements
+/// and potentials), the electrostatic projection's (the potentials alone) and the explicit
+/// scheme's velocity equation's (the displacements alone; `None` where no stage is explicit).
 #[derive(Clone, Copy)]
 pub struct StageParts<'a> {
     pub step: &'a Division,
     pub projection: &'a Division,
+    pub explicit: Option<&'a Division>,
 }
 
-impl<'a> StageParts<'a> {
-    /// The step's equations and exchange, for a mass solve over the ranks.
-    fn step_division(self) -> (&'a LocalEquations, &'a dyn Exchange) {
-        (self.step.equations.as_ref(), self.step.exchange.as_ref())
-    }
+/// A division's equations and exchange, for a mass solve over the ranks.
+fn equations_and_exchange(d: &Division) -> (&LocalEquations, &dyn Exchange) {
+    (d.equations.as_ref(), d.exchange.as_ref())
 }
 
 /// `outcome`, agreed over the ranks of a part (every rank fails when one does).
@@ -438,7 +438,7 @@ impl Stepper for ImplicitStepper<'_, '_> {
 /// The explicit trapezoidal (Störmer–Verlet) scheme; see `trapezoidal.rs`.
 struct TrapezoidalStepper<'a, 'm> {
     level: TimeLevel,
-    trap: super::trapezoidal::TrapezoidalStep<'m>,
+    trap: Held<super::trapezoidal::TrapezoidalStep<'m>>,
     forces: TimeStep<'m>,
     /// Conservative forces at the current level.
     f_n: Vec<f64>,
@@ -463,13 +463,13 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
         use super::trapezoidal::dissipation_power;
         let level = &self.level;
         let t0 = level.t;
-        let trap = &mut self.trap;
-        trap.q_n.copy_from_slice(&level.q);
-        trap.v_n.copy_from_slice(&level.v);
-        trap.f_n.copy_from_slice(&self.f_n);
-        trap.dt = h;
+        let step = self.trap.inner_mut();
+        step.q_n.copy_from_slice(&level.q);
+        step.v_n.copy_from_slice(&level.v);
+        step.f_n.copy_from_slice(&self.f_n);
+        step.dt = h;
         for d in 0..level.q.len() {
-            trap.q[d] = if self.free[d] {
+            step.q[d] = if self.free[d] {
                 level.q[d] + h * level.v[d]
             } else {
                 level.q[d]
@@ -483,22 +483,34 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
             self.inputs,
             self.model,
         );
-        let attempt = newton(trap, self.solver.as_mut(), &mut self.k, &self.settings)
-            .map_err(|e| e.to_string())
-            .and_then(|rep| {
-                let vbar: Vec<f64> = trap
-                    .q
-                    .iter()
-                    .zip(&level.q)
-                    .map(|(a, b)| (a - b) / h)
-                    .collect();
-                let mut q1 = trap.q.clone();
-                projector.project(&mut q1, inputs, t0 + h, Vec::new())?;
-                let f1 = forces.forces_at(&q1, &vbar)?;
-                let mut mv = vec![0.0; vbar.len()];
-                inputs.mass.mul(&vbar, &mut mv);
-                let p1: Vec<f64> = mv.iter().zip(&f1).map(|(m, f)| m - 0.5 * h * f).collect();
-                let v1 = inputs.mass.solve(&p1, &trap.dofs, 1e-12);
+        // on a rank's part the forces, the mass and the power are the rank's shares: the local
+        // failures are agreed over the ranks before the next collective call
+        let part = inputs.part;
+        let trap = &mut self.trap;
+        let attempt = newton(
+            trap.system(),
+            self.solver.as_mut(),
+            &mut self.k,
+            &self.settings,
+        )
+        .map_err(|e| e.to_string())
+        .and_then(|rep| {
+            let trap = trap.inner();
+            let vbar: Vec<f64> = trap
+                .q
+                .iter()
+                .zip(&level.q)
+                .map(|(a, b)| (a - b) / h)
+                .collect();
+            let mut q1 = trap.q.clone();
+            projector.project(&mut q1, inputs, t0 + h, Vec::new())?;
+            let f1 = agreed(part, forces.forces_at(&q1, &vbar))?;
+            let mut mv = vec![0.0; vbar.len()];
+            inputs.mass.mul(&vbar, &mut mv);
+            let p1: Vec<f64> = mv.iter().zip(&f1).map(|(m, f)| m - 0.5 * h * f).collect();
+            let explicit = part.and_then(|p| p.explicit).map(equations_and_exchange);
+            let v1 = inputs.mass.solve_on(&p1, &trap.dofs, 1e-12, explicit)?;
+            let rest = (|| {
                 let p0 = dissipation_power(model, &inputs.viscosity, &level.q, &vbar)?;
                 let p1w = dissipation_power(model, &inputs.viscosity, &q1, &vbar)?;
                 let zero = vec![0.0; q1.len()];
@@ -508,8 +520,11 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
                         "non-finite state (explicit step beyond its stability limit?)".to_string(),
                     );
                 }
-                Ok((rep.iterations, q1, v1, 0.5 * h * (p0 + p1w), f_next))
-            });
+                Ok((0.5 * h * (p0 + p1w), f_next))
+            })();
+            let (dissipated, f_next) = agreed(part, rest)?;
+            Ok((rep.iterations, q1, v1, dissipated, f_next))
+        });
         match attempt {
             Ok((iterations, q, v, dissipated, f_next)) => {
                 self.f_next = f_next;
@@ -691,14 +706,6 @@ pub fn run_dynamic_from(
         )
     };
     let part = inputs.part;
-    if part.is_some() && settings.scheme == Method::Trapezoidal {
-        return Err(fail(
-            &start,
-            "a rank's part runs the implicit schemes only (the explicit scheme keeps the whole \
-             state on every rank)"
-                .to_string(),
-        ));
-    }
     let mut step_model = model.clone();
     for (nodes, w) in &inputs.electrodes {
         step_model.dirichlet.push(Dirichlet {
@@ -746,9 +753,8 @@ pub fn run_dynamic_from(
                 start.clone(),
             );
             let zero = vec![0.0; start.q.len()];
-            let f_n = forces
-                .forces_at(&start.q, &zero)
-                .map_err(|e| fail(&start, e))?;
+            let f_n =
+                agreed(part, forces.forces_at(&start.q, &zero)).map_err(|e| fail(&start, e))?;
             let trap = super::trapezoidal::TrapezoidalStep::new(
                 &step_model,
                 inputs.mass,
@@ -756,6 +762,17 @@ pub fn run_dynamic_from(
             );
             let free = trap.free_u();
             let k = trap.new_matrix();
+            let explicit = match part {
+                None => None,
+                Some(p) => Some(p.explicit.ok_or_else(|| {
+                    fail(
+                        &start,
+                        "the rank's part has no division of the explicit scheme's unknowns"
+                            .to_string(),
+                    )
+                })?),
+            };
+            let trap = Held::new(trap, explicit).map_err(|e| fail(&start, e))?;
             let mut stepper = TrapezoidalStepper {
                 level: start,
                 trap,
@@ -820,7 +837,12 @@ pub fn run_dynamic_from(
         let rhs: Vec<f64> = forces.iter().map(|f| -f).collect();
         start.a = inputs
             .mass
-            .solve_on(&rhs, &probe.dofs, 1e-12, part.map(|p| p.step_division()))
+            .solve_on(
+                &rhs,
+                &probe.dofs,
+                1e-12,
+                part.map(|p| equations_and_exchange(p.step)),
+            )
             .map_err(|e| fail(&start, e))?;
     }
     let mut step = TimeStep::new(

@@ -34,16 +34,23 @@ pub struct TrapezoidalStep<'m> {
     cell_energy: Vec<f64>,
 }
 
+/// The model of a trapezoidal step's velocity equation, from the stage's model with its
+/// conditions: its displacement supports, every potential held.
+pub fn velocity_model(model: &Model) -> Model {
+    let mut m = model.clone();
+    m.dirichlet.retain(|d| d.field != Field::Phi);
+    m.dirichlet.push(Dirichlet {
+        nodes: (0..m.mesh.n_nodes()).collect(),
+        field: Field::Phi,
+        value: 0.0,
+    });
+    m
+}
+
 impl<'m> TrapezoidalStep<'m> {
     /// `model.dirichlet` holds the displacement supports; every potential dof is held here.
     pub fn new(model: &Model, mass: &'m NodalMass, viscosity: Vec<f64>) -> Self {
-        let mut m = model.clone();
-        m.dirichlet.retain(|d| d.field != Field::Phi);
-        m.dirichlet.push(Dirichlet {
-            nodes: (0..m.mesh.n_nodes()).collect(),
-            field: Field::Phi,
-            value: 0.0,
-        });
+        let m = velocity_model(model);
         let (dofs, assembler, floor) = discretize(&m);
         let n = m.mesh.n_nodes() * FIELDS;
         TrapezoidalStep {
@@ -212,7 +219,11 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
     }
 
     fn residual_floor(&self) -> f64 {
-        self.floor * 0.5 * self.dt
+        self.floor * self.residual_factor()
+    }
+
+    fn residual_factor(&self) -> f64 {
+        0.5 * self.dt
     }
 
     fn groups(&self) -> Vec<u8> {
