@@ -197,13 +197,11 @@ fn history_probes(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     csv_columns(path, |h| h.starts_with("probe:") || h == "dissipated")
 }
 
-/// As [`on_ranks`], also returning the largest difference of the kinetic energy over the
-/// history (relative to its largest value): a dynamic run's, summed over the ranks' parts.
-fn on_ranks_with_kinetic(
-    ranks: usize,
-    example_name: &str,
-    extra: &[&str],
-) -> (f64, f64, f64, String, String) {
+/// Runs a dynamic `example` (with `extra` overrides) serially and on `ranks` ranks, each
+/// holding its part, and asserts that the run finished and that its probes, kinetic energy
+/// (summed over the ranks' parts) over the whole history and final fields agree to `tolerance`
+/// of their largest values.
+fn assert_dynamic_parts_agree(ranks: usize, example_name: &str, extra: &[&str], tolerance: f64) {
     let mut kinetic = f64::NAN;
     let (d, fields, serial, log) = on_ranks_of(
         ranks,
@@ -216,7 +214,12 @@ fn on_ranks_with_kinetic(
             })
         },
     );
-    (d, fields, kinetic, serial, log)
+    assert!(serial.contains("finished in"), "{serial}");
+    assert_parts(&log, ranks);
+    assert!(
+        d < tolerance && fields < tolerance && kinetic < tolerance,
+        "{example_name} {extra:?}: probes {d:e}, fields {fields:e}, kinetic energy {kinetic:e}"
+    );
 }
 
 /// The columns of a CSV file whose header passes `keep`: their names and the rows of numbers.
@@ -699,13 +702,7 @@ fn stack_on_two_mpi_ranks_agrees_with_the_serial_run() {
 /// on one rank, the kinetic energy and the Kelvin–Voigt dissipation summed over the ranks.
 #[test]
 fn the_3d_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, kinetic, _, log) =
-        on_ranks_with_kinetic(2, "diaphragm-3d", &["stages.1.duration=0.005"]);
-    assert_parts(&log, 2);
-    assert!(
-        d < 1e-10 && fields < 1e-10 && kinetic < 1e-10,
-        "{d:e} {fields:e} {kinetic:e}"
-    );
+    assert_dynamic_parts_agree(2, "diaphragm-3d", &["stages.1.duration=0.005"], 1e-10);
 }
 
 /// The 3-D diaphragm with a quasi-static `actuate` stage instead of its dynamic one: every
@@ -877,12 +874,7 @@ fn the_axisymmetric_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
 /// over the whole history; the final fields).
 #[test]
 fn a_dynamic_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, kinetic, _, log) = on_ranks_with_kinetic(2, "film-vibration", &[]);
-    assert_parts(&log, 2);
-    assert!(
-        d < 1e-9 && fields < 1e-9 && kinetic < 1e-9,
-        "{d:e} {fields:e} {kinetic:e}"
-    );
+    assert_dynamic_parts_agree(2, "film-vibration", &[], 1e-9);
 }
 
 /// Newmark on 2 ranks in parts with Kelvin–Voigt damping and a Maxwell branch: the consistent
@@ -890,7 +882,7 @@ fn a_dynamic_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
 /// internal variables of its own cells, and the dissipation of both summed over the ranks.
 #[test]
 fn a_viscoelastic_newmark_run_on_two_mpi_ranks_in_parts_agrees_with_the_serial_run() {
-    let (d, fields, kinetic, serial, log) = on_ranks_with_kinetic(
+    assert_dynamic_parts_agree(
         2,
         "film-vibration",
         &[
@@ -899,12 +891,7 @@ fn a_viscoelastic_newmark_run_on_two_mpi_ranks_in_parts_agrees_with_the_serial_r
             "materials.elastomer.viscosity=20.0",
             "materials.elastomer.branches=[{mu=5e4,tau=1e-3}]",
         ],
-    );
-    assert_parts(&log, 2);
-    assert!(serial.contains("finished in"), "{serial}");
-    assert!(
-        d < 1e-9 && fields < 1e-9 && kinetic < 1e-9,
-        "{d:e} {fields:e} {kinetic:e}"
+        1e-9,
     );
 }
 
@@ -914,7 +901,7 @@ fn a_viscoelastic_newmark_run_on_two_mpi_ranks_in_parts_agrees_with_the_serial_r
 /// ranks' owned displacements.
 #[test]
 fn an_explicit_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
-    let (d, fields, kinetic, _, log) = on_ranks_with_kinetic(
+    assert_dynamic_parts_agree(
         2,
         "film-vibration",
         &[
@@ -923,11 +910,7 @@ fn an_explicit_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
             "stages.0.duration=4e-4",
             "materials.elastomer.viscosity=20.0",
         ],
-    );
-    assert_parts(&log, 2);
-    assert!(
-        d < 1e-9 && fields < 1e-9 && kinetic < 1e-9,
-        "{d:e} {fields:e} {kinetic:e}"
+        1e-9,
     );
 }
 
