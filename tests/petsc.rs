@@ -477,6 +477,13 @@ fn mpirun_with(
     args: &[&str],
     vars: &[(&str, &str)],
 ) -> std::process::Output {
+    mpirun_command(ranks, dir, args, vars)
+        .output()
+        .expect("mpirun not found: install Open MPI (scripts/install-petsc.sh)")
+}
+
+/// The command of [`mpirun_with`], to be started.
+fn mpirun_command(ranks: usize, dir: &Path, args: &[&str], vars: &[(&str, &str)]) -> Command {
     let mut mpirun = Command::new("mpirun");
     without_mpi_variables(&mut mpirun)
         .envs(vars.iter().copied())
@@ -489,9 +496,8 @@ fn mpirun_with(
         .env("DEASIM_PETSC_VERBOSE", "1")
         // Open MPI refuses root unless told (containers, CI)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .output()
-        .expect("mpirun not found: install Open MPI (scripts/install-petsc.sh)")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+    mpirun
 }
 
 /// As [`two_ranks`] on `ranks` ranks, with more `--set` overrides (those of `solver.` for the
@@ -875,6 +881,125 @@ fn the_axisymmetric_diaphragm_on_two_mpi_ranks_agrees_with_the_serial_run() {
 #[test]
 fn a_dynamic_run_on_two_mpi_ranks_agrees_with_the_serial_run() {
     assert_dynamic_parts_agree(2, "film-vibration", &[], 1e-9);
+}
+
+/// The process ids of the ranks whose environment holds `tag` (a variable of one test's
+/// `mpirun`), by rank (Open MPI's `OMPI_COMM_WORLD_RANK`).
+fn rank_processes(tag: &str) -> Vec<(usize, u32)> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(environ) = std::fs::read(entry.path().join("environ")) else {
+            continue;
+        };
+        let vars: Vec<&[u8]> = environ.split(|&b| b == 0).collect();
+        if !vars.contains(&tag.as_bytes()) {
+            continue;
+        }
+        let rank = vars.iter().find_map(|v| {
+            std::str::from_utf8(v.strip_prefix(b"OMPI_COMM_WORLD_RANK=")?)
+                .ok()?
+                .parse()
+                .ok()
+        });
+        if let Some(rank) = rank {
+            found.push((rank, pid));
+        }
+    }
+    found.sort_unstable();
+    found
+}
+
+/// A signal to one rank only (here rank 1 of 2, in parts, then holding the whole state) stops
+/// every rank at the same step: the run ends (no rank waits for another), exits 130, and rank 0's
+/// outputs hold the last accepted step, as a serial run's do.
+#[test]
+fn a_signal_to_one_rank_stops_every_rank_cleanly() {
+    for call in ["parts", "whole"] {
+        let dir = common::tempdir(&format!("petsc-signal-{call}"));
+        write_petsc_scenario(&dir, example("film-vibration").unwrap());
+        let tag = format!("DEASIM_TEST_SIGNAL={}", dir.display());
+        let mut vars = vec![("DEASIM_TEST_SIGNAL", dir.display().to_string())];
+        if call == "whole" {
+            vars.push(("DEASIM_WHOLE_STATE", "1".to_string()));
+        }
+        let vars: Vec<(&str, &str)> = vars.iter().map(|(k, v)| (*k, v.as_str())).collect();
+        let mut child = mpirun_command(
+            2,
+            &dir,
+            &[
+                "run",
+                "petsc.toml",
+                "--out",
+                "o",
+                "--set",
+                "stages.0.duration=10.0",
+                "--set",
+                "output.fields_every=50",
+            ],
+            &vars,
+        )
+        .stdout(std::process::Stdio::null())
+        // a file, not a pipe: nobody reads a pipe while the run goes on, and a full one would
+        // block the run
+        .stderr(std::fs::File::create(dir.join("log")).unwrap())
+        .spawn()
+        .expect("mpirun not found: install Open MPI (scripts/install-petsc.sh)");
+        // wait until the run has accepted steps (history.csv is flushed every 2 s)
+        let start = Instant::now();
+        while !dir.join("o/history.csv").exists() && start.elapsed().as_secs() < 120 {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(500));
+        let ranks = rank_processes(&tag);
+        assert_eq!(
+            ranks.iter().map(|r| r.0).collect::<Vec<_>>(),
+            [0, 1],
+            "{call}"
+        );
+        let killed = Command::new("kill")
+            .args(["-TERM", &ranks[1].1.to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        // a rank left waiting would hang the run: give it a minute, then fail
+        let start = Instant::now();
+        while child.try_wait().unwrap().is_none() && start.elapsed().as_secs() < 60 {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+        if child.try_wait().unwrap().is_none() {
+            for (_, pid) in &ranks {
+                let _ = Command::new("kill")
+                    .args(["-KILL", &pid.to_string()])
+                    .status();
+            }
+            child.kill().unwrap();
+            panic!("{call}: the ranks did not stop within a minute of the signal to rank 1");
+        }
+        let status = child.wait().unwrap();
+        let log = std::fs::read_to_string(dir.join("log")).unwrap();
+        assert_eq!(status.code(), Some(130), "{call}: {log}");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(summary["converged"], false, "{call}");
+        assert!(
+            summary["error"]
+                .as_str()
+                .unwrap()
+                .contains("interrupted by a signal"),
+            "{call}: {summary}"
+        );
+        let (header, rows) = csv_columns(&dir.join("o/history.csv"), |h| h == "time");
+        assert!(rows.len() > 2, "{call}");
+        let t = header.iter().position(|h| h == "time").unwrap();
+        let t_last = rows.last().unwrap()[t];
+        assert!(t_last > 0.0 && t_last < 10.0, "{call}: {t_last}");
+        let pvd = std::fs::read_to_string(dir.join("o/fields.pvd")).unwrap();
+        assert!(pvd.trim_end().ends_with("</VTKFile>"), "{call}");
+    }
 }
 
 /// Newmark on 2 ranks in parts with Kelvin–Voigt damping and a Maxwell branch: the consistent

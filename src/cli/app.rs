@@ -542,7 +542,16 @@ fn ranks_agree(ok: bool) -> bool {
 fn mpi_ranks(plan: &Plan) -> Result<(usize, usize), (i32, String)> {
     #[cfg(feature = "petsc")]
     if plan.solver.kind == crate::solve::linear::SolverKind::Petsc {
-        return crate::solve::petsc::world().map_err(|e| (EXIT_SOLVE_FAILED, e.to_string()));
+        let (rank, ranks) =
+            crate::solve::petsc::world().map_err(|e| (EXIT_SOLVE_FAILED, e.to_string()))?;
+        if ranks > 1 {
+            // a signal reaches the ranks at different steps: every rank stops at the first step
+            // any rank has seen one, or the others would wait for it
+            crate::solve::interrupt::agree_over(Box::new(|v| {
+                crate::solve::petsc::sum_over_ranks(v).map_err(|e| e.to_string())
+            }));
+        }
+        return Ok((rank, ranks));
     }
     let launched = launched_size();
     if launched > 1 {
@@ -654,6 +663,7 @@ fn run_secondary_rank(
         Some(c) => (None, Some(CheckpointCadence { every: c.every })),
         None => (None, None),
     };
+    catch_signals();
     let mut observers: Vec<&mut dyn Observer> = vec![&mut writer];
     if let Some(c) = own.as_mut() {
         observers.push(c);
@@ -674,6 +684,16 @@ fn run_secondary_rank(
     } else {
         EXIT_SOLVE_FAILED
     }
+}
+
+/// First SIGINT/SIGTERM: finish the current step, write the outputs, exit 130; second: stop at
+/// once. Every rank of a distributed run catches them (the launcher passes them on).
+fn catch_signals() {
+    let _ = ctrlc::set_handler(|| {
+        if crate::solve::interrupt::request() {
+            std::process::exit(EXIT_INTERRUPTED);
+        }
+    });
 }
 
 /// `deasim run --resume DIR`: continues the run whose newest checkpoint is in `dir`, with the
@@ -972,12 +992,7 @@ fn execute(
         rayon::current_num_threads(),
         dir.display()
     );
-    // first signal: finish the current step, write the outputs, exit 130; second: stop at once
-    let _ = ctrlc::set_handler(|| {
-        if crate::solve::interrupt::request() {
-            std::process::exit(EXIT_INTERRUPTED);
-        }
-    });
+    catch_signals();
     let mut progress = Progress::new(plan);
     eprintln!(
         "deasim: linear solver: {}",
