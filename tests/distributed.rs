@@ -165,16 +165,38 @@ fn the_charged_films_parts_add_up_to_the_whole() {
     assert!(!film.ties.is_empty() && !film.point_charges.is_empty());
 }
 
-/// Follower pressures are not divided between the ranks yet: refused, not silently wrong.
+/// A follower pressure on the film's top: each face acts on the rank of its cell, so the parts'
+/// residuals and tangents (the pressure's load and its follower stiffness) add up to the whole.
 #[test]
-fn a_pressure_load_is_refused_for_a_part() {
-    let whole = example_model("balloon", &[]);
-    assert!(!whole.pressures.is_empty());
+fn a_pressed_films_parts_add_up_to_the_whole() {
+    let pressure = "loads.pressure=[{set=\"z1\",value=2e5}]";
+    let film = parts_add_up("film", &[pressure]);
+    assert_eq!(film.pressures.len(), 1);
+    // the pressure's share of the residual is far above the comparison's tolerance
+    let state = wavy(&film);
+    let (_, pressed, _) = evaluate(&film, state.clone());
+    let mut bare = film.clone();
+    bare.pressures.clear();
+    let (_, r, _) = evaluate(&bare, state);
+    let scale = r.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let load = pressed
+        .iter()
+        .zip(&r)
+        .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(load > 1e-3 * scale, "{load:e} of {scale:e}");
+}
+
+/// A volume-controlled pressure (its fraction an unknown of the whole problem) is not divided
+/// between the ranks yet: refused, not silently wrong.
+#[test]
+fn a_volume_controlled_pressure_is_refused_for_a_part() {
+    let mut whole = example_model("film", &["loads.pressure=[{set=\"z1\",value=2e5}]"]);
+    whole.pressures[0].volume = Some(1e-9);
     let mesh = &whole.mesh;
     let part = partition_cells(mesh, 2, None);
     let (problem, _, _) = evaluate(&whole, wavy(&whole));
     let node_owner = node_processes(mesh, &problem.dofs, &part, 2);
     let local = LocalMesh::of_rank(mesh, &part, &node_owner, 0, 2).unwrap();
     let err = whole.part(&local).unwrap_err().to_string();
-    assert!(err.contains("pressures"), "{err}");
+    assert!(err.contains("volume-controlled"), "{err}");
 }

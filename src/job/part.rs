@@ -143,21 +143,15 @@ impl Plan {
         if self.model.is_axisymmetric() {
             return Some("an axisymmetric model is not divided into parts".into());
         }
-        if !self.model.pressures.is_empty() {
-            return Some("follower pressures are not divided into parts yet".into());
+        if self.pressure_volumes.iter().any(Option::is_some) {
+            return Some(
+                "a volume-controlled pressure (an unknown of the whole problem) is not divided \
+                 into parts yet"
+                    .into(),
+            );
         }
         if self.electrodes.iter().any(|e| e.resistance.is_some()) {
             return Some("circuit-driven electrodes are not divided into parts yet".into());
-        }
-        if let Some((name, _)) = self.probes.iter().find(|(_, p)| {
-            matches!(
-                p.kind,
-                ProbeKind::AreaStrain(_) | ProbeKind::Volume(_) | ProbeKind::Pressure(_)
-            )
-        }) {
-            return Some(format!(
-                "probe `{name}` sums over faces, which are not divided into parts yet"
-            ));
         }
         None
     }
@@ -354,6 +348,10 @@ fn plan_of(
             .collect()
     };
     let owned = |n: usize| at[n] < local.owned;
+    let mut cell_at = vec![usize::MAX; whole.mesh.n_cells()];
+    for (l, &c) in local.cells.iter().enumerate() {
+        cell_at[c] = l;
+    }
     let mut part = plan.clone();
     part.model = whole.part(local).map_err(|e| e.to_string())?;
     part.supports = plan
@@ -400,6 +398,29 @@ fn plan_of(
                     .collect(),
                 *axial,
             ),
+            // a face on the rank of its cell: each face's share counts once
+            ProbeKind::AreaStrain(faces) => ProbeKind::AreaStrain(
+                faces
+                    .iter()
+                    .filter(|f| cell_at[f.cell] != usize::MAX)
+                    .map(|f| super::probes::ProbeFace {
+                        cell: cell_at[f.cell],
+                        nodes: f.nodes.iter().map(|&n| at[n]).collect(),
+                        positions: f.positions.clone(),
+                    })
+                    .collect(),
+            ),
+            ProbeKind::Volume(faces) => ProbeKind::Volume(
+                faces
+                    .iter()
+                    .filter(|f| cell_at[f.cell] != usize::MAX)
+                    .map(|f| crate::problem::pressure::SurfaceFace {
+                        cell: cell_at[f.cell],
+                        nodes: f.nodes.iter().map(|&n| at[n]).collect(),
+                        ..f.clone()
+                    })
+                    .collect(),
+            ),
             other => other.clone(),
         };
     }
@@ -414,10 +435,11 @@ mod tests {
     use crate::problem::assembly::on_threads;
     use crate::problem::distributed::SumExchange;
 
-    /// The `film` example on 4 × 4 × 2 cells with its weight and a probe of every kind a part
-    /// divides: means over face sets of quantities that vary over them, a point, extremes, the
-    /// supports' reaction (the weight), a deflection, charges, the energies and the largest
-    /// field.
+    /// The `film` example on 4 × 4 × 2 cells with its weight, a follower pressure on its top and
+    /// a probe of every kind a part divides: means over face sets of quantities that vary over
+    /// them, a point, extremes, the supports' reaction (the weight), a deflection, charges, the
+    /// energies, the largest field, and the sums over faces (area strain, enclosed volume) with
+    /// the pressure's value.
     const OVERRIDES: &[&str] = &[
         "mesh.divisions=[4,4,2]",
         "stages.0.steps=4",
@@ -445,6 +467,13 @@ mod tests {
         "probes.electric.kind=\"energy\"",
         "probes.electric.quantity=\"electric\"",
         "probes.field.kind=\"max_electric_field\"",
+        "probes.area.kind=\"area_strain\"",
+        "probes.area.set=\"z1\"",
+        "probes.volume.kind=\"volume\"",
+        "probes.volume.set=\"z1\"",
+        "probes.pressure.kind=\"pressure\"",
+        "probes.pressure.set=\"z1\"",
+        "loads.pressure=[{set=\"z1\",value=2e3}]",
     ];
 
     /// The last recorded state of a run.
@@ -472,8 +501,8 @@ mod tests {
         let plan = crate::io::build::build(&scenario, "film.toml", None).unwrap();
         assert_eq!(
             plan.probes.len(),
-            13,
-            "the example's 4 probes and the 9 added"
+            16,
+            "the example's 4 probes and the 12 added"
         );
         plan
     }
@@ -508,6 +537,8 @@ mod tests {
         let prescribed = plan.stage_conditions(&mut model, &plan.stages[0]);
         let mut rec = Recorder::new(plan, false);
         rec.external_factor = 1.0;
+        // the pressures at the end of their ramp
+        rec.pressure_now = vec![1.0; plan.model.pressures.len()];
         rec.record(state, &prescribed, 1.0, "charge", 4, 0, 0.25, 0.0, 0.0)
             .unwrap()
             .0
@@ -527,6 +558,12 @@ mod tests {
             "{:?}",
             whole.probes
         );
+        let probe =
+            |name: &str| whole.probes[plan.probes.iter().position(|p| p.0 == name).unwrap()];
+        // the top spreads and the pressure acts at its full value
+        assert!(probe("area") > 1e-3, "{}", probe("area"));
+        assert!(probe("volume").abs() > 0.0);
+        assert_eq!(probe("pressure"), 2e3);
         for ranks in [2, 3] {
             let records = on_threads(ranks, |rank, sum| {
                 let part = divide_on_thread(&plan, rank, ranks, sum);

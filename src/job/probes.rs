@@ -70,9 +70,11 @@ pub enum ProbeKind {
     Pressure(usize),
 }
 
-/// A face of a surface probe: its nodes and their positions (m) in the mesh.
+/// A face of a surface probe: its cell (which decides the rank's part that holds it), its nodes
+/// and their positions (m) in the mesh.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProbeFace {
+    pub cell: usize,
     pub nodes: Vec<usize>,
     pub positions: Vec<[f64; 3]>,
 }
@@ -250,6 +252,14 @@ impl Probe {
                     .sum::<f64>(),
                 nodes.len() as f64,
             ]),
+            ProbeKind::Volume(faces) => Share::Sum([
+                crate::problem::pressure::enclosed_volume(faces, inp.state),
+                0.0,
+            ]),
+            ProbeKind::AreaStrain(faces) => {
+                let area = |state: &[f64]| faces.iter().map(|f| f.area(state)).sum::<f64>();
+                Share::Sum([area(inp.state), area(inp.reference)])
+            }
             _ => Share::Whole,
         }
     }
@@ -280,12 +290,10 @@ impl Probe {
             ProbeKind::Power(e) => inp.electrodes[*e].1 * current(inp, *e),
             ProbeKind::SourceEnergy(e) => inp.circuit_energy.get(*e).map_or(0.0, |c| c.0),
             ProbeKind::ResistorLoss(e) => inp.circuit_energy.get(*e).map_or(0.0, |c| c.1),
-            ProbeKind::Volume(faces) => crate::problem::pressure::enclosed_volume(faces, inp.state),
+            ProbeKind::Volume(_) => a,
             ProbeKind::Pressure(i) => inp.pressures.get(*i).copied().unwrap_or(0.0),
-            ProbeKind::AreaStrain(faces) => {
-                let area = |state: &[f64]| faces.iter().map(|f| f.area(state)).sum::<f64>();
-                area(inp.state) / area(inp.reference) - 1.0
-            }
+            // the current and the reference area
+            ProbeKind::AreaStrain(_) => a / b - 1.0,
         };
         let v = if self.kind.is_global() {
             v * inp.symmetry

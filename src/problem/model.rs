@@ -333,12 +333,13 @@ impl Model {
     /// the rank's cells with their materials, the supports, ties and tractions restricted to
     /// them, and the loads that are not cell terms (point forces and charges, dashpots) at the
     /// nodes the rank owns only, so that the ranks' parts add up to the whole model with each
-    /// such load once. Follower pressures and circuits are refused (their faces and electrodes
-    /// are not divided between the ranks yet).
+    /// such load once, each face of a traction or pressure on the rank of its cell.
+    /// Volume-controlled pressures (an unknown of the whole problem) and circuits are refused:
+    /// they are not divided between the ranks yet.
     pub fn part(&self, local: &crate::mesh::distribute::LocalMesh) -> Result<Model, ModelError> {
-        if !self.pressures.is_empty() {
+        if self.pressures.iter().any(|p| p.volume.is_some()) {
             return Err(ModelError::Invalid(
-                "follower pressures are not divided between the ranks yet".into(),
+                "a volume-controlled pressure is not divided between the ranks yet".into(),
             ));
         }
         if !self.circuits.is_empty() {
@@ -400,6 +401,24 @@ impl Model {
                     })
                     .collect(),
                 value: t.value,
+            })
+            .collect();
+        // each face on the rank of its cell, so that it acts once
+        part.pressures = self
+            .pressures
+            .iter()
+            .map(|p| crate::problem::pressure::Pressure {
+                faces: p
+                    .faces
+                    .iter()
+                    .filter(|f| cell_at[f.cell] != usize::MAX)
+                    .map(|f| crate::problem::pressure::SurfaceFace {
+                        cell: cell_at[f.cell],
+                        nodes: f.nodes.iter().map(|&n| at[n]).collect(),
+                        ..f.clone()
+                    })
+                    .collect(),
+                ..p.clone()
             })
             .collect();
         part.body_force = self.body_force.clone();

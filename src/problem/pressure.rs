@@ -62,10 +62,12 @@ fn skew(a: [f64; 3]) -> [[f64; 3]; 3] {
     [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]]
 }
 
-/// A face of a loaded or measured surface: its global nodes, their reference positions (m) and
-/// the sign that turns (x_ξ × x_η) into the body's outward normal.
+/// A face of a loaded or measured surface: its cell and nodes (in the mesh of the model that
+/// holds it), their reference positions (m) and the sign that turns (x_ξ × x_η) into the body's
+/// outward normal. The cell decides which rank's part holds the face.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurfaceFace {
+    pub cell: usize,
     pub nodes: Vec<usize>,
     pub reference: Vec<[f64; 3]>,
     pub sign: f64,
@@ -104,6 +106,7 @@ pub fn surface(mesh: &Mesh, list: &[FaceRef]) -> Vec<SurfaceFace> {
                     -1.0
                 };
                 return SurfaceFace {
+                    cell: f.cell,
                     nodes,
                     reference: x,
                     sign,
@@ -129,6 +132,7 @@ pub fn surface(mesh: &Mesh, list: &[FaceRef]) -> Vec<SurfaceFace> {
                 -1.0
             };
             SurfaceFace {
+                cell: f.cell,
                 nodes,
                 reference: x,
                 sign,

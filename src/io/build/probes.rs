@@ -336,7 +336,11 @@ fn surface(
             let cell = mesh.cell(f.cell);
             let nodes: Vec<usize> = mesh.kind.faces()[f.face].iter().map(|&l| cell[l]).collect();
             let positions = nodes.iter().map(|&n| mesh.nodes[n]).collect();
-            ProbeFace { nodes, positions }
+            ProbeFace {
+                cell: f.cell,
+                nodes,
+                positions,
+            }
         })
         .collect())
 }
