@@ -132,11 +132,12 @@ impl Plan {
                 StageKind::Static { .. }
                     | StageKind::QuasiStatic { .. }
                     | StageKind::Dynamic { .. }
+                    | StageKind::Continuation { .. }
             )
         }) {
             return Some(format!(
-                "stage `{}` is neither static nor dynamic (only static, quasi-static and \
-                 dynamic stages run on parts yet)",
+                "stage `{}` is a small-signal analysis (only static, quasi-static, \
+                 continuation and dynamic stages run on parts yet)",
                 s.name
             ));
         }
@@ -619,7 +620,7 @@ mod tests {
         };
         let e = divide(&plan, 0, 2, |ok| ok, |_| unreachable!("no exchange")).unwrap_err();
         assert!(
-            e.contains("stage `charge` is neither static nor dynamic"),
+            e.contains("stage `charge` is a small-signal analysis"),
             "{e}"
         );
     }

@@ -15,6 +15,7 @@ pub use super::state::{
 };
 use super::statics::{solve_static_from, StageTime};
 use crate::element::CellFields;
+use crate::problem::distributed::Held;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
@@ -886,10 +887,12 @@ impl<'p, 'o> Job<'p, 'o> {
         let (p0, p1) = match parameter {
             PathParameter::Voltage { electrode } => {
                 let e = &plan.electrodes[*electrode];
-                (
-                    stage_start[e.nodes[0] * FIELDS + 3],
-                    stage_voltage(stage, &e.voltage, stage.duration),
-                )
+                // on a rank's part the electrode's nodes may lie on other ranks
+                let start = match plan.electrode_voltages(&stage_start) {
+                    Ok(v) => v[*electrode],
+                    Err(e) => return Some(format!("stage `{}`: {e}", stage.name)),
+                };
+                (start, stage_voltage(stage, &e.voltage, stage.duration))
             }
             PathParameter::Charge { electrode } => {
                 let q = plan.electrodes[*electrode].charge.unwrap_or(0.0);
@@ -932,6 +935,11 @@ impl<'p, 'o> Job<'p, 'o> {
         let mut problem = StaticProblem::new(model_ref, Some(stage_start));
         problem.duration = stage.duration;
         problem.points = self.points.clone();
+        // the whole problem, or on a rank's part the rank's owned unknowns
+        let mut held = match Held::new(problem, plan.part.as_ref().map(|p| &p.stages)) {
+            Ok(h) => h,
+            Err(e) => return Some(format!("stage `{}`: {e}", stage.name)),
+        };
         let mut solver = plan.solver.build();
         let mut step_no = self.first_step;
         let mut last_load = 0.0;
@@ -939,13 +947,16 @@ impl<'p, 'o> Job<'p, 'o> {
         let mut reached = false;
         let mut limit_error = None;
         let result = continuation(
-            &mut problem,
+            &mut held,
             solver.as_mut(),
             self.newton,
             &settings,
             0.0,
-            |p, event| match event {
+            |held, event| match event {
                 PathEvent::Point(pt) => {
+                    // the whole problem's count (the rank's part's system would give its own)
+                    let expected = held.expected_negative_pivots();
+                    let p = held.inner();
                     step_no += 1;
                     self.rec.sudden_loads = false;
                     self.rec.circuit_current = false;
@@ -970,7 +981,6 @@ impl<'p, 'o> Job<'p, 'o> {
                     );
                     self.accepted += 1;
                     let probes = record.map(|r| r.probes).unwrap_or_default();
-                    let expected = p.expected_negative_pivots();
                     self.observer.path_point(
                         plan,
                         &PathRecord {
@@ -999,7 +1009,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     Next::Continue
                 }
                 PathEvent::Limit(l) => {
-                    match self.rec.probes_at(&p.state) {
+                    match self.rec.probes_at(&held.inner().state) {
                         Ok(probes) => self.observer.limit_point(
                             plan,
                             &LimitRecord {
@@ -1022,6 +1032,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 stage.name
             ));
         }
+        let problem = held.into_inner();
         self.q = problem.state;
         self.points = problem.points;
         summary.steps = step_no;

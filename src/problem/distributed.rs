@@ -403,6 +403,86 @@ impl<S: NonlinearSystem> Held<S> {
             Held::Owned(o) => o.agree(outcome),
         }
     }
+
+    /// The system of the whole problem or of the rank's model, given back.
+    pub fn into_inner(self) -> S {
+        match self {
+            Held::Whole(s) => s,
+            Held::Owned(o) => o.local,
+        }
+    }
+}
+
+/// `Held::Whole(s)` or `Held::Owned(o)`: `$body` with `$s` the system either is.
+macro_rules! either {
+    ($held:expr, $s:ident => $body:expr) => {
+        match $held {
+            Held::Whole($s) => $body,
+            Held::Owned($s) => $body,
+        }
+    };
+}
+
+/// A held system is the system it holds, whole or over the rank's owned unknowns: drivers that
+/// hand the system back to their caller (a path's observer) take it as it is.
+impl<S: NonlinearSystem> NonlinearSystem for Held<S> {
+    fn n(&self) -> usize {
+        either!(self, s => s.n())
+    }
+    fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
+        either!(self, s => s.evaluate(r, k))
+    }
+    fn increment(&mut self, dx: &[f64], alpha: f64) {
+        either!(self, s => s.increment(dx, alpha))
+    }
+    fn snapshot(&self) -> Vec<f64> {
+        either!(self, s => s.snapshot())
+    }
+    fn restore(&mut self, snapshot: &[f64]) {
+        either!(self, s => s.restore(snapshot))
+    }
+    fn new_matrix(&self) -> CsrMatrix {
+        either!(self, s => s.new_matrix())
+    }
+    fn expected_negative_pivots(&self) -> usize {
+        either!(self, s => s.expected_negative_pivots())
+    }
+    fn residual_floor(&self) -> f64 {
+        either!(self, s => s.residual_floor())
+    }
+    fn residual_factor(&self) -> f64 {
+        either!(self, s => s.residual_factor())
+    }
+    fn groups(&self) -> Vec<u8> {
+        either!(self, s => s.groups())
+    }
+    fn shares_cells(&self) -> bool {
+        either!(self, s => s.shares_cells())
+    }
+    fn layout(&self) -> Option<DofLayout> {
+        either!(self, s => s.layout())
+    }
+    fn factored(&mut self) {
+        either!(self, s => s.factored())
+    }
+    fn border(&self) -> Option<crate::problem::system::Border> {
+        either!(self, s => s.border())
+    }
+    fn increment_border(&mut self, delta: f64) {
+        either!(self, s => s.increment_border(delta))
+    }
+    fn sum_over_processes(&self, values: &mut [f64]) -> Result<(), String> {
+        either!(self, s => s.sum_over_processes(values))
+    }
+}
+
+impl<S: LoadedSystem> LoadedSystem for Held<S> {
+    fn set_load(&mut self, load: f64) {
+        either!(self, s => s.set_load(load))
+    }
+    fn accept(&mut self) -> Result<bool, String> {
+        either!(self, s => s.accept())
+    }
 }
 
 impl<S: NonlinearSystem> NonlinearSystem for OwnedSystem<S> {

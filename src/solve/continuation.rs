@@ -167,6 +167,22 @@ struct Step {
 }
 
 impl<S: LoadedSystem + ?Sized> Path<'_, S> {
+    /// The dot products of `pairs` of vectors of the unknowns, over every process's part of
+    /// them (one reduction; [`NonlinearSystem::sum_over_processes`]), so that every process
+    /// takes the same path.
+    fn dots<const N: usize>(&self, pairs: [(&[f64], &[f64]); N]) -> Result<[f64; N], String> {
+        let mut v = pairs.map(|(a, b)| dot(a, b));
+        self.system.sum_over_processes(&mut v)?;
+        Ok(v)
+    }
+
+    /// Whether every entry of `v` is finite, on every process's part.
+    fn finite(&self, v: &[f64]) -> Result<bool, String> {
+        let mut bad = [v.iter().filter(|x| !x.is_finite()).count() as f64];
+        self.system.sum_over_processes(&mut bad)?;
+        Ok(bad[0] == 0.0)
+    }
+
     /// ∂r/∂s at the current state and load `s` into `out` (central difference).
     fn load_derivative(&mut self, s: f64, out: &mut [f64]) -> Result<(), String> {
         let h = DS * s.abs().max(1.0);
@@ -205,7 +221,7 @@ impl<S: LoadedSystem + ?Sized> Path<'_, S> {
         self.solver
             .solve_in_place(&mut t)
             .map_err(|e| e.to_string())?;
-        if t.iter().any(|v| !v.is_finite()) {
+        if !self.finite(&t)? {
             return Err("non-finite tangent".into());
         }
         Ok(t)
@@ -233,7 +249,8 @@ impl<S: LoadedSystem + ?Sized> Path<'_, S> {
         let mut xr = vec![0.0; n];
         for iteration in 0..=self.newton.max_iterations {
             self.system.evaluate(&mut self.r, Some(&mut self.k))?;
-            let rn = dot(&self.r, &self.r).sqrt();
+            let [rr] = self.dots([(&self.r, &self.r)])?;
+            let rn = rr.sqrt();
             if !rn.is_finite() {
                 return Err("non-finite residual".into());
             }
@@ -274,15 +291,16 @@ impl<S: LoadedSystem + ?Sized> Path<'_, S> {
                 self.solver
                     .solve_in_place(&mut q)
                     .map_err(|e| e.to_string())?;
-                let g = dot(&dx, &dx) + psi2 * ds * ds - dl * dl;
-                let den = dot(&dx, &q) + psi2 * ds;
+                let [dx2, dxq, dxr] = self.dots([(&dx, &dx), (&dx, &q), (&dx, &xr)])?;
+                let g = dx2 + psi2 * ds * ds - dl * dl;
+                let den = dxq + psi2 * ds;
                 if den == 0.0 || !den.is_finite() {
                     return Err("degenerate arc-length constraint".into());
                 }
-                dstep = -(0.5 * g + dot(&dx, &xr)) / den;
+                dstep = -(0.5 * g + dxr) / den;
             }
             let delta: Vec<f64> = xr.iter().zip(&q).map(|(a, b)| a + dstep * b).collect();
-            if delta.iter().any(|v| !v.is_finite()) {
+            if !self.finite(&delta)? {
                 return Err("non-finite update".into());
             }
             ds += dstep;
@@ -343,12 +361,15 @@ impl<S: LoadedSystem + ?Sized> Path<'_, S> {
                 .zip(&from.position)
                 .map(|(b, a)| b - a)
                 .collect();
-            let sign = if dot(&t, &towards) + psi2 * (to.load - from.load) >= 0.0 {
+            let Ok([t_towards, tt]) = self.dots([(&t, &towards), (&t, &t)]) else {
+                break;
+            };
+            let sign = if t_towards + psi2 * (to.load - from.load) >= 0.0 {
                 1.0
             } else {
                 -1.0
             };
-            let ds0 = sign * dl / (dot(&t, &t) + psi2).sqrt();
+            let ds0 = sign * dl / (tt + psi2).sqrt();
             let Ok(step) = self.correct(from.load, &t, ds0, Some((dl, psi2))) else {
                 break;
             };
@@ -474,12 +495,16 @@ pub fn continuation<S: LoadedSystem + ?Sized>(
         // the predictor's load step and the constraint
         let (ds0, constraint) = match (arc, &last) {
             (Some((dl, psi2)), Some(prev)) => {
-                let sign = if dot(&t, &prev.dx) + psi2 * prev.ds >= 0.0 {
+                let [t_prev, tt] = match path.dots([(&t, &prev.dx), (&t, &t)]) {
+                    Ok(d) => d,
+                    Err(e) => return Err(fail(points, s, iterations, &limits, e)),
+                };
+                let sign = if t_prev + psi2 * prev.ds >= 0.0 {
                     1.0
                 } else {
                     -1.0
                 };
-                let norm_t = (dot(&t, &t) + psi2).sqrt();
+                let norm_t = (tt + psi2).sqrt();
                 let mut ds = sign * dl / norm_t;
                 let mut dl = dl;
                 if ds.abs() > max_ds {
@@ -541,14 +566,14 @@ pub fn continuation<S: LoadedSystem + ?Sized>(
         if let Err(e) = path.system.accept() {
             return Err(fail(points, s, iterations, &limits, e));
         }
+        let [dx2] = match path.dots([(&step.dx, &step.dx)]) {
+            Ok(d) => d,
+            Err(e) => return Err(fail(points, s, iterations, &limits, e)),
+        };
         let (dl_step, psi2) = match arc {
-            Some((_, psi2)) => (
-                (dot(&step.dx, &step.dx) + psi2 * step.ds * step.ds).sqrt(),
-                psi2,
-            ),
+            Some((_, psi2)) => ((dx2 + psi2 * step.ds * step.ds).sqrt(), psi2),
             None => {
                 // the first step sets the scale of the load in the constraint
-                let dx2 = dot(&step.dx, &step.dx);
                 let psi2 = if dx2 > 0.0 {
                     dx2 / (step.ds * step.ds)
                 } else {
