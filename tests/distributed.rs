@@ -185,18 +185,3 @@ fn a_pressed_films_parts_add_up_to_the_whole() {
         .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
     assert!(load > 1e-3 * scale, "{load:e} of {scale:e}");
 }
-
-/// A volume-controlled pressure (its fraction an unknown of the whole problem) is not divided
-/// between the ranks yet: refused, not silently wrong.
-#[test]
-fn a_volume_controlled_pressure_is_refused_for_a_part() {
-    let mut whole = example_model("film", &["loads.pressure=[{set=\"z1\",value=2e5}]"]);
-    whole.pressures[0].volume = Some(1e-9);
-    let mesh = &whole.mesh;
-    let part = partition_cells(mesh, 2, None);
-    let (problem, _, _) = evaluate(&whole, wavy(&whole));
-    let node_owner = node_processes(mesh, &problem.dofs, &part, 2);
-    let local = LocalMesh::of_rank(mesh, &part, &node_owner, 0, 2).unwrap();
-    let err = whole.part(&local).unwrap_err().to_string();
-    assert!(err.contains("volume-controlled"), "{err}");
-}

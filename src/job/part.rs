@@ -144,13 +144,6 @@ impl Plan {
         if self.model.is_axisymmetric() {
             return Some("an axisymmetric model is not divided into parts".into());
         }
-        if self.pressure_volumes.iter().any(Option::is_some) {
-            return Some(
-                "a volume-controlled pressure (an unknown of the whole problem) is not divided \
-                 into parts yet"
-                    .into(),
-            );
-        }
         if self.electrodes.iter().any(|e| e.resistance.is_some()) {
             return Some("circuit-driven electrodes are not divided into parts yet".into());
         }

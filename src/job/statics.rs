@@ -2,7 +2,7 @@
 //! stepping with Newton.
 
 use super::part::Division;
-use crate::problem::distributed::OwnedSystem;
+use crate::problem::distributed::Held;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
@@ -10,7 +10,6 @@ use crate::problem::system::LoadedSystem;
 use crate::solve::linear::{SolverSettings, SolverStats};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepControl};
-use std::sync::Arc;
 
 /// What a static stage runs in time: its duration (s; a load step Δs lasts Δs·duration for
 /// materials with internal variables), the committed point states it starts from, and the
@@ -89,32 +88,9 @@ pub fn solve_static_from(
         position
     });
     let mut solver = solver.build();
-    let Some(part) = part else {
-        let result = crate::solve::stepping::ramp_from(
-            &mut problem,
-            solver.as_mut(),
-            newton,
-            control,
-            position,
-            |p, s| {
-                on_step(p, s);
-                false
-            },
-        );
-        return StaticOutcome {
-            state: problem.state,
-            points: problem.points,
-            result,
-            linear: solver.stats(),
-        };
-    };
-    // a rank's part: Newton on the rank's owned unknowns, the ranks combining their parts
-    let mut system = match OwnedSystem::new(
-        problem,
-        Arc::clone(&part.equations),
-        Arc::clone(&part.exchange),
-        part.floor,
-    ) {
+    // the whole problem, or on a rank's part Newton on the rank's owned unknowns, the ranks
+    // combining their parts (collective)
+    let mut system = match Held::new(problem, part) {
         Ok(s) => s,
         Err(reason) => {
             return StaticOutcome {
@@ -139,13 +115,14 @@ pub fn solve_static_from(
         control,
         position,
         |s, acc| {
-            on_step(&s.local, acc);
+            on_step(s.inner(), acc);
             false
         },
     );
+    let problem = system.into_inner();
     StaticOutcome {
-        state: system.local.state,
-        points: system.local.points,
+        state: problem.state,
+        points: problem.points,
         result,
         linear: solver.stats(),
     }

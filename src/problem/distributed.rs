@@ -279,12 +279,6 @@ impl<S: NonlinearSystem> OwnedSystem<S> {
                 "rank {} owns no unknown: the problem is too small for this many ranks",
                 equations.rank
             ))
-        } else if local.border().is_some() {
-            Some(
-                "a volume-controlled pressure (a bordering unknown) is not divided between the \
-                 ranks yet"
-                    .to_string(),
-            )
         } else {
             None
         };
@@ -465,7 +459,7 @@ impl<S: NonlinearSystem> NonlinearSystem for Held<S> {
     fn factored(&mut self) {
         either!(self, s => s.factored())
     }
-    fn border(&self) -> Option<crate::problem::system::Border> {
+    fn border(&self) -> Result<Option<crate::problem::system::Border>, String> {
         either!(self, s => s.border())
     }
     fn increment_border(&mut self, delta: f64) {
@@ -573,6 +567,37 @@ impl<S: NonlinearSystem> NonlinearSystem for OwnedSystem<S> {
 
     fn sum_over_processes(&self, values: &mut [f64]) -> Result<(), String> {
         self.exchange.sum(values)
+    }
+
+    /// The rank's border over its owned unknowns: its column and row summed into their owners'
+    /// entries, the measure's shares summed over the ranks (collective).
+    fn border(&self) -> Result<Option<crate::problem::system::Border>, String> {
+        let Some(local) = self.local.border()? else {
+            return Ok(None);
+        };
+        let owned = |mut v: Vec<f64>| -> Result<Vec<f64>, String> {
+            self.exchange.add_to_owners(&mut v)?;
+            let mut out = vec![0.0; self.n_owned];
+            for (e, slot) in self.slots.iter().enumerate() {
+                if let Some(i) = *slot {
+                    out[i] = v[e];
+                }
+            }
+            Ok(out)
+        };
+        let mut shares = [local.measure, local.start];
+        self.exchange.sum(&mut shares)?;
+        Ok(Some(crate::problem::system::Border {
+            b: owned(local.b)?,
+            c: owned(local.c)?,
+            measure: shares[0],
+            start: shares[1],
+            ..local
+        }))
+    }
+
+    fn increment_border(&mut self, delta: f64) {
+        self.local.increment_border(delta)
     }
 }
 

@@ -333,15 +333,10 @@ impl Model {
     /// the rank's cells with their materials, the supports, ties and tractions restricted to
     /// them, and the loads that are not cell terms (point forces and charges, dashpots) at the
     /// nodes the rank owns only, so that the ranks' parts add up to the whole model with each
-    /// such load once, each face of a traction or pressure on the rank of its cell.
-    /// Volume-controlled pressures (an unknown of the whole problem) and circuits are refused:
-    /// they are not divided between the ranks yet.
+    /// such load once, each face of a traction or pressure on the rank of its cell (a
+    /// volume-controlled pressure's volume is then a sum of the ranks' shares). Circuits are
+    /// refused: they are not divided between the ranks yet.
     pub fn part(&self, local: &crate::mesh::distribute::LocalMesh) -> Result<Model, ModelError> {
-        if self.pressures.iter().any(|p| p.volume.is_some()) {
-            return Err(ModelError::Invalid(
-                "a volume-controlled pressure is not divided between the ranks yet".into(),
-            ));
-        }
         if !self.circuits.is_empty() {
             return Err(ModelError::Invalid(
                 "circuit-driven electrodes are not divided between the ranks yet".into(),

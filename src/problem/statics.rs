@@ -67,7 +67,8 @@ pub struct StaticProblem<'m> {
 pub struct VolumeControl {
     /// Index in `model.pressures`.
     pub pressure: usize,
-    /// Enclosed volume (m³, meshed part) at load factor 0 and 1 of the stage.
+    /// Enclosed volume (m³, meshed part) at load factor 0 and 1 of the stage (`start`: on a
+    /// rank's part, the share of the rank's faces).
     pub start: f64,
     pub target: f64,
     /// The pressure's current fraction of its `value` (the unknown).
@@ -607,8 +608,10 @@ impl NonlinearSystem for StaticProblem<'_> {
     /// Volume control: μ the pressure's fraction, g = V(x) − V̄(s) with V̄ linear in the load
     /// factor from the stage's start volume to the target; b = ∂r/∂μ is the pressure's load
     /// vector per unit fraction, −∂V/∂x scaled by its value, so c = ∂V/∂x = −b / value.
-    fn border(&self) -> Option<crate::problem::system::Border> {
-        let c = self.volume_control.as_ref()?;
+    fn border(&self) -> Result<Option<crate::problem::system::Border>, String> {
+        let Some(c) = self.volume_control.as_ref() else {
+            return Ok(None);
+        };
         let p = &self.model.pressures[c.pressure];
         let mut full = vec![0.0; self.state.len()];
         crate::problem::pressure::add_pressure(p, 1.0, &self.state, &mut full, None);
@@ -620,14 +623,15 @@ impl NonlinearSystem for StaticProblem<'_> {
             }
         }
         let cvec = b.iter().map(|v| -v / p.value).collect();
-        let target = c.start + self.s * (c.target - c.start);
-        let volume = crate::problem::pressure::enclosed_volume(&p.faces, &self.state);
-        Some(crate::problem::system::Border {
+        Ok(Some(crate::problem::system::Border {
             b,
             c: cvec,
-            g: volume - target,
-            tol: 1e-11 * c.start.abs().max(c.target.abs()),
-        })
+            measure: crate::problem::pressure::enclosed_volume(&p.faces, &self.state),
+            start: c.start,
+            end: c.target,
+            load: self.s,
+            rtol: 1e-11,
+        }))
     }
 
     fn increment_border(&mut self, delta: f64) {

@@ -7,16 +7,38 @@ use super::assembly::CsrMatrix;
 /// One extra scalar unknown μ of a system, closed by one scalar equation g(x, μ) = 0: Newton
 /// solves the bordered system [K b; cᵀ 0] [δx; δμ] = −[r; g] (a pressure held at the value that
 /// gives a prescribed volume, with μ the pressure and g the volume's error).
+///
+/// g = m − (m₀ + s (m₁ − m₀)): a measure m of the state (the volume) against its target, reached
+/// linearly in the load factor s from the measure m₀ at the stage's start. m and m₀ are sums
+/// over the mesh (over faces), so that each process of a divided problem holds its share of
+/// them and the whole problem's sum is theirs.
 #[derive(Debug, Clone)]
 pub struct Border {
     /// ∂r/∂μ over the free unknowns.
     pub b: Vec<f64>,
     /// ∂g/∂x over the free unknowns.
     pub c: Vec<f64>,
+    /// m at the current state and m₀ at the stage's start (this process's shares when the
+    /// unknowns are divided).
+    pub measure: f64,
+    pub start: f64,
+    /// m₁, the target at load factor 1, and the load factor s.
+    pub end: f64,
+    pub load: f64,
+    /// |g| at or below this fraction of max(|m₀|, |m₁|) counts as satisfied.
+    pub rtol: f64,
+}
+
+impl Border {
     /// g at the current state.
-    pub g: f64,
+    pub fn g(&self) -> f64 {
+        self.measure - (self.start + self.load * (self.end - self.start))
+    }
+
     /// |g| at or below which the equation counts as satisfied.
-    pub tol: f64,
+    pub fn tol(&self) -> f64 {
+        self.rtol * self.start.abs().max(self.end.abs())
+    }
 }
 
 /// Where each free unknown of a system sits in the mesh: what a block preconditioner needs to
@@ -89,9 +111,9 @@ pub trait NonlinearSystem {
     /// run can factor the same matrix again.
     fn factored(&mut self) {}
     /// The bordering unknown's column, row and equation at the current state (`None`: the
-    /// system has none).
-    fn border(&self) -> Option<Border> {
-        None
+    /// system has none); an error when the processes could not combine their shares.
+    fn border(&self) -> Result<Option<Border>, String> {
+        Ok(None)
     }
     /// μ ← μ + δ (the snapshot holds μ).
     fn increment_border(&mut self, _delta: f64) {}

@@ -93,10 +93,6 @@ pub enum NewtonError {
     LinearSolve { iteration: usize, message: String },
 }
 
-fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
-}
-
 /// The norm of a vector of `system`'s unknowns: over every process's part of them
 /// ([`NonlinearSystem::sum_over_processes`]); the plain norm when they are all here.
 fn system_norm<S: NonlinearSystem + ?Sized>(
@@ -117,6 +113,16 @@ fn reduce<S: NonlinearSystem + ?Sized>(
 ) -> Result<(), NewtonError> {
     system
         .sum_over_processes(values)
+        .map_err(|message| NewtonError::Evaluation { iteration, message })
+}
+
+/// [`NonlinearSystem::border`], its failure a Newton error at `iteration`.
+fn system_border<S: NonlinearSystem + ?Sized>(
+    system: &S,
+    iteration: usize,
+) -> Result<Option<Border>, NewtonError> {
+    system
+        .border()
         .map_err(|message| NewtonError::Evaluation { iteration, message })
 }
 
@@ -281,9 +287,9 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
     }
     let mut iteration = 0;
     let mut refactor = !reuse || !solver.is_factored();
-    let mut border = system.border();
+    let mut border = system_border(system, 0)?;
     let mut reference = r0.max(floor);
-    let border_open = |b: &Option<Border>| b.as_ref().is_some_and(|b| b.g.abs() > b.tol);
+    let border_open = |b: &Option<Border>| b.as_ref().is_some_and(|b| b.g().abs() > b.tol());
     // the last iteration's residual and forcing term
     let mut forced: Option<(f64, f64)> = None;
     while rn > tol || border_open(&border) {
@@ -344,24 +350,30 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
         if let Some(bd) = &border {
             let minus_b: Vec<f64> = bd.b.iter().map(|v| -v).collect();
             let z = solve_copy(solver, minus_b, iteration)?;
-            let cz = dot(&bd.c, &z);
-            let cx = dot(&bd.c, &dx);
+            // over every process's part of the unknowns
+            let mut sums = [
+                dot(&bd.c, &z),
+                dot(&bd.c, &dx),
+                bd.b.iter().map(|x| x * x).sum::<f64>(),
+            ];
+            reduce(system, &mut sums, iteration)?;
+            let [cz, cx, bb] = sums;
             if cz == 0.0 || !cz.is_finite() {
                 return Err(NewtonError::Singular { iteration });
             }
-            dmu = -(bd.g + cx) / cz;
+            dmu = -(bd.g() + cx) / cz;
             dx.iter_mut().zip(&z).for_each(|(d, zi)| *d += dmu * zi);
-            weight = norm(&bd.b) / cz.abs();
+            weight = bb.sqrt() / cz.abs();
             if settings.verbose {
                 eprintln!(
                     "    border: g {:.3e}, dmu {dmu:.3e}, weight {weight:.3e}, |b| {:.3e}",
-                    bd.g,
-                    norm(&bd.b)
+                    bd.g(),
+                    bb.sqrt()
                 );
             }
         }
         let m0 = match &border {
-            Some(b) => (rn * rn + (weight * b.g).powi(2)).sqrt(),
+            Some(b) => (rn * rn + (weight * b.g()).powi(2)).sqrt(),
             None => rn,
         };
         // the scale divergence is judged against: the first merit
@@ -430,7 +442,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
         }
         let previous = rn;
         rn = system_norm(system, &r, iteration)?;
-        border = system.border();
+        border = system_border(system, iteration)?;
         refactor = !reuse || rn > 0.1 * previous;
         residuals.push(rn);
         if settings.verbose {
@@ -470,10 +482,11 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
                 // one negative pivot fewer when cᵀK⁻¹c < 0 (Haynsworth's inertia additivity
                 // for the bordered matrix)
                 let mut negative = i.negative;
-                if let Some(bd) = system.border() {
+                if let Some(bd) = system_border(system, iteration)? {
                     let z = solve_copy(solver, bd.c.clone(), iteration)?;
-                    let q = dot(&bd.c, &z);
-                    if q < 0.0 {
+                    let mut q = [dot(&bd.c, &z)];
+                    reduce(system, &mut q, iteration)?;
+                    if q[0] < 0.0 {
                         negative = negative.saturating_sub(1);
                     }
                 }
@@ -586,13 +599,16 @@ mod tests {
         fn groups(&self) -> Vec<u8> {
             vec![0]
         }
-        fn border(&self) -> Option<Border> {
-            Some(Border {
+        fn border(&self) -> Result<Option<Border>, String> {
+            Ok(Some(Border {
                 b: vec![-1.0],
                 c: vec![1.0],
-                g: self.x - self.target,
-                tol: 1e-14,
-            })
+                measure: self.x,
+                start: self.target,
+                end: self.target,
+                load: 1.0,
+                rtol: 1e-14 / self.target.abs(),
+            }))
         }
         fn increment_border(&mut self, delta: f64) {
             self.mu += delta;
