@@ -795,23 +795,33 @@ fn a_pressure_load_on_two_mpi_ranks_agrees_with_the_serial_run() {
     );
 }
 
-/// A follower pressure under pressure control, with the surface probes (the cavity's volume,
-/// the outer electrode's area strain, the pressure): each rank holds only its part, each face
-/// of the pressure and of the probes on the rank of its cell. The balloon octant inflated to
-/// 2 kPa, below its pressure maximum; its bulk modulus lowered to 100 μ so that the stresses do
-/// not amplify the round-off of J (see the test above).
-#[test]
-fn a_follower_pressure_on_two_mpi_ranks_in_parts_agrees_with_the_serial_run() {
-    let text = example("balloon-volume").unwrap();
-    for (from, _) in [("volume = 1.3724e-4", ()), ("kappa = 1e9 ", ())] {
+/// `balloon-volume` under pressure control: its pressure of `value` (Pa) at load factor 1
+/// instead of the prescribed volume, its bulk modulus lowered to 100 μ (so that the stresses do
+/// not amplify the round-off of J, see the test above), and the replacements `more` made.
+fn balloon_under_pressure(value: &str, more: &[(&str, &str)]) -> String {
+    let mut text = example("balloon-volume").unwrap().to_string();
+    let volume = "volume = 1.3724e-4";
+    let replacements = [(volume, format!("value = {value}"))]
+        .into_iter()
+        .chain([("kappa = 1e9 ", "kappa = 1e7 ".to_string())])
+        .chain(more.iter().map(|(a, b)| (*a, b.to_string())));
+    for (from, to) in replacements {
         assert!(
             text.contains(from),
             "the test assumes the example's `{from}`"
         );
+        text = text.replace(from, &to);
     }
-    let text = text
-        .replace("volume = 1.3724e-4", "value = 2e3")
-        .replace("kappa = 1e9 ", "kappa = 1e7 ")
+    text
+}
+
+/// A follower pressure under pressure control, with the surface probes (the cavity's volume,
+/// the outer electrode's area strain, the pressure): each rank holds only its part, each face
+/// of the pressure and of the probes on the rank of its cell. The balloon octant inflated to
+/// 2 kPa, below its pressure maximum ([`balloon_under_pressure`]).
+#[test]
+fn a_follower_pressure_on_two_mpi_ranks_in_parts_agrees_with_the_serial_run() {
+    let text = balloon_under_pressure("2e3", &[])
         + "\n[probes.area]\nkind = \"area_strain\"\nset = \"outer\"\n";
     let (d, fields, _, log) = on_ranks_of(
         2,
@@ -1132,26 +1142,19 @@ fn arc_length_on_two_mpi_ranks_passes_the_same_limit_point() {
 /// Snap-through on rank parts: the balloon octant (`balloon-volume` under pressure control)
 /// followed by arc length with the pressure as the unknown load, through its pressure maximum
 /// and minimum (Needleman 1977), each rank holding its part with the pressure's faces. Both
-/// limit points, the path and the final fields agree with the serial run. The wall's bulk
-/// modulus is lowered to 100 μ (see `a_pressure_load_on_two_mpi_ranks_agrees_with_the_serial_run`).
+/// limit points, the path and the final fields agree with the serial run
+/// ([`balloon_under_pressure`]).
 #[test]
 fn a_pressure_path_on_two_mpi_ranks_in_parts_passes_both_limit_points() {
-    let text = example("balloon-volume").unwrap();
     let stage = "kind = \"static\"                 # the volume ramps linearly from its value at the stage start\nsteps = 40";
-    for from in ["volume = 1.3724e-4", stage] {
-        assert!(
-            text.contains(from),
-            "the test assumes the example's `{from}`"
-        );
-    }
-    let text = text
-        .replace("volume = 1.3724e-4", "value = 10e3")
-        .replace("kappa = 1e9 ", "kappa = 1e7 ")
-        .replace(
+    let text = balloon_under_pressure(
+        "10e3",
+        &[(
             stage,
             "kind = \"continuation\"\nparameter = \"pressure\"\nsteps = 20\n\
-         target = { probe = \"stretch\", value = 3.2 }",
-        );
+             target = { probe = \"stretch\", value = 3.2 }",
+        )],
+    );
     let (d, fields, serial, mpi) = on_ranks_of(2, "balloon-path", &text, &[], |_, _| {});
     assert_parts(&mpi, 2);
     for limit in ["maximum of pressure_0 = ", "minimum of pressure_0 = "] {

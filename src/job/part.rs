@@ -404,17 +404,9 @@ fn plan_of(
                     })
                     .collect(),
             ),
-            ProbeKind::Volume(faces) => ProbeKind::Volume(
-                faces
-                    .iter()
-                    .filter(|f| cell_at[f.cell] != usize::MAX)
-                    .map(|f| crate::problem::pressure::SurfaceFace {
-                        cell: cell_at[f.cell],
-                        nodes: f.nodes.iter().map(|&n| at[n]).collect(),
-                        ..f.clone()
-                    })
-                    .collect(),
-            ),
+            ProbeKind::Volume(faces) => ProbeKind::Volume(crate::problem::pressure::faces_on_part(
+                faces, &cell_at, &at,
+            )),
             other => other.clone(),
         };
     }

@@ -403,16 +403,7 @@ impl Model {
             .pressures
             .iter()
             .map(|p| crate::problem::pressure::Pressure {
-                faces: p
-                    .faces
-                    .iter()
-                    .filter(|f| cell_at[f.cell] != usize::MAX)
-                    .map(|f| crate::problem::pressure::SurfaceFace {
-                        cell: cell_at[f.cell],
-                        nodes: f.nodes.iter().map(|&n| at[n]).collect(),
-                        ..f.clone()
-                    })
-                    .collect(),
+                faces: crate::problem::pressure::faces_on_part(&p.faces, &cell_at, &at),
                 ..p.clone()
             })
             .collect();

@@ -75,6 +75,26 @@ pub struct SurfaceFace {
     pub ring: bool,
 }
 
+/// The faces of `faces` whose cells a rank's part holds, renumbered into the part:
+/// `cell_at` and `node_at` give each whole-mesh cell's and node's number in the part
+/// (`usize::MAX`: not in it). Each face is held by the rank of its cell only, so that it counts
+/// once over the ranks.
+pub fn faces_on_part(
+    faces: &[SurfaceFace],
+    cell_at: &[usize],
+    node_at: &[usize],
+) -> Vec<SurfaceFace> {
+    faces
+        .iter()
+        .filter(|f| cell_at[f.cell] != usize::MAX)
+        .map(|f| SurfaceFace {
+            cell: cell_at[f.cell],
+            nodes: f.nodes.iter().map(|&n| node_at[n]).collect(),
+            ..f.clone()
+        })
+        .collect()
+}
+
 /// The faces with their orientation, taken from the reference geometry: the body's outward
 /// normal points away from the cell's centroid.
 pub fn surface(mesh: &Mesh, list: &[FaceRef]) -> Vec<SurfaceFace> {
