@@ -852,6 +852,87 @@ mod tests {
         }
     }
 
+    /// A volume-controlled pressure on the film's top face (the pressure an unknown of the whole
+    /// problem, the bordered Newton step) on 2 and 3 simulated ranks, each holding its faces:
+    /// the ranks' volume shares sum to the whole volume, the border's column and row to the
+    /// whole ones, and Newton reaches the serial solution and pressure to 1e-10 in as many
+    /// iterations.
+    #[test]
+    fn a_volume_controlled_pressure_on_the_ranks_owned_unknowns_reaches_the_serial_solution() {
+        let mesh = box_mesh(FILM_SIZE, [4, 4, 2], ElementKind::Hex8);
+        let mut whole = film_on(mesh.clone(), 5e3).unwrap();
+        let top = mesh.face_sets["z1"].clone();
+        let faces = crate::problem::pressure::surface(&mesh, &top);
+        let start =
+            crate::problem::pressure::enclosed_volume(&faces, &vec![0.0; mesh.n_nodes() * FIELDS]);
+        let mut pressure = crate::problem::pressure::Pressure::new(faces, 1e4);
+        // the top face's volume −⅓∮x·n da 2 % larger in magnitude: the top pushed down
+        pressure.volume = Some(1.02 * start);
+        whole.pressures.push(pressure);
+        let settings = NewtonSettings {
+            check_stability: false,
+            ..NewtonSettings::default()
+        };
+        let mut serial = StaticProblem::new(&whole, None);
+        serial.set_load(1.0);
+        let floor = serial.residual_floor();
+        let mut k = serial.new_matrix();
+        let mut solver = crate::solve::linear::FaerLdlt::new();
+        let report = newton(&mut serial, &mut solver, &mut k, &settings).unwrap();
+        let level = serial.pressure_fractions()[0];
+        assert!(level.abs() > 1e-3, "the pressure holds the volume: {level}");
+        let u_scale = serial
+            .state
+            .chunks(FIELDS)
+            .map(|x| x[2].abs())
+            .fold(0.0_f64, f64::max);
+        let dofs = serial.dofs.clone();
+        for ranks in [2, 3] {
+            let part = partition_cells(&mesh, ranks, None);
+            let node_owner = node_processes(&mesh, &dofs, &part, ranks);
+            let numbering = Numbering::contiguous(&equation_owners(&dofs, &node_owner), ranks);
+            let results = on_threads(ranks, |rank, sum| {
+                let sum = Arc::new(sum);
+                let local = LocalMesh::of_rank(&mesh, &part, &node_owner, rank, ranks).unwrap();
+                let model = whole.part(&local).unwrap();
+                let mut problem = StaticProblem::new(&model, None);
+                problem.set_load(1.0);
+                let eqs = Arc::new(
+                    LocalEquations::new(&dofs, &numbering, &local, &problem.dofs).unwrap(),
+                );
+                let to_ranks = Arc::clone(&sum);
+                let exchange =
+                    SumExchange::new(Arc::clone(&eqs), Box::new(move |v: &mut [f64]| to_ranks(v)));
+                let mut system = OwnedSystem::new(problem, eqs, Arc::new(exchange), floor).unwrap();
+                let mut solver = GatherSolver {
+                    sum,
+                    equations: None,
+                    lu: None,
+                };
+                let mut k = system.new_matrix();
+                let report = newton(&mut system, &mut solver, &mut k, &settings).unwrap();
+                let level = system.local.pressure_fractions()[0];
+                (local, system.local.state.clone(), report, level)
+            });
+            for (local, state, part_report, part_level) in results {
+                assert_eq!(part_report.iterations, report.iterations, "{ranks} ranks");
+                assert!(
+                    (part_level - level).abs() <= 1e-10 * level.abs(),
+                    "{ranks} ranks: pressure {part_level} against {level}"
+                );
+                for (l, &n) in local.nodes.iter().enumerate() {
+                    for f in 0..3 {
+                        let (a, b) = (state[l * FIELDS + f], serial.state[n * FIELDS + f]);
+                        assert!(
+                            (a - b).abs() <= 1e-10 * u_scale,
+                            "{ranks} ranks, node {n}, field {f}: {a} against {b}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     /// A rank whose part of a tie is held while the whole tie is free (a support that the
     /// rank's sets reproduce differently) is refused, naming the node.
     #[test]
