@@ -778,6 +778,66 @@ mod tests {
         }
     }
 
+    /// Newton at load 1 on the whole of `whole` with the serial direct solver: the solved
+    /// problem, Newton's report and the problem's residual floor.
+    fn serial_newton<'m>(
+        whole: &'m Model,
+        settings: &NewtonSettings,
+    ) -> (StaticProblem<'m>, crate::solve::newton::NewtonReport, f64) {
+        let mut serial = StaticProblem::new(whole, None);
+        serial.set_load(1.0);
+        let floor = serial.residual_floor();
+        let mut k = serial.new_matrix();
+        let mut solver = crate::solve::linear::FaerLdlt::new();
+        let report = newton(&mut serial, &mut solver, &mut k, settings).unwrap();
+        (serial, report, floor)
+    }
+
+    /// Newton at load 1 on each of `ranks` simulated ranks, over its owned unknowns of the part of
+    /// `whole` (whose free unknowns are numbered by `dofs`, with the residual floor `floor`) that
+    /// it holds: per rank its part of the mesh, its final state, Newton's report and the
+    /// pressures' fractions.
+    fn newton_on_ranks(
+        whole: &Model,
+        dofs: &DofMap,
+        floor: f64,
+        ranks: usize,
+        settings: &NewtonSettings,
+    ) -> Vec<(
+        LocalMesh,
+        Vec<f64>,
+        crate::solve::newton::NewtonReport,
+        Vec<f64>,
+    )> {
+        let mesh = &whole.mesh;
+        let part = partition_cells(mesh, ranks, None);
+        let node_owner = node_processes(mesh, dofs, &part, ranks);
+        let numbering = Numbering::contiguous(&equation_owners(dofs, &node_owner), ranks);
+        on_threads(ranks, |rank, sum| {
+            let sum = Arc::new(sum);
+            let local = LocalMesh::of_rank(mesh, &part, &node_owner, rank, ranks).unwrap();
+            let model = whole.part(&local).unwrap();
+            let mut problem = StaticProblem::new(&model, None);
+            problem.set_load(1.0);
+            let eqs =
+                Arc::new(LocalEquations::new(dofs, &numbering, &local, &problem.dofs).unwrap());
+            let to_ranks = Arc::clone(&sum);
+            let exchange =
+                SumExchange::new(Arc::clone(&eqs), Box::new(move |v: &mut [f64]| to_ranks(v)));
+            let mut system = OwnedSystem::new(problem, eqs, Arc::new(exchange), floor).unwrap();
+            assert!(system.n() < dofs.n_free);
+            let mut solver = GatherSolver {
+                sum,
+                equations: None,
+                lu: None,
+            };
+            let mut k = system.new_matrix();
+            let report = newton(&mut system, &mut solver, &mut k, settings).unwrap();
+            let levels = system.local.pressure_fractions();
+            (local, system.local.state.clone(), report, levels)
+        })
+    }
+
     /// The film at 20 kV solved by Newton on 2 and 3 simulated ranks, each holding the vectors
     /// of its owned unknowns only, reaches the serial solution to 1e-10 (of the largest
     /// displacement and potential), in the same number of iterations, with the same residuals
@@ -791,12 +851,7 @@ mod tests {
             check_stability: false,
             ..NewtonSettings::default()
         };
-        let mut serial = StaticProblem::new(&whole, None);
-        serial.set_load(1.0);
-        let floor = serial.residual_floor();
-        let mut k = serial.new_matrix();
-        let mut solver = crate::solve::linear::FaerLdlt::new();
-        let report = newton(&mut serial, &mut solver, &mut k, &settings).unwrap();
+        let (serial, report, floor) = serial_newton(&whole, &settings);
         assert!(report.iterations >= 3, "a nonlinear solve: {report:?}");
         let scale = |f: usize| {
             (0..mesh.n_nodes())
@@ -804,35 +859,9 @@ mod tests {
                 .fold(0.0_f64, f64::max)
         };
         let (u_scale, phi_scale) = (scale(2), scale(3));
-        let dofs = serial.dofs.clone();
         for ranks in [2, 3] {
-            let part = partition_cells(&mesh, ranks, None);
-            let node_owner = node_processes(&mesh, &dofs, &part, ranks);
-            let numbering = Numbering::contiguous(&equation_owners(&dofs, &node_owner), ranks);
-            let results = on_threads(ranks, |rank, sum| {
-                let sum = Arc::new(sum);
-                let local = LocalMesh::of_rank(&mesh, &part, &node_owner, rank, ranks).unwrap();
-                let model = film_on(local.mesh.clone(), voltage).unwrap();
-                let mut problem = StaticProblem::new(&model, None);
-                problem.set_load(1.0);
-                let eqs = Arc::new(
-                    LocalEquations::new(&dofs, &numbering, &local, &problem.dofs).unwrap(),
-                );
-                let to_ranks = Arc::clone(&sum);
-                let exchange =
-                    SumExchange::new(Arc::clone(&eqs), Box::new(move |v: &mut [f64]| to_ranks(v)));
-                let mut system = OwnedSystem::new(problem, eqs, Arc::new(exchange), floor).unwrap();
-                assert!(system.n() < dofs.n_free);
-                let mut solver = GatherSolver {
-                    sum,
-                    equations: None,
-                    lu: None,
-                };
-                let mut k = system.new_matrix();
-                let report = newton(&mut system, &mut solver, &mut k, &settings).unwrap();
-                (local, system.local.state.clone(), report)
-            });
-            for (local, state, part_report) in results {
+            let results = newton_on_ranks(&whole, &serial.dofs, floor, ranks, &settings);
+            for (local, state, part_report, _) in results {
                 assert_eq!(part_report.iterations, report.iterations, "{ranks} ranks");
                 for (a, b) in part_report.residuals.iter().zip(&report.residuals) {
                     let tol = 1e-9 * report.residuals[0];
@@ -873,12 +902,7 @@ mod tests {
             check_stability: false,
             ..NewtonSettings::default()
         };
-        let mut serial = StaticProblem::new(&whole, None);
-        serial.set_load(1.0);
-        let floor = serial.residual_floor();
-        let mut k = serial.new_matrix();
-        let mut solver = crate::solve::linear::FaerLdlt::new();
-        let report = newton(&mut serial, &mut solver, &mut k, &settings).unwrap();
+        let (serial, report, floor) = serial_newton(&whole, &settings);
         let level = serial.pressure_fractions()[0];
         assert!(level.abs() > 1e-3, "the pressure holds the volume: {level}");
         let u_scale = serial
@@ -886,35 +910,10 @@ mod tests {
             .chunks(FIELDS)
             .map(|x| x[2].abs())
             .fold(0.0_f64, f64::max);
-        let dofs = serial.dofs.clone();
         for ranks in [2, 3] {
-            let part = partition_cells(&mesh, ranks, None);
-            let node_owner = node_processes(&mesh, &dofs, &part, ranks);
-            let numbering = Numbering::contiguous(&equation_owners(&dofs, &node_owner), ranks);
-            let results = on_threads(ranks, |rank, sum| {
-                let sum = Arc::new(sum);
-                let local = LocalMesh::of_rank(&mesh, &part, &node_owner, rank, ranks).unwrap();
-                let model = whole.part(&local).unwrap();
-                let mut problem = StaticProblem::new(&model, None);
-                problem.set_load(1.0);
-                let eqs = Arc::new(
-                    LocalEquations::new(&dofs, &numbering, &local, &problem.dofs).unwrap(),
-                );
-                let to_ranks = Arc::clone(&sum);
-                let exchange =
-                    SumExchange::new(Arc::clone(&eqs), Box::new(move |v: &mut [f64]| to_ranks(v)));
-                let mut system = OwnedSystem::new(problem, eqs, Arc::new(exchange), floor).unwrap();
-                let mut solver = GatherSolver {
-                    sum,
-                    equations: None,
-                    lu: None,
-                };
-                let mut k = system.new_matrix();
-                let report = newton(&mut system, &mut solver, &mut k, &settings).unwrap();
-                let level = system.local.pressure_fractions()[0];
-                (local, system.local.state.clone(), report, level)
-            });
-            for (local, state, part_report, part_level) in results {
+            let results = newton_on_ranks(&whole, &serial.dofs, floor, ranks, &settings);
+            for (local, state, part_report, part_levels) in results {
+                let part_level = part_levels[0];
                 assert_eq!(part_report.iterations, report.iterations, "{ranks} ranks");
                 assert!(
                     (part_level - level).abs() <= 1e-10 * level.abs(),
