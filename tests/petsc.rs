@@ -1511,6 +1511,31 @@ fn a_checkpoint_of_two_ranks_resumes_on_two_ranks() {
     }
 }
 
+/// Runs `petsc.toml` in `dir` on 2 ranks into `full`, a checkpoint every 30 steps, without
+/// plots or field files, with the `--set` overrides `set`; asserts that it finished and
+/// returns its log.
+fn checkpointed_run(dir: &Path, set: &[&str]) -> String {
+    let mut args = vec![
+        "run",
+        "petsc.toml",
+        "--out",
+        "full",
+        "--checkpoint-every",
+        "30",
+        "--set",
+        "output.plots=false",
+        "--set",
+        "output.fields_every=1000000",
+    ];
+    for s in set {
+        args.extend(["--set", s]);
+    }
+    let full = mpirun(2, dir, &args);
+    let log = String::from_utf8_lossy(&full.stderr).into_owned();
+    assert!(full.status.success(), "{log}");
+    log
+}
+
 /// A dynamic run of rank parts with checkpoints on 2 ranks, cut back as a run killed while
 /// its ranks wrote their newer checkpoint would leave it (rank 0's file of that step, not rank
 /// 1's): the resumed run skips that step with a warning, takes up the older one, each rank its
@@ -1521,23 +1546,7 @@ fn a_dynamic_run_of_rank_parts_resumes_from_its_checkpoint() {
     let dir = common::tempdir("petsc-mpi-dynamic-resume");
     write_petsc_scenario(&dir, example("film-vibration").unwrap());
     let log = |o: &std::process::Output| String::from_utf8_lossy(&o.stderr).into_owned();
-    let args = [
-        "run",
-        "petsc.toml",
-        "--out",
-        "full",
-        "--checkpoint-every",
-        "30",
-        "--set",
-        "stages.0.duration=2e-3",
-        "--set",
-        "output.plots=false",
-        "--set",
-        "output.fields_every=1000000",
-    ];
-    let full = mpirun(2, &dir, &args);
-    assert!(full.status.success(), "{}", log(&full));
-    assert_parts(&log(&full), 2);
+    assert_parts(&checkpointed_run(&dir, &["stages.0.duration=2e-3"]), 2);
     // 100 steps: the checkpoints of steps 60 and 90 kept
     let ck = checkpoints(&dir.join("full"));
     assert_eq!(ck.len(), 2, "{ck:?}");
@@ -1584,24 +1593,8 @@ fn a_viscoelastic_run_on_two_mpi_ranks_agrees_with_the_serial_run_and_resumes() 
     let dir = common::tempdir("petsc-mpi-visco-resume");
     let text = example("diaphragm-visco").unwrap();
     write_petsc_scenario(&dir, text);
-    let mut args = vec![
-        "run",
-        "petsc.toml",
-        "--out",
-        "full",
-        "--checkpoint-every",
-        "30",
-        "--set",
-        "output.plots=false",
-        "--set",
-        "output.fields_every=1000000",
-    ];
-    for s in &shorter {
-        args.extend(["--set", s]);
-    }
+    checkpointed_run(&dir, &shorter);
     let log = |o: &std::process::Output| String::from_utf8_lossy(&o.stderr).into_owned();
-    let full = mpirun(2, &dir, &args);
-    assert!(full.status.success(), "{}", log(&full));
     // 10 pre-stretch, 3 hold, 10 load and 60 dynamic steps: checkpoints at 60 and 30 kept,
     // the older in the dynamic stage's ramp-up (viscous branches far from relaxed)
     let ck = checkpoints(&dir.join("full"));
