@@ -7,7 +7,7 @@
 use std::f64::consts::PI;
 
 /// The shape of a signal.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Shape {
     /// 1 at all times.
     Constant,
@@ -38,7 +38,7 @@ pub enum Shape {
 }
 
 /// The signal a Fourier series approximates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum FourierBase {
     Square,
     Triangle,
@@ -46,7 +46,7 @@ pub enum FourierBase {
 }
 
 /// A signal offset + amplitude · shape(t + phase/(360 f)).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Waveform {
     pub shape: Shape,
     pub amplitude: f64,

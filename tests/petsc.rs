@@ -1293,9 +1293,24 @@ fn breakdown_on_three_ranks(
 }
 
 /// Asserts that the distributed run of `log` ran on `ranks` ranks each holding only its part of
-/// the plan: each rank's part has fewer nodes and cells than the whole mesh.
+/// the plan: rank 0 alone built the whole plan and sent every other rank its part, and each
+/// rank's part has fewer nodes and cells than the whole mesh.
 fn assert_parts(log: &str, ranks: usize) {
     assert!(log.contains("each rank holds only its part"), "{log}");
+    assert_eq!(
+        log.matches("built the whole plan").count(),
+        1,
+        "only rank 0 builds the whole plan: {log}"
+    );
+    assert!(log.contains("rank 0: built the whole plan"), "{log}");
+    for r in 1..ranks {
+        assert!(
+            log.contains(&format!(
+                "rank {r}: received its part of the plan from rank 0"
+            )),
+            "{log}"
+        );
+    }
     for r in 0..ranks {
         let line = log
             .split(&format!("rank {r}: its part holds "))

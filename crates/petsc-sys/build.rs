@@ -1,4 +1,5 @@
-//! Finds PETSc and MPI, links them, and generates the bindings with bindgen.
+//! Finds PETSc and MPI, links them, generates the bindings with bindgen and compiles the byte
+//! messages' C wrappers (`src/bytes.c`) with the cc crate.
 //!
 //! PETSc is found through its pkg-config file (`PETSc.pc`, or `petsc.pc` in older installs). A
 //! build of one's own is selected the way PETSc's documentation describes: `PETSC_DIR` (and
@@ -101,6 +102,13 @@ fn main() {
     for v in VARS {
         builder = builder.allowlist_var(v);
     }
+    // the byte messages' wrappers (src/bytes.c), compiled against the same MPI headers
+    println!("cargo:rerun-if-changed=src/bytes.c");
+    cc::Build::new()
+        .file("src/bytes.c")
+        .includes(&includes)
+        .warnings(true)
+        .compile("deasim_mpi_bytes");
     let bindings = builder.generate().unwrap_or_else(|e| {
         panic!("bindgen failed on the PETSc headers ({e}); include directories tried: {includes:?}")
     });

@@ -324,10 +324,9 @@ pub fn cmd_run(
 ) -> i32 {
     let loaded = read_scenario(scenario).and_then(|(text, name, base)| {
         let s = parse(&text, &name, overrides)?;
-        let plan = build(&s, &name, base.as_deref())?;
-        Ok((plan, text, name, base))
+        Ok((s, text, name, base))
     });
-    let (mut plan, text, name, base) = match loaded {
+    let (s, text, name, base) = match loaded {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
@@ -336,22 +335,19 @@ pub fn cmd_run(
     };
     // a distributed PETSc solve: every rank runs the whole program, rank 0 writes the outputs
     // and every rank its piece of the field files
-    let (rank, ranks) = match mpi_ranks(&plan) {
+    let RankPlan {
+        plan,
+        rank,
+        ranks,
+        pieces,
+        fingerprint,
+    } = match plan_on_ranks(&s, &name, base.as_deref(), true, |_| Ok(())) {
+        Ok(p) => p,
         Err((code, e)) => {
             if !e.is_empty() {
                 eprintln!("error: {e}");
             }
             return code;
-        }
-        Ok(r) => r,
-    };
-    // the whole plan's: a resumed run rebuilds the whole plan first
-    let fingerprint = plan.fingerprint();
-    let pieces = match divide(&mut plan, rank, ranks) {
-        Ok(p) => p,
-        Err(e) => {
-            eprintln!("error: rank {rank}: {e}");
-            return EXIT_SOLVE_FAILED;
         }
     };
     let dir: PathBuf = out
@@ -422,73 +418,272 @@ fn prepare_output(
     Ok((lock, writer))
 }
 
-/// On several ranks: replaces `plan` by this rank's part of it when the plan can be divided
-/// ([`crate::job::part::divide`]: each rank then holds only its part of the mesh and the state),
-/// else shares its cells with the whole state on every rank ([`distribute`]); rank 0 says which.
-/// Returns this rank's piece of the field files; `None` on one rank. A run with the
-/// environment variable `DEASIM_WHOLE_STATE` set keeps the whole state (to compare the two).
-fn divide(plan: &mut Plan, rank: usize, ranks: usize) -> Result<Option<Pieces>, String> {
-    #[cfg(feature = "petsc")]
-    if ranks > 1 {
-        let why = if std::env::var_os("DEASIM_WHOLE_STATE").is_some() {
-            // for comparisons (scripts/bench-mpi.sh)
-            Some("DEASIM_WHOLE_STATE is set".to_string())
-        } else {
-            plan.parts_unsupported()
-        };
-        match why {
-            None => {
-                use crate::problem::distributed::Exchange;
-                let part = crate::job::part::divide(plan, rank, ranks, ranks_agree, |eq| {
-                    crate::solve::petsc::PetscExchange::new(eq)
-                        .map(|x| std::sync::Arc::new(x) as std::sync::Arc<dyn Exchange>)
-                        .map_err(|e| e.to_string())
-                })?;
-                *plan = part;
-                let cells = plan.model.mesh.n_cells();
-                if std::env::var_os("DEASIM_PETSC_VERBOSE").is_some() {
-                    let line = format!(
-                        "deasim: rank {rank}: its part holds {} of the {} nodes and {cells} of \
-                         the {} cells\n",
-                        plan.model.mesh.n_nodes(),
-                        plan.whole_nodes(),
-                        plan.whole_cells()
-                    );
-                    // one write, so that the ranks' lines do not interleave
-                    use std::io::Write;
-                    let _ = std::io::stderr().write_all(line.as_bytes());
-                }
-                let counts = match &plan.part {
-                    Some(p) => p.gather(&[cells as f64])?,
-                    None => Vec::new(),
+/// What a rank runs: its plan, its rank of how many, its piece of the field files (`None` on
+/// one rank) and the whole plan's fingerprint (what its checkpoints are checked against).
+struct RankPlan {
+    plan: Plan,
+    rank: usize,
+    ranks: usize,
+    pieces: Option<Pieces>,
+    fingerprint: u64,
+}
+
+/// This rank's plan of the scenario `s` (read from `file`, relative names from `base`).
+///
+/// On one process it is the whole plan. On several PETSc ranks, when `parts` allows it and
+/// the plan can be divided, rank 0 alone builds the whole plan. It reads or generates the mesh,
+/// cuts every rank's part and sends it ([`crate::job::part::messages`]). Each rank then holds
+/// only its part of the mesh and the state. Otherwise every rank builds the whole plan and shares
+/// its cells ([`distribute`]); rank 0 says which. A run with the environment variable
+/// `DEASIM_WHOLE_STATE` set keeps the whole state (to compare the two).
+///
+/// `check` (on rank 0, given the whole plan) refuses a plan before any part is sent. An error
+/// carries the exit status and its message, which is empty on the ranks that stay silent.
+fn plan_on_ranks(
+    s: &crate::io::scenario::Scenario,
+    file: &str,
+    base: Option<&Path>,
+    parts: bool,
+    check: impl Fn(&Plan) -> Result<(), String>,
+) -> Result<RankPlan, (i32, String)> {
+    let bad = |e: String| (EXIT_BAD_INPUT, e);
+    // every rank reads the solver settings: PETSc's check of its options is collective
+    let solver = crate::io::build::solver_settings(s, file).map_err(|e| bad(e.to_string()))?;
+    let (rank, ranks) = mpi_ranks(&solver)?;
+    let whole = |rank: usize| -> Result<Plan, (i32, String)> {
+        let plan = build(s, file, base).map_err(|e| bad(e.to_string()))?;
+        if ranks > 1 {
+            verbose(&format!(
+                "deasim: rank {rank}: built the whole plan ({} nodes, {} cells)",
+                plan.model.mesh.n_nodes(),
+                plan.model.mesh.n_cells()
+            ));
+        }
+        if rank == 0 {
+            check(&plan).map_err(bad)?;
+        }
+        Ok(plan)
+    };
+    if ranks < 2 {
+        let plan = whole(rank)?;
+        let fingerprint = plan.fingerprint();
+        return Ok(RankPlan {
+            plan,
+            rank,
+            ranks,
+            pieces: None,
+            fingerprint,
+        });
+    }
+    // rank 0 builds the whole plan and says what the others do: stop, build the whole plan
+    // too, or take their parts
+    const FAILED: f64 = 1.0;
+    const WHOLE: f64 = 2.0;
+    const PARTS: f64 = 3.0;
+    let mut first = None;
+    let mut say = [0.0];
+    if rank == 0 {
+        let built = whole(0);
+        say[0] = match &built {
+            Err(_) => FAILED,
+            Ok(plan) => {
+                let why = if !parts {
+                    Some("the checkpoint holds the whole state".to_string())
+                } else if std::env::var_os("DEASIM_WHOLE_STATE").is_some() {
+                    // for comparisons (scripts/bench-mpi.sh)
+                    Some("DEASIM_WHOLE_STATE is set".to_string())
+                } else {
+                    plan.parts_unsupported()
                 };
-                if rank == 0 {
-                    eprintln!(
-                        "deasim: one linear system on {ranks} MPI ranks; each rank holds only its part of \
-                         the mesh and the state; rank 0 writes the outputs, each rank its piece \
-                         of the field files"
-                    );
-                    let counts: Vec<String> = counts.iter().map(|c| c[0].to_string()).collect();
-                    eprintln!(
-                        "deasim: the ranks assemble {} of the {} cells (METIS partition)",
-                        counts.join(", "),
-                        plan.whole_cells()
-                    );
+                match why {
+                    Some(why) => {
+                        eprintln!("deasim: every rank holds the whole state: {why}");
+                        WHOLE
+                    }
+                    None => PARTS,
                 }
-                return Ok(Some(Pieces::new(
-                    &plan.model.mesh,
-                    &vec![true; cells],
-                    rank,
-                    ranks,
-                )));
             }
-            Some(why) if rank == 0 => {
-                eprintln!("deasim: every rank holds the whole state: {why}");
+        };
+        first = Some(built);
+    }
+    sum_over_ranks(&mut say).map_err(|e| (EXIT_SOLVE_FAILED, e))?;
+    if say[0] == FAILED {
+        return Err(match first {
+            Some(Err(e)) => e,
+            _ => (EXIT_BAD_INPUT, String::new()),
+        });
+    }
+    let built = match first {
+        Some(built) => built,
+        None if say[0] == WHOLE => whole(rank),
+        None => Err((EXIT_BAD_INPUT, String::new())),
+    };
+    if say[0] == WHOLE {
+        // each rank has built the whole plan (a failure stops all of them)
+        let mut plan = if ranks_agree(built.is_ok()) {
+            built?
+        } else {
+            return Err(built.err().unwrap_or((EXIT_BAD_INPUT, String::new())));
+        };
+        let fingerprint = plan.fingerprint();
+        let pieces = distribute(&mut plan, rank, ranks);
+        return Ok(RankPlan {
+            plan,
+            rank,
+            ranks,
+            pieces,
+            fingerprint,
+        });
+    }
+    let plan = take_part(s, file, built.ok(), rank, ranks)
+        .map_err(|e| (EXIT_SOLVE_FAILED, format!("rank {rank}: {e}")))?;
+    let cells = plan.model.mesh.n_cells();
+    verbose(&format!(
+        "deasim: rank {rank}: its part holds {} of the {} nodes and {cells} of the {} cells",
+        plan.model.mesh.n_nodes(),
+        plan.whole_nodes(),
+        plan.whole_cells()
+    ));
+    let part = plan
+        .part
+        .as_ref()
+        .ok_or((EXIT_SOLVE_FAILED, String::new()))?;
+    let counts = part
+        .gather(&[cells as f64])
+        .map_err(|e| (EXIT_SOLVE_FAILED, e))?;
+    if rank == 0 {
+        eprintln!(
+            "deasim: one linear system on {ranks} MPI ranks; rank 0 built the whole mesh and \
+             sent each rank its part, and each rank holds only its part of the mesh and the \
+             state; rank 0 writes the outputs, each rank its piece of the field files"
+        );
+        let counts: Vec<String> = counts.iter().map(|c| c[0].to_string()).collect();
+        eprintln!(
+            "deasim: the ranks assemble {} of the {} cells (METIS partition)",
+            counts.join(", "),
+            plan.whole_cells()
+        );
+    }
+    let fingerprint = part.fingerprint;
+    let pieces = Some(Pieces::new(
+        &plan.model.mesh,
+        &vec![true; cells],
+        rank,
+        ranks,
+    ));
+    Ok(RankPlan {
+        plan,
+        rank,
+        ranks,
+        pieces,
+        fingerprint,
+    })
+}
+
+/// This rank's part of the plan (collective): rank 0 cuts every rank's part of the whole plan
+/// it holds (`whole`) and sends it; every other rank receives its own and builds the scenario's
+/// materials for it. A rank whose part cannot be made fails, and the others with it.
+fn take_part(
+    s: &crate::io::scenario::Scenario,
+    file: &str,
+    whole: Option<Plan>,
+    rank: usize,
+    ranks: usize,
+) -> Result<Plan, String> {
+    #[cfg(feature = "petsc")]
+    {
+        use crate::problem::distributed::Exchange;
+        use crate::solve::petsc::{receive_bytes, send_bytes};
+        let (message, materials) = match whole {
+            Some(plan) => {
+                // rank 0: its own part kept, every other sent (an empty message: rank 0 could
+                // not make it)
+                let mut own: Result<Vec<u8>, String> = Err("no part for rank 0".into());
+                let mut failure = None;
+                match crate::job::part::messages(&plan, ranks, plan.fingerprint()) {
+                    Err(e) => {
+                        failure = Some(e);
+                        for r in 1..ranks {
+                            send_bytes(&[], r).map_err(|e| e.to_string())?;
+                        }
+                    }
+                    Ok(messages) => {
+                        for (r, m) in messages.enumerate() {
+                            match m {
+                                Ok(bytes) if r == 0 => own = Ok(bytes),
+                                Ok(bytes) => send_bytes(&bytes, r).map_err(|e| e.to_string())?,
+                                Err(e) => {
+                                    if r > 0 {
+                                        send_bytes(&[], r).map_err(|e| e.to_string())?;
+                                    }
+                                    failure.get_or_insert(format!("the part of rank {r}: {e}"));
+                                }
+                            }
+                        }
+                    }
+                }
+                let message = match failure {
+                    Some(e) => Err(e),
+                    None => own,
+                };
+                (message, Ok(plan.model.materials.clone()))
             }
-            Some(_) => {}
+            None => {
+                let bytes = receive_bytes(0).map_err(|e| e.to_string())?;
+                verbose(&format!(
+                    "deasim: rank {rank}: received its part of the plan from rank 0 ({} bytes)",
+                    bytes.len()
+                ));
+                let message = if bytes.is_empty() {
+                    Err("rank 0 could not make this rank's part (its message is on rank 0)".into())
+                } else {
+                    Ok(bytes)
+                };
+                let materials = crate::io::build::materials(s, file).map_err(|e| e.to_string());
+                (message, materials)
+            }
+        };
+        let exchange = |eq: &std::sync::Arc<crate::problem::distributed::LocalEquations>| {
+            crate::solve::petsc::PetscExchange::new(eq)
+                .map(|x| std::sync::Arc::new(x) as std::sync::Arc<dyn Exchange>)
+                .map_err(|e| e.to_string())
+        };
+        match message.and_then(|m| materials.map(|mats| (m, mats))) {
+            Ok((message, materials)) => {
+                crate::job::part::receive(&message, materials, rank, ranks, ranks_agree, exchange)
+            }
+            Err(e) => {
+                // the others learn of it in their agreement
+                ranks_agree(false);
+                Err(e)
+            }
         }
     }
-    Ok(distribute(plan, rank, ranks))
+    #[cfg(not(feature = "petsc"))]
+    {
+        let _ = (s, file, whole, rank, ranks);
+        Err("rank parts need a build with --features petsc".into())
+    }
+}
+
+/// Writes `line` to stderr in one write (so that the ranks' lines do not interleave) when the
+/// environment variable `DEASIM_PETSC_VERBOSE` is set.
+fn verbose(line: &str) {
+    if std::env::var_os("DEASIM_PETSC_VERBOSE").is_some() {
+        use std::io::Write;
+        let _ = std::io::stderr().write_all(format!("{line}\n").as_bytes());
+    }
+}
+
+/// Sums `v` over the ranks of a distributed run (collective); nothing on one rank.
+fn sum_over_ranks(v: &mut [f64]) -> Result<(), String> {
+    #[cfg(feature = "petsc")]
+    return crate::solve::petsc::sum_over_ranks(v).map_err(|e| e.to_string());
+    #[cfg(not(feature = "petsc"))]
+    {
+        let _ = v;
+        Ok(())
+    }
 }
 
 /// On several ranks: shares the cells of `plan` between them (rank 0 says how) and returns this
@@ -539,9 +734,11 @@ fn ranks_agree(ok: bool) -> bool {
 /// Several processes started by an MPI launcher for a solver that is not PETSc's would each
 /// solve the whole problem and write the same files: an error (the empty message on all ranks
 /// but the first, so that it is printed once).
-fn mpi_ranks(plan: &Plan) -> Result<(usize, usize), (i32, String)> {
+fn mpi_ranks(
+    solver: &crate::solve::linear::SolverSettings,
+) -> Result<(usize, usize), (i32, String)> {
     #[cfg(feature = "petsc")]
-    if plan.solver.kind == crate::solve::linear::SolverKind::Petsc {
+    if solver.kind == crate::solve::linear::SolverKind::Petsc {
         let (rank, ranks) =
             crate::solve::petsc::world().map_err(|e| (EXIT_SOLVE_FAILED, e.to_string()))?;
         if ranks > 1 {
@@ -561,7 +758,7 @@ fn mpi_ranks(plan: &Plan) -> Result<(usize, usize), (i32, String)> {
                  solves the whole problem in each, and each would write the same files: a \
                  distributed run needs `kind = \"petsc\"` (a build with `--features petsc`); \
                  otherwise run deasim without the launcher",
-                plan.solver.kind.name()
+                solver.kind.name()
             )
         } else {
             String::new()
@@ -726,18 +923,50 @@ pub fn cmd_resume(
         None
     };
     match prepare_resume(dir, scenario, overrides, checkpoint_every, first) {
-        Ok((mut plan, mut checkpoint, state)) => {
-            let (rank, ranks) = match mpi_ranks(&plan) {
+        Ok((s, mut checkpoint, state)) => {
+            let source = &checkpoint.source;
+            let base = source.base_dir.as_deref().map(Path::new);
+            let (fingerprint, parts) = (checkpoint.fingerprint, checkpoint.part.is_some());
+            let check = |plan: &Plan| -> Result<(), String> {
+                if plan.fingerprint() != fingerprint {
+                    return Err(format!(
+                        "cannot resume from {}: the rebuilt model does not match the checkpoint \
+                         (a mesh file changed?)",
+                        dir.display()
+                    ));
+                }
+                if !parts {
+                    check_state(plan, &state)
+                        .map_err(|e| format!("cannot resume from {}: {e}", dir.display()))?;
+                }
+                Ok(())
+            };
+            let RankPlan {
+                plan,
+                rank,
+                ranks,
+                pieces,
+                ..
+            } = match plan_on_ranks(&s, &source.file, base, parts, check) {
+                Ok(p) => p,
                 Err((code, e)) => {
                     if !e.is_empty() {
                         eprintln!("error: {e}");
                     }
                     return code;
                 }
-                Ok(r) => r,
             };
+            if rank == 0 {
+                eprintln!(
+                    "deasim: resuming `{}` from step {} (stage {}, {} steps recorded)",
+                    plan.name,
+                    state.accepted,
+                    state.stage,
+                    state.records.len()
+                );
+            }
             let (pieces, state) = if checkpoint.part.is_some() {
-                match resume_part(&mut plan, dir, &checkpoint, state, rank, ranks) {
+                match resume_part(&plan, dir, &checkpoint, state, pieces, rank, ranks) {
                     Ok(p) => p,
                     Err(e) => {
                         eprintln!(
@@ -756,7 +985,7 @@ pub fn cmd_resume(
                         checkpoint.ranks
                     );
                 }
-                (distribute(&mut plan, rank, ranks), state)
+                (pieces, state)
             };
             checkpoint.ranks = ranks as u64;
             checkpoint.part = checkpoint.part.map(|_| rank as u64);
@@ -791,10 +1020,11 @@ pub fn cmd_resume(
 /// (rank 0's is `state`, the others read their own files), checked against the part.
 /// Collective: every rank fails when one does.
 fn resume_part(
-    plan: &mut Plan,
+    plan: &Plan,
     dir: &Path,
     checkpoint: &CheckpointWriter,
     state: RunState,
+    pieces: Option<Pieces>,
     rank: usize,
     ranks: usize,
 ) -> Result<(Option<Pieces>, RunState), String> {
@@ -805,7 +1035,6 @@ fn resume_part(
             checkpoint.ranks
         ));
     }
-    let pieces = divide(plan, rank, ranks)?;
     let own =
         if plan.part.is_none() {
             Err("the checkpoint holds rank parts, but this run keeps the whole state on every rank \
@@ -870,8 +1099,9 @@ fn check_state(plan: &Plan, st: &RunState) -> Result<(), String> {
     }
 }
 
-/// Reads the newest checkpoint of `dir` and checks it against the plan it rebuilds (a
-/// checkpoint of rank parts: the rank's part, later); `loud`: says so and warns (the process of
+/// Reads the newest checkpoint of `dir` and checks it against what is given again: its stored
+/// scenario (parsed), what its writer continues with, and its run state. The plan is rebuilt
+/// and checked against the checkpoint later ([`plan_on_ranks`]). `loud`: warns (the process of
 /// rank 0).
 fn prepare_resume(
     dir: &Path,
@@ -879,7 +1109,7 @@ fn prepare_resume(
     overrides: &[String],
     checkpoint_every: Option<usize>,
     loud: bool,
-) -> Result<(Plan, CheckpointWriter, RunState), String> {
+) -> Result<(crate::io::scenario::Scenario, CheckpointWriter, RunState), String> {
     use crate::io::checkpoint::latest;
     // a run that ended converged wrote its summary.json (a new run deletes the earlier one)
     if let Ok(text) = std::fs::read_to_string(dir.join("summary.json")) {
@@ -932,19 +1162,8 @@ fn prepare_resume(
     }
     let s =
         parse(&src.text, &src.file, &src.overrides).map_err(|e| format!("stored scenario: {e}"))?;
-    let plan = build(&s, &src.file, src.base_dir.as_deref().map(Path::new))
-        .map_err(|e| format!("stored scenario: {e}"))?;
-    if plan.fingerprint() != ck.fingerprint {
-        return Err(
-            "the rebuilt model does not match the checkpoint (a mesh file changed?)".to_string(),
-        );
-    }
-    let st = &ck.state;
     if ck.every < 1 {
         return Err("the checkpoint has no interval".to_string());
-    }
-    if ck.part.is_none() {
-        check_state(&plan, st)?;
     }
     let threads = rayon::current_num_threads() as u64;
     if loud && ck.threads != threads {
@@ -952,15 +1171,6 @@ fn prepare_resume(
             "warning: the checkpoint was written with {} threads, this run has {threads}: the \
              results agree to round-off, not bit for bit",
             ck.threads
-        );
-    }
-    if loud {
-        eprintln!(
-            "deasim: resuming `{}` from step {} (stage {}, {} steps recorded)",
-            plan.name,
-            st.accepted,
-            st.stage,
-            st.records.len()
         );
     }
     let checkpoint = CheckpointWriter {
@@ -971,7 +1181,7 @@ fn prepare_resume(
         ranks: ck.ranks,
         part: ck.part,
     };
-    Ok((plan, checkpoint, ck.state))
+    Ok((s, checkpoint, ck.state))
 }
 
 /// Runs a plan into `dir` with SIGINT/SIGTERM handling; returns the exit status.

@@ -63,7 +63,7 @@ use crate::material::{
 type Vec9 = nalgebra::SVector<f64, 9>;
 
 /// The element formulation of the displacement field.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Formulation {
     /// Pure displacement (standard Galerkin, full integration). Locks for κ ≫ μ.
     #[default]

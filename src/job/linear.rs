@@ -201,7 +201,7 @@ impl ProbeMap<'_> {
 }
 
 /// How a frequency response is computed.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum ResponseMethod {
     /// One complex sparse solve of the full linearised system per frequency (exact).
     Direct,

@@ -35,6 +35,8 @@ pub struct PlanPart {
     pub nodes: Vec<usize>,
     /// Per electrode (plan order): the local node of its first node when this rank owns it.
     pub electrode_first: Vec<Option<usize>>,
+    /// The whole plan's [`Plan::fingerprint`] (what its checkpoints are checked against).
+    pub fingerprint: u64,
 }
 
 impl std::fmt::Debug for PlanPart {
@@ -151,34 +153,48 @@ impl Plan {
     }
 }
 
-/// The part of `plan` that rank `rank` of `ranks` holds: the plan's cells partitioned by METIS
-/// ([`Plan::partition`]), each node owned by one rank whose cells meet it, the whole problem's
-/// unknowns numbered rank after rank; the rank's plan over its cells and their nodes (owned
-/// first, then ghosts), with `exchange` (made for the rank's equations) combining the ranks.
+/// On rank 0 of `ranks`: every rank's part of `plan` in turn, encoded (the bytes to send it),
+/// the whole problem cut once; `fingerprint` (the whole plan's, of its checkpoints) goes to
+/// every rank. A part that cannot be made is its error.
 ///
-/// The sets are restricted so that each contribution counts once over the ranks: supports and
-/// electrodes keep every node of the part; a probe's mean, point and deflection keep the owned
-/// nodes, its reaction and extremes every node of the part (each rank's reactions are those of its
-/// own cells). Every rank must call it with the same plan. The plan's stages all solve for the
-/// same unknowns (static stages: the supports and the electrodes, at their stages' values).
-///
-/// `agree(ok)` says whether every rank's set-up succeeded (collective): a rank whose part
-/// cannot be made fails, and the others with it, before the exchange is made.
-pub fn divide(
+/// A rank's part: the plan's cells partitioned by METIS ([`Plan::partition`]), each node owned by
+/// one rank whose cells meet it, the whole problem's unknowns numbered rank after rank; the
+/// rank's plan over its cells and their nodes (owned first, then ghosts). The sets are
+/// restricted so that each contribution counts once over the ranks: supports and electrodes keep
+/// every node of the part; a probe's mean, point and deflection keep the owned nodes, its
+/// reaction and extremes every node of the part (each rank's reactions are those of its own
+/// cells). The plan's stages all solve for the same unknowns (static stages: the supports and
+/// the electrodes, at their stages' values).
+pub fn messages(
     plan: &Plan,
+    ranks: usize,
+    fingerprint: u64,
+) -> Result<impl Iterator<Item = Result<Vec<u8>, String>> + '_, String> {
+    let whole = Whole::of(plan, ranks)?;
+    Ok((0..ranks).map(move |rank| whole.message(plan, rank, fingerprint)?.encode()))
+}
+
+/// The plan of this rank's part from its `message` ([`messages`]) with the plan's `materials`
+/// (built from the scenario on every rank: they are code, not data), its exchanges made by
+/// `exchange` (for the rank's equations, combining the ranks) once every rank agrees (`agree`,
+/// collective) that its message is sound: a rank whose part cannot be made fails, and the
+/// others with it, before any exchange is made.
+pub fn receive(
+    message: &[u8],
+    materials: Vec<Arc<dyn crate::material::Material>>,
     rank: usize,
     ranks: usize,
     agree: impl Fn(bool) -> bool,
     exchange: impl Fn(&Arc<LocalEquations>) -> Result<Arc<dyn Exchange>, String>,
 ) -> Result<Plan, String> {
-    let set_up = rank_part(plan, rank, ranks);
-    if !agree(set_up.is_ok()) {
-        return Err(set_up.err().unwrap_or_else(|| {
+    let decoded = PartMessage::decode(message, materials, rank, ranks);
+    if !agree(decoded.is_ok()) {
+        return Err(decoded.err().unwrap_or_else(|| {
             "another rank could not make its part of the plan (its message is on that rank)".into()
         }));
     }
-    let RankPart {
-        mut plan_part,
+    let PartMessage {
+        plan: mut plan_part,
         stages,
         prestretch,
         projection,
@@ -186,125 +202,251 @@ pub fn divide(
         electrode_first,
         cells,
         nodes,
-    } = set_up?;
-    let division = |(equations, floor): (Arc<LocalEquations>, f64)| -> Result<Division, String> {
+        whole_nodes,
+        whole_cells,
+        fingerprint,
+    } = decoded?;
+    let division = |equations: LocalEquations, floor: f64| -> Result<Division, String> {
+        let equations = Arc::new(equations);
         Ok(Division {
             exchange: exchange(&equations)?,
             equations,
             floor,
         })
     };
+    let optional = |p: Option<(LocalEquations, f64)>| p.map(|(e, f)| division(e, f)).transpose();
     plan_part.part = Some(Arc::new(PlanPart {
         rank,
         ranks,
         cells,
         nodes,
-        stages: division(stages)?,
-        prestretch: prestretch.map(division).transpose()?,
-        projection: projection.map(division).transpose()?,
-        explicit: explicit.map(division).transpose()?,
-        whole_nodes: plan.model.mesh.n_nodes(),
-        whole_cells: plan.model.mesh.n_cells(),
+        stages: division(stages.0, stages.1)?,
+        prestretch: optional(prestretch)?,
+        projection: optional(projection)?,
+        explicit: optional(explicit)?,
+        whole_nodes,
+        whole_cells,
         electrode_first,
+        fingerprint,
     }));
     Ok(plan_part)
 }
 
-/// What [`rank_part`] makes: the rank's plan; its equations in the whole problem and the whole
-/// problem's residual floor, of the stages and of the pre-stretch; the local first node of each
-/// electrode owned here and the global number of each local cell and node.
-struct RankPart {
-    plan_part: Plan,
-    stages: (Arc<LocalEquations>, f64),
-    prestretch: Option<(Arc<LocalEquations>, f64)>,
-    projection: Option<(Arc<LocalEquations>, f64)>,
-    explicit: Option<(Arc<LocalEquations>, f64)>,
+/// What rank 0 sends a rank: the plan of its part (without its materials, which every rank
+/// builds from the scenario, and without its [`PlanPart`]); its equations in the whole problem
+/// and the whole problem's residual floor, of each problem the plan solves; the local first node
+/// of each electrode owned here, the global number of each local cell and node, the whole mesh's
+/// counts and the whole plan's fingerprint.
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct PartMessage {
+    plan: Plan,
+    stages: (LocalEquations, f64),
+    prestretch: Option<(LocalEquations, f64)>,
+    projection: Option<(LocalEquations, f64)>,
+    explicit: Option<(LocalEquations, f64)>,
     electrode_first: Vec<Option<usize>>,
     cells: Vec<usize>,
     nodes: Vec<usize>,
+    whole_nodes: usize,
+    whole_cells: usize,
+    fingerprint: u64,
 }
 
-/// The rank's plan and equations of [`divide`], before any collective call.
-fn rank_part(plan: &Plan, rank: usize, ranks: usize) -> Result<RankPart, String> {
-    if let Some(why) = plan.parts_unsupported() {
-        return Err(why);
+impl PartMessage {
+    /// The message as bytes (postcard).
+    fn encode(&self) -> Result<Vec<u8>, String> {
+        postcard::to_stdvec(self).map_err(|e| format!("cannot encode a rank's part: {e}"))
     }
-    let Some(first) = plan.stages.first() else {
-        return Err("the plan has no stage".into());
-    };
-    // the whole problem's unknowns, as its first stage holds them
-    let mut whole = plan.model.clone();
-    plan.stage_conditions(&mut whole, first);
-    let dofs = dofs_of(&whole);
-    let mesh = &whole.mesh;
-    let cells = plan.partition(ranks);
-    let owner = crate::problem::assembly::node_processes(mesh, &dofs, &cells, ranks);
-    let local = LocalMesh::of_rank(mesh, &cells, &owner, rank, ranks).map_err(|e| e.to_string())?;
-    let part = plan_of(plan, &whole, &local)?;
-    // the rank's equations of a problem on the whole model and on the part, numbered as their
-    // problems number them
-    // each problem's equations dealt out by the rule of its own unknowns (the projection's
-    // potentials lie elsewhere than the stages' unknowns), over the same parts
-    let equations_of =
-        |whole: &Model, part: &Model| -> Result<(Arc<LocalEquations>, f64), String> {
-            let dofs = dofs_of(whole);
-            let owner = crate::problem::assembly::node_processes(mesh, &dofs, &cells, ranks);
-            let numbering = Numbering::contiguous(&equation_owners(&dofs, &owner), ranks);
-            let (local_dofs, _, _) = crate::problem::statics::discretize(part);
-            let equations = LocalEquations::new(&dofs, &numbering, &local, &local_dofs)?;
-            let floor = crate::problem::statics::residual_floor(whole, dofs.n_free);
-            Ok((Arc::new(equations), floor))
-        };
-    let mut first_stage = part.model.clone();
-    part.stage_conditions(&mut first_stage, first);
-    let stages = equations_of(&whole, &first_stage)?;
-    let prestretch = if plan.prestretch.is_some() {
-        let pre_whole = super::prestretch::prestretch_model(plan, &whole);
-        let pre_part = super::prestretch::prestretch_model(&part, &first_stage);
-        Some(equations_of(&pre_whole, &pre_part)?)
-    } else {
-        None
-    };
-    // the dynamic stages' projection and the explicit scheme's velocity equation: every
-    // stage holds the same supports and prescribed electrodes, so the first dynamic (explicit)
-    // stage's stand for all
-    let dynamic_problem = |explicit: bool, of: fn(&Model) -> Model| {
-        let stage = plan.stages.iter().find(|s| match s.kind {
-            StageKind::Dynamic { scheme, .. } => {
-                !explicit || scheme == crate::time::stage::Method::Trapezoidal
-            }
-            _ => false,
-        });
-        stage
-            .map(|stage| {
-                let (mut w, mut p) = (plan.model.clone(), part.model.clone());
-                plan.stage_conditions(&mut w, stage);
-                part.stage_conditions(&mut p, stage);
-                equations_of(&of(&w), &of(&p))
+
+    /// The message of rank `rank` of `ranks` from its bytes, its plan given its `materials`;
+    /// checked to be that rank's.
+    fn decode(
+        bytes: &[u8],
+        materials: Vec<Arc<dyn crate::material::Material>>,
+        rank: usize,
+        ranks: usize,
+    ) -> Result<Self, String> {
+        let mut m: PartMessage = postcard::from_bytes(bytes)
+            .map_err(|e| format!("rank {rank}: cannot decode its part of the plan: {e}"))?;
+        if m.stages.0.rank != rank || m.stages.0.start.len() != ranks + 1 {
+            return Err(format!(
+                "rank {rank} of {ranks}: received the part of rank {} of {}",
+                m.stages.0.rank,
+                m.stages.0.start.len().saturating_sub(1)
+            ));
+        }
+        if materials.len() != m.plan.material_names.len() {
+            return Err(format!(
+                "rank {rank}: {} materials for the plan's {}",
+                materials.len(),
+                m.plan.material_names.len()
+            ));
+        }
+        m.plan.model.materials = materials;
+        Ok(m)
+    }
+}
+
+/// The problems a plan solves, each on its own unknowns: the stages', the pre-stretch's, the
+/// dynamic stages' electrostatic projection (the potentials with every displacement held) and
+/// the explicit scheme's velocity equation (the displacements with every potential held).
+#[derive(Clone, Copy)]
+enum Problem {
+    Stages,
+    Prestretch,
+    Projection,
+    Explicit,
+}
+
+impl Problem {
+    /// The model of this problem on `plan` (the whole plan, or a rank's part of it), whose
+    /// `model` holds the first stage's conditions; `None` when the plan does not solve it. Every
+    /// stage holds the same supports and prescribed electrodes, so the first dynamic (explicit)
+    /// stage's stand for all.
+    fn model(self, plan: &Plan) -> Option<Model> {
+        let first = plan.stages.first()?;
+        let mut model = plan.model.clone();
+        let dynamic = |explicit: bool| {
+            plan.stages.iter().find(|s| match s.kind {
+                StageKind::Dynamic { scheme, .. } => {
+                    !explicit || scheme == crate::time::stage::Method::Trapezoidal
+                }
+                _ => false,
             })
-            .transpose()
-    };
-    let projection = dynamic_problem(false, crate::time::stage::projection_model)?;
-    let explicit = dynamic_problem(true, crate::time::trapezoidal::velocity_model)?;
-    let at = global_to_local(&local, mesh.n_nodes());
-    let electrode_first = plan
-        .electrodes
-        .iter()
-        .map(|e| {
-            let n = at[e.nodes[0]];
-            (n < local.owned).then_some(n)
+        };
+        match self {
+            Problem::Stages => {
+                plan.stage_conditions(&mut model, first);
+                Some(model)
+            }
+            Problem::Prestretch => {
+                plan.prestretch.as_ref()?;
+                plan.stage_conditions(&mut model, first);
+                Some(super::prestretch::prestretch_model(plan, &model))
+            }
+            Problem::Projection => {
+                plan.stage_conditions(&mut model, dynamic(false)?);
+                Some(crate::time::stage::projection_model(&model))
+            }
+            Problem::Explicit => {
+                plan.stage_conditions(&mut model, dynamic(true)?);
+                Some(crate::time::trapezoidal::velocity_model(&model))
+            }
+        }
+    }
+}
+
+/// A problem's unknowns on the whole mesh, dealt out to the ranks by the rule of its own
+/// unknowns (the projection's potentials lie elsewhere than the stages' unknowns), and its
+/// residual floor.
+struct WholeProblem {
+    dofs: DofMap,
+    numbering: Numbering,
+    floor: f64,
+}
+
+impl WholeProblem {
+    fn of(whole: &Model, cells: &[usize], ranks: usize) -> Self {
+        let dofs = dofs_of(whole);
+        let owner = crate::problem::assembly::node_processes(&whole.mesh, &dofs, cells, ranks);
+        let numbering = Numbering::contiguous(&equation_owners(&dofs, &owner), ranks);
+        let floor = crate::problem::statics::residual_floor(whole, dofs.n_free);
+        WholeProblem {
+            dofs,
+            numbering,
+            floor,
+        }
+    }
+
+    /// The equations of rank `local` whose part of the problem is `part`, as the problem on
+    /// `part` numbers them, in the whole problem's numbering.
+    fn equations(&self, local: &LocalMesh, part: &Model) -> Result<(LocalEquations, f64), String> {
+        let equations = LocalEquations::new(&self.dofs, &self.numbering, local, &dofs_of(part))?;
+        Ok((equations, self.floor))
+    }
+}
+
+/// What every rank's part is cut from, made once: the plan's model with the first stage's
+/// conditions (for the ties it holds), the partition of its cells, the owner of each node, and
+/// each problem the plan solves on the whole mesh.
+struct Whole {
+    ranks: usize,
+    model: Model,
+    cells: Vec<usize>,
+    owner: Vec<usize>,
+    stages: WholeProblem,
+    prestretch: Option<WholeProblem>,
+    projection: Option<WholeProblem>,
+    explicit: Option<WholeProblem>,
+}
+
+impl Whole {
+    fn of(plan: &Plan, ranks: usize) -> Result<Self, String> {
+        if let Some(why) = plan.parts_unsupported() {
+            return Err(why);
+        }
+        let Some(model) = Problem::Stages.model(plan) else {
+            return Err("the plan has no stage".into());
+        };
+        let cells = plan.partition(ranks);
+        let owner =
+            crate::problem::assembly::node_processes(&model.mesh, &dofs_of(&model), &cells, ranks);
+        let problem = |p: Problem| p.model(plan).map(|m| WholeProblem::of(&m, &cells, ranks));
+        Ok(Whole {
+            ranks,
+            stages: WholeProblem::of(&model, &cells, ranks),
+            prestretch: problem(Problem::Prestretch),
+            projection: problem(Problem::Projection),
+            explicit: problem(Problem::Explicit),
+            model,
+            cells,
+            owner,
         })
-        .collect();
-    Ok(RankPart {
-        plan_part: part,
-        stages,
-        prestretch,
-        projection,
-        explicit,
-        electrode_first,
-        cells: local.cells,
-        nodes: local.nodes,
-    })
+    }
+
+    /// The message of rank `rank`: its plan and its equations of each problem.
+    fn message(&self, plan: &Plan, rank: usize, fingerprint: u64) -> Result<PartMessage, String> {
+        let mesh = &self.model.mesh;
+        let local = LocalMesh::of_rank(mesh, &self.cells, &self.owner, rank, self.ranks)
+            .map_err(|e| e.to_string())?;
+        let part = plan_of(plan, &self.model, &local)?;
+        let equations =
+            |p: Problem, whole: &WholeProblem| -> Result<(LocalEquations, f64), String> {
+                let model = p
+                    .model(&part)
+                    .ok_or("a rank's part does not solve a problem of the whole plan")?;
+                whole.equations(&local, &model)
+            };
+        let optional = |p: Problem, whole: &Option<WholeProblem>| {
+            whole.as_ref().map(|w| equations(p, w)).transpose()
+        };
+        let stages = equations(Problem::Stages, &self.stages)?;
+        let prestretch = optional(Problem::Prestretch, &self.prestretch)?;
+        let projection = optional(Problem::Projection, &self.projection)?;
+        let explicit = optional(Problem::Explicit, &self.explicit)?;
+        let at = global_to_local(&local, mesh.n_nodes());
+        let electrode_first = plan
+            .electrodes
+            .iter()
+            .map(|e| {
+                let n = at[e.nodes[0]];
+                (n < local.owned).then_some(n)
+            })
+            .collect();
+        Ok(PartMessage {
+            plan: part,
+            stages,
+            prestretch,
+            projection,
+            explicit,
+            electrode_first,
+            cells: local.cells,
+            nodes: local.nodes,
+            whole_nodes: mesh.n_nodes(),
+            whole_cells: mesh.n_cells(),
+            fingerprint,
+        })
+    }
 }
 
 /// The numbering of `model`'s unknowns (its supports and ties), as its problems number them.
@@ -494,16 +636,29 @@ mod tests {
     }
 
     /// Rank `rank`'s part of `plan` on a thread of [`on_threads`], its exchanges summing over
-    /// the threads by `sum` (one sum for every exchange the division makes).
+    /// the threads by `sum` (one sum for every exchange the division makes): the message rank 0
+    /// would send it, received with the materials built from the scenario `source` (example
+    /// name, overrides) as the other ranks build them.
     fn divide_on_thread(
         plan: &Plan,
+        source: (&str, &[&str]),
         rank: usize,
         ranks: usize,
         sum: crate::problem::assembly::SumOverProcesses,
     ) -> Plan {
         let sum = Arc::new(sum);
-        divide(
-            plan,
+        let message = messages(plan, ranks, plan.fingerprint())
+            .unwrap()
+            .nth(rank)
+            .unwrap()
+            .unwrap();
+        let text = crate::io::examples::example(source.0).unwrap();
+        let overrides: Vec<String> = source.1.iter().map(|o| o.to_string()).collect();
+        let scenario = crate::io::scenario::parse(text, source.0, &overrides).unwrap();
+        let materials = crate::io::build::materials(&scenario, source.0).unwrap();
+        receive(
+            &message,
+            materials,
             rank,
             ranks,
             |ok| ok,
@@ -552,9 +707,10 @@ mod tests {
         assert_eq!(probe("pressure"), 2e3);
         for ranks in [2, 3] {
             let records = on_threads(ranks, |rank, sum| {
-                let part = divide_on_thread(&plan, rank, ranks, sum);
+                let part = divide_on_thread(&plan, ("film", OVERRIDES), rank, ranks, sum);
                 let p = part.part.as_ref().unwrap();
                 assert!(part.model.mesh.n_nodes() < plan.model.mesh.n_nodes());
+                assert_eq!(p.fingerprint, plan.fingerprint());
                 assert_eq!((p.whole_nodes, p.whole_cells), (75, 32));
                 let state: Vec<f64> = p
                     .nodes
@@ -595,6 +751,30 @@ mod tests {
         }
     }
 
+    /// A rank receiving another rank's part, or a message that is not a part, refuses it and
+    /// says why; so does every other rank through the agreement, before any exchange is made.
+    #[test]
+    fn a_rank_refuses_a_message_that_is_not_its_part() {
+        let plan = film();
+        let sent: Vec<Vec<u8>> = messages(&plan, 2, 7).unwrap().map(Result::unwrap).collect();
+        assert!(sent.iter().all(|m| !m.is_empty()));
+        let materials = plan.model.materials.clone();
+        let no_exchange = |_: &Arc<LocalEquations>| -> Result<Arc<dyn Exchange>, String> {
+            unreachable!("no exchange after a refusal")
+        };
+        let e = receive(&sent[1], materials.clone(), 0, 2, |ok| ok, no_exchange).unwrap_err();
+        assert!(e.contains("received the part of rank 1 of 2"), "{e}");
+        let e = receive(&sent[0], materials.clone(), 0, 3, |ok| ok, no_exchange).unwrap_err();
+        assert!(e.contains("received the part of rank 0 of 2"), "{e}");
+        let e = receive(&sent[0][..9], materials.clone(), 0, 2, |ok| ok, no_exchange).unwrap_err();
+        assert!(e.contains("cannot decode its part"), "{e}");
+        let e = receive(&sent[0], Vec::new(), 0, 2, |ok| ok, no_exchange).unwrap_err();
+        assert!(e.contains("0 materials for the plan's 1"), "{e}");
+        // a rank whose own message is sound stops when another's was not
+        let e = receive(&sent[0], materials, 0, 2, |_| false, no_exchange).unwrap_err();
+        assert!(e.contains("another rank could not make its part"), "{e}");
+    }
+
     /// A plan the parts cannot hold yet is refused with the reason, before any exchange.
     #[test]
     fn a_plan_with_a_modes_stage_is_not_divided() {
@@ -603,7 +783,7 @@ mod tests {
             count: 3,
             shift_hz: 0.0,
         };
-        let e = divide(&plan, 0, 2, |ok| ok, |_| unreachable!("no exchange")).unwrap_err();
+        let e = messages(&plan, 2, 0).err().expect("refused");
         assert!(
             e.contains("stage `charge` is a small-signal analysis"),
             "{e}"
@@ -634,7 +814,7 @@ mod tests {
         assert!(mass > 0.0, "the example's pad carries a mass");
         let ranks = 2;
         let parts = on_threads(ranks, |rank, sum| {
-            let part = divide_on_thread(&plan, rank, ranks, sum);
+            let part = divide_on_thread(&plan, ("diaphragm-3d", &[]), rank, ranks, sum);
             let p = part.part.as_ref().unwrap();
             let projection = p.projection.as_ref().expect("a division of the projection");
             (

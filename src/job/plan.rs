@@ -10,7 +10,7 @@ use crate::time::stage::Method;
 use crate::waveform::Waveform;
 
 /// An electrode of the plan.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Electrode {
     pub name: String,
     pub nodes: Vec<usize>,
@@ -33,7 +33,7 @@ impl Electrode {
 }
 
 /// The kind of a stage.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum StageKind {
     /// Real time without inertia: `steps` equal steps over the duration, the electrodes at
     /// their waveforms' values at each step's stage time, materials relax.
@@ -68,7 +68,7 @@ pub enum StageKind {
 
 /// The load a continuation stage follows (all loads that change in the stage move with the
 /// load factor; this one is reported as the path's abscissa and at its limit points).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum PathParameter {
     /// The voltage (V) of electrode `electrode` (plan index).
     Voltage { electrode: usize },
@@ -98,7 +98,7 @@ impl PathParameter {
 }
 
 /// Where a continuation stage ends.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum PathTarget {
     /// At this load factor (1: the stage's targets), landed on exactly.
     Load(f64),
@@ -130,7 +130,7 @@ impl StageKind {
 }
 
 /// A stage of the plan.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Stage {
     pub name: String,
     pub kind: StageKind,
@@ -141,7 +141,7 @@ pub struct Stage {
 }
 
 /// Output settings.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct OutputPlan {
     pub fields_every: usize,
     pub plots: bool,
@@ -156,7 +156,7 @@ pub struct OutputPlan {
 /// How the meridian section of an axisymmetric model is swept about its axis for the revolved
 /// view (`output.revolve_sector`, `output.revolve_wedges`). Output only: the solution never
 /// reads it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Revolve {
     /// The swept angle in degrees, in (0, 360]; 360 closes the ring.
     pub sector_deg: f64,
@@ -165,7 +165,7 @@ pub struct Revolve {
 }
 
 /// The encoding of the field files' arrays (`output.vtu_format`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum FieldFormat {
     /// base64 of the raw values.
     #[default]
@@ -177,9 +177,12 @@ pub enum FieldFormat {
 }
 
 /// Everything needed to run a scenario.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Plan {
     pub name: String,
+    /// As data without its materials ([`crate::problem::model::data`]): whoever reads a plan
+    /// sets them.
+    #[serde(with = "crate::problem::model::data")]
     pub model: Model,
     /// Displacement conditions (fixed for the whole run).
     pub supports: Vec<crate::problem::dofs::Dirichlet>,
@@ -216,8 +219,9 @@ pub struct Plan {
     /// Per pressure: the volume (m³, meshed part) it holds under volume control in the stages it
     /// acts in (its fraction of `value` is then an unknown), or `None` (pressure control).
     pub pressure_volumes: Vec<Option<f64>>,
-    /// On a rank's part of a plan divided between MPI ranks ([`crate::job::part::divide`]):
+    /// On a rank's part of a plan divided between MPI ranks ([`crate::job::part::messages`]):
     /// the whole problem and the other ranks. `None`: the plan is the whole problem.
+    #[serde(skip)]
     pub part: Option<std::sync::Arc<crate::job::part::PlanPart>>,
 }
 
@@ -324,7 +328,7 @@ impl Plan {
 }
 
 /// An equibiaxial in-plane pre-stretch of the body, imposed on a set (the rim).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Prestretch {
     pub stretch: f64,
     /// Load steps of the ramp: the fallback of an instantaneous pre-stretch (when the homogeneous
@@ -346,7 +350,7 @@ impl Prestretch {
 }
 
 /// A rigid region of the plan.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Rigid {
     pub set: String,
     pub nodes: Vec<usize>,

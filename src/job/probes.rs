@@ -1,7 +1,7 @@
 //! Probes: named scalar outputs evaluated at every accepted step.
 
 /// A nodal quantity.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum NodalQuantity {
     /// Displacement component 0, 1, 2 (m).
     Component(usize),
@@ -23,7 +23,7 @@ impl NodalQuantity {
 }
 
 /// What a probe measures.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum ProbeKind {
     /// Weighted mean Σ wₐ qₐ / Σ wₐ of a nodal quantity over a set: the weights are the nodes'
     /// shares ∫Nₐ dA of the reference area of a face set (the surface mean of the interpolated
@@ -72,7 +72,7 @@ pub enum ProbeKind {
 
 /// A face of a surface probe: its cell (which decides the rank's part that holds it), its nodes
 /// and their positions (m) in the mesh.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ProbeFace {
     pub cell: usize,
     pub nodes: Vec<usize>,
@@ -110,7 +110,7 @@ impl ProbeKind {
 }
 
 /// A probe: offset + scale · quantity.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Probe {
     pub kind: ProbeKind,
     pub scale: f64,

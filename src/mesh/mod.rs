@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 pub const TET10_EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]];
 
 /// Cell kinds of the meridian plane, with Gmsh's node order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum MeridianKind {
     /// Bilinear quadrilateral, 2 × 2 Gauss points.
     Quad4,
@@ -116,7 +116,7 @@ impl MeridianKind {
 }
 
 /// The element kinds deasim knows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum ElementKind {
     /// Trilinear hexahedron, VTK node order.
     Hex8,
@@ -196,14 +196,16 @@ impl ElementKind {
 }
 
 /// A face of a cell: the cell index and the local face number of [`ElementKind::faces`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub struct FaceRef {
     pub cell: usize,
     pub face: usize,
 }
 
 /// A mesh of cells of one kind with named sets.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Mesh {
     pub kind: ElementKind,
     /// Reference coordinates (m).

@@ -11,7 +11,7 @@
 //! In static stages the circuit carries no current: the electrode is at the source's voltage.
 
 /// A circuit-driven electrode of the meshed part.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Circuit {
     /// The electrode's nodes; the first one's potential is the tied unknown.
     pub nodes: Vec<usize>,

@@ -70,7 +70,7 @@ fn node_blocks(whole: &DofMap, numbering: &Numbering) -> (Vec<usize>, Vec<usize>
 }
 
 /// A rank's equations in the whole problem's numbering.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LocalEquations {
     /// This rank.
     pub rank: usize,

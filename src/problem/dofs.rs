@@ -12,7 +12,7 @@ pub use crate::fem::{FIELDS, PHI};
 pub const CONSTRAINED: usize = usize::MAX;
 
 /// A field of a node.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Field {
     Ux,
     Uy,
@@ -182,7 +182,7 @@ impl DofMap {
 
 /// A tie: `field` of every node in `nodes` takes one common increment (a rigid translation of a
 /// region along one axis).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Tie {
     pub nodes: Vec<usize>,
     pub field: Field,
@@ -192,7 +192,7 @@ pub struct Tie {
 }
 
 /// A Dirichlet condition: `field` of every node in `nodes` equals `value` (m or V).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Dirichlet {
     pub nodes: Vec<usize>,
     pub field: Field,

@@ -13,7 +13,7 @@ use crate::problem::dofs::FIELDS;
 use crate::problem::model::Model;
 
 /// A dead nominal traction on a list of faces (N/m² of reference area).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Traction {
     pub faces: Vec<FaceRef>,
     pub value: [f64; 3],

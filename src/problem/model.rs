@@ -494,3 +494,120 @@ impl Geometries {
         }
     }
 }
+
+/// A [`Model`] as data (serde's `with` module): everything but its materials, which are code
+/// (trait objects built from a scenario), and what follows from the mesh (the reference element
+/// and the cells' geometry, computed again on reading). A model read back has no materials until
+/// its reader sets them; a cell share is not data either (a distributed run sets its own).
+pub mod data {
+    use super::*;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    /// The model's data, borrowed for writing.
+    #[derive(Serialize)]
+    struct Written<'a> {
+        mesh: &'a Mesh,
+        cell_material: &'a [usize],
+        dirichlet: &'a [Dirichlet],
+        formulation: Formulation,
+        tractions: &'a [Traction],
+        body_force: &'a [[f64; 3]],
+        point_forces: &'a [(usize, [f64; 3])],
+        dead_load_start: f64,
+        ties: &'a [Tie],
+        point_dampers: &'a [(usize, f64)],
+        pressures: &'a [crate::problem::pressure::Pressure],
+        point_charges: &'a [(usize, f64)],
+        circuits: &'a [crate::problem::circuit::Circuit],
+    }
+
+    /// The model's data, read.
+    #[derive(Deserialize)]
+    struct Read {
+        mesh: Mesh,
+        cell_material: Vec<usize>,
+        dirichlet: Vec<Dirichlet>,
+        formulation: Formulation,
+        tractions: Vec<Traction>,
+        body_force: Vec<[f64; 3]>,
+        point_forces: Vec<(usize, [f64; 3])>,
+        dead_load_start: f64,
+        ties: Vec<Tie>,
+        point_dampers: Vec<(usize, f64)>,
+        pressures: Vec<crate::problem::pressure::Pressure>,
+        point_charges: Vec<(usize, f64)>,
+        circuits: Vec<crate::problem::circuit::Circuit>,
+    }
+
+    pub fn serialize<S: Serializer>(model: &Model, s: S) -> Result<S::Ok, S::Error> {
+        // every field named, so that a field added to the model is added here too
+        let Model {
+            mesh,
+            reference: _,
+            geometries: _,
+            materials: _,
+            cell_material,
+            dirichlet,
+            formulation,
+            tractions,
+            body_force,
+            point_forces,
+            dead_load_start,
+            ties,
+            point_dampers,
+            pressures,
+            point_charges,
+            circuits,
+            share: _,
+        } = model;
+        Written {
+            mesh,
+            cell_material,
+            dirichlet,
+            formulation: *formulation,
+            tractions,
+            body_force,
+            point_forces,
+            dead_load_start: *dead_load_start,
+            ties,
+            point_dampers,
+            pressures,
+            point_charges,
+            circuits,
+        }
+        .serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Model, D::Error> {
+        let r = Read::deserialize(d)?;
+        if r.cell_material.len() != r.mesh.n_cells() {
+            return Err(serde::de::Error::custom(format!(
+                "{} cell materials for {} cells",
+                r.cell_material.len(),
+                r.mesh.n_cells()
+            )));
+        }
+        let reference = ReferenceElement::new(r.mesh.kind);
+        let geometries = Model::cell_geometries(&r.mesh, &reference)
+            .map_err(|e| serde::de::Error::custom(e.to_string()))?;
+        Ok(Model {
+            reference,
+            geometries: Arc::new(Geometries::new(geometries)),
+            mesh: Arc::new(r.mesh),
+            materials: Vec::new(),
+            cell_material: r.cell_material,
+            dirichlet: r.dirichlet,
+            formulation: r.formulation,
+            tractions: r.tractions,
+            body_force: r.body_force,
+            point_forces: r.point_forces,
+            dead_load_start: r.dead_load_start,
+            ties: r.ties,
+            point_dampers: r.point_dampers,
+            pressures: r.pressures,
+            point_charges: r.point_charges,
+            circuits: r.circuits,
+            share: None,
+        })
+    }
+}

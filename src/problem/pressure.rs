@@ -27,7 +27,7 @@ use crate::problem::dofs::FIELDS;
 use crate::problem::faces::{cross, dot, points, shape, side_points, side_shape};
 
 /// A pressure (Pa, positive pushing the faces away from the cavity) on faces of the mesh.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Pressure {
     pub faces: Vec<SurfaceFace>,
     pub value: f64,
@@ -65,7 +65,7 @@ fn skew(a: [f64; 3]) -> [[f64; 3]; 3] {
 /// A face of a loaded or measured surface: its cell and nodes (in the mesh of the model that
 /// holds it), their reference positions (m) and the sign that turns (x_ξ × x_η) into the body's
 /// outward normal. The cell decides which rank's part holds the face.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SurfaceFace {
     pub cell: usize,
     pub nodes: Vec<usize>,

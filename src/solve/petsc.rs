@@ -191,6 +191,67 @@ pub fn barrier() -> Result<(), LinearSolverError> {
     Ok(())
 }
 
+/// The tag of deasim's byte messages.
+const BYTES_TAG: i32 = 0x0dea;
+
+/// Sends `bytes` to rank `to` of `PETSC_COMM_WORLD` (which receives them with
+/// [`receive_bytes`]); returns when the bytes may be reused.
+pub fn send_bytes(bytes: &[u8], to: usize) -> Result<(), LinearSolverError> {
+    initialize()?;
+    let _guard = lock();
+    let to = i32::try_from(to).map_err(|_| LinearSolverError::Failed(format!("no rank {to}")))?;
+    // SAFETY: MPI is initialised; `bytes` is valid for its length during the call
+    let code = unsafe {
+        ffi::deasim_mpi_send_bytes(
+            bytes.as_ptr(),
+            bytes.len() as u64,
+            to,
+            BYTES_TAG,
+            ffi::comm_world(),
+        )
+    };
+    if code != 0 {
+        return Err(LinearSolverError::Failed(format!(
+            "sending {} bytes to rank {to} failed with MPI error code {code}",
+            bytes.len()
+        )));
+    }
+    Ok(())
+}
+
+/// The bytes rank `from` of `PETSC_COMM_WORLD` sends this rank with [`send_bytes`].
+pub fn receive_bytes(from: usize) -> Result<Vec<u8>, LinearSolverError> {
+    initialize()?;
+    let _guard = lock();
+    let fail = |what: &str, code: i32| {
+        LinearSolverError::Failed(format!(
+            "receiving {what} from rank {from} failed with MPI error code {code}"
+        ))
+    };
+    let from = i32::try_from(from).map_err(|_| fail("a message", -1))?;
+    let mut length = 0u64;
+    // SAFETY: MPI is initialised; the length is written into a local, the bytes into a buffer
+    // of that length
+    unsafe {
+        let code = ffi::deasim_mpi_recv_length(&mut length, from, BYTES_TAG, ffi::comm_world());
+        if code != 0 {
+            return Err(fail("a message's length", code));
+        }
+        let mut bytes = vec![0u8; usize::try_from(length).map_err(|_| fail("a message", -1))?];
+        let code = ffi::deasim_mpi_recv_bytes(
+            bytes.as_mut_ptr(),
+            length,
+            from,
+            BYTES_TAG,
+            ffi::comm_world(),
+        );
+        if code != 0 {
+            return Err(fail(&format!("{length} bytes"), code));
+        }
+        Ok(bytes)
+    }
+}
+
 /// Inserts an options string into the default options database (call with the lock held).
 fn insert_options(options: &str, origin: &str) -> Result<(), LinearSolverError> {
     if options.trim().is_empty() {
@@ -210,8 +271,26 @@ fn insert_options(options: &str, origin: &str) -> Result<(), LinearSolverError> 
 /// environment variable, as the solver does at its first factorisation, and returns PETSc's
 /// refusal: a misspelt method or preconditioner is then reported with the scenario, before the
 /// first step, instead of failing every attempt of the first load step. Collective: every rank
-/// reads the same scenario and calls it.
+/// reads the same scenario and calls it. The answer is kept: a second call with the same
+/// options (and the same `PETSC_OPTIONS`) returns it without a collective call, so that rank 0
+/// may build the whole plan alone after every rank has checked the options.
 pub fn check_options(options: &str) -> Result<(), LinearSolverError> {
+    type Checked = Option<((String, Option<String>), Result<(), LinearSolverError>)>;
+    static CHECKED: Mutex<Checked> = Mutex::new(None);
+    let key = (options.to_string(), std::env::var("PETSC_OPTIONS").ok());
+    let mut checked = CHECKED.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((k, answer)) = checked.as_ref() {
+        if *k == key {
+            return answer.clone();
+        }
+    }
+    let answer = check_options_now(options);
+    *checked = Some((key, answer.clone()));
+    answer
+}
+
+/// [`check_options`] without the kept answer (collective).
+fn check_options_now(options: &str) -> Result<(), LinearSolverError> {
     initialize()?;
     let _guard = lock();
     // SAFETY: PETSc is initialised; the handles are owned by wrappers that destroy them (the

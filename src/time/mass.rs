@@ -21,7 +21,7 @@ pub struct NodalMass {
 }
 
 /// How the mass is distributed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum MassKind {
     Consistent,
     /// Diagonal: row sums (hex8, tet4) or HRZ scaling (tet10).

@@ -18,7 +18,7 @@ use crate::solve::newton::{newton, NewtonSettings};
 use crate::waveform::Waveform;
 
 /// A time integration method of a dynamic stage.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Method {
     /// Implicit midpoint variational integrator.
     Midpoint,

@@ -1,5 +1,5 @@
 //! Raw bindings to the part of PETSc that deasim uses (vectors, AIJ matrices with COO assembly,
-//! KSP and PC, the options database, error messages) and the two MPI calls it needs, generated
+//! KSP and PC, the options database, error messages) and the few MPI calls it needs, generated
 //! by bindgen from the installed headers at build time (see `build.rs`).
 //!
 //! Everything here is `unsafe` and follows PETSc's C conventions: every function returns a
@@ -28,4 +28,26 @@ pub fn check(code: PetscErrorCode) -> Result<(), PetscErrorCode> {
 #[inline]
 pub unsafe fn comm_world() -> MPI_Comm {
     PETSC_COMM_WORLD
+}
+
+extern "C" {
+    /// Sends `length` bytes to rank `to` (its length first, then the bytes in chunks); an MPI
+    /// error code, `MPI_SUCCESS` (0) on success. `src/bytes.c`.
+    pub fn deasim_mpi_send_bytes(
+        bytes: *const u8,
+        length: u64,
+        to: i32,
+        tag: i32,
+        comm: MPI_Comm,
+    ) -> i32;
+    /// Receives the length of the next message of rank `from` (of [`deasim_mpi_send_bytes`]).
+    pub fn deasim_mpi_recv_length(length: *mut u64, from: i32, tag: i32, comm: MPI_Comm) -> i32;
+    /// Receives that message's `length` bytes into `bytes`.
+    pub fn deasim_mpi_recv_bytes(
+        bytes: *mut u8,
+        length: u64,
+        from: i32,
+        tag: i32,
+        comm: MPI_Comm,
+    ) -> i32;
 }

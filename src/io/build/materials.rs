@@ -27,22 +27,38 @@ pub(super) fn build_materials(
     mesh: &Mesh,
     warnings: &mut Vec<String>,
 ) -> Result<Materials, InputError> {
+    let mut materials = material_list(ctx, s, warnings)?;
+    let index: BTreeMap<&str, usize> = s
+        .materials
+        .keys()
+        .enumerate()
+        .map(|(i, name)| (name.as_str(), i))
+        .collect();
+    materials.cell_material = cell_materials(ctx, s, mesh, &index)?;
+    Ok(materials)
+}
+
+/// The materials in name order, with the resolved parameters of each, without the material of
+/// each cell (`cell_material` empty: needs no mesh); the warnings of the material checks go to
+/// `warnings`.
+pub(super) fn material_list(
+    ctx: &Ctx,
+    s: &Scenario,
+    warnings: &mut Vec<String>,
+) -> Result<Materials, InputError> {
     if s.materials.is_empty() {
         return Err(ctx.err("materials", "at least one material is needed"));
     }
     let mut mats: Vec<Arc<dyn Material>> = Vec::new();
-    let mut index: BTreeMap<&str, usize> = BTreeMap::new();
     let mut parameters = Vec::new();
     for (name, m) in &s.materials {
-        index.insert(name, mats.len());
         let (mat, described) = build_material(ctx, name, m, warnings)?;
         mats.push(mat);
         parameters.push(described);
     }
-    let cell_material = cell_materials(ctx, s, mesh, &index)?;
     Ok(Materials {
         materials: mats,
-        cell_material,
+        cell_material: Vec::new(),
         parameters,
     })
 }

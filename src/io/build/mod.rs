@@ -165,6 +165,25 @@ pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, 
     })
 }
 
+/// The materials of a scenario's plan (in `Plan::material_names` order) without its mesh: what
+/// a rank that receives its part of a plan builds for itself (materials are code, not data).
+pub fn materials(
+    s: &Scenario,
+    file: &str,
+) -> Result<Vec<std::sync::Arc<dyn crate::material::Material>>, InputError> {
+    let ctx = Ctx { file };
+    Ok(materials::material_list(&ctx, s, &mut Vec::new())?.materials)
+}
+
+/// The linear solver settings of a scenario without its mesh (with PETSc's, a collective check
+/// of its options on every rank: see [`crate::solve::petsc::check_options`]).
+pub fn solver_settings(
+    s: &Scenario,
+    file: &str,
+) -> Result<crate::solve::linear::SolverSettings, InputError> {
+    solver::build_solver(&Ctx { file }, s)
+}
+
 /// `name`: it names the output directory.
 fn check_name(ctx: &Ctx, name: &str) -> Result<(), InputError> {
     // the name is a directory under `deasim-out/`: one plain path component
