@@ -450,8 +450,11 @@ fn plan_on_ranks(
     // every rank reads the solver settings: PETSc's check of its options is collective
     let solver = crate::io::build::solver_settings(s, file).map_err(|e| bad(e.to_string()))?;
     let (rank, ranks) = mpi_ranks(&solver)?;
-    let whole = |rank: usize| -> Result<Plan, (i32, String)> {
-        let plan = build(s, file, base).map_err(|e| bad(e.to_string()))?;
+    // `geometry`: whether the plan holds its cells' geometry (rank 0 of a run that may be cut
+    // into parts builds it without: each part computes its own cells')
+    let whole = |rank: usize, geometry: bool| -> Result<Plan, (i32, String)> {
+        let plan = crate::io::build::build_with(s, file, base, geometry)
+            .map_err(|e| bad(e.to_string()))?;
         if ranks > 1 {
             verbose(&format!(
                 "deasim: rank {rank}: built the whole plan ({} nodes, {} cells)",
@@ -465,7 +468,7 @@ fn plan_on_ranks(
         Ok(plan)
     };
     if ranks < 2 {
-        let plan = whole(rank)?;
+        let plan = whole(rank, true)?;
         let fingerprint = plan.fingerprint();
         return Ok(RankPlan {
             plan,
@@ -483,7 +486,7 @@ fn plan_on_ranks(
     let mut first = None;
     let mut say = [0.0];
     if rank == 0 {
-        let built = whole(0);
+        let built = whole(0, !parts);
         say[0] = match &built {
             Err(_) => FAILED,
             Ok(plan) => {
@@ -515,11 +518,20 @@ fn plan_on_ranks(
     }
     let built = match first {
         Some(built) => built,
-        None if say[0] == WHOLE => whole(rank),
+        None if say[0] == WHOLE => whole(rank, true),
         None => Err((EXIT_BAD_INPUT, String::new())),
     };
     if say[0] == WHOLE {
         // each rank has built the whole plan (a failure stops all of them)
+        // rank 0 built it without its cells' geometry for parts: the shared cells need it
+        let built = built.and_then(|mut plan| {
+            if parts && rank == 0 {
+                plan.model
+                    .hold_every_geometry()
+                    .map_err(|e| bad(e.to_string()))?;
+            }
+            Ok(plan)
+        });
         let mut plan = if ranks_agree(built.is_ok()) {
             built?
         } else {

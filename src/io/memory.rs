@@ -86,9 +86,63 @@ pub fn check(nodes: u64, cells: u64, kind: ElementKind) -> Result<(), String> {
     ))
 }
 
+/// Bytes rank 0 holds per node while it builds the whole plan of a distributed run and cuts
+/// the ranks' parts (coordinates, sets, each problem's numbering, the partition, one part at a
+/// time), and per cell (connectivity, materials, partition), without the cells' geometry:
+/// measured with `cargo bench --bench parts` (the film, hex8), rounded up.
+const SET_UP_BYTES_PER_NODE: f64 = 1300.0;
+const SET_UP_BYTES_PER_CELL: f64 = 400.0;
+/// Bytes of one cell's reference geometry when the whole plan holds it.
+const GEOMETRY_BYTES_PER_CELL: f64 = 2264.0;
+
+/// Refuses a distributed run's mesh whose whole plan would not fit in rank 0's available memory
+/// at the set-up (`geometry`: whether the plan holds every cell's geometry); the ranks' own
+/// parts are not estimated here (`docs/scaling.md` models them).
+pub fn check_set_up(nodes: u64, cells: u64, geometry: bool) -> Result<(), String> {
+    let Some(avail) = available() else {
+        return Ok(());
+    };
+    let per_cell = SET_UP_BYTES_PER_CELL
+        + if geometry {
+            GEOMETRY_BYTES_PER_CELL
+        } else {
+            0.0
+        };
+    let bytes = (nodes as f64 * SET_UP_BYTES_PER_NODE + cells as f64 * per_cell) as u64;
+    if bytes <= avail {
+        return Ok(());
+    }
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    Err(format!(
+        "rank 0 builds the whole plan ({nodes} nodes, {cells} cells) and needs an estimated \
+         {:.1} GiB for it, more than the {:.1} GiB available (MemAvailable in /proc/meminfo); run \
+         rank 0 on a node with more memory, or use fewer divisions",
+        gib(bytes),
+        gib(avail)
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rank 0's set-up estimate accepts the film's 10⁶ unknowns (measured: 399 MiB) and refuses
+    /// 10¹³ nodes with a message that says what to do; the cells' geometry adds to it.
+    #[test]
+    fn rank_zeros_set_up_is_estimated() {
+        if available().is_none() {
+            return;
+        }
+        check_set_up(261_382, 244_944, false).unwrap();
+        let e = check_set_up(10_000_000_000_000, 10_000_000_000_000, false).unwrap_err();
+        assert!(e.contains("rank 0 builds the whole plan"), "{e}");
+        assert!(e.contains("a node with more memory"), "{e}");
+        // with the geometry, a plan whose estimate is just below the memory without it fails
+        let avail = available().unwrap() as f64;
+        let cells = (avail / (SET_UP_BYTES_PER_NODE + SET_UP_BYTES_PER_CELL) * 0.99) as u64;
+        check_set_up(cells, cells, false).unwrap();
+        assert!(check_set_up(cells, cells, true).is_err());
+    }
 
     #[test]
     fn meminfo_is_parsed() {

@@ -41,6 +41,26 @@ fn lowest_nodes(dofs: &DofMap) -> Vec<usize> {
     lowest
 }
 
+/// A whole problem's node blocks of rows ([`node_blocks`]): made once, they serve every rank's
+/// [`LocalEquations::in_blocks`] (rank 0 cuts every rank's part).
+pub struct NodeBlocks {
+    lowest: Vec<usize>,
+    block: Vec<usize>,
+    row_start: Vec<usize>,
+}
+
+impl NodeBlocks {
+    /// The blocks of the equations of `whole`, numbered by `numbering`.
+    pub fn new(whole: &DofMap, numbering: &Numbering) -> Self {
+        let (lowest, block, row_start) = node_blocks(whole, numbering);
+        NodeBlocks {
+            lowest,
+            block,
+            row_start,
+        }
+    }
+}
+
 /// The lowest node of every equation of `whole`; the block of four rows of every node that is
 /// the lowest node of an equation (`usize::MAX` for the others), the blocks rank after rank (a
 /// node's rank: its equations' owner under `numbering`), ascending within a rank; and the first
@@ -103,8 +123,24 @@ impl LocalEquations {
         local: &LocalMesh,
         local_dofs: &DofMap,
     ) -> Result<Self, String> {
+        let blocks = NodeBlocks::new(whole, numbering);
+        Self::in_blocks(&blocks, whole, numbering, local, local_dofs)
+    }
+
+    /// As [`LocalEquations::new`], with the whole problem's node `blocks` made beforehand.
+    pub fn in_blocks(
+        blocks: &NodeBlocks,
+        whole: &DofMap,
+        numbering: &Numbering,
+        local: &LocalMesh,
+        local_dofs: &DofMap,
+    ) -> Result<Self, String> {
         let rank_of = |g: usize| numbering.start.partition_point(|&s| s <= g) - 1;
-        let (lowest, block, row_start) = node_blocks(whole, numbering);
+        let NodeBlocks {
+            lowest,
+            block,
+            row_start,
+        } = blocks;
         let mut global = vec![usize::MAX; local_dofs.n_free];
         let mut rows = vec![usize::MAX; local_dofs.n_free];
         for (d, &e) in local_dofs.eq.iter().enumerate() {
@@ -142,7 +178,7 @@ impl LocalEquations {
             owned,
             start: numbering.start.clone(),
             rows,
-            row_start,
+            row_start: row_start.clone(),
         })
     }
 

@@ -71,9 +71,25 @@ pub enum ModelError {
 impl Model {
     /// A model of one material on every cell, without conditions.
     pub fn new(mesh: Mesh, material: Arc<dyn Material>) -> Result<Self, ModelError> {
+        Self::with_geometry(mesh, material, true)
+    }
+
+    /// As [`Model::new`]; `hold`: whether the model holds every cell's reference geometry, or
+    /// computes it when asked (each cell checked here either way). A plan that is only cut into
+    /// MPI ranks' parts need not hold it: at 10⁶ unknowns a hex8 mesh's geometry takes about
+    /// 0.5 GB.
+    pub fn with_geometry(
+        mesh: Mesh,
+        material: Arc<dyn Material>,
+        hold: bool,
+    ) -> Result<Self, ModelError> {
         let n = mesh.n_cells();
         let reference = ReferenceElement::new(mesh.kind);
-        let geometries = Arc::new(Geometries::new(Self::cell_geometries(&mesh, &reference)?));
+        let geometries = Arc::new(if hold {
+            Geometries::new(Self::cell_geometries(&mesh, &reference)?)
+        } else {
+            Geometries::none(n, Self::checked_volume(&mesh, &reference)?)
+        });
         let model = Model {
             reference,
             geometries,
@@ -117,6 +133,32 @@ impl Model {
                     })
             })
             .collect()
+    }
+
+    /// The reference volume of every cell together (in cell order, as [`Geometries::new`]
+    /// sums it); fails on the first cell with a non-positive Jacobian.
+    fn checked_volume(mesh: &Mesh, reference: &ReferenceElement) -> Result<f64, ModelError> {
+        let mut x = vec![[0.0; 3]; mesh.kind.nodes_per_cell()];
+        let mut volume = 0.0;
+        for c in 0..mesh.n_cells() {
+            mesh.cell_coords_into(c, &mut x);
+            let g = reference
+                .geometry(&x)
+                .map_err(|e| ModelError::DegenerateCell {
+                    cell: c,
+                    qp: e.qp,
+                    det: e.det,
+                })?;
+            volume += g.weights[..g.n_qp].iter().sum::<f64>();
+        }
+        Ok(volume)
+    }
+
+    /// Holds every cell's reference geometry (a model built without: [`Model::with_geometry`]).
+    pub fn hold_every_geometry(&mut self) -> Result<(), ModelError> {
+        let all = Self::cell_geometries(&self.mesh, &self.reference)?;
+        self.geometries = Arc::new(Geometries::new(all));
+        Ok(())
     }
 
     /// Fails on the first cell with a non-positive Jacobian.
@@ -459,6 +501,15 @@ impl Geometries {
         Geometries {
             held: all,
             slot,
+            volume,
+        }
+    }
+
+    /// Holds no cell's geometry; `volume`: the reference volume of all cells (m³).
+    fn none(cells: usize, volume: f64) -> Self {
+        Geometries {
+            held: Vec::new(),
+            slot: vec![NOT_HELD; cells],
             volume,
         }
     }

@@ -2,7 +2,7 @@
 //! formulation, the keys of one generator given to another, and the cell-count guard.
 
 use super::materials::Materials;
-use super::{Ctx, MAX_CELLS};
+use super::Ctx;
 use crate::element::mean_dilatation::Formulation;
 use crate::io::scenario::{closest, InputError, MeshSpec, Scenario};
 use crate::mesh::disc::{disc_mesh, DiscSpec};
@@ -85,7 +85,7 @@ pub(super) fn build_mesh(
     base_dir: Option<&Path>,
 ) -> Result<(Mesh, Vec<String>), InputError> {
     let (mesh, warnings) = mesh_of(ctx, &s.mesh, base_dir)?;
-    crate::io::memory::check(mesh.n_nodes() as u64, mesh.n_cells() as u64, mesh.kind)
+    ctx.check_memory(mesh.n_nodes() as u64, mesh.n_cells() as u64, mesh.kind)
         .map_err(|e| ctx.err("mesh", e))?;
     Ok((mesh, warnings))
 }
@@ -97,7 +97,7 @@ pub(super) fn build_model(
     mesh: Mesh,
     materials: Materials,
 ) -> Result<Model, InputError> {
-    let mut model = Model::new(mesh, materials.materials[0].clone())
+    let mut model = Model::with_geometry(mesh, materials.materials[0].clone(), ctx.hold_geometry)
         .map_err(|e| ctx.err("mesh", e.to_string()))?;
     model.materials = materials.materials;
     model.cell_material = materials.cell_material;
@@ -271,18 +271,20 @@ fn build_box(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputEr
         .iter()
         .try_fold(per_hex as u64, |acc, &d| acc.checked_mul(d));
     match cells {
-        Some(c) if c <= MAX_CELLS => {
+        Some(c) if c <= ctx.max_cells() => {
             // before generating it: the nodes of the box
             let per_div = if kind == ElementKind::Tet10 { 2 } else { 1 };
             let nodes: u64 = div.iter().map(|&d| per_div * d + 1).product();
-            crate::io::memory::check(nodes, c, kind).map_err(|e| ctx.err("mesh.divisions", e))?;
+            ctx.check_memory(nodes, c, kind)
+                .map_err(|e| ctx.err("mesh.divisions", e))?;
         }
         _ => {
             return Err(ctx.err(
                 "mesh.divisions",
                 format!(
-                "{div:?} gives more than {MAX_CELLS} cells: too large for this machine's memory"
-            ),
+                    "{div:?} gives more than {} cells: too large for this machine's memory",
+                    ctx.max_cells()
+                ),
             ))
         }
     }
@@ -403,7 +405,7 @@ fn build_file_mesh(
             ));
         }
     }
-    if g.mesh.n_cells() as u64 > MAX_CELLS {
+    if g.mesh.n_cells() as u64 > ctx.max_cells() {
         return Err(ctx.err(
             "mesh.file",
             format!(
@@ -603,7 +605,7 @@ fn meridian_divisions(
             format!("must be between 1 and 10000; got {layers}"),
         ));
     }
-    if radial * layers > MAX_CELLS {
+    if radial * layers > ctx.max_cells() {
         return Err(ctx.err(
             "mesh.radial",
             format!(
@@ -615,7 +617,7 @@ fn meridian_divisions(
     Ok((radial as usize, layers as usize))
 }
 
-/// Refuses a generated mesh of more than [`MAX_CELLS`] cells (`hexahedra` of the layout, six
+/// Refuses a generated mesh of more cells than `ctx.max_cells()` allows (`hexahedra` of the layout, six
 /// tetrahedra each for tet meshes), naming `key`, the parameter that sets the size.
 fn check_cell_count(
     ctx: &Ctx,
@@ -629,7 +631,7 @@ fn check_cell_count(
         } else {
             6
         };
-    if cells > MAX_CELLS {
+    if cells > ctx.max_cells() {
         return Err(ctx.err(
             key,
             format!("{cells} cells: too large for this machine's memory"),
@@ -748,6 +750,25 @@ mod tests {
     const STACK: &str = "[mesh]\ngenerator = \"stack\"\nside = 4e-3\nfilms = 2\n\
                          film_thickness = 50e-6\nborder = 0.4e-3\nlayers_per_film = 2\n\
                          active_cells = 2";
+
+    /// A distributed solver lifts the serial cell limit (set by the direct factorisation of the
+    /// whole tangent on one process) to PETSc's: a mesh of 3·10⁶ cells is refused for one
+    /// process and accepted for a distributed run; 10⁹ cells are refused for both.
+    #[test]
+    fn a_distributed_solver_lifts_the_serial_cell_limit() {
+        let distributed = Ctx {
+            distributed: true,
+            ..CTX
+        };
+        let e = check_cell_count(&CTX, "mesh.radial", 3_000_000, ElementKind::Hex8).unwrap_err();
+        assert!(e.to_string().contains("3000000 cells: too large"), "{e}");
+        check_cell_count(&distributed, "mesh.radial", 3_000_000, ElementKind::Hex8).unwrap();
+        for ctx in [&CTX, &distributed] {
+            assert!(
+                check_cell_count(ctx, "mesh.radial", 1_000_000_000, ElementKind::Hex8).is_err()
+            );
+        }
+    }
 
     fn box_mesh_of(extra: &str) -> String {
         format!(

@@ -18,7 +18,7 @@ mod stages;
 
 use super::scenario::{closest, InputError, OutputSpec, Scenario};
 pub use crate::job::plan::{Electrode, OutputPlan, Plan, Prestretch, Rigid, Stage, StageKind};
-use crate::mesh::Mesh;
+use crate::mesh::{ElementKind, Mesh};
 pub use stages::log_range;
 use std::path::Path;
 
@@ -28,10 +28,30 @@ pub const MIN_STEPS_PER_PERIOD: f64 = 20.0;
 /// Largest number of cells a generated mesh may have (memory guard: ~5 GB of tangent).
 pub const MAX_CELLS: u64 = 2_000_000;
 
+/// Largest number of cells a mesh of a distributed solve may have: PETSc's 32-bit indices
+/// number at most 2³¹ − 1 rows, four per node (a hex8 mesh has about as many nodes as cells).
+pub const MAX_DISTRIBUTED_CELLS: u64 = 400_000_000;
+
 /// Validates a scenario and builds its plan. `file` names the source in messages; `base_dir` is
 /// where relative file names point.
 pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, InputError> {
-    let ctx = Ctx { file };
+    build_with(s, file, base_dir, true)
+}
+
+/// As [`build`]; `hold_geometry`: whether the model holds every cell's reference geometry, or
+/// computes it when asked (a plan that rank 0 only cuts into the ranks' parts, each of which
+/// computes its own cells' geometry).
+pub fn build_with(
+    s: &Scenario,
+    file: &str,
+    base_dir: Option<&Path>,
+    hold_geometry: bool,
+) -> Result<Plan, InputError> {
+    let ctx = Ctx {
+        file,
+        distributed: s.solver.as_ref().and_then(|x| x.kind.as_deref()) == Some("petsc"),
+        hold_geometry,
+    };
     check_name(&ctx, &s.name)?;
     let (mesh, mut warnings) = mesh::build_mesh(&ctx, s, base_dir)?;
     let mut materials = materials::build_materials(&ctx, s, &mesh, &mut warnings)?;
@@ -171,7 +191,11 @@ pub fn materials(
     s: &Scenario,
     file: &str,
 ) -> Result<Vec<std::sync::Arc<dyn crate::material::Material>>, InputError> {
-    let ctx = Ctx { file };
+    let ctx = Ctx {
+        file,
+        distributed: false,
+        hold_geometry: true,
+    };
     Ok(materials::material_list(&ctx, s, &mut Vec::new())?.materials)
 }
 
@@ -181,7 +205,12 @@ pub fn solver_settings(
     s: &Scenario,
     file: &str,
 ) -> Result<crate::solve::linear::SolverSettings, InputError> {
-    solver::build_solver(&Ctx { file }, s)
+    let ctx = Ctx {
+        file,
+        distributed: false,
+        hold_geometry: true,
+    };
+    solver::build_solver(&ctx, s)
 }
 
 /// `name`: it names the output directory.
@@ -306,9 +335,35 @@ fn build_revolve(
 /// What every concern builder shares: the file name of the messages, and the common checks.
 struct Ctx<'a> {
     file: &'a str,
+    /// Whether the scenario's solver is distributed (`[solver] kind = "petsc"`): its mesh is
+    /// then bounded by PETSc's indices and rank 0's memory, not by a serial factorisation.
+    distributed: bool,
+    /// Whether the model holds every cell's reference geometry ([`build_with`]).
+    hold_geometry: bool,
 }
 
 impl Ctx<'_> {
+    /// The most cells a mesh may have: [`MAX_CELLS`] for one process, whose direct solver
+    /// factors the whole tangent; [`MAX_DISTRIBUTED_CELLS`] for a distributed solver.
+    fn max_cells(&self) -> u64 {
+        if self.distributed {
+            MAX_DISTRIBUTED_CELLS
+        } else {
+            MAX_CELLS
+        }
+    }
+
+    /// Refuses a mesh whose estimated memory exceeds what is available: the serial solve's
+    /// ([`crate::io::memory::check`]), or for a distributed solver what rank 0 holds while it
+    /// builds the whole plan and cuts the ranks' parts ([`crate::io::memory::check_set_up`]).
+    fn check_memory(&self, nodes: u64, cells: u64, kind: ElementKind) -> Result<(), String> {
+        if self.distributed {
+            crate::io::memory::check_set_up(nodes, cells, self.hold_geometry)
+        } else {
+            crate::io::memory::check(nodes, cells, kind)
+        }
+    }
+
     fn err(&self, key: impl Into<String>, msg: impl Into<String>) -> InputError {
         InputError::at_key(self.file, key, msg)
     }
@@ -373,7 +428,11 @@ mod testing {
     pub(super) const FILE: &str = "test.toml";
 
     /// The context of the concern builders.
-    pub(super) const CTX: Ctx<'static> = Ctx { file: FILE };
+    pub(super) const CTX: Ctx<'static> = Ctx {
+        file: FILE,
+        distributed: false,
+        hold_geometry: true,
+    };
 
     /// A valid scenario by section: a 10 × 10 × 1 mm hex8 box of 2 × 2 × 1 cells (18 nodes, 9 on
     /// each face z0 and z1), one neo-Hooke material, z0 held and grounded, 1 kV on z1, one static
