@@ -551,10 +551,12 @@ fn plan_on_ranks(
         .map_err(|e| (EXIT_SOLVE_FAILED, format!("rank {rank}: {e}")))?;
     let cells = plan.model.mesh.n_cells();
     verbose(&format!(
-        "deasim: rank {rank}: its part holds {} of the {} nodes and {cells} of the {} cells",
+        "deasim: rank {rank}: its part holds {} of the {} nodes and {cells} of the {} cells \
+         (peak memory so far {:.0} MiB)",
         plan.model.mesh.n_nodes(),
         plan.whole_nodes(),
-        plan.whole_cells()
+        plan.whole_cells(),
+        crate::cli::bench::peak_memory_mib()
     ));
     let part = plan
         .part

@@ -115,42 +115,44 @@ impl Model {
         Ok(model)
     }
 
-    /// The reference geometry of every cell; fails on the first cell with a non-positive Jacobian.
-    fn cell_geometries(
+    /// Calls `f` with every cell's reference geometry, in cell order; fails on the first cell
+    /// with a non-positive Jacobian.
+    fn for_each_geometry(
         mesh: &Mesh,
         reference: &ReferenceElement,
-    ) -> Result<Vec<CellGeometry>, ModelError> {
+        mut f: impl FnMut(CellGeometry),
+    ) -> Result<(), ModelError> {
         let mut x = vec![[0.0; 3]; mesh.kind.nodes_per_cell()];
-        (0..mesh.n_cells())
-            .map(|c| {
-                mesh.cell_coords_into(c, &mut x);
-                reference
-                    .geometry(&x)
-                    .map_err(|e| ModelError::DegenerateCell {
-                        cell: c,
-                        qp: e.qp,
-                        det: e.det,
-                    })
-            })
-            .collect()
-    }
-
-    /// The reference volume of every cell together (in cell order, as [`Geometries::new`]
-    /// sums it); fails on the first cell with a non-positive Jacobian.
-    fn checked_volume(mesh: &Mesh, reference: &ReferenceElement) -> Result<f64, ModelError> {
-        let mut x = vec![[0.0; 3]; mesh.kind.nodes_per_cell()];
-        let mut volume = 0.0;
         for c in 0..mesh.n_cells() {
             mesh.cell_coords_into(c, &mut x);
-            let g = reference
+            f(reference
                 .geometry(&x)
                 .map_err(|e| ModelError::DegenerateCell {
                     cell: c,
                     qp: e.qp,
                     det: e.det,
-                })?;
-            volume += g.weights[..g.n_qp].iter().sum::<f64>();
+                })?);
         }
+        Ok(())
+    }
+
+    /// The reference geometry of every cell; fails on the first cell with a non-positive Jacobian.
+    fn cell_geometries(
+        mesh: &Mesh,
+        reference: &ReferenceElement,
+    ) -> Result<Vec<CellGeometry>, ModelError> {
+        let mut all = Vec::with_capacity(mesh.n_cells());
+        Self::for_each_geometry(mesh, reference, |g| all.push(g))?;
+        Ok(all)
+    }
+
+    /// The reference volume of every cell together (in cell order, as [`Geometries::new`]
+    /// sums it); fails on the first cell with a non-positive Jacobian.
+    fn checked_volume(mesh: &Mesh, reference: &ReferenceElement) -> Result<f64, ModelError> {
+        let mut volume = 0.0;
+        Self::for_each_geometry(mesh, reference, |g| {
+            volume += g.weights[..g.n_qp].iter().sum::<f64>()
+        })?;
         Ok(volume)
     }
 
@@ -163,18 +165,7 @@ impl Model {
 
     /// Fails on the first cell with a non-positive Jacobian.
     pub fn check_cells(&self) -> Result<(), ModelError> {
-        let mut x = vec![[0.0; 3]; self.mesh.kind.nodes_per_cell()];
-        for c in 0..self.mesh.n_cells() {
-            self.mesh.cell_coords_into(c, &mut x);
-            self.reference
-                .geometry(&x)
-                .map_err(|e| ModelError::DegenerateCell {
-                    cell: c,
-                    qp: e.qp,
-                    det: e.det,
-                })?;
-        }
-        Ok(())
+        Self::for_each_geometry(&self.mesh, &self.reference, |_| {})
     }
 
     /// Nodes of a named set, or an error naming the known sets.
