@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs the system packages that `cargo build --features petsc` needs on Debian (bookworm) or a
 # Debian-based system: PETSc (real scalars, with MUMPS, hypre, PT-Scotch), Open MPI (headers,
-# library and `mpirun`), libclang (for bindgen), pkg-config, and OpenBLAS: installing it makes it
+# library and `mpirun`), libclang (for bindgen), a C compiler (for the MPI byte messages' wrappers,
+# crates/petsc-sys/src/bytes.c), pkg-config, and OpenBLAS: installing it makes it
 # the system's BLAS/LAPACK (Debian's alternatives), which MUMPS's dense kernels need to be fast
 # (with the reference BLAS its factorisations are about 5x slower).
 #
@@ -12,7 +13,7 @@
 # build of deasim needs none of this.
 set -euo pipefail
 
-packages=(libpetsc-real-dev libopenmpi-dev openmpi-bin libclang-dev pkg-config libopenblas0-pthread)
+packages=(libpetsc-real-dev libopenmpi-dev openmpi-bin libclang-dev gcc pkg-config libopenblas0-pthread)
 
 missing=()
 for p in "${packages[@]}"; do
