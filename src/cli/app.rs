@@ -329,7 +329,10 @@ pub fn cmd_run(
     let (s, text, name, base) = match loaded {
         Ok(p) => p,
         Err(e) => {
-            eprintln!("error: {e}");
+            // under a launcher every process reads the same scenario: one says why
+            if launched_rank() == 0 {
+                eprintln!("error: {e}");
+            }
             return EXIT_BAD_INPUT;
         }
     };
@@ -447,8 +450,15 @@ fn plan_on_ranks(
     check: impl Fn(&Plan) -> Result<(), String>,
 ) -> Result<RankPlan, (i32, String)> {
     let bad = |e: String| (EXIT_BAD_INPUT, e);
-    // every rank reads the solver settings: PETSc's check of its options is collective
-    let solver = crate::io::build::solver_settings(s, file).map_err(|e| bad(e.to_string()))?;
+    // every rank reads the solver settings: PETSc's check of its options is collective (each
+    // rank finds the same fault: one says it)
+    let solver = crate::io::build::solver_settings(s, file).map_err(|e| {
+        bad(if launched_rank() == 0 {
+            e.to_string()
+        } else {
+            String::new()
+        })
+    })?;
     let (rank, ranks) = mpi_ranks(&solver)?;
     // `geometry`: whether the plan holds its cells' geometry (rank 0 of a run that may be cut
     // into parts builds it without: each part computes its own cells')
