@@ -621,28 +621,23 @@ fn take_part(
         let (message, materials) = match whole {
             Some(plan) => {
                 // rank 0: its own part kept, every other sent (an empty message: rank 0 could
-                // not make it)
+                // not make it); the first failure is rank 0's message
+                let mut parts = crate::job::part::messages(&plan, ranks, plan.fingerprint());
                 let mut own: Result<Vec<u8>, String> = Err("no part for rank 0".into());
                 let mut failure = None;
-                match crate::job::part::messages(&plan, ranks, plan.fingerprint()) {
-                    Err(e) => {
-                        failure = Some(e);
-                        for r in 1..ranks {
-                            send_bytes(&[], r).map_err(|e| e.to_string())?;
-                        }
-                    }
-                    Ok(messages) => {
-                        for (r, m) in messages.enumerate() {
-                            match m {
-                                Ok(bytes) if r == 0 => own = Ok(bytes),
-                                Ok(bytes) => send_bytes(&bytes, r).map_err(|e| e.to_string())?,
-                                Err(e) => {
-                                    if r > 0 {
-                                        send_bytes(&[], r).map_err(|e| e.to_string())?;
-                                    }
-                                    failure.get_or_insert(format!("the part of rank {r}: {e}"));
-                                }
+                for r in 0..ranks {
+                    let part = match &mut parts {
+                        Ok(all) => all.next().unwrap_or_else(|| Err("no part".into())),
+                        Err(e) => Err(e.clone()),
+                    };
+                    match part {
+                        Ok(bytes) if r == 0 => own = Ok(bytes),
+                        Ok(bytes) => send_bytes(&bytes, r).map_err(|e| e.to_string())?,
+                        Err(e) => {
+                            if r > 0 {
+                                send_bytes(&[], r).map_err(|e| e.to_string())?;
                             }
+                            failure.get_or_insert(format!("the part of rank {r}: {e}"));
                         }
                     }
                 }

@@ -1,7 +1,9 @@
 //! A rank's part of a plan: the plan of the cells one MPI rank holds (its part of the mesh, the
 //! model, the sets and the probes), with the rank's equations in the whole problem and the
 //! exchange through which the ranks combine their parts. A run of such parts holds on each
-//! rank only its part's vectors: no rank holds the whole state.
+//! rank only its part's vectors: no rank holds the whole state. Rank 0 alone builds the whole
+//! plan, cuts every rank's part ([`messages`]) and sends it; each rank takes its own up
+//! ([`receive`]).
 
 use super::plan::{Plan, StageKind};
 use super::probes::ProbeKind;
@@ -238,7 +240,7 @@ pub fn receive(
 /// of each electrode owned here, the global number of each local cell and node, the whole mesh's
 /// counts and the whole plan's fingerprint.
 #[derive(serde::Serialize, serde::Deserialize)]
-pub struct PartMessage {
+struct PartMessage {
     plan: Plan,
     stages: (LocalEquations, f64),
     prestretch: Option<(LocalEquations, f64)>,
@@ -341,6 +343,8 @@ impl Problem {
 /// residual floor.
 struct WholeProblem {
     dofs: DofMap,
+    /// The rank that owns each node of the whole mesh, by the rule of this problem's unknowns.
+    owner: Vec<usize>,
     numbering: Numbering,
     blocks: NodeBlocks,
     floor: f64,
@@ -355,6 +359,7 @@ impl WholeProblem {
         WholeProblem {
             blocks: NodeBlocks::new(&dofs, &numbering),
             dofs,
+            owner,
             numbering,
             floor,
         }
@@ -375,13 +380,13 @@ impl WholeProblem {
 }
 
 /// What every rank's part is cut from, made once: the plan's model with the first stage's
-/// conditions (for the ties it holds), the partition of its cells, the owner of each node, and
-/// each problem the plan solves on the whole mesh.
+/// conditions (for the ties it holds), the partition of its cells, and each problem the plan
+/// solves on the whole mesh (the stages' problem gives each node its owner, and so each rank
+/// its nodes).
 struct Whole {
     ranks: usize,
     model: Model,
     cells: Vec<usize>,
-    owner: Vec<usize>,
     stages: WholeProblem,
     prestretch: Option<WholeProblem>,
     projection: Option<WholeProblem>,
@@ -397,8 +402,6 @@ impl Whole {
             return Err("the plan has no stage".into());
         };
         let cells = plan.partition(ranks);
-        let owner =
-            crate::problem::assembly::node_processes(&model.mesh, &dofs_of(&model), &cells, ranks);
         let problem = |p: Problem| p.model(plan).map(|m| WholeProblem::of(&m, &cells, ranks));
         Ok(Whole {
             ranks,
@@ -408,14 +411,13 @@ impl Whole {
             explicit: problem(Problem::Explicit),
             model,
             cells,
-            owner,
         })
     }
 
     /// The message of rank `rank`: its plan and its equations of each problem.
     fn message(&self, plan: &Plan, rank: usize, fingerprint: u64) -> Result<PartMessage, String> {
         let mesh = &self.model.mesh;
-        let local = LocalMesh::of_rank(mesh, &self.cells, &self.owner, rank, self.ranks)
+        let local = LocalMesh::of_rank(mesh, &self.cells, &self.stages.owner, rank, self.ranks)
             .map_err(|e| e.to_string())?;
         let part = plan_of(plan, &self.model, &local)?;
         let equations =

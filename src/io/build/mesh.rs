@@ -85,7 +85,7 @@ pub(super) fn build_mesh(
     base_dir: Option<&Path>,
 ) -> Result<(Mesh, Vec<String>), InputError> {
     let (mesh, warnings) = mesh_of(ctx, &s.mesh, base_dir)?;
-    ctx.check_memory(mesh.n_nodes() as u64, mesh.n_cells() as u64, mesh.kind)
+    ctx.check_size(mesh.n_nodes() as u64, mesh.n_cells() as u64, mesh.kind)
         .map_err(|e| ctx.err("mesh", e))?;
     Ok((mesh, warnings))
 }
@@ -275,7 +275,7 @@ fn build_box(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputEr
             // before generating it: the nodes of the box
             let per_div = if kind == ElementKind::Tet10 { 2 } else { 1 };
             let nodes: u64 = div.iter().map(|&d| per_div * d + 1).product();
-            ctx.check_memory(nodes, c, kind)
+            ctx.check_size(nodes, c, kind)
                 .map_err(|e| ctx.err("mesh.divisions", e))?;
         }
         _ => {

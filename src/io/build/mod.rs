@@ -28,8 +28,9 @@ pub const MIN_STEPS_PER_PERIOD: f64 = 20.0;
 /// Largest number of cells a generated mesh may have (memory guard: ~5 GB of tangent).
 pub const MAX_CELLS: u64 = 2_000_000;
 
-/// Largest number of cells a mesh of a distributed solve may have: PETSc's 32-bit indices
-/// number at most 2³¹ − 1 rows, four per node (a hex8 mesh has about as many nodes as cells).
+/// Largest number of cells a mesh of a distributed solve may have, before it is generated:
+/// PETSc's 32-bit indices number at most 2³¹ − 1 rows, four per node (a hex8 mesh has about as
+/// many nodes as cells; the rows themselves are checked once the nodes are known).
 pub const MAX_DISTRIBUTED_CELLS: u64 = 400_000_000;
 
 /// Validates a scenario and builds its plan. `file` names the source in messages; `base_dir` is
@@ -191,11 +192,7 @@ pub fn materials(
     s: &Scenario,
     file: &str,
 ) -> Result<Vec<std::sync::Arc<dyn crate::material::Material>>, InputError> {
-    let ctx = Ctx {
-        file,
-        distributed: false,
-        hold_geometry: true,
-    };
+    let ctx = Ctx::plain(file);
     Ok(materials::material_list(&ctx, s, &mut Vec::new())?.materials)
 }
 
@@ -205,12 +202,7 @@ pub fn solver_settings(
     s: &Scenario,
     file: &str,
 ) -> Result<crate::solve::linear::SolverSettings, InputError> {
-    let ctx = Ctx {
-        file,
-        distributed: false,
-        hold_geometry: true,
-    };
-    solver::build_solver(&ctx, s)
+    solver::build_solver(&Ctx::plain(file), s)
 }
 
 /// `name`: it names the output directory.
@@ -342,7 +334,16 @@ struct Ctx<'a> {
     hold_geometry: bool,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    /// The context of checks that do not depend on the mesh's size (one process, geometry held).
+    const fn plain(file: &'a str) -> Self {
+        Ctx {
+            file,
+            distributed: false,
+            hold_geometry: true,
+        }
+    }
+
     /// The most cells a mesh may have: [`MAX_CELLS`] for one process, whose direct solver
     /// factors the whole tangent; [`MAX_DISTRIBUTED_CELLS`] for a distributed solver.
     fn max_cells(&self) -> u64 {
@@ -353,15 +354,24 @@ impl Ctx<'_> {
         }
     }
 
-    /// Refuses a mesh whose estimated memory exceeds what is available: the serial solve's
-    /// ([`crate::io::memory::check`]), or for a distributed solver what rank 0 holds while it
-    /// builds the whole plan and cuts the ranks' parts ([`crate::io::memory::check_set_up`]).
-    fn check_memory(&self, nodes: u64, cells: u64, kind: ElementKind) -> Result<(), String> {
-        if self.distributed {
-            crate::io::memory::check_set_up(nodes, cells, self.hold_geometry)
-        } else {
-            crate::io::memory::check(nodes, cells, kind)
+    /// Refuses a mesh too large to solve: its estimated memory exceeds what is available (the
+    /// serial solve's, [`crate::io::memory::check`]; for a distributed solver what rank 0 holds
+    /// while it builds the whole plan and cuts the ranks' parts,
+    /// [`crate::io::memory::check_set_up`]), or, distributed, its rows (four per node) exceed
+    /// PETSc's 32-bit indices.
+    fn check_size(&self, nodes: u64, cells: u64, kind: ElementKind) -> Result<(), String> {
+        if !self.distributed {
+            return crate::io::memory::check(nodes, cells, kind);
         }
+        let rows = 4 * nodes;
+        if rows > i32::MAX as u64 {
+            return Err(format!(
+                "{nodes} nodes make {rows} rows, more than PETSc's 32-bit indices number \
+                 ({}); use fewer divisions",
+                i32::MAX
+            ));
+        }
+        crate::io::memory::check_set_up(nodes, cells, self.hold_geometry)
     }
 
     fn err(&self, key: impl Into<String>, msg: impl Into<String>) -> InputError {
@@ -428,11 +438,7 @@ mod testing {
     pub(super) const FILE: &str = "test.toml";
 
     /// The context of the concern builders.
-    pub(super) const CTX: Ctx<'static> = Ctx {
-        file: FILE,
-        distributed: false,
-        hold_geometry: true,
-    };
+    pub(super) const CTX: Ctx<'static> = Ctx::plain(FILE);
 
     /// A valid scenario by section: a 10 × 10 × 1 mm hex8 box of 2 × 2 × 1 cells (18 nodes, 9 on
     /// each face z0 and z1), one neo-Hooke material, z0 held and grounded, 1 kV on z1, one static
