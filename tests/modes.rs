@@ -96,6 +96,12 @@ fn modes_command_writes_the_table_and_the_shapes() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
+    // the axisymmetric model says which modes it cannot represent
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("note: the axisymmetric model represents only axisymmetric modes"),
+        "{stdout}"
+    );
     let csv = std::fs::read_to_string(dir.join("m/modes.csv")).unwrap();
     let f: Vec<f64> = csv
         .lines()
@@ -142,4 +148,29 @@ fn modes_command_writes_the_table_and_the_shapes() {
         assert_eq!(o.status.code(), Some(2), "{err}");
         assert!(err.contains(expect), "{err}");
     }
+}
+
+/// Which modes a model's symmetry hides is said for the axisymmetric diaphragm (harmonic 0 only),
+/// the quarter disc of `diaphragm-3d` (symmetric about both planes) and not for the full film.
+#[test]
+fn the_symmetry_of_a_model_names_the_modes_it_cannot_represent() {
+    use deasim::io::build::build;
+    use deasim::io::examples::example;
+    use deasim::io::scenario::parse;
+    use deasim::job::linear::mode_symmetry_note;
+    let note = |name: &str| {
+        let s = parse(example(name).unwrap(), "m.toml", &[]).unwrap();
+        mode_symmetry_note(&build(&s, "m.toml", None).unwrap())
+    };
+    let ax = note("diaphragm").unwrap();
+    assert!(
+        ax.contains("harmonic n = 0") && ax.contains("rocking"),
+        "{ax}"
+    );
+    let quarter = note("diaphragm-3d").unwrap();
+    assert!(
+        quarter.contains("1/4 of the device") && quarter.contains("two planes of symmetry"),
+        "{quarter}"
+    );
+    assert_eq!(note("film"), None);
 }

@@ -202,7 +202,7 @@ impl Progress {
 }
 
 impl Observer for Progress {
-    fn modes(&mut self, _plan: &Plan, stage: &str, _state: &[f64], modes: &[Mode]) {
+    fn modes(&mut self, plan: &Plan, stage: &str, _state: &[f64], modes: &[Mode]) {
         let list: Vec<String> = modes
             .iter()
             .map(|m| format!("{:.4}", m.frequency))
@@ -211,6 +211,9 @@ impl Observer for Progress {
             "  {stage}: natural frequencies (Hz): {}",
             list.join(", ")
         ));
+        if let Some(note) = crate::job::linear::mode_symmetry_note(plan) {
+            self.say(&format!("  {stage}: note: {note}"));
+        }
     }
 
     fn frequency_response(&mut self, _plan: &Plan, stage: &str, r: &FrequencyResponse) {

@@ -39,7 +39,7 @@ pub fn cmd_lumped(
         }
     };
     if let Some(fe_dir) = compare {
-        match check_compare(fe_dir, &plan.name, overrides) {
+        match check_compare(fe_dir, &plan, overrides) {
             Ok(warnings) => warnings
                 .iter()
                 .for_each(|w| eprintln!("warning: --compare: {w}")),
@@ -61,10 +61,13 @@ pub fn cmd_lumped(
     }
 }
 
-/// Checks, before simulating, that `fe_dir` holds a finite element run to compare with: its
-/// `history.csv` and `summary.json` must be readable (else the error); a run of another scenario,
-/// with other `--set` overrides, or one that did not finish gives warnings.
-fn check_compare(fe_dir: &Path, name: &str, overrides: &[String]) -> Result<Vec<String>, String> {
+/// Checks, before simulating, that `fe_dir` holds a finite element run of this model to compare
+/// with: its `history.csv` and `summary.json` must be readable and be a run of the same scenario
+/// (else the error: comparing the diaphragm with a film means nothing). A run whose model differs
+/// (its `model_hash`: an edited material, geometry, load, drive or stage, or other `--set`
+/// overrides) or that did not finish gives warnings.
+fn check_compare(fe_dir: &Path, plan: &Plan, overrides: &[String]) -> Result<Vec<String>, String> {
+    let name = &plan.name;
     let history = fe_dir.join("history.csv");
     if !history.is_file() {
         return Err(format!(
@@ -78,15 +81,18 @@ fn check_compare(fe_dir: &Path, name: &str, overrides: &[String]) -> Result<Vec<
         .and_then(|t| {
             serde_json::from_str(&t).map_err(|e| format!("{}: not JSON: {e}", path.display()))
         })?;
-    let mut warnings = Vec::new();
     match summary["scenario"].as_str() {
         Some(s) if s == name => {}
-        other => warnings.push(format!(
-            "{} holds a run of scenario `{}`, not of `{name}`",
-            fe_dir.display(),
-            other.unwrap_or("?")
-        )),
+        other => {
+            return Err(format!(
+                "{} holds a run of scenario `{}`, not of `{name}`: compare with a run of the same \
+                 scenario",
+                fe_dir.display(),
+                other.unwrap_or("?")
+            ))
+        }
     }
+    let mut warnings = Vec::new();
     if summary["converged"] != serde_json::Value::Bool(true) {
         warnings.push(format!(
             "the run in {} did not finish ({}): the comparison covers its recorded part only",
@@ -94,18 +100,27 @@ fn check_compare(fe_dir: &Path, name: &str, overrides: &[String]) -> Result<Vec<
             summary["error"].as_str().unwrap_or("interrupted")
         ));
     }
-    if let Some(list) = summary["overrides"].as_array() {
-        let theirs: Vec<&str> = list.iter().filter_map(|v| v.as_str()).collect();
-        let ours: Vec<&str> = overrides.iter().map(String::as_str).collect();
-        if theirs != ours {
-            warnings.push(format!(
-                "the run in {} had the overrides [{}], this model [{}]: they may differ in \
-                 voltage, material or geometry",
-                fe_dir.display(),
-                theirs.join(", "),
-                ours.join(", ")
-            ));
-        }
+    let theirs: Vec<&str> = summary["overrides"]
+        .as_array()
+        .map(|l| l.iter().filter_map(|v| v.as_str()).collect())
+        .unwrap_or_default();
+    let ours: Vec<&str> = overrides.iter().map(String::as_str).collect();
+    let ours_hash = format!("{:016x}", plan.model_hash());
+    match summary["model_hash"].as_str() {
+        Some(h) if h == ours_hash => {}
+        Some(_) => warnings.push(format!(
+            "the run in {} solved another model than this scenario's (its material, geometry, \
+             loads, drive or stages differ; its overrides [{}], these [{}]): the comparison is \
+             not of the same device",
+            fe_dir.display(),
+            theirs.join(", "),
+            ours.join(", ")
+        )),
+        None => warnings.push(format!(
+            "{} records no model_hash (a run of an older deasim): cannot tell whether it solved \
+             the same model",
+            path.display()
+        )),
     }
     Ok(warnings)
 }

@@ -7,7 +7,7 @@ use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED}
 use crate::element::CellFields;
 use crate::io::build::Plan;
 use crate::io::linear::write_modes;
-use crate::job::linear::{check_linearisable, modes_at};
+use crate::job::linear::{check_linearisable, mode_symmetry_note, modes_at};
 use crate::job::plan::StageKind;
 use crate::job::run::{run, Observer, RunSummary, StepRecord};
 use crate::problem::dofs::{FIELDS, PHI};
@@ -113,6 +113,9 @@ pub fn cmd_modes(
             biased.join(", ")
         }
     );
+    if let Some(note) = mode_symmetry_note(&plan) {
+        println!("note: {note}");
+    }
     println!("  mode  frequency_hz     residual");
     for (i, m) in found.iter().enumerate() {
         println!("  {:>4} {:>12.6} {:>12.1e}", i + 1, m.frequency, m.residual);

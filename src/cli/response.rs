@@ -493,18 +493,17 @@ pub fn reduce(args: &ReduceArgs) -> Result<Vec<String>, (i32, String)> {
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &x| {
                     (l.min(x), h.max(x))
                 });
-            let worst = a
+            let pairs: Vec<f64> = a
                 .iter()
                 .zip(&b)
                 .filter(|(x, y)| finite(x) && finite(y))
                 .map(|(x, y)| (x - y).abs())
-                .fold(0.0, f64::max);
-            lines.push(format!(
-                "{name}: largest difference to the finite element run {worst:.4e} = {:.3e} of its \
-                 peak-to-peak {:.4e}",
-                worst / (hi - lo).max(f64::MIN_POSITIVE),
-                hi - lo
-            ));
+                .collect();
+            let computed = b.iter().any(finite);
+            lines.push(compare_line(name, &pairs, a.len(), computed, hi - lo));
+            if !computed {
+                continue;
+            }
             let series = [
                 Series {
                     label: "finite elements".into(),
@@ -532,6 +531,40 @@ pub fn reduce(args: &ReduceArgs) -> Result<Vec<String>, (i32, String)> {
     }
     lines.push(format!("results in {}", dir.display()));
     Ok(lines)
+}
+
+/// The line `reduce --compare` prints for output `name`: the largest of the differences `pairs`
+/// (at the steps where both runs have a value, of `steps`) against the FE run's peak-to-peak
+/// `range`. An output the reduced model does not compute (`reduced_has_values` false: NaN at
+/// every step, e.g. a capacitance) or that has no step with both values is said to be not
+/// compared, never reported as a difference of 0.
+fn compare_line(
+    name: &str,
+    pairs: &[f64],
+    steps: usize,
+    reduced_has_values: bool,
+    range: f64,
+) -> String {
+    if !reduced_has_values {
+        return format!("{name}: not compared: the reduced model does not compute it");
+    }
+    if pairs.is_empty() {
+        return format!("{name}: not compared: no step where both runs have a value");
+    }
+    let worst = pairs.iter().copied().fold(0.0, f64::max);
+    let mut line = format!(
+        "{name}: largest difference to the finite element run {worst:.4e} = {:.3e} of its \
+         peak-to-peak {:.4e}",
+        worst / range.max(f64::MIN_POSITIVE),
+        range
+    );
+    if pairs.len() < steps {
+        line.push_str(&format!(
+            " (compared at {} of {steps} steps; the others have no value)",
+            pairs.len()
+        ));
+    }
+    line
 }
 
 /// The stage-time records of stage `stage` in a run's `history.csv`: times from the stage start

@@ -753,6 +753,7 @@ impl OutputWriter {
         v["date"] =
             json!(humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string());
         v["scenario_hash"] = json!(format!("{:016x}", plan.fingerprint()));
+        v["model_hash"] = json!(format!("{:016x}", plan.model_hash()));
         v["overrides"] = json!(self.overrides);
         v["solver"] = json!(plan.solver.kind.name());
         v["probe_stats"] = self.probe_stats(plan);
@@ -762,6 +763,9 @@ impl OutputWriter {
                 .iter()
                 .map(|&f| json_number(f))
                 .collect::<Vec<_>>());
+            if let Some(note) = crate::job::linear::mode_symmetry_note(plan) {
+                v["modes_note"] = json!(note);
+            }
         }
         if !self.linear_files.is_empty() {
             v["linear_files"] = json!(self

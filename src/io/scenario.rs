@@ -364,6 +364,11 @@ pub struct PrestretchSpec {
     /// Equal steps of the hold (default 20).
     #[serde(default)]
     pub hold_steps: Option<u64>,
+    /// How the set is held: `"in-plane"` (default: its in-plane position only, so a rim may thin
+    /// and slide axially) or `"face"` (also through the thickness, at the homogeneously
+    /// pre-stretched film's position: a frame clamped on the stretched film).
+    #[serde(default)]
+    pub clamp: Option<String>,
 }
 
 fn rim() -> String {

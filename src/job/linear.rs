@@ -291,6 +291,36 @@ pub fn frequency_response_at(
 }
 
 /// The warning of a drive about zero bias.
+/// Which modes a model cannot represent because of its symmetry, in a sentence for the user
+/// (`None` for a full 3-D model). An axisymmetric model finds only the modes of circumferential
+/// harmonic 0; a model of a part of a device (a quarter or half disc, an octant or half sphere,
+/// held on its planes of symmetry) finds only the modes symmetric about those planes.
+pub fn mode_symmetry_note(plan: &Plan) -> Option<String> {
+    let f = plan.symmetry_factor;
+    if plan.model.is_axisymmetric() {
+        let mut note =
+            "the axisymmetric model represents only axisymmetric modes (circumferential \
+                        harmonic n = 0): rocking (n = 1) and modes with nodal diameters (n ≥ 1) \
+                        are not found"
+                .to_string();
+        if f > 1.0 {
+            note.push_str("; nor modes antisymmetric about its plane of symmetry");
+        }
+        return Some(note);
+    }
+    let planes = match f {
+        f if f > 6.0 => "its three planes of symmetry",
+        f if f > 3.0 => "its two planes of symmetry (x = 0, y = 0)",
+        f if f > 1.0 => "its plane of symmetry",
+        _ => return None,
+    };
+    Some(format!(
+        "the model is 1/{f} of the device and represents only the modes symmetric about \
+         {planes}: modes antisymmetric about one of them (rocking of a pad, most modes with \
+         nodal diameters) are not found"
+    ))
+}
+
 pub fn zero_bias_warning(electrode: &str, bias: f64) -> String {
     format!(
         "`{electrode}` is at {bias} V: the electrostatic force is ∝ 2 V_dc ṽ, so at zero bias a \

@@ -325,6 +325,66 @@ impl Plan {
         }
         h
     }
+
+    /// Hash (FNV-1a, 64 bit) of everything that decides the computed physics: the model (mesh,
+    /// loads, supports, ties, pressures, circuits), the materials' resolved parameters, densities
+    /// and viscosities, rigid regions, pre-stretch, electrodes with their drives, and the stages.
+    /// Output settings, probes and solver choices are left out. Two runs with equal hashes
+    /// solve the same problem; `lumped --compare` uses it to tell an edited scenario.
+    pub fn model_hash(&self) -> u64 {
+        /// FNV-1a over the bytes written into it.
+        struct Fnv(u64);
+        impl std::io::Write for Fnv {
+            fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+                for &b in bytes {
+                    self.0 ^= b as u64;
+                    self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+                }
+                Ok(bytes.len())
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        fn model_data<S: serde::Serializer>(m: &&Model, s: S) -> Result<S::Ok, S::Error> {
+            crate::problem::model::data::serialize(m, s)
+        }
+        #[derive(serde::Serialize)]
+        struct Physics<'a> {
+            #[serde(serialize_with = "model_data")]
+            model: &'a Model,
+            supports: &'a [crate::problem::dofs::Dirichlet],
+            electrodes: &'a [Electrode],
+            stages: &'a [Stage],
+            densities: &'a [f64],
+            viscosities: &'a [f64],
+            rigid: &'a [Rigid],
+            material_parameters: &'a [Vec<String>],
+            prestretch: &'a Option<Prestretch>,
+            symmetry_factor: f64,
+            pressure_stages: &'a [Vec<bool>],
+            pressure_volumes: &'a [Option<f64>],
+        }
+        let physics = Physics {
+            model: &self.model,
+            supports: &self.supports,
+            electrodes: &self.electrodes,
+            stages: &self.stages,
+            densities: &self.densities,
+            viscosities: &self.viscosities,
+            rigid: &self.rigid,
+            material_parameters: &self.material_parameters,
+            prestretch: &self.prestretch,
+            symmetry_factor: self.symmetry_factor,
+            pressure_stages: &self.pressure_stages,
+            pressure_volumes: &self.pressure_volumes,
+        };
+        let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+        // writing into the hash cannot fail; a serialisation error would leave a partial hash,
+        // which is still deterministic for the plan
+        let _ = postcard::to_io(&physics, &mut h);
+        h.0
+    }
 }
 
 /// An equibiaxial in-plane pre-stretch of the body, imposed on a set (the rim).

@@ -128,13 +128,8 @@ pub(super) fn prestretch(
         return Ok(outcome);
     }
     // the homogeneous guess
-    let thickness = crate::material::homogeneous::solve(
-        model.materials[0].as_ref(),
-        crate::material::homogeneous::Mode::Equibiaxial,
-        p.stretch,
-    )
-    .map(|h| h.lateral)
-    .unwrap_or(1.0 / (p.stretch * p.stretch));
+    let thickness =
+        crate::material::homogeneous::equibiaxial_thickness(model.materials[0].as_ref(), p.stretch);
     let mut guess = state.to_vec();
     for (n, x) in model.mesh.nodes.iter().enumerate() {
         if model.is_axisymmetric() {

@@ -95,6 +95,14 @@ pub struct HomogeneousState {
     pub drucker: f64,
 }
 
+/// The thickness stretch of `mat` stretched equibiaxially by λ in its plane (E₀ = 0, free
+/// faces); the incompressible 1/λ² where the homogeneous solve fails.
+pub fn equibiaxial_thickness(mat: &dyn Material, stretch: f64) -> f64 {
+    solve(mat, Mode::Equibiaxial, stretch)
+        .map(|h| h.lateral)
+        .unwrap_or(1.0 / (stretch * stretch))
+}
+
 /// Solve for the lateral stretch at stretch λ (E0 = 0).
 pub fn solve(
     mat: &dyn Material,

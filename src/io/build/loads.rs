@@ -28,7 +28,7 @@ pub(super) fn build_loads(
     // an axisymmetric model holds its hoop slot and the axis's radial displacement
     let mut supports = model.axisymmetric_supports();
     supports.extend(build_constraints(ctx, s, &model.mesh)?);
-    supports.extend(prestretch_supports(ctx, s, &model.mesh)?);
+    supports.extend(prestretch_supports(ctx, s, model)?);
     let rigid = match &s.loads {
         None => Vec::new(),
         Some(loads) => {
@@ -184,11 +184,27 @@ fn build_constraints(ctx: &Ctx, s: &Scenario, mesh: &Mesh) -> Result<Vec<Dirichl
     Ok(supports)
 }
 
-/// `[prestretch]` `stretch` and `set`: the in-plane displacements (λ − 1) x, (λ − 1) y of every
-/// node of the set.
-fn prestretch_supports(ctx: &Ctx, s: &Scenario, mesh: &Mesh) -> Result<Vec<Dirichlet>, InputError> {
+/// `[prestretch]` `stretch`, `set` and `clamp`: the in-plane displacements (λ − 1) x, (λ − 1) y
+/// of every node of the set; with `clamp = "face"` also the axial displacement (λₜ − 1) z, λₜ the
+/// thickness stretch of the first material's homogeneous equibiaxial state.
+fn prestretch_supports(
+    ctx: &Ctx,
+    s: &Scenario,
+    model: &Model,
+) -> Result<Vec<Dirichlet>, InputError> {
     let Some(p) = &s.prestretch else {
         return Ok(Vec::new());
+    };
+    let mesh = &model.mesh;
+    let face = match p.clamp.as_deref() {
+        None | Some("in-plane") => false,
+        Some("face") => true,
+        Some(other) => {
+            return Err(ctx.err(
+                "prestretch.clamp",
+                format!("expected \"in-plane\" or \"face\"; got \"{other}\""),
+            ))
+        }
     };
     let l = ctx.positive("prestretch.stretch", Some(p.stretch), "in-plane stretch")?;
     if !(0.1..=20.0).contains(&l) {
@@ -201,8 +217,18 @@ fn prestretch_supports(ctx: &Ctx, s: &Scenario, mesh: &Mesh) -> Result<Vec<Diric
         ));
     }
     let mut supports = Vec::new();
-    // in-plane: x and y in 3-D; the radius in an axisymmetric model
-    let components = if mesh.kind.meridian().is_some() { 1 } else { 2 };
+    // in-plane: x and y in 3-D; the radius in an axisymmetric model (whose axis is the y slot)
+    let meridian = mesh.kind.meridian().is_some();
+    let components = if meridian { 1 } else { 2 };
+    let (axial_field, axial) = if meridian {
+        (Field::Uy, 1)
+    } else {
+        (Field::Uz, 2)
+    };
+    let thickness = match model.materials.first() {
+        Some(m) if face => crate::material::homogeneous::equibiaxial_thickness(m.as_ref(), l),
+        _ => 1.0,
+    };
     for n in ctx.set_nodes(mesh, "prestretch.set", &p.set)? {
         let x = mesh.nodes[n];
         for (field, value) in [(Field::Ux, (l - 1.0) * x[0]), (Field::Uy, (l - 1.0) * x[1])]
@@ -213,6 +239,13 @@ fn prestretch_supports(ctx: &Ctx, s: &Scenario, mesh: &Mesh) -> Result<Vec<Diric
                 nodes: vec![n],
                 field,
                 value,
+            });
+        }
+        if face {
+            supports.push(Dirichlet {
+                nodes: vec![n],
+                field: axial_field,
+                value: (thickness - 1.0) * x[axial],
             });
         }
     }
