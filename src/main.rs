@@ -71,6 +71,9 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Output directory (default ./deasim-out/<scenario name>-lumped/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another command or scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
         /// Override a value by its dotted path (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -94,6 +97,9 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Output directory (default ./deasim-out/<scenario name>-sweep/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another command or scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
         /// Override a value for every run (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -147,6 +153,9 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Output directory (default ./deasim-out/material-<name>/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another command or scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
     },
     /// Natural modes about the loaded state (after the static stages before the first dynamic
     /// one, electrodes held at their voltages there): a table, modes.csv and ParaView shapes.
@@ -163,6 +172,9 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Output directory (default ./deasim-out/<scenario name>-modes/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another command or scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
         /// Override a value by its dotted path (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -194,6 +206,9 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Output directory (default ./deasim-out/<scenario name>-response/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another command or scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
         /// Override a value by its dotted path (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -220,6 +235,9 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         /// Output directory (default ./deasim-out/<scenario name>-reduced/).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another command or scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
         /// Override a value by its dotted path (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -317,6 +335,7 @@ fn main() {
         Command::Lumped {
             scenario,
             out,
+            overwrite,
             set,
             compare,
         } => deasim::cli::lumped::cmd_lumped(
@@ -324,12 +343,14 @@ fn main() {
             out.as_deref(),
             &set,
             compare.as_deref(),
+            overwrite,
         ),
         Command::Sweep {
             scenario,
             set_range,
             log,
             out,
+            overwrite,
             set,
             jobs,
         } => deasim::cli::sweep::cmd_sweep(
@@ -339,6 +360,7 @@ fn main() {
             &set_range,
             log,
             jobs,
+            overwrite,
         ),
         Command::Materials { name } => deasim::cli::material::cmd_materials(name.as_deref()),
         Command::Material {
@@ -354,6 +376,7 @@ fn main() {
             cycles,
             steps,
             out,
+            overwrite,
         } => deasim::cli::material::cmd_material(&deasim::cli::material::MaterialTest {
             material,
             name,
@@ -367,14 +390,23 @@ fn main() {
             cycles,
             steps,
             out,
+            overwrite,
         }),
         Command::Modes {
             scenario,
             count,
             shift,
             out,
+            overwrite,
             set,
-        } => deasim::cli::modes::cmd_modes(scenario.as_deref(), out.as_deref(), &set, count, shift),
+        } => deasim::cli::modes::cmd_modes(
+            scenario.as_deref(),
+            out.as_deref(),
+            &set,
+            count,
+            shift,
+            overwrite,
+        ),
         Command::Response {
             scenario,
             electrode,
@@ -384,6 +416,7 @@ fn main() {
             to,
             points,
             out,
+            overwrite,
             set,
         } => deasim::cli::response::cmd_response(&deasim::cli::response::ResponseArgs {
             scenario,
@@ -395,6 +428,7 @@ fn main() {
             to,
             points,
             out,
+            overwrite,
         }),
         Command::Reduce {
             scenario,
@@ -403,6 +437,7 @@ fn main() {
             bias,
             compare,
             out,
+            overwrite,
             set,
         } => deasim::cli::response::cmd_reduce(&deasim::cli::response::ReduceArgs {
             scenario,
@@ -412,6 +447,7 @@ fn main() {
             modes,
             compare,
             out,
+            overwrite,
         }),
         Command::Validate { family } => deasim::cli::validate::cmd_validate(family.as_deref()),
         Command::Bench {

@@ -145,11 +145,21 @@ fn a_write_failure_ends_with_exit_1_and_names_the_file_once() {
     assert_eq!(t.matches("could not write").count(), 1, "{t}");
     assert!(!t.contains("warning: "), "{t}");
     assert!(!t.contains("panicked"), "{t}");
+    // the terminal does not call it finished; the summary says what is missing
+    assert!(!t.contains("finished"), "{t}");
+    assert!(t.contains("the outputs are incomplete"), "{t}");
     let h = std::fs::read_to_string(dir.join("o/history.csv")).unwrap();
     assert_eq!(h.lines().count(), 17, "header, initial state and 15 steps");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("o/summary.json")).unwrap())
             .unwrap();
+    assert_eq!(s["status"], "incomplete-outputs", "{s}");
+    assert_eq!(s["outputs"]["complete"], false, "{s}");
+    let reason = s["outputs"]["reason"].as_str().unwrap_or_default();
+    assert!(
+        reason.contains("could not write") && reason.contains("fields"),
+        "{s}"
+    );
     let w = s["warnings"].as_array().unwrap();
     assert_eq!(
         w.iter()
@@ -158,6 +168,194 @@ fn a_write_failure_ends_with_exit_1_and_names_the_file_once() {
         1,
         "{s}"
     );
+}
+
+/// Every command that writes results refuses a directory holding another command's results
+/// (naming the directory, what it holds, --overwrite and --out) and deletes nothing there;
+/// `--overwrite` removes all of them and no file deasim did not write; a rerun of the same
+/// command and scenario replaces its own results without --overwrite.
+#[test]
+fn another_commands_results_are_refused_and_overwrite_removes_them_all() {
+    let dir = tempdir("other-command");
+    example(&dir, "film");
+    let modes = deasim(
+        &[
+            "modes",
+            "film.toml",
+            "--count",
+            "2",
+            "--out",
+            "o",
+            "--set",
+            MASS,
+        ],
+        &dir,
+    );
+    assert_eq!(modes.status.code(), Some(0), "{}", text(&modes));
+    let written = names(&dir.join("o"));
+    assert!(written.contains(&"modes.csv".to_string()), "{written:?}");
+    let shapes = names(&dir.join("o/modes"));
+    assert!(!shapes.is_empty());
+    std::fs::write(dir.join("o/notes.txt"), "mine").unwrap();
+    // the same command and scenario again: its own results, replaced
+    let again = deasim(
+        &[
+            "modes",
+            "film.toml",
+            "--count",
+            "2",
+            "--out",
+            "o",
+            "--set",
+            MASS,
+        ],
+        &dir,
+    );
+    assert_eq!(again.status.code(), Some(0), "{}", text(&again));
+    let refuse = |args: &[&str]| {
+        let out = deasim(args, &dir);
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {t}");
+        assert!(
+            t.contains("o holds the results of `deasim modes` for `film`")
+                && t.contains("--overwrite")
+                && t.contains("--out"),
+            "{args:?}: {t}"
+        );
+        assert!(!t.contains("panicked"), "{t}");
+        assert_eq!(
+            names(&dir.join("o")),
+            written_with_notes(&written),
+            "{args:?}"
+        );
+        assert_eq!(names(&dir.join("o/modes")), shapes, "{args:?}");
+    };
+    refuse(&["run", "film.toml", "--out", "o"]);
+    refuse(&["lumped", "--out", "o"]);
+    refuse(&[
+        "modes",
+        "film.toml",
+        "--count",
+        "2",
+        "--out",
+        "o",
+        "--set",
+        MASS,
+        "--set",
+        "name=\"other\"",
+    ]);
+    refuse(&[
+        "response",
+        "film.toml",
+        "--points",
+        "2",
+        "--out",
+        "o",
+        "--set",
+        MASS,
+    ]);
+    // --overwrite: all of the modes' files go, the notes stay
+    let run = deasim(
+        &[
+            "run",
+            "film.toml",
+            "--out",
+            "o",
+            "--overwrite",
+            "--set",
+            "output.plots=false",
+        ],
+        &dir,
+    );
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run));
+    let now = names(&dir.join("o"));
+    assert!(now.contains(&"notes.txt".to_string()), "{now:?}");
+    assert!(
+        !now.iter().any(|n| n.starts_with("modes")),
+        "modes results left: {now:?}"
+    );
+    // and the run's results are refused to the modes command in turn
+    let modes = deasim(
+        &[
+            "modes",
+            "film.toml",
+            "--count",
+            "2",
+            "--out",
+            "o",
+            "--set",
+            MASS,
+        ],
+        &dir,
+    );
+    assert_eq!(modes.status.code(), Some(2), "{}", text(&modes));
+    assert!(
+        text(&modes).contains("holds the results of `deasim run` for `film`"),
+        "{}",
+        text(&modes)
+    );
+    assert!(dir.join("o/history.csv").exists());
+}
+
+/// The film example has no mass; `modes` and `response` need one.
+const MASS: &str = "materials.elastomer.density=1000.0";
+
+fn written_with_notes(written: &[String]) -> Vec<String> {
+    let mut v = written.to_vec();
+    v.push("notes.txt".into());
+    v.sort();
+    v
+}
+
+/// `modes`, `lumped`, `response` and `material` take the directory's lock: a live lock
+/// refuses them (exit 2, naming the process) and they write nothing there.
+#[test]
+fn every_command_takes_the_directory_lock() {
+    let dir = tempdir("lock-all");
+    example(&dir, "film");
+    std::fs::create_dir_all(dir.join("o")).unwrap();
+    let me = std::process::id().to_string();
+    std::fs::write(dir.join("o/.deasim.lock"), format!("{me}\n")).unwrap();
+    for args in [
+        &[
+            "modes",
+            "film.toml",
+            "--count",
+            "2",
+            "--out",
+            "o",
+            "--set",
+            MASS,
+        ][..],
+        &["lumped", "--out", "o"],
+        &[
+            "response",
+            "film.toml",
+            "--points",
+            "2",
+            "--out",
+            "o",
+            "--set",
+            MASS,
+        ],
+        &[
+            "material",
+            "vhb4910-wang2016",
+            "--steps",
+            "10",
+            "--out",
+            "o",
+        ],
+    ] {
+        let out = deasim(args, &dir);
+        let t = text(&out);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {t}");
+        assert!(
+            t.contains("o is in use") && t.contains(&format!("process {me}")),
+            "{args:?}: {t}"
+        );
+        assert_eq!(names(&dir.join("o")), [".deasim.lock"], "{args:?}");
+    }
 }
 
 /// A new run (same scenario with fewer probes, or another one with --overwrite) leaves none of

@@ -8,6 +8,7 @@ use crate::io::examples::{example, DEFAULT, EXAMPLES};
 use crate::io::lock::DirLock;
 use crate::io::output::OutputWriter;
 use crate::io::pieces::Pieces;
+use crate::io::results::ResultsDir;
 use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
 use crate::job::linear::{FrequencyResponse, ResponseMethod};
 use crate::job::run::{run_with, Observer, RunState, RunSummary, StepRecord};
@@ -299,21 +300,11 @@ impl Observer for Progress {
         }
     }
 
-    fn finished(&mut self, _plan: &Plan, s: &RunSummary) {
+    // the closing line waits for the outputs ([`execute`]): a failed write is no "finished"
+    fn finished(&mut self, _plan: &Plan, _s: &RunSummary) {
         if let Some(b) = &self.bar {
             b.finish_and_clear();
         }
-        eprintln!(
-            "{} in {:.2} s",
-            if s.interrupted {
-                "stopped on request"
-            } else if s.converged {
-                "finished"
-            } else {
-                "FAILED"
-            },
-            s.wall_s
-        );
     }
 }
 
@@ -380,7 +371,7 @@ pub fn cmd_run(
         }
         return run_secondary_rank(&plan, &dir, pieces, None, checkpoint);
     }
-    let prepared = prepare_output(&dir, &plan.name, overwrite);
+    let prepared = prepare_output(&dir, &plan, overwrite);
     if ranks > 1 && !ranks_agree(prepared.is_ok()) {
         if let Err(e) = &prepared {
             eprintln!("error: {e}");
@@ -388,7 +379,7 @@ pub fn cmd_run(
         return EXIT_BAD_INPUT;
     }
     // the lock is held until the run ends: a second run into the directory is refused meanwhile
-    let (_lock, mut writer) = match prepared {
+    let (mut results, mut writer) = match prepared {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
@@ -399,29 +390,34 @@ pub fn cmd_run(
     if let Some(p) = pieces {
         writer.split_fields(p, false);
     }
-    let status = execute(&plan, &dir, writer, checkpoint, None);
+    let status = execute(&plan, &dir, writer, checkpoint, None, &mut results);
     if ranks > 1 {
         mpi_barrier();
+        // the other ranks' pieces of the field files are written now
+        if let Err(e) = results.record() {
+            eprintln!("error: {e}");
+        }
     }
     status
 }
 
-/// Locks the output directory `dir` of scenario `name`, clears deasim's files of an earlier run
-/// from it (refused for another scenario's results unless `overwrite`) and creates the writer.
+/// Locks the output directory `dir` of `plan`, clears deasim's files of an earlier run of it
+/// (refused for another command's or scenario's results unless `overwrite`,
+/// [`ResultsDir::open`]) and creates the writer.
 fn prepare_output(
     dir: &Path,
-    name: &str,
+    plan: &Plan,
     overwrite: bool,
-) -> Result<(DirLock, OutputWriter), String> {
-    let lock = DirLock::acquire(dir).map_err(|e| e.to_string())?;
-    OutputWriter::check_directory(dir, name, overwrite)?;
+) -> Result<(ResultsDir, OutputWriter), String> {
+    let hash = format!("{:016x}", plan.fingerprint());
+    let results = ResultsDir::open(dir, "run", &plan.name, &hash, overwrite)?;
     // checkpoints of an earlier run in this directory belong to other results
     for (_, _, old) in crate::io::checkpoint::checkpoint_files(dir) {
         std::fs::remove_file(&old).map_err(|e| format!("{}: {e}", old.display()))?;
     }
     let writer = OutputWriter::new(dir)
         .map_err(|e| format!("cannot create the output directory {}: {e}", dir.display()))?;
-    Ok((lock, writer))
+    Ok((results, writer))
 }
 
 /// What a rank runs: its plan, its rank of how many, its piece of the field files (`None` on
@@ -933,7 +929,7 @@ pub fn cmd_resume(
     // under an MPI launcher the process of rank 0 locks the directory and speaks; a failure
     // here ends the process, and the launcher then stops the others
     let first = launched_rank() == 0;
-    let _lock = if first {
+    let lock = if first {
         match DirLock::acquire(dir) {
             Ok(l) => Some(l),
             Err(e) => {
@@ -1014,6 +1010,12 @@ pub fn cmd_resume(
             if rank > 0 {
                 return run_secondary_rank(&plan, dir, pieces, Some(state), Some(checkpoint));
             }
+            let Some(lock) = lock else {
+                return EXIT_BAD_INPUT;
+            };
+            // the run's own directory: its manifest keeps the files listed so far
+            let hash = format!("{:016x}", plan.fingerprint());
+            let mut results = ResultsDir::resume(dir, lock, &plan.name, &hash);
             let mut writer = match OutputWriter::new(dir) {
                 Ok(w) => w,
                 Err(e) => {
@@ -1025,9 +1027,19 @@ pub fn cmd_resume(
             if let Some(p) = pieces {
                 writer.split_fields(p, false);
             }
-            let status = execute(&plan, dir, writer, Some(checkpoint), Some(state));
+            let status = execute(
+                &plan,
+                dir,
+                writer,
+                Some(checkpoint),
+                Some(state),
+                &mut results,
+            );
             if ranks > 1 {
                 mpi_barrier();
+                if let Err(e) = results.record() {
+                    eprintln!("error: {e}");
+                }
             }
             status
         }
@@ -1213,6 +1225,7 @@ fn execute(
     mut writer: OutputWriter,
     checkpoint: Option<CheckpointWriter>,
     start: Option<RunState>,
+    results: &mut ResultsDir,
 ) -> i32 {
     eprintln!(
         "deasim: scenario `{}`: {} nodes, {} {} cells, {} dofs; {} thread(s); output in {}",
@@ -1235,20 +1248,46 @@ fn execute(
     if let Some(c) = checkpoint.as_mut() {
         observers.push(c);
     }
+    observers.push(results);
     let summary = run_with(plan, &NewtonSettings::default(), &mut observers, start);
+    drop(observers);
+    let listed = results.record();
     for e in &writer.errors {
         eprintln!("warning: {e}");
     }
-    if let Some(f) = writer.write_failure() {
+    let failure = writer.write_failure().or(listed.err());
+    if let Some(f) = failure {
         eprintln!(
             "error: {f}; the other outputs in {} hold the last state written",
             dir.display()
+        );
+        eprintln!(
+            "{} in {:.2} s, but the outputs are incomplete",
+            if summary.interrupted {
+                "stopped on request"
+            } else if summary.converged {
+                "solved"
+            } else {
+                "FAILED"
+            },
+            summary.wall_s
         );
         if summary.interrupted {
             return EXIT_INTERRUPTED;
         }
         return EXIT_SOLVE_FAILED;
     }
+    eprintln!(
+        "{} in {:.2} s",
+        if summary.interrupted {
+            "stopped on request"
+        } else if summary.converged {
+            "finished"
+        } else {
+            "FAILED"
+        },
+        summary.wall_s
+    );
     if summary.interrupted {
         eprintln!("interrupted: the outputs hold the last accepted step");
         return EXIT_INTERRUPTED;

@@ -5,6 +5,7 @@ use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED}
 use crate::io::atomic::write_atomic;
 use crate::io::build::Plan;
 use crate::io::plot::{line_plot, PlotSpec, Series};
+use crate::io::results::ResultsDir;
 use crate::job::probes::ProbeKind;
 use crate::lumped::setup::{from_scenario, LumpedSetup};
 use crate::lumped::History;
@@ -20,6 +21,7 @@ pub fn cmd_lumped(
     out: Option<&Path>,
     overrides: &[String],
     compare: Option<&Path>,
+    overwrite: bool,
 ) -> i32 {
     let file = scenario
         .map(|p| p.display().to_string())
@@ -52,7 +54,16 @@ pub fn cmd_lumped(
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-lumped", plan.name)));
-    match run(&setup, &plan, &dir, compare) {
+    let hash = format!("{:016x}", plan.fingerprint());
+    let mut results = match ResultsDir::open(&dir, "lumped", &plan.name, &hash, overwrite) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
+    let written = run(&setup, &plan, &dir, compare);
+    match written.and(results.record()) {
         Ok(()) => EXIT_OK,
         Err(e) => {
             eprintln!("error: {e}");

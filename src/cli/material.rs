@@ -6,6 +6,7 @@
 use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{line_plot, PlotSpec, Series};
+use crate::io::results::ResultsDir;
 use crate::material::homogeneous::Mode;
 use crate::material::point_history::{run, Control, PointRecord};
 use crate::material::registry::{build, preset, PRESETS};
@@ -51,6 +52,8 @@ pub struct MaterialTest {
     /// Time steps per segment (ramp, hold, half cycle).
     pub steps: usize,
     pub out: Option<PathBuf>,
+    /// Replace another command's or test's results in the output directory.
+    pub overwrite: bool,
 }
 
 /// One curve of a test: its label (the rate) and its records.
@@ -77,6 +80,15 @@ pub fn cmd_material(args: &MaterialTest) -> i32 {
         .out
         .clone()
         .unwrap_or_else(|| Path::new("deasim-out").join(format!("material-{}", sanitize(&label))));
+    // one test of one material: another test is another set of results
+    let what = format!("{label}, {} test", args.test);
+    let mut results = match ResultsDir::open(&dir, "material", &what, "", args.overwrite) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
     let curves = match curves(args, mat.as_ref()) {
         Ok(c) => c,
         Err(e) => {
@@ -84,7 +96,8 @@ pub fn cmd_material(args: &MaterialTest) -> i32 {
             return EXIT_SOLVE_FAILED;
         }
     };
-    match write(args, &label, &dir, &curves) {
+    let written = write(args, &label, &dir, &curves);
+    match written.and(results.record()) {
         Ok(()) => {
             summary(args, &label, &curves);
             println!("results in {}", dir.display());

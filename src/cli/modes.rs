@@ -7,6 +7,7 @@ use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED}
 use crate::element::CellFields;
 use crate::io::build::Plan;
 use crate::io::linear::write_modes;
+use crate::io::results::ResultsDir;
 use crate::job::linear::{check_linearisable, mode_symmetry_note, modes_at};
 use crate::job::plan::StageKind;
 use crate::job::run::{run, Observer, RunSummary, StepRecord};
@@ -34,6 +35,7 @@ pub fn cmd_modes(
     overrides: &[String],
     count: usize,
     shift_hz: f64,
+    overwrite: bool,
 ) -> i32 {
     let (_, mut plan) = match load_scenario(scenario, overrides) {
         Ok(x) => x,
@@ -68,6 +70,14 @@ pub fn cmd_modes(
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-modes", plan.name)));
+    let hash = format!("{:016x}", plan.fingerprint());
+    let mut results = match ResultsDir::open(&dir, "modes", &plan.name, &hash, overwrite) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
     let mut last = LastState::default();
     let summary = run(&plan, &NewtonSettings::default(), &mut last);
     if !summary.converged {
@@ -120,7 +130,8 @@ pub fn cmd_modes(
     for (i, m) in found.iter().enumerate() {
         println!("  {:>4} {:>12.6} {:>12.1e}", i + 1, m.frequency, m.residual);
     }
-    match write_modes(&plan, &dir, "modes", &state, &found) {
+    let written = write_modes(&plan, &dir, "modes", &state, &found);
+    match written.and(results.record()) {
         Ok(()) => {
             println!("results in {}", dir.display());
             EXIT_OK

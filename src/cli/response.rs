@@ -9,6 +9,7 @@ use crate::io::build::log_range;
 use crate::io::build::Plan;
 use crate::io::linear::write_response;
 use crate::io::plot::{PlotSpec, Series};
+use crate::io::results::ResultsDir;
 use crate::job::linear::{
     check_linearisable, device_mass, has_branches, held_model, linear_probes, response_values,
     zero_bias_warning, FrequencyResponse, ProbeMap, ResponseMethod,
@@ -39,6 +40,8 @@ pub struct ResponseArgs {
     pub to: f64,
     pub points: usize,
     pub out: Option<PathBuf>,
+    /// Replace another command's or scenario's results in the output directory.
+    pub overwrite: bool,
 }
 
 /// Keeps the state and the probe values of the last accepted step.
@@ -288,6 +291,13 @@ pub fn response(args: &ResponseArgs) -> Result<Outcome, (i32, String)> {
         args.electrode.as_deref(),
         args.bias,
     )?;
+    let dir: PathBuf = args
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-response", p.plan.name)));
+    let hash = format!("{:016x}", p.plan.fingerprint());
+    let mut results =
+        ResultsDir::open(&dir, "response", &p.plan.name, &hash, args.overwrite).map_err(bad)?;
     let (electrode, bias) = (p.electrode.clone(), p.bias);
     let values = {
         let map = ProbeMap {
@@ -316,11 +326,8 @@ pub fn response(args: &ResponseArgs) -> Result<Outcome, (i32, String)> {
         solved_by: p.lin.solved_by(),
         warning: None,
     };
-    let dir: PathBuf = args
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-response", p.plan.name)));
-    write_response(&r, &dir, "frequency_response", Some((&dir, "png"))).map_err(failed)?;
+    let written = write_response(&r, &dir, "frequency_response", Some((&dir, "png")));
+    written.and(results.record()).map_err(failed)?;
     Ok((dir, r))
 }
 
@@ -336,6 +343,8 @@ pub struct ReduceArgs {
     /// A finite element run's output directory to overlay (its first dynamic stage).
     pub compare: Option<PathBuf>,
     pub out: Option<PathBuf>,
+    /// Replace another command's or scenario's results in the output directory.
+    pub overwrite: bool,
 }
 
 /// `deasim reduce`: the reduced state-space model, its matrices, its simulation of the first
@@ -376,6 +385,30 @@ pub fn reduce(args: &ReduceArgs) -> Result<Vec<String>, (i32, String)> {
         args.electrode.as_deref(),
         args.bias,
     )?;
+    let dir: PathBuf = args
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-reduced", p.plan.name)));
+    let hash = format!("{:016x}", p.plan.fingerprint());
+    let mut results =
+        ResultsDir::open(&dir, "reduce", &p.plan.name, &hash, args.overwrite).map_err(bad)?;
+    let written = write_reduced(args, &p, &dir);
+    // the files written, also when one failed
+    let listed = results.record().map_err(failed);
+    let lines = written?;
+    listed?;
+    Ok(lines)
+}
+
+/// The reduced model of `p`, its matrices, its simulation and the overlay, written into `dir`;
+/// returns the lines to print.
+fn write_reduced(
+    args: &ReduceArgs,
+    p: &Prepared,
+    dir: &Path,
+) -> Result<Vec<String>, (i32, String)> {
+    let bad = |e: String| (EXIT_BAD_INPUT, e);
+    let failed = |e: String| (EXIT_SOLVE_FAILED, e);
     let offsets = p.offsets().map_err(failed)?;
     let names = p.names();
     let gradient = |dq: &[f64]| p.gradient(dq);
@@ -392,11 +425,7 @@ pub fn reduce(args: &ReduceArgs) -> Result<Vec<String>, (i32, String)> {
         p.bias,
     )
     .map_err(failed)?;
-    let dir: PathBuf = args
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-reduced", p.plan.name)));
-    std::fs::create_dir_all(&dir).map_err(|e| failed(format!("{}: {e}", dir.display())))?;
+    std::fs::create_dir_all(dir).map_err(|e| failed(format!("{}: {e}", dir.display())))?;
     let json = serde_json::to_string_pretty(&model).map_err(|e| failed(e.to_string()))?;
     let put = |name: &str, text: &str| -> Result<(), (i32, String)> {
         let path = dir.join(name);

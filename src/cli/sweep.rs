@@ -197,6 +197,7 @@ pub fn cmd_sweep(
     ranges: &[String],
     log: bool,
     jobs: Option<usize>,
+    overwrite: bool,
 ) -> i32 {
     let ranges = match parse_ranges(ranges, log) {
         Ok(r) => r,
@@ -228,7 +229,9 @@ pub fn cmd_sweep(
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(format!("{name}-sweep")));
-    let _lock = match crate::io::lock::DirLock::acquire(&dir) {
+    // the runs are many models: the manifest names the scenario alone
+    let mut listed = match crate::io::results::ResultsDir::open(&dir, "sweep", &name, "", overwrite)
+    {
         Ok(l) => l,
         Err(e) => {
             eprintln!("error: {e}");
@@ -298,7 +301,8 @@ pub fn cmd_sweep(
         }
     };
     let outcomes: Vec<Outcome> = results.into_iter().map(|r| r.1).collect();
-    if let Err(e) = write_table(&dir, &plan, &ranges, &outcomes, log) {
+    let written = write_table(&dir, &plan, &ranges, &outcomes, log);
+    if let Err(e) = written.and(listed.record()) {
         eprintln!("error: {e}");
         return EXIT_SOLVE_FAILED;
     }

@@ -11,6 +11,7 @@ pub mod output;
 pub mod periods;
 pub mod pieces;
 pub mod plot;
+pub mod results;
 pub mod revolve;
 pub mod scenario;
 pub mod vtu;

@@ -716,13 +716,17 @@ impl OutputWriter {
             .fold(0.0, f64::max);
         let mut warnings = summary.warnings.clone();
         warnings.extend(self.errors.iter().cloned());
-        warnings.extend(self.write_failure());
+        let failure = self.write_failure();
+        warnings.extend(failure.clone());
         let mut v = json!({
             "scenario": plan.name,
             "dofs": summary.dofs,
             "nodes": plan.whole_nodes(),
             "elements": plan.whole_cells(),
-            "status": if summary.converged {
+            // a solve that converged but whose outputs lack a file did not finish its work
+            "status": if summary.converged && failure.is_some() {
+                "incomplete-outputs"
+            } else if summary.converged {
                 "finished"
             } else if summary.interrupted {
                 "interrupted"
@@ -748,6 +752,7 @@ impl OutputWriter {
                 "dissipated": json_number(e.dissipated), "energy_error": json_number(e.energy_error),
             },
             "warnings": warnings,
+            "outputs": {"complete": failure.is_none(), "reason": failure},
         });
         v["version"] = json!(env!("CARGO_PKG_VERSION"));
         v["date"] =

@@ -553,6 +553,7 @@ fn plan_of(
                         cell: cell_at[f.cell],
                         nodes: f.nodes.iter().map(|&n| at[n]).collect(),
                         positions: f.positions.clone(),
+                        ring: f.ring,
                     })
                     .collect(),
             ),

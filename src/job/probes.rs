@@ -77,6 +77,10 @@ pub struct ProbeFace {
     pub cell: usize,
     pub nodes: Vec<usize>,
     pub positions: Vec<[f64; 3]>,
+    /// A side (2 or 3 nodes, x = R, y = Z) of a meridian cell of an axisymmetric model: its area
+    /// is that of the ring surface it sweeps, 2π∫R ds.
+    #[serde(default)]
+    pub ring: bool,
 }
 
 impl ProbeFace {
@@ -88,7 +92,11 @@ impl ProbeFace {
             .zip(&self.positions)
             .map(|(&n, x)| std::array::from_fn(|i| x[i] + state[n * 4 + i]))
             .collect();
-        crate::problem::loads::face_point_areas(&p).iter().sum()
+        if self.ring {
+            crate::problem::faces::ring_node_areas(&p).iter().sum()
+        } else {
+            crate::problem::loads::face_point_areas(&p).iter().sum()
+        }
     }
 }
 

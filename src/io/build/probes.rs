@@ -330,6 +330,7 @@ fn surface(
             ));
         }
     };
+    let ring = mesh.kind.meridian().is_some();
     Ok(faces
         .iter()
         .map(|f| {
@@ -340,6 +341,7 @@ fn surface(
                 cell: f.cell,
                 nodes,
                 positions,
+                ring,
             }
         })
         .collect())
