@@ -1,5 +1,5 @@
 //! Finite viscoelasticity of VHB 4910 (the branch set of Wang, Decker, Henann & Chester, JMPS 2016:
-//! Arruda–Boyce equilibrium G₀ = 15.36 kPa, λ_L = 5.99; neo-Hookean Maxwell branches
+//! eight-chain equilibrium G₀ = 15.36 kPa, λ_L = 5.99, Padé L⁻¹; neo-Hookean Maxwell branches
 //! g = 26.06, 26.53, 10.83 kPa, τ = 0.6074, 6.56, 61.25 s), uniaxial stretch to λ = 1.5 in 0.1 s
 //! then held.
 //!
