@@ -132,7 +132,7 @@ fn params(model: &str, p: &[f64; 6], eps_r: f64) -> MaterialParams {
                 ..base
             }
         }
-        "arruda-boyce" => MaterialParams {
+        "arruda-boyce" | "arruda-boyce-series" => MaterialParams {
             mu: vec![mu],
             lambda_m: Some(2.0 + 8.0 * p[2]),
             kappa: Some(kappa),

@@ -1,5 +1,5 @@
 //! Finite viscoelasticity of VHB 4910 (the branch set of Wang, Decker, Henann & Chester, JMPS 2016:
-//! Arruda–Boyce equilibrium G₀ = 15.36 kPa, λ_L = 5.99; neo-Hookean Maxwell branches
+//! eight-chain equilibrium G₀ = 15.36 kPa, λ_L = 5.99, Padé L⁻¹; neo-Hookean Maxwell branches
 //! g = 26.06, 26.53, 10.83 kPa, τ = 0.6074, 6.56, 61.25 s), uniaxial stretch to λ = 1.5 in 0.1 s
 //! then held.
 //!
@@ -28,10 +28,11 @@ fn material_point_reference_is_converged_and_near_the_published_values() {
         "nominal stress {:.2} Pa at 0.1 s, {:.2} Pa at 10 s (published ≈ 80.8 kPa, 32.4 kPa)",
         b[0], b[1]
     );
-    // the published values belong to the same model; G₀ read as the initial shear modulus of the
-    // series puts ours 0.4 % and 0.9 % below them
-    assert!((b[0] - 80.8e3).abs() < 0.015 * 80.8e3, "{}", b[0]);
-    assert!((b[1] - 32.4e3).abs() < 0.015 * 32.4e3, "{}", b[1]);
+    // the published values belong to the same model (eight-chain with the Padé inverse Langevin,
+    // G₀ the coefficient of its form): ours agree to their three digits (80.80 and 32.44 kPa; the
+    // five-term series with G₀ read as the initial shear modulus gave 0.4 % and 0.9 % below)
+    assert!((b[0] - 80.8e3).abs() < 2e-3 * 80.8e3, "{}", b[0]);
+    assert!((b[1] - 32.4e3).abs() < 2e-3 * 32.4e3, "{}", b[1]);
 }
 
 #[test]

@@ -1,13 +1,33 @@
-//! Arruda–Boyce (eight-chain) solid, five-term series form
+//! Arruda–Boyce eight-chain solid (Arruda & Boyce 1993), in two forms.
+//!
+//! [`ArrudaBoyce`] (`arruda-boyce`) is the eight-chain model with the inverse Langevin function
+//! L⁻¹ replaced by Cohen's (1991) Padé approximant L⁻¹(x) ≈ x(3 − x²)/(1 − x²), the form of
+//! Wang, Decker, Henann & Chester (J. Mech. Phys. Solids 95, 2016) and of their codes:
+//!
+//! ```text
+//! ∂W/∂Ī₁ = (G₀/6)(λ_L/λ̄) L⁻¹(λ̄/λ_L),   λ̄ = √(Ī₁/3)
+//!        = G₀/6 + G₀λ_L²/(3λ_L² − Ī₁)                  (Padé)
+//! W = G₀/6 (Ī₁ − 3) − G₀λ_L² ln[(3λ_L² − Ī₁)/(3λ_L² − 3)] + κ/4 (J² − 1 − 2 ln J)
+//! ```
+//!
+//! W is the exact integral of that stress function (zero at Ī₁ = 3), so energy, stress and
+//! tangent are consistent. (Substituting the Padé β into the Langevin-form energy
+//! G₀λ_L²[(λ̄/λ_L)β + ln(β/sinh β)] would not give this stress: that energy's derivative is β
+//! only with the exact inverse.) G₀ (`mu`) is the coefficient of the eight-chain form, not the
+//! initial shear modulus: μ₀ = G₀(3λ_L² − 1)/(3λ_L² − 3) ([`ArrudaBoyce::initial_shear_factor`],
+//! ≈ 1.019 G₀ at λ_L = 5.99). The chains lock at λ̄ = λ_L (Ī₁ = 3λ_L²); there and beyond every
+//! evaluation returns [`MaterialError::OutOfDomain`]. K₀ = κ.
+//!
+//! [`ArrudaBoyceSeries`] (`arruda-boyce-series`) is the five-term series of the same model in Ī₁:
 //!
 //! ```text
 //! W = μ Σᵢ₌₁⁵ Cᵢ/λ_m^(2i−2) (Ī₁ⁱ − 3ⁱ) + κ/4 (J² − 1 − 2 ln J)
 //! C = [1/2, 1/20, 11/1050, 19/7000, 519/673750]
 //! ```
 //!
-//! The parameter μ is the series coefficient, *not* the initial shear
-//! modulus: μ₀ = μ(1 + 3/(5λ_m²) + 99/(175λ_m⁴) + 513/(875λ_m⁶)
-//! + 42039/(67375λ_m⁸)) ([`ArrudaBoyce::initial_shear_factor`]). K₀ = κ.
+//! defined everywhere (no locking); it falls below the eight-chain stress at large stretch. μ is
+//! the series coefficient: μ₀ = μ(1 + 3/(5λ_m²) + 99/(175λ_m⁴) + 513/(875λ_m⁶)
+//! + 42039/(67375λ_m⁸)) ([`ArrudaBoyceSeries::initial_shear_factor`]). K₀ = κ.
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
@@ -16,6 +36,103 @@ use super::hyperelastic::{
 };
 use super::isotropic::CKinematics;
 use super::{KnownDeformation, Mat3, MaterialError};
+
+/// Cohen's (1991) Padé approximant of the inverse Langevin function, x(3 − x²)/(1 − x²)
+/// (|x| < 1).
+pub fn pade_inverse_langevin(x: f64) -> f64 {
+    x * (3.0 - x * x) / (1.0 - x * x)
+}
+
+/// Eight-chain W = G₀/6 (Ī₁ − 3) − G₀λ_L² ln[(3λ_L² − Ī₁)/(3λ_L² − 3)] + κ/4 (J² − 1 − 2 ln J),
+/// the energy of ∂W/∂Ī₁ = (G₀/6)(λ_L/λ̄) L⁻¹(λ̄/λ_L) with Cohen's Padé L⁻¹.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArrudaBoyce {
+    /// Coefficient G₀ of the eight-chain form (Pa); see [`ArrudaBoyce::initial_shear_factor`].
+    pub mu: f64,
+    /// Locking stretch λ_L (dimensionless), > 1.
+    pub lambda_m: f64,
+    /// Bulk modulus κ (Pa).
+    pub kappa: f64,
+}
+
+/// [`ArrudaBoyce`] with a linear dielectric.
+pub type ElectroArrudaBoyce = Electroelastic<ArrudaBoyce>;
+
+impl ArrudaBoyce {
+    /// μ₀/G₀ = (3λ_L² − 1)/(3λ_L² − 3) = L⁻¹(1/λ_L) λ_L/3 with the Padé L⁻¹.
+    pub fn initial_shear_factor(lambda_m: f64) -> f64 {
+        let a = 3.0 * lambda_m * lambda_m;
+        (a - 1.0) / (a - 3.0)
+    }
+
+    /// (Ŵ, derivatives in Ī₁) or the locking error.
+    fn iso(&self, i1b: f64) -> Result<(f64, InvariantDerivs), MaterialError> {
+        let l2 = self.lambda_m * self.lambda_m;
+        // r = 3λ_L² − Ī₁ = 3λ_L²(1 − (λ̄/λ_L)²) > 0 below locking
+        let r = 3.0 * l2 - i1b;
+        if r.is_nan() || r <= 0.0 {
+            return Err(MaterialError::OutOfDomain(format!(
+                "Arruda–Boyce model locked: chain stretch λ̄ = √(Ī₁/3) = {:.6} ≥ λ_L = {} \
+                 (parameter lambda_m)",
+                (i1b / 3.0).sqrt(),
+                self.lambda_m
+            )));
+        }
+        let x = i1b - 3.0;
+        let c = self.mu * l2;
+        let w = self.mu / 6.0 * x - c * (-x / (3.0 * (l2 - 1.0))).ln_1p();
+        let g = c / r;
+        Ok((
+            w,
+            InvariantDerivs {
+                w1: self.mu / 6.0 + g,
+                w11: g / r,
+                ..Default::default()
+            },
+        ))
+    }
+}
+
+impl Hyperelastic for ArrudaBoyce {
+    fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        Ok(self.iso(inv.i1b)?.0 + vol_log(self.kappa, k.j).u)
+    }
+
+    fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let (w, d) = self.iso(inv.i1b)?;
+        let v = vol_log(self.kappa, k.j);
+        Ok(HFirst {
+            w: w + v.u,
+            s: iso_stress(k, &inv, &d) + vol_stress(k, &v),
+        })
+    }
+
+    fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let (w, d) = self.iso(inv.i1b)?;
+        let v = vol_log(self.kappa, k.j);
+        Ok(invariant_model_second(k, &inv, w + v.u, &d, &v))
+    }
+
+    fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
+        let i1 = k.f.norm_squared();
+        let v = vol_log(self.kappa, k.j);
+        Some(
+            self.iso(k.jm23 * i1)
+                .map(|(w, d)| (w + v.u, i1_model_piola(k, i1, d.w1, v.du))),
+        )
+    }
+
+    fn shear_modulus(&self) -> f64 {
+        self.mu * Self::initial_shear_factor(self.lambda_m)
+    }
+
+    fn bulk_modulus(&self) -> f64 {
+        self.kappa
+    }
+}
 
 /// Series coefficients Cᵢ of the five-term Arruda–Boyce energy.
 pub const AB_COEFFS: [f64; 5] = [
@@ -26,10 +143,10 @@ pub const AB_COEFFS: [f64; 5] = [
     519.0 / 673750.0,
 ];
 
-/// Arruda–Boyce W = μ Σ Cᵢ/λ_m^(2i−2)(Ī₁ⁱ − 3ⁱ) + κ/4 (J² − 1 − 2 ln J).
+/// Five-term series W = μ Σ Cᵢ/λ_m^(2i−2)(Ī₁ⁱ − 3ⁱ) + κ/4 (J² − 1 − 2 ln J).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ArrudaBoyce {
-    /// Series coefficient μ (Pa); see [`ArrudaBoyce::initial_shear_factor`].
+pub struct ArrudaBoyceSeries {
+    /// Series coefficient μ (Pa); see [`ArrudaBoyceSeries::initial_shear_factor`].
     pub mu: f64,
     /// Locking stretch λ_m (dimensionless), > 1.
     pub lambda_m: f64,
@@ -37,10 +154,10 @@ pub struct ArrudaBoyce {
     pub kappa: f64,
 }
 
-/// [`ArrudaBoyce`] with a linear dielectric.
-pub type ElectroArrudaBoyce = Electroelastic<ArrudaBoyce>;
+/// [`ArrudaBoyceSeries`] with a linear dielectric.
+pub type ElectroArrudaBoyceSeries = Electroelastic<ArrudaBoyceSeries>;
 
-impl ArrudaBoyce {
+impl ArrudaBoyceSeries {
     /// μ₀/μ = 1 + 3/(5λ_m²) + 99/(175λ_m⁴) + 513/(875λ_m⁶) + 42039/(67375λ_m⁸).
     pub fn initial_shear_factor(lambda_m: f64) -> f64 {
         let b = 1.0 / (lambda_m * lambda_m);
@@ -78,7 +195,7 @@ impl ArrudaBoyce {
     }
 }
 
-impl Hyperelastic for ArrudaBoyce {
+impl Hyperelastic for ArrudaBoyceSeries {
     fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
         let inv = IsoInvariants::new(k);
         Ok(self.iso(inv.i1b).0 + vol_log(self.kappa, k.j).u)

@@ -35,7 +35,7 @@
 //!
 //! # Volumetric functions
 //!
-//! The split models (neo-Hooke split, Gent, Ogden, Arruda–Boyce) all use
+//! The split models (neo-Hooke split, Gent, Ogden, both Arruda–Boyce forms) all use
 //! [`vol_log`], U(J) = κ/4 (J² − 1 − 2 ln J), the function of the deal.II
 //! Cook's membrane benchmark (U″(1) = κ, so the small-strain bulk modulus
 //! is κ; U grows without bound for J → 0 and J → ∞). Yeoh and Mooney–Rivlin

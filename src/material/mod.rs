@@ -16,7 +16,8 @@
 //!
 //! The isotropic models are assembled from a purely mechanical energy W(C)
 //! ([`hyperelastic::Hyperelastic`]: [`NeoHooke`], [`NeoHookeSplit`],
-//! [`Yeoh`], [`MooneyRivlin`], [`Gent`], [`Ogden`], [`ArrudaBoyce`]) and the
+//! [`Yeoh`], [`MooneyRivlin`], [`Gent`], [`Ogden`], [`ArrudaBoyce`],
+//! [`ArrudaBoyceSeries`]) and the
 //! linear dielectric [`ElectricPart`] by the generic [`Electroelastic`].
 //! [`registry`] builds validated models from names, parameters and
 //! literature presets.
@@ -42,7 +43,9 @@ mod fd_tests;
 #[cfg(test)]
 mod model_tests;
 
-pub use arruda_boyce::{ArrudaBoyce, ElectroArrudaBoyce};
+pub use arruda_boyce::{
+    ArrudaBoyce, ArrudaBoyceSeries, ElectroArrudaBoyce, ElectroArrudaBoyceSeries,
+};
 pub use electric::ElectricPart;
 pub use electroelastic::Electroelastic;
 pub use gent::{ElectroGent, Gent};

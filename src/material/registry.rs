@@ -10,7 +10,12 @@
 //! | `mooney-rivlin`   | `c10`, `c01`, `d1`                                | 2(C₁₀ + C₀₁)      | 2/D₁        |
 //! | `gent`            | `mu` (one value), `jm`, `kappa`                   | μ                 | κ           |
 //! | `ogden`           | `mu` (list), `alpha` (list), `kappa`              | ½ Σ μₚαₚ          | κ           |
-//! | `arruda-boyce`    | `mu` (one value), `lambda_m`, `kappa`             | μ·(1 + 3/(5λ_m²) + …) | κ       |
+//! | `arruda-boyce`    | `mu` (one value), `lambda_m`, `kappa`             | μ(3λ_m² − 1)/(3λ_m² − 3) | κ    |
+//! | `arruda-boyce-series` | `mu` (one value), `lambda_m`, `kappa`         | μ·(1 + 3/(5λ_m²) + …) | κ       |
+//!
+//! `arruda-boyce` is the eight-chain model with Cohen's Padé inverse Langevin function, `mu` the
+//! coefficient G₀ of its form; `arruda-boyce-series` the five-term series in Ī₁, `mu` the series
+//! coefficient (see [`super::arruda_boyce`]).
 //!
 //! Every model also takes the dielectric parameters `permittivity`
 //! (relative, required, ≥ 1) and `c1`, `c2` (F/m, default 0); ε = εᵣε₀ and
@@ -21,7 +26,7 @@
 
 use std::sync::Arc;
 
-use super::arruda_boyce::ArrudaBoyce;
+use super::arruda_boyce::{ArrudaBoyce, ArrudaBoyceSeries};
 use super::electric::ElectricPart;
 use super::electroelastic::Electroelastic;
 use super::gent::Gent;
@@ -178,6 +183,7 @@ pub const MODELS: &[&str] = &[
     "gent",
     "ogden",
     "arruda-boyce",
+    "arruda-boyce-series",
 ];
 
 /// Preset names accepted by [`preset`].
@@ -204,7 +210,7 @@ pub fn parameter_names(model: &str) -> Option<&'static [&'static str]> {
         "mooney-rivlin" => &["c10", "c01", "d1"],
         "gent" => &["mu", "jm", "kappa"],
         "ogden" => &["mu", "alpha", "kappa"],
-        "arruda-boyce" => &["mu", "lambda_m", "kappa"],
+        "arruda-boyce" | "arruda-boyce-series" => &["mu", "lambda_m", "kappa"],
         _ => return None,
     })
 }
@@ -440,7 +446,7 @@ pub fn build(
             drucker = true;
             Arc::new(Electroelastic::new(o, elec))
         }
-        "arruda-boyce" => {
+        "arruda-boyce" | "arruda-boyce-series" => {
             let mu = single_mu(p)?;
             let lambda_m = req(
                 "lambda_m",
@@ -457,14 +463,25 @@ pub fn build(
                 ));
             }
             let kappa = req_pos("kappa", p.kappa, "bulk modulus κ in Pa")?;
-            Arc::new(Electroelastic::new(
-                ArrudaBoyce {
-                    mu,
-                    lambda_m,
-                    kappa,
-                },
-                elec,
-            ))
+            if model == "arruda-boyce" {
+                Arc::new(Electroelastic::new(
+                    ArrudaBoyce {
+                        mu,
+                        lambda_m,
+                        kappa,
+                    },
+                    elec,
+                ))
+            } else {
+                Arc::new(Electroelastic::new(
+                    ArrudaBoyceSeries {
+                        mu,
+                        lambda_m,
+                        kappa,
+                    },
+                    elec,
+                ))
+            }
         }
         _ => unreachable!("parameter_names covers every model"),
     };
@@ -622,11 +639,12 @@ pub fn drucker_check(mat: &dyn Material, max_stretch: f64) -> Vec<String> {
 ///   (2017): μ = 43 kPa, J_m = 115, ε = 4.12e-11 F/m (εᵣ = ε/ε₀ ≈ 4.653),
 ///   K = 4.3e10 Pa as given in the project's summary of that paper. That
 ///   makes K/μ = 1e6 (`build` warns); override `kappa` if that is a typo.
-/// * `vhb4910-ab-wang` — Arruda–Boyce fit of Wang et al., J. Mech. Phys.
-///   Solids (2016): G₀ = 15.36 kPa, λ_L = 5.99, εᵣ = 4.8. G₀ is taken as
-///   the *initial* shear modulus: the series coefficient is
-///   μ = G₀ / (1 + 3/(5λ_m²) + …) ≈ 15.10 kPa, so that μ₀ = 15.36 kPa.
-///   κ = 1000·G₀ is chosen here.
+/// * `vhb4910-ab-wang` — the eight-chain (`arruda-boyce`, Padé inverse
+///   Langevin) equilibrium model of Wang, Decker, Henann & Chester, J. Mech.
+///   Phys. Solids 95 (2016): G₀ = 15.36 kPa as the coefficient of the
+///   eight-chain form (as they use it), λ_L = 5.99, εᵣ = 4.8; the initial shear
+///   modulus is G₀(3λ_L² − 1)/(3λ_L² − 3) ≈ 15.65 kPa. κ = 1000·G₀ is chosen
+///   here.
 /// * `vhb4910-wang2016` — the same equilibrium branch with the three
 ///   neo-Hookean Maxwell branches of Wang, Decker, Henann & Chester,
 ///   J. Mech. Phys. Solids (2016): g = 26.06, 26.53, 10.83 kPa, τ = 0.6074, 6.56, 61.25 s.
@@ -683,7 +701,7 @@ pub fn preset(name: &str) -> Option<(&'static str, MaterialParams)> {
             (
                 "arruda-boyce",
                 MaterialParams {
-                    mu: vec![g0 / ArrudaBoyce::initial_shear_factor(lambda_m)],
+                    mu: vec![g0],
                     lambda_m: Some(lambda_m),
                     kappa: Some(1000.0 * g0),
                     permittivity: Some(4.8),
@@ -758,7 +776,7 @@ mod tests {
                 kappa: Some(1e8),
                 ..base
             },
-            "arruda-boyce" => MaterialParams {
+            "arruda-boyce" | "arruda-boyce-series" => MaterialParams {
                 mu: vec![1e5],
                 lambda_m: Some(4.0),
                 kappa: Some(1e7),
@@ -835,10 +853,17 @@ mod tests {
         assert!((mu0("vhb4910-yeoh") - 2.0 * 0.2019e6).abs() < 1e-6);
         assert_eq!(mu0("vhb4910-gent"), 25.4e3);
         assert_eq!(mu0("vhb4910-gent-liu"), 43e3);
-        // Arruda–Boyce: G₀ is the initial shear modulus.
-        assert!((mu0("vhb4910-ab-wang") - 15.36e3).abs() < 1e-9 * 15.36e3);
+        // Arruda–Boyce (eight-chain, Padé): G₀ = 15.36 kPa is the coefficient of the form, the
+        // initial shear modulus G₀(3λ_L² − 1)/(3λ_L² − 3) = 15.6536 kPa at λ_L = 5.99
+        let (m, p) = preset("vhb4910-ab-wang").unwrap();
+        assert_eq!((m, p.mu.as_slice()), ("arruda-boyce", &[15.36e3][..]));
+        assert_eq!(p.lambda_m, Some(5.99));
+        assert_eq!(p.permittivity, Some(4.8));
+        let g_eq: f64 = 15.36e3 * (3.0 * 35.8801 - 1.0) / (3.0 * 35.8801 - 3.0);
+        assert!((g_eq - 15.6536e3).abs() < 0.1, "{g_eq}");
+        assert!((mu0("vhb4910-ab-wang") - g_eq).abs() < 1e-9 * g_eq);
         // viscoelastic presets: the instantaneous modulus G_eq + Σ gᵢ, internal variables
-        assert!((mu0("vhb4910-wang2016") - (15.36e3 + 63.42e3)).abs() < 1e-6);
+        assert!((mu0("vhb4910-wang2016") - (g_eq + 63.42e3)).abs() < 1e-6);
         assert!((mu0("vhb4910-hossain2012") - (13.7e3 + 107.7e3)).abs() < 1e-6);
         let (m, p) = preset("vhb4910-wang2016").unwrap();
         assert_eq!(build(m, &p).unwrap().0.state_size(), 27);
@@ -884,6 +909,10 @@ mod tests {
         assert_eq!(with("neo-hooke", &|p| p.lambda = None), "lambda");
         assert_eq!(with("mooney-rivlin", &|p| p.c01 = None), "c01");
         assert_eq!(with("arruda-boyce", &|p| p.lambda_m = None), "lambda_m");
+        assert_eq!(
+            with("arruda-boyce-series", &|p| p.lambda_m = None),
+            "lambda_m"
+        );
         assert_eq!(with("ogden", &|p| p.alpha.clear()), "alpha");
         assert_eq!(
             with("neo-hooke-split", &|p| p.permittivity = None),
@@ -910,6 +939,10 @@ mod tests {
         assert_eq!(with("gent", &|p| p.jm = Some(0.0)), "jm");
         assert_eq!(
             with("arruda-boyce", &|p| p.lambda_m = Some(1.0)),
+            "lambda_m"
+        );
+        assert_eq!(
+            with("arruda-boyce-series", &|p| p.lambda_m = Some(0.5)),
             "lambda_m"
         );
         assert_eq!(with("ogden", &|p| p.alpha.push(2.0)), "alpha");
@@ -1069,5 +1102,40 @@ mod tests {
         let f = Mat3::from_diagonal(&Vec3::new(2.5, s, s));
         let t = mat.tangent(&f, &e0).unwrap();
         assert!(t.a.iter().all(|x| x.is_finite()));
+    }
+
+    /// The eight-chain model locks at λ̄ = λ_L (Ī₁ = 3λ_L²): an error naming λ_L, not a NaN;
+    /// the series has no such limit.
+    #[test]
+    fn arruda_boyce_locking_is_out_of_domain() {
+        let (mat, _) = build("arruda-boyce", &valid("arruda-boyce")).unwrap();
+        let (series, _) = build("arruda-boyce-series", &valid("arruda-boyce-series")).unwrap();
+        let e0 = Vec3::zeros();
+        // λ_m = 4: incompressible uniaxial λ̄ = λ_L at λ² + 2/λ = 48, λ ≈ 6.914
+        let at = |l: f64| {
+            let s = 1.0 / l.sqrt();
+            Mat3::from_diagonal(&Vec3::new(l, s, s))
+        };
+        for l in [6.92, 7.5, 20.0] {
+            let f = at(l);
+            let e = mat.tangent(&f, &e0).unwrap_err();
+            assert!(matches!(e, MaterialError::OutOfDomain(_)), "{e:?}");
+            assert!(e.to_string().contains("lambda_m"), "{e}");
+            assert!(matches!(
+                mat.stress(&f, &e0),
+                Err(MaterialError::OutOfDomain(_))
+            ));
+            assert!(matches!(
+                mat.energy(&f, &e0),
+                Err(MaterialError::OutOfDomain(_))
+            ));
+            let k = crate::material::KnownDeformation::new(&f).unwrap();
+            assert!(mat
+                .stress_known(&k, &e0, crate::material::PointHistory::NONE)
+                .is_err());
+            assert!(series.tangent(&f, &e0).is_ok());
+        }
+        let t = mat.tangent(&at(6.9), &e0).unwrap();
+        assert!(t.a.iter().chain(t.p.iter()).all(|x| x.is_finite()));
     }
 }

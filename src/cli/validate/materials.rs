@@ -64,6 +64,10 @@ fn parameters(model: &str) -> Option<(MaterialParams, &'static str)> {
             "Ogden 1972 (Treloar)",
         ),
         "arruda-boyce" => (from_preset("vhb4910-ab-wang")?, "preset vhb4910-ab-wang"),
+        "arruda-boyce-series" => (
+            from_preset("vhb4910-ab-wang")?,
+            "the constants of vhb4910-ab-wang",
+        ),
         _ => return None,
     })
 }
@@ -92,7 +96,15 @@ fn invariant_derivatives(model: &str, p: &MaterialParams, i1: f64) -> Option<(f6
             let jm = g(p.jm);
             (0.5 * p.mu[0] * jm / (jm - i1 + 3.0), 0.0)
         }
+        // eight-chain: (μ/6)(λ_L/λ̄) L⁻¹(λ̄/λ_L), λ̄ = √(Ī₁/3), Cohen's Padé L⁻¹(x) = x(3 − x²)/(1 − x²)
         "arruda-boyce" => {
+            let lm = g(p.lambda_m);
+            let lb = (i1 / 3.0).sqrt();
+            let x = lb / lm;
+            let inv_langevin = x * (3.0 - x * x) / (1.0 - x * x);
+            (p.mu[0] / 6.0 * lm / lb * inv_langevin, 0.0)
+        }
+        "arruda-boyce-series" => {
             let lm2 = g(p.lambda_m).powi(2);
             let w1 = AB_SERIES
                 .iter()
@@ -137,8 +149,14 @@ fn uniaxial_incompressible(model: &str, p: &MaterialParams, l: f64) -> Option<f6
         }
         // Gent: μJm(λ² − 1/λ)/(Jm − I₁ + 3)
         "gent" => p.mu[0] * g(p.jm) * d / (g(p.jm) - i1 + 3.0),
-        // Arruda–Boyce: 2(λ² − 1/λ) μ Σ i Cᵢ I₁^(i−1)/λ_m^(2i−2)
-        "arruda-boyce" => 2.0 * d * invariant_derivatives(model, p, i1)?.0,
+        // Arruda–Boyce eight-chain: (μ/3)(λ² − 1/λ)(λ_L/λ̄) L⁻¹(λ̄/λ_L)
+        "arruda-boyce" => {
+            let (lm, lb) = (g(p.lambda_m), (i1 / 3.0).sqrt());
+            let x = lb / lm;
+            p.mu[0] / 3.0 * d * lm / lb * x * (3.0 - x * x) / (1.0 - x * x)
+        }
+        // Arruda–Boyce series: 2(λ² − 1/λ) μ Σ i Cᵢ I₁^(i−1)/λ_m^(2i−2)
+        "arruda-boyce-series" => 2.0 * d * invariant_derivatives(model, p, i1)?.0,
         // Ogden: Σ μₚ(λ^αₚ − λ^(−αₚ/2))
         "ogden" => {
             p.mu.iter()

@@ -4,11 +4,9 @@
 //! material-point reference of `analytic::viscoelastic_uniaxial` (Runge–Kutta, no element) and
 //! against the closed-form instantaneous and relaxed limits.
 
-use super::materials::AB_SERIES;
 use super::Case;
 use crate::analytic::viscoelastic_uniaxial;
 use crate::job::statics::{solve_static_from, StageTime};
-use crate::material::arruda_boyce::ArrudaBoyce;
 use crate::material::registry::{build, preset};
 use crate::material::Material;
 use crate::problem::examples::uniaxial_cell;
@@ -24,7 +22,7 @@ pub const STRETCH: f64 = 1.5;
 /// The preset `vhb4910-wang2016` with κ = 10⁴ G₀ (nearly incompressible, as the reference).
 #[derive(Debug, Clone)]
 pub struct Wang2016 {
-    /// Arruda–Boyce series coefficient μ (Pa).
+    /// Coefficient G₀ of the eight-chain form (Pa).
     pub mu: f64,
     /// Locking stretch λ_L.
     pub lambda_m: f64,
@@ -37,8 +35,7 @@ impl Wang2016 {
     pub fn new() -> Result<Self, String> {
         let (model, mut p) = preset("vhb4910-wang2016").ok_or("no preset vhb4910-wang2016")?;
         let lambda_m = p.lambda_m.ok_or("no λ_L")?;
-        let g0 = p.mu[0] * ArrudaBoyce::initial_shear_factor(lambda_m);
-        p.kappa = Some(1e4 * g0);
+        p.kappa = Some(1e4 * p.mu[0]);
         let (material, _) = build(model, &p).map_err(|e| e.to_string())?;
         Ok(Wang2016 {
             mu: p.mu[0],
@@ -53,12 +50,12 @@ impl Wang2016 {
         self.material.clone()
     }
 
-    /// ∂W/∂I₁ of the five-term Arruda–Boyce energy, μ Σ i Cᵢ I₁^(i−1)/λ_L^(2i−2).
+    /// ∂W/∂I₁ of the eight-chain energy, (G₀/6)(λ_L/λ̄) L⁻¹(λ̄/λ_L) with λ̄ = √(I₁/3) and Cohen's
+    /// Padé L⁻¹(x) = x(3 − x²)/(1 − x²).
     pub fn w1(&self, i1: f64) -> f64 {
-        let b = 1.0 / (self.lambda_m * self.lambda_m);
-        (0..5)
-            .map(|i| self.mu * (i + 1) as f64 * AB_SERIES[i] * (b * i1).powi(i as i32))
-            .sum()
+        let lb = (i1 / 3.0).sqrt();
+        let x = lb / self.lambda_m;
+        self.mu / 6.0 * self.lambda_m / lb * x * (3.0 - x * x) / (1.0 - x * x)
     }
 
     /// Nominal uniaxial stress of the equilibrium branch alone (the relaxed limit),
