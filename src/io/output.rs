@@ -1253,8 +1253,17 @@ impl Observer for OutputWriter {
             .output
             .plots
             .then_some((plots.as_path(), plan.output.plot_format.as_str()));
-        if let Err(e) = write_response(response, &self.dir, &stem, plots) {
-            self.failed(e);
+        let unit = |name: &str| {
+            plan.probes
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, p)| p.unit.clone())
+                .unwrap_or_default()
+        };
+        match write_response(response, &self.dir, &stem, plots, &unit) {
+            // a plot without finite values is a warning, as for the run's plots
+            Ok(skipped) => self.errors.extend(skipped),
+            Err(e) => self.failed(e),
         }
     }
 

@@ -1036,6 +1036,124 @@ mod tests {
         assert_eq!(downsample(&big, 2, 1, 2), vec![128, 128, 128, 10, 10, 10]);
     }
 
+    /// The points of `curves` inside the legend's box at `corner` for the ranges `x`, `y`.
+    fn under_legend(curves: &[Curve], corner: Corner, x: Range, y: Range) -> usize {
+        let (w, h) = legend_size(curves);
+        let (x0, y0) = match corner {
+            Corner::UpperRight => (1.0 - w, 1.0 - h),
+            Corner::UpperLeft => (0.0, 1.0 - h),
+            Corner::LowerRight => (1.0 - w, 0.0),
+            Corner::LowerLeft => (0.0, 0.0),
+        };
+        curves
+            .iter()
+            .flat_map(|c| c.points.iter())
+            .map(|p| ((p.0 - x.0) / (x.1 - x.0), (p.1 - y.0) / (y.1 - y.0)))
+            .filter(|p| p.0 >= x0 && p.0 <= x0 + w && p.1 >= y0 && p.1 <= y0 + h)
+            .count()
+    }
+
+    /// The legend goes to a corner without data: the load–unload loops of a cyclic material test
+    /// (`deasim material --test cyclic`) reach into the upper right corner, not the upper left;
+    /// when every corner holds data the y range grows so that the legend sits above the curves.
+    #[test]
+    fn the_legend_covers_no_data() {
+        // three loops from (1, 0) up to (2.5, 40…60 kPa) and back down to (1, −15…−30 kPa)
+        let series: Vec<Series> = [43e3, 55e3, 62e3]
+            .iter()
+            .enumerate()
+            .map(|(k, &peak)| {
+                let up = (0..=50).map(|i| i as f64 / 50.0);
+                let down = (0..=50).map(|i| 1.0 - i as f64 / 50.0);
+                let mut x = Vec::new();
+                let mut y = Vec::new();
+                for s in up {
+                    x.push(1.0 + 1.5 * s);
+                    y.push(peak * s.powf(0.3));
+                }
+                let low = -15e3 - 7e3 * k as f64;
+                for s in down {
+                    x.push(1.0 + 1.5 * s);
+                    y.push(low + (peak - low) * s.powi(2));
+                }
+                Series {
+                    label: format!("0.0{} 1/s", 2 * k + 1),
+                    x,
+                    y,
+                }
+            })
+            .collect();
+        let spec = PlotSpec {
+            title: "t",
+            x_label: "stretch λ [-]",
+            y_label: "nominal stress P₁₁ [Pa]",
+            series: &series,
+        };
+        let curves = prepare(Path::new("p.png"), &spec, Scale::Linear, Scale::Linear).unwrap();
+        let (x, y) = ranges(Path::new("p.png"), &curves).unwrap();
+        assert!(under_legend(&curves, Corner::UpperRight, x, y) > 0);
+        let (corner, y2) = place_legend(&curves, x, y);
+        assert_eq!(y2, y);
+        assert_ne!(corner, Corner::UpperRight);
+        assert_eq!(under_legend(&curves, corner, x, y2), 0);
+        // data in every corner: room is made at the top
+        let full = [
+            Series {
+                label: "a".into(),
+                x: vec![0.0, 1.0, 0.0, 1.0],
+                y: vec![0.0, 0.0, 1.0, 1.0],
+            },
+            Series {
+                label: "b".into(),
+                x: vec![0.5],
+                y: vec![0.5],
+            },
+        ];
+        let spec = PlotSpec {
+            series: &full,
+            ..spec
+        };
+        let curves = prepare(Path::new("p.png"), &spec, Scale::Linear, Scale::Linear).unwrap();
+        let (x, y) = ranges(Path::new("p.png"), &curves).unwrap();
+        let (corner, y2) = place_legend(&curves, x, y);
+        assert_eq!(corner, Corner::UpperRight);
+        assert!(y2.1 > y.1 && y2.0 == y.0);
+        assert_eq!(under_legend(&curves, corner, x, y2), 0);
+    }
+
+    /// A logarithmic axis is labelled at its decades with their values, and a gain's unit takes
+    /// the prefix of its numerator.
+    #[test]
+    fn log_axes_label_decades_and_gains_take_prefixes() {
+        assert_eq!(axis_tick(2.0, 4.0, true), "100");
+        assert_eq!(axis_tick(-7.0, 4.0, true), "1e-7");
+        assert_eq!(axis_tick(2.5, 4.0, true), "");
+        // less than two decades: the ticks between them too
+        assert_eq!(axis_tick(0.5, 1.0, true), "3.16");
+        assert_eq!(axis_tick(0.5, 1.0, false), "0.5");
+        let p = prefix_scale("|u| per volt [m/V]", [2e-6].into_iter());
+        assert_eq!(
+            scaled_label("|u| per volt [m/V]", &p),
+            "|u| per volt [µm/V]"
+        );
+        let p = prefix_scale("gain [V/V]", [2e-6].into_iter());
+        assert_eq!(p, NO_PREFIX);
+        // values ≤ 0 have no place on a logarithmic axis
+        let series = [Series {
+            label: "s".into(),
+            x: vec![1.0, 10.0, 100.0],
+            y: vec![1.0, 0.0, 2.0],
+        }];
+        let spec = PlotSpec {
+            title: "t",
+            x_label: "f [Hz]",
+            y_label: "g [m/V]",
+            series: &series,
+        };
+        let curves = prepare(Path::new("p.png"), &spec, Scale::Log, Scale::Log).unwrap();
+        assert_eq!(curves[0].points, vec![(1.0, 1.0), (100.0, 2.0)]);
+    }
+
     #[test]
     fn round_off_ticks_are_zero() {
         assert_eq!(tick_label(&snap_tick(-5.67e-22, 2.0)), "0");
