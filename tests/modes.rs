@@ -174,3 +174,73 @@ fn the_symmetry_of_a_model_names_the_modes_it_cannot_represent() {
     );
     assert_eq!(note("film"), None);
 }
+
+/// The mode shapes are written in the encoding of the field files (`output.vtu_format`).
+#[test]
+fn mode_files_follow_the_vtu_format() {
+    let dir = common::tempdir("modes-ascii");
+    let args = [
+        "modes",
+        "--count",
+        "2",
+        "--out",
+        "m",
+        "--set",
+        "mesh.radial=8",
+        "--set",
+        "mesh.layers=1",
+        "--set",
+        "output.vtu_format=\"ascii\"",
+    ];
+    let o = common::deasim(&args, &dir);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let path = dir.join("m/modes/mode_01.vtu");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        text.contains("format=\"ascii\""),
+        "{}",
+        &text[..text.len().min(2000)]
+    );
+    assert!(!text.contains("format=\"binary\""));
+    let v = deasim::io::vtu::read_vtu(&path).unwrap();
+    assert_eq!(v.point_data["mode_shape"].0, 3);
+}
+
+/// `deasim response` without `--bias` on the default scenario (the diaphragm, whose electrodes
+/// are at 0 V after its load stage): the capacitance has no response about 0 V, so its Bode plot
+/// is left out with a warning, the other plots are drawn, and the command succeeds.
+#[test]
+fn response_at_zero_bias_skips_the_capacitance_plot_with_a_warning() {
+    let dir = common::tempdir("response-zero-bias");
+    let args = [
+        "response",
+        "--points",
+        "4",
+        "--from",
+        "1",
+        "--to",
+        "100",
+        "--out",
+        "r",
+        "--set",
+        "mesh.radial=8",
+        "--set",
+        "mesh.layers=1",
+    ];
+    let o = common::deasim(&args, &dir);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("warning:") && stderr.contains("bode_capacitance.png"),
+        "{stderr}"
+    );
+    assert!(!dir.join("r/bode_capacitance.png").exists());
+    for probe in ["center_deflection", "charge"] {
+        assert!(dir.join(format!("r/bode_{probe}.png")).exists(), "{probe}");
+    }
+}

@@ -326,9 +326,35 @@ pub fn response(args: &ResponseArgs) -> Result<Outcome, (i32, String)> {
         solved_by: p.lin.solved_by(),
         warning: None,
     };
-    let written = write_response(&r, &dir, "frequency_response", Some((&dir, "png")));
-    written.and(results.record()).map_err(failed)?;
+    let unit = |name: &str| probe_unit(&p.plan, name);
+    let written = write_response(&r, &dir, "frequency_response", Some((&dir, "png")), &unit);
+    let recorded = results.record();
+    let skipped = written.map_err(failed)?;
+    recorded.map_err(failed)?;
+    for s in skipped {
+        eprintln!("warning: {s}");
+    }
     Ok((dir, r))
+}
+
+/// The unit of the probe `name` of `plan` (empty when unknown).
+fn probe_unit(plan: &Plan, name: &str) -> String {
+    plan.probes
+        .iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, p)| p.unit.clone())
+        .unwrap_or_default()
+}
+
+/// The axis title of the probe `name` of `plan`: `name [unit]`, so that the plot gives it a
+/// metric prefix (µm, pF), or the name alone when its unit is unknown.
+fn probe_label(plan: &Plan, name: &str) -> String {
+    let unit = probe_unit(plan, name);
+    if unit.is_empty() {
+        name.to_string()
+    } else {
+        format!("{name} [{unit}]")
+    }
 }
 
 /// Arguments of `deasim reduce`.
@@ -546,12 +572,13 @@ fn write_reduced(
                 },
             ];
             let path = dir.join(format!("compare_{name}.png"));
+            let y_label = probe_label(&p.plan, name);
             crate::io::plot::line_plot(
                 &path,
                 &PlotSpec {
                     title: &format!("{name}: reduced model against the finite element run"),
                     x_label: "stage time [s]",
-                    y_label: name,
+                    y_label: &y_label,
                     series: &series,
                 },
             )
@@ -634,4 +661,23 @@ fn fe_history(
         .map(|v| cols.iter().map(|&c| num(v[c])).collect())
         .collect();
     Ok((times, values))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The reduced model's comparison plots carry the probe's unit, as the run's plots do.
+    #[test]
+    fn compare_plots_name_the_probe_unit() {
+        let text = crate::io::examples::example("diaphragm").expect("example");
+        let s = crate::io::scenario::parse(text, "d.toml", &[]).expect("parse");
+        let plan = crate::io::build::build(&s, "d.toml", None).expect("build");
+        assert_eq!(
+            probe_label(&plan, "center_deflection"),
+            "center_deflection [m]"
+        );
+        assert_eq!(probe_label(&plan, "capacitance"), "capacitance [F]");
+        assert_eq!(probe_label(&plan, "no_such_probe"), "no_such_probe");
+    }
 }

@@ -3,17 +3,18 @@
 //! Written by a run's `modes` and `frequency-response` stages and by the commands alike.
 
 use crate::io::atomic::write_atomic;
-use crate::io::plot::{stacked_plot, PlotSpec, Series};
-use crate::io::vtu::{write_pvd, write_vtu, CellType, DataArray, VtuPiece};
+use crate::io::plot::{stacked_plot_scaled, PlotSpec, Scale, Series};
+use crate::io::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuPiece};
 use crate::job::linear::FrequencyResponse;
-use crate::job::plan::Plan;
+use crate::job::plan::{FieldFormat, Plan};
 use crate::problem::dofs::{FIELDS, PHI};
 use crate::time::modal::Mode;
 use std::fmt::Write as _;
 use std::path::Path;
 
 /// `<stem>.csv` (mode, frequency, eigenvalue, residual), `<stem>.pvd` and `<stem>/mode_NN.vtu`
-/// (the shapes scaled to a largest displacement of 1 on the deformed state `state`).
+/// (the shapes scaled to a largest displacement of 1 on the deformed state `state`), encoded as
+/// the field files (`output.vtu_format`).
 pub fn write_modes(
     plan: &Plan,
     dir: &Path,
@@ -84,7 +85,12 @@ pub fn write_modes(
             ],
             cell_data: Vec::new(),
         };
-        write_vtu(&shapes_dir.join(&name), &piece).map_err(|e| e.to_string())?;
+        let encoding = match plan.output.fields_format {
+            FieldFormat::Binary => Encoding::Binary,
+            FieldFormat::Compressed => Encoding::Compressed,
+            FieldFormat::Ascii => Encoding::Ascii,
+        };
+        write_vtu_as(&shapes_dir.join(&name), &piece, encoding).map_err(|e| e.to_string())?;
         entries.push((m.frequency, format!("{stem}/{name}")));
     }
     write_pvd(&dir.join(format!("{stem}.pvd")), &entries).map_err(|e| e.to_string())
@@ -114,35 +120,62 @@ pub fn response_csv(r: &FrequencyResponse) -> String {
     csv
 }
 
-/// `<stem>.csv` in `dir` and a Bode plot per probe, `bode_<probe>.<ext>` in `plots`.
+/// The unit of a probe's response per volt: `m` → `m/V`, a voltage's → `-`, a field's → `1/m`,
+/// a dimensionless probe's → `1/V`.
+pub fn per_volt(unit: &str) -> String {
+    match unit {
+        "" | "-" => "1/V".into(),
+        "V" => "-".into(),
+        "V/m" => "1/m".into(),
+        u => format!("{u}/V"),
+    }
+}
+
+/// `<stem>.csv` in `dir` and a Bode plot per probe, `bode_<probe>.<ext>` in `plots`: the
+/// magnitude per volt in the probe's unit per volt (`unit` gives a probe's unit by name) on a
+/// logarithmic axis above the unwrapped phase, against the frequency on a logarithmic axis in Hz.
+/// A probe without a finite response (a capacitance about 0 V) gets no plot: returns, for the
+/// caller to report, why each such plot was left out.
 pub fn write_response(
     r: &FrequencyResponse,
     dir: &Path,
     stem: &str,
     plots: Option<(&Path, &str)>,
-) -> Result<(), String> {
+    unit: &dyn Fn(&str) -> String,
+) -> Result<Vec<String>, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let path = dir.join(format!("{stem}.csv"));
     write_atomic(&path, response_csv(r).as_bytes())
         .map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut skipped = Vec::new();
     let Some((plots, ext)) = plots else {
-        return Ok(());
+        return Ok(skipped);
     };
     std::fs::create_dir_all(plots).map_err(|e| format!("{}: {e}", plots.display()))?;
     for (name, values) in &r.probes {
+        let suffix = stem.strip_prefix("frequency_response").unwrap_or(stem);
+        let path = plots.join(format!("bode_{name}{suffix}.{ext}"));
+        let magnitude: Vec<f64> = values.iter().map(|(re, im)| re.hypot(*im)).collect();
+        if !magnitude.iter().any(|m| m.is_finite()) {
+            skipped.push(format!(
+                "{}: not drawn: the response of `{name}` has no finite value (e.g. a \
+                 capacitance about 0 V); see {}",
+                path.display(),
+                dir.join(format!("{stem}.csv")).display()
+            ));
+            continue;
+        }
+        let magnitude_positive = magnitude.iter().any(|m| m.is_finite() && *m > 0.0);
         let mag = Series {
             label: name.clone(),
-            x: r.frequencies.iter().map(|f| f.log10()).collect(),
-            y: values
-                .iter()
-                .map(|(re, im)| re.hypot(*im).max(f64::MIN_POSITIVE).log10())
-                .collect(),
+            x: r.frequencies.clone(),
+            y: magnitude,
         };
         // the phase unwrapped (continuous across ±180°) for the plot
         let mut unwrapped: Vec<f64> = Vec::with_capacity(values.len());
         for (re, im) in values {
             let mut ph = im.atan2(*re).to_degrees();
-            if let Some(&last) = unwrapped.last() {
+            if let Some(&last) = unwrapped.iter().rev().find(|p| p.is_finite()) {
                 ph += 360.0 * ((last - ph) / 360.0).round();
             }
             unwrapped.push(ph);
@@ -152,26 +185,85 @@ pub fn write_response(
             x: mag.x.clone(),
             y: unwrapped,
         };
-        let suffix = stem.strip_prefix("frequency_response").unwrap_or(stem);
-        let path = plots.join(format!("bode_{name}{suffix}.{ext}"));
-        stacked_plot(
+        let gain = format!("|{name}| per volt [{}]", per_volt(&unit(name)));
+        stacked_plot_scaled(
             &path,
             &[
                 PlotSpec {
                     title: &format!("{name}: per volt on {} about {:.0} V", r.electrode, r.bias),
-                    x_label: "log10(frequency / Hz)",
-                    y_label: "log10(|response| per volt)",
+                    x_label: "frequency [Hz]",
+                    y_label: &gain,
                     series: std::slice::from_ref(&mag),
                 },
                 PlotSpec {
                     title: "",
-                    x_label: "log10(frequency / Hz)",
+                    x_label: "frequency [Hz]",
                     y_label: "phase [deg]",
                     series: std::slice::from_ref(&phase),
                 },
             ],
+            Scale::Log,
+            // a response that is zero throughout (a deflection about 0 V) on a linear axis
+            &[
+                if magnitude_positive {
+                    Scale::Log
+                } else {
+                    Scale::Linear
+                },
+                Scale::Linear,
+            ],
         )
         .map_err(|e| e.to_string())?;
     }
-    Ok(())
+    Ok(skipped)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::job::linear::ResponseMethod;
+
+    /// The Bode plot is drawn in the probe's unit per volt with its metric prefix against a
+    /// logarithmic frequency axis in Hz; a probe without a finite response (a capacitance about
+    /// 0 V) is left out and reported, and the other plots are drawn.
+    #[test]
+    fn bode_plots_carry_units_and_skip_probes_without_a_response() {
+        let dir = std::env::temp_dir().join(format!("deasim-bode-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let frequencies: Vec<f64> = (0..30).map(|i| 10f64.powf(i as f64 / 10.0)).collect();
+        let n = frequencies.len();
+        let r = FrequencyResponse {
+            electrode: "top".into(),
+            bias: 0.0,
+            frequencies,
+            probes: vec![
+                ("center_deflection".into(), vec![(2e-6, -1e-7); n]),
+                ("capacitance".into(), vec![(f64::NAN, f64::NAN); n]),
+                ("zero".into(), vec![(0.0, 0.0); n]),
+            ],
+            method: ResponseMethod::Direct,
+            solved_by: String::new(),
+            warning: None,
+        };
+        let unit = |name: &str| if name == "capacitance" { "F" } else { "m" }.to_string();
+        let skipped = write_response(&r, &dir, "frequency_response", Some((&dir, "svg")), &unit)
+            .expect("the other plots are drawn");
+        assert_eq!(skipped.len(), 1, "{skipped:?}");
+        assert!(skipped[0].contains("bode_capacitance.svg"), "{skipped:?}");
+        assert!(!dir.join("bode_capacitance.svg").exists());
+        let svg = std::fs::read_to_string(dir.join("bode_center_deflection.svg")).unwrap();
+        for text in [
+            "frequency [Hz]",
+            "|center_deflection| per volt [µm/V]",
+            "\n100\n",
+        ] {
+            assert!(svg.contains(text), "the Bode plot lacks {text:?}");
+        }
+        assert!(!svg.contains("log10"));
+        // a response that is zero throughout is drawn on a linear axis
+        assert!(dir.join("bode_zero.svg").exists());
+        assert_eq!(per_volt("V/m"), "1/m");
+        assert_eq!(per_volt("-"), "1/V");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -8,7 +8,7 @@ use super::atomic::write_atomic;
 use super::build::Plan;
 use super::linear::{write_modes, write_response};
 use super::pieces::Pieces;
-use super::plot::{line_plot, stacked_plot, PlotError, PlotSpec, Series};
+use super::plot::{stacked_plot, PlotError, PlotSpec, Series};
 use super::revolve::{Components, RevolvedMesh};
 use super::vtu::{
     write_pvd, write_pvtu, write_vtu_as, CellType, DataArray, Encoding, VtuError, VtuPiece,
@@ -849,137 +849,237 @@ impl OutputWriter {
             return;
         }
         let ext = &plan.output.plot_format;
-        let (t, x_label) = self.x_axis(plan);
-        let v: Vec<f64> = self.records.iter().map(|r| r.voltage).collect();
-        let mut plots: Vec<(String, String, String, Series, String)> = vec![(
-            "voltage".into(),
-            "largest electrode voltage".into(),
-            "voltage [V]".into(),
-            Series {
-                label: "voltage".into(),
-                x: t.clone(),
-                y: v.clone(),
-            },
-            x_label.clone(),
-        )];
-        // against the voltage only when it varies and moves continuously (a square wave's jumps
-        // would draw vertical lines)
-        let voltage_varies = v.iter().any(|&x| x != v[0]);
-        let continuous = plan.stages.iter().all(|s| {
-            !s.electrodes_on
-                || !matches!(
-                    s.kind,
-                    crate::job::plan::StageKind::Dynamic { .. }
-                        | crate::job::plan::StageKind::QuasiStatic { .. }
-                )
-                || plan.electrodes.iter().all(|e| e.voltage.is_continuous())
-        });
-        for (i, (name, probe)) in plan.probes.iter().enumerate() {
-            let y: Vec<f64> = self.records.iter().map(|r| r.probes[i]).collect();
-            let y_label = probe_axis(name, probe);
-            plots.push((
-                name.clone(),
-                format!("{name}: {}", probe.description),
-                y_label.clone(),
-                Series {
-                    label: name.clone(),
-                    x: t.clone(),
-                    y: y.clone(),
-                },
-                x_label.clone(),
-            ));
-            if voltage_varies && continuous {
-                plots.push((
-                    format!("{name}_vs_voltage"),
-                    format!("{name} against the voltage"),
-                    y_label,
-                    Series {
-                        label: name.clone(),
-                        x: v.clone(),
-                        y,
-                    },
-                    "voltage [V]".into(),
-                ));
-            }
-        }
-        // the plots are independent files: drawn on the pool's threads
         let dir = self.dir.join("plots");
-        let errors: Vec<PlotError> = plots
+        let jobs = run_plots(plan, &self.records, &self.path, &self.limits);
+        // the plots are independent files: drawn on the pool's threads
+        let errors: Vec<PlotError> = jobs
             .par_iter()
-            .filter_map(|(file, title, ylabel, series, xlabel)| {
-                let path = dir.join(format!("{file}.{ext}"));
-                let spec = PlotSpec {
-                    title,
-                    x_label: xlabel,
-                    y_label: ylabel,
-                    series: std::slice::from_ref(series),
-                };
-                line_plot(&path, &spec).err()
-            })
-            .collect();
-        for e in errors {
-            self.plot_error(e);
-        }
-        // dynamic stages: every probe above the voltage, over the stage only
-        let mut panels_to_draw = Vec::new();
-        for stage in &plan.stages {
-            if !matches!(
-                stage.kind,
-                crate::job::plan::StageKind::Dynamic { .. }
-                    | crate::job::plan::StageKind::QuasiStatic { .. }
-            ) {
-                continue;
-            }
-            let rows: Vec<&StepRecord> = self
-                .records
-                .iter()
-                .filter(|r| r.stage == stage.name)
-                .collect();
-            if rows.len() < 2 {
-                continue;
-            }
-            let t: Vec<f64> = rows.iter().map(|r| r.time).collect();
-            let voltage = Series {
-                label: "voltage".into(),
-                x: t.clone(),
-                y: rows.iter().map(|r| r.voltage).collect(),
-            };
-            for (i, name) in plan.probes.iter().map(|p| &p.0).enumerate() {
-                let probe = Series {
-                    label: name.clone(),
-                    x: t.clone(),
-                    y: rows.iter().map(|r| r.probes[i]).collect(),
-                };
-                let title = format!("{name} in stage {}", stage.name);
-                let path = dir.join(format!("{}_{name}_and_voltage.{ext}", stage.name));
-                let y_label = probe_axis(name, &plan.probes[i].1);
-                panels_to_draw.push((path, title, y_label, probe, voltage.clone()));
-            }
-        }
-        let errors: Vec<PlotError> = panels_to_draw
-            .par_iter()
-            .filter_map(|(path, title, y_label, probe, voltage)| {
-                let panels = [
-                    PlotSpec {
-                        title,
-                        x_label: "time [s]",
-                        y_label,
-                        series: std::slice::from_ref(probe),
-                    },
-                    PlotSpec {
-                        title: "largest electrode voltage",
-                        x_label: "time [s]",
-                        y_label: "voltage [V]",
-                        series: std::slice::from_ref(voltage),
-                    },
-                ];
-                stacked_plot(path, &panels).err()
+            .filter_map(|plot| {
+                let path = dir.join(format!("{}.{ext}", plot.file));
+                let specs: Vec<PlotSpec> = plot
+                    .panels
+                    .iter()
+                    .map(|p| PlotSpec {
+                        title: &p.title,
+                        x_label: &p.x_label,
+                        y_label: &p.y_label,
+                        series: &p.series,
+                    })
+                    .collect();
+                stacked_plot(&path, &specs).err()
             })
             .collect();
         for e in errors {
             self.plot_error(e);
         }
     }
+}
+
+/// One plot of a run: its file name without the extension and its panels, top to bottom.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct RunPlot {
+    pub file: String,
+    pub panels: Vec<RunPanel>,
+}
+
+/// One panel of a [`RunPlot`]: what [`PlotSpec`] borrows.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct RunPanel {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+}
+
+impl RunPanel {
+    fn new(title: String, x_label: &str, y_label: &str, series: Vec<Series>) -> Self {
+        RunPanel {
+            title,
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            series,
+        }
+    }
+}
+
+/// The plots of a run's `plots/` directory: the voltage and every probe against the run's
+/// abscissa ([`x_axis`]); every probe against the voltage, one curve per stage in which the
+/// voltage varies continuously; per dynamic or quasi-static stage every probe above the voltage;
+/// per continuation stage its parameter against every probe along the path, with the limit points.
+pub(crate) fn run_plots(
+    plan: &Plan,
+    records: &[StepRecord],
+    path: &[PathRecord],
+    limits: &[LimitRecord],
+) -> Vec<RunPlot> {
+    use crate::job::plan::StageKind;
+    let mut plots = Vec::new();
+    if records.is_empty() {
+        return plots;
+    }
+    let single = |file: String, title: String, x: &str, y: &str, series: Series| RunPlot {
+        file,
+        panels: vec![RunPanel::new(title, x, y, vec![series])],
+    };
+    let (t, x_label) = x_axis(plan, records, path);
+    let v: Vec<f64> = records.iter().map(|r| r.voltage).collect();
+    plots.push(single(
+        "voltage".into(),
+        "largest electrode voltage".into(),
+        &x_label,
+        "voltage [V]",
+        Series {
+            label: "voltage".into(),
+            x: t.clone(),
+            y: v.clone(),
+        },
+    ));
+    // against the voltage: per stage in which it varies (a stage at zero or held voltage would
+    // draw a vertical line), and moves continuously (a square wave's jumps would too); each curve
+    // starts at the state its stage starts from
+    let timed = |s: &crate::job::plan::Stage| {
+        matches!(
+            s.kind,
+            StageKind::Dynamic { .. } | StageKind::QuasiStatic { .. }
+        )
+    };
+    let jumps = |s: &crate::job::plan::Stage| {
+        s.electrodes_on && timed(s) && !plan.electrodes.iter().all(|e| e.voltage.is_continuous())
+    };
+    let mut varying: Vec<(&str, Vec<usize>)> = Vec::new();
+    for stage in &plan.stages {
+        let rows: Vec<usize> = (0..records.len())
+            .filter(|&i| records[i].stage == stage.name)
+            .collect();
+        let Some(&first) = rows.first() else {
+            continue;
+        };
+        let mut span = rows.clone();
+        if first > 0 {
+            span.insert(0, first - 1);
+        }
+        let varies = span.iter().any(|&i| v[i] != v[span[0]]);
+        if varies && !jumps(stage) {
+            varying.push((&stage.name, span));
+        }
+    }
+    for (i, (name, probe)) in plan.probes.iter().enumerate() {
+        let y: Vec<f64> = records.iter().map(|r| r.probes[i]).collect();
+        let y_label = probe_axis(name, probe);
+        plots.push(single(
+            name.clone(),
+            format!("{name}: {}", probe.description),
+            &x_label,
+            &y_label,
+            Series {
+                label: name.clone(),
+                x: t.clone(),
+                y: y.clone(),
+            },
+        ));
+        if !varying.is_empty() {
+            let series = varying
+                .iter()
+                .map(|(stage, rows)| Series {
+                    label: stage.to_string(),
+                    x: rows.iter().map(|&k| v[k]).collect(),
+                    y: rows.iter().map(|&k| y[k]).collect(),
+                })
+                .collect();
+            let title = match varying.as_slice() {
+                [(stage, _)] => format!("{name} against the voltage in stage {stage}"),
+                _ => format!("{name} against the voltage, stage by stage"),
+            };
+            plots.push(RunPlot {
+                file: format!("{name}_vs_voltage"),
+                panels: vec![RunPanel::new(title, "voltage [V]", &y_label, series)],
+            });
+        }
+    }
+    // dynamic stages: every probe above the voltage, over the stage only
+    for stage in plan.stages.iter().filter(|s| timed(s)) {
+        let rows: Vec<&StepRecord> = records.iter().filter(|r| r.stage == stage.name).collect();
+        if rows.len() < 2 {
+            continue;
+        }
+        let t: Vec<f64> = rows.iter().map(|r| r.time).collect();
+        let voltage = Series {
+            label: "voltage".into(),
+            x: t.clone(),
+            y: rows.iter().map(|r| r.voltage).collect(),
+        };
+        for (i, (name, probe)) in plan.probes.iter().enumerate() {
+            let series = Series {
+                label: name.clone(),
+                x: t.clone(),
+                y: rows.iter().map(|r| r.probes[i]).collect(),
+            };
+            plots.push(RunPlot {
+                file: format!("{}_{name}_and_voltage", stage.name),
+                panels: vec![
+                    RunPanel::new(
+                        format!("{name} in stage {}", stage.name),
+                        "time [s]",
+                        &probe_axis(name, probe),
+                        vec![series],
+                    ),
+                    RunPanel::new(
+                        "largest electrode voltage".into(),
+                        "time [s]",
+                        "voltage [V]",
+                        vec![voltage.clone()],
+                    ),
+                ],
+            });
+        }
+    }
+    // continuation stages: the parameter against every probe along the path (e.g. a balloon's
+    // pressure against its stretch, through the maximum and the minimum)
+    for stage in &plan.stages {
+        if !matches!(stage.kind, StageKind::Continuation { .. }) {
+            continue;
+        }
+        let points: Vec<&PathRecord> = path.iter().filter(|p| p.stage == stage.name).collect();
+        if points.len() < 2 {
+            continue;
+        }
+        let turns: Vec<&LimitRecord> = limits.iter().filter(|l| l.stage == stage.name).collect();
+        let (parameter, unit) = path_parameter(plan, &stage.name);
+        let y_label = format!("{parameter} [{unit}]");
+        for (i, (name, probe)) in plan.probes.iter().enumerate() {
+            let mut series = vec![Series {
+                label: "path".into(),
+                x: points.iter().map(|p| p.probes[i]).collect(),
+                y: points.iter().map(|p| p.parameter).collect(),
+            }];
+            if !turns.is_empty() {
+                // markers: single points between gaps
+                let (mut x, mut y) = (Vec::new(), Vec::new());
+                for l in &turns {
+                    x.extend([f64::NAN, l.probes.get(i).copied().unwrap_or(f64::NAN)]);
+                    y.extend([f64::NAN, l.parameter]);
+                }
+                series.push(Series {
+                    label: "limit points".into(),
+                    x,
+                    y,
+                });
+            }
+            plots.push(RunPlot {
+                file: format!("{}_path_{name}", stage.name),
+                panels: vec![RunPanel::new(
+                    format!(
+                        "{parameter} against {name} along the path of stage {}",
+                        stage.name
+                    ),
+                    &probe_axis(name, probe),
+                    &y_label,
+                    series,
+                )],
+            });
+        }
+    }
+    plots
 }
 
 /// A probe's axis title: `name [unit]`, or the name alone when its unit is unknown.
@@ -991,59 +1091,127 @@ pub fn probe_axis(name: &str, probe: &crate::job::probes::Probe) -> String {
     }
 }
 
-impl OutputWriter {
-    /// The abscissa of the run's plots and its title: the load factor when every recorded stage
-    /// is a load ramp in pseudo-time (static stages of elastic materials; one unit per stage),
-    /// else the time.
-    fn x_axis(&self, plan: &Plan) -> (Vec<f64>, String) {
-        use crate::job::plan::StageKind;
-        let time = || {
-            let t = self.records.iter().map(|r| r.time).collect();
-            (t, "time [s]".to_string())
-        };
-        let pseudo = plan
-            .model
-            .materials
-            .iter()
-            .all(|m| m.state_size() == 0 && m.maxwell_branches().is_empty());
-        let recorded: Vec<&crate::job::plan::Stage> = plan
-            .stages
-            .iter()
-            .filter(|s| self.records.iter().any(|r| r.stage == s.name))
+/// Per record, how far its stage has gone when that stage is a load ramp: the load factor of a
+/// static stage, the arc length over its final value (0 → 1, monotone, also where the load
+/// falls past a maximum) of a continuation stage; `None` in other stages.
+fn ramp_fractions(plan: &Plan, records: &[StepRecord], path: &[PathRecord]) -> Vec<Option<f64>> {
+    use crate::job::plan::StageKind;
+    let mut out = vec![None; records.len()];
+    let mut t0 = 0.0;
+    for s in &plan.stages {
+        let rows: Vec<usize> = (0..records.len())
+            .filter(|&i| records[i].stage == s.name)
             .collect();
-        if !pseudo
-            || recorded.is_empty()
-            || recorded
-                .iter()
-                .any(|s| !matches!(s.kind, StageKind::Static { .. }))
-        {
-            return time();
-        }
-        // stage k runs from the sum of the earlier durations; its load factor is the fraction
-        let mut start = std::collections::HashMap::new();
-        let (mut t0, mut k) = (0.0, 0.0);
-        for s in &plan.stages {
-            if matches!(s.kind, StageKind::Static { .. }) {
-                start.insert(s.name.as_str(), (t0, s.duration, k));
-                k += 1.0;
+        match s.kind {
+            StageKind::Static { .. } => {
+                for &i in &rows {
+                    if s.duration > 0.0 {
+                        out[i] = Some((records[i].time - t0) / s.duration);
+                    }
+                }
             }
-            t0 += s.duration;
+            StageKind::Continuation { .. } => {
+                // the stage's last records are its path points, in order (a first stage's
+                // initial and pre-stretch rows come before them, at its start)
+                let points: Vec<&PathRecord> = path.iter().filter(|p| p.stage == s.name).collect();
+                let total = points.last().map_or(0.0, |p| p.arc_length);
+                let before = rows.len().saturating_sub(points.len());
+                for (k, &i) in rows.iter().enumerate() {
+                    out[i] = Some(if k < before {
+                        0.0
+                    } else if points.len() == rows.len() - before && total > 0.0 {
+                        points[k - before].arc_length / total
+                    } else {
+                        // no path points (a resumed run): in the order of the records
+                        (k + 1 - before) as f64 / (rows.len() - before) as f64
+                    });
+                }
+            }
+            _ => {}
         }
-        let x = self
-            .records
+        t0 += s.duration;
+    }
+    out
+}
+
+/// The abscissa of a run's plots and its title. When every recorded stage is a load ramp in
+/// pseudo-time (static and continuation stages of elastic materials), each stage counts one unit:
+/// static stages by their load factor, continuation stages by their path (arc length over its
+/// final value), so that nothing runs backwards past a maximum of the load. Otherwise the time,
+/// with a continuation stage's span spread along its path; the title says when static stages'
+/// time is pseudo-time.
+fn x_axis(plan: &Plan, records: &[StepRecord], path: &[PathRecord]) -> (Vec<f64>, String) {
+    use crate::job::plan::StageKind;
+    let ramp = |s: &crate::job::plan::Stage| {
+        matches!(
+            s.kind,
+            StageKind::Static { .. } | StageKind::Continuation { .. }
+        )
+    };
+    let pseudo = plan
+        .model
+        .materials
+        .iter()
+        .all(|m| m.state_size() == 0 && m.maxwell_branches().is_empty());
+    let recorded: Vec<&crate::job::plan::Stage> = plan
+        .stages
+        .iter()
+        .filter(|s| records.iter().any(|r| r.stage == s.name))
+        .collect();
+    let fractions = ramp_fractions(plan, records, path);
+    // each stage's start: its index among the ramps, and its time
+    let mut start = std::collections::HashMap::new();
+    let (mut t0, mut k) = (0.0, 0.0);
+    for s in &plan.stages {
+        start.insert(s.name.as_str(), (t0, k));
+        if ramp(s) {
+            k += 1.0;
+        }
+        t0 += s.duration;
+    }
+    let continuation = |name: &str| {
+        plan.stages
             .iter()
-            .map(|r| match start.get(r.stage.as_str()) {
-                Some(&(t0, d, k)) if d > 0.0 => k + (r.time - t0) / d,
+            .find(|s| s.name == name)
+            .filter(|s| matches!(s.kind, StageKind::Continuation { .. }))
+    };
+    if pseudo && !recorded.is_empty() && recorded.iter().all(|s| ramp(s)) {
+        let x = records
+            .iter()
+            .zip(&fractions)
+            .map(|(r, f)| match (start.get(r.stage.as_str()), f) {
+                (Some(&(_, k)), Some(f)) => k + f,
                 _ => f64::NAN,
             })
             .collect();
-        let label = if recorded.len() == 1 {
-            "load factor [-]"
-        } else {
-            "load factor, stage by stage [-]"
+        let paths = recorded
+            .iter()
+            .filter(|s| continuation(&s.name).is_some())
+            .count();
+        let label = match (recorded.len(), paths) {
+            (1, 0) => "load factor [-]",
+            (_, 0) => "load factor, stage by stage [-]",
+            (1, _) => "pseudo-time: path, arc length over its final value [-]",
+            _ => "pseudo-time: load factor, or path in continuation stages, stage by stage [-]",
         };
-        (x, label.to_string())
+        return (x, label.to_string());
     }
+    let x = records
+        .iter()
+        .zip(&fractions)
+        .map(
+            |(r, f)| match (continuation(&r.stage), start.get(r.stage.as_str()), f) {
+                (Some(s), Some(&(t0, _)), Some(f)) => t0 + s.duration * f,
+                _ => r.time,
+            },
+        )
+        .collect();
+    let label = if pseudo && recorded.iter().any(|s| ramp(s)) {
+        "time, pseudo-time in static stages [s]"
+    } else {
+        "time [s]"
+    };
+    (x, label.to_string())
 }
 
 impl OutputWriter {
@@ -1094,8 +1262,17 @@ impl Observer for OutputWriter {
             .output
             .plots
             .then_some((plots.as_path(), plan.output.plot_format.as_str()));
-        if let Err(e) = write_response(response, &self.dir, &stem, plots) {
-            self.failed(e);
+        let unit = |name: &str| {
+            plan.probes
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, p)| p.unit.clone())
+                .unwrap_or_default()
+        };
+        match write_response(response, &self.dir, &stem, plots, &unit) {
+            // a plot without finite values is a warning, as for the run's plots
+            Ok(skipped) => self.errors.extend(skipped),
+            Err(e) => self.failed(e),
         }
     }
 
@@ -1276,6 +1453,161 @@ impl OutputWriter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The plan of a scenario of `scenarios/` with `--set` overrides.
+    fn scenario_plan(file: &str, overrides: &[&str]) -> Plan {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenarios")
+            .join(file);
+        let text = std::fs::read_to_string(&path).expect("scenario");
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        let s = crate::io::scenario::parse(&text, file, &overrides).expect("parse");
+        crate::io::build::build(&s, file, path.parent()).expect("build")
+    }
+
+    /// A record of stage `stage` at `time` with `voltage` and the probe values `probes`.
+    fn record(stage: &str, step: usize, time: f64, voltage: f64, probes: Vec<f64>) -> StepRecord {
+        StepRecord {
+            time,
+            stage: stage.into(),
+            step,
+            voltage,
+            newton_iterations: 0,
+            dt: 0.0,
+            energies: Default::default(),
+            probes,
+            max_electric_field: 0.0,
+            electrodes: Vec::new(),
+        }
+    }
+
+    fn find<'a>(plots: &'a [RunPlot], file: &str) -> &'a RunPlot {
+        plots
+            .iter()
+            .find(|p| p.file == file)
+            .unwrap_or_else(|| panic!("no plot {file}"))
+    }
+
+    /// A probe against the voltage gets one curve per stage in which the voltage varies: the
+    /// diaphragm's load stage (voltage 0, the sag grows) draws no vertical line in front of the
+    /// actuation loop, and the curve starts at the state the stage starts from.
+    #[test]
+    fn probes_against_the_voltage_are_drawn_per_stage_where_it_varies() {
+        let plan = scenario_plan(
+            "diaphragm.toml",
+            &["electrodes.top.voltage={waveform=\"sine\",amplitude=3000.0,frequency=2.0}"],
+        );
+        let n = plan.probes.len();
+        let mut records = vec![record("load", 0, 0.0, 0.0, vec![0.0; n])];
+        for k in 1..=4 {
+            records.push(record(
+                "load",
+                k,
+                0.25 * k as f64,
+                0.0,
+                vec![1e-4 * k as f64; n],
+            ));
+        }
+        for k in 1..=8 {
+            let t = 1.0 + 0.0625 * k as f64;
+            let v = 3000.0 * (2.0 * std::f64::consts::PI * 2.0 * (t - 1.0)).sin().powi(2);
+            records.push(record("actuate", k, t, v, vec![4e-4 + 1e-8 * v; n]));
+        }
+        let plots = run_plots(&plan, &records, &[], &[]);
+        let vs = find(&plots, "center_deflection_vs_voltage");
+        let series = &vs.panels[0].series;
+        assert_eq!(series.len(), 1, "{series:?}");
+        assert_eq!(series[0].label, "actuate");
+        // the stage's start (the load stage's last state) and its 8 steps
+        assert_eq!(series[0].x.len(), 9);
+        assert_eq!((series[0].x[0], series[0].y[0]), (0.0, 4e-4));
+        assert_eq!(
+            vs.panels[0].title,
+            "center_deflection against the voltage in stage actuate"
+        );
+        // the time axis says that the static stage's time is pseudo-time
+        let c = find(&plots, "center_deflection");
+        assert_eq!(
+            c.panels[0].x_label,
+            "time, pseudo-time in static stages [s]"
+        );
+        // a run whose voltage never varies has no such plot
+        let mut held = records.clone();
+        held.iter_mut().for_each(|r| r.voltage = 0.0);
+        let plots = run_plots(&plan, &held, &[], &[]);
+        assert!(!plots.iter().any(|p| p.file.ends_with("_vs_voltage")));
+    }
+
+    /// A continuation stage is drawn against its path (arc length), so that nothing runs back
+    /// where the load falls past its maximum; the axis says it is pseudo-time; the stage's
+    /// parameter is drawn against every probe along the path, with its limit points.
+    #[test]
+    fn continuation_stages_plot_their_path() {
+        let plan = scenario_plan("balloon.toml", &[]);
+        let n = plan.probes.len();
+        let stretch = plan
+            .probes
+            .iter()
+            .position(|(p, _)| p == "stretch")
+            .unwrap();
+        let mut records = vec![record("charge", 0, 0.0, 0.0, vec![1.0; n])];
+        for k in 1..=4 {
+            records.push(record(
+                "charge",
+                k,
+                0.25 * k as f64,
+                1250.0 * k as f64,
+                vec![1.0; n],
+            ));
+        }
+        // the load rises, falls past a maximum and rises again; the arc length grows
+        let loads = [0.2, 0.5, 0.4, 0.3, 0.6];
+        let mut path = Vec::new();
+        for (k, &s) in loads.iter().enumerate() {
+            let mut probes = vec![1.0; n];
+            probes[stretch] = 1.0 + 0.5 * (k + 1) as f64;
+            records.push(record("inflate", k + 1, 1.0 + s, 5e3, probes.clone()));
+            path.push(PathRecord {
+                stage: "inflate".into(),
+                point: k + 1,
+                load_factor: s,
+                parameter: 1e4 * s,
+                arc_length: 0.1 * (k + 1) as f64,
+                negative_pivots: None,
+                stable: true,
+                probes,
+            });
+        }
+        let limits = [LimitRecord {
+            stage: "inflate".into(),
+            maximum: true,
+            load_factor: 0.5,
+            parameter: 5e3,
+            probes: vec![2.0; n],
+        }];
+        let plots = run_plots(&plan, &records, &path, &limits);
+        let s = &find(&plots, "stretch").panels[0];
+        assert!(s.x_label.starts_with("pseudo-time"), "{}", s.x_label);
+        let x = &s.series[0].x;
+        assert!(x.windows(2).all(|w| w[1] >= w[0]), "{x:?}");
+        assert_eq!(x[4], 1.0);
+        assert!(
+            (x[9] - 2.0).abs() < 1e-12 && (x[5] - 1.2).abs() < 1e-12,
+            "{x:?}"
+        );
+        // the balloon's result: pressure against stretch through the maximum
+        let p = &find(&plots, "inflate_path_stretch").panels[0];
+        assert_eq!(p.x_label, "stretch [-]");
+        assert_eq!(p.y_label, "pressure_0 [Pa]");
+        assert_eq!(p.series[0].y, vec![2e3, 5e3, 4e3, 3e3, 6e3]);
+        assert_eq!(p.series[0].x, vec![1.5, 2.0, 2.5, 3.0, 3.5]);
+        assert_eq!(p.series[1].label, "limit points");
+        assert_eq!(p.series[1].y[1], 5e3);
+        // only the charge stage varies the voltage
+        let vs = &find(&plots, "stretch_vs_voltage").panels[0];
+        assert_eq!(vs.series.len(), 1);
+        assert_eq!(vs.series[0].label, "charge");
+    }
 
     /// The field files a run may leave, serial and shared: each with its index; nothing else.
     #[test]

@@ -101,6 +101,27 @@ pub fn line_plot(path: &Path, spec: &PlotSpec) -> Result<(), PlotError> {
 /// Draws each spec in its own panel, one above the other (500 px each), on a common x range:
 /// e.g. a response and the voltage that drives it. Rules as for [`line_plot`].
 pub fn stacked_plot(path: &Path, specs: &[PlotSpec]) -> Result<(), PlotError> {
+    stacked_plot_scaled(path, specs, Scale::Linear, &[])
+}
+
+/// The scale of an axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Scale {
+    #[default]
+    Linear,
+    /// Logarithmic: ticks at decades (values ≤ 0 are left out like non-finite ones).
+    Log,
+}
+
+/// [`stacked_plot`] with the scale of the common x axis and of each panel's y axis (`y_scales[i]`,
+/// linear when missing). A logarithmic x axis keeps the unit of its title (a frequency stays in
+/// Hz); a logarithmic y axis takes a metric prefix like a linear one.
+pub fn stacked_plot_scaled(
+    path: &Path,
+    specs: &[PlotSpec],
+    x_scale_kind: Scale,
+    y_scales: &[Scale],
+) -> Result<(), PlotError> {
     let format = match path
         .extension()
         .and_then(|e| e.to_str())
@@ -121,28 +142,40 @@ pub fn stacked_plot(path: &Path, specs: &[PlotSpec]) -> Result<(), PlotError> {
             reason: "no panel".to_string(),
         });
     }
+    let y_kind = |i: usize| y_scales.get(i).copied().unwrap_or_default();
     let mut prepared = Vec::with_capacity(specs.len());
-    for spec in specs {
-        prepared.push(prepare(path, spec)?);
+    for (i, spec) in specs.iter().enumerate() {
+        prepared.push(prepare(path, spec, x_scale_kind, y_kind(i))?);
     }
     // one x prefix for all panels (they share the x range), one y prefix per panel
-    let x_scale = prefix_scale(
-        specs[0].x_label,
-        prepared
-            .iter()
-            .flatten()
-            .flat_map(|c| c.points.iter().map(|p| p.0)),
-    );
+    let x_scale = match x_scale_kind {
+        Scale::Linear => prefix_scale(
+            specs[0].x_label,
+            prepared
+                .iter()
+                .flatten()
+                .flat_map(|c| c.points.iter().map(|p| p.0)),
+        ),
+        Scale::Log => NO_PREFIX,
+    };
     let mut labels = Vec::with_capacity(specs.len());
     let mut panels = Vec::with_capacity(specs.len());
-    for (spec, mut curves) in specs.iter().zip(prepared) {
+    for (i, (spec, mut curves)) in specs.iter().zip(prepared).enumerate() {
         let y_scale = prefix_scale(
             spec.y_label,
             curves.iter().flat_map(|c| c.points.iter().map(|p| p.1)),
         );
+        // a logarithmic axis is drawn in log10 of its (prefixed) values
+        let log = |v: f64, kind: Scale| match kind {
+            Scale::Linear => v,
+            Scale::Log => v.log10(),
+        };
         for c in &mut curves {
             for p in &mut c.points {
-                *p = (p.0 * x_scale.factor, p.1 * y_scale.factor);
+                *p = (
+                    log(p.0 * x_scale.factor, x_scale_kind),
+                    log(p.1 * y_scale.factor, y_kind(i)),
+                );
             }
         }
         labels.push((
@@ -152,23 +185,29 @@ pub fn stacked_plot(path: &Path, specs: &[PlotSpec]) -> Result<(), PlotError> {
         let r = ranges(path, &curves)?;
         panels.push((curves, r));
     }
+    let x_range = panels
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
+            (a.0.min(p.1 .0 .0), a.1.max(p.1 .0 .1))
+        });
     let panels: Vec<Panel> = panels
         .into_iter()
         .zip(specs)
         .zip(&labels)
-        .map(|(((curves, r), spec), (x, y))| Panel {
-            title: spec.title,
-            x_label: x,
-            y_label: y,
-            curves,
-            ranges: r,
+        .enumerate()
+        .map(|(i, (((curves, r), spec), (x, y)))| {
+            let (legend, y_range) = place_legend(&curves, x_range, r.1);
+            Panel {
+                title: spec.title,
+                x_label: x,
+                y_label: y,
+                curves,
+                ranges: (r.0, y_range),
+                legend,
+                log: (x_scale_kind == Scale::Log, y_kind(i) == Scale::Log),
+            }
         })
         .collect();
-    let x_range = panels
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
-            (a.0.min(p.ranges.0 .0), a.1.max(p.ranges.0 .1))
-        });
     ensure_font().map_err(|reason| PlotError::Font {
         path: path.to_path_buf(),
         reason,
@@ -232,6 +271,10 @@ struct Panel<'a, 's> {
     y_label: &'a str,
     curves: Vec<Curve<'s>>,
     ranges: (Range, Range),
+    /// The corner of the legend (drawn when there is more than one curve).
+    legend: Corner,
+    /// Whether the x and the y axis are logarithmic (values in log10).
+    log: (bool, bool),
 }
 
 /// Draws the panels top to bottom on the common x range.
@@ -275,7 +318,14 @@ impl Curve<'_> {
     }
 }
 
-fn prepare<'s>(path: &Path, spec: &PlotSpec<'s>) -> Result<Vec<Curve<'s>>, PlotError> {
+fn prepare<'s>(
+    path: &Path,
+    spec: &PlotSpec<'s>,
+    x_scale: Scale,
+    y_scale: Scale,
+) -> Result<Vec<Curve<'s>>, PlotError> {
+    // a logarithmic axis has no place for values ≤ 0
+    let shown = |v: f64, scale: Scale| v.is_finite() && (scale == Scale::Linear || v > 0.0);
     if spec.series.is_empty() {
         return Err(PlotError::NoData {
             path: path.to_path_buf(),
@@ -302,7 +352,7 @@ fn prepare<'s>(path: &Path, spec: &PlotSpec<'s>) -> Result<Vec<Curve<'s>>, PlotE
         let mut breaks = Vec::new();
         let mut gap = false;
         for (&x, &y) in s.x.iter().zip(&s.y) {
-            if x.is_finite() && y.is_finite() {
+            if shown(x, x_scale) && shown(y, y_scale) {
                 if gap && !points.is_empty() {
                     breaks.push(points.len());
                 }
@@ -374,6 +424,102 @@ fn snap_tick(v: f64, span: f64) -> f64 {
     }
 }
 
+/// The label of a tick at `v` on an axis of span `span`: a logarithmic axis (values in log10)
+/// labels the decades with their values (1, 10, 100, 1e5) and, when it spans less than two
+/// decades, the ticks between them with 3 significant digits; other ticks stay unlabelled.
+fn axis_tick(v: f64, span: f64, log: bool) -> String {
+    if !log {
+        return tick_label(&snap_tick(v, span));
+    }
+    if (v - v.round()).abs() <= 1e-9 * span.max(1.0) {
+        return tick_label(&10f64.powi(v.round() as i32));
+    }
+    if span < 2.0 {
+        let value = 10f64.powf(v);
+        let digits = 2 - value.log10().floor() as i32;
+        let rounded = (value * 10f64.powi(digits)).round() / 10f64.powi(digits);
+        return tick_label(&rounded);
+    }
+    String::new()
+}
+
+/// A corner of the plotting area.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Corner {
+    UpperRight,
+    UpperLeft,
+    LowerRight,
+    LowerLeft,
+}
+
+/// The legend's size as fractions (width, height) of the plotting area (about 685 × 390 px of
+/// a panel): a 14 px font, one row per curve, the sample line and the margins.
+fn legend_size(curves: &[Curve]) -> (f64, f64) {
+    let chars = curves
+        .iter()
+        .map(|c| c.label.chars().count())
+        .max()
+        .unwrap_or(0) as f64;
+    let width = 8.0 + 28.0 + 8.5 * chars + 14.0;
+    let height = 8.0 + 21.0 * curves.len() as f64 + 12.0;
+    (width / 685.0, height / 390.0)
+}
+
+/// Where the legend covers no data: the corner (upper right, upper left, lower right, lower left,
+/// in that order of preference) whose box holds the fewest points of the curves and of the
+/// straight lines between them, and the y range. When every corner covers data the y range is
+/// raised at the top to make room for the legend above the curves in the upper right corner.
+fn place_legend(curves: &[Curve], x: Range, y: Range) -> (Corner, Range) {
+    if curves.len() < 2 {
+        return (Corner::UpperRight, y);
+    }
+    let (w, h) = legend_size(curves);
+    // points in fractions of the area, the lines between neighbours sampled
+    let mut points = Vec::new();
+    for c in curves {
+        for run in c.runs() {
+            let frac = |p: &(f64, f64)| ((p.0 - x.0) / (x.1 - x.0), (p.1 - y.0) / (y.1 - y.0));
+            points.extend(run.iter().map(frac));
+            for pair in run.windows(2) {
+                let (a, b) = (frac(&pair[0]), frac(&pair[1]));
+                let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()) * 100.0).ceil() as usize;
+                for k in 1..n.min(1000) {
+                    let t = k as f64 / n as f64;
+                    points.push((a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1)));
+                }
+            }
+        }
+    }
+    let covered = |corner: Corner| {
+        let (x0, y0) = match corner {
+            Corner::UpperRight => (1.0 - w, 1.0 - h),
+            Corner::UpperLeft => (0.0, 1.0 - h),
+            Corner::LowerRight => (1.0 - w, 0.0),
+            Corner::LowerLeft => (0.0, 0.0),
+        };
+        points
+            .iter()
+            .filter(|p| p.0 >= x0 && p.0 <= x0 + w && p.1 >= y0 && p.1 <= y0 + h)
+            .count()
+    };
+    let corners = [
+        Corner::UpperRight,
+        Corner::UpperLeft,
+        Corner::LowerRight,
+        Corner::LowerLeft,
+    ];
+    let best = corners
+        .into_iter()
+        .min_by_key(|&c| covered(c))
+        .unwrap_or(Corner::UpperRight);
+    if covered(best) == 0 || h >= 0.9 {
+        return (best, y);
+    }
+    // the data's top stays below the legend: the old span takes 1 − h of the new one
+    let span = y.1 - y.0;
+    (Corner::UpperRight, (y.0, y.0 + span / (1.0 - h)))
+}
+
 /// Tick label: up to 10 significant digits, trailing zeros removed; exponent form outside
 /// [1e-3, 1e5) so SI values like 2.5e-6 m stay short.
 fn tick_label(v: &f64) -> String {
@@ -431,8 +577,9 @@ where
     let font = |size: u32| ("sans-serif", f64::from(size * k));
     let (y0, y1) = panel.ranges.1;
     root.fill(&WHITE).map_err(e)?;
-    let x_tick = |v: &f64| tick_label(&snap_tick(*v, x1 - x0));
-    let y_tick = |v: &f64| tick_label(&snap_tick(*v, y1 - y0));
+    let (x_log, y_log) = panel.log;
+    let x_tick = |v: &f64| axis_tick(*v, x1 - x0, x_log);
+    let y_tick = |v: &f64| axis_tick(*v, y1 - y0, y_log);
     let mut chart = ChartBuilder::on(&root)
         .caption(panel.title, font(22))
         .margin(px(15))
@@ -485,7 +632,12 @@ where
     if panel.curves.len() > 1 {
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(match panel.legend {
+                Corner::UpperRight => SeriesLabelPosition::UpperRight,
+                Corner::UpperLeft => SeriesLabelPosition::UpperLeft,
+                Corner::LowerRight => SeriesLabelPosition::LowerRight,
+                Corner::LowerLeft => SeriesLabelPosition::LowerLeft,
+            })
             .label_font(font(14))
             .margin(px(8))
             .legend_area_size(px(28))
@@ -549,7 +701,13 @@ fn label_unit(label: &str) -> Option<&str> {
 /// The metric prefix (f … T) that brings the largest magnitude of `values` into [1, 1000) when
 /// the axis title ends in a prefixable unit such as `[V]`; no prefix otherwise.
 fn prefix_scale(label: &str, values: impl Iterator<Item = f64>) -> Prefix {
-    if !label_unit(label).is_some_and(|u| PREFIXABLE.contains(&u)) {
+    // a unit per volt (a gain) takes the prefix on its numerator: m/V → µm/V
+    let prefixable = |u: &str| {
+        PREFIXABLE.contains(&u)
+            || u.strip_suffix("/V")
+                .is_some_and(|n| n != "V" && PREFIXABLE.contains(&n))
+    };
+    if !label_unit(label).is_some_and(prefixable) {
         return NO_PREFIX;
     }
     let largest = values
@@ -599,7 +757,7 @@ mod tests {
             y_label: "y",
             series: &series,
         };
-        let curves = prepare(Path::new("p.png"), &spec).unwrap();
+        let curves = prepare(Path::new("p.png"), &spec, Scale::Linear, Scale::Linear).unwrap();
         let runs: Vec<Vec<(f64, f64)>> = curves[0].runs().map(<[_]>::to_vec).collect();
         assert_eq!(
             runs,
@@ -876,6 +1034,124 @@ mod tests {
             255, 255, 255, 0, 0, 0, 10, 10, 10, 10, 10, 10,
         ];
         assert_eq!(downsample(&big, 2, 1, 2), vec![128, 128, 128, 10, 10, 10]);
+    }
+
+    /// The points of `curves` inside the legend's box at `corner` for the ranges `x`, `y`.
+    fn under_legend(curves: &[Curve], corner: Corner, x: Range, y: Range) -> usize {
+        let (w, h) = legend_size(curves);
+        let (x0, y0) = match corner {
+            Corner::UpperRight => (1.0 - w, 1.0 - h),
+            Corner::UpperLeft => (0.0, 1.0 - h),
+            Corner::LowerRight => (1.0 - w, 0.0),
+            Corner::LowerLeft => (0.0, 0.0),
+        };
+        curves
+            .iter()
+            .flat_map(|c| c.points.iter())
+            .map(|p| ((p.0 - x.0) / (x.1 - x.0), (p.1 - y.0) / (y.1 - y.0)))
+            .filter(|p| p.0 >= x0 && p.0 <= x0 + w && p.1 >= y0 && p.1 <= y0 + h)
+            .count()
+    }
+
+    /// The legend goes to a corner without data: the load–unload loops of a cyclic material test
+    /// (`deasim material --test cyclic`) reach into the upper right corner, not the upper left;
+    /// when every corner holds data the y range grows so that the legend sits above the curves.
+    #[test]
+    fn the_legend_covers_no_data() {
+        // three loops from (1, 0) up to (2.5, 40…60 kPa) and back down to (1, −15…−30 kPa)
+        let series: Vec<Series> = [43e3, 55e3, 62e3]
+            .iter()
+            .enumerate()
+            .map(|(k, &peak)| {
+                let up = (0..=50).map(|i| i as f64 / 50.0);
+                let down = (0..=50).map(|i| 1.0 - i as f64 / 50.0);
+                let mut x = Vec::new();
+                let mut y = Vec::new();
+                for s in up {
+                    x.push(1.0 + 1.5 * s);
+                    y.push(peak * s.powf(0.3));
+                }
+                let low = -15e3 - 7e3 * k as f64;
+                for s in down {
+                    x.push(1.0 + 1.5 * s);
+                    y.push(low + (peak - low) * s.powi(2));
+                }
+                Series {
+                    label: format!("0.0{} 1/s", 2 * k + 1),
+                    x,
+                    y,
+                }
+            })
+            .collect();
+        let spec = PlotSpec {
+            title: "t",
+            x_label: "stretch λ [-]",
+            y_label: "nominal stress P₁₁ [Pa]",
+            series: &series,
+        };
+        let curves = prepare(Path::new("p.png"), &spec, Scale::Linear, Scale::Linear).unwrap();
+        let (x, y) = ranges(Path::new("p.png"), &curves).unwrap();
+        assert!(under_legend(&curves, Corner::UpperRight, x, y) > 0);
+        let (corner, y2) = place_legend(&curves, x, y);
+        assert_eq!(y2, y);
+        assert_ne!(corner, Corner::UpperRight);
+        assert_eq!(under_legend(&curves, corner, x, y2), 0);
+        // data in every corner: room is made at the top
+        let full = [
+            Series {
+                label: "a".into(),
+                x: vec![0.0, 1.0, 0.0, 1.0],
+                y: vec![0.0, 0.0, 1.0, 1.0],
+            },
+            Series {
+                label: "b".into(),
+                x: vec![0.5],
+                y: vec![0.5],
+            },
+        ];
+        let spec = PlotSpec {
+            series: &full,
+            ..spec
+        };
+        let curves = prepare(Path::new("p.png"), &spec, Scale::Linear, Scale::Linear).unwrap();
+        let (x, y) = ranges(Path::new("p.png"), &curves).unwrap();
+        let (corner, y2) = place_legend(&curves, x, y);
+        assert_eq!(corner, Corner::UpperRight);
+        assert!(y2.1 > y.1 && y2.0 == y.0);
+        assert_eq!(under_legend(&curves, corner, x, y2), 0);
+    }
+
+    /// A logarithmic axis is labelled at its decades with their values, and a gain's unit takes
+    /// the prefix of its numerator.
+    #[test]
+    fn log_axes_label_decades_and_gains_take_prefixes() {
+        assert_eq!(axis_tick(2.0, 4.0, true), "100");
+        assert_eq!(axis_tick(-7.0, 4.0, true), "1e-7");
+        assert_eq!(axis_tick(2.5, 4.0, true), "");
+        // less than two decades: the ticks between them too
+        assert_eq!(axis_tick(0.5, 1.0, true), "3.16");
+        assert_eq!(axis_tick(0.5, 1.0, false), "0.5");
+        let p = prefix_scale("|u| per volt [m/V]", [2e-6].into_iter());
+        assert_eq!(
+            scaled_label("|u| per volt [m/V]", &p),
+            "|u| per volt [µm/V]"
+        );
+        let p = prefix_scale("gain [V/V]", [2e-6].into_iter());
+        assert_eq!(p, NO_PREFIX);
+        // values ≤ 0 have no place on a logarithmic axis
+        let series = [Series {
+            label: "s".into(),
+            x: vec![1.0, 10.0, 100.0],
+            y: vec![1.0, 0.0, 2.0],
+        }];
+        let spec = PlotSpec {
+            title: "t",
+            x_label: "f [Hz]",
+            y_label: "g [m/V]",
+            series: &series,
+        };
+        let curves = prepare(Path::new("p.png"), &spec, Scale::Log, Scale::Log).unwrap();
+        assert_eq!(curves[0].points, vec![(1.0, 1.0), (100.0, 2.0)]);
     }
 
     #[test]
