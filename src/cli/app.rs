@@ -268,8 +268,10 @@ impl Observer for Progress {
         }
         self.done += 1;
         let msg = format!(
-            "t = {:.4} s, V = {:.1} V, {} Newton it.",
-            r.time, r.voltage, r.newton_iterations
+            "t = {}, V = {:.1} V, {} Newton it.",
+            progress_time(r.time, r.dt),
+            r.voltage,
+            r.newton_iterations
         );
         match &self.bar {
             Some(b) => {
@@ -1265,6 +1267,25 @@ fn execute(
     }
 }
 
+/// The time of a progress line with the digits its step `dt` needs (s): `0.5000 s`, or in µs
+/// below 10 ms (`12.5 µs`), so that successive µs steps do not all read `t = 0.0000 s`.
+fn progress_time(t: f64, dt: f64) -> String {
+    let step = if dt > 0.0 { dt } else { t.abs() };
+    // decimals that resolve the step in `unit`
+    let decimals = |unit: f64| {
+        if step > 0.0 && step.is_finite() {
+            ((-(step / unit).log10()).ceil() as i64 + 1).clamp(0, 9) as usize
+        } else {
+            0
+        }
+    };
+    if t != 0.0 && t.abs() < 1e-2 {
+        format!("{:.*} µs", decimals(1e-6).max(1), t * 1e6)
+    } else {
+        format!("{:.*} s", decimals(1.0).max(4), t)
+    }
+}
+
 /// `deasim check`; with `trial`, the first steps are solved to estimate the run's time and disk use.
 pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
     match load(Some(scenario), overrides) {
@@ -1548,5 +1569,20 @@ pub fn cmd_example(name: Option<&str>) -> i32 {
                 EXIT_BAD_INPUT
             }
         },
+    }
+}
+
+#[cfg(test)]
+mod progress_tests {
+    use super::progress_time;
+
+    /// µs steps are told apart; a ms step keeps its four decimals.
+    #[test]
+    fn progress_time_resolves_the_step() {
+        assert_eq!(progress_time(12.5e-6, 2.5e-6), "12.5 µs");
+        assert_eq!(progress_time(13e-6, 1e-6), "13.0 µs");
+        assert_ne!(progress_time(1e-6, 1e-6), progress_time(2e-6, 1e-6));
+        assert_eq!(progress_time(0.5, 1e-3), "0.5000 s");
+        assert_eq!(progress_time(0.0, 1e-3), "0.0000 s");
     }
 }
