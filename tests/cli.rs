@@ -1178,3 +1178,53 @@ fn run_names_the_override_of_an_error() {
     assert!(text.contains("`--set stages.1.dt=1e-300`"), "{text}");
     assert!(text.contains("steps of 1e-300 s"), "{text}");
 }
+
+/// A `--set` of the swept path is refused (exit 2) rather than silently overridden, and
+/// `sweep.csv` has a `min` column beside `max`.
+#[test]
+fn sweep_refuses_a_set_of_its_path_and_tabulates_the_minimum() {
+    let dir = tempdir("sweep-min");
+    let o = deasim(
+        &[
+            "sweep",
+            "film",
+            "--set-range",
+            "electrodes.top.voltage.amplitude=1e3,2e3",
+            "--set",
+            "electrodes.top.voltage.amplitude=5e3",
+            "--out",
+            "bad",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("which the sweep varies"), "{err}");
+    let o = deasim(
+        &[
+            "sweep",
+            "film",
+            "--set-range",
+            "electrodes.top.voltage.amplitude=1e3,2e3",
+            "--set",
+            "mesh.divisions=[1, 1, 1]",
+            "--set",
+            "stages.0.steps=2",
+            "--out",
+            "sw",
+        ],
+        &dir,
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.join("sw/sweep.csv")).unwrap();
+    let header = csv.lines().next().unwrap();
+    assert!(
+        header.contains("thickness_stretch:final,thickness_stretch:min,thickness_stretch:max"),
+        "{header}"
+    );
+}
