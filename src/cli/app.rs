@@ -1164,7 +1164,8 @@ fn prepare_resume(
         let (text, _, _) = read_scenario(Some(p)).map_err(|e| e.to_string())?;
         if text != src.text {
             return Err(format!(
-                "{} differs from the scenario stored in the checkpoint (`{}`); resume without a                  scenario argument to use the stored one",
+                "{} differs from the scenario stored in the checkpoint (`{}`); resume without a \
+                 scenario argument to use the stored one",
                 p.display(),
                 src.file
             ));
