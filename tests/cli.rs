@@ -1228,3 +1228,19 @@ fn sweep_refuses_a_set_of_its_path_and_tabulates_the_minimum() {
         "{header}"
     );
 }
+
+/// The lumped report says "linearised about" once and explains its C(x₀) against the finite
+/// element capacitance.
+#[test]
+fn lumped_report_reads_once_and_explains_its_capacitance() {
+    let dir = tempdir("lumped-report");
+    let out = deasim(&["lumped", "diaphragm", "--out", "lp"], &dir);
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert_eq!(text.matches("linearised about").count(), 1, "{text}");
+    assert!(
+        text.contains("C(x0) is the lumped model's parallel-plate"),
+        "{text}"
+    );
+    assert!(text.contains("fringing"), "{text}");
+}
