@@ -1120,3 +1120,127 @@ fn several_mpi_processes_are_refused_where_they_would_repeat_the_work() {
         .unwrap();
     assert!(one.status.success(), "{}", stderr(&one));
 }
+
+/// `check` reports a trial that failed as a problem (exit 2): a disc 1e-300 m thick cannot take
+/// its pre-stretch. It prints an axisymmetric model's gravity in the scenario's order.
+#[test]
+fn check_reports_a_failed_trial_and_gravity_as_given() {
+    let dir = tempdir("check-trial");
+    let out = deasim(
+        &["check", "diaphragm", "--set", "mesh.thickness=1e-300"],
+        &dir,
+    );
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{text}");
+    assert!(!text.contains("problems: none"), "{text}");
+    assert!(text.contains("the trial run failed"), "{text}");
+    let out = deasim(&["check", "diaphragm"], &dir);
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(text.contains("gravity: [0, 0, -9.81] m/s²"), "{text}");
+}
+
+/// A generated mesh typed in mm (10 m across) gets the warning a Gmsh file gets, naming the key.
+#[test]
+fn generated_mesh_in_mm_is_warned_about() {
+    let dir = tempdir("mm-box");
+    let out = deasim(
+        &["check", "film", "--set", "mesh.size=[10.0, 10.0, 1.0]"],
+        &dir,
+    );
+    let text = stderr(&out);
+    assert!(
+        text.contains("`mesh.size`") && text.contains("in mm"),
+        "{text}"
+    );
+    let out = deasim(&["check", "film"], &dir);
+    assert!(!stderr(&out).contains("in mm"), "{}", stderr(&out));
+}
+
+/// `run` names the `--set` that gave a wrong value, as `check` does, and prints no 300-digit
+/// number.
+#[test]
+fn run_names_the_override_of_an_error() {
+    let dir = tempdir("run-blame");
+    let out = deasim(
+        &[
+            "run",
+            "diaphragm",
+            "--out",
+            "o",
+            "--set",
+            "stages.1.dt=1e-300",
+        ],
+        &dir,
+    );
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{text}");
+    assert!(text.contains("`--set stages.1.dt=1e-300`"), "{text}");
+    assert!(text.contains("steps of 1e-300 s"), "{text}");
+}
+
+/// A `--set` of the swept path is refused (exit 2) rather than silently overridden, and
+/// `sweep.csv` has a `min` column beside `max`.
+#[test]
+fn sweep_refuses_a_set_of_its_path_and_tabulates_the_minimum() {
+    let dir = tempdir("sweep-min");
+    let o = deasim(
+        &[
+            "sweep",
+            "film",
+            "--set-range",
+            "electrodes.top.voltage.amplitude=1e3,2e3",
+            "--set",
+            "electrodes.top.voltage.amplitude=5e3",
+            "--out",
+            "bad",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("which the sweep varies"), "{err}");
+    let o = deasim(
+        &[
+            "sweep",
+            "film",
+            "--set-range",
+            "electrodes.top.voltage.amplitude=1e3,2e3",
+            "--set",
+            "mesh.divisions=[1, 1, 1]",
+            "--set",
+            "stages.0.steps=2",
+            "--out",
+            "sw",
+        ],
+        &dir,
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.join("sw/sweep.csv")).unwrap();
+    let header = csv.lines().next().unwrap();
+    assert!(
+        header.contains("thickness_stretch:final,thickness_stretch:min,thickness_stretch:max"),
+        "{header}"
+    );
+}
+
+/// The lumped report says "linearised about" once and explains its C(x₀) against the finite
+/// element capacitance.
+#[test]
+fn lumped_report_reads_once_and_explains_its_capacitance() {
+    let dir = tempdir("lumped-report");
+    let out = deasim(&["lumped", "diaphragm", "--out", "lp"], &dir);
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert_eq!(text.matches("linearised about").count(), 1, "{text}");
+    assert!(
+        text.contains("C(x0) is the lumped model's parallel-plate"),
+        "{text}"
+    );
+    assert!(text.contains("fringing"), "{text}");
+}

@@ -456,6 +456,12 @@ fn bad_checkpoints_are_refused() {
         &[other.to_str().unwrap()],
         "differs from the scenario",
     );
+    // one space between the words of the message, not a run of blanks
+    refuse(
+        &good,
+        &[other.to_str().unwrap()],
+        "resume without a scenario argument",
+    );
     refuse(
         &good,
         &["--set", "stages.0.steps=3"],

@@ -14,6 +14,7 @@ use crate::job::linear::{FrequencyResponse, ResponseMethod};
 use crate::job::run::{run_with, Observer, RunState, RunSummary, StepRecord};
 use crate::solve::newton::NewtonSettings;
 use crate::time::modal::Mode;
+use crate::units::Short;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -271,8 +272,10 @@ impl Observer for Progress {
         }
         self.done += 1;
         let msg = format!(
-            "t = {:.4} s, V = {:.1} V, {} Newton it.",
-            r.time, r.voltage, r.newton_iterations
+            "t = {}, V = {:.1} V, {} Newton it.",
+            progress_time(r.time, r.dt),
+            r.voltage,
+            r.newton_iterations
         );
         match &self.bar {
             Some(b) => {
@@ -338,7 +341,7 @@ pub fn cmd_run(
         ranks,
         pieces,
         fingerprint,
-    } = match plan_on_ranks(&s, &name, base.as_deref(), true, |_| Ok(())) {
+    } = match plan_on_ranks(&s, &name, base.as_deref(), overrides, true, |_| Ok(())) {
         Ok(p) => p,
         Err((code, e)) => {
             if !e.is_empty() {
@@ -445,15 +448,18 @@ fn plan_on_ranks(
     s: &crate::io::scenario::Scenario,
     file: &str,
     base: Option<&Path>,
+    overrides: &[String],
     parts: bool,
     check: impl Fn(&Plan) -> Result<(), String>,
 ) -> Result<RankPlan, (i32, String)> {
     let bad = |e: String| (EXIT_BAD_INPUT, e);
+    // a value from a `--set` is named, as `check` names it
+    let blame = |e| crate::io::scenario::blame_override(e, overrides).to_string();
     // every rank reads the solver settings: PETSc's check of its options is collective (each
     // rank finds the same fault: one says it)
     let solver = crate::io::build::solver_settings(s, file).map_err(|e| {
         bad(if launched_rank() == 0 {
-            e.to_string()
+            blame(e)
         } else {
             String::new()
         })
@@ -462,8 +468,8 @@ fn plan_on_ranks(
     // `geometry`: whether the plan holds its cells' geometry (rank 0 of a run that may be cut
     // into parts builds it without: each part computes its own cells')
     let whole = |rank: usize, geometry: bool| -> Result<Plan, (i32, String)> {
-        let plan = crate::io::build::build_with(s, file, base, geometry)
-            .map_err(|e| bad(e.to_string()))?;
+        let plan =
+            crate::io::build::build_with(s, file, base, geometry).map_err(|e| bad(blame(e)))?;
         if ranks > 1 {
             verbose(&format!(
                 "deasim: rank {rank}: built the whole plan ({} nodes, {} cells)",
@@ -965,7 +971,7 @@ pub fn cmd_resume(
                 ranks,
                 pieces,
                 ..
-            } = match plan_on_ranks(&s, &source.file, base, parts, check) {
+            } = match plan_on_ranks(&s, &source.file, base, &source.overrides, parts, check) {
                 Ok(p) => p,
                 Err((code, e)) => {
                     if !e.is_empty() {
@@ -1173,7 +1179,8 @@ fn prepare_resume(
         let (text, _, _) = read_scenario(Some(p)).map_err(|e| e.to_string())?;
         if text != src.text {
             return Err(format!(
-                "{} differs from the scenario stored in the checkpoint (`{}`); resume without a                  scenario argument to use the stored one",
+                "{} differs from the scenario stored in the checkpoint (`{}`); resume without a \
+                 scenario argument to use the stored one",
                 p.display(),
                 src.file
             ));
@@ -1303,6 +1310,25 @@ fn execute(
     }
 }
 
+/// The time of a progress line with the digits its step `dt` needs (s): `0.5000 s`, or in µs
+/// below 10 ms (`12.5 µs`), so that successive µs steps do not all read `t = 0.0000 s`.
+fn progress_time(t: f64, dt: f64) -> String {
+    let step = if dt > 0.0 { dt } else { t.abs() };
+    // decimals that resolve the step in `unit`
+    let decimals = |unit: f64| {
+        if step > 0.0 && step.is_finite() {
+            ((-(step / unit).log10()).ceil() as i64 + 1).clamp(0, 9) as usize
+        } else {
+            0
+        }
+    };
+    if t != 0.0 && t.abs() < 1e-2 {
+        format!("{:.*} µs", decimals(1e-6).max(1), t * 1e6)
+    } else {
+        format!("{:.*} s", decimals(1.0).max(4), t)
+    }
+}
+
 /// `deasim check`; with `trial`, the first steps are solved to estimate the run's time and disk use.
 pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
     match load(Some(scenario), overrides) {
@@ -1351,11 +1377,17 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                 .zip(&plan.densities)
                 .find(|(_, &r)| r > 0.0);
             if let Some((b, rho)) = g {
+                // in the scenario's order: a meridian model holds (R, Z, 0), the scenario (x, y, z)
+                let b = if plan.model.is_axisymmetric() {
+                    [b[0], b[2], b[1]]
+                } else {
+                    [b[0], b[1], b[2]]
+                };
                 println!(
                     "gravity: [{}, {}, {}] m/s²",
-                    b[0] / rho,
-                    b[1] / rho,
-                    b[2] / rho
+                    Short(b[0] / rho),
+                    Short(b[1] / rho),
+                    Short(b[2] / rho)
                 );
             }
             for r in &plan.rigid {
@@ -1445,10 +1477,20 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                     .collect::<Vec<_>>()
                     .join(", ")
             );
-            println!("problems: none");
             let mut warnings = plan.warnings.clone();
+            let mut problems = Vec::new();
             if trial {
-                warnings.extend(print_estimate(&plan));
+                let (w, p) = print_estimate(&plan);
+                warnings.extend(w);
+                problems.extend(p);
+            }
+            if problems.is_empty() {
+                println!("problems: none");
+            } else {
+                println!("problems:");
+                for p in &problems {
+                    println!("  {p}");
+                }
             }
             if !warnings.is_empty() {
                 println!("warnings:");
@@ -1456,7 +1498,11 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                     println!("  {w}");
                 }
             }
-            EXIT_OK
+            if problems.is_empty() {
+                EXIT_OK
+            } else {
+                EXIT_BAD_INPUT
+            }
         }
         Err(e) => {
             println!("problems:\n  {e}");
@@ -1465,12 +1511,26 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
     }
 }
 
-/// Prints the estimate of a short trial run; returns the warnings of a long run or large output.
-fn print_estimate(plan: &Plan) -> Vec<String> {
-    use super::estimate::{estimate, human_bytes, human_duration, LARGE_OUTPUT_BYTES, LONG_RUN_S};
+/// Prints the estimate of a short trial run; returns the warnings of a long run or large output
+/// (or of a trial that reached a limit point, where the run will stop) and the problems: a trial
+/// that failed otherwise.
+fn print_estimate(plan: &Plan) -> (Vec<String>, Vec<String>) {
+    use super::estimate::{
+        estimate, human_bytes, human_duration, TrialError, LARGE_OUTPUT_BYTES, LONG_RUN_S,
+    };
     let mut warnings = Vec::new();
+    let mut problems = Vec::new();
     match estimate(plan) {
         Ok(e) => {
+            // a trial stopped at a limit point shows where the run will stop; any other
+            // failure is a problem of the scenario
+            if let Some(f) = &e.failure {
+                if f.contains("pull-in") || f.contains("limit point") {
+                    warnings.push(format!("the trial stopped: {f}"));
+                } else {
+                    problems.push(format!("the trial run failed: {f}"));
+                }
+            }
             println!(
                 "estimate: {} for {} steps (each stage's steps at the rate of a trial of its \
                  first steps, {} steps in {} stage(s); cut-back steps and slower convergence \
@@ -1512,9 +1572,13 @@ fn print_estimate(plan: &Plan) -> Vec<String> {
                 ));
             }
         }
-        Err(e) => println!("estimate: none ({e})"),
+        Err(TrialError::NoSteps(e)) => println!("estimate: none ({e})"),
+        Err(TrialError::Failed(e)) => {
+            println!("estimate: none (the trial failed)");
+            problems.push(format!("the trial run failed: {e}"));
+        }
     }
-    warnings
+    (warnings, problems)
 }
 
 /// `deasim example [NAME]`.
@@ -1548,5 +1612,20 @@ pub fn cmd_example(name: Option<&str>) -> i32 {
                 EXIT_BAD_INPUT
             }
         },
+    }
+}
+
+#[cfg(test)]
+mod progress_tests {
+    use super::progress_time;
+
+    /// µs steps are told apart; a ms step keeps its four decimals.
+    #[test]
+    fn progress_time_resolves_the_step() {
+        assert_eq!(progress_time(12.5e-6, 2.5e-6), "12.5 µs");
+        assert_eq!(progress_time(13e-6, 1e-6), "13.0 µs");
+        assert_ne!(progress_time(1e-6, 1e-6), progress_time(2e-6, 1e-6));
+        assert_eq!(progress_time(0.5, 1e-3), "0.5000 s");
+        assert_eq!(progress_time(0.0, 1e-3), "0.0000 s");
     }
 }

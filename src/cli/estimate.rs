@@ -40,6 +40,8 @@ pub struct Estimate {
     pub field_files: usize,
     /// Size of `history.csv` (bytes, estimated per record from the trial's file).
     pub history_bytes: u64,
+    /// Why the trial's run failed before the trial was done, if it did.
+    pub failure: Option<String>,
 }
 
 impl Estimate {
@@ -132,18 +134,29 @@ fn nominal_records(plan: &Plan) -> usize {
         .sum::<usize>()
 }
 
-/// The field files a run of `records` records writes: every `fields_every`-th record counting
-/// from the first, and the state at the end of every stage.
-fn field_files(plan: &Plan, records: usize) -> usize {
-    let stage_ends = plan
-        .stages
-        .iter()
-        .filter(|s| !s.kind.is_linearised())
-        .count();
-    match plan.output.fields_every {
-        0 => stage_ends.max(1),
-        n => records.div_ceil(n) + stage_ends,
+/// The field files a run writes, as the output writer decides: every `fields_every`-th record
+/// counting from the first (the initial state, in the first stage), the last record of a stage
+/// followed by another unless it was written already, and the last record of the run (the only
+/// one with `fields_every = 0`).
+fn field_files(plan: &Plan) -> usize {
+    // the stage of every record: the initial state, then each stage's nominal steps
+    let mut stage_of = Vec::new();
+    for (i, s) in plan.stages.iter().enumerate() {
+        let n = s.kind.nominal_steps(s.duration) + usize::from(i == 0);
+        stage_of.extend(std::iter::repeat_n(i, n));
     }
+    let every = plan.output.fields_every;
+    if every == 0 {
+        return 1;
+    }
+    let last = stage_of.len().saturating_sub(1);
+    (0..stage_of.len())
+        .filter(|&i| {
+            i.is_multiple_of(every)
+                || i == last
+                || stage_of.get(i + 1).is_some_and(|&next| next != stage_of[i])
+        })
+        .count()
 }
 
 /// A scratch directory for the trial, removed when dropped.
@@ -171,9 +184,18 @@ fn largest_file(dir: &Path, prefix: &str) -> u64 {
         .unwrap_or(0)
 }
 
+/// Why a trial gave no estimate.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrialError {
+    /// The trial's run failed (a problem of the scenario).
+    Failed(String),
+    /// It solved no step for another reason (e.g. the scratch directory, or no stage that steps).
+    NoSteps(String),
+}
+
 /// Solves the first steps of `plan` in a scratch directory and scales them to the whole run.
 /// An error says why no estimate could be made (the trial failed before two steps).
-pub fn estimate(plan: &Plan) -> Result<Estimate, String> {
+pub fn estimate(plan: &Plan) -> Result<Estimate, TrialError> {
     let scratch = Scratch(std::env::temp_dir().join(format!(
         "deasim-check-{}-{}",
         std::process::id(),
@@ -183,8 +205,8 @@ pub fn estimate(plan: &Plan) -> Result<Estimate, String> {
     trial.output.plots = false;
     // the first record and the last state: one full field file to measure
     trial.output.fields_every = usize::MAX;
-    let mut writer =
-        OutputWriter::new(&scratch.0).map_err(|e| format!("{}: {e}", scratch.0.display()))?;
+    let mut writer = OutputWriter::new(&scratch.0)
+        .map_err(|e| TrialError::NoSteps(format!("{}: {e}", scratch.0.display())))?;
     let mut clock = Clock {
         plan,
         times: Vec::new(),
@@ -196,13 +218,18 @@ pub fn estimate(plan: &Plan) -> Result<Estimate, String> {
         run_with(&trial, &NewtonSettings::default(), &mut observers, None)
     };
     crate::solve::interrupt::clear_local();
+    // the trial's own stop is no failure
+    let failure = summary.error.clone().filter(|_| !clock.stopped);
     let rates = stage_rates(plan, &clock.times);
     let timed = rates.iter().flatten().count();
     if timed == 0 {
-        return Err(format!(
-            "the trial solved no step: {}",
-            summary.error.as_deref().unwrap_or("the run ended at once")
-        ));
+        return Err(match &failure {
+            Some(e) => TrialError::Failed(format!("the trial solved no step: {e}")),
+            None => TrialError::NoSteps(format!(
+                "the trial solved no step: {}",
+                summary.error.as_deref().unwrap_or("the run ended at once")
+            )),
+        });
     }
     // a stage the trial did not reach takes the rate of the nearest stage before it (else after)
     let mut run_s = 0.0;
@@ -233,8 +260,9 @@ pub fn estimate(plan: &Plan) -> Result<Estimate, String> {
             .iter()
             .map(|p| largest_file(&scratch.0.join("fields"), p))
             .sum(),
-        field_files: field_files(plan, records),
+        field_files: field_files(plan),
         history_bytes: history / clock.times.len().max(1) as u64 * records as u64,
+        failure,
     })
 }
 
@@ -289,10 +317,22 @@ mod tests {
         // the film's 15 steps take less than the trial's time: it runs them all
         assert_eq!((e.trial_steps, e.steps, e.stages_timed), (15, 15, 1));
         assert!(e.run_s > 0.0);
-        // fields_every = 1: the 16 records and the end of the one stage
-        assert_eq!(e.field_files, 17);
+        // fields_every = 1: the 16 records (the last one ends the stage: written once)
+        assert_eq!(e.field_files, 16);
+        assert_eq!(e.failure, None);
         assert!(e.field_file_bytes > 1000, "{e:?}");
         assert!(e.history_bytes > 100);
         assert!(e.disk_bytes() > 17.0 * 1000.0);
+    }
+
+    /// The count of field files the writer really writes: every 10th of the film's 16 records
+    /// (0 and 10) and the last; with `fields_every = 0` the last only.
+    #[test]
+    fn field_files_are_those_written() {
+        let mut plan = crate::cli::app::load(Some(Path::new("film")), &[]).unwrap();
+        plan.output.fields_every = 10;
+        assert_eq!(field_files(&plan), 3);
+        plan.output.fields_every = 0;
+        assert_eq!(field_files(&plan), 1);
     }
 }

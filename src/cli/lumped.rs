@@ -184,7 +184,13 @@ fn run(setup: &LumpedSetup, plan: &Plan, dir: &Path, compare: Option<&Path>) -> 
         model.flat_thickness(),
         model.membrane_stiffness()
     );
-    println!("  linearised about the loaded state: {lin}");
+    print!("  {lin}");
+    println!(
+        "  C(x0) is the lumped model's parallel-plate capacitance, ε ∫ (current area / current \
+         thickness) over the electroded annulus only; the finite element `capacitance` probe \
+         also counts the fringing field beyond the electrode's edge and the field's \
+         non-uniformity, so at the same state it reads somewhat higher"
+    );
     println!(
         "  static deflection: {:.6e} m at 0 V; natural frequency {:.4} Hz, damping ratio {:.4}",
         lin.equilibrium,

@@ -109,6 +109,8 @@ pub fn parse_ranges(specs: &[String], log: bool) -> Result<Vec<Range>, String> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProbeFigures {
     pub last: f64,
+    /// The smallest finite value over the run.
+    pub min: f64,
     pub max: f64,
     /// Peak-to-peak over the last period of the driving signal in the last stage (the last
     /// quarter of the stage when the signal is not periodic); NaN for a static last stage or
@@ -140,6 +142,7 @@ pub fn figures(plan: &Plan, records: &[StepRecord]) -> Vec<ProbeFigures> {
                 .iter()
                 .map(|r| r.probes[i])
                 .filter(|v| v.is_finite());
+            let min = values.clone().fold(f64::NAN, f64::min);
             let max = values.clone().fold(f64::NAN, f64::max);
             let tail: Vec<f64> = records
                 .iter()
@@ -156,6 +159,7 @@ pub fn figures(plan: &Plan, records: &[StepRecord]) -> Vec<ProbeFigures> {
             };
             ProbeFigures {
                 last: records.last().map(|r| r.probes[i]).unwrap_or(f64::NAN),
+                min,
                 max,
                 peak_to_peak,
             }
@@ -206,6 +210,23 @@ pub fn cmd_sweep(
             return EXIT_BAD_INPUT;
         }
     };
+    // a `--set` of a swept path would be overridden by the range's value: refused, not ignored
+    for o in overrides {
+        let path = o.split_once('=').map_or(o.as_str(), |(p, _)| p).trim();
+        let swept = ranges.iter().find(|r| {
+            path == r.path
+                || r.path.starts_with(&format!("{path}."))
+                || path.starts_with(&format!("{}.", r.path))
+        });
+        if let Some(r) = swept {
+            eprintln!(
+                "error: `--set {o}` sets `{}`, which the sweep varies (`--set-range`): give its \
+                 values in the range only",
+                r.path
+            );
+            return EXIT_BAD_INPUT;
+        }
+    }
     let range = &ranges[0];
     // every value must give a valid scenario before anything runs
     let mut plans = Vec::new();
@@ -409,7 +430,10 @@ fn write_table(
     }
     csv.push_str("converged,status,warnings");
     for (name, _) in &plan.probes {
-        let _ = write!(csv, ",{name}:final,{name}:max,{name}:peak_to_peak");
+        let _ = write!(
+            csv,
+            ",{name}:final,{name}:min,{name}:max,{name}:peak_to_peak"
+        );
     }
     csv.push('\n');
     // a free text in one CSV field: quoted, inner quotes doubled
@@ -437,9 +461,13 @@ fn write_table(
             // a failed run has no final value: its cells stay empty
             match o.figures.get(i).filter(|_| o.converged) {
                 Some(f) => {
-                    let _ = write!(csv, ",{:e},{:e},{:e}", f.last, f.max, f.peak_to_peak);
+                    let _ = write!(
+                        csv,
+                        ",{:e},{:e},{:e},{:e}",
+                        f.last, f.min, f.max, f.peak_to_peak
+                    );
                 }
-                None => csv.push_str(",,,"),
+                None => csv.push_str(",,,,"),
             }
         }
         csv.push('\n');

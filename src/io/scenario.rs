@@ -735,9 +735,49 @@ pub fn closest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) ->
         .map(|(_, c)| c)
 }
 
+/// serde's type names in the project's words: "expected u64" → "expected a whole number",
+/// "f64" → "a number", "struct MaterialSpec" → "a material table".
+fn plain(message: &str) -> String {
+    let mut m = message.replace("invalid type: ", "wrong type: got ");
+    for (serde, ours) in [
+        (
+            "struct MaterialSpec",
+            "a material table (`model` or `preset` and its parameters)",
+        ),
+        ("a sequence", "an array"),
+        ("a map", "a table"),
+        ("a boolean", "true or false"),
+        ("sequence", "array"),
+    ] {
+        m = m.replace(serde, ours);
+    }
+    // `expected f64`, `expected u64, got …`: the words end at a comma, a space or the end
+    let mut out = String::with_capacity(m.len());
+    for (i, word) in m.split(' ').enumerate() {
+        if i > 0 {
+            out.push(' ');
+        }
+        let (core, tail) = word
+            .find([',', ';', ')'])
+            .map_or((word, ""), |k| word.split_at(k));
+        let ours = match core {
+            "f64" | "f32" => "a number",
+            "u8" | "u16" | "u32" | "u64" | "usize" => "a whole number ≥ 0",
+            "i8" | "i16" | "i32" | "i64" | "isize" => "a whole number",
+            "str" | "string" if i > 0 && out.ends_with("expected a ") => "string",
+            _ if core.starts_with("struct ") => "a table",
+            _ => core,
+        };
+        out.push_str(ours);
+        out.push_str(tail);
+    }
+    out.replace("expected a a ", "expected a ")
+        .replace("expected a number, got", "expected a number; got")
+}
+
 /// Adds "did you mean" to serde's "unknown field `x`, expected one of `a`, `b`" messages.
 fn with_suggestion(message: &str) -> String {
-    let msg = message.trim().to_string();
+    let msg = plain(message.trim());
     let Some(rest) = msg.strip_prefix("unknown field `") else {
         return msg;
     };
@@ -985,6 +1025,26 @@ steps = 2
         );
     }
 
+    /// serde's type names do not reach the user: whole numbers, numbers and the material table
+    /// are said in words.
+    #[test]
+    fn serde_words_are_translated() {
+        let text = MINIMAL.replace("steps = 2", "steps = 2.5");
+        let e = parse(&text, "t.toml", &[]).unwrap_err().to_string();
+        assert!(e.contains("a whole number") && !e.contains("u64"), "{e}");
+        let text = MINIMAL.replace("mu = 1.0", "mu = \"1e400\"");
+        let e = parse(&text, "t.toml", &[]).unwrap_err().to_string();
+        assert!(e.contains("a number") && !e.contains("f64"), "{e}");
+        assert!(!e.contains("invalid type"), "{e}");
+        let text = format!(
+            "materials = {{ m = 3 }}\n{}",
+            MINIMAL.replace("[materials.m]\nmodel = \"neo-hooke\"\nmu = 1.0\n", "")
+        );
+        let e = parse(&text, "t.toml", &[]).unwrap_err().to_string();
+        assert!(!e.contains("MaterialSpec"), "{e}");
+        assert!(e.contains("a material table"), "{e}");
+    }
+
     #[test]
     fn wrong_type_names_key_and_type() {
         let text = MINIMAL.replace("steps = 2", "steps = \"two\"");
@@ -994,7 +1054,7 @@ steps = 2
             "{e}"
         );
         assert!(
-            e.message.contains("integer") || e.message.contains("u64"),
+            e.message.contains("a whole number") && !e.message.contains("u64"),
             "{e}"
         );
     }

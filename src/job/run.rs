@@ -785,7 +785,31 @@ impl<'p, 'o> Job<'p, 'o> {
                     .iter()
                     .any(|e| e.charge.is_some_and(|q| q != 0.0));
                 use crate::solve::stepping::FailureCause;
+                let interrupted = f.cause == FailureCause::Other;
+                // the evidence beyond the failed step: a material at its locking limit in the
+                // last converged state, or input whose scales leave nothing physical to solve
+                let locked = (!interrupted)
+                    .then(|| crate::problem::statics::nearest_locking(model_ref, &self.q))
+                    .flatten()
+                    .filter(|l| l.0 >= LOCKED_FRACTION);
+                let implausible = (!interrupted)
+                    .then(|| implausible_scales(plan, voltage_at(f.attempted)))
+                    .flatten();
                 let what = match &f.cause {
+                    _ if locked.is_some() => {
+                        let (x, m, key) = locked.unwrap_or_default();
+                        let name = &plan.material_names[m];
+                        format!(
+                            "material limit: material `{name}` reached {:.1} % of its locking \
+                             limit (key `materials.{name}.{key}`; the network stiffens without \
+                             bound there, so the ramp cannot go on)",
+                            100.0 * x
+                        )
+                    }
+                    _ if implausible.is_some() => format!(
+                        "ill-conditioned or non-physical input ({})",
+                        implausible.clone().unwrap_or_default()
+                    ),
                     FailureCause::Singular if f.last_converged == 0.0 => {
                         "singular tangent at the start of the stage: the body is not fully \
                          supported (a rigid-body motion is free; add constraints)"
@@ -816,9 +840,9 @@ impl<'p, 'o> Job<'p, 'o> {
                 let mut controls = Vec::new();
                 if electric || !charged {
                     controls.push(format!(
-                        "last converged voltage {:.2} V, failed at {:.2} V",
-                        voltage_at(f.last_converged),
-                        voltage_at(f.attempted)
+                        "last converged voltage {} V, failed at {} V",
+                        volts(voltage_at(f.last_converged)),
+                        volts(voltage_at(f.attempted))
                     ));
                 }
                 let t0 = model.dead_load_start;
@@ -829,10 +853,10 @@ impl<'p, 'o> Job<'p, 'o> {
                 for (e, voltage) in plan.electrodes.iter().zip(voltages) {
                     if let Some(q) = e.charge {
                         controls.push(format!(
-                            "last converged charge of `{}` {:.6e} C at {:.2} V, failed at {:.6e} C",
+                            "last converged charge of `{}` {:.6e} C at {} V, failed at {:.6e} C",
                             e.name,
                             charge_at(q, f.last_converged),
-                            voltage,
+                            volts(voltage),
                             charge_at(q, f.attempted)
                         ));
                     }
@@ -1329,4 +1353,71 @@ fn stage_voltage(stage: &Stage, w: &crate::waveform::Waveform, t: f64) -> f64 {
     } else {
         0.0
     }
+}
+
+/// A material point at this fraction of its locking limit (or beyond) in the last converged state
+/// makes a failed ramp a material limit, not a loss of stability.
+const LOCKED_FRACTION: f64 = 0.8;
+
+/// An electrical stress εE² above this multiple of a material's shear modulus is no elastomer
+/// under a field: a film pulls in near εE² ≈ μ/2 (Zhao & Suo, APL 91 (2007) 061921).
+const FIELD_STRESS_RATIO: f64 = 1e3;
+
+/// `x` rounded to three significant digits, shortly: `2.4e24`, `0.49`.
+fn few(x: f64) -> String {
+    let rounded: f64 = format!("{x:.2e}").parse().unwrap_or(x);
+    crate::units::Short(rounded).to_string()
+}
+
+/// A voltage in a message: two decimals, or four significant digits beyond 10⁷ V.
+fn volts(v: f64) -> String {
+    if v.abs() < 1e7 || !v.is_finite() {
+        format!("{v:.2}")
+    } else {
+        format!("{v:.4e}")
+    }
+}
+
+/// What makes the input's scales ill-conditioned or non-physical at `voltage` (V), naming the
+/// quantity: an electrical stress εE² (E = the voltage over the mesh's thinnest extent) far above
+/// a material's shear modulus μ, a modulus too small for any solid, or a mesh thinner than a
+/// nanometre (no continuum film; its energies fall to the solver's round-off). `None` when the
+/// scales are those of a device.
+fn implausible_scales(plan: &Plan, voltage: f64) -> Option<String> {
+    use crate::units::Short;
+    let (lo, hi) = plan.model.mesh.extents();
+    let thin = (0..3)
+        .map(|c| hi[c] - lo[c])
+        .filter(|&d| d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let mut found = Vec::new();
+    if thin < 1e-9 {
+        found.push(format!(
+            "the mesh is {} m thick at its thinnest, below a nanometre",
+            Short(thin)
+        ));
+    }
+    let field = voltage.abs() / thin;
+    for (name, m) in plan.material_names.iter().zip(&plan.model.materials) {
+        let (mu, eps) = (m.shear_modulus(), m.permittivity());
+        let stress = eps * field * field;
+        if mu.is_nan() || mu < 1e-6 {
+            found.push(format!(
+                "material `{name}`: its shear modulus μ = {} Pa is below any solid's",
+                Short(mu)
+            ));
+        }
+        if field > 0.0 && (!stress.is_finite() || stress > FIELD_STRESS_RATIO * mu) {
+            found.push(format!(
+                "material `{name}`: the electrical stress εE² ≈ {} Pa (ε = {} F/m, E ≈ {} V/m) \
+                 is {} times its shear modulus μ = {} Pa, where a film pulls in near εE² ≈ μ/2",
+                few(stress),
+                few(eps),
+                few(field),
+                few(stress / mu),
+                few(mu)
+            ));
+        }
+    }
+    (!found.is_empty()).then(|| found.join("; "))
 }

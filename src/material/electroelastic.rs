@@ -102,6 +102,10 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
         self.mech.shear_modulus()
     }
 
+    fn locking(&self, f: &Mat3) -> Option<(f64, &'static str)> {
+        self.mech.locking(&isotropic::CKinematics::from_f(f).ok()?)
+    }
+
     fn bulk_modulus(&self) -> f64 {
         self.mech.bulk_modulus()
     }

@@ -93,4 +93,9 @@ impl Hyperelastic for Gent {
     fn bulk_modulus(&self) -> f64 {
         self.kappa
     }
+
+    /// (Ī₁ − 3)/J_m: 1 where the network locks.
+    fn locking(&self, k: &CKinematics) -> Option<(f64, &'static str)> {
+        Some(((IsoInvariants::new(k).i1b - 3.0) / self.jm, "jm"))
+    }
 }

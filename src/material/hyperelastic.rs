@@ -83,6 +83,11 @@ pub trait Hyperelastic: Send + Sync + std::fmt::Debug {
     fn shear_modulus(&self) -> f64;
     /// Small-strain bulk modulus K₀ (Pa).
     fn bulk_modulus(&self) -> f64;
+    /// How far the chains are towards the model's locking limit (1 = locked) and the key of the
+    /// parameter that sets it; `None` for a model without one.
+    fn locking(&self, _k: &CKinematics) -> Option<(f64, &'static str)> {
+        None
+    }
 }
 
 /// Value and first two derivatives of a volumetric function U(J).

@@ -98,6 +98,10 @@ impl Material for Viscoelastic {
         self.tangent_at(f, e0, PointHistory::NONE)
     }
 
+    fn locking(&self, f: &Mat3) -> Option<(f64, &'static str)> {
+        self.equilibrium.locking(f)
+    }
+
     /// The instantaneous modulus (equilibrium and branches).
     fn shear_modulus(&self) -> f64 {
         self.moduli().0
@@ -326,6 +330,10 @@ impl<M: Material> Material for MaxwellBranch<M> {
 
     fn tangent(&self, f: &Mat3, e0: &Vec3) -> Result<Tangent, MaterialError> {
         self.tangent_at(f, e0, PointHistory::NONE)
+    }
+
+    fn locking(&self, f: &Mat3) -> Option<(f64, &'static str)> {
+        self.equilibrium.locking(f)
     }
 
     /// The instantaneous modulus: equilibrium and branch.

@@ -193,6 +193,12 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     /// `electric = −(all E0-dependent terms)`, so that Ψ = mechanical − electric.
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError>;
 
+    /// How far the material is towards its locking limit at `f` (1 = locked, e.g. a Gent
+    /// network with Ī₁ − 3 = J_m) and the key of the parameter that sets the limit; `None` for a
+    /// material without one. Tells a failure at the material's limit from a loss of stability.
+    fn locking(&self, _f: &Mat3) -> Option<(f64, &'static str)> {
+        None
+    }
     /// Internal variables per quadrature point (0: elastic).
     fn state_size(&self) -> usize {
         0

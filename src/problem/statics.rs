@@ -487,6 +487,36 @@ pub fn cell_fields(model: &Model, state: &[f64]) -> Result<Vec<CellFields>, Stri
     cell_fields_with(model, state, &PointStates::default())
 }
 
+/// The material point of `state` nearest its material's locking limit: how far towards it (1 =
+/// locked), the material's index and the key of the limit's parameter; `None` when no material
+/// has such a limit. Names a failure at a material limit (a Gent network locking) as such.
+pub fn nearest_locking(model: &Model, state: &[f64]) -> Option<(f64, usize, &'static str)> {
+    use crate::material::{Mat3, Vec3};
+    let kernel = model.kernel();
+    let points = PointStates::default();
+    let mut at = vec![(Mat3::zeros(), Vec3::zeros()); crate::fem::MAX_QP];
+    let mut best: Option<(f64, usize, &'static str)> = None;
+    let _ = model.for_each_cell(state, |c, g, mat, local| {
+        let input = CellInput {
+            geom: g,
+            mat,
+            hist: points.cell(c, model.cell_material[c], 0.0),
+            local,
+        };
+        if kernel.point_deformations(&input, &mut at).is_ok() {
+            for (f, _) in &at[..g.n_qp] {
+                if let Some((x, key)) = mat.locking(f) {
+                    if x.is_finite() && best.is_none_or(|b| x > b.0) {
+                        best = Some((x, model.cell_material[c], key));
+                    }
+                }
+            }
+        }
+        Ok::<(), ()>(())
+    });
+    best
+}
+
 /// [`cell_fields`] at committed point states.
 /// Every cell is evaluated: for a model whose cells no processes share ([`record_with`] is the
 /// pass of a shared one).

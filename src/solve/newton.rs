@@ -81,7 +81,7 @@ pub enum NewtonError {
         /// outside its domain): the iteration was held back by it.
         blocked: Option<String>,
     },
-    #[error("Newton diverged at iteration {iteration} (residual {residual:e})")]
+    #[error("Newton diverged at iteration {iteration} (residual {residual:.3e})")]
     Diverged { iteration: usize, residual: f64 },
     #[error("singular tangent at iteration {iteration}")]
     Singular { iteration: usize },

@@ -84,10 +84,35 @@ pub(super) fn build_mesh(
     s: &Scenario,
     base_dir: Option<&Path>,
 ) -> Result<(Mesh, Vec<String>), InputError> {
-    let (mesh, warnings) = mesh_of(ctx, &s.mesh, base_dir)?;
+    let (mesh, mut warnings) = mesh_of(ctx, &s.mesh, base_dir)?;
     ctx.check_size(mesh.n_nodes() as u64, mesh.n_cells() as u64, mesh.kind)
         .map_err(|e| ctx.err("mesh", e))?;
+    if s.mesh.file.is_none() {
+        warnings.extend(generated_size_warning(&s.mesh, &mesh));
+    }
     Ok((mesh, warnings))
+}
+
+/// A generated mesh more than 1 m across: a dielectric elastomer device is millimetres to
+/// centimetres, so its lengths were most likely typed in mm where metres are read (as a Gmsh
+/// file's size warning says).
+fn generated_size_warning(m: &MeshSpec, mesh: &Mesh) -> Option<String> {
+    let (lo, hi) = mesh.extents();
+    let size = (0..3).map(|c| hi[c] - lo[c]).fold(0.0, f64::max);
+    if size.is_nan() || size <= 1.0 {
+        return None;
+    }
+    let generator = m.generator.as_deref().unwrap_or("box");
+    let key = match generator {
+        "box" => "mesh.size",
+        "stack" => "mesh.side",
+        _ => "mesh.radius",
+    };
+    Some(format!(
+        "`{key}`: the generated `{generator}` mesh is {} m across (lengths are read in m); if \
+         they were typed in mm, give them in m (10 mm = 0.01)",
+        crate::units::Short(size)
+    ))
 }
 
 /// The model of the mesh with its materials, and the formulation of `mesh.formulation`.

@@ -7,6 +7,7 @@ use crate::job::linear::ResponseMethod;
 use crate::job::plan::{PathParameter, PathTarget};
 use crate::time::mass::MassKind;
 use crate::time::stage::Method;
+use crate::units::Short;
 
 /// The stages in order; at least one, with distinct names.
 pub(super) fn build_stages(
@@ -622,13 +623,21 @@ fn dynamic_kind(
     if dt > duration {
         return Err(ctx.err(
             format!("{key}.dt"),
-            format!("the time step {dt} s exceeds the stage duration {duration} s"),
+            format!(
+                "the time step {} s exceeds the stage duration {} s",
+                Short(dt),
+                Short(duration)
+            ),
         ));
     }
     if duration / dt > 1e7 {
         return Err(ctx.err(
             format!("{key}.dt"),
-            format!("{duration} s in steps of {dt} s is more than 10⁷ steps"),
+            format!(
+                "{} s in steps of {} s is more than 10⁷ steps",
+                Short(duration),
+                Short(dt)
+            ),
         ));
     }
     if st.steps.is_some() {
