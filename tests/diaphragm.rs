@@ -266,9 +266,13 @@ fn run_and_lumped_commands_on_the_diaphragm() {
         "--set",
         "stages.1.dt=2e-3",
     ];
-    let mut args = vec!["run", "--out", "fe"];
-    args.extend_from_slice(&sets);
-    let out = deasim(&args, &dir);
+    // a command on the coarse mesh and short stage of `sets`
+    let with_sets = |args: &[&str]| {
+        let mut all = args.to_vec();
+        all.extend_from_slice(&sets);
+        deasim(&all, &dir)
+    };
+    let out = with_sets(&["run", "--out", "fe"]);
     assert_eq!(
         out.status.code(),
         Some(0),
@@ -291,9 +295,7 @@ fn run_and_lumped_commands_on_the_diaphragm() {
     assert!(summary["energy"]["gravity"].as_f64().unwrap() < 0.0);
     assert!(dir.join("fe/plots").read_dir().unwrap().count() >= 4);
 
-    let mut args = vec!["lumped", "--out", "lumped", "--compare", "fe"];
-    args.extend_from_slice(&sets);
-    let out = deasim(&args, &dir);
+    let out = with_sets(&["lumped", "--out", "lumped", "--compare", "fe"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(0), "{text}");
     let line = text
@@ -320,10 +322,15 @@ fn run_and_lumped_commands_on_the_diaphragm() {
         String::from_utf8_lossy(&out.stderr)
     );
     // another voltage than the FE run's: warned of, naming both override lists
-    let mut args = vec!["lumped", "--out", "lumped2", "--compare", "fe"];
-    args.extend_from_slice(&sets);
-    args.extend(["--set", "electrodes.top.voltage.amplitude=2000"]);
-    let out = deasim(&args, &dir);
+    let out = with_sets(&[
+        "lumped",
+        "--out",
+        "lumped2",
+        "--compare",
+        "fe",
+        "--set",
+        "electrodes.top.voltage.amplitude=2000",
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{err}");
     assert!(
@@ -332,9 +339,7 @@ fn run_and_lumped_commands_on_the_diaphragm() {
     );
     // the reduced model about 0 V computes no capacitance (NaN): `reduce --compare` says it was
     // not compared, reports no difference for it and draws no comparison
-    let mut args = vec!["reduce", "--modes", "2", "--out", "rom", "--compare", "fe"];
-    args.extend_from_slice(&sets);
-    let out = deasim(&args, &dir);
+    let out = with_sets(&["reduce", "--modes", "2", "--out", "rom", "--compare", "fe"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(0), "{text}");
     let capacitance = text
@@ -354,16 +359,14 @@ fn run_and_lumped_commands_on_the_diaphragm() {
     );
     assert!(edited.contains("vhb4910-yeoh-calibrated"));
     std::fs::write(dir.join("edited.toml"), edited).unwrap();
-    let mut args = vec![
+    let out = with_sets(&[
         "lumped",
         "edited.toml",
         "--out",
         "lumped-edited",
         "--compare",
         "fe",
-    ];
-    args.extend_from_slice(&sets);
-    let out = deasim(&args, &dir);
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(0), "{err}");
     assert!(
@@ -385,9 +388,7 @@ fn run_and_lumped_commands_on_the_diaphragm() {
         &dir,
     );
     assert_eq!(film.status.code(), Some(0));
-    let mut args = vec!["lumped", "--out", "lumped-film", "--compare", "film"];
-    args.extend_from_slice(&sets);
-    let out = deasim(&args, &dir);
+    let out = with_sets(&["lumped", "--out", "lumped-film", "--compare", "film"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("scenario `film`"), "{err}");

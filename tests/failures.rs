@@ -161,6 +161,18 @@ fn failures_name_the_evidence() {
     assert!(err.contains("material limit"), "{err}");
     assert!(err.contains("materials.elastomer.jm"), "{err}");
     assert!(!err.contains("pull-in"), "{err}");
+    // the eight-chain model's chains lock where λ̄ reaches λ_L (Ī₁ = 3.31 for λ_L = 1.05): a
+    // 10 MV ramp drives the film there
+    let ab = film
+        .replace(
+            "model = \"neo-hooke\"",
+            "model = \"arruda-boyce\"\nlambda_m = 1.05",
+        )
+        .replace("lambda = 1e7", "kappa = 1e7");
+    let err = run("ab", &ab, &["electrodes.top.voltage.amplitude=1e7"]);
+    assert!(err.contains("material limit"), "{err}");
+    assert!(err.contains("materials.elastomer.lambda_m"), "{err}");
+    assert!(!err.contains("pull-in"), "{err}");
     for (name, set, quantity) in [
         ("eps", "materials.elastomer.permittivity=1e30", "εE²"),
         ("mu", "materials.elastomer.mu=1e-300", "μ = 1e-300 Pa"),

@@ -768,6 +768,17 @@ fn plain(message: &str) -> String {
             _ if core.starts_with("struct ") => "a table",
             _ => core,
         };
+        // serde writes a float with all its digits (`1e300` as 301 of them): keep it short
+        let bare = ours.trim_matches('`');
+        let long_number = bare.len() > 16 && bare.parse::<f64>().is_ok();
+        let short;
+        let ours = if long_number {
+            let x: f64 = bare.parse().expect("checked");
+            short = ours.replace(bare, &crate::units::Short(x).to_string());
+            short.as_str()
+        } else {
+            ours
+        };
         out.push_str(ours);
         out.push_str(tail);
     }
@@ -899,6 +910,10 @@ fn parse_value(raw: &str) -> Result<toml::Value, String> {
     let doc = format!("v = {raw}");
     match toml::from_str::<toml::Table>(&doc) {
         Ok(mut t) => t.remove("v").ok_or_else(|| "no value".to_string()),
+        // a number beyond the range of f64 (e.g. `1e400`) is not a word
+        Err(_) if raw.parse::<f64>().is_ok_and(|x| x.is_infinite()) => Err(format!(
+            "`{raw}` is beyond the range of a number (about ±1.8e308)"
+        )),
         Err(_)
             if !raw.is_empty()
                 && raw
@@ -925,6 +940,16 @@ pub fn apply_override(table: &mut toml::Table, spec: &str) -> Result<(), (String
     let parts: Vec<&str> = path.split('.').collect();
     if parts.iter().any(|p| p.is_empty()) {
         return Err((path.to_string(), "empty key in the dotted path".into()));
+    }
+    if let Some(p) = parts.iter().find(|p| p.contains('[') || p.contains(']')) {
+        return Err((
+            path.to_string(),
+            format!(
+                "`{p}` is not a key: a list's element is addressed by its index after a dot, \
+                 e.g. `{}`",
+                path.replace('[', ".").replace(']', "")
+            ),
+        ));
     }
     set_in_table(table, &parts, 0, value)
 }
@@ -1043,6 +1068,30 @@ steps = 2
         let e = parse(&text, "t.toml", &[]).unwrap_err().to_string();
         assert!(!e.contains("MaterialSpec"), "{e}");
         assert!(e.contains("a material table"), "{e}");
+        // a float where a whole number belongs is printed short, not with its 301 digits
+        let text = MINIMAL.replace("steps = 2", "steps = 1e300");
+        let e = parse(&text, "t.toml", &[]).unwrap_err().to_string();
+        assert!(e.contains("`1e300`") && !e.contains("0000000000"), "{e}");
+    }
+
+    /// `--set stages[0].steps=3` names the key that is not one and the dotted form to use, not
+    /// serde's "unknown field `stages[0]`"; `1e400` is said to be beyond a number's range, not a
+    /// string of the wrong type.
+    #[test]
+    fn bracketed_and_overflowing_overrides_are_explained() {
+        let e = parse(MINIMAL, "t.toml", &["stages[0].steps=3".to_string()])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`stages[0]` is not a key") && e.contains("`stages.0.steps`"),
+            "{e}"
+        );
+        assert!(!e.contains("unknown field"), "{e}");
+        let e = parse(MINIMAL, "t.toml", &["stages.0.steps=1e400".to_string()])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("beyond the range of a number"), "{e}");
+        assert!(!e.contains("string"), "{e}");
     }
 
     #[test]

@@ -8,10 +8,7 @@
 //! returns [`MaterialError::OutOfDomain`]. μ₀ = μ, K₀ = κ.
 
 use super::electroelastic::Electroelastic;
-use super::hyperelastic::{
-    i1_model_piola, invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond,
-    Hyperelastic, InvariantDerivs, IsoInvariants,
-};
+use super::hyperelastic::{HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants, SplitI1};
 use super::isotropic::CKinematics;
 use super::{KnownDeformation, Mat3, MaterialError};
 
@@ -54,36 +51,31 @@ impl Gent {
     }
 }
 
+impl Gent {
+    /// Ŵ(Ī₁) with the logarithmic volumetric part, as a [`SplitI1`].
+    fn split(&self) -> SplitI1<impl Fn(f64) -> Result<(f64, InvariantDerivs), MaterialError> + '_> {
+        SplitI1 {
+            iso: move |i| self.iso(i),
+            kappa: self.kappa,
+        }
+    }
+}
+
 impl Hyperelastic for Gent {
     fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
-        let inv = IsoInvariants::new(k);
-        Ok(self.iso(inv.i1b)?.0 + vol_log(self.kappa, k.j).u)
+        self.split().w(k)
     }
 
     fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError> {
-        let inv = IsoInvariants::new(k);
-        let (w, d) = self.iso(inv.i1b)?;
-        let v = vol_log(self.kappa, k.j);
-        Ok(HFirst {
-            w: w + v.u,
-            s: iso_stress(k, &inv, &d) + vol_stress(k, &v),
-        })
+        self.split().s(k)
     }
 
     fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError> {
-        let inv = IsoInvariants::new(k);
-        let (w, d) = self.iso(inv.i1b)?;
-        let v = vol_log(self.kappa, k.j);
-        Ok(invariant_model_second(k, &inv, w + v.u, &d, &v))
+        self.split().ll(k)
     }
 
     fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
-        let i1 = k.f.norm_squared();
-        let v = vol_log(self.kappa, k.j);
-        Some(
-            self.iso(k.jm23 * i1)
-                .map(|(w, d)| (w + v.u, i1_model_piola(k, i1, d.w1, v.du))),
-        )
+        Some(self.split().first_piola(k))
     }
 
     fn shear_modulus(&self) -> f64 {

@@ -291,3 +291,45 @@ pub fn invariant_model_second(
     add_vol_tangent(k, v, &mut ll);
     HSecond { w, s, ll }
 }
+
+/// The [`Hyperelastic`] methods of W = Ŵ(Ī₁) + U(J) with U the logarithmic volumetric part of
+/// bulk modulus `kappa` ([`vol_log`]): one body for the Gent and Arruda–Boyce models. `iso`
+/// gives Ŵ(Ī₁) and its derivatives, or the error of an Ī₁ outside its domain (a locking limit).
+pub struct SplitI1<F> {
+    pub iso: F,
+    pub kappa: f64,
+}
+
+impl<F: Fn(f64) -> Result<(f64, InvariantDerivs), MaterialError>> SplitI1<F> {
+    /// W.
+    pub fn w(&self, k: &CKinematics) -> Result<f64, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        Ok((self.iso)(inv.i1b)?.0 + vol_log(self.kappa, k.j).u)
+    }
+
+    /// W and S.
+    pub fn s(&self, k: &CKinematics) -> Result<HFirst, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let (w, d) = (self.iso)(inv.i1b)?;
+        let v = vol_log(self.kappa, k.j);
+        Ok(HFirst {
+            w: w + v.u,
+            s: iso_stress(k, &inv, &d) + vol_stress(k, &v),
+        })
+    }
+
+    /// W, S and the tangent.
+    pub fn ll(&self, k: &CKinematics) -> Result<HSecond, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let (w, d) = (self.iso)(inv.i1b)?;
+        let v = vol_log(self.kappa, k.j);
+        Ok(invariant_model_second(k, &inv, w + v.u, &d, &v))
+    }
+
+    /// W and P at a known deformation.
+    pub fn first_piola(&self, k: &KnownDeformation) -> Result<(f64, Mat3), MaterialError> {
+        let i1 = k.f.norm_squared();
+        let v = vol_log(self.kappa, k.j);
+        (self.iso)(k.jm23 * i1).map(|(w, d)| (w + v.u, i1_model_piola(k, i1, d.w1, v.du)))
+    }
+}
