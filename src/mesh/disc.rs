@@ -341,10 +341,13 @@ fn signed_volume(p: [[f64; 3]; 4]) -> f64 {
         + a[2] * (b[0] * c[1] - b[1] * c[0])
 }
 
-/// A disc mesh (see the module documentation for the topology and the sets).
+/// A 3-D disc mesh (see the module documentation for the topology and the sets); the meridian
+/// form of the same actuator is [`crate::mesh::meridian::disc_meridian`].
 pub fn disc_mesh(spec: &DiscSpec) -> Result<Mesh, String> {
-    if let ElementKind::Meridian(kind) = spec.kind {
-        return super::meridian::disc_meridian(spec, kind);
+    if let ElementKind::Meridian(_) = spec.kind {
+        return Err(
+            "a meridian element kind: the axisymmetric disc is built by `disc_meridian`".into(),
+        );
     }
     if spec.kind == ElementKind::Tet10 {
         let linear = DiscSpec {

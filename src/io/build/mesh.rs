@@ -6,6 +6,7 @@ use super::Ctx;
 use crate::element::mean_dilatation::Formulation;
 use crate::io::scenario::{closest, InputError, MeshSpec, Scenario};
 use crate::mesh::disc::{disc_mesh, DiscSpec};
+use crate::mesh::meridian::disc_meridian;
 use crate::mesh::stack::{stack_mesh, StackSpec};
 use crate::mesh::{generate::box_mesh, ElementKind, MeridianKind, Mesh};
 use crate::problem::model::Model;
@@ -530,7 +531,11 @@ fn build_disc(ctx: &Ctx, m: &MeshSpec, kind: ElementKind) -> Result<Mesh, InputE
     };
     let layout = spec.layout().map_err(|e| ctx.err("mesh", e))?;
     check_cell_count(ctx, "mesh.radial", layout.hexahedra, kind)?;
-    disc_mesh(&spec).map_err(|e| ctx.err("mesh", e))
+    match kind {
+        ElementKind::Meridian(m) => disc_meridian(&spec, m),
+        _ => disc_mesh(&spec),
+    }
+    .map_err(|e| ctx.err("mesh", e))
 }
 
 /// The `sphere` generator: the octant (x, y, z ≥ 0) of a spherical shell of inner radius `radius`
