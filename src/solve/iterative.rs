@@ -47,9 +47,8 @@ use super::linear::{
 use crate::problem::assembly::{col, Col, CsrMatrix};
 use crate::problem::system::DofLayout;
 
-/// Default relative residual of each solve. Newton's tolerance is 1e-10 of its first residual;
-/// steps accurate to 1e-8 of the current residual cost it at most one more iteration.
-pub const DEFAULT_RTOL: f64 = 1e-8;
+/// Default relative residual of each solve (the solver settings' default).
+pub use super::linear::DEFAULT_RTOL;
 /// Most FGMRES iterations of one solve.
 const MAX_ITERATIONS: usize = 2000;
 /// FGMRES restart: basis vectors kept (two vectors of the unknowns' length each).

@@ -6,9 +6,6 @@
 //! has exactly as many negative pivots as free potential dofs. One more negative pivot means the
 //! mechanical part has lost stability (a limit point such as pull-in was passed).
 
-use super::auto::AutoSolver;
-use super::iterative::AmgGmres;
-use super::reused::ReusedLdlt;
 use crate::problem::assembly::CsrMatrix;
 use crate::problem::system::DofLayout;
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -194,13 +191,13 @@ impl Ordering {
 pub enum SolverKind {
     /// By size: a fresh sparse LDLᵀ at every Newton iteration below [`REUSE_MIN_UNKNOWNS`]
     /// unknowns, above it the factorisation reused as the preconditioner of FGMRES
-    /// ([`ReusedLdlt`]). Both give the inertia (the stability test).
+    /// ([`ReusedLdlt`](super::reused::ReusedLdlt)). Both give the inertia (the stability test).
     #[default]
     Auto,
     /// Sparse LDLᵀ ([`FaerLdlt`]) of every Newton tangent: exact, gives the inertia.
     Direct,
-    /// FGMRES with AMG of the coupled tangent ([`AmgGmres`]): memory linear in the unknowns,
-    /// no inertia.
+    /// FGMRES with AMG of the coupled tangent ([`AmgGmres`](super::iterative::AmgGmres)): memory
+    /// linear in the unknowns, no inertia.
     Iterative,
     /// PETSc ([`super::petsc::PetscSolver`]): MUMPS LDLᵀ by default, any KSP/PC by options, on
     /// one or more MPI ranks.
@@ -280,8 +277,12 @@ pub struct SolverSettings {
     pub keep_preconditioner: bool,
 }
 
+/// Default relative residual of each iterative solve. Newton's tolerance is 1e-10 of its first
+/// residual; steps accurate to 1e-8 of the current residual cost it at most one more iteration.
+pub const DEFAULT_RTOL: f64 = 1e-8;
+
 fn default_rtol() -> f64 {
-    super::iterative::DEFAULT_RTOL
+    DEFAULT_RTOL
 }
 
 fn default_adaptive() -> bool {
@@ -305,50 +306,6 @@ impl Default for SolverSettings {
 }
 
 impl SolverSettings {
-    /// A new solver of these settings: the one place where concrete solver types are named.
-    pub fn build(&self) -> Box<dyn LinearSolver> {
-        match self.kind {
-            SolverKind::Direct => {
-                let s = FaerLdlt::with_ordering(self.ordering);
-                Box::new(match self.memory_limit {
-                    Some(bytes) => s.memory_limit(bytes),
-                    None => s,
-                })
-            }
-            SolverKind::Auto => {
-                let mut s = ReusedLdlt::with_ordering(self.ordering)
-                    .from_unknowns(self.reuse_from)
-                    .adaptive(self.adaptive);
-                if self.single_precision {
-                    s = s.single_precision();
-                }
-                if let Some(bytes) = self.memory_limit {
-                    s = s.memory_limit(bytes);
-                }
-                Box::new(AutoSolver::new(s, self.rtol).adaptive(self.adaptive))
-            }
-            SolverKind::Iterative => Box::new(AmgGmres::new(self.rtol).adaptive(self.adaptive)),
-            #[cfg(feature = "petsc")]
-            SolverKind::Petsc => Box::new(
-                super::petsc::PetscSolver::new(&self.petsc_options)
-                    .adaptive(self.adaptive)
-                    .keep_preconditioner(self.keep_preconditioner),
-            ),
-        }
-    }
-
-    /// For a solver that sums the parts of processes that share the cells: an exact direct
-    /// solver of the same kind for symmetric indefinite matrices whose diagonal may vanish
-    /// (pivoting), whatever the options of the run's solver or `PETSC_OPTIONS` say: PETSc with
-    /// MUMPS's LDLᵀ. `None` for the kinds that take whole matrices.
-    pub fn distributed_direct(&self) -> Option<Box<dyn LinearSolver>> {
-        match self.kind {
-            SolverKind::Direct | SolverKind::Auto | SolverKind::Iterative => None,
-            #[cfg(feature = "petsc")]
-            SolverKind::Petsc => Some(Box::new(super::petsc::PetscSolver::mumps_ldlt())),
-        }
-    }
-
     /// Whether the solver gives the inertia of the tangent (the stability test of static stages:
     /// without it, limit points show only as Newton failures).
     pub fn gives_inertia(&self) -> bool {

@@ -4,6 +4,7 @@
 pub mod amg;
 pub mod auto;
 pub mod continuation;
+pub mod factory;
 pub mod interrupt;
 pub mod iterative;
 pub mod krylov;
