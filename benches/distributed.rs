@@ -17,17 +17,18 @@
 
 #[cfg(feature = "petsc")]
 fn main() {
+    use deasim::algebra::exchange::LocalEquations;
+    use deasim::algebra::system::NonlinearSystem;
     use deasim::material::EPSILON_0;
     use deasim::mesh::distribute::{LocalMesh, Numbering};
     use deasim::mesh::generate::box_mesh;
     use deasim::mesh::partition::partition_cells;
     use deasim::mesh::ElementKind;
     use deasim::problem::assembly::node_processes;
-    use deasim::problem::distributed::{equation_owners, LocalEquations, OwnedSystem};
+    use deasim::problem::distributed::{equation_owners, OwnedSystem};
     use deasim::problem::dofs::{constrained_flags, Dirichlet, DofMap, Field, FIELDS};
     use deasim::problem::examples::{film_on, FILM_EPS_R, FILM_MU};
     use deasim::problem::statics::StaticProblem;
-    use deasim::problem::system::NonlinearSystem;
     use deasim::solve::linear::LinearSolver;
     use deasim::solve::newton::NewtonSettings;
     use deasim::solve::petsc::{world, PetscExchange, PetscSolver};

@@ -8,8 +8,9 @@
 //! (unit test modules sit at the end of files), except that `#[cfg(test)] mod name;` leaves out
 //! only the file it names (a test-only module in its own file).
 //!
-//! The tests check that the module graph has no cycle and that every dependency goes down the
-//! layers below (or is one of the few allowed within a layer). `cargo test --test architecture
+//! The tests check that the module graph has no cycle, that every dependency goes down the
+//! layers below (or is one of the few allowed within a layer), and that the files of one folder
+//! do not depend on each other in a cycle. `cargo test --test architecture
 //! -- --nocapture` also prints the graph and the longest function of every module.
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -18,11 +19,11 @@ use std::path::{Path, PathBuf};
 /// The layers, lowest first: a module may use the modules of lower layers, and those of its own
 /// layer only as listed in [`SAME_LAYER`].
 const LAYERS: &[&[&str]] = &[
-    &["units"],
+    &["units", "algebra"],
     &["mesh", "fem", "material", "waveform", "analytic"],
-    &["element"],
+    &["element", "solve"],
     &["problem"],
-    &["solve", "time"],
+    &["time"],
     &["job"],
     &["io"],
     &["lumped"],
@@ -34,7 +35,6 @@ const SAME_LAYER: &[(&str, &str)] = &[
     ("fem", "mesh"),
     ("fem", "material"),
     ("analytic", "material"),
-    ("time", "solve"),
 ];
 
 /// One source file, as read for these checks.
@@ -540,8 +540,8 @@ fn dependencies_follow_the_layers() {
     }
     assert!(
         problems.is_empty(),
-        "module dependencies that break the layering (mesh, fem, material, waveform, analytic → \
-         element → problem → solve, time → job → io → lumped → cli):\n  {}",
+        "module dependencies that break the layering (units, algebra → mesh, fem, material, \
+         waveform, analytic → element, solve → problem → time → job → io → lumped → cli):\n  {}",
         problems.join("\n  ")
     );
 }
@@ -655,6 +655,195 @@ fn report_module_graph_and_longest_functions() {
             None => println!("  {m:<9} no function"),
         }
     }
+}
+
+/// The paths at `c[i..]` after a `crate::`, `super::` or `self::` head, as segment lists: a
+/// group `a::{b::C, d::{E, F}}` gives `[a, b, C]`, `[a, d, E]`, `[a, d, F]`. Returns them and the
+/// index after the path.
+fn path_tree(c: &[char], mut i: usize) -> (Vec<Vec<String>>, usize) {
+    let mut prefix = Vec::new();
+    loop {
+        while i < c.len() && c[i].is_whitespace() {
+            i += 1;
+        }
+        if c.get(i) == Some(&'{') {
+            let mut paths = Vec::new();
+            i += 1;
+            loop {
+                while i < c.len() && (c[i].is_whitespace() || c[i] == ',') {
+                    i += 1;
+                }
+                if i >= c.len() || c[i] == '}' {
+                    return (paths, i + 1);
+                }
+                let (sub, next) = path_tree(c, i);
+                if next <= i {
+                    return (paths, i + 1);
+                }
+                for p in sub {
+                    paths.push(prefix.iter().cloned().chain(p).collect());
+                }
+                i = next;
+                // skip `as name`
+                while i < c.len() && c[i] != ',' && c[i] != '}' {
+                    i += 1;
+                }
+            }
+        }
+        let (name, end) = ident_at(c, i);
+        if name.is_empty() {
+            return (vec![prefix], i);
+        }
+        prefix.push(name);
+        i = end;
+        if c.get(i) == Some(&':') && c.get(i + 1) == Some(&':') {
+            i += 2;
+        } else {
+            return (vec![prefix], i);
+        }
+    }
+}
+
+/// The files of the crate that a file's code refers to through module paths (`crate::a::b`,
+/// `super::b`, `self::b`), each as its module path, with the line of the reference.
+fn file_references(source: &Source, files: &BTreeSet<Vec<String>>) -> Vec<(Vec<String>, usize)> {
+    let here = module_path(Path::new(source.rel.trim_start_matches("src/")));
+    let c: Vec<char> = source.code.chars().collect();
+    let mut line_of = Vec::with_capacity(c.len());
+    let mut line = 1;
+    for &ch in &c {
+        line_of.push(line);
+        if ch == '\n' {
+            line += 1;
+        }
+    }
+    let starts_with = |i: usize, s: &str| {
+        s.chars()
+            .enumerate()
+            .all(|(k, ch)| c.get(i + k) == Some(&ch))
+    };
+    let mut found = Vec::new();
+    let mut i = 0;
+    while i < c.len() {
+        let boundary = i == 0 || !(is_ident(c[i - 1]) || c[i - 1] == ':');
+        let head = ["crate::", "super::", "self::"]
+            .into_iter()
+            .find(|h| boundary && starts_with(i, h));
+        let Some(head) = head else {
+            i += 1;
+            continue;
+        };
+        let mut base: Vec<String> = match head {
+            "crate::" => Vec::new(),
+            _ => here.clone(),
+        };
+        let mut j = i + head.len();
+        if head == "super::" {
+            base.pop();
+            while starts_with(j, "super::") {
+                base.pop();
+                j += "super::".len();
+            }
+        }
+        let (paths, end) = path_tree(&c, j);
+        for p in paths {
+            let full: Vec<String> = base.iter().cloned().chain(p).collect();
+            // the longest prefix that is a file of the crate
+            if let Some(k) = (1..=full.len()).rev().find(|&k| files.contains(&full[..k])) {
+                found.push((full[..k].to_vec(), line_of[i]));
+            }
+        }
+        i = end.max(i + 1);
+    }
+    found
+}
+
+/// Every cycle between the files of one folder (a folder's `mod.rs`, which declares the others,
+/// is left out), as `file -> file -> ... -> file`, with the uses that tie each pair.
+fn file_cycles(sources: &[Source]) -> Vec<String> {
+    let files: BTreeSet<Vec<String>> = sources
+        .iter()
+        .map(|s| module_path(Path::new(s.rel.trim_start_matches("src/"))))
+        .collect();
+    let is_mod = |rel: &str| rel.ends_with("/mod.rs");
+    let rel_of: BTreeMap<Vec<String>, String> = sources
+        .iter()
+        .map(|s| {
+            (
+                module_path(Path::new(s.rel.trim_start_matches("src/"))),
+                s.rel.clone(),
+            )
+        })
+        .collect();
+    let mut g: Graph = BTreeMap::new();
+    for s in sources.iter().filter(|s| !is_mod(&s.rel)) {
+        let here = module_path(Path::new(s.rel.trim_start_matches("src/")));
+        g.entry(s.rel.clone()).or_default();
+        for (to, line) in file_references(s, &files) {
+            let same_folder =
+                to.len() == here.len() && to[..to.len() - 1] == here[..here.len() - 1];
+            let to_rel = &rel_of[&to];
+            if same_folder && to != here && !is_mod(to_rel) {
+                g.entry(s.rel.clone())
+                    .or_default()
+                    .entry(to_rel.clone())
+                    .or_default()
+                    .push(format!("{}:{line}", s.rel));
+            }
+        }
+    }
+    cycles(&g)
+        .into_iter()
+        .map(|cycle| {
+            let mut msg = cycle.join(" -> ");
+            for w in cycle.windows(2) {
+                msg.push_str(&format!(
+                    "\n    {} -> {}: {}",
+                    w[0],
+                    w[1],
+                    examples(&g, &w[0], &w[1])
+                ));
+            }
+            msg
+        })
+        .collect()
+}
+
+#[test]
+fn no_cycle_between_the_files_of_a_folder() {
+    let found = file_cycles(&sources());
+    assert!(
+        found.is_empty(),
+        "files of one folder depend on each other in a cycle (move the shared item into a file \
+         of its own that both use):\n  {}",
+        found.join("\n  ")
+    );
+}
+
+#[test]
+fn a_cycle_between_two_files_is_found() {
+    let file = |rel: &str, text: &str| Source {
+        rel: rel.into(),
+        module: "job".into(),
+        code: cut_tests(&strip(text)).0,
+    };
+    let a = file("src/job/a.rs", "use super::b::B;\npub struct A;");
+    let b = file(
+        "src/job/b.rs",
+        "use crate::job::{a::A, c};\npub struct B; fn f() { crate::job::c::g() }",
+    );
+    let c = file("src/job/c.rs", "pub fn g() {}");
+    let m = file(
+        "src/job/mod.rs",
+        "pub mod a; pub mod b; pub mod c; use self::a::A;",
+    );
+    let found = file_cycles(&[a, b, c, m]);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(found[0].starts_with("src/job/a.rs -> src/job/b.rs -> src/job/a.rs"));
+    assert!(found[0].contains("src/job/b.rs:1"), "{}", found[0]);
+    let a = file("src/job/a.rs", "pub struct A;");
+    let b = file("src/job/b.rs", "use super::a::A; use super::super::io::x;");
+    assert!(file_cycles(&[a, b]).is_empty());
 }
 
 #[test]

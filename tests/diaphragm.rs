@@ -8,7 +8,9 @@ use deasim::element::CellFields;
 use deasim::io::build::{build, Plan};
 use deasim::io::examples::example;
 use deasim::io::scenario::parse;
-use deasim::job::run::{run, Observer, RunSummary, StepRecord};
+use deasim::job::observer::Observer;
+use deasim::job::run::{run, StepRecord};
+use deasim::job::state::RunSummary;
 use deasim::material::homogeneous::{solve, Mode};
 use deasim::solve::newton::NewtonSettings;
 

@@ -9,17 +9,19 @@
 //! residual and tangent at the same state, at the scenario's end conditions; tolerance 1e-12 of
 //! the largest entry (sums in another order, round-off only).
 
+use deasim::algebra::csr::CsrMatrix;
+use deasim::algebra::exchange::LocalEquations;
+use deasim::algebra::system::{LoadedSystem, NonlinearSystem};
 use deasim::io::build::build;
 use deasim::io::examples::example;
 use deasim::io::scenario::parse;
 use deasim::mesh::distribute::{LocalMesh, Numbering};
 use deasim::mesh::partition::partition_cells;
-use deasim::problem::assembly::{node_processes, CsrMatrix};
-use deasim::problem::distributed::{equation_owners, LocalEquations};
+use deasim::problem::assembly::node_processes;
+use deasim::problem::distributed::equation_owners;
 use deasim::problem::dofs::{Dirichlet, Field, FIELDS};
 use deasim::problem::model::Model;
 use deasim::problem::statics::StaticProblem;
-use deasim::problem::system::{LoadedSystem, NonlinearSystem};
 
 /// The model of example `name` (with the `--set` overrides `set`) with its supports and its
 /// voltage electrodes at 1 kV.

@@ -352,7 +352,8 @@ fn run_exports_checkpoints_and_resumes_point_states() {
     use deasim::io::checkpoint::{latest, CheckpointWriter, ScenarioSource};
     use deasim::io::output::OutputWriter;
     use deasim::io::scenario::parse;
-    use deasim::job::run::{run_with, Observer};
+    use deasim::job::observer::Observer;
+    use deasim::job::run::run_with;
     let text = deasim::io::examples::example("film").unwrap();
     let s = parse(text, "film.toml", &["stages.0.steps=6".to_string()]).unwrap();
     let mut plan = build(&s, "film.toml", None).unwrap();

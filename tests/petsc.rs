@@ -14,7 +14,9 @@ use deasim::io::build::{build, Plan};
 use deasim::io::examples::example;
 use deasim::io::scenario::parse;
 use deasim::io::vtu::{read_pvtu, read_vtu, VtuData};
-use deasim::job::run::{run, Observer, RunSummary, StepRecord};
+use deasim::job::observer::Observer;
+use deasim::job::run::{run, StepRecord};
+use deasim::job::state::RunSummary;
 use deasim::solve::newton::NewtonSettings;
 use std::path::Path;
 use std::process::Command;
@@ -1775,9 +1777,9 @@ const GAMG: &str = "-ksp_type gmres -pc_type gamg -ksp_rtol 1e-12 -ksp_atol 0 -k
 /// with GAMG's default near-null space (one constant vector per block).
 #[test]
 fn the_rigid_body_modes_help_algebraic_multigrid() {
+    use deasim::algebra::system::{LoadedSystem, NonlinearSystem};
     use deasim::job::linear::held_model;
     use deasim::problem::statics::StaticProblem;
-    use deasim::problem::system::{LoadedSystem, NonlinearSystem};
     use deasim::solve::linear::{LinearSolver, SolverKind, SolverSettings};
     use deasim::solve::petsc::PetscSolver;
     let scenario = parse(example("film").unwrap(), "test.toml", &[]).unwrap();
@@ -1836,8 +1838,8 @@ fn the_rigid_body_modes_help_algebraic_multigrid() {
 /// orthonormal, zero on the padding rows and span the raw rigid-body motions.
 #[test]
 fn the_near_null_space_is_built_on_each_processs_rows() {
+    use deasim::algebra::system::NonlinearSystem;
     use deasim::problem::statics::StaticProblem;
-    use deasim::problem::system::NonlinearSystem;
     use deasim::solve::linear::LinearSolverError;
     use deasim::solve::petsc::near_null_modes;
     use std::sync::{Barrier, Mutex};
@@ -2014,16 +2016,17 @@ fn film_with_gamg_and_the_rigid_body_modes_agrees_with_the_direct_solver() {
 #[test]
 #[ignore = "run on each rank by newton_on_each_ranks_own_unknowns_on_two_mpi_ranks"]
 fn rank_part_of_the_distributed_film() {
+    use deasim::algebra::exchange::LocalEquations;
+    use deasim::algebra::system::{LoadedSystem, NonlinearSystem};
     use deasim::mesh::distribute::{LocalMesh, Numbering};
     use deasim::mesh::generate::box_mesh;
     use deasim::mesh::partition::partition_cells;
     use deasim::mesh::ElementKind;
     use deasim::problem::assembly::node_processes;
-    use deasim::problem::distributed::{equation_owners, LocalEquations, OwnedSystem};
+    use deasim::problem::distributed::{equation_owners, OwnedSystem};
     use deasim::problem::dofs::FIELDS;
     use deasim::problem::examples::{tied_film, FILM_SIZE};
     use deasim::problem::statics::StaticProblem;
-    use deasim::problem::system::{LoadedSystem, NonlinearSystem};
     use deasim::solve::linear::FaerLdlt;
     use deasim::solve::newton::newton;
     use deasim::solve::petsc::{world, PetscExchange, PetscSolver};

@@ -10,8 +10,11 @@ use crate::io::output::OutputWriter;
 use crate::io::pieces::Pieces;
 use crate::io::results::ResultsDir;
 use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
-use crate::job::linear::{FrequencyResponse, ResponseMethod};
-use crate::job::run::{run_with, Observer, RunState, RunSummary, StepRecord};
+use crate::job::observer::Observer;
+use crate::job::plan::ResponseMethod;
+use crate::job::run::{run_with, RunState, StepRecord};
+use crate::job::state::FrequencyResponse;
+use crate::job::state::RunSummary;
 use crate::solve::newton::NewtonSettings;
 use crate::time::modal::Mode;
 use crate::units::Short;
@@ -621,7 +624,7 @@ fn take_part(
 ) -> Result<Plan, String> {
     #[cfg(feature = "petsc")]
     {
-        use crate::problem::distributed::Exchange;
+        use crate::algebra::exchange::Exchange;
         use crate::solve::petsc::{receive_bytes, send_bytes};
         let (message, materials) = match whole {
             Some(plan) => {
@@ -667,7 +670,7 @@ fn take_part(
                 (message, materials)
             }
         };
-        let exchange = |eq: &std::sync::Arc<crate::problem::distributed::LocalEquations>| {
+        let exchange = |eq: &std::sync::Arc<crate::algebra::exchange::LocalEquations>| {
             crate::solve::petsc::PetscExchange::new(eq)
                 .map(|x| std::sync::Arc::new(x) as std::sync::Arc<dyn Exchange>)
                 .map_err(|e| e.to_string())

@@ -582,7 +582,7 @@ pub const DYNAMIC_HEADER: &str = "      mesh     dofs  steps    newton   s/step 
 /// An observer that keeps nothing (the benchmarks time the solve alone).
 struct Quiet;
 
-impl crate::job::run::Observer for Quiet {
+impl crate::job::observer::Observer for Quiet {
     fn step(
         &mut self,
         _: &crate::job::plan::Plan,
@@ -591,7 +591,7 @@ impl crate::job::run::Observer for Quiet {
         _: &[crate::element::CellFields],
     ) {
     }
-    fn finished(&mut self, _: &crate::job::plan::Plan, _: &crate::job::run::RunSummary) {}
+    fn finished(&mut self, _: &crate::job::plan::Plan, _: &crate::job::state::RunSummary) {}
 }
 
 /// A stage's name, wall time (s) and steps.

@@ -4,8 +4,10 @@
 
 use crate::element::CellFields;
 use crate::io::output::OutputWriter;
+use crate::job::observer::Observer;
 use crate::job::plan::Plan;
-use crate::job::run::{run_with, Observer, RunSummary};
+use crate::job::run::run_with;
+use crate::job::state::RunSummary;
 use crate::job::state::StepRecord;
 use crate::solve::newton::NewtonSettings;
 use std::path::{Path, PathBuf};

@@ -12,10 +12,14 @@ use crate::io::plot::{PlotSpec, Series};
 use crate::io::results::ResultsDir;
 use crate::job::linear::{
     check_linearisable, device_mass, has_branches, held_model, linear_probes, response_values,
-    zero_bias_warning, FrequencyResponse, ProbeMap, ResponseMethod,
+    zero_bias_warning, ProbeMap,
 };
+use crate::job::observer::Observer;
+use crate::job::plan::ResponseMethod;
 use crate::job::plan::StageKind;
-use crate::job::run::{run, Observer, RunSummary, StepRecord};
+use crate::job::run::{run, StepRecord};
+use crate::job::state::FrequencyResponse;
+use crate::job::state::RunSummary;
 use crate::job::statics::solve_static;
 use crate::problem::dofs::{FIELDS, PHI};
 use crate::problem::model::Model;

@@ -10,8 +10,8 @@
 //! with an error naming the file, never a panic.
 
 use super::atomic::write_atomic;
+use crate::job::observer::Observer;
 use crate::job::plan::Plan;
-use crate::job::run::Observer;
 use crate::job::state::{RunState, StepRecord};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -330,7 +330,7 @@ pub struct CheckpointCadence {
 impl Observer for CheckpointCadence {
     fn step(&mut self, _: &Plan, _: &StepRecord, _: &[f64], _: &[crate::element::CellFields]) {}
 
-    fn finished(&mut self, _: &Plan, _: &crate::job::run::RunSummary) {}
+    fn finished(&mut self, _: &Plan, _: &crate::job::state::RunSummary) {}
 
     fn wants_state(&self, accepted: usize, stopping: bool) -> bool {
         checkpoint_due(self.every, accepted, stopping)
@@ -363,7 +363,7 @@ pub struct CheckpointWriter {
 impl Observer for CheckpointWriter {
     fn step(&mut self, _: &Plan, _: &StepRecord, _: &[f64], _: &[crate::element::CellFields]) {}
 
-    fn finished(&mut self, _: &Plan, _: &crate::job::run::RunSummary) {}
+    fn finished(&mut self, _: &Plan, _: &crate::job::state::RunSummary) {}
 
     fn takes_states(&self) -> bool {
         true

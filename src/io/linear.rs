@@ -5,8 +5,8 @@
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{stacked_plot_scaled, PlotSpec, Scale, Series};
 use crate::io::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuPiece};
-use crate::job::linear::FrequencyResponse;
 use crate::job::plan::{FieldFormat, Plan};
+use crate::job::state::FrequencyResponse;
 use crate::problem::dofs::{FIELDS, PHI};
 use crate::time::modal::Mode;
 use std::fmt::Write as _;
@@ -221,7 +221,7 @@ pub fn write_response(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::job::linear::ResponseMethod;
+    use crate::job::plan::ResponseMethod;
 
     /// The Bode plot is drawn in the probe's unit per volt with its metric prefix against a
     /// logarithmic frequency axis in Hz; a probe without a finite response (a capacitance about

@@ -14,8 +14,10 @@ use super::vtu::{
     write_pvd, write_pvtu, write_vtu_as, CellType, DataArray, Encoding, VtuError, VtuPiece,
 };
 use crate::element::CellFields;
-use crate::job::linear::FrequencyResponse;
-use crate::job::run::{LimitRecord, Observer, PathRecord, RunSummary, StepRecord};
+use crate::job::observer::Observer;
+use crate::job::run::{LimitRecord, PathRecord, StepRecord};
+use crate::job::state::FrequencyResponse;
+use crate::job::state::RunSummary;
 use crate::time::modal::Mode;
 use rayon::prelude::*;
 use serde_json::{json, Value};

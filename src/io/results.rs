@@ -216,7 +216,7 @@ impl ResultsDir {
 }
 
 /// A run keeps its manifest nearly current: a killed run's directory lists what it wrote.
-impl crate::job::run::Observer for ResultsDir {
+impl crate::job::observer::Observer for ResultsDir {
     fn step(
         &mut self,
         _plan: &crate::io::build::Plan,
@@ -228,7 +228,11 @@ impl crate::job::run::Observer for ResultsDir {
         let _ = self.record_every(Duration::from_secs(10));
     }
 
-    fn finished(&mut self, _plan: &crate::io::build::Plan, _summary: &crate::job::run::RunSummary) {
+    fn finished(
+        &mut self,
+        _plan: &crate::io::build::Plan,
+        _summary: &crate::job::state::RunSummary,
+    ) {
     }
 }
 

@@ -8,7 +8,9 @@
 //! the same purpose.
 
 use super::plan::Plan;
+use super::plan::ResponseMethod;
 use super::probes::{ProbeInput, ProbeKind};
+use super::state::FrequencyResponse;
 use super::statics::solve_static;
 use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
@@ -198,32 +200,6 @@ impl ProbeMap<'_> {
             .map(|&i| self.plan.probes[i].0.clone())
             .collect()
     }
-}
-
-/// How a frequency response is computed.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub enum ResponseMethod {
-    /// One complex sparse solve of the full linearised system per frequency (exact).
-    Direct,
-    /// The lowest `count` modes with a static correction (the reduced model's response): fast
-    /// for many frequencies, accurate below the highest kept mode.
-    Modal { count: usize },
-}
-
-/// The complex response of the probes per volt at each frequency.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FrequencyResponse {
-    pub electrode: String,
-    /// DC voltage of the driven electrode (V).
-    pub bias: f64,
-    pub frequencies: Vec<f64>,
-    /// Per probe: its name and (real, imaginary) part per volt at each frequency.
-    pub probes: Vec<(String, Vec<(f64, f64)>)>,
-    pub method: ResponseMethod,
-    /// How the linear systems were solved, for the run's report.
-    pub solved_by: String,
-    /// Set when the drive reaches no motion to first order (zero bias).
-    pub warning: Option<String>,
 }
 
 /// The frequency response about `state` (an equilibrium with every electrode at its voltage in

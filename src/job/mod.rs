@@ -2,10 +2,12 @@
 //! and observers.
 
 pub mod linear;
+pub mod observer;
 pub mod part;
 pub mod plan;
 mod prestretch;
 pub mod probes;
+pub mod rank;
 mod recorder;
 pub mod run;
 pub mod state;

@@ -1,7 +1,6 @@
 //! The plan of a run: the model, its electrodes and supports, the stages, probes and outputs —
 //! everything a run needs, validated (built from a scenario by `io::build`).
 
-use super::linear::ResponseMethod;
 use super::probes::Probe;
 use crate::problem::model::Model;
 use crate::solve::linear::SolverSettings;
@@ -222,7 +221,7 @@ pub struct Plan {
     /// On a rank's part of a plan divided between MPI ranks ([`crate::job::part::messages`]):
     /// the whole problem and the other ranks. `None`: the plan is the whole problem.
     #[serde(skip)]
-    pub part: Option<std::sync::Arc<crate::job::part::PlanPart>>,
+    pub part: Option<std::sync::Arc<super::rank::PlanPart>>,
 }
 
 impl Plan {
@@ -266,7 +265,7 @@ impl Plan {
         &mut self,
         rank: usize,
         ranks: usize,
-        sum: crate::problem::assembly::SumOverProcesses,
+        sum: crate::algebra::exchange::SumOverProcesses,
     ) -> Vec<usize> {
         let part = self.partition(ranks);
         let mut counts = vec![0; ranks];
@@ -416,4 +415,14 @@ pub struct Rigid {
     pub nodes: Vec<usize>,
     /// Attached mass carried by the mesh (kg; the physical mass divided by the symmetry factor).
     pub mass: f64,
+}
+
+/// How a frequency response is computed.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum ResponseMethod {
+    /// One complex sparse solve of the full linearised system per frequency (exact).
+    Direct,
+    /// The lowest `count` modes with a static correction (the reduced model's response): fast
+    /// for many frequencies, accurate below the highest kept mode.
+    Modal { count: usize },
 }

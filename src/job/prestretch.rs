@@ -1,8 +1,8 @@
 //! The pre-stretch phase that runs before the first stage of a plan.
 
+use super::observer::Observer;
 use super::plan::Plan;
 use super::recorder::Recorder;
-use super::run::Observer;
 use super::statics::{solve_static, solve_static_from, StageTime};
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::problem::points::PointStates;

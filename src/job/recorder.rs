@@ -3,8 +3,8 @@
 
 use super::plan::Plan;
 use super::probes::ProbeInput;
-use super::run::{Energies, StepRecord};
 use super::state::RecorderState;
+use super::state::{Energies, StepRecord};
 use crate::element::CellFields;
 use crate::problem::dofs::FIELDS;
 use crate::problem::points::PointStates;
@@ -511,7 +511,7 @@ impl<'p> Recorder<'p> {
             {
                 Vec::new()
             } else {
-                crate::problem::loads::weight_forces(&plan.model)
+                plan.model.weight_forces()
             },
             external_factor: 0.0,
             sudden_loads: false,

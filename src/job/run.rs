@@ -5,158 +5,31 @@
 //! numbers, bit for bit, as one without, and a run resumed from a state continues exactly as the
 //! run that went on.
 
-use super::linear::{frequency_response_at, modes_at, FrequencyResponse};
+use super::linear::{frequency_response_at, modes_at};
+use super::observer::{Observer, Observers};
 use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
 use super::recorder::Recorder;
 pub use super::state::{
-    Energies, LimitRecord, PathRecord, RecorderState, RunState, StagePosition, StageSummary,
-    StepRecord,
+    Energies, LimitRecord, PathRecord, RecorderState, RunState, RunSummary, StagePosition,
+    StageSummary, StepRecord,
 };
 use super::statics::{solve_static_from, StageTime};
-use crate::element::CellFields;
+use crate::algebra::system::NonlinearSystem;
 use crate::problem::distributed::Held;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
-use crate::problem::system::NonlinearSystem;
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{RampPosition, StepControl};
 use crate::time::integrator::TimeLevel;
 use crate::time::mass::NodalMass;
-use crate::time::modal::{Mode, ModeSettings};
+use crate::time::modal::ModeSettings;
 use crate::time::stage::{
     run_dynamic_from, DynamicInputs, DynamicResume, DynamicSettings, StageParts,
 };
 use std::time::Instant;
-
-/// The outcome of a run.
-#[derive(Debug, Clone)]
-pub struct RunSummary {
-    pub converged: bool,
-    pub error: Option<String>,
-    pub stages: Vec<StageSummary>,
-    pub wall_s: f64,
-    pub dofs: usize,
-    pub warnings: Vec<String>,
-    /// The run stopped because a stop was requested (SIGINT/SIGTERM).
-    pub interrupted: bool,
-}
-
-/// Receives the progress of a run.
-pub trait Observer {
-    /// A stage begins.
-    fn stage_started(&mut self, _index: usize, _name: &str) {}
-    /// A step was accepted; `state` holds u (m) and Φ (V), 4 per node; `fields` the cell fields.
-    fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]);
-    /// The run ended (converged or not).
-    fn finished(&mut self, plan: &Plan, summary: &RunSummary);
-    /// The run resumes from a state; `records` are the steps recorded before it (no
-    /// [`Observer::step`] is sent for them); `state` and `fields` are those of the last record.
-    fn resumed(
-        &mut self,
-        _plan: &Plan,
-        _records: &[StepRecord],
-        _state: &[f64],
-        _fields: &[CellFields],
-    ) {
-    }
-    /// The cell means of the material points' internal variables at the state of the next
-    /// [`Observer::step`] (sent only when a material has internal variables).
-    fn point_states(&mut self, _plan: &Plan, _cell_means: &[(String, Vec<f64>)]) {}
-    /// A `modes` stage found these modes about `state`.
-    fn modes(&mut self, _plan: &Plan, _stage: &str, _state: &[f64], _modes: &[Mode]) {}
-    /// A `frequency-response` stage computed this response.
-    fn frequency_response(&mut self, _plan: &Plan, _stage: &str, _response: &FrequencyResponse) {}
-    /// A continuation stage converged at a point of its path (after its [`Observer::step`]).
-    fn path_point(&mut self, _plan: &Plan, _point: &PathRecord) {}
-    /// A continuation stage located a limit point of its parameter.
-    fn limit_point(&mut self, _plan: &Plan, _limit: &LimitRecord) {}
-    /// Whether this observer may ask for run states (the run then keeps its history).
-    fn takes_states(&self) -> bool {
-        false
-    }
-    /// Whether it wants the run state after `accepted` accepted steps of the stages; `stopping`:
-    /// the run is about to stop on a signal.
-    fn wants_state(&self, _accepted: usize, _stopping: bool) -> bool {
-        false
-    }
-    /// The run state, when [`Observer::wants_state`] said so. An error becomes a warning.
-    fn run_state(&mut self, _plan: &Plan, _state: &RunState) -> Result<(), String> {
-        Ok(())
-    }
-}
-
-/// Several observers as one: every event goes to each, in order.
-pub struct Observers<'a, 'b>(pub &'a mut [&'b mut dyn Observer]);
-
-impl Observer for Observers<'_, '_> {
-    fn stage_started(&mut self, index: usize, name: &str) {
-        self.0.iter_mut().for_each(|o| o.stage_started(index, name));
-    }
-    fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
-        self.0
-            .iter_mut()
-            .for_each(|o| o.step(plan, record, state, fields));
-    }
-    fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
-        self.0.iter_mut().for_each(|o| o.finished(plan, summary));
-    }
-    fn resumed(
-        &mut self,
-        plan: &Plan,
-        records: &[StepRecord],
-        state: &[f64],
-        fields: &[CellFields],
-    ) {
-        self.0
-            .iter_mut()
-            .for_each(|o| o.resumed(plan, records, state, fields));
-    }
-    fn point_states(&mut self, plan: &Plan, cell_means: &[(String, Vec<f64>)]) {
-        self.0
-            .iter_mut()
-            .for_each(|o| o.point_states(plan, cell_means));
-    }
-    fn modes(&mut self, plan: &Plan, stage: &str, state: &[f64], modes: &[Mode]) {
-        self.0
-            .iter_mut()
-            .for_each(|o| o.modes(plan, stage, state, modes));
-    }
-    fn frequency_response(&mut self, plan: &Plan, stage: &str, response: &FrequencyResponse) {
-        self.0
-            .iter_mut()
-            .for_each(|o| o.frequency_response(plan, stage, response));
-    }
-    fn path_point(&mut self, plan: &Plan, point: &PathRecord) {
-        self.0.iter_mut().for_each(|o| o.path_point(plan, point));
-    }
-    fn limit_point(&mut self, plan: &Plan, limit: &LimitRecord) {
-        self.0.iter_mut().for_each(|o| o.limit_point(plan, limit));
-    }
-    fn takes_states(&self) -> bool {
-        self.0.iter().any(|o| o.takes_states())
-    }
-    fn wants_state(&self, accepted: usize, stopping: bool) -> bool {
-        self.0.iter().any(|o| o.wants_state(accepted, stopping))
-    }
-    fn run_state(&mut self, plan: &Plan, state: &RunState) -> Result<(), String> {
-        let mut errors = Vec::new();
-        for o in self.0.iter_mut() {
-            if o.wants_state(state.accepted, false) || o.wants_state(state.accepted, true) {
-                if let Err(e) = o.run_state(plan, state) {
-                    errors.push(e);
-                }
-            }
-        }
-        if errors.is_empty() {
-            Ok(())
-        } else {
-            Err(errors.join("; "))
-        }
-    }
-}
 
 /// Runs every stage of the plan. `newton` applies to every stage.
 pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) -> RunSummary {

@@ -2,6 +2,7 @@
 //! driver's position), the nodal values, the recorder's bookkeeping and everything recorded so far.
 //! Checkpoints are this value written to a file; a run continues from it bit for bit.
 
+use super::plan::ResponseMethod;
 use crate::solve::stepping::RampPosition;
 pub use crate::time::integrator::FactorPoint;
 pub use crate::time::stage::DynamicResume;
@@ -166,4 +167,33 @@ pub struct RunState {
     pub records: Vec<StepRecord>,
     /// Wall time spent before this state was taken (s).
     pub wall_s: f64,
+}
+
+/// The outcome of a run.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    pub converged: bool,
+    pub error: Option<String>,
+    pub stages: Vec<StageSummary>,
+    pub wall_s: f64,
+    pub dofs: usize,
+    pub warnings: Vec<String>,
+    /// The run stopped because a stop was requested (SIGINT/SIGTERM).
+    pub interrupted: bool,
+}
+
+/// The complex response of the probes per volt at each frequency.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrequencyResponse {
+    pub electrode: String,
+    /// DC voltage of the driven electrode (V).
+    pub bias: f64,
+    pub frequencies: Vec<f64>,
+    /// Per probe: its name and (real, imaginary) part per volt at each frequency.
+    pub probes: Vec<(String, Vec<(f64, f64)>)>,
+    pub method: ResponseMethod,
+    /// How the linear systems were solved, for the run's report.
+    pub solved_by: String,
+    /// Set when the drive reaches no motion to first order (zero bias).
+    pub warning: Option<String>,
 }

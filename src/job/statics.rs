@@ -1,12 +1,12 @@
 //! Static stages: the load ramp of a model's prescribed values and dead loads, solved by load
 //! stepping with Newton.
 
-use super::part::Division;
+use super::rank::Division;
+use crate::algebra::system::LoadedSystem;
 use crate::problem::distributed::Held;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
-use crate::problem::system::LoadedSystem;
 use crate::solve::linear::{SolverSettings, SolverStats};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepControl};

@@ -6,7 +6,7 @@
 //! r̂ = s·r. Choosing `phi_scale` = √(μ/ε) makes the potential block of the Jacobian the same size as
 //! the displacement block, and the system stays symmetric.
 
-use super::system::DofLayout;
+use crate::algebra::system::DofLayout;
 pub use crate::fem::{FIELDS, PHI};
 /// Marker of a constrained dof in [`DofMap::eq`].
 pub const CONSTRAINED: usize = usize::MAX;

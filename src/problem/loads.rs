@@ -10,7 +10,6 @@
 
 use crate::mesh::{FaceRef, Mesh};
 use crate::problem::dofs::FIELDS;
-use crate::problem::model::Model;
 
 /// A dead nominal traction on a list of faces (N/m² of reference area).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -64,55 +63,6 @@ pub fn traction_forces(mesh: &Mesh, tractions: &[Traction], factor: f64) -> Vec<
             out[node * FIELDS + i] += factor * force[i];
         }
     });
-    out
-}
-
-/// Consistent nodal forces (N, `FIELDS` per node, zero potential entries) of all the dead loads of
-/// a model at full value: tractions ∫N t₀ dA, body forces ∫N b₀ dV (with the element's own
-/// quadrature, exact for constant b₀ on affine cells) and point forces.
-pub fn dead_load_forces(model: &Model) -> Vec<f64> {
-    let mut out = traction_forces(&model.mesh, &model.tractions, 1.0);
-    for &(node, q) in &model.point_charges {
-        out[node * FIELDS + crate::problem::dofs::PHI] -= q;
-    }
-    for (o, g) in out.iter_mut().zip(weight_forces(model)) {
-        *o += g;
-    }
-    out
-}
-
-/// Consistent nodal forces (N, `FIELDS` per node) of the body and point forces of a model at
-/// full value: the loads with a potential energy −f·u (gravity on the body and attached masses).
-pub fn weight_forces(model: &Model) -> Vec<f64> {
-    let mesh = &model.mesh;
-    let mut out = vec![0.0; mesh.n_nodes() * FIELDS];
-    if model.body_force.iter().any(|b| *b != [0.0; 3]) {
-        let npc = mesh.kind.nodes_per_cell();
-        let mut x = vec![[0.0; 3]; npc];
-        for c in 0..mesh.n_cells() {
-            let Some(b) = model.body_force.get(model.cell_material[c]) else {
-                continue;
-            };
-            mesh.cell_coords_into(c, &mut x);
-            // a degenerate cell is reported by the solver; it carries no load here
-            let Ok(g) = model.reference.geometry(&x) else {
-                continue;
-            };
-            for (a, &node) in mesh.cell(c).iter().enumerate() {
-                let w: f64 = (0..g.n_qp)
-                    .map(|q| g.weights[q] * model.reference.n[q][a])
-                    .sum();
-                for i in 0..3 {
-                    out[node * FIELDS + i] += w * b[i];
-                }
-            }
-        }
-    }
-    for &(node, f) in &model.point_forces {
-        for i in 0..3 {
-            out[node * FIELDS + i] += f[i];
-        }
-    }
     out
 }
 

@@ -12,4 +12,3 @@ pub mod model;
 pub mod points;
 pub mod pressure;
 pub mod statics;
-pub mod system;

@@ -3,13 +3,13 @@
 //! and dead loads (tractions, body and point forces) scaled by the load factor. The cell kernel is the model's
 //! [`Formulation`](crate::problem::model::Formulation) (standard or mean-dilatation).
 
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::system::{DofLayout, LoadedSystem, NonlinearSystem};
 use crate::element::{CellFields, CellInput};
-use crate::problem::assembly::{Assembler, CsrMatrix, GlobalTerms};
+use crate::problem::assembly::{Assembler, GlobalTerms};
 use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
-use crate::problem::loads::dead_load_forces;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
-use crate::problem::system::{DofLayout, LoadedSystem, NonlinearSystem};
 
 /// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
 const RESIDUAL_FLOOR: f64 = 1e-11;
@@ -128,7 +128,7 @@ impl<'m> StaticProblem<'m> {
         let (dofs, assembler, floor) = discretize(model);
         let state = state.unwrap_or_else(|| vec![0.0; model.mesh.n_nodes() * FIELDS]);
         let dead_load = if model.has_dead_loads() {
-            dead_load_forces(model)
+            model.dead_load_forces()
         } else {
             Vec::new()
         };
@@ -299,7 +299,7 @@ pub fn energies_with(
 
 /// Internal forces ∂(∫Ψ dV)/∂x for every dof of a state (N for u, C for Φ). Dead loads are not
 /// included: where one acts on a constrained node, subtract
-/// [`dead_load_forces`](crate::problem::loads::dead_load_forces) for its reaction.
+/// [`Model::dead_load_forces`] for its reaction.
 pub fn nodal_reactions(model: &Model, state: &[f64]) -> Result<Vec<f64>, String> {
     nodal_reactions_with(model, state, &PointStates::default(), 0.0)
 }
@@ -638,7 +638,7 @@ impl NonlinearSystem for StaticProblem<'_> {
     /// Volume control: μ the pressure's fraction, g = V(x) − V̄(s) with V̄ linear in the load
     /// factor from the stage's start volume to the target; b = ∂r/∂μ is the pressure's load
     /// vector per unit fraction, −∂V/∂x scaled by its value, so c = ∂V/∂x = −b / value.
-    fn border(&self) -> Result<Option<crate::problem::system::Border>, String> {
+    fn border(&self) -> Result<Option<crate::algebra::system::Border>, String> {
         let Some(c) = self.volume_control.as_ref() else {
             return Ok(None);
         };
@@ -653,7 +653,7 @@ impl NonlinearSystem for StaticProblem<'_> {
             }
         }
         let cvec = b.iter().map(|v| -v / p.value).collect();
-        Ok(Some(crate::problem::system::Border {
+        Ok(Some(crate::algebra::system::Border {
             b,
             c: cvec,
             measure: crate::problem::pressure::enclosed_volume(&p.faces, &self.state),

@@ -28,7 +28,7 @@
 //! column indices), the inverse diagonal and four work vectors. Only the coarsest operator is
 //! dense.
 
-use crate::problem::assembly::CsrMatrix;
+use crate::algebra::csr::CsrMatrix;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltParams, LltRegularization};
 use faer::{Mat, Par, Spec};

@@ -10,8 +10,8 @@
 use super::iterative::AmgGmres;
 use super::linear::{Inertia, LinearSolver, LinearSolverError, SolverStats};
 use super::reused::ReusedLdlt;
-use crate::problem::assembly::CsrMatrix;
-use crate::problem::system::DofLayout;
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::system::DofLayout;
 
 /// A reused LDLᵀ that gives way to FGMRES with AMG when its factor would not fit.
 pub struct AutoSolver {

@@ -30,8 +30,8 @@
 
 use super::linear::{Inertia, LinearSolver};
 use super::newton::NewtonSettings;
-use crate::problem::assembly::CsrMatrix;
-use crate::problem::system::LoadedSystem;
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::system::LoadedSystem;
 
 /// Settings of a continuation.
 #[derive(Debug, Clone)]
@@ -685,7 +685,7 @@ mod tests {
         x - x.powi(3) / 3.0 + x.powi(5) / 50.0
     }
 
-    impl crate::problem::system::NonlinearSystem for Snap {
+    impl crate::algebra::system::NonlinearSystem for Snap {
         fn n(&self) -> usize {
             1
         }

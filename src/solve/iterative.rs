@@ -44,8 +44,8 @@ use super::krylov::{fgmres, KrylovSettings};
 use super::linear::{
     forced_tolerance, FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats,
 };
-use crate::problem::assembly::{col, Col, CsrMatrix};
-use crate::problem::system::DofLayout;
+use crate::algebra::csr::{col, Col, CsrMatrix};
+use crate::algebra::system::DofLayout;
 
 /// Default relative residual of each solve (the solver settings' default).
 pub use super::linear::DEFAULT_RTOL;

@@ -6,8 +6,8 @@
 //! has exactly as many negative pivots as free potential dofs. One more negative pivot means the
 //! mechanical part has lost stability (a limit point such as pull-in was passed).
 
-use crate::problem::assembly::CsrMatrix;
-use crate::problem::system::DofLayout;
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::system::DofLayout;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::ldlt::factor::{LdltParams, LdltRegularization};
 use faer::perm::PermRef;

@@ -9,9 +9,9 @@
 //! g would cause).
 
 use super::linear::{Inertia, LinearSolver, LinearSolverError};
-use crate::problem::assembly::CsrMatrix;
+use crate::algebra::csr::CsrMatrix;
 
-pub use crate::problem::system::{Border, NonlinearSystem};
+pub use crate::algebra::system::{Border, NonlinearSystem};
 
 /// Newton settings.
 #[derive(Debug, Clone)]

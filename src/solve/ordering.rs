@@ -97,7 +97,7 @@ mod tests {
                 row_ptr.push(col_idx.len());
             }
         }
-        let col_idx = crate::problem::assembly::to_cols(col_idx);
+        let col_idx = crate::algebra::csr::to_cols(col_idx);
         let perm = nested_dissection(n, &row_ptr, &col_idx).unwrap();
         let mut sorted = perm.clone();
         sorted.sort();

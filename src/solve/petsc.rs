@@ -52,10 +52,10 @@
 //! PETSc is initialised once per process (on first use) and finalised at process exit.
 
 use super::linear::{Inertia, LinearSolver, LinearSolverError, SolverStats};
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::exchange::{Exchange, LocalEquations};
+use crate::algebra::system::DofLayout;
 use crate::fem::FIELDS;
-use crate::problem::assembly::CsrMatrix;
-use crate::problem::distributed::{Exchange, LocalEquations};
-use crate::problem::system::DofLayout;
 use petsc_sys as ffi;
 use std::cell::Cell;
 use std::ffi::{CStr, CString};

@@ -18,7 +18,7 @@ use super::krylov::{fgmres, KrylovSettings};
 use super::linear::{
     forced_tolerance, FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats,
 };
-use crate::problem::assembly::CsrMatrix;
+use crate::algebra::csr::CsrMatrix;
 
 /// Relative residual of each Krylov solve (Newton's own tolerance is 1e-10 of its first
 /// residual, so a step solved to 1e-9 of the current residual keeps it converging quadratically

@@ -9,9 +9,9 @@
 
 use super::linear::LinearSolver;
 use super::newton::{newton, NewtonError, NewtonReport, NewtonSettings};
-use crate::problem::assembly::CsrMatrix;
+use crate::algebra::csr::CsrMatrix;
 
-pub use crate::problem::system::LoadedSystem;
+pub use crate::algebra::system::LoadedSystem;
 
 /// Step control.
 #[derive(Debug, Clone)]

@@ -25,12 +25,13 @@
 //! its distributed solver (MUMPS's LDLᵀ with pivoting), so that no process holds the whole
 //! matrices or a whole factor.
 
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::system::{DofLayout, NonlinearSystem};
 use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
-use crate::problem::assembly::{CellShare, CsrMatrix};
+use crate::problem::assembly::CellShare;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
-use crate::problem::system::{DofLayout, NonlinearSystem};
 use crate::solve::linear::{LinearSolver, SolverSettings, PARALLEL_MIN_UNKNOWNS};
 use crate::time::mass::NodalMass;
 use crate::time::modal::EquationMass;

@@ -14,14 +14,15 @@
 //!   R = βΔt²[M a_{n+1} + ∇V(q_{n+1}) + f_vis(q_{n+1}, v_{n+1}) − f_ext],
 //! tangent M + βΔt² K_T + γΔt ∂f_vis/∂v.
 
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::system::DofLayout;
 use crate::element::{CellInput, KelvinVoigtKernel, MAX_LOCAL};
-use crate::problem::assembly::{Assembler, CsrMatrix};
+use crate::problem::assembly::Assembler;
 use crate::problem::circuit::CircuitStep;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::{discretize, layout_of};
-use crate::problem::system::DofLayout;
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
 use crate::time::trapezoidal::own_cells_power;
@@ -131,7 +132,7 @@ impl<'m> TimeStep<'m> {
             mass,
             viscosity,
             dead_load: if model.has_dead_loads() {
-                crate::problem::loads::dead_load_forces(model)
+                model.dead_load_forces()
             } else {
                 Vec::new()
             },

@@ -7,8 +7,8 @@
 //! integrated with a degree-5 rule: the element's 4-point rule is not exact for N_aN_b (degree 4)
 //! and would give a singular matrix.
 
+use crate::algebra::exchange::{Exchange, LocalEquations};
 use crate::mesh::Mesh;
-use crate::problem::distributed::{Exchange, LocalEquations};
 use crate::problem::dofs::{DofMap, CONSTRAINED};
 use crate::problem::model::Model;
 
@@ -415,7 +415,7 @@ mod tests {
 
     /// An exchange whose sums reach the owners only: the ghosts' entries become NaN, as no
     /// distributed vector promises them (a solve must send the owners' values to the ghosts).
-    struct OwnersOnly(crate::problem::distributed::SumExchange, Vec<bool>);
+    struct OwnersOnly(crate::algebra::exchange::SumExchange, Vec<bool>);
 
     impl Exchange for OwnersOnly {
         fn add_to_owners(&self, local: &mut [f64]) -> Result<(), String> {
@@ -440,9 +440,10 @@ mod tests {
     /// whole solve at every node of every part, with a tie across the partition's cut.
     #[test]
     fn the_solve_over_the_ranks_parts_is_the_whole_solve() {
+        use crate::algebra::exchange::{LocalEquations, SumExchange};
         use crate::mesh::distribute::{LocalMesh, Numbering};
         use crate::problem::assembly::{node_processes, on_threads};
-        use crate::problem::distributed::{equation_owners, LocalEquations, SumExchange};
+        use crate::problem::distributed::equation_owners;
         use crate::problem::dofs::{Field, Tie};
         let material = Arc::new(ElectroNeoHooke::new(1.0, 1.0, 1.0));
         for mk in [MassKind::Consistent, MassKind::Lumped] {

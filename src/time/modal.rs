@@ -17,11 +17,11 @@
 //! and a Ritz pair is accepted when its residual is below the tolerance; the space grows until the
 //! requested modes have converged.
 
-use crate::problem::assembly::CsrMatrix;
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::system::NonlinearSystem;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
-use crate::problem::system::NonlinearSystem;
 use crate::solve::linear::{LinearSolver, SolverSettings};
 use crate::time::mass::NodalMass;
 

@@ -329,13 +329,13 @@ fn potential_response(lin: &Linearisation, solver: &SolverSettings) -> Result<Ve
         for p in k.row_ptr[e]..k.row_ptr[e + 1] {
             let j = index[k.col_idx[p] as usize];
             if j != usize::MAX {
-                col_idx.push(crate::problem::assembly::col(j));
+                col_idx.push(crate::algebra::csr::col(j));
                 values.push(k.values[p]);
             }
         }
         row_ptr.push(col_idx.len());
     }
-    let block = crate::problem::assembly::CsrMatrix::new(phi.len(), row_ptr, col_idx, values);
+    let block = crate::algebra::csr::CsrMatrix::new(phi.len(), row_ptr, col_idx, values);
     let mut s = solver.build();
     s.factor(&block).map_err(|e| e.to_string())?;
     let mut rhs: Vec<f64> = phi.iter().map(|&e| force[e]).collect();

@@ -6,13 +6,14 @@
 
 use super::integrator::{FactorPoint, Scheme, TimeLevel, TimeStep};
 use super::mass::NodalMass;
-use crate::problem::assembly::CsrMatrix;
-use crate::problem::distributed::{agree, Division, Exchange, Held, LocalEquations};
+use crate::algebra::csr::CsrMatrix;
+use crate::algebra::exchange::{Exchange, LocalEquations};
+use crate::algebra::system::NonlinearSystem;
+use crate::problem::distributed::{agree, Division, Held};
 use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
-use crate::problem::system::NonlinearSystem;
 use crate::solve::linear::{LinearSolver, SolverSettings, SolverStats};
 use crate::solve::newton::{newton, NewtonSettings};
 use crate::waveform::Waveform;

@@ -8,8 +8,9 @@
 //! q_{n+1} with the voltages at t_{n+1}). Symplectic and momentum preserving for η = 0.
 
 use super::mass::NodalMass;
+use crate::algebra::csr::CsrMatrix;
 use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
-use crate::problem::assembly::{Assembler, CsrMatrix};
+use crate::problem::assembly::Assembler;
 use crate::problem::dofs::{Dirichlet, DofMap, Field, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::{discretize, layout_of};
@@ -234,7 +235,7 @@ impl NonlinearSystem for TrapezoidalStep<'_> {
         self.assembler.is_shared()
     }
 
-    fn layout(&self) -> Option<crate::problem::system::DofLayout> {
+    fn layout(&self) -> Option<crate::algebra::system::DofLayout> {
         Some(layout_of(&self.model, &self.dofs, &self.assembler))
     }
 }

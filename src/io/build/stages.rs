@@ -3,7 +3,7 @@
 
 use super::{Ctx, Electrode, Stage, StageKind, MIN_STEPS_PER_PERIOD};
 use crate::io::scenario::{closest, InputError, Scenario, StageSpec};
-use crate::job::linear::ResponseMethod;
+use crate::job::plan::ResponseMethod;
 use crate::job::plan::{PathParameter, PathTarget};
 use crate::time::mass::MassKind;
 use crate::time::stage::Method;

@@ -2,7 +2,8 @@
 //! state the problem owns. Newton, load stepping and the time integrators work on these traits
 //! and know nothing of elements.
 
-use super::assembly::CsrMatrix;
+use super::csr::CsrMatrix;
+use super::exchange::LocalEquations;
 
 /// One extra scalar unknown μ of a system, closed by one scalar equation g(x, μ) = 0: Newton
 /// solves the bordered system [K b; cᵀ 0] [δx; δμ] = −[r; g] (a pressure held at the value that
@@ -67,7 +68,7 @@ pub struct DofLayout {
     /// the equations it owns, in their global order): this process's equations in the whole
     /// problem. The tangent is then this process's part over its own equations (owned and
     /// ghosts), to be summed at their global numbers.
-    pub equations: Option<std::sync::Arc<super::distributed::LocalEquations>>,
+    pub equations: Option<std::sync::Arc<LocalEquations>>,
 }
 
 /// A nonlinear system R(x) = 0 with a symmetric tangent.
