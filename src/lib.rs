@@ -8,6 +8,7 @@
 
 pub mod algebra;
 pub mod analytic;
+pub mod api;
 pub mod cli;
 pub mod element;
 pub mod fem;

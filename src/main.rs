@@ -286,6 +286,7 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    deasim::cli::stderr_log::install();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {

@@ -26,7 +26,7 @@ const LAYERS: &[&[&str]] = &[
     &["time"],
     &["job"],
     &["io"],
-    &["lumped"],
+    &["lumped", "api"],
     &["cli"],
 ];
 
@@ -816,6 +816,34 @@ fn no_cycle_between_the_files_of_a_folder() {
         found.is_empty(),
         "files of one folder depend on each other in a cycle (move the shared item into a file \
          of its own that both use):\n  {}",
+        found.join("\n  ")
+    );
+}
+
+/// The library prints nothing: outside the command line (`src/cli`, `src/main.rs`) no code
+/// writes to stdout or stderr; it returns what it has to say, or reports it through the `log`
+/// facade, which the command line prints.
+#[test]
+fn the_library_prints_nothing() {
+    let mut found = Vec::new();
+    for s in sources() {
+        if s.rel.starts_with("src/cli/") || s.rel == "src/main.rs" {
+            continue;
+        }
+        for (n, line) in s.code.lines().enumerate() {
+            for m in ["println!", "eprintln!", "print!", "eprint!", "dbg!"] {
+                let hit = line.match_indices(m).any(|(i, _)| {
+                    i == 0 || !line[..i].ends_with(|c: char| c.is_alphanumeric() || c == '_')
+                });
+                if hit {
+                    found.push(format!("{}:{}: {m}", s.rel, n + 1));
+                }
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "the library prints (return the message, or use log::warn!/log::info!):\n  {}",
         found.join("\n  ")
     );
 }

@@ -1,15 +1,16 @@
 //! The commands of the `deasim` binary. `main.rs` only parses arguments and calls these; each
 //! returns the process exit status: 0 success, 1 the solve failed, 2 bad input.
 
+use crate::api::{prepare_output, read_scenario, run_plan, Error, RunOptions};
 use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};
 use crate::io::checkpoint::{CheckpointCadence, CheckpointWriter, ScenarioSource};
-use crate::io::examples::{example, DEFAULT, EXAMPLES};
+use crate::io::examples::{example, EXAMPLES};
 use crate::io::lock::DirLock;
 use crate::io::output::OutputWriter;
 use crate::io::pieces::Pieces;
 use crate::io::results::ResultsDir;
-use crate::io::scenario::{parse, InputError, MAX_SCENARIO_BYTES};
+use crate::io::scenario::{parse, InputError};
 use crate::job::observer::Observer;
 use crate::job::plan::ResponseMethod;
 use crate::job::run::{run_with, RunState, StepRecord};
@@ -46,92 +47,6 @@ pub fn load_scenario(
     let scenario = parse(&text, &name, overrides).map_err(blame)?;
     let plan = build(&scenario, &name, base.as_deref()).map_err(blame)?;
     Ok((scenario, plan))
-}
-
-/// The text of a scenario file (or of the default example), the name it is read under and its
-/// directory.
-pub fn read_scenario(path: Option<&Path>) -> Result<(String, String, Option<PathBuf>), InputError> {
-    Ok(match path {
-        None => (
-            example(DEFAULT)
-                .expect("the default example is embedded")
-                .to_string(),
-            format!("<embedded {DEFAULT}>"),
-            None,
-        ),
-        // `-`: the scenario from standard input
-        Some(p) if p.as_os_str() == "-" => {
-            use std::io::Read as _;
-            let mut bytes = Vec::new();
-            let read = std::io::stdin()
-                .take(MAX_SCENARIO_BYTES as u64 + 1)
-                .read_to_end(&mut bytes);
-            let fail = |message: String| InputError {
-                file: "<stdin>".into(),
-                position: None,
-                key: None,
-                message,
-            };
-            read.map_err(|e| fail(format!("cannot read the scenario: {e}")))?;
-            if bytes.len() > MAX_SCENARIO_BYTES {
-                return Err(fail(format!(
-                    "input too large (more than {MAX_SCENARIO_BYTES} bytes)"
-                )));
-            }
-            let text = String::from_utf8(bytes).map_err(|e| {
-                fail(format!(
-                    "not UTF-8 text (invalid byte at offset {}): expected TOML",
-                    e.utf8_error().valid_up_to()
-                ))
-            })?;
-            (text, "<stdin>".into(), None)
-        }
-        // the name of an embedded example, when no such file exists
-        Some(p) if !p.exists() && p.to_str().and_then(example).is_some() => {
-            let name = p.to_str().unwrap_or_default();
-            (
-                example(name).unwrap_or_default().to_string(),
-                format!("<embedded {name}>"),
-                None,
-            )
-        }
-        Some(p) => {
-            let name = p.display().to_string();
-            let meta = std::fs::metadata(p).map_err(|e| InputError {
-                file: name.clone(),
-                position: None,
-                key: None,
-                message: format!("cannot read the scenario: {e}"),
-            })?;
-            if meta.len() > MAX_SCENARIO_BYTES as u64 {
-                return Err(InputError {
-                    file: name,
-                    position: None,
-                    key: None,
-                    message: format!(
-                        "file too large ({} bytes, at most {MAX_SCENARIO_BYTES})",
-                        meta.len()
-                    ),
-                });
-            }
-            let bytes = std::fs::read(p).map_err(|e| InputError {
-                file: name.clone(),
-                position: None,
-                key: None,
-                message: format!("cannot read the scenario: {e}"),
-            })?;
-            let text = String::from_utf8(bytes).map_err(|e| InputError {
-                file: name.clone(),
-                position: None,
-                key: None,
-                message: format!(
-                    "not a UTF-8 text file (invalid byte at offset {}): expected TOML",
-                    e.utf8_error().valid_up_to()
-                ),
-            })?;
-            (text, name, p.parent().map(Path::to_path_buf))
-        }
-    })
 }
 
 /// Shows progress: a bar on a terminal, plain lines otherwise.
@@ -405,25 +320,6 @@ pub fn cmd_run(
         }
     }
     status
-}
-
-/// Locks the output directory `dir` of `plan`, clears deasim's files of an earlier run of it
-/// (refused for another command's or scenario's results unless `overwrite`,
-/// [`ResultsDir::open`]) and creates the writer.
-fn prepare_output(
-    dir: &Path,
-    plan: &Plan,
-    overwrite: bool,
-) -> Result<(ResultsDir, OutputWriter), String> {
-    let hash = format!("{:016x}", plan.fingerprint());
-    let results = ResultsDir::open(dir, "run", &plan.name, &hash, overwrite)?;
-    // checkpoints of an earlier run in this directory belong to other results
-    for (_, _, old) in crate::io::checkpoint::checkpoint_files(dir) {
-        std::fs::remove_file(&old).map_err(|e| format!("{}: {e}", old.display()))?;
-    }
-    let writer = OutputWriter::new(dir)
-        .map_err(|e| format!("cannot create the output directory {}: {e}", dir.display()))?;
-    Ok((results, writer))
 }
 
 /// What a rank runs: its plan, its rank of how many, its piece of the field files (`None` on
@@ -1259,8 +1155,22 @@ fn execute(
         observers.push(c);
     }
     observers.push(results);
-    let summary = run_with(plan, &NewtonSettings::default(), &mut observers, start);
-    drop(observers);
+    let ran = run_plan(
+        plan,
+        RunOptions {
+            observers,
+            start,
+            ..RunOptions::default()
+        },
+    );
+    let summary = match ran {
+        Ok(r) => r.summary,
+        Err(Error::Solve { results, .. } | Error::Interrupted { results, .. }) => results.summary,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_SOLVE_FAILED;
+        }
+    };
     let listed = results.record();
     for e in &writer.errors {
         eprintln!("warning: {e}");

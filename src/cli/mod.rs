@@ -7,5 +7,6 @@ pub mod lumped;
 pub mod material;
 pub mod modes;
 pub mod response;
+pub mod stderr_log;
 pub mod sweep;
 pub mod validate;

@@ -62,7 +62,7 @@ impl DirLock {
                             ))
                         }
                         Ok(pid) => {
-                            eprintln!(
+                            log::warn!(
                                 "warning: {}: taking over the stale lock of process {pid}, \
                                  which no longer runs",
                                 path.display()
@@ -79,7 +79,7 @@ impl DirLock {
                             if young {
                                 std::thread::sleep(std::time::Duration::from_millis(50));
                             } else {
-                                eprintln!(
+                                log::warn!(
                                     "warning: {}: taking over a lock file without a process id",
                                     path.display()
                                 );

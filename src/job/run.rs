@@ -701,9 +701,8 @@ impl<'p, 'o> Job<'p, 'o> {
                         "electromechanical instability under charge control".to_string()
                     }
                     _ if f.limit_point => "limit point (loss of stability)".to_string(),
-                    _ if f.reason == crate::solve::interrupt::MESSAGE => {
-                        "interrupted by a signal (the last accepted step is in the outputs)"
-                            .to_string()
+                    _ if crate::solve::interrupt::is_request(&f.reason) => {
+                        format!("{} (the last accepted step is in the outputs)", f.reason)
                     }
                     _ => "solve failed".to_string(),
                 };

@@ -63,7 +63,7 @@ impl AutoSolver {
                 let Some(layout) = self.layout.clone() else {
                     return Err(e);
                 };
-                eprintln!("deasim: {e}: switching to FGMRES with coupled AMG");
+                log::warn!("deasim: {e}: switching to FGMRES with coupled AMG");
                 let mut it = AmgGmres::new(self.rtol).adaptive(self.adaptive);
                 it.set_layout(layout);
                 it.set_forcing(self.forcing);

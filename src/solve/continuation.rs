@@ -271,7 +271,7 @@ impl<S: LoadedSystem + ?Sized> Path<'_, S> {
                 break;
             }
             if self.newton.verbose {
-                eprintln!(
+                log::info!(
                     "    arc-length it {iteration}: |r| = {rn:.3e}, s = {:.6}",
                     s0 + ds
                 );

@@ -1,5 +1,6 @@
-//! Stop requests: a process-wide one (set by SIGINT/SIGTERM in the binary) and one of the calling
-//! thread (set by a step observer, e.g. on dielectric breakdown). Drivers check them between steps
+//! Stop requests: a process-wide one (set by SIGINT/SIGTERM in the binary), a cancel flag the
+//! caller of a run on this thread holds (the library's cancel token) and one of the calling thread
+//! (set by a step observer, e.g. on dielectric breakdown). Drivers check them between steps
 //! and stop cleanly at the last accepted state, so that the outputs stay valid.
 //!
 //! On several MPI ranks a request seen by one rank must stop them all at the same step, or the
@@ -8,6 +9,7 @@
 
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 /// A sum over the ranks of a distributed run, every rank receiving the same values.
 pub type RankSum = Box<dyn Fn(&mut [f64]) -> Result<(), String> + Send>;
@@ -19,6 +21,23 @@ thread_local! {
     /// Whether some rank of this thread's run was signalled, as the ranks last agreed (see
     /// [`requested`]).
     static SIGNALLED: RefCell<bool> = const { RefCell::new(false) };
+    /// The cancel flag of the run on this thread, if its caller gave one.
+    static CANCEL: RefCell<Option<Arc<AtomicBool>>> = const { RefCell::new(None) };
+}
+
+/// From now on the drivers on this thread also stop when `flag` is set (by another thread: a
+/// user interface, a Python KeyboardInterrupt); `None` forgets the flag.
+pub fn watch(flag: Option<Arc<AtomicBool>>) {
+    CANCEL.with(|c| *c.borrow_mut() = flag);
+}
+
+/// Whether the flag this thread watches is set.
+fn cancelled() -> bool {
+    CANCEL.with(|c| {
+        c.borrow()
+            .as_ref()
+            .is_some_and(|f| f.load(Ordering::SeqCst))
+    })
 }
 
 /// Asks the drivers running on this thread to stop after the current step, for `reason`.
@@ -45,6 +64,11 @@ pub fn agree_over(sum: RankSum) {
 pub fn pending() -> Option<String> {
     let signalled = REQUESTED.load(Ordering::SeqCst);
     let local = LOCAL.with(|l| l.borrow().clone());
+    let local = if cancelled() {
+        Some(CANCELLED.to_string())
+    } else {
+        local
+    };
     let agreed = AGREE.with(|a| {
         a.borrow()
             .as_ref()
@@ -101,16 +125,24 @@ pub fn requested() -> bool {
     if AGREE.with(|a| a.borrow().is_some()) {
         return SIGNALLED.with(|s| *s.borrow());
     }
-    REQUESTED.load(Ordering::SeqCst)
+    REQUESTED.load(Ordering::SeqCst) || cancelled()
 }
 
 /// The message drivers report when they stop on request.
 pub const MESSAGE: &str = "interrupted by a signal";
 
+/// The message drivers report when they stop on the caller's cancel flag ([`watch`]).
+pub const CANCELLED: &str = "cancelled by the caller";
+
+/// Whether a driver's stop `reason` is a stop on request (a signal or a cancel), not a failure.
+pub fn is_request(reason: &str) -> bool {
+    reason == MESSAGE || reason == CANCELLED
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::{Arc, Barrier, Mutex};
+    use std::sync::{Barrier, Mutex};
 
     /// A sum over `ranks` threads: each adds its values, waits for the others, reads the total.
     fn thread_sum(ranks: usize) -> impl Fn() -> RankSum {
@@ -179,6 +211,15 @@ mod tests {
             stop_here("done".into());
             assert_eq!(pending().as_deref(), Some("done"));
             clear_local();
+            assert_eq!(pending(), None);
+            let flag = Arc::new(AtomicBool::new(false));
+            watch(Some(Arc::clone(&flag)));
+            assert_eq!(pending(), None);
+            assert!(!requested());
+            flag.store(true, Ordering::SeqCst);
+            assert_eq!(pending().as_deref(), Some(CANCELLED));
+            assert!(requested() && is_request(CANCELLED));
+            watch(None);
             assert_eq!(pending(), None);
         })
         .join()

@@ -185,7 +185,7 @@ impl AmgGmres {
         let start = std::time::Instant::now();
         let fresh = nodal.hierarchy(op)?;
         if self.verbose {
-            eprintln!(
+            log::info!(
                 "    AMG of the coupled tangent built in {:.2} s: {fresh:?}",
                 start.elapsed().as_secs_f64()
             );
@@ -228,7 +228,7 @@ impl AmgGmres {
         self.stats.krylov_iterations += report.iterations;
         self.stats.solves += 1;
         if self.verbose {
-            eprintln!(
+            log::info!(
                 "    FGMRES: {} iterations, relative residual {:.2e}, {:.2} s",
                 report.iterations,
                 report.relative_residual,

@@ -275,14 +275,18 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
     let mut blocked: Option<String> = None;
     let mut rn = r0;
     if settings.verbose {
-        eprintln!("    tolerance {tol:.3e} (floor {floor:.3e})");
-        eprintln!(
+        log::info!("    tolerance {tol:.3e} (floor {floor:.3e})");
+        log::info!(
             "    it   |r|         |r|/|r0|    |r_u|       |r_phi|     |dx_u|      |dx_phi|  alpha"
         );
         let g = group_norms(system, &r, &groups)?;
-        eprintln!(
+        log::info!(
             "    {:>2}   {:.3e}   {:.3e}   {:.3e}   {:.3e}",
-            0, r0, 1.0, g[0], g[1]
+            0,
+            r0,
+            1.0,
+            g[0],
+            g[1]
         );
     }
     let mut iteration = 0;
@@ -365,7 +369,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
             dx.iter_mut().zip(&z).for_each(|(d, zi)| *d += dmu * zi);
             weight = bb.sqrt() / cz.abs();
             if settings.verbose {
-                eprintln!(
+                log::info!(
                     "    border: g {:.3e}, dmu {dmu:.3e}, weight {weight:.3e}, |b| {:.3e}",
                     bd.g(),
                     bb.sqrt()
@@ -448,7 +452,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
         if settings.verbose {
             let g = group_norms(system, &r, &groups)?;
             let d = group_norms(system, &dx, &groups)?;
-            eprintln!(
+            log::info!(
                 "    {:>2}   {:.3e}   {:.3e}   {:.3e}   {:.3e}   {:.3e}   {:.3e}  {}",
                 iteration,
                 rn,
@@ -496,7 +500,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
             Ok(None) => {
                 system.factored();
                 if settings.verbose {
-                    eprintln!("    stability not checked: the linear solver gives no inertia");
+                    log::info!("    stability not checked: the linear solver gives no inertia");
                 }
             }
             Err(LinearSolverError::Singular(_)) => stable = false,

@@ -1322,7 +1322,7 @@ impl System {
                 description.push_str(&format!(", near-null space of {modes} rigid-body modes"));
             }
             if rank == 0 && std::env::var_os("DEASIM_PETSC_VERBOSE").is_some() {
-                eprintln!("deasim: PETSc solves by {description}");
+                log::info!("deasim: PETSc solves by {description}");
             }
             drop(scope);
             Ok(System {
@@ -1551,7 +1551,7 @@ impl System {
                 )));
             }
             if self.verbose {
-                eprintln!(
+                log::info!(
                     "deasim: PETSc solve: {its} Krylov iterations to {target:.1e} with a {} \
                      preconditioner",
                     if self.renewal.fresh { "fresh" } else { "kept" }

@@ -1,0 +1,191 @@
+//! The library interface as a program uses it: build a simulation, override keys, run it, cancel
+//! it, read its results, and receive each kind of error, without the command line.
+
+use deasim::api::{Cancel, Error, FieldsKept, RunOptions, Simulation};
+use deasim::element::CellFields;
+use deasim::job::observer::Observer;
+use deasim::job::plan::Plan;
+use deasim::job::state::{RunSummary, StepRecord};
+
+/// The film example, ramped in 15 steps to 30 kV below its pull-in voltage 33.695 kV.
+fn film() -> Simulation {
+    Simulation::from_example("film").expect("the film example is embedded")
+}
+
+#[test]
+fn a_run_gives_its_history_probes_and_fields() {
+    let results = film()
+        .set("stages.0.steps", "5")
+        .run(RunOptions {
+            fields: FieldsKept::Last,
+            ..RunOptions::default()
+        })
+        .expect("the film converges");
+    assert!(results.summary.converged);
+    // the state the stage starts from and its five steps
+    assert_eq!(results.records.len(), 6);
+    let time = results.history.column("time").expect("a time column");
+    assert_eq!(time.len(), 6);
+    let voltage = results.history.column("voltage").unwrap();
+    assert!((voltage[5] - 30e3).abs() < 1e-6, "{voltage:?}");
+    // the probes' columns and statistics agree with the records
+    let stretch = results.history.column("probe:thickness_stretch").unwrap();
+    let stats = results.probe("thickness_stretch").unwrap();
+    assert_eq!(stats.first, stretch[0]);
+    assert_eq!(stats.last, stretch[5]);
+    assert_eq!(stats.min, stats.last, "the film thins monotonically");
+    assert!(stats.last < 0.9 && stats.last > 0.5, "{stats:?}");
+    assert_eq!(results.history.stage, vec!["charge".to_string(); 6]);
+    // the last step's nodal values and cell fields
+    assert_eq!(results.fields.len(), 1);
+    let last = &results.fields[0];
+    assert_eq!(last.record, 5);
+    let plan = film().plan().unwrap();
+    assert_eq!(last.nodal.len(), plan.model.mesh.n_nodes() * 4);
+    assert_eq!(last.cells.len(), plan.model.mesh.n_cells());
+    assert!(last.cells.iter().all(|c| c.j > 0.0 && c.e_max > 0.0));
+}
+
+#[test]
+fn an_override_changes_the_run() {
+    let low = film()
+        .set("electrodes.top.voltage.amplitude", "10e3")
+        .set("stages.0.steps", "2")
+        .run(RunOptions::default())
+        .unwrap();
+    let high = film()
+        .set("stages.0.steps", "2")
+        .run(RunOptions::default())
+        .unwrap();
+    let v = |r: &deasim::api::Results| *r.history.column("voltage").unwrap().last().unwrap();
+    assert!((v(&low) - 10e3).abs() < 1e-6 && (v(&high) - 30e3).abs() < 1e-6);
+    let t = |r: &deasim::api::Results| r.probe("thickness_stretch").unwrap().last;
+    assert!(t(&low) > t(&high));
+}
+
+/// Cancels the run when it has seen `after` steps.
+struct CancelAfter {
+    cancel: Cancel,
+    after: usize,
+    seen: usize,
+}
+
+impl Observer for CancelAfter {
+    fn step(&mut self, _: &Plan, _: &StepRecord, _: &[f64], _: &[CellFields]) {
+        self.seen += 1;
+        if self.seen == self.after {
+            self.cancel.cancel();
+        }
+    }
+    fn finished(&mut self, _: &Plan, _: &RunSummary) {}
+}
+
+#[test]
+fn a_cancelled_run_keeps_its_accepted_steps() {
+    let cancel = Cancel::new();
+    let mut watcher = CancelAfter {
+        cancel: cancel.clone(),
+        after: 3,
+        seen: 0,
+    };
+    let error = film()
+        .run(RunOptions {
+            observers: vec![&mut watcher],
+            cancel: Some(cancel.clone()),
+            ..RunOptions::default()
+        })
+        .expect_err("the run is cancelled");
+    let Error::Interrupted { reason, results } = &error else {
+        panic!("not an interruption: {error:?}");
+    };
+    assert!(reason.contains("cancelled"), "{reason}");
+    assert!(results.summary.interrupted && !results.summary.converged);
+    // the step that saw the cancel was accepted; none after it
+    assert_eq!(results.records.len(), 3);
+    assert_eq!(watcher.seen, 3);
+    assert!(cancel.is_cancelled());
+    // the token belongs to that run: the next run on this thread is not cancelled
+    let again = film().set("stages.0.steps", "1").run(RunOptions::default());
+    assert!(again.is_ok(), "{:?}", again.err());
+}
+
+#[test]
+fn bad_input_names_its_key() {
+    let error = film()
+        .set("materials.elastomer.mu", "-1")
+        .plan()
+        .expect_err("a negative modulus is refused");
+    assert!(matches!(error, Error::Input(_)), "{error:?}");
+    assert_eq!(error.key(), Some("materials.elastomer.mu"));
+    let unknown = film()
+        .set("materials.elastomer.muu", "1")
+        .plan()
+        .unwrap_err();
+    assert!(matches!(unknown, Error::Input(_)));
+    assert!(unknown.to_string().contains("muu"), "{unknown}");
+    let example = Simulation::from_example("no-such-example").unwrap_err();
+    assert!(example.to_string().contains("film"), "{example}");
+    let text = Simulation::from_toml("name = 3", None).plan().unwrap_err();
+    assert!(matches!(text, Error::Input(_)), "{text:?}");
+}
+
+#[test]
+fn a_missing_file_is_an_io_error() {
+    let path = std::path::Path::new("/nonexistent/deasim/scenario.toml");
+    match Simulation::from_file(path) {
+        Err(Error::Io { path: p, message }) => {
+            assert_eq!(p, path);
+            assert!(message.contains("cannot read"), "{message}");
+        }
+        other => panic!("not an I/O error: {other:?}"),
+    }
+    // an output directory that cannot be created
+    let blocker = std::env::temp_dir().join(format!("deasim-api-blocker-{}", std::process::id()));
+    std::fs::write(&blocker, "a file, not a directory").unwrap();
+    let error = film()
+        .set("stages.0.steps", "1")
+        .run(RunOptions {
+            out: Some(blocker.join("out")),
+            ..RunOptions::default()
+        })
+        .unwrap_err();
+    std::fs::remove_file(&blocker).unwrap();
+    assert!(matches!(error, Error::Io { .. }), "{error:?}");
+}
+
+#[test]
+fn a_failed_solve_gives_its_reason_and_the_steps_before() {
+    // beyond the closed-form pull-in voltage 33.695 kV
+    let error = film()
+        .set("electrodes.top.voltage.amplitude", "40e3")
+        .set("stages.0.steps", "8")
+        .run(RunOptions::default())
+        .expect_err("the film pulls in");
+    let Error::Solve { reason, results } = &error else {
+        panic!("not a solve failure: {error:?}");
+    };
+    assert!(reason.contains("pull-in"), "{reason}");
+    assert!(!results.summary.converged);
+    let v = results.history.column("voltage").unwrap();
+    // the last converged voltage lies just below the closed-form pull-in voltage
+    let last = *v.last().unwrap();
+    assert!(last > 33.6e3 && last < 33.7e3, "{v:?}");
+}
+
+#[test]
+fn a_run_with_an_output_directory_writes_the_files_of_deasim_run() {
+    let dir = std::env::temp_dir().join(format!("deasim-api-out-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let results = film()
+        .set("stages.0.steps", "2")
+        .run(RunOptions {
+            out: Some(dir.clone()),
+            ..RunOptions::default()
+        })
+        .unwrap();
+    let history = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    assert_eq!(history.lines().count(), 1 + results.records.len());
+    let summary = std::fs::read_to_string(dir.join("summary.json")).unwrap();
+    assert!(summary.contains("stages.0.steps=2"), "{summary}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
