@@ -11,6 +11,7 @@
 use super::electric::ElectricPart;
 use super::hyperelastic::Hyperelastic;
 use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial};
+use super::parameters::{self, Parameters};
 use super::{
     KnownDeformation, Mat3, Material, MaterialError, PointHistory, PointRecord, Stress, Tangent,
     Vec3,
@@ -170,6 +171,30 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
             split: (w, -we),
             p_mech: p,
         })
+    }
+
+    /// The mechanical model's entries, then `permittivity`, `c1`, `c2`.
+    fn parameters(&self) -> Option<Parameters> {
+        let mut p = self.mech.parameters()?;
+        parameters::push_electric(&mut p, &self.elec);
+        Some(p)
+    }
+
+    fn parameter_derivatives_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<Vec<Stress>, MaterialError> {
+        let k = isotropic::checked_kinematics(f, e0)?;
+        let mut out: Vec<Stress> = self
+            .mech
+            .parameter_derivatives(&k)?
+            .into_iter()
+            .map(|d| parameters::mechanical(f, d))
+            .collect();
+        out.extend(parameters::electric(f, &k, e0));
+        Ok(out)
     }
 
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
