@@ -180,12 +180,16 @@ fn unknown_part(s: &Scenario, parts: &[&str]) -> Option<String> {
                     toml::Value::Table(t) => t.keys().map(|k| k.as_str()).collect(),
                     _ => Vec::new(),
                 };
+                let parent = parts[..i]
+                    .iter()
+                    .map(|p| format!("{p}."))
+                    .collect::<String>();
                 let hint = closest(part, candidates.iter().copied())
-                    .map(|c| format!("; did you mean `{c}`?"))
+                    .map(|c| format!("; did you mean `{parent}{c}`?"))
                     .unwrap_or_default();
                 return Some(format!(
-                    "unknown key `{so_far}` (not in the scenario){hint}; a differentiable \
-                     parameter is a material's: `materials.<name>.<parameter>`"
+                    "unknown key `{so_far}` (not in the scenario; a differentiable parameter is \
+                     a material's: `materials.<name>.<parameter>`){hint}"
                 ));
             }
         }
@@ -195,9 +199,9 @@ fn unknown_part(s: &Scenario, parts: &[&str]) -> Option<String> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::testing::{scenario, FILE};
+    use super::super::testing::{scenario, text, FILE};
     use super::*;
-    use crate::io::scenario::MaterialSpec;
+    use crate::io::scenario::{parse, MaterialSpec};
 
     fn at(materials: &str, key: &str) -> Result<ParameterKey, InputError> {
         material_parameter(&scenario(&[("materials", materials)]), FILE, key)
@@ -327,8 +331,29 @@ mod tests {
         refused(
             TWO,
             "mesh.divisons",
-            &["unknown key `mesh.divisons`", "did you mean `divisions`?"],
+            &[
+                "unknown key `mesh.divisons`",
+                "did you mean `mesh.divisions`?",
+            ],
         );
+    }
+
+    /// The key of a parameter is the one `--set` takes: an override changes the value it names.
+    #[test]
+    fn a_set_override_changes_the_value_the_key_names() {
+        let m = "[materials.gel]\nmodel = \"ogden\"\nmu = [1e5, 2e3]\nalpha = [1.5, 4.0]\n\
+                 kappa = 1e7\npermittivity = 4.7\nbranches = [{ mu = 1e4, tau = 2.0 }]";
+        let text = text(&[("materials", m)]);
+        for (key, v) in [
+            ("materials.gel.alpha.1", 4.5),
+            ("materials.gel.mu.0", 1.2e5),
+            ("materials.gel.branches.0.tau", 3.0),
+            ("materials.gel.kappa", 2e7),
+            ("materials.gel.c1", 1e-12),
+        ] {
+            let s = parse(&text, FILE, &[format!("{key}={v:e}")]).unwrap();
+            assert_eq!(material_parameter(&s, FILE, key).unwrap().value, v, "{key}");
+        }
     }
 
     /// Every key of the list is one a material table takes.
