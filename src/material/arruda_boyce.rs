@@ -30,8 +30,12 @@
 //! + 42039/(67375λ_m⁸)) ([`ArrudaBoyceSeries::initial_shear_factor`]). K₀ = κ.
 
 use super::electroelastic::Electroelastic;
-use super::hyperelastic::{HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants, SplitI1};
+use super::hyperelastic::{
+    iso_first, named, vol_log_unit, HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
+    SplitI1,
+};
 use super::isotropic::CKinematics;
+use super::parameters::Parameters;
 use super::{KnownDeformation, Mat3, MaterialError};
 
 /// Cohen's (1991) Padé approximant of the inverse Langevin function, x(3 − x²)/(1 − x²)
@@ -123,6 +127,38 @@ impl Hyperelastic for ArrudaBoyce {
 
     fn bulk_modulus(&self) -> f64 {
         self.kappa
+    }
+
+    fn parameters(&self) -> Option<Parameters> {
+        Some(named(
+            "arruda-boyce",
+            &["mu", "lambda_m", "kappa"],
+            &[self.mu, self.lambda_m, self.kappa],
+        ))
+    }
+
+    /// W is linear in G₀ and κ. In q = λ_L² (then times dq/dλ_L = 2λ_L), with r = 3q − Ī₁:
+    /// ∂Ŵ/∂q = −G₀ ln(r/(3q − 3)) − G₀q(3/r − 1/(q − 1)), ∂Ŵ₁/∂q = −G₀Ī₁/r².
+    fn parameter_derivatives(&self, k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        self.iso(inv.i1b)?; // the locking check
+        let q = self.lambda_m * self.lambda_m;
+        let r = 3.0 * q - inv.i1b;
+        let x = inv.i1b - 3.0;
+        let dq = 2.0 * self.lambda_m;
+        let w = -self.mu * ((-x / (3.0 * (q - 1.0))).ln_1p() + q * (3.0 / r - 1.0 / (q - 1.0)));
+        let w1 = -self.mu * inv.i1b / (r * r);
+        let d_mu = ArrudaBoyce {
+            mu: 1.0,
+            kappa: 0.0,
+            ..*self
+        }
+        .s(k)?;
+        Ok(vec![
+            d_mu,
+            iso_first(k, &inv, w * dq, w1 * dq, 0.0),
+            vol_log_unit(k),
+        ])
     }
 
     /// (Ī₁ − 3)/(3λ_L² − 3): 0 at rest, 1 where the chains lock (λ̄ = λ_L).
@@ -226,5 +262,39 @@ impl Hyperelastic for ArrudaBoyceSeries {
 
     fn bulk_modulus(&self) -> f64 {
         self.kappa
+    }
+
+    fn parameters(&self) -> Option<Parameters> {
+        Some(named(
+            "arruda-boyce-series",
+            &["mu", "lambda_m", "kappa"],
+            &[self.mu, self.lambda_m, self.kappa],
+        ))
+    }
+
+    /// W is linear in μ and κ; term i's coefficient μCᵢλ_m^(2−2i) has the derivative
+    /// (2 − 2i)/λ_m times itself in λ_m.
+    fn parameter_derivatives(&self, k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        let i1b = inv.i1b;
+        let b = 1.0 / (self.lambda_m * self.lambda_m);
+        let (mut w, mut w1) = (0.0, 0.0);
+        let (mut scale, mut ip, mut three) = (self.mu, 1.0, 1.0);
+        for (idx, c) in AB_COEFFS.iter().enumerate() {
+            let n = (idx + 1) as f64;
+            let da = scale * c * (2.0 - 2.0 * n) / self.lambda_m;
+            w += da * (ip * i1b - three * 3.0);
+            w1 += da * n * ip;
+            ip *= i1b;
+            three *= 3.0;
+            scale *= b;
+        }
+        let d_mu = ArrudaBoyceSeries {
+            mu: 1.0,
+            kappa: 0.0,
+            ..*self
+        }
+        .s(k)?;
+        Ok(vec![d_mu, iso_first(k, &inv, w, w1, 0.0), vol_log_unit(k)])
     }
 }

@@ -9,8 +9,9 @@
 //! terms, so that Ψ = mechanical − electric.
 
 use super::electric::ElectricPart;
-use super::hyperelastic::Hyperelastic;
+use super::hyperelastic::{HFirst, Hyperelastic};
 use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial};
+use super::parameters::{self, Parameters};
 use super::{
     KnownDeformation, Mat3, Material, MaterialError, PointHistory, PointRecord, Stress, Tangent,
     Vec3,
@@ -172,10 +173,44 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
         })
     }
 
+    /// The mechanical model's entries, then `permittivity`, `c1`, `c2`.
+    fn parameters(&self) -> Option<Parameters> {
+        let mut p = self.mech.parameters()?;
+        parameters::push_electric(&mut p, &self.elec);
+        Some(p)
+    }
+
+    fn parameter_derivatives_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<Vec<Stress>, MaterialError> {
+        let k = isotropic::checked_kinematics(f, e0)?;
+        let mut out: Vec<Stress> = self
+            .mech
+            .parameter_derivatives(&k)?
+            .into_iter()
+            .map(|d| mechanical(f, d))
+            .collect();
+        out.extend(parameters::electric(f, &k, e0));
+        Ok(out)
+    }
+
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
         // Validate exactly like the energy evaluation does.
         // the checks of `energy` (finite field, J > 0); its value would be the sum of the parts
         let k = isotropic::checked_kinematics(f, e0)?;
         Ok((self.mech.w(&k)?, -self.elec.energy(&k, e0)))
+    }
+}
+
+/// The derivative `(∂Ψ, ∂P, ∂D0)` of a mechanical parameter from ∂W/∂θ and ∂S/∂θ: P = F S and
+/// D0 does not depend on it.
+fn mechanical(f: &Mat3, d: HFirst) -> Stress {
+    Stress {
+        energy: d.w,
+        p: f * d.s,
+        d0: Vec3::zeros(),
     }
 }

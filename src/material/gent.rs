@@ -8,8 +8,12 @@
 //! returns [`MaterialError::OutOfDomain`]. μ₀ = μ, K₀ = κ.
 
 use super::electroelastic::Electroelastic;
-use super::hyperelastic::{HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants, SplitI1};
+use super::hyperelastic::{
+    iso_first, named, vol_log_unit, HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
+    SplitI1,
+};
 use super::isotropic::CKinematics;
+use super::parameters::Parameters;
 use super::{KnownDeformation, Mat3, MaterialError};
 
 /// Gent W = −(μJ_m/2) ln(1 − (Ī₁ − 3)/J_m) + κ/4 (J² − 1 − 2 ln J).
@@ -84,6 +88,32 @@ impl Hyperelastic for Gent {
 
     fn bulk_modulus(&self) -> f64 {
         self.kappa
+    }
+
+    fn parameters(&self) -> Option<Parameters> {
+        Some(named(
+            "gent",
+            &["mu", "jm", "kappa"],
+            &[self.mu, self.jm, self.kappa],
+        ))
+    }
+
+    /// W is linear in μ and κ. In J_m, with x = Ī₁ − 3 and r = 1 − x/J_m:
+    /// ∂Ŵ/∂J_m = −(μ/2)(ln r + x/(J_m − x)), ∂Ŵ₁/∂J_m = −(μ/2) x/(J_m − x)².
+    fn parameter_derivatives(&self, k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        self.iso(inv.i1b)?; // the locking check
+        let x = inv.i1b - 3.0;
+        let jx = self.jm - x;
+        let d_mu = Gent {
+            mu: 1.0,
+            kappa: 0.0,
+            ..*self
+        }
+        .s(k)?;
+        let w = -0.5 * self.mu * ((-x / self.jm).ln_1p() + x / jx);
+        let w1 = -0.5 * self.mu * x / (jx * jx);
+        Ok(vec![d_mu, iso_first(k, &inv, w, w1, 0.0), vol_log_unit(k)])
     }
 
     /// (Ī₁ − 3)/J_m: 1 where the network locks.

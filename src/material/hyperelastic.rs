@@ -43,6 +43,7 @@
 //! with K₀ = 2/D₁.
 
 use super::isotropic::{CKinematics, Tensor4};
+use super::parameters::Parameters;
 use super::{KnownDeformation, Mat3, MaterialError};
 
 /// W and S = 2∂W/∂C.
@@ -87,6 +88,63 @@ pub trait Hyperelastic: Send + Sync + std::fmt::Debug {
     /// parameter that sets it; `None` for a model without one.
     fn locking(&self, _k: &CKinematics) -> Option<(f64, &'static str)> {
         None
+    }
+    /// The registry model this is and its mechanical parameters as named entries of θ (see
+    /// [`super::parameters`]); `None` for a model the registry does not build.
+    fn parameters(&self) -> Option<Parameters> {
+        None
+    }
+    /// ∂W/∂θ and ∂S/∂θ for every entry of [`Hyperelastic::parameters`], in its order.
+    fn parameter_derivatives(&self, _k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        Ok(Vec::new())
+    }
+}
+
+/// The entries `names` with `values` of model `model`.
+pub(crate) fn named(model: &'static str, names: &[&str], values: &[f64]) -> Parameters {
+    Parameters {
+        model,
+        names: names.iter().map(|n| n.to_string()).collect(),
+        values: values.to_vec(),
+    }
+}
+
+/// W and S of κ/4 (J² − 1 − 2 ln J) with κ = 1: the derivative of every split model in κ.
+pub(crate) fn vol_log_unit(k: &CKinematics) -> HFirst {
+    let v = vol_log(1.0, k.j);
+    HFirst {
+        w: v.u,
+        s: vol_stress(k, &v),
+    }
+}
+
+/// W and S of (J − 1)^(2i)/Dᵢ differentiated in Dᵢ (i = `term` + 1): −1/Dᵢ² times the term with
+/// 1/Dᵢ = 1.
+pub(crate) fn vol_poly_d(k: &CKinematics, term: usize, d: f64) -> HFirst {
+    let mut inv = [0.0; 3];
+    inv[term] = 1.0;
+    let v = vol_poly(&inv[..=term], k.j);
+    let scale = -1.0 / (d * d);
+    HFirst {
+        w: v.u * scale,
+        s: vol_stress(k, &v) * scale,
+    }
+}
+
+/// S of Ŵ(Ī₁, Ī₂) for the derivatives `w1`, `w2` with W = `w`: a parameter's derivative in an
+/// invariant-based model.
+pub(crate) fn iso_first(k: &CKinematics, inv: &IsoInvariants, w: f64, w1: f64, w2: f64) -> HFirst {
+    HFirst {
+        w,
+        s: iso_stress(
+            k,
+            inv,
+            &InvariantDerivs {
+                w1,
+                w2,
+                ..Default::default()
+            },
+        ),
     }
 }
 

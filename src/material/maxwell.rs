@@ -16,7 +16,9 @@
 //!
 //! Each branch keeps its Aᵢ (9 values, row-major) per quadrature point; branches add.
 
-use super::{Mat3, Mat9, Material, MaterialError, PointHistory, Stress, Tangent, Vec3};
+use super::{
+    Mat3, Mat9, Material, MaterialError, Parameters, PointHistory, StateVjp, Stress, Tangent, Vec3,
+};
 
 /// An elastic material with one Maxwell branch (shear modulus `g` in Pa, relaxation time `tau`
 /// in s).
@@ -206,6 +208,88 @@ impl Material for Viscoelastic {
         }
         Ok(d)
     }
+
+    /// The equilibrium material's entries, then `branches.<i>.mu` and `branches.<i>.tau`.
+    fn parameters(&self) -> Option<Parameters> {
+        let mut p = self.equilibrium.parameters()?;
+        for (i, &(g, tau)) in self.branches.iter().enumerate() {
+            p.push(format!("branches.{i}.mu"), g);
+            p.push(format!("branches.{i}.tau"), tau);
+        }
+        Some(p)
+    }
+
+    /// The equilibrium material's derivatives; a branch's incremental energy
+    /// g/(2(1 + k))(tr(C̄ A_n) − 3), k = Δt/τ, is linear in g and has the derivative
+    /// k/(τ(1 + k)) times itself in τ (and so has its stress).
+    fn parameter_derivatives_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        h: PointHistory,
+    ) -> Result<Vec<Stress>, MaterialError> {
+        let mut out = self
+            .equilibrium
+            .parameter_derivatives_at(f, e0, PointHistory::NONE)?;
+        let kin = BranchKinematics::new(f)?;
+        for i in 0..self.branches.len() {
+            let b = self.branch(i);
+            let hi = Self::state_of(&h, i);
+            let k = b.k(&hi);
+            let committed = MaxwellBranch::<&dyn Material>::committed(&hi);
+            let (w, p, _) = b.branch_at(f, &kin, &committed, k, false)?;
+            for scale in [1.0 / b.g, k / (b.tau * (1.0 + k))] {
+                out.push(Stress {
+                    energy: w * scale,
+                    p: p * scale,
+                    d0: Vec3::zeros(),
+                });
+            }
+        }
+        Ok(out)
+    }
+
+    fn stress_state_vjp(
+        &self,
+        f: &Mat3,
+        _e0: &Vec3,
+        h: PointHistory,
+        w: &Mat3,
+    ) -> Result<Vec<f64>, MaterialError> {
+        let kin = BranchKinematics::new(f)?;
+        let mut out = Vec::with_capacity(self.state_size());
+        for i in 0..self.branches.len() {
+            let b = self.branch(i);
+            let g = b.stress_state_vjp(f, &kin, b.k(&Self::state_of(&h, i)), w);
+            out.extend(g.transpose().iter());
+        }
+        Ok(out)
+    }
+
+    fn update_state_vjp(
+        &self,
+        f: &Mat3,
+        _e0: &Vec3,
+        h: PointHistory,
+        w: &[f64],
+    ) -> Result<StateVjp, MaterialError> {
+        let n_eq = self.equilibrium.parameters().map_or(0, |p| p.values.len());
+        let mut out = StateVjp {
+            theta: vec![0.0; n_eq],
+            state: Vec::with_capacity(self.state_size()),
+            f: Mat3::zeros(),
+            e0: Vec3::zeros(),
+        };
+        for i in 0..self.branches.len() {
+            let (tau, state, f_bar) =
+                self.branch(i)
+                    .update_vjp(f, &Self::state_of(&h, i), &w[9 * i..9 * (i + 1)])?;
+            out.theta.extend([0.0, tau]);
+            out.state.extend(state.transpose().iter());
+            out.f += f_bar;
+        }
+        Ok(out)
+    }
 }
 
 /// What every branch's stress at F uses: J^(−2/3) and F⁻ᵀ.
@@ -304,6 +388,36 @@ impl<M> MaxwellBranch<M> {
             t
         });
         Ok((w, p, t))
+    }
+
+    /// wᵀ ∂P/∂A of the branch stress P = cα(2FA − ⅔ tr(CA) F⁻ᵀ), c = g/(2(1 + k)),
+    /// α = J^(−2/3): cα(2Fᵀw − ⅔ (w:F⁻ᵀ) C), entry (m, n) for A_mn.
+    fn stress_state_vjp(&self, f: &Mat3, kin: &BranchKinematics, k: f64, w: &Mat3) -> Mat3 {
+        let c = self.g / (2.0 * (1.0 + k));
+        (f.tr_mul(w) * 2.0 - f.tr_mul(f) * (2.0 / 3.0 * w.dot(&kin.fit))) * (c * kin.alpha)
+    }
+
+    /// The vector–Jacobian products of the update A = (A_n + k C̄⁻¹)/(1 + k), k = Δt/τ, for `w`
+    /// over A (row-major): in τ (∂A/∂τ = −(k/τ)(C̄⁻¹ − A_n)/(1 + k)²), in A_n (w/(1 + k)) and
+    /// in F (k/(1 + k) w:∂C̄⁻¹/∂F with C̄⁻¹ = J^(2/3) C⁻¹:
+    /// J^(2/3)(⅔ (w:C⁻¹) F⁻ᵀ − F⁻ᵀ(w + wᵀ)C⁻¹)).
+    fn update_vjp(
+        &self,
+        f: &Mat3,
+        h: &PointHistory,
+        w: &[f64],
+    ) -> Result<(f64, Mat3, Mat3), MaterialError> {
+        let kin = BranchKinematics::new(f)?;
+        let w = tensor(w);
+        let j23 = 1.0 / kin.alpha;
+        let c_inv = kin.fit.transpose() * kin.fit;
+        let cbar_inv = c_inv * j23;
+        let k = self.k(h);
+        let d_tau =
+            -(k / self.tau) / ((1.0 + k) * (1.0 + k)) * w.dot(&(cbar_inv - Self::committed(h)));
+        let d_f = (kin.fit * (2.0 / 3.0 * w.dot(&c_inv)) - kin.fit * (w + w.transpose()) * c_inv)
+            * (j23 * k / (1.0 + k));
+        Ok((d_tau, w / (1.0 + k), d_f))
     }
 
     fn committed(h: &PointHistory) -> Mat3 {
@@ -410,6 +524,34 @@ impl<M: Material> Material for MaxwellBranch<M> {
         new: &mut [f64],
     ) -> Result<f64, MaterialError> {
         self.update(f, &h, new)
+    }
+
+    fn stress_state_vjp(
+        &self,
+        f: &Mat3,
+        _e0: &Vec3,
+        h: PointHistory,
+        w: &Mat3,
+    ) -> Result<Vec<f64>, MaterialError> {
+        let g = MaxwellBranch::stress_state_vjp(self, f, &BranchKinematics::new(f)?, self.k(&h), w);
+        Ok(g.transpose().iter().copied().collect())
+    }
+
+    /// θ is empty: a single branch on any material is not built by the registry.
+    fn update_state_vjp(
+        &self,
+        f: &Mat3,
+        _e0: &Vec3,
+        h: PointHistory,
+        w: &[f64],
+    ) -> Result<StateVjp, MaterialError> {
+        let (_, state, f_bar) = self.update_vjp(f, &h, w)?;
+        Ok(StateVjp {
+            theta: Vec::new(),
+            state: state.transpose().iter().copied().collect(),
+            f: f_bar,
+            e0: Vec3::zeros(),
+        })
     }
 }
 

@@ -34,6 +34,7 @@ pub mod mooney_rivlin;
 pub mod neo_hooke;
 pub mod neo_hooke_split;
 pub mod ogden;
+pub mod parameters;
 pub mod point_history;
 pub mod registry;
 pub mod yeoh;
@@ -42,6 +43,8 @@ pub mod yeoh;
 mod fd_tests;
 #[cfg(test)]
 mod model_tests;
+#[cfg(test)]
+mod param_tests;
 
 pub use arruda_boyce::{
     ArrudaBoyce, ArrudaBoyceSeries, ElectroArrudaBoyce, ElectroArrudaBoyceSeries,
@@ -54,6 +57,7 @@ pub use mooney_rivlin::{ElectroMooneyRivlin, MooneyRivlin};
 pub use neo_hooke::{ElectroNeoHooke, NeoHooke};
 pub use neo_hooke_split::{ElectroNeoHookeSplit, NeoHookeSplit};
 pub use ogden::{ElectroOgden, Ogden};
+pub use parameters::{Parameters, StateVjp};
 pub use registry::{MaterialParams, ParamError};
 pub use yeoh::{ElectroYeoh, Yeoh};
 
@@ -298,6 +302,75 @@ pub trait Material: Send + Sync + std::fmt::Debug {
         _new: &mut [f64],
     ) -> Result<f64, MaterialError> {
         Ok(0.0)
+    }
+
+    /// The parameter vector θ: the registry model, one name per entry (the scenario's key below
+    /// `materials.<name>.`) and the values ([`parameters`]); `None` for a material the registry
+    /// does not build.
+    fn parameters(&self) -> Option<Parameters> {
+        None
+    }
+    /// The same model with the parameter vector `theta` (in the order of
+    /// [`Material::parameters`]), validated as the registry validates a scenario's material
+    /// (without its warnings); an error names the entry.
+    fn with_parameters(&self, theta: &[f64]) -> Result<std::sync::Arc<dyn Material>, ParamError> {
+        let p = self.parameters().ok_or_else(|| ParamError {
+            key: "model".into(),
+            message: "this material has no parameter vector (it is not built by the registry)"
+                .into(),
+        })?;
+        registry::rebuild(p.model, &p.names, theta)
+    }
+    /// ∂Ψ/∂θᵢ, ∂P/∂θᵢ and ∂D0/∂θᵢ of [`Material::stress_at`] at (F, E0) and the history `h`, one
+    /// [`Stress`] per entry of [`Material::parameters`] (none for a material without them).
+    fn parameter_derivatives_at(
+        &self,
+        _f: &Mat3,
+        _e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<Vec<Stress>, MaterialError> {
+        Ok(Vec::new())
+    }
+    /// wᵀ ∂P/∂A_n: the derivative of the first Piola stress of [`Material::stress_at`] in the
+    /// committed internal variables, for `w` over P (zero-length for an elastic material).
+    fn stress_state_vjp(
+        &self,
+        _f: &Mat3,
+        _e0: &Vec3,
+        _h: PointHistory,
+        _w: &Mat3,
+    ) -> Result<Vec<f64>, MaterialError> {
+        no_state_derivatives(self.state_size())?;
+        Ok(Vec::new())
+    }
+    /// The vector–Jacobian products of [`Material::update_state`] for `w` over the new internal
+    /// variables: in θ, in the committed variables, in F and in E0 (all zero for an elastic
+    /// material).
+    fn update_state_vjp(
+        &self,
+        _f: &Mat3,
+        _e0: &Vec3,
+        _h: PointHistory,
+        _w: &[f64],
+    ) -> Result<StateVjp, MaterialError> {
+        no_state_derivatives(self.state_size())?;
+        Ok(StateVjp {
+            theta: vec![0.0; self.parameters().map_or(0, |p| p.values.len())],
+            state: Vec::new(),
+            f: Mat3::zeros(),
+            e0: Vec3::zeros(),
+        })
+    }
+}
+
+/// The defaults of the derivatives in the internal variables hold for an elastic material only.
+fn no_state_derivatives(state_size: usize) -> Result<(), MaterialError> {
+    if state_size == 0 {
+        Ok(())
+    } else {
+        Err(MaterialError::OutOfDomain(
+            "this material gives no derivatives in its internal variables".into(),
+        ))
     }
 }
 

@@ -8,10 +8,11 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    invariant_model_second, iso_stress, vol_poly, vol_stress, HFirst, HSecond, Hyperelastic,
-    InvariantDerivs, IsoInvariants,
+    invariant_model_second, iso_first, iso_stress, named, vol_poly, vol_poly_d, vol_stress, HFirst,
+    HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
 };
 use super::isotropic::CKinematics;
+use super::parameters::Parameters;
 use super::MaterialError;
 
 /// Mooney–Rivlin W = C₁₀(Ī₁ − 3) + C₀₁(Ī₂ − 3) + (J − 1)²/D₁.
@@ -74,5 +75,23 @@ impl Hyperelastic for MooneyRivlin {
 
     fn bulk_modulus(&self) -> f64 {
         2.0 / self.d1
+    }
+
+    fn parameters(&self) -> Option<Parameters> {
+        Some(named(
+            "mooney-rivlin",
+            &["c10", "c01", "d1"],
+            &[self.c10, self.c01, self.d1],
+        ))
+    }
+
+    /// W is linear in C₁₀, C₀₁ and 1/D₁.
+    fn parameter_derivatives(&self, k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        let inv = IsoInvariants::new(k);
+        Ok(vec![
+            iso_first(k, &inv, inv.i1b - 3.0, 1.0, 0.0),
+            iso_first(k, &inv, inv.i2b - 3.0, 0.0, 1.0),
+            vol_poly_d(k, 0, self.d1),
+        ])
     }
 }

@@ -27,9 +27,12 @@
 
 use super::electric::ElectricPart;
 use super::electroelastic::Electroelastic;
-use super::hyperelastic::{add_vol_tangent, vol_stress, HFirst, HSecond, Hyperelastic, VolDerivs};
+use super::hyperelastic::{
+    add_vol_tangent, named, vol_stress, HFirst, HSecond, Hyperelastic, VolDerivs,
+};
 use super::isotropic::{CDerivs, CFirst, CKinematics, CMaterial, Tensor4};
-use super::{Mat3, Material, MaterialError, Stress, Tangent, Vec3, EPSILON_0};
+use super::parameters::Parameters;
+use super::{Mat3, Material, MaterialError, PointHistory, Stress, Tangent, Vec3, EPSILON_0};
 
 /// Mechanical compressible neo-Hooke energy
 /// W = μ/2 (tr C − 3) − μ ln J + Λ/2 (ln J)² (not split into isochoric and
@@ -80,6 +83,20 @@ impl Hyperelastic for NeoHooke {
 
     fn bulk_modulus(&self) -> f64 {
         self.lambda + 2.0 * self.mu / 3.0
+    }
+
+    fn parameters(&self) -> Option<Parameters> {
+        Some(named(
+            "neo-hooke",
+            &["mu", "lambda"],
+            &[self.mu, self.lambda],
+        ))
+    }
+
+    /// W is linear in μ and Λ: each derivative is the model with that modulus alone.
+    fn parameter_derivatives(&self, k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        let unit = |mu, lambda| NeoHooke { mu, lambda }.s(k);
+        Ok(vec![unit(1.0, 0.0)?, unit(0.0, 1.0)?])
     }
 }
 
@@ -203,6 +220,19 @@ impl Material for ElectroNeoHooke {
 
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
         self.generic().energy_split(f, e0)
+    }
+
+    fn parameters(&self) -> Option<Parameters> {
+        self.generic().parameters()
+    }
+
+    fn parameter_derivatives_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        h: PointHistory,
+    ) -> Result<Vec<Stress>, MaterialError> {
+        self.generic().parameter_derivatives_at(f, e0, h)
     }
 }
 

@@ -8,10 +8,11 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    i1_model_piola, invariant_model_second, iso_stress, vol_log, vol_stress, HFirst, HSecond,
-    Hyperelastic, InvariantDerivs, IsoInvariants,
+    i1_model_piola, invariant_model_second, iso_stress, named, vol_log, vol_stress, HFirst,
+    HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
 };
 use super::isotropic::CKinematics;
+use super::parameters::Parameters;
 use super::{KnownDeformation, Mat3, MaterialError};
 
 /// Split neo-Hooke W = μ/2 (Ī₁ − 3) + κ/4 (J² − 1 − 2 ln J).
@@ -70,5 +71,19 @@ impl Hyperelastic for NeoHookeSplit {
 
     fn bulk_modulus(&self) -> f64 {
         self.kappa
+    }
+
+    fn parameters(&self) -> Option<Parameters> {
+        Some(named(
+            "neo-hooke-split",
+            &["mu", "kappa"],
+            &[self.mu, self.kappa],
+        ))
+    }
+
+    /// W is linear in μ and κ.
+    fn parameter_derivatives(&self, k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        let unit = |mu, kappa| NeoHookeSplit { mu, kappa }.s(k);
+        Ok(vec![unit(1.0, 0.0)?, unit(0.0, 1.0)?])
     }
 }

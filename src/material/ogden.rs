@@ -32,8 +32,11 @@
 //! H is written in the same eigenbasis (H = Σᵢⱼ (cᵢcⱼ)⁻¹ (Nᵢ⊗Nⱼ) ⊗ sym(Nᵢ⊗Nⱼ)).
 
 use super::electroelastic::Electroelastic;
-use super::hyperelastic::{add_vol_tangent, vol_log, vol_stress, HFirst, HSecond, Hyperelastic};
+use super::hyperelastic::{
+    add_vol_tangent, named, vol_log, vol_log_unit, vol_stress, HFirst, HSecond, Hyperelastic,
+};
 use super::isotropic::{CKinematics, Tensor4};
+use super::parameters::Parameters;
 use super::{Mat3, MaterialError, Vec3};
 
 /// Ogden W = Σ (μₚ/αₚ)(Σᵢ λ̄ᵢ^αₚ − 3) + κ/4 (J² − 1 − 2 ln J).
@@ -207,5 +210,48 @@ impl Hyperelastic for Ogden {
 
     fn bulk_modulus(&self) -> f64 {
         self.kappa
+    }
+
+    /// `mu.0`, `mu.1`, …, `alpha.0`, `alpha.1`, …, `kappa` (the scenario's lists by index).
+    fn parameters(&self) -> Option<Parameters> {
+        let mut p = named("ogden", &[], &[]);
+        for (i, &m) in self.mu.iter().enumerate() {
+            p.push(format!("mu.{i}"), m);
+        }
+        for (i, &a) in self.alpha.iter().enumerate() {
+            p.push(format!("alpha.{i}"), a);
+        }
+        p.push("kappa", self.kappa);
+        Some(p)
+    }
+
+    /// W is linear in the μₚ and κ. In αₚ, with φ = J^(−α/3), T = Σ cᵢ^(α/2):
+    /// ∂φ/∂α = −(ln J/3)φ, ∂T/∂α = ½ Σ ln cᵢ cᵢ^(α/2), and the term (μ/α)(φT − 3) with its
+    /// principal stresses μφ(cᵢ^(α/2) − T/3)/cᵢ are differentiated by the product rule.
+    fn parameter_derivatives(&self, k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        let sp = Self::spectral(k)?;
+        let n = &sp.n;
+        let principal = |s: Vec3| n * Mat3::from_diagonal(&s) * n.transpose();
+        let mut out = Vec::with_capacity(2 * self.mu.len() + 1);
+        for &alpha in &self.alpha {
+            let unit = Ogden::new(vec![1.0], vec![alpha], 0.0);
+            let (w, s) = unit.iso(k, &sp);
+            out.push(HFirst { w, s: principal(s) });
+        }
+        for (&mu, &alpha) in self.mu.iter().zip(&self.alpha) {
+            let beta = 0.5 * alpha;
+            let phi = k.j.powf(-alpha / 3.0);
+            let dphi = -k.j.ln() / 3.0 * phi;
+            let pw = sp.c.map(|c| c.powf(beta));
+            let dpw = Vec3::from_fn(|i, _| 0.5 * sp.c[i].ln() * pw[i]);
+            let (t, dt) = (pw.sum(), dpw.sum());
+            let w = -mu / (alpha * alpha) * (phi * t - 3.0) + mu / alpha * (dphi * t + phi * dt);
+            let s = Vec3::from_fn(|i, _| {
+                mu * (dphi * (pw[i] - t / 3.0) + phi * (dpw[i] - dt / 3.0)) / sp.c[i]
+            });
+            out.push(HFirst { w, s: principal(s) });
+        }
+        out.push(vol_log_unit(k));
+        Ok(out)
     }
 }

@@ -79,6 +79,68 @@ pub struct MaterialParams {
 }
 
 impl MaterialParams {
+    /// Sets the entry `key` of a parameter vector θ ([`crate::material::parameters`]): a scalar
+    /// (`kappa`, `c10`, `permittivity`, …, and `mu` as the one shear modulus), a list entry
+    /// (`mu.0`, `alpha.1`) or a branch's `branches.<i>.mu` / `branches.<i>.tau`; lists grow to
+    /// the index.
+    pub fn set(&mut self, key: &str, value: f64) -> Result<(), ParamError> {
+        let index = |s: &str| {
+            s.parse::<usize>()
+                .map_err(|_| perr(key, format!("expected an index after the dot; got `{s}`")))
+        };
+        let at = |v: &mut Vec<f64>, i: usize| {
+            if v.len() <= i {
+                v.resize(i + 1, 0.0);
+            }
+            v[i] = value;
+        };
+        let parts: Vec<&str> = key.split('.').collect();
+        match parts.as_slice() {
+            ["mu"] => self.mu = vec![value],
+            ["mu", i] => at(&mut self.mu, index(i)?),
+            ["alpha", i] => at(&mut self.alpha, index(i)?),
+            ["branches", i, which @ ("mu" | "tau")] => {
+                let i = index(i)?;
+                if self.branches.len() <= i {
+                    self.branches.resize(i + 1, (0.0, 0.0));
+                }
+                if *which == "mu" {
+                    self.branches[i].0 = value;
+                } else {
+                    self.branches[i].1 = value;
+                }
+            }
+            [name] => {
+                *self
+                    .scalar_mut(name)
+                    .ok_or_else(|| perr(key, "not a material parameter"))? = Some(value)
+            }
+            _ => return Err(perr(key, "not a material parameter")),
+        }
+        Ok(())
+    }
+
+    /// The scalar parameter `name` (not `mu`, `alpha`, `branches`).
+    fn scalar_mut(&mut self, name: &str) -> Option<&mut Option<f64>> {
+        Some(match name {
+            "lambda" => &mut self.lambda,
+            "kappa" => &mut self.kappa,
+            "c10" => &mut self.c10,
+            "c20" => &mut self.c20,
+            "c30" => &mut self.c30,
+            "c01" => &mut self.c01,
+            "d1" => &mut self.d1,
+            "d2" => &mut self.d2,
+            "d3" => &mut self.d3,
+            "jm" => &mut self.jm,
+            "lambda_m" => &mut self.lambda_m,
+            "permittivity" => &mut self.permittivity,
+            "c1" => &mut self.c1,
+            "c2" => &mut self.c2,
+            _ => return None,
+        })
+    }
+
     /// (name, values) of every parameter that is set.
     fn given(&self) -> Vec<(&'static str, Vec<f64>)> {
         let mut out = Vec::new();
@@ -310,6 +372,42 @@ pub fn build(
     model: &str,
     p: &MaterialParams,
 ) -> Result<(Arc<dyn Material>, Vec<String>), ParamError> {
+    build_with(model, p, true)
+}
+
+/// The model `model` with the parameter vector θ = `values` named by `names` (as
+/// [`Material::parameters`] gives them), validated as [`build`] validates, without its warnings
+/// (and without the cost of the Drucker check): a material rebuilt in a calibration or an
+/// optimisation. An error names the entry.
+pub fn rebuild(
+    model: &str,
+    names: &[String],
+    values: &[f64],
+) -> Result<Arc<dyn Material>, ParamError> {
+    if names.len() != values.len() {
+        return Err(perr(
+            "model",
+            format!(
+                "expected {} parameter values ({}); got {}",
+                names.len(),
+                names.join(", "),
+                values.len()
+            ),
+        ));
+    }
+    let mut p = MaterialParams::default();
+    for (name, &v) in names.iter().zip(values) {
+        p.set(name, v)?;
+    }
+    build_with(model, &p, false).map(|(m, _)| m)
+}
+
+/// [`build`], with the warnings' checks when `checks`.
+fn build_with(
+    model: &str,
+    p: &MaterialParams,
+    checks: bool,
+) -> Result<(Arc<dyn Material>, Vec<String>), ParamError> {
     let names = parameter_names(model).ok_or_else(|| {
         perr(
             "model",
@@ -379,10 +477,10 @@ pub fn build(
             let d2 = req("d2", Some(p.d2.unwrap_or(0.0)), "D₂ in 1/Pa (0 = term off)")?;
             let d3 = req("d3", Some(p.d3.unwrap_or(0.0)), "D₃ in 1/Pa (0 = term off)")?;
             let y = Yeoh::new(c10, c20, c30, d1, d2, d3);
-            if d2 < 0.0 || d3 < 0.0 {
+            if checks && (d2 < 0.0 || d3 < 0.0) {
                 warnings.push(volumetric_convexity_warning(&y));
             }
-            drucker = true;
+            drucker = checks;
             Arc::new(Electroelastic::new(y, elec))
         }
         "mooney-rivlin" => {
@@ -402,7 +500,7 @@ pub fn build(
                 p.d1,
                 "D₁ in 1/Pa (initial bulk modulus K₀ = 2/D₁ > 0)",
             )?;
-            drucker = true;
+            drucker = checks;
             Arc::new(Electroelastic::new(MooneyRivlin { c10, c01, d1 }, elec))
         }
         "gent" => {
@@ -443,7 +541,7 @@ pub fn build(
                     format!("the initial shear modulus ½ Σ μₚαₚ must be positive (Pa); got {mu0}"),
                 ));
             }
-            drucker = true;
+            drucker = checks;
             Arc::new(Electroelastic::new(o, elec))
         }
         "arruda-boyce" | "arruda-boyce-series" => {
@@ -487,7 +585,7 @@ pub fn build(
     };
     let (mu0, k0) = (mat.shear_modulus(), mat.bulk_modulus());
     debug_assert!(mu0 > 0.0 && k0 > 0.0);
-    if k0 / mu0 > STIFF_RATIO_WARNING {
+    if checks && k0 / mu0 > STIFF_RATIO_WARNING {
         warnings.push(format!(
             "model `{model}`: K₀/μ₀ = {:.1e} (K₀ = {k0:e} Pa, μ₀ = {mu0:e} Pa) is very large: the tangent is ill-conditioned and displacement-only elements lock",
             k0 / mu0

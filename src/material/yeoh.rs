@@ -10,10 +10,11 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    i1_model_piola, invariant_model_second, iso_stress, vol_poly, vol_stress, HFirst, HSecond,
-    Hyperelastic, InvariantDerivs, IsoInvariants,
+    i1_model_piola, invariant_model_second, iso_stress, named, vol_poly, vol_poly_d, vol_stress,
+    HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
 };
 use super::isotropic::CKinematics;
+use super::parameters::Parameters;
 use super::{KnownDeformation, Mat3, MaterialError};
 
 /// Yeoh W = Σ Cᵢ₀(Ī₁ − 3)ⁱ + Σ (J − 1)²ⁱ/Dᵢ.
@@ -94,5 +95,36 @@ impl Hyperelastic for Yeoh {
 
     fn bulk_modulus(&self) -> f64 {
         2.0 / self.d[0]
+    }
+
+    /// C₁₀, C₂₀, C₃₀, D₁ and the D₂, D₃ that are not 0 (a term switched off is no parameter).
+    fn parameters(&self) -> Option<Parameters> {
+        let mut p = named(
+            "yeoh",
+            &["c10", "c20", "c30", "d1"],
+            &[self.c[0], self.c[1], self.c[2], self.d[0]],
+        );
+        for (i, name) in [(1, "d2"), (2, "d3")] {
+            if self.d[i] != 0.0 {
+                p.push(name, self.d[i]);
+            }
+        }
+        Some(p)
+    }
+
+    /// W is linear in the Cᵢ₀ and in 1/Dᵢ.
+    fn parameter_derivatives(&self, k: &CKinematics) -> Result<Vec<HFirst>, MaterialError> {
+        let mut out = Vec::with_capacity(6);
+        for i in 0..3 {
+            let mut c = [0.0; 3];
+            c[i] = 1.0;
+            out.push(Yeoh { c, d: [0.0; 3] }.s(k)?);
+        }
+        for i in 0..3 {
+            if i == 0 || self.d[i] != 0.0 {
+                out.push(vol_poly_d(k, i, self.d[i]));
+            }
+        }
+        Ok(out)
     }
 }

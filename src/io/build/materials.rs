@@ -155,7 +155,7 @@ fn cell_materials(
 }
 
 /// The material `name`: its model and parameters (a preset's, overridden by those given).
-fn build_material(
+pub(super) fn build_material(
     ctx: &Ctx,
     name: &str,
     m: &MaterialSpec,

@@ -3,7 +3,8 @@
 //! and what was expected (type, range, unit).
 //!
 //! One file per concern: [`mesh`] (generators, Gmsh files, element kind, formulation),
-//! [`materials`] (models, presets, regions, density, viscosity, breakdown), [`loads`]
+//! [`materials`] (models, presets, regions, density, viscosity, breakdown), [`parameters`]
+//! (the key paths of material parameters), [`loads`]
 //! (constraints, tractions, gravity, rigid regions, pre-stretch), [`electrodes`] (electrodes and
 //! their waveforms), [`stages`], [`probes`] and [`solver`]. [`build`] calls them in a fixed order,
 //! so that a scenario with several errors always reports the same one first.
@@ -12,6 +13,7 @@ mod electrodes;
 mod loads;
 mod materials;
 mod mesh;
+mod parameters;
 mod probes;
 mod solver;
 mod stages;
@@ -19,6 +21,7 @@ mod stages;
 use super::scenario::{closest, InputError, OutputSpec, Scenario};
 pub use crate::job::plan::{Electrode, OutputPlan, Plan, Prestretch, Rigid, Stage, StageKind};
 use crate::mesh::{ElementKind, Mesh};
+pub use parameters::{material_parameter, ParameterKey};
 pub use stages::log_range;
 use std::path::Path;
 

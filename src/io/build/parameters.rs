@@ -1,0 +1,373 @@
+//! Key paths of material parameters: which material and which entry of its parameter vector θ
+//! ([`crate::material::parameters`]) a scenario key names, in the one style of `--set`
+//! (`materials.vhb.c10`, `materials.vhb.branches.1.tau`, `materials.gel.mu.0`). What a gradient,
+//! a calibration or an optimal control addresses.
+
+use super::materials::build_material;
+use super::Ctx;
+use crate::io::scenario::{closest, InputError, Scenario};
+
+/// A material parameter named by a key path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParameterKey {
+    /// The material's name.
+    pub material: String,
+    /// Its index in name order: the order of [`super::materials`] and of the plan's materials.
+    pub material_index: usize,
+    /// The entry of the material's θ.
+    pub entry: usize,
+    /// The entry's name (the key below `materials.<name>.`).
+    pub name: String,
+    /// Its value in the scenario (a preset's unless overridden), SI units as the scenario's.
+    pub value: f64,
+}
+
+/// The keys a material table takes ([`crate::io::scenario::MaterialSpec`]): an unknown key is
+/// suggested the closest of these or of the material's parameters.
+const MATERIAL_KEYS: &[&str] = &[
+    "model",
+    "preset",
+    "mu",
+    "lambda",
+    "kappa",
+    "c10",
+    "c20",
+    "c30",
+    "c01",
+    "d1",
+    "d2",
+    "d3",
+    "jm",
+    "lambda_m",
+    "alpha",
+    "permittivity",
+    "c1",
+    "c2",
+    "density",
+    "viscosity",
+    "breakdown_field",
+    "stop_at_breakdown",
+    "branches",
+];
+
+/// The material parameter that `key` names in scenario `s` (from file `file`): its material, the
+/// entry of that material's θ and its value. A key of the scenario that is no differentiable
+/// material parameter (`mesh.divisions`, `materials.vhb.model`, `materials.vhb.density`, a Yeoh
+/// D₂ of 0) is refused naming the key and listing the material's parameters; an unknown key gets
+/// the "did you mean" of the scenario's errors.
+pub fn material_parameter(s: &Scenario, file: &str, key: &str) -> Result<ParameterKey, InputError> {
+    let ctx = Ctx::plain(file);
+    let parts: Vec<&str> = key.split('.').collect();
+    let hint = |word: &str, candidates: &[&str]| {
+        closest(word, candidates.iter().copied())
+            .map(|c| format!("; did you mean `{c}`?"))
+            .unwrap_or_default()
+    };
+    let names: Vec<&str> = s.materials.keys().map(|n| n.as_str()).collect();
+    if parts.first() != Some(&"materials") {
+        if let Some(unknown) = unknown_part(s, &parts) {
+            return Err(ctx.err(key, unknown));
+        }
+        return Err(ctx.err(
+            key,
+            format!(
+                "not a material parameter: only the parameters of a material's model are \
+                 differentiable; expected `materials.<name>.<parameter>` (materials: {})",
+                names.join(", ")
+            ),
+        ));
+    }
+    let Some(&name) = parts.get(1) else {
+        return Err(ctx.err(key, "expected `materials.<name>.<parameter>`"));
+    };
+    let Some(index) = names.iter().position(|n| *n == name) else {
+        return Err(ctx.err(
+            key,
+            format!(
+                "unknown material `{name}` (materials: {}){}",
+                names.join(", "),
+                hint(name, &names)
+            ),
+        ));
+    };
+    let (mat, _) = build_material(&ctx, name, &s.materials[name], &mut Vec::new())?;
+    let theta = mat.parameters().ok_or_else(|| {
+        ctx.err(
+            format!("materials.{name}"),
+            "this material has no parameter vector",
+        )
+    })?;
+    let list = theta.names.join(", ");
+    let rest = parts[2..].join(".");
+    if rest.is_empty() {
+        return Err(ctx.err(
+            key,
+            format!(
+                "a material, not a parameter: expected `materials.{name}.<parameter>` with one of \
+                 the parameters of `{name}` (model `{}`): {list}",
+                theta.model
+            ),
+        ));
+    }
+    if let Some(entry) = theta.index(&rest) {
+        return Ok(ParameterKey {
+            material: name.to_string(),
+            material_index: index,
+            entry,
+            name: rest,
+            value: theta.values[entry],
+        });
+    }
+    let given = toml::Value::try_from(&s.materials[name]).ok();
+    let exists = MATERIAL_KEYS.contains(&parts[2])
+        && given
+            .as_ref()
+            .is_none_or(|v| parts.len() == 3 || lookup(v, &parts[3..]).is_some());
+    if !exists {
+        let mut candidates: Vec<&str> = theta.names.iter().map(|n| n.as_str()).collect();
+        candidates.extend(MATERIAL_KEYS);
+        return Err(ctx.err(
+            key,
+            format!(
+                "unknown parameter `{rest}` of material `{name}` (its parameters: {list}){}",
+                hint(&rest, &candidates)
+            ),
+        ));
+    }
+    let why = match rest.as_str() {
+        "model" | "preset" => " (it chooses the model, not a number)".to_string(),
+        "density" | "viscosity" | "breakdown_field" | "stop_at_breakdown" => {
+            " (not a parameter of the material's energy)".to_string()
+        }
+        "d2" | "d3" if theta.model == "yeoh" => {
+            format!(" (a Yeoh {rest} of 0 switches its term off: no derivative there)")
+        }
+        "mu" | "alpha" if theta.model == "ogden" => {
+            format!(" (Ogden's lists by index: {rest}.0, {rest}.1, …)")
+        }
+        _ => format!(" (not a parameter of model `{}`)", theta.model),
+    };
+    Err(ctx.err(
+        key,
+        format!(
+            "not a differentiable parameter{why}: expected one of the parameters of material \
+             `{name}` (model `{}`): {list}",
+            theta.model
+        ),
+    ))
+}
+
+/// The value at `path` below `v` (tables by key, arrays by index).
+fn lookup<'a>(v: &'a toml::Value, path: &[&str]) -> Option<&'a toml::Value> {
+    path.iter().try_fold(v, |cur, part| match cur {
+        toml::Value::Table(t) => t.get(*part),
+        toml::Value::Array(a) => a.get(part.parse::<usize>().ok()?),
+        _ => None,
+    })
+}
+
+/// The message for a key outside `materials` that the scenario does not hold, with the closest
+/// key at the level where it leaves the scenario; `None` when the scenario holds it.
+fn unknown_part(s: &Scenario, parts: &[&str]) -> Option<String> {
+    let root = toml::Value::try_from(s).ok()?;
+    let mut cur = &root;
+    for (i, part) in parts.iter().enumerate() {
+        match lookup(cur, &parts[i..=i]) {
+            Some(next) => cur = next,
+            None => {
+                let so_far = parts[..=i].join(".");
+                let candidates: Vec<&str> = match cur {
+                    toml::Value::Table(t) => t.keys().map(|k| k.as_str()).collect(),
+                    _ => Vec::new(),
+                };
+                let parent = parts[..i]
+                    .iter()
+                    .map(|p| format!("{p}."))
+                    .collect::<String>();
+                let hint = closest(part, candidates.iter().copied())
+                    .map(|c| format!("; did you mean `{parent}{c}`?"))
+                    .unwrap_or_default();
+                return Some(format!(
+                    "unknown key `{so_far}` (not in the scenario; a differentiable parameter is \
+                     a material's: `materials.<name>.<parameter>`){hint}"
+                ));
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::{scenario, text, FILE};
+    use super::*;
+    use crate::io::scenario::{parse, MaterialSpec};
+
+    fn at(materials: &str, key: &str) -> Result<ParameterKey, InputError> {
+        material_parameter(&scenario(&[("materials", materials)]), FILE, key)
+    }
+
+    /// Asserts that `key` is refused, naming it, with a message containing each of `says`.
+    fn refused(materials: &str, key: &str, says: &[&str]) {
+        let e = at(materials, key).expect_err(key);
+        let msg = e.to_string();
+        assert_eq!(e.key.as_deref(), Some(key), "{msg}");
+        assert!(msg.starts_with(&format!("{FILE}: key `{key}`: ")), "{msg}");
+        for s in says {
+            assert!(msg.contains(s), "`{s}` not in: {msg}");
+        }
+    }
+
+    const TWO: &str = "[materials.vhb]\npreset = \"vhb4910-wang2016\"\n\
+                       [materials.gel]\nmodel = \"ogden\"\nmu = [1e5, 2e3]\nalpha = [1.5, 4.0]\n\
+                       kappa = 1e7\npermittivity = 4.7\ndensity = 1000.0";
+
+    const YEOH: &str = "[materials.y]\nmodel = \"yeoh\"\nc10 = 5e4\nd1 = 2e-8\nd2 = 0.0\n\
+                        permittivity = 4.7";
+
+    #[test]
+    fn a_parameter_key_names_its_material_entry_and_value() {
+        // the base scenario's neo-Hooke material
+        let base = "[materials.gel]\nmodel = \"neo-hooke\"\nmu = 1e5\nlambda = 1e7\n\
+                    permittivity = 4.7";
+        let k = at(base, "materials.gel.lambda").unwrap();
+        assert_eq!(
+            k,
+            ParameterKey {
+                material: "gel".into(),
+                material_index: 0,
+                entry: 1,
+                name: "lambda".into(),
+                value: 1e7,
+            }
+        );
+        assert_eq!(at(base, "materials.gel.c2").unwrap().value, 0.0);
+        // a preset's parameters by the model's names; materials in name order (gel, vhb)
+        let k = at(TWO, "materials.vhb.lambda_m").unwrap();
+        assert_eq!((k.material_index, k.entry, k.value), (1, 1, 5.99));
+        let k = at(TWO, "materials.vhb.branches.1.tau").unwrap();
+        assert_eq!((k.entry, k.value), (9, 6.56));
+        assert_eq!(
+            at(TWO, "materials.vhb.branches.2.mu").unwrap().value,
+            10.83e3
+        );
+        assert!((at(TWO, "materials.vhb.permittivity").unwrap().value - 4.8).abs() < 1e-14);
+        // Ogden's lists by index
+        let k = at(TWO, "materials.gel.alpha.1").unwrap();
+        assert_eq!((k.material_index, k.entry, k.value), (0, 3, 4.0));
+        // the entry is the material's θ entry
+        let mats = super::super::materials(&scenario(&[("materials", TWO)]), FILE).unwrap();
+        let theta = mats[1].parameters().unwrap();
+        assert_eq!(theta.names[9], "branches.1.tau");
+    }
+
+    #[test]
+    fn keys_that_are_no_differentiable_parameter_are_refused() {
+        refused(
+            TWO,
+            "mesh.divisions",
+            &["not a material parameter", "materials.<name>.<parameter>"],
+        );
+        refused(
+            TWO,
+            "materials.vhb.preset",
+            &[
+                "not a differentiable parameter (it chooses the model",
+                "model `arruda-boyce`): mu, lambda_m, kappa, permittivity, c1, c2, branches.0.mu",
+            ],
+        );
+        refused(
+            TWO,
+            "materials.gel.model",
+            &["not a differentiable parameter", "mu.0, mu.1, alpha.0"],
+        );
+        refused(
+            TWO,
+            "materials.gel.density",
+            &["not a parameter of the material's energy"],
+        );
+        refused(TWO, "materials.gel.mu", &["Ogden's lists by index: mu.0"]);
+        refused(
+            TWO,
+            "materials.vhb.c10",
+            &["not a parameter of model `arruda-boyce`"],
+        );
+        refused(TWO, "materials.vhb", &["a material, not a parameter"]);
+        refused(
+            YEOH,
+            "materials.y.d2",
+            &[
+                "switches its term off",
+                "c10, c20, c30, d1, permittivity, c1, c2",
+            ],
+        );
+    }
+
+    #[test]
+    fn unknown_keys_get_a_suggestion() {
+        refused(
+            TWO,
+            "materials.vhb.lamda_m",
+            &[
+                "unknown parameter `lamda_m` of material `vhb`",
+                "did you mean `lambda_m`?",
+            ],
+        );
+        refused(
+            TWO,
+            "materials.vhx.kappa",
+            &["unknown material `vhx`", "did you mean `vhb`?"],
+        );
+        refused(
+            TWO,
+            "materials.gel.mu.5",
+            &["unknown parameter `mu.5`", "did you mean `mu.0`?"],
+        );
+        refused(
+            TWO,
+            "materials.vhb.branches.7.tau",
+            &["unknown parameter `branches.7.tau`"],
+        );
+        refused(
+            TWO,
+            "mesh.divisons",
+            &[
+                "unknown key `mesh.divisons`",
+                "did you mean `mesh.divisions`?",
+            ],
+        );
+    }
+
+    /// The key of a parameter is the one `--set` takes: an override changes the value it names.
+    #[test]
+    fn a_set_override_changes_the_value_the_key_names() {
+        let m = "[materials.gel]\nmodel = \"ogden\"\nmu = [1e5, 2e3]\nalpha = [1.5, 4.0]\n\
+                 kappa = 1e7\npermittivity = 4.7\nbranches = [{ mu = 1e4, tau = 2.0 }]";
+        let text = text(&[("materials", m)]);
+        for (key, v) in [
+            ("materials.gel.alpha.1", 4.5),
+            ("materials.gel.mu.0", 1.2e5),
+            ("materials.gel.branches.0.tau", 3.0),
+            ("materials.gel.kappa", 2e7),
+            ("materials.gel.c1", 1e-12),
+        ] {
+            let s = parse(&text, FILE, &[format!("{key}={v:e}")]).unwrap();
+            assert_eq!(material_parameter(&s, FILE, key).unwrap().value, v, "{key}");
+        }
+    }
+
+    /// Every key of the list is one a material table takes.
+    #[test]
+    fn the_material_keys_are_the_material_tables() {
+        let e = toml::from_str::<MaterialSpec>("nonsense = 1").unwrap_err();
+        let msg = e.to_string();
+        for k in MATERIAL_KEYS {
+            assert!(msg.contains(&format!("`{k}`")), "{k}: {msg}");
+        }
+        assert_eq!(
+            msg.matches('`').count(),
+            2 * (MATERIAL_KEYS.len() + 1),
+            "{msg}"
+        );
+    }
+}

@@ -1,0 +1,98 @@
+//! A material's parameters as a vector θ, and the exact derivatives of its response with respect
+//! to them: what gradients of whole runs (adjoint), calibration and optimal control need.
+//!
+//! Every material built by the [`registry`](super::registry) names its parameters with the keys
+//! a scenario gives them below `materials.<name>.` ([`Parameters::names`]): the model's own
+//! (`mu`, `kappa`, `c10`, `jm`, `lambda_m`, …; `mu.0`, `alpha.0`, … for Ogden's lists), then the
+//! dielectric `permittivity` (relative), `c1`, `c2`, then each Maxwell branch's
+//! `branches.<i>.mu` and `branches.<i>.tau`. Units are the scenario's (SI; `permittivity`
+//! dimensionless). A Yeoh D₂ or D₃ of 0 switches its term off and is no parameter: the energy
+//! (J − 1)^(2i)/Dᵢ has no derivative in Dᵢ there.
+//!
+//! [`Material::with_parameters`](super::Material::with_parameters) rebuilds the same model from a
+//! new θ through the registry's validation; [`Material::parameter_derivatives_at`] gives
+//! ∂Ψ/∂θ, ∂P/∂θ and ∂D0/∂θ of [`Material::stress_at`](super::Material::stress_at), and a material
+//! with internal variables the vector–Jacobian products of its update
+//! ([`Material::update_state_vjp`]) and of its stress in the committed variables
+//! ([`Material::stress_state_vjp`]).
+//!
+//! # Why by hand
+//!
+//! The derivatives are written out, not taken with dual numbers: most parameters enter the
+//! energy linearly (μ, κ, Λ, Cᵢⱼ, 1/Dᵢ, ε, c₁, c₂, a branch's g), so the derivative in one of
+//! them is the model evaluated with that coefficient 1 and the others 0 — the existing, tested
+//! code, exact and as fast as one stress. The few that enter nonlinearly (Gent's J_m, the
+//! Arruda–Boyce λ_m, Ogden's αₚ, a branch's τ) change only a scalar function of the invariants
+//! (or of the principal stretches), whose derivative is short. Dual numbers would need every
+//! model generic over its scalar type, or a dependency, for the same numbers.
+//!
+//! [`Material::parameter_derivatives_at`]: super::Material::parameter_derivatives_at
+//! [`Material::update_state_vjp`]: super::Material::update_state_vjp
+//! [`Material::stress_state_vjp`]: super::Material::stress_state_vjp
+
+use super::electric::ElectricPart;
+use super::isotropic::CKinematics;
+use super::{Mat3, Stress, Vec3, EPSILON_0};
+
+/// A material's parameter vector θ: the registry model it is an instance of, one name per entry
+/// (the scenario key below `materials.<name>.`) and the values (SI units, as the scenario's).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parameters {
+    /// The registry model (`gent`, `ogden`, …): [`super::registry::MODELS`].
+    pub model: &'static str,
+    pub names: Vec<String>,
+    pub values: Vec<f64>,
+}
+
+impl Parameters {
+    /// The index of the entry named `name`.
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+
+    /// Appends the entry `name = value`.
+    pub fn push(&mut self, name: impl Into<String>, value: f64) {
+        self.names.push(name.into());
+        self.values.push(value);
+    }
+}
+
+/// The vector–Jacobian products of an update of the internal variables, A_{n+1} =
+/// `update_state`(F, E0, A_n, Δt), for a vector w over A_{n+1}.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateVjp {
+    /// wᵀ ∂A_{n+1}/∂θ, one entry per parameter.
+    pub theta: Vec<f64>,
+    /// wᵀ ∂A_{n+1}/∂A_n, one entry per committed internal variable.
+    pub state: Vec<f64>,
+    /// wᵀ ∂A_{n+1}/∂F (entry (i, J) for F_iJ).
+    pub f: Mat3,
+    /// wᵀ ∂A_{n+1}/∂E0.
+    pub e0: Vec3,
+}
+
+/// The dielectric entries of θ: `permittivity` (relative εᵣ), `c1`, `c2` of `e`.
+pub(crate) fn push_electric(p: &mut Parameters, e: &ElectricPart) {
+    p.push("permittivity", e.eps / EPSILON_0);
+    p.push("c1", e.c1);
+    p.push("c2", e.c2);
+}
+
+/// ∂(Ψ, P, D0)/∂(εᵣ, c₁, c₂): the dielectric energy is linear in ε = εᵣε₀, c₁ and c₂, so each
+/// derivative is the dielectric part with that coefficient alone (ε₀ for εᵣ).
+pub(crate) fn electric(f: &Mat3, k: &CKinematics, e0: &Vec3) -> [Stress; 3] {
+    let unit = |eps, c1, c2| {
+        let part = ElectricPart { eps, c1, c2 };
+        let (s, d0) = part.first(k, e0);
+        Stress {
+            energy: part.energy(k, e0),
+            p: f * s,
+            d0,
+        }
+    };
+    [
+        unit(EPSILON_0, 0.0, 0.0),
+        unit(0.0, 1.0, 0.0),
+        unit(0.0, 0.0, 1.0),
+    ]
+}
