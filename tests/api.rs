@@ -189,3 +189,71 @@ fn a_run_with_an_output_directory_writes_the_files_of_deasim_run() {
     assert!(summary.contains("stages.0.steps=2"), "{summary}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn newton_and_step_control_come_from_the_scenario() {
+    let plan = film()
+        .set("solver.newton_rtol", "1e-6")
+        .set("solver.newton_max_iterations", "40")
+        .set("solver.line_search_halvings", "3")
+        .set("solver.min_step_fraction", "0.01")
+        .plan()
+        .unwrap();
+    assert_eq!(plan.newton.rtol, 1e-6);
+    assert_eq!(plan.newton.max_iterations, 40);
+    assert_eq!(plan.newton.max_backtracks, 3);
+    assert_eq!(plan.step_control.min_fraction, 0.01);
+    // a looser tolerance takes fewer iterations to the same voltages
+    let iterations = |sim: Simulation| -> f64 {
+        let r = sim.set("stages.0.steps", "3").run(RunOptions::default()).unwrap();
+        r.history.column("newton_iterations").unwrap().iter().sum()
+    };
+    assert!(iterations(film().set("solver.newton_rtol", "1e-4")) < iterations(film()));
+    // one iteration per step cannot follow the nonlinear film: the stages use the plan's Newton
+    let error = film()
+        .set("solver.newton_max_iterations", "1")
+        .set("solver.min_step_fraction", "0.5")
+        .run(RunOptions::default())
+        .unwrap_err();
+    assert!(matches!(error, Error::Solve { .. }), "{error:?}");
+    for (key, value) in [
+        ("solver.newton_rtol", "2"),
+        ("solver.newton_max_iterations", "0"),
+        ("solver.line_search_halvings", "-1"),
+        ("solver.min_step_fraction", "0"),
+    ] {
+        let e = film().set(key, value).plan().unwrap_err();
+        assert_eq!(e.key(), Some(key), "{e}");
+    }
+}
+
+#[test]
+fn the_small_signal_base_state_uses_the_plans_newton() {
+    // the film with a Maxwell branch, charged instantaneously: its relaxed state, about which
+    // the small-signal analyses linearise, lies a static solve away
+    let visco = |max_iterations: &str| {
+        film()
+            .set("materials.elastomer.branches", "[{ mu = 1e5, tau = 1.0 }]")
+            .set("stages.0.steps", "2")
+            .set("electrodes.top.voltage.amplitude", "15e3")
+            .set("solver.newton_max_iterations", max_iterations)
+            .set("solver.min_step_fraction", "1")
+    };
+    let charged = visco("25")
+        .run(RunOptions {
+            fields: FieldsKept::Last,
+            ..RunOptions::default()
+        })
+        .unwrap();
+    let state = &charged.fields[0].nodal;
+    let (_, relaxed) = deasim::job::linear::base_state(&visco("25").plan().unwrap(), state)
+        .expect("the relaxed state converges");
+    let moved = relaxed
+        .iter()
+        .zip(state)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(moved > 1e-6, "the relaxed state is another state: {moved}");
+    let error = deasim::job::linear::base_state(&visco("1").plan().unwrap(), state).unwrap_err();
+    assert!(error.contains("relaxed state was not reached"), "{error}");
+}

@@ -118,7 +118,7 @@ fn run_text(text: &str, sets: &[&str]) -> (Vec<StepRecord>, Plan) {
     let scenario = parse(text, "test.toml", &sets).unwrap_or_else(|e| panic!("{e}"));
     let plan = build(&scenario, "test.toml", None).unwrap_or_else(|e| panic!("{e}"));
     let mut rec = Records::default();
-    let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+    let summary = run(&plan, &mut rec);
     assert!(summary.converged, "{:?}", summary.error);
     (rec.0, plan)
 }

@@ -12,7 +12,6 @@ use deasim::job::observer::Observer;
 use deasim::job::run::{run, StepRecord};
 use deasim::job::state::RunSummary;
 use deasim::material::homogeneous::{solve, Mode};
-use deasim::solve::newton::NewtonSettings;
 
 /// Keeps every record.
 #[derive(Default)]
@@ -31,7 +30,7 @@ fn run_with(text: &str, sets: &[&str]) -> (Vec<StepRecord>, Plan, RunSummary) {
     let scenario = parse(text, "test.toml", &sets).unwrap_or_else(|e| panic!("{e}"));
     let plan = build(&scenario, "test.toml", None).unwrap_or_else(|e| panic!("{e}"));
     let mut rec = Records::default();
-    let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+    let summary = run(&plan, &mut rec);
     assert!(summary.converged, "{:?}", summary.error);
     (rec.0, plan, summary)
 }
@@ -87,7 +86,7 @@ fn small_mass_matches_the_membrane_formula() {
     scenario.stages.truncate(1);
     let plan = build(&scenario, "test.toml", None).unwrap();
     let mut rec = Records::default();
-    let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+    let summary = run(&plan, &mut rec);
     assert!(summary.converged, "{:?}", summary.error);
     let delta = probe(&plan, rec.0.last().unwrap(), "center_deflection");
 
@@ -123,7 +122,7 @@ fn quarter_and_full_disc_agree() {
     let value = |s: &deasim::io::scenario::Scenario| {
         let plan = build(s, "t.toml", None).unwrap();
         let mut rec = Records::default();
-        let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+        let summary = run(&plan, &mut rec);
         assert!(summary.converged, "{:?}", summary.error);
         let last = rec.0.last().unwrap();
         // the static balance (from the pre-stretched state, with the gravity potential and the
@@ -528,7 +527,7 @@ fn breakdown_is_reported_and_can_stop_the_run() {
     let scenario = parse(text, "t.toml", &sets).unwrap();
     let plan = build(&scenario, "t.toml", None).unwrap();
     let mut rec = Records::default();
-    let summary = run(&plan, &NewtonSettings::default(), &mut rec);
+    let summary = run(&plan, &mut rec);
     assert!(!summary.converged);
     let error = summary.error.unwrap();
     assert!(error.contains("stopped on dielectric breakdown"), "{error}");
@@ -561,7 +560,7 @@ fn loaded_modes(text: &str, sets: &[&str]) -> (f64, Vec<deasim::time::modal::Mod
     scenario.stages.truncate(1);
     let plan = build(&scenario, "t.toml", None).unwrap();
     let mut last = LastState::default();
-    let summary = run(&plan, &NewtonSettings::default(), &mut last);
+    let summary = run(&plan, &mut last);
     assert!(summary.converged, "{:?}", summary.error);
     let sag = probe(&plan, last.0.last().unwrap(), "center_deflection");
     let mut model = plan.model.clone();

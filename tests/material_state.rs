@@ -381,7 +381,7 @@ fn run_exports_checkpoints_and_resumes_point_states() {
             part: None,
         };
         let mut obs: Vec<&mut dyn Observer> = vec![&mut writer, &mut ck];
-        let summary = run_with(&plan, &NewtonSettings::default(), &mut obs, start);
+        let summary = run_with(&plan, &mut obs, start);
         assert!(summary.converged, "{:?}", summary.error);
     };
     let full = base.join("full");

@@ -49,7 +49,7 @@ fn run_example(name: &str, solver: Option<&str>) -> (Plan, RunSummary, Records) 
     let plan = build(&scenario, "test.toml", None).unwrap_or_else(|e| panic!("{e}"));
     let mut records = Records::default();
     let t = Instant::now();
-    let summary = run(&plan, &NewtonSettings::default(), &mut records);
+    let summary = run(&plan, &mut records);
     eprintln!(
         "{name} with {}: {:.2} s",
         plan.solver.describe(plan.model.mesh.n_nodes() * 4),

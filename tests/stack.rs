@@ -25,7 +25,6 @@ use deasim::job::observer::Observer;
 use deasim::job::run::{run, StepRecord};
 use deasim::job::state::RunSummary;
 use deasim::material::EPSILON_0;
-use deasim::solve::newton::NewtonSettings;
 use std::sync::OnceLock;
 
 const MU: f64 = 0.3e6;
@@ -57,7 +56,7 @@ fn run_example(name: &str, sets: &[String]) -> (Plan, Last) {
         parse(example(name).unwrap(), "test.toml", sets).unwrap_or_else(|e| panic!("{e}"));
     let plan = build(&scenario, "test.toml", None).unwrap_or_else(|e| panic!("{e}"));
     let mut last = Last::default();
-    let summary = run(&plan, &NewtonSettings::default(), &mut last);
+    let summary = run(&plan, &mut last);
     assert!(summary.converged, "{:?}", summary.error);
     (plan, last)
 }

@@ -10,7 +10,6 @@ use crate::io::scenario::{blame_override, parse, InputError, Scenario, MAX_SCENA
 use crate::job::observer::Observer;
 use crate::job::run::{run_with, RunState};
 use crate::solve::interrupt;
-use crate::solve::newton::NewtonSettings;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -193,7 +192,7 @@ pub fn run_plan(plan: &Plan, options: RunOptions) -> Result<Results, Error> {
             all.push(&mut **o);
         }
         all.push(&mut collector);
-        run_with(plan, &NewtonSettings::default(), &mut all, start)
+        run_with(plan, &mut all, start)
     };
     interrupt::watch(None);
     let results = collector.results(plan, summary.clone());

@@ -16,7 +16,6 @@ use crate::job::plan::ResponseMethod;
 use crate::job::run::{run_with, RunState, StepRecord};
 use crate::job::state::FrequencyResponse;
 use crate::job::state::RunSummary;
-use crate::solve::newton::NewtonSettings;
 use crate::time::modal::Mode;
 use crate::units::Short;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -791,7 +790,7 @@ fn run_secondary_rank(
     if let Some(c) = cadence.as_mut() {
         observers.push(c);
     }
-    let summary = run_with(plan, &NewtonSettings::default(), &mut observers, start);
+    let summary = run_with(plan, &mut observers, start);
     mpi_barrier();
     if let Some(f) = writer.write_failure() {
         eprintln!("error: {f}");

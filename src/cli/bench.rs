@@ -606,7 +606,7 @@ fn run_example(name: &str, sets: &[String]) -> Result<(usize, Vec<StageWall>), S
     let text = example(name).ok_or_else(|| format!("no example {name}"))?;
     let s = parse(text, name, sets).map_err(|e| e.to_string())?;
     let plan = build(&s, name, None).map_err(|e| e.to_string())?;
-    let summary = crate::job::run::run(&plan, &NewtonSettings::default(), &mut Quiet);
+    let summary = crate::job::run::run(&plan, &mut Quiet);
     if !summary.converged {
         return Err(summary.error.unwrap_or_default());
     }

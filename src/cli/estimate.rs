@@ -9,7 +9,6 @@ use crate::job::plan::Plan;
 use crate::job::run::run_with;
 use crate::job::state::RunSummary;
 use crate::job::state::StepRecord;
-use crate::solve::newton::NewtonSettings;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -217,7 +216,7 @@ pub fn estimate(plan: &Plan) -> Result<Estimate, TrialError> {
     };
     let summary = {
         let mut observers: Vec<&mut dyn Observer> = vec![&mut writer, &mut clock];
-        run_with(&trial, &NewtonSettings::default(), &mut observers, None)
+        run_with(&trial, &mut observers, None)
     };
     crate::solve::interrupt::clear_local();
     // the trial's own stop is no failure

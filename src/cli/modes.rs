@@ -14,7 +14,6 @@ use crate::job::plan::StageKind;
 use crate::job::run::{run, StepRecord};
 use crate::job::state::RunSummary;
 use crate::problem::dofs::{FIELDS, PHI};
-use crate::solve::newton::NewtonSettings;
 use crate::time::modal::ModeSettings;
 use std::path::{Path, PathBuf};
 
@@ -81,7 +80,7 @@ pub fn cmd_modes(
         }
     };
     let mut last = LastState::default();
-    let summary = run(&plan, &NewtonSettings::default(), &mut last);
+    let summary = run(&plan, &mut last);
     if !summary.converged {
         eprintln!(
             "error: the loaded state was not reached: {}",

@@ -204,7 +204,7 @@ pub fn prepare(
     let full_stages = plan.stages.clone();
     plan.stages.truncate(n_static);
     let mut last = LastState::default();
-    let summary = run(&plan, &NewtonSettings::default(), &mut last);
+    let summary = run(&plan, &mut last);
     plan.stages = full_stages;
     if !summary.converged {
         return Err(failed(format!(

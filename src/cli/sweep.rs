@@ -11,7 +11,6 @@ use crate::io::plot::{stacked_plot, PlotSpec, Series};
 use crate::job::observer::Observer;
 use crate::job::run::{run, StepRecord};
 use crate::job::state::RunSummary;
-use crate::solve::newton::NewtonSettings;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -385,7 +384,7 @@ fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan, sets: &[(String, f64)]
         writer: &mut writer,
         records: Vec::new(),
     };
-    let summary = run(plan, &NewtonSettings::default(), &mut obs);
+    let summary = run(plan, &mut obs);
     let figures = figures(plan, &obs.records);
     let failure = writer.write_failure();
     Outcome {

@@ -120,6 +120,16 @@ pub struct SolverSpec {
     /// `petsc` with a Krylov method: `kept` keeps the preconditioner across Newton iterations
     /// and steps until it grows stale; `renewed` sets it up with every tangent.
     pub preconditioner: Option<String>,
+    /// Newton converges at ‖r‖ ≤ `newton_rtol`·‖r₀‖ (default 1e-10), every stage, the
+    /// pre-stretch and the small-signal base states.
+    pub newton_rtol: Option<f64>,
+    /// Newton's largest number of iterations per step (default 25).
+    pub newton_max_iterations: Option<i64>,
+    /// The largest number of halvings of a Newton step in the line search (default 6).
+    pub line_search_halvings: Option<i64>,
+    /// The smallest load increment of a static stage, as a fraction of a nominal step (default
+    /// 1/4096): below it the stage stops as failed.
+    pub min_step_fraction: Option<f64>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

@@ -11,10 +11,9 @@ use super::plan::Plan;
 use super::plan::ResponseMethod;
 use super::probes::{ProbeInput, ProbeKind};
 use super::state::FrequencyResponse;
-use super::statics::solve_static;
+use super::statics::solve_static_with;
 use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
-use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
 use crate::time::frequency::{linearise, relaxed_model, Linearisation};
 use crate::time::mass::{MassKind, NodalMass};
@@ -88,14 +87,15 @@ pub fn base_state(plan: &Plan, state: &[f64]) -> Result<(Model, Vec<f64>), Strin
         return Ok((model, state.to_vec()));
     }
     let relaxed = relaxed_model(&model);
-    let out = solve_static(
+    let out = solve_static_with(
         &relaxed,
+        &plan.solver,
         Some(state.to_vec()),
         &StepControl {
             steps: 1,
-            ..Default::default()
+            ..plan.step_control.clone()
         },
-        &NewtonSettings::default(),
+        &plan.newton,
         |_, _| {},
     );
     out.result

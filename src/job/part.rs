@@ -649,7 +649,7 @@ mod tests {
     fn the_records_of_the_parts_are_the_whole_record() {
         let plan = film();
         let mut last = Last::default();
-        let summary = crate::job::run::run(&plan, &Default::default(), &mut last);
+        let summary = crate::job::run::run(&plan, &mut last);
         assert!(summary.converged, "{:?}", summary.error);
         let whole = record(&plan, &last.0);
         assert!(

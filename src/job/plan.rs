@@ -212,6 +212,11 @@ pub struct Plan {
     pub stop_at_breakdown: bool,
     /// The linear solver of every stage.
     pub solver: SolverSettings,
+    /// Newton's settings for every nonlinear solve of the run: the stages, the pre-stretch and
+    /// the small-signal base states.
+    pub newton: crate::solve::newton::NewtonSettings,
+    /// The step control of the static stages and the pre-stretch (its `steps` set per stage).
+    pub step_control: crate::solve::stepping::StepControl,
     /// Per pressure of `model.pressures`, per stage: whether it acts in the stage (a static stage
     /// ramps it on or off, later stages hold it).
     pub pressure_stages: Vec<Vec<bool>>,

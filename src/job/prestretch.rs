@@ -3,7 +3,7 @@
 use super::observer::Observer;
 use super::plan::Plan;
 use super::recorder::Recorder;
-use super::statics::{solve_static, solve_static_from, StageTime};
+use super::statics::{solve_static_from, solve_static_with, StageTime};
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
 use crate::problem::points::PointStates;
 use crate::solve::newton::NewtonSettings;
@@ -74,7 +74,7 @@ pub(super) fn prestretch(
             let mut dissipated = outcome.dissipated;
             let control = StepControl {
                 steps,
-                ..Default::default()
+                ..plan.step_control.clone()
             };
             let out = solve_static_from(
                 &pre,
@@ -146,7 +146,7 @@ pub(super) fn prestretch(
     let one = StepControl {
         steps: 1,
         min_fraction: 1.0,
-        ..Default::default()
+        ..plan.step_control.clone()
     };
     // a rank's part solves with the plan's solver on its own unknowns
     let static_solve = |initial: Vec<f64>,
@@ -155,7 +155,7 @@ pub(super) fn prestretch(
         &crate::problem::statics::StaticProblem<'_>,
         &crate::solve::stepping::AcceptedStep,
     )| match division {
-        None => solve_static(&pre, Some(initial), control, newton, on_step),
+        None => solve_static_with(&pre, &plan.solver, Some(initial), control, newton, on_step),
         Some(_) => solve_static_from(
             &pre,
             &plan.solver,
@@ -182,7 +182,7 @@ pub(super) fn prestretch(
         Err(_) => {
             let control = StepControl {
                 steps: p.steps,
-                ..Default::default()
+                ..plan.step_control.clone()
             };
             let ramped = static_solve(state.to_vec(), &control, &mut |q, acc| {
                 record(rec, &q.state, acc.newton.iterations, 0.0, 0.0, 0.0)

@@ -31,21 +31,20 @@ use crate::time::stage::{
 };
 use std::time::Instant;
 
-/// Runs every stage of the plan. `newton` applies to every stage.
-pub fn run(plan: &Plan, newton: &NewtonSettings, observer: &mut dyn Observer) -> RunSummary {
-    run_with(plan, newton, &mut [observer], None)
+/// Runs every stage of the plan, with the plan's Newton settings and step control.
+pub fn run(plan: &Plan, observer: &mut dyn Observer) -> RunSummary {
+    run_with(plan, &mut [observer], None)
 }
 
 /// [`run`] with several observers, from the start or from a run state (already checked against
 /// the plan).
 pub fn run_with(
     plan: &Plan,
-    newton: &NewtonSettings,
     observers: &mut [&mut dyn Observer],
     start: Option<RunState>,
 ) -> RunSummary {
     let mut observers = Observers(observers);
-    let mut job = Job::new(plan, newton, &mut observers, start.as_ref());
+    let mut job = Job::new(plan, &plan.newton, &mut observers, start.as_ref());
     let mut model = plan.model.clone();
     if let Some(s) = &start {
         model.dead_load_start = s.dead_load_start;
@@ -541,7 +540,7 @@ impl<'p, 'o> Job<'p, 'o> {
         };
         let control = StepControl {
             steps,
-            ..Default::default()
+            ..self.plan.step_control.clone()
         };
         let nominal = 1.0 / steps.max(1) as f64;
         let mut last_position = resume_at.as_ref().map_or(

@@ -40,12 +40,33 @@ pub fn solve_static(
     initial: Option<Vec<f64>>,
     control: &StepControl,
     newton: &NewtonSettings,
+    on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
+) -> StaticOutcome {
+    solve_static_with(
+        model,
+        &SolverSettings::default(),
+        initial,
+        control,
+        newton,
+        on_step,
+    )
+}
+
+/// [`solve_static`] with the linear solver of `solver` (a plan's `[solver]`).
+pub fn solve_static_with(
+    model: &Model,
+    solver: &SolverSettings,
+    initial: Option<Vec<f64>>,
+    control: &StepControl,
+    newton: &NewtonSettings,
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, initial);
-    // the default solver is serial: it needs the whole tangent on every process
-    problem.assemble_every_cell();
-    let mut solver = SolverSettings::default().build();
+    let mut solver = solver.build();
+    // a serial solver needs the whole tangent on every process
+    if !solver.sums_shared_entries() {
+        problem.assemble_every_cell();
+    }
     let result = ramp(&mut problem, solver.as_mut(), newton, control, |p, s| {
         on_step(p, s)
     });

@@ -14,7 +14,7 @@ use crate::algebra::csr::CsrMatrix;
 pub use crate::algebra::system::{Border, NonlinearSystem};
 
 /// Newton settings.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NewtonSettings {
     /// Largest number of iterations.
     pub max_iterations: usize,

@@ -14,7 +14,7 @@ use crate::algebra::csr::CsrMatrix;
 pub use crate::algebra::system::LoadedSystem;
 
 /// Step control.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StepControl {
     /// Nominal number of steps.
     pub steps: usize,

@@ -163,6 +163,7 @@ pub fn build_with(
     }
     let probes = probes::build_probes(&ctx, s, &model, &electrodes)?;
     let output = build_output(&ctx, &s.output, model.is_axisymmetric())?;
+    let (newton, step_control) = solver::build_newton(&ctx, s)?;
     warnings.extend(stages::aliasing_warnings(&stages, &electrodes));
     Ok(Plan {
         name: s.name.clone(),
@@ -183,6 +184,8 @@ pub fn build_with(
         breakdown,
         stop_at_breakdown,
         solver: solver::build_solver(&ctx, s)?,
+        newton,
+        step_control,
         pressure_stages,
         pressure_volumes,
         part: None,

@@ -3,6 +3,52 @@
 use super::Ctx;
 use crate::io::scenario::{InputError, Scenario};
 use crate::solve::linear::{Ordering, SolverKind, SolverSettings};
+use crate::solve::newton::NewtonSettings;
+use crate::solve::stepping::StepControl;
+
+/// `[solver]`'s Newton and step-control keys → the settings of every nonlinear solve of the run
+/// (the defaults without them).
+pub(super) fn build_newton(
+    ctx: &Ctx,
+    s: &Scenario,
+) -> Result<(NewtonSettings, StepControl), InputError> {
+    let mut newton = NewtonSettings::default();
+    let mut control = StepControl::default();
+    let Some(spec) = &s.solver else {
+        return Ok((newton, control));
+    };
+    if let Some(r) = spec.newton_rtol {
+        if !(r > 0.0 && r < 1.0) {
+            return Err(ctx.err(
+                "solver.newton_rtol",
+                format!("{r} is outside (0, 1): expected Newton's relative residual tolerance, e.g. 1e-10"),
+            ));
+        }
+        newton.rtol = r;
+    }
+    let count = |key: &str, v: i64, least: i64| {
+        usize::try_from(v)
+            .ok()
+            .filter(|&n| n as i64 >= least)
+            .ok_or_else(|| ctx.err(key, format!("{v}: expected a whole number ≥ {least}")))
+    };
+    if let Some(n) = spec.newton_max_iterations {
+        newton.max_iterations = count("solver.newton_max_iterations", n, 1)?;
+    }
+    if let Some(n) = spec.line_search_halvings {
+        newton.max_backtracks = count("solver.line_search_halvings", n, 0)?;
+    }
+    if let Some(f) = spec.min_step_fraction {
+        if !(f > 0.0 && f <= 1.0) {
+            return Err(ctx.err(
+                "solver.min_step_fraction",
+                format!("{f} is outside (0, 1]: expected the smallest increment as a fraction of a nominal step, e.g. 0.000244"),
+            ));
+        }
+        control.min_fraction = f;
+    }
+    Ok((newton, control))
+}
 
 /// `[solver]` → the solver settings (the defaults without the table).
 pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, InputError> {
