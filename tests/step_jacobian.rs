@@ -218,3 +218,61 @@ fn exact_jacobian_of_charge_and_circuit_controlled_films() {
     let plan = plan_of(&circuit, &["materials.elastomer.viscosity=100"]);
     check(&plan, true, "circuit-driven film");
 }
+
+/// Runs `text` with overrides through the library; returns the summary and the records' probes.
+fn run_probes(text: &str, sets: &[&str]) -> (deasim::job::run::RunSummary, Vec<Vec<f64>>) {
+    use deasim::element::CellFields;
+    use deasim::job::run::{run, Observer, RunSummary, StepRecord};
+    #[derive(Default)]
+    struct Probes(Vec<Vec<f64>>);
+    impl Observer for Probes {
+        fn step(&mut self, _: &Plan, r: &StepRecord, _: &[f64], _: &[CellFields]) {
+            self.0.push(r.probes.clone());
+        }
+        fn finished(&mut self, _: &Plan, _: &RunSummary) {}
+    }
+    let plan = plan_of(text, sets);
+    let mut rec = Probes::default();
+    let summary = run(
+        &plan,
+        &deasim::solve::newton::NewtonSettings::default(),
+        &mut rec,
+    );
+    assert!(summary.converged, "{:?}", summary.error);
+    (summary, rec.0)
+}
+
+/// `[solver] jacobian = "exact"` runs the dynamic steps' Newton on the exact Jacobian: fewer
+/// iterations than the symmetric matrix, and the same history to the Newton tolerance.
+#[test]
+fn newton_on_the_exact_jacobian_takes_fewer_iterations_to_the_same_history() {
+    let text = example("diaphragm").unwrap();
+    let short = ["stages.1.duration=0.05"];
+    let (sym, a) = run_probes(text, &[short[0], "solver.jacobian=\"symmetric\""]);
+    let (exact, b) = run_probes(text, &[short[0], "solver.jacobian=\"exact\""]);
+    let it = |s: &deasim::job::run::RunSummary| s.stages[1].newton_iterations;
+    assert!(it(&exact) < it(&sym), "{} vs {}", it(&exact), it(&sym));
+    assert_eq!(a.len(), b.len());
+    // each probe against its largest value over the run
+    for p in 0..a[0].len() {
+        let scale = a.iter().map(|r| r[p]).filter(|v| v.is_finite());
+        let scale = scale.fold(0.0f64, |m, v| m.max(v.abs()));
+        for (ra, rb) in a.iter().zip(&b) {
+            let (x, y) = (ra[p], rb[p]);
+            assert!(
+                (x - y).abs() <= 1e-6 * scale || (x.is_nan() && y.is_nan()),
+                "probe {p}: {x} vs {y}"
+            );
+        }
+    }
+}
+
+/// A jacobian that is neither `exact` nor `symmetric` is refused, naming the key.
+#[test]
+fn an_unknown_jacobian_is_refused() {
+    let sets: Vec<String> = vec!["solver.jacobian=\"full\"".into()];
+    let scenario = parse(example("diaphragm").unwrap(), "test.toml", &sets).unwrap();
+    let e = build(&scenario, "test.toml", None).unwrap_err().to_string();
+    assert!(e.contains("solver.jacobian"), "{e}");
+    assert!(e.contains("expected one of: exact, symmetric"), "{e}");
+}

@@ -120,6 +120,11 @@ pub struct SolverSpec {
     /// `petsc` with a Krylov method: `kept` keeps the preconditioner across Newton iterations
     /// and steps until it grows stale; `renewed` sets it up with every tangent.
     pub preconditioner: Option<String>,
+    /// `auto`, `direct`: the matrix of the Newton iterations of implicit dynamic steps, `exact`
+    /// (default: the unsymmetric Jacobian, FGMRES preconditioned by a held factor of its
+    /// symmetric part) or `symmetric` (the symmetric matrix without the configuration
+    /// derivative of the Kelvin–Voigt forces, reused across iterations and steps).
+    pub jacobian: Option<String>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

@@ -148,6 +148,14 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
         }
         out.single_precision = choice(ctx, "precision", p, [("double", false), ("single", true)])?;
     }
+    if let Some(j) = &spec.jacobian {
+        let exact = choice(ctx, "jacobian", j, [("exact", true), ("symmetric", false)])?;
+        out.jacobian = if exact {
+            crate::solve::linear::StepJacobian::Exact
+        } else {
+            crate::solve::linear::StepJacobian::Symmetric
+        };
+    }
     Ok(out)
 }
 
