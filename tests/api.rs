@@ -205,7 +205,10 @@ fn newton_and_step_control_come_from_the_scenario() {
     assert_eq!(plan.step_control.min_fraction, 0.01);
     // a looser tolerance takes fewer iterations to the same voltages
     let iterations = |sim: Simulation| -> f64 {
-        let r = sim.set("stages.0.steps", "3").run(RunOptions::default()).unwrap();
+        let r = sim
+            .set("stages.0.steps", "3")
+            .run(RunOptions::default())
+            .unwrap();
         r.history.column("newton_iterations").unwrap().iter().sum()
     };
     assert!(iterations(film().set("solver.newton_rtol", "1e-4")) < iterations(film()));
@@ -225,6 +228,14 @@ fn newton_and_step_control_come_from_the_scenario() {
         let e = film().set(key, value).plan().unwrap_err();
         assert_eq!(e.key(), Some(key), "{e}");
     }
+    // the exact step Jacobian is preconditioned by a factor: not with an iterative solver
+    let e = film()
+        .set("solver.jacobian", "\"exact\"")
+        .set("solver.kind", "\"iterative\"")
+        .plan()
+        .unwrap_err();
+    assert_eq!(e.key(), Some("solver.jacobian"), "{e}");
+    assert!(e.to_string().contains("auto"), "{e}");
 }
 
 #[test]

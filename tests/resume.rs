@@ -360,6 +360,28 @@ fn newmark_and_trapezoidal_resume_bitwise() {
     );
 }
 
+/// Newton on the exact step Jacobian keeps a factor across steps: a resumed run re-factors where
+/// it was made and takes the same decisions (a viscous film and the viscous diaphragm).
+#[test]
+fn exact_jacobian_runs_resume_bitwise() {
+    resume_from_older_checkpoint(
+        "exact-film",
+        "film-vibration",
+        "40",
+        &[
+            "solver.jacobian=exact",
+            "materials.elastomer.viscosity=100",
+            "stages.0.duration=0.004",
+        ],
+    );
+    resume_from_older_checkpoint(
+        "exact-diaphragm",
+        "diaphragm",
+        "100",
+        &["solver.jacobian=exact", "stages.1.duration=0.25"],
+    );
+}
+
 /// A corrupt newest checkpoint: the run continues from the older one kept for this case, with a
 /// warning naming the corrupt file and why, to the same results. All checkpoints corrupt, another
 /// format version, a mismatched scenario or overrides, a missing checkpoint: exit 2, a message

@@ -946,6 +946,52 @@ mod tests {
         }
     }
 
+    /// The configuration derivative of the Kelvin–Voigt kernel is that of the viscous part of the
+    /// mean-dilatation kernel's fused dynamic residual (central differences).
+    #[test]
+    fn viscous_configuration_tangent_matches_the_fused_residual() {
+        use crate::element::{CellInput, KelvinVoigtKernel};
+        let (g, local) = cell();
+        let vel: Vec<f64> = (0..32)
+            .map(|i| ((i as f64 * 7.31).sin() * 911.7).fract() * 1e-2)
+            .collect();
+        let mat = &materials()[0];
+        let kv = KelvinVoigtKernel { eta: 2000.0 };
+        let f_r = 0.37e-3;
+        let mut kq = vec![0.0; 32 * 32];
+        kv.configuration_tangent(&g, &local, &vel, &mut kq).unwrap();
+        crate::element::standard::tests::check_configuration_tangent(
+            &local,
+            &kq,
+            |j| j % 4 != 3,
+            |q| {
+                let input = CellInput {
+                    geom: &g,
+                    mat: mat.as_ref(),
+                    hist: CellHistory::NONE,
+                    local: q,
+                };
+                let (mut with, mut without) = (vec![0.0; 32], vec![0.0; 32]);
+                cell_dynamic_residual_md(
+                    &g,
+                    input.mat,
+                    input.hist,
+                    q,
+                    Some((kv, &vel)),
+                    f_r,
+                    &mut with,
+                )
+                .unwrap();
+                cell_dynamic_residual_md(&g, input.mat, input.hist, q, None, f_r, &mut without)
+                    .unwrap();
+                with.iter()
+                    .zip(&without)
+                    .map(|(a, b)| (a - b) / f_r)
+                    .collect()
+            },
+        );
+    }
+
     /// A material without the fast paths: every `*_known` method falls back to the generic
     /// evaluation at F.
     #[derive(Debug)]

@@ -221,6 +221,25 @@ impl KelvinVoigtKernel {
         }
         cell_viscous(geom, self.eta, local, vel, r, kv)
     }
+
+    /// Adds the derivative of the forces of [`KelvinVoigtKernel::forces`] with respect to the
+    /// configuration `local`, at fixed nodal velocities `vel`, to `kq` (4n × 4n, row-major). The
+    /// mean-dilatation kernel's viscous forces see the compatible F, so this is its derivative
+    /// too. See [`cell_viscous_configuration`].
+    pub fn configuration_tangent(
+        &self,
+        geom: &CellGeometry,
+        local: &[f64],
+        vel: &[f64],
+        kq: &mut [f64],
+    ) -> Result<(), PointFailure> {
+        if geom.axisymmetric {
+            return axisymmetric::cell_viscous_meridian_configuration(
+                geom, self.eta, local, vel, kq,
+            );
+        }
+        cell_viscous_configuration(geom, self.eta, local, vel, kq)
+    }
 }
 
 use crate::material::PointHistory;

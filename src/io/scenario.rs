@@ -130,6 +130,11 @@ pub struct SolverSpec {
     /// The smallest load increment of a static stage, as a fraction of a nominal step (default
     /// 1/4096): below it the stage stops as failed.
     pub min_step_fraction: Option<f64>,
+    /// `auto`, `direct`: the matrix of the Newton iterations of implicit dynamic steps,
+    /// `symmetric` (the default: the symmetric matrix without the configuration derivative of
+    /// the Kelvin–Voigt forces, reused across iterations and steps) or `exact` (the unsymmetric
+    /// Jacobian, FGMRES preconditioned by a held factor of its symmetric part).
+    pub jacobian: Option<String>,
 }
 
 /// Gravity, and rigid regions carrying masses. Both act from the first stage on and are ramped

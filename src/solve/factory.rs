@@ -40,6 +40,28 @@ impl SolverSettings {
         }
     }
 
+    /// A solver for the unsymmetric exact Jacobian of a dynamic step (`jacobian = "exact"`):
+    /// FGMRES on the matrix preconditioned by a held LDLᵀ factor of its symmetric part
+    /// ([`ReusedLdlt::unsymmetric`]). `None` for the kinds that do not factor (they take the
+    /// symmetric iteration matrix).
+    pub fn build_unsymmetric(&self) -> Option<Box<dyn LinearSolver>> {
+        match self.kind {
+            SolverKind::Direct | SolverKind::Auto => {
+                // every solve to full accuracy: Newton then converges quadratically, and each
+                // of its iterations costs a tangent, far more than the Krylov iterations
+                let mut s = ReusedLdlt::with_ordering(self.ordering).unsymmetric();
+                if self.single_precision {
+                    s = s.single_precision();
+                }
+                if let Some(bytes) = self.memory_limit {
+                    s = s.memory_limit(bytes);
+                }
+                Some(Box::new(s))
+            }
+            _ => None,
+        }
+    }
+
     /// For a solver that sums the parts of processes that share the cells: an exact direct
     /// solver of the same kind for symmetric indefinite matrices whose diagonal may vanish
     /// (pivoting), whatever the options of the run's solver or `PETSC_OPTIONS` say: PETSc with

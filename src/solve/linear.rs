@@ -121,6 +121,13 @@ pub trait LinearSolver: Send {
     /// solver's own tolerance. An iterative solver may stop there instead of its own, tighter
     /// tolerance; the others solve exactly and ignore it.
     fn set_forcing(&mut self, _rtol: Option<f64>) {}
+    /// Whether the solver keeps a factorisation of an earlier matrix across
+    /// [`LinearSolver::set_operator`] calls and says so by its count of factorisations: Newton
+    /// then marks the system as factored only when that count grows (where the held factor was
+    /// made), so that a resumed run re-factors at the same point.
+    fn reports_factor_points(&self) -> bool {
+        false
+    }
 }
 
 /// The relative residual a Krylov solve stops at: its own tolerance `own`, or Newton's forcing
@@ -275,6 +282,38 @@ pub struct SolverSettings {
     /// every tangent.
     #[serde(default)]
     pub keep_preconditioner: bool,
+    /// The matrix of the Newton iterations of implicit dynamic steps.
+    #[serde(default)]
+    pub jacobian: StepJacobian,
+}
+
+/// The matrix Newton iterates with in an implicit dynamic step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum StepJacobian {
+    /// The exact, unsymmetric Jacobian of the step residual (with the configuration derivative
+    /// of the Kelvin–Voigt forces), solved by FGMRES preconditioned by a held LDLᵀ factor of its
+    /// symmetric part; a new tangent at every iteration. Kinds `auto` and `direct`; the others
+    /// iterate with the symmetric matrix.
+    Exact,
+    /// The symmetric iteration matrix (without ∂f_vis/∂q), factored and reused across
+    /// iterations and steps (modified Newton): the default, as a tangent costs many residuals
+    /// and the examples run faster so (docs/validation.md).
+    #[default]
+    Symmetric,
+}
+
+impl StepJacobian {
+    /// Names in scenario files (`[solver] jacobian`).
+    pub const NAMES: &'static [&'static str] = &["exact", "symmetric"];
+
+    /// The setting of a name of [`StepJacobian::NAMES`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "exact" => Some(StepJacobian::Exact),
+            "symmetric" => Some(StepJacobian::Symmetric),
+            _ => None,
+        }
+    }
 }
 
 /// Default relative residual of each iterative solve. Newton's tolerance is 1e-10 of its first
@@ -301,6 +340,7 @@ impl Default for SolverSettings {
             adaptive: default_adaptive(),
             memory_limit: None,
             keep_preconditioner: false,
+            jacobian: StepJacobian::default(),
         }
     }
 }

@@ -33,6 +33,11 @@ pub struct NewtonSettings {
     /// false: every solve to the solver's own tolerance (a load step retried after a failure,
     /// where a loose first solve can leave Newton creeping next to a limit point).
     pub inexact: bool,
+    /// With a new tangent at every iteration (`reuse_factorization` false): evaluate it at the
+    /// start of the iteration that needs it rather than with the residual after each step, so
+    /// that the converged iterate's tangent is never assembled and the line search's residual
+    /// is not evaluated twice.
+    pub lazy_tangent: bool,
 }
 
 /// Residuals up to this multiple of the system's floor count as converged once they stagnate.
@@ -51,6 +56,7 @@ impl Default for NewtonSettings {
             verbose: std::env::var_os("DEASIM_NEWTON_VERBOSE").is_some(),
             reuse_factorization: false,
             inexact: true,
+            lazy_tangent: false,
         }
     }
 }
@@ -255,7 +261,8 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
     let floor = system.residual_floor();
     let reuse = settings.reuse_factorization;
     // k_fresh: `k` holds the tangent at the current iterate
-    let mut k_fresh = !(reuse && solver.is_factored());
+    let lazy = settings.lazy_tangent && !reuse;
+    let mut k_fresh = !(lazy || (reuse && solver.is_factored()));
     system
         .evaluate(&mut r, if k_fresh { Some(&mut *k) } else { None })
         .map_err(|message| NewtonError::Evaluation {
@@ -322,6 +329,7 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
                     .evaluate(&mut r, Some(&mut *k))
                     .map_err(|message| NewtonError::Evaluation { iteration, message })?;
             }
+            let before = solver.stats().factorizations;
             solver.set_operator(k).map_err(|e| match e {
                 LinearSolverError::Singular(_) => NewtonError::Singular { iteration },
                 other => NewtonError::LinearSolve {
@@ -329,8 +337,11 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
                     message: other.to_string(),
                 },
             })?;
-            system.factored();
+            if !solver.reports_factor_points() || solver.stats().factorizations > before {
+                system.factored();
+            }
         }
+        let factors_before = solver.stats().factorizations;
         dx.iter_mut().zip(&r).for_each(|(d, v)| *d = -v);
         // a bordered step combines two solves into the step: both exact to the solver's own
         // tolerance
@@ -343,6 +354,10 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
                 iteration,
                 message: e.to_string(),
             })?;
+        if solver.reports_factor_points() && solver.stats().factorizations > factors_before {
+            // the solve renewed the factor at this iterate's tangent
+            system.factored();
+        }
         // every process's part of the step, so that all take the same path
         let mut not_finite = [dx.iter().filter(|v| !v.is_finite()).count() as f64];
         reduce(system, &mut not_finite, iteration)?;
@@ -434,9 +449,14 @@ fn newton_forced<S: NonlinearSystem + ?Sized>(
             system.increment(&dx, alpha);
             system.increment_border(dmu);
         }
-        if reuse && accepted {
+        if (reuse || lazy) && accepted {
             // the line search already evaluated the residual here
             r.copy_from_slice(&trial);
+            k_fresh = false;
+        } else if lazy {
+            system
+                .evaluate(&mut r, None)
+                .map_err(|message| NewtonError::Evaluation { iteration, message })?;
             k_fresh = false;
         } else {
             system

@@ -35,6 +35,13 @@ const STREAMING_COST: f64 = 16.0;
 /// A solve that did not reach [`KRYLOV_RTOL`] but this is still a useful inexact Newton step.
 const ACCEPTABLE_RTOL: f64 = 1e-4;
 
+/// The Krylov iterations of one solve on an unsymmetric operator above which the held factor
+/// is renewed: a fresh factor of the symmetric part takes a few (the skew part), and a solve
+/// that needs half of the iterations a factorisation costs says the factor has grown stale.
+fn unsymmetric_limit(budget: usize) -> usize {
+    (budget / 2).clamp(8, MAX_ITERATIONS / 2)
+}
+
 /// A sparse LDLᵀ ([`FaerLdlt`]) reused as the preconditioner of FGMRES while it pays.
 pub struct ReusedLdlt {
     direct: FaerLdlt,
@@ -54,6 +61,13 @@ pub struct ReusedLdlt {
     /// Newton's forcing term for the next solves.
     forcing: Option<f64>,
     stats: SolverStats,
+    /// The operators are unsymmetric: the factor is of their symmetric part, and every solve
+    /// runs FGMRES on the operator ([`ReusedLdlt::unsymmetric`]).
+    unsymmetric: bool,
+    /// For an unsymmetric operator: the position of the transposed entry of each entry (its
+    /// pattern is structurally symmetric), and the symmetric part's matrix.
+    transpose: Vec<usize>,
+    symmetric: Option<CsrMatrix>,
 }
 
 impl ReusedLdlt {
@@ -70,7 +84,50 @@ impl ReusedLdlt {
             adaptive: false,
             forcing: None,
             stats: SolverStats::default(),
+            unsymmetric: false,
+            transpose: Vec::new(),
+            symmetric: None,
         }
+    }
+
+    /// For unsymmetric operators with a structurally symmetric pattern (the exact Jacobian of a
+    /// dynamic step): the held factor is of the symmetric part ½(A + Aᵀ) of the operator it was
+    /// made from, and every solve runs FGMRES on the operator itself. The factor is kept across
+    /// operators while a solve needs few iterations and renewed, at the operator of that solve,
+    /// when one needs many or fails; the choice depends on the solve alone, so a run resumed
+    /// with the same factor takes the same decisions. [`LinearSolver::factor`] factors the
+    /// symmetric part (its inertia).
+    pub fn unsymmetric(mut self) -> Self {
+        self.unsymmetric = true;
+        self
+    }
+
+    /// The symmetric part of the held operator, into `self.symmetric`.
+    fn symmetric_part(&mut self) -> Result<(), LinearSolverError> {
+        let op = self.op.as_ref().ok_or(LinearSolverError::NotFactored)?;
+        let fresh = match &self.symmetric {
+            Some(s) => !s.same_pattern(op),
+            None => true,
+        };
+        if fresh {
+            self.transpose = (0..op.n)
+                .flat_map(|i| op.row_cols(i).iter().map(move |&j| (i, j as usize)))
+                .map(|(i, j)| {
+                    op.position(j, i).ok_or_else(|| {
+                        LinearSolverError::NotConverged(
+                            "the unsymmetric operator's pattern is not structurally symmetric"
+                                .into(),
+                        )
+                    })
+                })
+                .collect::<Result<_, _>>()?;
+            self.symmetric = Some(op.zeros_like());
+        }
+        let sym = self.symmetric.as_mut().expect("made above");
+        for (p, &t) in self.transpose.iter().enumerate() {
+            sym.values[p] = 0.5 * (op.values[p] + op.values[t]);
+        }
+        Ok(())
     }
 
     /// Lets a Krylov solve stop at Newton's forcing term ([`LinearSolver::set_forcing`]) when
@@ -109,8 +166,14 @@ impl ReusedLdlt {
     }
 
     fn factor_op(&mut self) -> Result<Option<Inertia>, LinearSolverError> {
+        if self.unsymmetric {
+            self.symmetric_part()?;
+        }
         let op = self.op.as_ref().ok_or(LinearSolverError::NotFactored)?;
-        let inertia = self.direct.factor(op)?;
+        let inertia = match (&self.symmetric, self.unsymmetric) {
+            (Some(sym), true) => self.direct.factor(sym)?,
+            _ => self.direct.factor(op)?,
+        };
         self.current = true;
         self.renew = false;
         self.since_factor = 0;
@@ -157,6 +220,18 @@ impl ReusedLdlt {
         self.stats.krylov_iterations += report.iterations;
         self.stats.krylov_decades += -report.relative_residual.max(1e-16).log10();
         self.since_factor += report.iterations;
+        if self.unsymmetric {
+            if report.converged || report.relative_residual <= ACCEPTABLE_RTOL {
+                b.copy_from_slice(&x);
+                // renewed at once, at this operator: the held factor then always comes from the
+                // operator of the iterate where it was made
+                if !report.converged || report.iterations > unsymmetric_limit(self.budget) {
+                    self.factor_op()?;
+                }
+                return Ok(true);
+            }
+            return Ok(false);
+        }
         if report.converged || report.relative_residual <= ACCEPTABLE_RTOL {
             b.copy_from_slice(&x);
             if !report.converged || self.since_factor >= self.budget {
@@ -176,6 +251,13 @@ impl LinearSolver for ReusedLdlt {
 
     fn set_operator(&mut self, a: &CsrMatrix) -> Result<(), LinearSolverError> {
         self.keep(a);
+        if self.unsymmetric {
+            if !self.direct.is_factored() {
+                self.factor_op()?;
+            }
+            self.current = false;
+            return Ok(());
+        }
         if self.renew || !self.direct.is_factored() || a.n < self.min_unknowns {
             self.factor_op()?;
         } else {
@@ -185,7 +267,7 @@ impl LinearSolver for ReusedLdlt {
     }
 
     fn solve_in_place(&mut self, b: &mut [f64]) -> Result<(), LinearSolverError> {
-        if self.op.is_none() || (self.current && !self.direct.is_single()) {
+        if self.op.is_none() || (self.current && !self.direct.is_single() && !self.unsymmetric) {
             return self.direct.solve_in_place(b);
         }
         if self.krylov(b)? {
@@ -193,7 +275,7 @@ impl LinearSolver for ReusedLdlt {
         }
         // the held factorisation no longer describes the matrix: renew it and solve again
         self.factor_op()?;
-        if !self.direct.is_single() {
+        if !self.direct.is_single() && !self.unsymmetric {
             return self.direct.solve_in_place(b);
         }
         if self.krylov(b)? {
@@ -223,6 +305,10 @@ impl LinearSolver for ReusedLdlt {
 
     fn set_forcing(&mut self, rtol: Option<f64>) {
         self.forcing = rtol;
+    }
+
+    fn reports_factor_points(&self) -> bool {
+        self.unsymmetric
     }
 
     fn stats(&self) -> SolverStats {
@@ -363,6 +449,49 @@ mod tests {
         }
         let st = s.stats();
         assert!(st.factorizations > 1 && st.factorizations < 11, "{st:?}");
+    }
+
+    /// An unsymmetric operator (a Laplacian plus a skew convection-like part) is solved to
+    /// full accuracy with a factor of its symmetric part.
+    #[test]
+    fn an_unsymmetric_operator_is_solved_with_a_factor_of_its_symmetric_part() {
+        let n = 20;
+        let skewed = |shift: f64| {
+            let mut a = laplacian(n, shift);
+            for i in 0..a.n {
+                for p in a.row_ptr[i]..a.row_ptr[i + 1] {
+                    let j = a.col_idx[p] as usize;
+                    if j == i + 1 {
+                        a.values[p] += 0.05;
+                    } else if j + 1 == i {
+                        a.values[p] -= 0.05;
+                    }
+                }
+            }
+            a
+        };
+        let b: Vec<f64> = (0..n * n).map(|i| ((i * 13) % 7) as f64 - 3.0).collect();
+        let mut s = ReusedLdlt::with_ordering(Ordering::NestedDissection).unsymmetric();
+        for shift in [0.0, 0.1] {
+            let a = skewed(shift);
+            s.set_operator(&a).unwrap();
+            let mut x = b.clone();
+            s.solve_in_place(&mut x).unwrap();
+            let mut ax = vec![0.0; x.len()];
+            a.mul_vec(&x, &mut ax);
+            let res = ax.iter().zip(&b).map(|(p, q)| (p - q).powi(2)).sum::<f64>();
+            let bb = b.iter().map(|v| v * v).sum::<f64>();
+            assert!(
+                (res / bb).sqrt() <= 1e-9,
+                "shift {shift}: {:e}",
+                (res / bb).sqrt()
+            );
+        }
+        // FGMRES iterates on the operator itself (a direct solve with the factor of the
+        // symmetric part alone would miss the skew part)
+        let st = s.stats();
+        assert!(st.factorizations <= 2, "{st:?}");
+        assert!(st.krylov_iterations >= 4, "{st:?}");
     }
 
     #[test]

@@ -13,6 +13,13 @@
 //! **Newmark** (β, γ; the conventional reference): Gauss's law and the electrodes at t_{n+1},
 //!   R = βΔt²[M a_{n+1} + ∇V(q_{n+1}) + f_vis(q_{n+1}, v_{n+1}) − f_ext],
 //! tangent M + βΔt² K_T + γΔt ∂f_vis/∂v.
+//!
+//! **The exact step Jacobian** ([`TimeStep::exact_jacobian`]) adds the configuration derivative
+//! of the Kelvin–Voigt forces at fixed velocity, f_r (∂q_eval/∂q_{n+1}) ∂f_vis/∂q: (Δt/4)∂f_vis/∂q
+//! for the midpoint, βΔt² ∂f_vis/∂q for Newmark. Every other term of the residual (inertia, the
+//! material's consistent tangent with its internal variables, dashpots, circuits, ties of rigid
+//! pads and charge-controlled electrodes through the dof map) is already in the iteration matrix.
+//! The Jacobian is unsymmetric.
 
 use crate::algebra::csr::CsrMatrix;
 use crate::algebra::system::DofLayout;
@@ -112,6 +119,10 @@ pub struct TimeStep<'m> {
     pub points: PointStates,
     /// The model's circuits over this step (set by [`TimeStep::begin_circuits`]).
     pub circuits: Vec<CircuitStep>,
+    /// The matrix of [`NonlinearSystem::evaluate`]: the exact (unsymmetric) Jacobian of the step
+    /// residual when true, else the symmetric iteration matrix without the configuration
+    /// derivative of the Kelvin–Voigt forces.
+    pub exact_jacobian: bool,
 }
 
 impl<'m> TimeStep<'m> {
@@ -151,6 +162,7 @@ impl<'m> TimeStep<'m> {
             factor_point: None,
             points: PointStates::default(),
             circuits: Vec::new(),
+            exact_jacobian: false,
         }
     }
 
@@ -446,6 +458,7 @@ impl NonlinearSystem for TimeStep<'_> {
         let model = self.model;
         let npc = model.mesh.kind.nodes_per_cell();
         let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
+        let exact = self.exact_jacobian;
         // each cell's dissipation power goes into `cell_energy` (the step needs no cell energies)
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let g = &*model.geometry(c);
@@ -492,8 +505,19 @@ impl NonlinearSystem for TimeStep<'_> {
                 for i in 0..nl {
                     rl[i] += f_r * rv[i];
                 }
-                for i in 0..nl * nl {
-                    kl[i] += f_v * kv[i];
+                if exact {
+                    // ∂f_vis/∂q at fixed velocity, through the evaluation point: f_r ∂q_eval/∂q = f_k
+                    let mut kq = vec![0.0; nl * nl];
+                    KelvinVoigtKernel { eta }
+                        .configuration_tangent(g, local, &vel[..nl], &mut kq)
+                        .map_err(fail)?;
+                    for i in 0..nl * nl {
+                        kl[i] += f_v * kv[i] + f_k * kq[i];
+                    }
+                } else {
+                    for i in 0..nl * nl {
+                        kl[i] += f_v * kv[i];
+                    }
                 }
             }
             Ok::<f64, String>(power)

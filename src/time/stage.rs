@@ -14,7 +14,7 @@ use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
-use crate::solve::linear::{LinearSolver, SolverSettings, SolverStats};
+use crate::solve::linear::{LinearSolver, SolverSettings, SolverStats, StepJacobian};
 use crate::solve::newton::{newton, NewtonSettings};
 use crate::waveform::Waveform;
 
@@ -854,15 +854,25 @@ pub fn run_dynamic_from(
         start.clone(),
     );
     step.points = inputs.points.clone();
+    // the exact Jacobian: a new tangent at every iteration, solved by FGMRES with a held factor
+    // of its symmetric part (on a rank's part the symmetric matrix, whose solver sums the parts)
+    let exact = match (settings.solver.jacobian, part) {
+        (StepJacobian::Exact, None) => settings.solver.build_unsymmetric(),
+        _ => None,
+    };
+    let step_exact = exact.is_some();
+    step.exact_jacobian = step_exact;
+    let reuse_factorization = settings.reuse_factorization && exact.is_none();
     let step = Held::new(step, part.map(|p| p.step)).map_err(|e| fail(&start, e))?;
     let k = step.inner().new_matrix();
     let mut stepper = ImplicitStepper {
         step,
-        solver: settings.solver.build(),
+        solver: exact.unwrap_or_else(|| settings.solver.build()),
         k,
         settings: NewtonSettings {
             check_stability: false,
-            reuse_factorization: settings.reuse_factorization,
+            reuse_factorization,
+            lazy_tangent: step_exact,
             ..newton_settings.clone()
         },
         projector,

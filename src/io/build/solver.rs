@@ -194,6 +194,24 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
         }
         out.single_precision = choice(ctx, "precision", p, [("double", false), ("single", true)])?;
     }
+    if let Some(j) = &spec.jacobian {
+        let exact = choice(ctx, "jacobian", j, [("exact", true), ("symmetric", false)])?;
+        if exact && !matches!(out.kind, SolverKind::Auto | SolverKind::Direct) {
+            return Err(ctx.err(
+                "solver.jacobian",
+                format!(
+                    "jacobian = \"exact\" needs kind = \"auto\" or \"direct\" (a factor of its \
+                     symmetric part preconditions it), not \"{}\"",
+                    out.kind.name()
+                ),
+            ));
+        }
+        out.jacobian = if exact {
+            crate::solve::linear::StepJacobian::Exact
+        } else {
+            crate::solve::linear::StepJacobian::Symmetric
+        };
+    }
     Ok(out)
 }
 

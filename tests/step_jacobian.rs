@@ -1,0 +1,276 @@
+//! The exact Jacobian of a dynamic step (midpoint and Newmark) against central differences of the
+//! step residual, on the examples' models: a 3-D film with Kelvin–Voigt viscosity, the
+//! axisymmetric diaphragm with its rigid pad and dashpot, viscoelastic (Maxwell) models, a
+//! charge-controlled film and a film driven through a resistance.
+
+use deasim::algebra::csr::CsrMatrix;
+use deasim::io::build::{build, Plan};
+use deasim::io::examples::example;
+use deasim::io::scenario::parse;
+use deasim::job::plan::StageKind;
+use deasim::problem::dofs::{Dirichlet, Field, FIELDS};
+use deasim::problem::points::PointStates;
+use deasim::solve::newton::NonlinearSystem;
+use deasim::time::integrator::{Scheme, TimeLevel, TimeStep};
+use deasim::time::mass::NodalMass;
+
+fn plan_of(text: &str, sets: &[&str]) -> Plan {
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    let scenario = parse(text, "test.toml", &sets).unwrap_or_else(|e| panic!("{e}"));
+    build(&scenario, "test.toml", None).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Values in (−1, 1) from a seed.
+fn generator(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+}
+
+/// The relative difference between J·x of the step's matrix and central differences of its
+/// residual along x, for a few random x, at a general state of the plan's dynamic stage: the
+/// largest over the directions. `exact`: the step's matrix is its exact Jacobian.
+fn jacobian_error(plan: &Plan, scheme: Scheme, exact: bool) -> f64 {
+    let stage = plan
+        .stages
+        .iter()
+        .find(|s| matches!(s.kind, StageKind::Dynamic { .. }))
+        .expect("a dynamic stage");
+    let StageKind::Dynamic { dt, mass, .. } = stage.kind else {
+        unreachable!()
+    };
+    let mut model = plan.model.clone();
+    model.dirichlet = plan.supports.clone();
+    for e in plan.electrodes.iter().filter(|e| e.prescribed(true)) {
+        model.dirichlet.push(Dirichlet {
+            nodes: e.nodes.clone(),
+            field: Field::Phi,
+            value: 0.0,
+        });
+    }
+    let mut nodal = NodalMass::new(&model, &plan.densities, mass);
+    for r in &plan.rigid {
+        if r.mass > 0.0 {
+            nodal.add_point_mass(r.nodes[0], r.mass);
+        }
+    }
+    let n = model.mesh.n_nodes() * FIELDS;
+    let zero = TimeLevel {
+        t: 0.0,
+        q: vec![0.0; n],
+        v: vec![0.0; n],
+        a: vec![0.0; n],
+    };
+    let mut step = TimeStep::new(&model, &nodal, plan.viscosities.clone(), scheme, zero);
+    step.points = PointStates::new(&model);
+    step.exact_jacobian = exact;
+    let nf = step.dofs.n_free;
+    let mut next = generator(7);
+    let length = 1e-3;
+    let level = |step: &TimeStep, size: f64, next: &mut dyn FnMut() -> f64| {
+        let x: Vec<f64> = (0..nf).map(|_| next()).collect();
+        let x = scaled(step, x, size);
+        let mut full = vec![0.0; n];
+        step.dofs.add_scaled(&mut full, &x, 1.0);
+        full
+    };
+    let q0 = level(&step, 0.02 * length, &mut next);
+    let v0 = level(&step, 0.02 * length / dt, &mut next);
+    let a0 = level(&step, 0.02 * length / (dt * dt), &mut next);
+    step.prev = TimeLevel {
+        t: 0.0,
+        q: q0,
+        v: v0,
+        a: a0,
+    };
+    step.begin(dt, &[]);
+    let sources = vec![[100.0, 150.0, 200.0]; model.circuits.len()];
+    step.begin_circuits(&sources).unwrap();
+    let dq = level(&step, 0.01 * length, &mut next);
+    for (q, d) in step.q.iter_mut().zip(&dq) {
+        *q += d;
+    }
+    let mut r = vec![0.0; nf];
+    let mut k: CsrMatrix = step.new_matrix();
+    step.evaluate(&mut r, Some(&mut k)).unwrap();
+    let mut worst = 0.0f64;
+    for _ in 0..3 {
+        let x: Vec<f64> = (0..nf).map(|_| next()).collect();
+        let x = scaled(&step, x, 1e-3 * length);
+        let mut jx = vec![0.0; nf];
+        k.mul_vec(&x, &mut jx);
+        let start = step.snapshot();
+        let h = 1e-2;
+        let (mut rp, mut rm) = (vec![0.0; nf], vec![0.0; nf]);
+        step.increment(&x, h);
+        step.evaluate(&mut rp, None).unwrap();
+        step.restore(&start);
+        step.increment(&x, -h);
+        step.evaluate(&mut rm, None).unwrap();
+        step.restore(&start);
+        let diff: f64 = (0..nf)
+            .map(|i| ((rp[i] - rm[i]) / (2.0 * h) - jx[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let norm: f64 = jx.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(norm > 0.0);
+        worst = worst.max(diff / norm);
+    }
+    worst
+}
+
+/// `x` (free unknowns) scaled so that its largest displacement is `size` (m).
+fn scaled(step: &TimeStep, x: Vec<f64>, size: f64) -> Vec<f64> {
+    let n = step.q.len();
+    let mut full = vec![0.0; n];
+    step.dofs.add_scaled(&mut full, &x, 1.0);
+    let umax = (0..n)
+        .filter(|d| d % FIELDS != FIELDS - 1)
+        .fold(0.0f64, |m, d| m.max(full[d].abs()));
+    x.into_iter().map(|v| v * size / umax).collect()
+}
+
+const SCHEMES: [Scheme; 2] = [
+    Scheme::Midpoint,
+    Scheme::Newmark {
+        beta: 0.25,
+        gamma: 0.5,
+    },
+];
+
+/// Checks both schemes: the exact Jacobian within 1e-6; when `viscous`, the symmetric iteration
+/// matrix (without ∂f_vis/∂q) is not.
+fn check(plan: &Plan, viscous: bool, what: &str) {
+    for scheme in SCHEMES {
+        let e = jacobian_error(plan, scheme, true);
+        assert!(
+            e <= 1e-6,
+            "{what}, {}: exact Jacobian off by {e:e}",
+            scheme.name()
+        );
+        if viscous {
+            let s = jacobian_error(plan, scheme, false);
+            assert!(
+                s > 1e-6,
+                "{what}, {}: the symmetric matrix is off by only {s:e}",
+                scheme.name()
+            );
+        }
+    }
+}
+
+fn film(sets: &[&str]) -> Plan {
+    plan_of(example("film-vibration").unwrap(), sets)
+}
+
+#[test]
+fn exact_jacobian_of_a_viscous_film() {
+    let plan = film(&["materials.elastomer.viscosity=100"]);
+    check(&plan, true, "3-D film");
+    let plan = film(&[
+        "materials.elastomer.viscosity=100",
+        "mesh.element=tet10",
+        "mesh.divisions=[2,2,1]",
+    ]);
+    check(&plan, true, "3-D tet10 film");
+}
+
+#[test]
+fn exact_jacobian_of_the_axisymmetric_diaphragm_with_its_pad() {
+    let plan = plan_of(example("diaphragm").unwrap(), &[]);
+    assert!(!plan.rigid.is_empty() && !plan.model.point_dampers.is_empty());
+    check(&plan, true, "diaphragm");
+}
+
+#[test]
+fn exact_jacobian_of_viscoelastic_models() {
+    let plan = plan_of(example("diaphragm-visco").unwrap(), &[]);
+    check(&plan, true, "diaphragm-visco");
+    let text = example("film-vibration")
+        .unwrap()
+        .replace("model = \"neo-hooke\"", "preset = \"vhb4910-wang2016\"\n#");
+    let text = text
+        .replace("mu = 1e5", "")
+        .replace("lambda = 1e7", "")
+        .replace("permittivity = 4.7", "");
+    let plan = plan_of(&text, &["materials.elastomer.viscosity=0"]);
+    assert!(plan.model.materials[0].state_size() > 0);
+    check(&plan, false, "Maxwell film");
+}
+
+#[test]
+fn exact_jacobian_of_charge_and_circuit_controlled_films() {
+    let text = example("film-vibration").unwrap();
+    let top = "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    assert!(text.contains(top));
+    let charge = text.replace(top, "charge = 3.6e-9");
+    let plan = plan_of(&charge, &["materials.elastomer.viscosity=100"]);
+    assert!(!plan.model.point_charges.is_empty() || !plan.model.ties.is_empty());
+    check(&plan, true, "charge-controlled film");
+    let circuit = text.replace(
+        top,
+        "circuit = { source = { waveform = \"step\", amplitude = 1e3, at = 0.0 }, resistance = 1e6 }",
+    );
+    let plan = plan_of(&circuit, &["materials.elastomer.viscosity=100"]);
+    check(&plan, true, "circuit-driven film");
+}
+
+/// Runs `text` with overrides through the library; returns the summary and the records' probes.
+fn run_probes(text: &str, sets: &[&str]) -> (deasim::job::state::RunSummary, Vec<Vec<f64>>) {
+    use deasim::element::CellFields;
+    use deasim::job::observer::Observer;
+    use deasim::job::run::{run, StepRecord};
+    use deasim::job::state::RunSummary;
+    #[derive(Default)]
+    struct Probes(Vec<Vec<f64>>);
+    impl Observer for Probes {
+        fn step(&mut self, _: &Plan, r: &StepRecord, _: &[f64], _: &[CellFields]) {
+            self.0.push(r.probes.clone());
+        }
+        fn finished(&mut self, _: &Plan, _: &RunSummary) {}
+    }
+    let plan = plan_of(text, sets);
+    let mut rec = Probes::default();
+    let summary = run(&plan, &mut rec);
+    assert!(summary.converged, "{:?}", summary.error);
+    (summary, rec.0)
+}
+
+/// `[solver] jacobian = "exact"` runs the dynamic steps' Newton on the exact Jacobian: fewer
+/// iterations than the symmetric matrix, and the same history to the Newton tolerance.
+#[test]
+fn newton_on_the_exact_jacobian_takes_fewer_iterations_to_the_same_history() {
+    let text = example("diaphragm").unwrap();
+    let short = ["stages.1.duration=0.05"];
+    let (sym, a) = run_probes(text, &[short[0], "solver.jacobian=\"symmetric\""]);
+    let (exact, b) = run_probes(text, &[short[0], "solver.jacobian=\"exact\""]);
+    let it = |s: &deasim::job::state::RunSummary| s.stages[1].newton_iterations;
+    assert!(it(&exact) < it(&sym), "{} vs {}", it(&exact), it(&sym));
+    assert_eq!(a.len(), b.len());
+    // each probe against its largest value over the run
+    for p in 0..a[0].len() {
+        let scale = a.iter().map(|r| r[p]).filter(|v| v.is_finite());
+        let scale = scale.fold(0.0f64, |m, v| m.max(v.abs()));
+        for (ra, rb) in a.iter().zip(&b) {
+            let (x, y) = (ra[p], rb[p]);
+            assert!(
+                (x - y).abs() <= 1e-6 * scale || (x.is_nan() && y.is_nan()),
+                "probe {p}: {x} vs {y}"
+            );
+        }
+    }
+}
+
+/// A jacobian that is neither `exact` nor `symmetric` is refused, naming the key.
+#[test]
+fn an_unknown_jacobian_is_refused() {
+    let sets: Vec<String> = vec!["solver.jacobian=\"full\"".into()];
+    let scenario = parse(example("diaphragm").unwrap(), "test.toml", &sets).unwrap();
+    let e = build(&scenario, "test.toml", None).unwrap_err().to_string();
+    assert!(e.contains("solver.jacobian"), "{e}");
+    assert!(e.contains("expected one of: exact, symmetric"), "{e}");
+}
