@@ -57,7 +57,7 @@ pub use mooney_rivlin::{ElectroMooneyRivlin, MooneyRivlin};
 pub use neo_hooke::{ElectroNeoHooke, NeoHooke};
 pub use neo_hooke_split::{ElectroNeoHookeSplit, NeoHookeSplit};
 pub use ogden::{ElectroOgden, Ogden};
-pub use parameters::{Parameters, StateVjp};
+pub use parameters::{ParameterDerivative, Parameters, StateVjp};
 pub use registry::{MaterialParams, ParamError};
 pub use yeoh::{ElectroYeoh, Yeoh};
 

@@ -32,7 +32,7 @@
 
 use super::electric::ElectricPart;
 use super::isotropic::CKinematics;
-use super::{Mat3, Stress, Vec3, EPSILON_0};
+use super::{Mat3, Material, MaterialError, PointHistory, Stress, Tangent, Vec3, EPSILON_0};
 
 /// A material's parameter vector θ: the registry model it is an instance of, one name per entry
 /// (the scenario key below `materials.<name>.`) and the values (SI units, as the scenario's).
@@ -95,4 +95,75 @@ pub(crate) fn electric(f: &Mat3, k: &CKinematics, e0: &Vec3) -> [Stress; 3] {
         unit(0.0, 1.0, 0.0),
         unit(0.0, 0.0, 1.0),
     ]
+}
+
+/// The derivative of a material's response with respect to one of its parameters θₖ, seen as a
+/// material: its energy, stress and electric displacement at (F, E0) and a point history are
+/// ∂Ψ/∂θₖ, ∂P/∂θₖ and ∂D0/∂θₖ of the base material's [`Material::stress_at`]. An element kernel's
+/// residual is linear in the stress and the electric displacement at fixed kinematics, so the
+/// residual a kernel computes with this material is ∂r/∂θₖ of its residual with the base: the
+/// parameter vector–Jacobian product of the cell kernels, exact, with no kernel code of its own.
+/// It has no tangent. Each evaluation computes every parameter's derivative and keeps one.
+#[derive(Debug, Clone)]
+pub struct ParameterDerivative {
+    pub base: std::sync::Arc<dyn Material>,
+    /// The entry k of the base's [`Material::parameters`].
+    pub index: usize,
+}
+
+impl ParameterDerivative {
+    fn pick(&self, all: Vec<Stress>) -> Result<Stress, MaterialError> {
+        let n = all.len();
+        all.into_iter().nth(self.index).ok_or_else(|| {
+            MaterialError::OutOfDomain(format!(
+                "parameter {} of a material with {n} parameters",
+                self.index
+            ))
+        })
+    }
+}
+
+impl Material for ParameterDerivative {
+    fn energy(&self, f: &Mat3, e0: &Vec3) -> Result<f64, MaterialError> {
+        self.stress(f, e0).map(|s| s.energy)
+    }
+    fn stress(&self, f: &Mat3, e0: &Vec3) -> Result<Stress, MaterialError> {
+        self.stress_at(f, e0, PointHistory::NONE)
+    }
+    fn tangent(&self, _f: &Mat3, _e0: &Vec3) -> Result<Tangent, MaterialError> {
+        Err(MaterialError::OutOfDomain(
+            "a parameter derivative has no tangent".into(),
+        ))
+    }
+    fn shear_modulus(&self) -> f64 {
+        self.base.shear_modulus()
+    }
+    fn bulk_modulus(&self) -> f64 {
+        self.base.bulk_modulus()
+    }
+    fn permittivity(&self) -> f64 {
+        self.base.permittivity()
+    }
+    fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
+        self.stress(f, e0).map(|s| (s.energy, 0.0))
+    }
+    fn state_size(&self) -> usize {
+        self.base.state_size()
+    }
+    fn energy_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<f64, MaterialError> {
+        self.stress_at(f, e0, h).map(|s| s.energy)
+    }
+    fn stress_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<Stress, MaterialError> {
+        self.pick(self.base.parameter_derivatives_at(f, e0, h)?)
+    }
+    fn tangent_at(
+        &self,
+        _f: &Mat3,
+        _e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<Tangent, MaterialError> {
+        Err(MaterialError::OutOfDomain(
+            "a parameter derivative has no tangent".into(),
+        ))
+    }
 }

@@ -6,6 +6,7 @@
 use crate::algebra::csr::CsrMatrix;
 use crate::algebra::system::{DofLayout, LoadedSystem, NonlinearSystem};
 use crate::element::{CellFields, CellInput};
+use crate::material::{Material, ParameterDerivative};
 use crate::problem::assembly::{Assembler, GlobalTerms};
 use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
@@ -313,9 +314,26 @@ pub fn nodal_reactions_with(
     points: &PointStates,
     dt: f64,
 ) -> Result<Vec<f64>, String> {
+    internal_forces(model, state, points, dt, None)
+}
+
+/// The internal forces of [`nodal_reactions_with`], from every cell, or with `only = (m, mat)`
+/// from the cells of material `m` alone, evaluated with `mat` in its place.
+fn internal_forces(
+    model: &Model,
+    state: &[f64],
+    points: &PointStates,
+    dt: f64,
+    only: Option<(usize, &dyn Material)>,
+) -> Result<Vec<f64>, String> {
     let mut out = vec![0.0; state.len()];
     let mut r = vec![0.0; crate::element::MAX_LOCAL];
     model.for_each_cell(state, |c, g, mat, local| {
+        let mat = match only {
+            Some((m, _)) if model.cell_material[c] != m => return Ok(()),
+            Some((_, instead)) => instead,
+            None => mat,
+        };
         let h = points.cell(c, model.cell_material[c], dt);
         model
             .kernel()
@@ -338,6 +356,50 @@ pub fn nodal_reactions_with(
         Ok::<(), String>(())
     })?;
     Ok(out)
+}
+
+/// ∂f/∂θₖ for every parameter θₖ of material `material` ([`Material::parameters`]): the
+/// derivatives of the internal forces of [`nodal_reactions_with`] (every dof; N for u, C for Φ
+/// per unit of the parameter), from the cells of that material, each computed by the model's own
+/// kernel with the material's [`ParameterDerivative`] (exact). Empty for a material without a
+/// parameter vector.
+pub fn parameter_forces(
+    model: &Model,
+    state: &[f64],
+    points: &PointStates,
+    dt: f64,
+    material: usize,
+) -> Result<Vec<Vec<f64>>, String> {
+    let base = model
+        .materials
+        .get(material)
+        .ok_or_else(|| format!("no material {material}"))?;
+    let n = base.parameters().map_or(0, |p| p.values.len());
+    (0..n)
+        .map(|index| {
+            let derivative = ParameterDerivative {
+                base: base.clone(),
+                index,
+            };
+            internal_forces(model, state, points, dt, Some((material, &derivative)))
+        })
+        .collect()
+}
+
+/// wᵀ ∂f/∂θ of material `material` for `w` over every dof: the parameter vector–Jacobian product
+/// of the internal forces, one entry per parameter ([`parameter_forces`]).
+pub fn parameter_vjp(
+    model: &Model,
+    state: &[f64],
+    points: &PointStates,
+    dt: f64,
+    material: usize,
+    w: &[f64],
+) -> Result<Vec<f64>, String> {
+    Ok(parameter_forces(model, state, points, dt, material)?
+        .iter()
+        .map(|f| f.iter().zip(w).map(|(a, b)| a * b).sum())
+        .collect())
 }
 
 /// From this many cells the record's pass over the cells runs on the pool (when it has more
