@@ -121,3 +121,41 @@ fn parameter_forces_of_maxwell_branches_through_a_step() {
         "c10, c20, c30, d1, the dielectric three, two branches"
     );
 }
+
+/// wᵀ∂R/∂θ of a static problem's scaled residual over its free unknowns against central
+/// differences of that residual (the unknowns' scaling held).
+#[test]
+fn parameter_products_of_a_static_problem() {
+    use deasim::problem::statics::StaticProblem;
+    use deasim::solve::newton::NonlinearSystem;
+    let (plan, state) = charged(film());
+    let model = &plan.model;
+    let problem = StaticProblem::new(model, Some(state.clone()));
+    let n = problem.dofs.n_free;
+    let w: Vec<f64> = (0..n).map(|i| ((i * 31) % 17) as f64 - 8.0).collect();
+    let vjp = problem.parameter_vjp(&w, 0).unwrap();
+    let base = model.materials[0].clone();
+    let theta = base.parameters().unwrap().values;
+    for k in 0..theta.len() {
+        let h = 1e-5 * theta[k].abs();
+        let residual = |sign: f64| {
+            let mut t = theta.clone();
+            t[k] += sign * h;
+            let mut m = model.clone();
+            m.materials[0] = base.with_parameters(&t).unwrap();
+            let mut p = StaticProblem::new(&m, Some(state.clone()));
+            p.dofs.scale = problem.dofs.scale;
+            let mut r = vec![0.0; n];
+            p.evaluate(&mut r, None).unwrap();
+            r
+        };
+        let (rp, rm) = (residual(1.0), residual(-1.0));
+        let fd: f64 = (0..n).map(|i| w[i] * (rp[i] - rm[i]) / (2.0 * h)).sum();
+        let round_off = 1e3 * f64::EPSILON * rp.iter().map(|x| x.abs()).sum::<f64>() / h;
+        assert!(
+            (fd - vjp[k]).abs() <= 1e-6 * fd.abs() + round_off,
+            "parameter {k}: {fd:e} against {:e}",
+            vjp[k]
+        );
+    }
+}

@@ -1,7 +1,8 @@
 //! The exact Jacobian of a dynamic step (midpoint and Newmark) against central differences of the
 //! step residual, on the examples' models: a 3-D film with Kelvin–Voigt viscosity, the
 //! axisymmetric diaphragm with its rigid pad and dashpot, viscoelastic (Maxwell) models, a
-//! charge-controlled film and a film driven through a resistance.
+//! charge-controlled film and a film driven through a resistance; and the parameter
+//! vector–Jacobian product of a step against differences of its residual in the parameters.
 
 use deasim::algebra::csr::CsrMatrix;
 use deasim::io::build::{build, Plan};
@@ -9,10 +10,11 @@ use deasim::io::examples::example;
 use deasim::io::scenario::parse;
 use deasim::job::plan::StageKind;
 use deasim::problem::dofs::{Dirichlet, Field, FIELDS};
+use deasim::problem::model::Model;
 use deasim::problem::points::PointStates;
 use deasim::solve::newton::NonlinearSystem;
 use deasim::time::integrator::{Scheme, TimeLevel, TimeStep};
-use deasim::time::mass::NodalMass;
+use deasim::time::mass::{MassKind, NodalMass};
 
 fn plan_of(text: &str, sets: &[&str]) -> Plan {
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
@@ -31,10 +33,9 @@ fn generator(seed: u64) -> impl FnMut() -> f64 {
     }
 }
 
-/// The relative difference between J·x of the step's matrix and central differences of its
-/// residual along x, for a few random x, at a general state of the plan's dynamic stage: the
-/// largest over the directions. `exact`: the step's matrix is its exact Jacobian.
-fn jacobian_error(plan: &Plan, scheme: Scheme, exact: bool) -> f64 {
+/// The model of the plan's dynamic stage (its supports and prescribed potentials held), its
+/// time step and its nodal masses (rigid pads' masses included).
+fn dynamic_model(plan: &Plan) -> (Model, f64, MassKind) {
     let stage = plan
         .stages
         .iter()
@@ -52,12 +53,31 @@ fn jacobian_error(plan: &Plan, scheme: Scheme, exact: bool) -> f64 {
             value: 0.0,
         });
     }
-    let mut nodal = NodalMass::new(&model, &plan.densities, mass);
+    (model, dt, mass)
+}
+
+/// The nodal masses of `model` in the plan's dynamic stage.
+fn nodal_mass(plan: &Plan, model: &Model, mass: MassKind) -> NodalMass {
+    let mut nodal = NodalMass::new(model, &plan.densities, mass);
     for r in &plan.rigid {
         if r.mass > 0.0 {
             nodal.add_point_mass(r.nodes[0], r.mass);
         }
     }
+    nodal
+}
+
+/// A step of `model` from a general previous level (random q, v, a of a fiftieth of a
+/// millimetre's size, the same for the same model and scaling) to a general q_{n+1}; `next`
+/// continues the random sequence; `scale`: the unknowns' scaling to hold instead of the model's.
+fn general_step<'m>(
+    plan: &Plan,
+    model: &'m Model,
+    nodal: &'m NodalMass,
+    (dt, scheme): (f64, Scheme),
+    scale: Option<[f64; FIELDS]>,
+    next: &mut dyn FnMut() -> f64,
+) -> TimeStep<'m> {
     let n = model.mesh.n_nodes() * FIELDS;
     let zero = TimeLevel {
         t: 0.0,
@@ -65,11 +85,12 @@ fn jacobian_error(plan: &Plan, scheme: Scheme, exact: bool) -> f64 {
         v: vec![0.0; n],
         a: vec![0.0; n],
     };
-    let mut step = TimeStep::new(&model, &nodal, plan.viscosities.clone(), scheme, zero);
-    step.points = PointStates::new(&model);
-    step.exact_jacobian = exact;
+    let mut step = TimeStep::new(model, nodal, plan.viscosities.clone(), scheme, zero);
+    if let Some(scale) = scale {
+        step.dofs.scale = scale;
+    }
+    step.points = PointStates::new(model);
     let nf = step.dofs.n_free;
-    let mut next = generator(7);
     let length = 1e-3;
     let level = |step: &TimeStep, size: f64, next: &mut dyn FnMut() -> f64| {
         let x: Vec<f64> = (0..nf).map(|_| next()).collect();
@@ -78,9 +99,9 @@ fn jacobian_error(plan: &Plan, scheme: Scheme, exact: bool) -> f64 {
         step.dofs.add_scaled(&mut full, &x, 1.0);
         full
     };
-    let q0 = level(&step, 0.02 * length, &mut next);
-    let v0 = level(&step, 0.02 * length / dt, &mut next);
-    let a0 = level(&step, 0.02 * length / (dt * dt), &mut next);
+    let q0 = level(&step, 0.02 * length, next);
+    let v0 = level(&step, 0.02 * length / dt, next);
+    let a0 = level(&step, 0.02 * length / (dt * dt), next);
     step.prev = TimeLevel {
         t: 0.0,
         q: q0,
@@ -90,10 +111,24 @@ fn jacobian_error(plan: &Plan, scheme: Scheme, exact: bool) -> f64 {
     step.begin(dt, &[]);
     let sources = vec![[100.0, 150.0, 200.0]; model.circuits.len()];
     step.begin_circuits(&sources).unwrap();
-    let dq = level(&step, 0.01 * length, &mut next);
+    let dq = level(&step, 0.01 * length, next);
     for (q, d) in step.q.iter_mut().zip(&dq) {
         *q += d;
     }
+    step
+}
+
+/// The relative difference between J·x of the step's matrix and central differences of its
+/// residual along x, for a few random x, at a general state of the plan's dynamic stage: the
+/// largest over the directions. `exact`: the step's matrix is its exact Jacobian.
+fn jacobian_error(plan: &Plan, scheme: Scheme, exact: bool) -> f64 {
+    let (model, dt, mass) = dynamic_model(plan);
+    let nodal = nodal_mass(plan, &model, mass);
+    let mut next = generator(7);
+    let mut step = general_step(plan, &model, &nodal, (dt, scheme), None, &mut next);
+    step.exact_jacobian = exact;
+    let nf = step.dofs.n_free;
+    let length = 1e-3;
     let mut r = vec![0.0; nf];
     let mut k: CsrMatrix = step.new_matrix();
     step.evaluate(&mut r, Some(&mut k)).unwrap();
@@ -273,4 +308,64 @@ fn an_unknown_jacobian_is_refused() {
     let e = build(&scenario, "test.toml", None).unwrap_err().to_string();
     assert!(e.contains("solver.jacobian"), "{e}");
     assert!(e.contains("expected one of: exact, symmetric"), "{e}");
+}
+
+/// wᵀ∂R/∂θ of a step (the step's parameter vector–Jacobian product) against central differences
+/// of the residual of the same step with the material rebuilt at θ ± h eₖ: the largest relative
+/// difference over the parameters of every material.
+fn parameter_error(plan: &Plan, scheme: Scheme) -> f64 {
+    let (model, dt, mass) = dynamic_model(plan);
+    let nodal = nodal_mass(plan, &model, mass);
+    // the unknowns' scaling (from the moduli) held: a numerical choice, not part of the equations
+    let scale = {
+        let mut next = generator(11);
+        general_step(plan, &model, &nodal, (dt, scheme), None, &mut next)
+            .dofs
+            .scale
+    };
+    let residual = |m: &Model| {
+        let mut next = generator(11);
+        let mut step = general_step(plan, m, &nodal, (dt, scheme), Some(scale), &mut next);
+        let mut r = vec![0.0; step.dofs.n_free];
+        step.evaluate(&mut r, None).unwrap();
+        r
+    };
+    let mut next = generator(11);
+    let mut step = general_step(plan, &model, &nodal, (dt, scheme), None, &mut next);
+    let w: Vec<f64> = (0..step.dofs.n_free).map(|_| next()).collect();
+    let mut worst = 0.0f64;
+    for (mi, base) in model.materials.iter().enumerate() {
+        let theta = base.parameters().unwrap().values;
+        let vjp = step.parameter_vjp(&w, mi).unwrap();
+        for k in 0..theta.len() {
+            let h = 1e-5 * theta[k].abs().max(1e-12);
+            let at = |sign: f64| {
+                let mut t = theta.clone();
+                t[k] += sign * h;
+                let mut m = model.clone();
+                m.materials[mi] = base.with_parameters(&t).unwrap();
+                residual(&m)
+            };
+            let (rp, rm) = (at(1.0), at(-1.0));
+            let fd: f64 = (0..w.len())
+                .map(|i| w[i] * (rp[i] - rm[i]) / (2.0 * h))
+                .sum();
+            let round_off = 1e3 * f64::EPSILON * rp.iter().map(|x| x.abs()).sum::<f64>() / h;
+            let err = ((fd - vjp[k]).abs() - round_off).max(0.0) / fd.abs().max(vjp[k].abs());
+            worst = worst.max(err);
+        }
+    }
+    worst
+}
+
+#[test]
+fn parameter_products_of_the_step_match_finite_differences() {
+    let film = film(&["materials.elastomer.c1=1e-12"]);
+    let visco = plan_of(example("diaphragm-visco").unwrap(), &[]);
+    for (plan, what) in [(&film, "film"), (&visco, "diaphragm-visco")] {
+        for scheme in SCHEMES {
+            let e = parameter_error(plan, scheme);
+            assert!(e <= 1e-6, "{what}, {scheme:?}: {e:e}");
+        }
+    }
 }

@@ -218,3 +218,19 @@ pub fn apply_dirichlet(state: &mut [f64], conditions: &[Dirichlet]) {
         }
     }
 }
+/// A vector `w` over the free unknowns of `dofs` seen over every dof: w_e s_d at each dof d of
+/// equation e (s_d its field's scale), 0 at held dofs. For the weighted sums wᵀ∂R/∂y of a scaled
+/// residual R through unscaled nodal forces f: wᵀ∂R/∂y = (free_weights(w))ᵀ ∂f/∂y.
+pub fn free_weights(dofs: &DofMap, w: &[f64]) -> Vec<f64> {
+    dofs.eq
+        .iter()
+        .enumerate()
+        .map(|(d, &e)| {
+            if e == CONSTRAINED {
+                0.0
+            } else {
+                w[e] * dofs.scale[d % FIELDS]
+            }
+        })
+        .collect()
+}

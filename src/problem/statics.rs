@@ -193,6 +193,20 @@ impl<'m> StaticProblem<'m> {
         }
     }
 
+    /// wᵀ ∂R/∂θ of the (scaled) residual over the free unknowns at the current state, for the
+    /// parameters of material `material`: only the internal forces depend on them. The scaling
+    /// of the unknowns (from the moduli) is held: a numerical choice, not part of the equations.
+    pub fn parameter_vjp(&self, w: &[f64], material: usize) -> Result<Vec<f64>, String> {
+        parameter_vjp(
+            self.model,
+            &self.state,
+            &self.points,
+            self.dt(),
+            material,
+            &crate::problem::dofs::free_weights(&self.dofs, w),
+        )
+    }
+
     /// The assembler (for benchmarks).
     pub fn assembler(&self) -> &Assembler {
         &self.assembler

@@ -26,7 +26,7 @@ use crate::algebra::system::DofLayout;
 use crate::element::{CellInput, KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::Assembler;
 use crate::problem::circuit::CircuitStep;
-use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::dofs::{free_weights, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::{discretize, layout_of};
@@ -178,6 +178,31 @@ impl<'m> TimeStep<'m> {
         let mut points = self.points.clone();
         let dissipated = points.commit(self.model, &self.work_q, self.dt)?;
         Ok((points, dissipated))
+    }
+
+    /// wᵀ ∂R/∂θ of the step residual (scaled, over the free unknowns, at the current q_{n+1}) for
+    /// the parameters of material `material` ([`crate::material::Material::parameters`]): the
+    /// internal forces enter R with the factor of the scheme (½Δt midpoint, βΔt² Newmark) at the
+    /// evaluation point, and nothing else in R depends on a material parameter. The scaling of
+    /// the unknowns (from the moduli) is held: a numerical choice, not part of the equations.
+    pub fn parameter_vjp(&mut self, w: &[f64], material: usize) -> Result<Vec<f64>, String> {
+        self.evaluation_point();
+        let f_r = match self.scheme {
+            Scheme::Midpoint => 0.5 * self.dt,
+            Scheme::Newmark { beta, .. } => beta * self.dt * self.dt,
+        };
+        let full: Vec<f64> = free_weights(&self.dofs, w)
+            .into_iter()
+            .map(|x| f_r * x)
+            .collect();
+        crate::problem::statics::parameter_vjp(
+            self.model,
+            &self.work_q,
+            &self.points,
+            self.dt,
+            material,
+            &full,
+        )
     }
 
     /// Prepares the step to `prev.t + dt`: prescribed potentials `phi_d(t)` on the electrode nodes
