@@ -5,9 +5,9 @@
 
 mod common;
 
+use common::vtu::read_vtu;
 use common::{deasim, tempdir};
 use deasim::analytic::Film;
-use deasim::io::vtu::read_vtu;
 use deasim::material::EPSILON_0;
 use deasim::problem::examples::{FILM_EPS_R, FILM_LAMBDA, FILM_MU};
 use std::path::Path;

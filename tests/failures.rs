@@ -4,8 +4,8 @@
 
 mod common;
 
+use common::vtu::read_vtu;
 use common::{deasim, tempdir};
-use deasim::io::vtu::read_vtu;
 
 /// The 1 mm film without voltage, its top face pushed down by 2 mm: the cells invert (J ≤ 0)
 /// near half of the ramp. The run ends with exit 1, `converged: false`, an error naming the

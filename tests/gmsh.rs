@@ -174,7 +174,7 @@ fn scenario_with_a_gmsh_file_runs() {
         );
         let fields = out_dir.join("fields");
         let vtu = std::fs::read_dir(&fields).unwrap().next().unwrap().unwrap();
-        let d = deasim::io::vtu::read_vtu(&vtu.path()).unwrap();
+        let d = common::vtu::read_vtu(&vtu.path()).unwrap();
         assert!(d.types.iter().all(|&t| t == vtk), "{:?}", d.types);
     }
 }

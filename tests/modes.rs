@@ -121,7 +121,7 @@ fn modes_command_writes_the_table_and_the_shapes() {
         .natural_frequency();
     assert!((f[0] / lumped - 1.0).abs() < 5e-3, "{} vs {lumped}", f[0]);
     for i in 1..=4 {
-        let v = deasim::io::vtu::read_vtu(&dir.join(format!("m/modes/mode_{i:02}.vtu"))).unwrap();
+        let v = common::vtu::read_vtu(&dir.join(format!("m/modes/mode_{i:02}.vtu"))).unwrap();
         let (c, shape) = &v.point_data["mode_shape"];
         assert_eq!(*c, 3);
         let largest = shape
@@ -207,7 +207,7 @@ fn mode_files_follow_the_vtu_format() {
         &text[..text.len().min(2000)]
     );
     assert!(!text.contains("format=\"binary\""));
-    let v = deasim::io::vtu::read_vtu(&path).unwrap();
+    let v = common::vtu::read_vtu(&path).unwrap();
     assert_eq!(v.point_data["mode_shape"].0, 3);
 }
 

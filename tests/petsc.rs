@@ -10,10 +10,10 @@
 
 mod common;
 
+use common::vtu::{read_pvtu, read_vtu, VtuData};
 use deasim::io::build::{build, Plan};
 use deasim::io::examples::example;
 use deasim::io::scenario::parse;
-use deasim::io::vtu::{read_pvtu, read_vtu, VtuData};
 use deasim::job::observer::Observer;
 use deasim::job::run::{run, StepRecord};
 use deasim::job::state::RunSummary;

@@ -7,8 +7,8 @@
 
 mod common;
 
+use common::vtu::{read_vtu, VtuData};
 use common::{deasim, tempdir};
-use deasim::io::vtu::{read_vtu, VtuData};
 use std::path::Path;
 use std::process::Output;
 

@@ -87,19 +87,6 @@ where
 mod tests {
     use super::*;
 
-    /// A fresh, empty scratch directory under the system temp dir.
-    fn scratch_dir(tag: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!(
-            "deasim-atomic-{}-{}-{}",
-            tag,
-            std::process::id(),
-            TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("create scratch dir");
-        dir
-    }
-
     fn entries(dir: &Path) -> Vec<String> {
         let mut names: Vec<String> = fs::read_dir(dir)
             .expect("read dir")
@@ -116,28 +103,38 @@ mod tests {
 
     #[test]
     fn writes_new_file_and_leaves_no_temporary() {
-        let dir = scratch_dir("new");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-atomic-new-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let target = dir.join("out.txt");
         write_atomic(&target, b"hello").expect("write");
         assert_eq!(fs::read(&target).expect("read"), b"hello");
-        assert_eq!(entries(&dir), vec!["out.txt".to_string()]);
-        fs::remove_dir_all(&dir).expect("cleanup");
+        assert_eq!(entries(dir), vec!["out.txt".to_string()]);
     }
 
     #[test]
     fn replaces_existing_file() {
-        let dir = scratch_dir("replace");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-atomic-replace-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let target = dir.join("out.txt");
         fs::write(&target, b"old content that is longer").expect("seed");
         write_atomic(&target, b"new").expect("write");
         assert_eq!(fs::read(&target).expect("read"), b"new");
-        assert_eq!(entries(&dir), vec!["out.txt".to_string()]);
-        fs::remove_dir_all(&dir).expect("cleanup");
+        assert_eq!(entries(dir), vec!["out.txt".to_string()]);
     }
 
     #[test]
     fn streaming_writer_produces_all_content() {
-        let dir = scratch_dir("stream");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-atomic-stream-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let target = dir.join("big.dat");
         write_atomic_with(&target, |w| {
             for i in 0..10_000 {
@@ -149,12 +146,15 @@ mod tests {
         let text = fs::read_to_string(&target).expect("read");
         assert_eq!(text.lines().count(), 10_000);
         assert_eq!(text.lines().last(), Some("9999"));
-        fs::remove_dir_all(&dir).expect("cleanup");
     }
 
     #[test]
     fn failing_writer_keeps_old_file_and_removes_temporary() {
-        let dir = scratch_dir("fail");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-atomic-fail-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let target = dir.join("out.txt");
         fs::write(&target, b"previous").expect("seed");
         let err = write_atomic_with(&target, |w| {
@@ -164,17 +164,19 @@ mod tests {
         .expect_err("must fail");
         assert_eq!(err.to_string(), "simulated failure");
         assert_eq!(fs::read(&target).expect("read"), b"previous");
-        assert_eq!(entries(&dir), vec!["out.txt".to_string()]);
-        fs::remove_dir_all(&dir).expect("cleanup");
+        assert_eq!(entries(dir), vec!["out.txt".to_string()]);
     }
 
     #[test]
     fn missing_directory_is_an_error() {
-        let dir = scratch_dir("missing");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-atomic-missing-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let target = dir.join("no-such-dir").join("out.txt");
         assert!(write_atomic(&target, b"x").is_err());
         assert!(!target.exists());
-        fs::remove_dir_all(&dir).expect("cleanup");
     }
 
     #[test]
@@ -197,13 +199,16 @@ mod tests {
 
     #[test]
     fn persist_temp_moves_file() {
-        let dir = scratch_dir("persist");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-atomic-persist-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let target = dir.join("final.bin");
         let tmp = temp_sibling_path(&target, None).expect("tmp");
         fs::write(&tmp, b"data").expect("write tmp");
         persist_temp(&tmp, &target).expect("persist");
         assert_eq!(fs::read(&target).expect("read"), b"data");
-        assert_eq!(entries(&dir), vec!["final.bin".to_string()]);
-        fs::remove_dir_all(&dir).expect("cleanup");
+        assert_eq!(entries(dir), vec!["final.bin".to_string()]);
     }
 }

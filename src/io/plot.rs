@@ -741,7 +741,6 @@ fn scaled_label(label: &str, prefix: &Prefix) -> String {
 mod tests {
     use super::*;
     use std::fs;
-    use std::sync::atomic::{AtomicU64, Ordering};
 
     /// A non-finite value splits a curve into runs: the gap is not bridged by a line.
     #[test]
@@ -767,20 +766,6 @@ mod tests {
                 vec![(6.0, 4.0)]
             ]
         );
-    }
-
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-
-    fn scratch_dir(tag: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!(
-            "deasim-plot-{}-{}-{}",
-            tag,
-            std::process::id(),
-            COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("create scratch dir");
-        dir
     }
 
     fn entries(dir: &Path) -> Vec<String> {
@@ -814,7 +799,11 @@ mod tests {
 
     #[test]
     fn png_and_svg_with_two_series() {
-        let dir = scratch_dir("two");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-plot-two-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let series = two_series();
         let spec = PlotSpec {
             title: "Stretch versus voltage",
@@ -846,10 +835,9 @@ mod tests {
             assert!(svg.contains(text), "SVG lacks '{text}'");
         }
         assert_eq!(
-            entries(&dir),
+            entries(dir),
             vec!["stretch.SVG".to_string(), "stretch.png".to_string()]
         );
-        fs::remove_dir_all(&dir).expect("cleanup");
     }
 
     #[test]
@@ -861,14 +849,22 @@ mod tests {
             y_label: "stretch λ [-]",
             series: &series,
         };
-        let path = std::env::temp_dir().join("deasim_plot_check.png");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-plot-check-")
+            .tempdir()
+            .unwrap();
+        let path = tmp.path().join("deasim_plot_check.png");
         line_plot(&path, &spec).expect("png");
         assert_eq!(fs::read(&path).expect("read")[..8], PNG_SIGNATURE);
     }
 
     #[test]
     fn constant_single_point_and_non_finite_series_work() {
-        let dir = scratch_dir("degenerate");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-plot-degenerate-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let constant = vec![Series {
             label: "flat".to_string(),
             x: vec![0.0, 1.0, 2.0],
@@ -914,12 +910,15 @@ mod tests {
                 assert!(fs::metadata(&path).expect("exists").len() > 0);
             }
         }
-        fs::remove_dir_all(&dir).expect("cleanup");
     }
 
     #[test]
     fn bad_input_is_an_error_and_writes_nothing() {
-        let dir = scratch_dir("bad");
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-plot-bad-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path();
         let ok = two_series();
         let empty = vec![Series {
             label: "empty".to_string(),
@@ -975,8 +974,7 @@ mod tests {
             line_plot(&missing, &spec(&ok)),
             Err(PlotError::Io { .. })
         ));
-        assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
-        fs::remove_dir_all(&dir).expect("cleanup");
+        assert!(entries(dir).is_empty(), "{:?}", entries(dir));
     }
 
     #[test]
