@@ -312,23 +312,32 @@ fn ident_at(c: &[char], mut i: usize) -> (String, usize) {
     (c[start..i].iter().collect(), i)
 }
 
-/// The top-level modules a file's code refers to, with the line of each reference.
-fn references(source: &Source) -> Vec<(String, usize)> {
-    let c: Vec<char> = source.code.chars().collect();
-    let depth = module_path(Path::new(source.rel.trim_start_matches("src/"))).len();
+/// The 1-based line of every character of `c`.
+fn line_numbers(c: &[char]) -> Vec<usize> {
     let mut line_of = Vec::with_capacity(c.len());
     let mut line = 1;
-    for &ch in &c {
+    for &ch in c {
         line_of.push(line);
         if ch == '\n' {
             line += 1;
         }
     }
-    let starts_with = |i: usize, s: &str| {
-        s.chars()
-            .enumerate()
-            .all(|(k, ch)| c.get(i + k) == Some(&ch))
-    };
+    line_of
+}
+
+/// Whether `s` stands in `c` at `i`.
+fn starts_at(c: &[char], i: usize, s: &str) -> bool {
+    s.chars()
+        .enumerate()
+        .all(|(k, ch)| c.get(i + k) == Some(&ch))
+}
+
+/// The top-level modules a file's code refers to, with the line of each reference.
+fn references(source: &Source) -> Vec<(String, usize)> {
+    let c: Vec<char> = source.code.chars().collect();
+    let depth = module_path(Path::new(source.rel.trim_start_matches("src/"))).len();
+    let line_of = line_numbers(&c);
+    let starts_with = |i: usize, s: &str| starts_at(&c, i, s);
     let mut refs = Vec::new();
     let mut i = 0;
     while i < c.len() {
@@ -552,14 +561,7 @@ fn dependencies_follow_the_layers() {
 /// functions are not seen, and a nested function is counted in its parent too.
 fn functions(code: &str) -> Vec<(String, usize, usize)> {
     let c: Vec<char> = code.chars().collect();
-    let mut line_of = Vec::with_capacity(c.len());
-    let mut line = 1;
-    for &ch in &c {
-        line_of.push(line);
-        if ch == '\n' {
-            line += 1;
-        }
-    }
+    let line_of = line_numbers(&c);
     let mut found = Vec::new();
     let mut i = 0;
     while i + 2 < c.len() {
@@ -709,19 +711,8 @@ fn path_tree(c: &[char], mut i: usize) -> (Vec<Vec<String>>, usize) {
 fn file_references(source: &Source, files: &BTreeSet<Vec<String>>) -> Vec<(Vec<String>, usize)> {
     let here = module_path(Path::new(source.rel.trim_start_matches("src/")));
     let c: Vec<char> = source.code.chars().collect();
-    let mut line_of = Vec::with_capacity(c.len());
-    let mut line = 1;
-    for &ch in &c {
-        line_of.push(line);
-        if ch == '\n' {
-            line += 1;
-        }
-    }
-    let starts_with = |i: usize, s: &str| {
-        s.chars()
-            .enumerate()
-            .all(|(k, ch)| c.get(i + k) == Some(&ch))
-    };
+    let line_of = line_numbers(&c);
+    let starts_with = |i: usize, s: &str| starts_at(&c, i, s);
     let mut found = Vec::new();
     let mut i = 0;
     while i < c.len() {
