@@ -140,7 +140,8 @@ fn a_missing_file_is_an_io_error() {
         other => panic!("not an I/O error: {other:?}"),
     }
     // an output directory that cannot be created
-    let blocker = std::env::temp_dir().join(format!("deasim-api-blocker-{}", std::process::id()));
+    let scratch = tempfile::tempdir().unwrap();
+    let blocker = scratch.path().join("blocker");
     std::fs::write(&blocker, "a file, not a directory").unwrap();
     let error = film()
         .set("stages.0.steps", "1")
@@ -149,7 +150,6 @@ fn a_missing_file_is_an_io_error() {
             ..RunOptions::default()
         })
         .unwrap_err();
-    std::fs::remove_file(&blocker).unwrap();
     assert!(matches!(error, Error::Io { .. }), "{error:?}");
 }
 
@@ -174,8 +174,8 @@ fn a_failed_solve_gives_its_reason_and_the_steps_before() {
 
 #[test]
 fn a_run_with_an_output_directory_writes_the_files_of_deasim_run() {
-    let dir = std::env::temp_dir().join(format!("deasim-api-out-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path().join("out");
     let results = film()
         .set("stages.0.steps", "2")
         .run(RunOptions {
@@ -187,7 +187,6 @@ fn a_run_with_an_output_directory_writes_the_files_of_deasim_run() {
     assert_eq!(history.lines().count(), 1 + results.records.len());
     let summary = std::fs::read_to_string(dir.join("summary.json")).unwrap();
     assert!(summary.contains("stages.0.steps=2"), "{summary}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

@@ -363,8 +363,11 @@ fn run_exports_checkpoints_and_resumes_point_states() {
         g: G,
         tau: TAU,
     });
-    let base = std::env::temp_dir().join(format!("deasim-test-mstate-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&base);
+    let scratch = tempfile::Builder::new()
+        .prefix("deasim-test-mstate-")
+        .tempdir()
+        .unwrap();
+    let base = scratch.path().to_path_buf();
     let run = |dir: &std::path::Path, every: usize, start| {
         let mut writer = OutputWriter::new(dir).unwrap();
         let mut ck = CheckpointWriter {
@@ -414,5 +417,4 @@ fn run_exports_checkpoints_and_resumes_point_states() {
     };
     assert_eq!(tail(&a), tail(&b));
     assert!(!tail(&a).is_empty());
-    let _ = std::fs::remove_dir_all(&base);
 }

@@ -9,7 +9,7 @@ use crate::job::plan::Plan;
 use crate::job::run::run_with;
 use crate::job::state::RunSummary;
 use crate::job::state::StepRecord;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// Accepted steps the trial times at least in the last stage that takes steps.
@@ -160,15 +160,6 @@ fn field_files(plan: &Plan) -> usize {
         .count()
 }
 
-/// A scratch directory for the trial, removed when dropped.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// The largest regular file in `dir` whose name starts with `prefix` (bytes), 0 when there is
 /// none.
 fn largest_file(dir: &Path, prefix: &str) -> u64 {
@@ -197,17 +188,17 @@ pub enum TrialError {
 /// Solves the first steps of `plan` in a scratch directory and scales them to the whole run.
 /// An error says why no estimate could be made (the trial failed before two steps).
 pub fn estimate(plan: &Plan) -> Result<Estimate, TrialError> {
-    let scratch = Scratch(std::env::temp_dir().join(format!(
-        "deasim-check-{}-{}",
-        std::process::id(),
-        Instant::now().elapsed().as_nanos()
-    )));
+    // removed when dropped
+    let scratch = tempfile::Builder::new()
+        .prefix("deasim-check-")
+        .tempdir()
+        .map_err(|e| TrialError::NoSteps(format!("no scratch directory for the trial: {e}")))?;
     let mut trial = plan.clone();
     trial.output.plots = false;
     // the first record and the last state: one full field file to measure
     trial.output.fields_every = usize::MAX;
-    let mut writer = OutputWriter::new(&scratch.0)
-        .map_err(|e| TrialError::NoSteps(format!("{}: {e}", scratch.0.display())))?;
+    let mut writer = OutputWriter::new(scratch.path())
+        .map_err(|e| TrialError::NoSteps(format!("{}: {e}", scratch.path().display())))?;
     let mut clock = Clock {
         plan,
         times: Vec::new(),
@@ -249,7 +240,7 @@ pub fn estimate(plan: &Plan) -> Result<Estimate, TrialError> {
         steps += n;
     }
     let records = nominal_records(plan);
-    let history = std::fs::metadata(scratch.0.join("history.csv"))
+    let history = std::fs::metadata(scratch.path().join("history.csv"))
         .map(|m| m.len())
         .unwrap_or(0);
     Ok(Estimate {
@@ -259,7 +250,7 @@ pub fn estimate(plan: &Plan) -> Result<Estimate, TrialError> {
         steps,
         field_file_bytes: ["step_", "revolved_"]
             .iter()
-            .map(|p| largest_file(&scratch.0.join("fields"), p))
+            .map(|p| largest_file(&scratch.path().join("fields"), p))
             .sum(),
         field_files: field_files(plan),
         history_bytes: history / clock.times.len().max(1) as u64 * records as u64,

@@ -31,43 +31,47 @@ pub fn tempdir(name: &str) -> TempDir {
     TempDir::new(&format!("deasim-test-{name}"))
 }
 
-/// A directory of the system's temporary directory, `PREFIX-<process id>`, created empty and
+/// A fresh directory of the system's temporary directory (`tempfile`), named `PREFIX-…`,
 /// removed with everything in it when the test is done with it, unless the test failed (then it
 /// stays for inspection). Reads as the `Path` it names.
-pub struct TempDir(PathBuf);
+pub struct TempDir(Option<tempfile::TempDir>, PathBuf);
 
 impl TempDir {
     pub fn new(prefix: &str) -> Self {
-        let d = std::env::temp_dir().join(format!("{prefix}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        TempDir(d)
+        let d = tempfile::Builder::new()
+            .prefix(&format!("{prefix}-"))
+            .tempdir()
+            .expect("a temporary directory");
+        let path = d.path().to_path_buf();
+        TempDir(Some(d), path)
     }
 }
 
 impl std::ops::Deref for TempDir {
     type Target = Path;
     fn deref(&self) -> &Path {
-        &self.0
+        &self.1
     }
 }
 
 impl AsRef<Path> for TempDir {
     fn as_ref(&self) -> &Path {
-        &self.0
+        &self.1
     }
 }
 
 impl AsRef<std::ffi::OsStr> for TempDir {
     fn as_ref(&self) -> &std::ffi::OsStr {
-        self.0.as_os_str()
+        self.1.as_os_str()
     }
 }
 
 impl Drop for TempDir {
     fn drop(&mut self) {
-        if !std::thread::panicking() {
-            let _ = std::fs::remove_dir_all(&self.0);
+        if std::thread::panicking() {
+            if let Some(d) = self.0.take() {
+                let _ = d.keep();
+            }
         }
     }
 }
