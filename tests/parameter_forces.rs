@@ -6,6 +6,7 @@ use deasim::api::{FieldsKept, RunOptions, Simulation};
 use deasim::job::plan::Plan;
 use deasim::problem::points::PointStates;
 use deasim::problem::statics::{nodal_reactions_with, parameter_forces, parameter_vjp};
+use deasim::problem::step::StepOperator;
 
 /// The plan of `sim` and the nodal values of its last accepted step.
 fn charged(sim: Simulation) -> (Plan, Vec<f64>) {
@@ -130,7 +131,7 @@ fn parameter_products_of_a_static_problem() {
     use deasim::solve::newton::NonlinearSystem;
     let (plan, state) = charged(film());
     let model = &plan.model;
-    let problem = StaticProblem::new(model, Some(state.clone()));
+    let mut problem = StaticProblem::new(model, Some(state.clone()));
     let n = problem.dofs.n_free;
     let w: Vec<f64> = (0..n).map(|i| ((i * 31) % 17) as f64 - 8.0).collect();
     let vjp = problem.parameter_vjp(&w, 0).unwrap();

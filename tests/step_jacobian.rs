@@ -12,6 +12,7 @@ use deasim::job::plan::StageKind;
 use deasim::problem::dofs::{Dirichlet, Field, FIELDS};
 use deasim::problem::model::Model;
 use deasim::problem::points::PointStates;
+use deasim::problem::step::StepOperator;
 use deasim::solve::newton::NonlinearSystem;
 use deasim::time::integrator::{Scheme, TimeLevel, TimeStep};
 use deasim::time::mass::{MassKind, NodalMass};
@@ -366,6 +367,280 @@ fn parameter_products_of_the_step_match_finite_differences() {
         for scheme in SCHEMES {
             let e = parameter_error(plan, scheme);
             assert!(e <= 1e-6, "{what}, {scheme:?}: {e:e}");
+        }
+    }
+}
+
+/// An input of a step: where it lies in the step.
+type Input<S> = for<'a> fn(&'a mut S) -> &'a mut Vec<f64>;
+
+/// Central differences of wᵀR along `delta` of the input `input` of the step, against the
+/// product of `delta` with the step's transposed derivative `product`: the relative difference
+/// (round-off of the differences allowed for).
+fn directional_error<S: NonlinearSystem>(
+    step: &mut S,
+    w: &[f64],
+    input: Input<S>,
+    product: &[f64],
+    delta: &[f64],
+) -> f64 {
+    let analytic: f64 = product.iter().zip(delta).map(|(p, d)| p * d).sum();
+    let start = input(step).clone();
+    let mut at = |sign: f64| {
+        let x = input(step);
+        for (x, (s, d)) in x.iter_mut().zip(start.iter().zip(delta)) {
+            *x = s + sign * d;
+        }
+        let mut r = vec![0.0; step.n()];
+        step.evaluate(&mut r, None).unwrap();
+        let wr: f64 = w.iter().zip(&r).map(|(a, b)| a * b).sum();
+        let size: f64 = w.iter().zip(&r).map(|(a, b)| (a * b).abs()).sum();
+        (wr, size)
+    };
+    let ((rp, size), (rm, _)) = (at(1.0), at(-1.0));
+    input(step).clone_from(&start);
+    let fd = (rp - rm) / 2.0;
+    let round_off = 1e3 * f64::EPSILON * size;
+    ((fd - analytic).abs() - round_off).max(0.0) / fd.abs().max(analytic.abs()).max(1e-300)
+}
+
+/// A direction over a vector `x` of nodal values: each field's entries random of a ten
+/// thousandth of the field's largest value in `x` (of `fallback`'s when `x` has none).
+fn nodal_direction(x: &[f64], fallback: &[f64], next: &mut dyn FnMut() -> f64) -> Vec<f64> {
+    let largest = |v: &[f64], f: usize| {
+        v.iter()
+            .skip(f)
+            .step_by(FIELDS)
+            .fold(0.0f64, |m, x| m.max(x.abs()))
+    };
+    let sizes: Vec<f64> = (0..FIELDS)
+        .map(|f| {
+            let s = largest(x, f);
+            1e-4 * if s > 0.0 { s } else { largest(fallback, f) }
+        })
+        .collect();
+    (0..x.len()).map(|d| sizes[d % FIELDS] * next()).collect()
+}
+
+/// The step's products in each input (the new state over every dof, the previous level's q, v
+/// and a, the internal variables and the circuits' states) against central differences of wᵀR,
+/// at a general state with perturbed internal variables: the largest relative difference per
+/// input.
+fn level_errors(plan: &Plan, scheme: Scheme) -> Vec<(&'static str, f64)> {
+    let (model, dt, mass) = dynamic_model(plan);
+    let nodal = nodal_mass(plan, &model, mass);
+    let mut next = generator(23);
+    let mut step = general_step(plan, &model, &nodal, (dt, scheme), None, &mut next);
+    // internal variables away from the virgin state: those of a long step to the previous
+    // level's configuration (so that they are what the material makes, e.g. symmetric)
+    let configuration = step.prev.q.iter().map(|x| 5.0 * x).collect::<Vec<f64>>();
+    let virgin = step.points.data.clone();
+    step.points
+        .commit(&model, &configuration, 1e3 * dt)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let size = step.points.data.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let moved = step.points.data.iter().zip(&virgin);
+    let moved = moved.fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(
+        virgin.is_empty() || moved > 1e-3 * size,
+        "{moved} of {size}"
+    );
+    let w: Vec<f64> = (0..step.dofs.n_free).map(|_| next()).collect();
+    let vjp = step.level_vjp(&w).unwrap();
+    let q = step.prev.q.clone();
+    let mut errors = Vec::new();
+    let inputs: [(&str, Input<TimeStep>, &[f64]); 4] = [
+        ("q_new", |s| &mut s.q, &vjp.q_new),
+        ("q", |s| &mut s.prev.q, &vjp.q),
+        ("v", |s| &mut s.prev.v, &vjp.v),
+        ("a", |s| &mut s.prev.a, &vjp.a),
+    ];
+    for (name, input, product) in inputs {
+        let mut worst = 0.0f64;
+        for _ in 0..3 {
+            let delta = nodal_direction(input(&mut step), &q, &mut next);
+            worst = worst.max(directional_error(&mut step, &w, input, product, &delta));
+        }
+        errors.push((name, worst));
+    }
+    if !step.points.data.is_empty() {
+        let mut worst = 0.0f64;
+        for _ in 0..3 {
+            let delta: Vec<f64> = (0..step.points.data.len())
+                .map(|_| 1e-4 * size * next())
+                .collect();
+            let input: Input<TimeStep> = |s| &mut s.points.data;
+            worst = worst.max(directional_error(&mut step, &w, input, &vjp.points, &delta));
+        }
+        errors.push(("internal variables", worst));
+    }
+    // each circuit's charge, start voltage and source values
+    for (i, product) in vjp.circuits.iter().enumerate() {
+        let flat = |c: &deasim::problem::circuit::CircuitStep| {
+            [c.charge, c.voltage, c.source[0], c.source[1], c.source[2]]
+        };
+        let (start, product) = (step.circuits[i], flat(product));
+        let mut worst = 0.0f64;
+        for (k, &p) in product.iter().enumerate() {
+            let h = 1e-4 * flat(&start)[k].abs().max(1e-12);
+            let mut at = |sign: f64| {
+                let mut v = flat(&start);
+                v[k] += sign * h;
+                step.circuits[i] = deasim::problem::circuit::CircuitStep {
+                    charge: v[0],
+                    voltage: v[1],
+                    source: [v[2], v[3], v[4]],
+                };
+                let mut r = vec![0.0; step.dofs.n_free];
+                step.evaluate(&mut r, None).unwrap();
+                w.iter().zip(&r).map(|(a, b)| a * b).sum::<f64>()
+            };
+            let fd = (at(1.0) - at(-1.0)) / (2.0 * h);
+            step.circuits[i] = start;
+            if fd != 0.0 || p != 0.0 {
+                worst = worst.max((fd - p).abs() / fd.abs().max(p.abs()));
+            }
+        }
+        errors.push(("circuit", worst));
+    }
+    errors
+}
+
+/// Checks every input of both schemes within 1e-6.
+fn check_levels(plan: &Plan, what: &str) {
+    for scheme in SCHEMES {
+        for (input, e) in level_errors(plan, scheme) {
+            assert!(e <= 1e-6, "{what}, {}: {input} off by {e:e}", scheme.name());
+        }
+    }
+}
+
+#[test]
+fn level_products_of_a_viscous_film_match_finite_differences() {
+    check_levels(&film(&["materials.elastomer.viscosity=100"]), "3-D film");
+}
+
+#[test]
+fn level_products_of_the_diaphragm_with_its_pad_match_finite_differences() {
+    check_levels(&plan_of(example("diaphragm").unwrap(), &[]), "diaphragm");
+}
+
+#[test]
+fn level_products_of_viscoelastic_models_match_finite_differences() {
+    let plan = plan_of(example("diaphragm-visco").unwrap(), &[]);
+    assert!(plan.model.materials[0].state_size() > 0);
+    check_levels(&plan, "diaphragm-visco");
+    let plan = plan_of(
+        example("diaphragm-visco").unwrap(),
+        &["mesh.formulation=\"standard\""],
+    );
+    check_levels(&plan, "diaphragm-visco, standard formulation");
+    let text = example("film-vibration")
+        .unwrap()
+        .replace("model = \"neo-hooke\"", "preset = \"vhb4910-wang2016\"\n#")
+        .replace("mu = 1e5", "")
+        .replace("lambda = 1e7", "")
+        .replace("permittivity = 4.7", "");
+    let plan = plan_of(&text, &["materials.elastomer.viscosity=0"]);
+    check_levels(&plan, "3-D Maxwell film");
+}
+
+#[test]
+fn level_products_of_charge_and_circuit_controlled_films_match_finite_differences() {
+    let text = example("film-vibration").unwrap();
+    let top = "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    let charge = text.replace(top, "charge = 3.6e-9");
+    check_levels(
+        &plan_of(&charge, &["materials.elastomer.viscosity=100"]),
+        "charge-controlled film",
+    );
+    let circuit = text.replace(
+        top,
+        "circuit = { source = { waveform = \"step\", amplitude = 1e3, at = 0.0 }, resistance = 1e6 }",
+    );
+    check_levels(
+        &plan_of(&circuit, &["materials.elastomer.viscosity=100"]),
+        "circuit-driven film",
+    );
+}
+
+/// A load step's products (the new state over every dof, follower pressures included, and the
+/// committed internal variables of a quasi-static step) against central differences of wᵀR, at
+/// a general state of `plan`'s model with its pressures on: the largest relative difference
+/// per input.
+fn static_level_errors(plan: &Plan) -> Vec<(&'static str, f64)> {
+    use deasim::algebra::system::LoadedSystem;
+    use deasim::problem::statics::StaticProblem;
+    let mut model = plan.model.clone();
+    model.dirichlet = plan.supports.clone();
+    for p in &mut model.pressures {
+        p.ramp = [0.5, 1.0];
+    }
+    let mut next = generator(31);
+    let mut problem = StaticProblem::new(&model, None);
+    problem.duration = 1.0;
+    problem.set_load(0.7);
+    let x: Vec<f64> = (0..problem.dofs.n_free).map(|_| next()).collect();
+    let mut full = vec![0.0; problem.state.len()];
+    problem.dofs.add_scaled(&mut full, &x, 1.0);
+    let umax = (0..full.len())
+        .filter(|d| d % FIELDS != FIELDS - 1)
+        .fold(0.0f64, |m, d| m.max(full[d].abs()));
+    let length = model.cell_size();
+    let x: Vec<f64> = x.iter().map(|v| v * 0.02 * length / umax).collect();
+    problem.increment(&x, 1.0);
+    let configuration: Vec<f64> = problem.state.iter().map(|v| 2.0 * v).collect();
+    let virgin = problem.points.data.clone();
+    problem.points.commit(&model, &configuration, 10.0).unwrap();
+    assert!(virgin.is_empty() || problem.points.data != virgin);
+    let w: Vec<f64> = (0..problem.dofs.n_free).map(|_| next()).collect();
+    let vjp = problem.level_vjp(&w).unwrap();
+    let (state, size) = (problem.state.clone(), 1e-4);
+    let mut errors = Vec::new();
+    let mut worst = 0.0f64;
+    for _ in 0..3 {
+        let delta = nodal_direction(&state, &state, &mut next);
+        let input: Input<StaticProblem> = |s| &mut s.state;
+        worst = worst.max(directional_error(
+            &mut problem,
+            &w,
+            input,
+            &vjp.q_new,
+            &delta,
+        ));
+    }
+    errors.push(("q_new", worst));
+    if !virgin.is_empty() {
+        let mut worst = 0.0f64;
+        for _ in 0..3 {
+            let delta: Vec<f64> = (0..virgin.len()).map(|_| size * next()).collect();
+            let input: Input<StaticProblem> = |s| &mut s.points.data;
+            worst = worst.max(directional_error(
+                &mut problem,
+                &w,
+                input,
+                &vjp.points,
+                &delta,
+            ));
+        }
+        errors.push(("internal variables", worst));
+    }
+    errors
+}
+
+#[test]
+fn level_products_of_load_steps_match_finite_differences() {
+    let balloon = plan_of(example("balloon").unwrap(), &[]);
+    assert!(!balloon.model.pressures.is_empty());
+    let visco = plan_of(example("diaphragm-visco").unwrap(), &[]);
+    let balloon_3d = plan_of(example("balloon-volume").unwrap(), &[]);
+    for (plan, what) in [
+        (&balloon, "balloon under pressure"),
+        (&balloon_3d, "3-D balloon"),
+        (&visco, "quasi-static diaphragm-visco"),
+    ] {
+        for (input, e) in static_level_errors(plan) {
+            assert!(e <= 1e-6, "{what}: {input} off by {e:e}");
         }
     }
 }

@@ -121,6 +121,40 @@ pub fn point_deformations_md(
     Ok(())
 }
 
+/// ∂(wᵀr)/∂P̄ at each quadrature point of a mean-dilatation cell at `local` (P̄ the stress the
+/// material gives at F̄): with δF_q = F(w) − I and the effective stresses of
+/// [`effective_stresses`], w_p [α_p δF_p − ⅓(F⁻ᵀ_p : δF_p) F̄_p + c F̄_p / (3θ̄V)], where
+/// c = Σ_q w_q J_q F⁻ᵀ_q : δF_q.
+pub fn stress_weights_md(
+    geom: &CellGeometry,
+    local: &[f64],
+    w: &[f64],
+    out: &mut [Mat3],
+) -> Result<(), PointFailure> {
+    let mut k = MdKinematics::identity();
+    k.compute(geom, local)?;
+    let n = geom.n_nodes;
+    let (u, phi) = split_local(n, w);
+    let mut df = [Mat3::zeros(); MAX_QP];
+    let mut c = 0.0;
+    for q in 0..geom.n_qp {
+        let (f, _) = if geom.axisymmetric {
+            meridian_kinematics(&geom.grad[q][..n], &geom.hoop(q)[..n], &u[..n], &phi[..n])
+        } else {
+            kinematics(&geom.grad[q][..n], &u[..n], &phi[..n])
+        };
+        df[q] = f - Mat3::identity();
+        c += geom.weights[q] * k.j[q] * k.finv_t[q].dot(&df[q]);
+    }
+    let mean = c / (3.0 * k.theta * k.volume);
+    for q in 0..geom.n_qp {
+        let fbar = k.fbar(q);
+        let trace = k.finv_t[q].dot(&df[q]) / 3.0;
+        out[q] = (df[q] * k.alpha[q] + fbar * (mean - trace)) * geom.weights[q];
+    }
+    Ok(())
+}
+
 /// Kinematics of a cell under the mean-dilatation formulation.
 struct MdKinematics {
     f: [Mat3; MAX_QP],

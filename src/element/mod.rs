@@ -71,6 +71,25 @@ pub trait CellKernel: Send + Sync {
         cell: &CellInput,
         out: &mut [(Mat3, Vec3)],
     ) -> Result<(), PointFailure>;
+    /// ∂(wᵀr)/∂P at each quadrature point, into `out[..n_qp]`: how the product of `w` (4 values
+    /// per node) with the cell residual changes with the first Piola stress the material gives
+    /// at that point (at the deformation of [`CellKernel::point_deformations`]). With it the
+    /// derivative of the residual in anything a point's stress depends on (its internal
+    /// variables) is one material product per point. The default holds for kernels whose F is
+    /// linear in the displacements, r = Σ_q w_q P_q : δF_q: the weight w_q (F(w) − I).
+    fn stress_weights(
+        &self,
+        cell: &CellInput,
+        w: &[f64],
+        out: &mut [Mat3],
+    ) -> Result<(), PointFailure> {
+        let mut fw = [(Mat3::identity(), Vec3::zeros()); crate::fem::MAX_QP];
+        self.point_deformations(&CellInput { local: w, ..*cell }, &mut fw)?;
+        for (q, o) in out[..cell.geom.n_qp].iter_mut().enumerate() {
+            *o = (fw[q].0 - Mat3::identity()) * cell.geom.weights[q];
+        }
+        Ok(())
+    }
     /// The residual of a dynamic step without its tangent, `f_r`·(r + r_vis), into `r`: the
     /// residual of [`CellKernel::residual_tangent`] plus, when `viscous` gives the Kelvin–Voigt
     /// kernel and the nodal velocities (4 per node), the viscous forces of
@@ -182,6 +201,14 @@ impl CellKernel for MeanDilatationKernel {
         out: &mut [(Mat3, Vec3)],
     ) -> Result<(), PointFailure> {
         mean_dilatation::point_deformations_md(c.geom, c.local, out)
+    }
+    fn stress_weights(
+        &self,
+        c: &CellInput,
+        w: &[f64],
+        out: &mut [Mat3],
+    ) -> Result<(), PointFailure> {
+        mean_dilatation::stress_weights_md(c.geom, c.local, w, out)
     }
     fn dynamic_residual(
         &self,

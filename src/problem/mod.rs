@@ -12,3 +12,4 @@ pub mod model;
 pub mod points;
 pub mod pressure;
 pub mod statics;
+pub mod step;

@@ -97,6 +97,14 @@ impl PointStates {
         self.offsets.is_empty()
     }
 
+    /// Where cell `c`'s values lie in `data` (empty for a cell without them here).
+    pub fn cell_range(&self, c: usize) -> std::ops::Range<usize> {
+        if self.offsets.is_empty() {
+            return 0..0;
+        }
+        self.offsets[c]..self.offsets[c + 1]
+    }
+
     /// The history of cell `c` (of material `m`) for a step of `dt`.
     pub fn cell(&self, c: usize, m: usize, dt: f64) -> CellHistory<'_> {
         if self.offsets.is_empty() {

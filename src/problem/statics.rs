@@ -11,6 +11,7 @@ use crate::problem::assembly::{Assembler, GlobalTerms};
 use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
+use crate::problem::step::{cell_products, LevelVjp, StepOperator};
 
 /// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
 const RESIDUAL_FLOOR: f64 = 1e-11;
@@ -191,20 +192,6 @@ impl<'m> StaticProblem<'m> {
         if self.assembler.is_shared() {
             self.assembler = Assembler::new(&self.model.mesh, &self.dofs);
         }
-    }
-
-    /// wᵀ ∂R/∂θ of the (scaled) residual over the free unknowns at the current state, for the
-    /// parameters of material `material`: only the internal forces depend on them. The scaling
-    /// of the unknowns (from the moduli) is held: a numerical choice, not part of the equations.
-    pub fn parameter_vjp(&self, w: &[f64], material: usize) -> Result<Vec<f64>, String> {
-        parameter_vjp(
-            self.model,
-            &self.state,
-            &self.points,
-            self.dt(),
-            material,
-            &crate::problem::dofs::free_weights(&self.dofs, w),
-        )
     }
 
     /// The assembler (for benchmarks).
@@ -779,6 +766,50 @@ impl NonlinearSystem for StaticProblem<'_> {
 
     fn layout(&self) -> Option<DofLayout> {
         Some(layout_of(self.model, &self.dofs, &self.assembler))
+    }
+}
+
+/// A load step (static, quasi-static, continuation, or the potential's projection): the new state
+/// is the only state in its equations; the committed internal variables and the load factor's
+/// prescribed values are its other inputs.
+impl StepOperator for StaticProblem<'_> {
+    fn level_vjp(&mut self, w: &[f64]) -> Result<LevelVjp, String> {
+        let m = self.model;
+        let weights = crate::problem::dofs::free_weights(&self.dofs, w);
+        let p = cell_products(m, &self.state, None, &[], &self.points, self.dt(), &weights)?;
+        let mut q_new = p.stiffness;
+        let fractions = self.pressure_fractions();
+        for (pressure, &load) in m.pressures.iter().zip(&fractions) {
+            if load != 0.0 {
+                let mut put = |i: usize, j: usize, v: f64| q_new[j] += weights[i] * v;
+                let mut unused = vec![0.0; self.state.len()];
+                crate::problem::pressure::add_pressure(
+                    pressure,
+                    load,
+                    &self.state,
+                    &mut unused,
+                    Some(&mut put),
+                );
+            }
+        }
+        Ok(LevelVjp {
+            q_new,
+            points: p.points,
+            ..LevelVjp::default()
+        })
+    }
+
+    /// Only the internal forces depend on a material's parameters. The scaling of the unknowns
+    /// (from the moduli) is held: a numerical choice, not part of the equations.
+    fn parameter_vjp(&mut self, w: &[f64], material: usize) -> Result<Vec<f64>, String> {
+        parameter_vjp(
+            self.model,
+            &self.state,
+            &self.points,
+            self.dt(),
+            material,
+            &crate::problem::dofs::free_weights(&self.dofs, w),
+        )
     }
 }
 

@@ -30,6 +30,7 @@ use crate::problem::dofs::{free_weights, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::{discretize, layout_of};
+use crate::problem::step::{cell_products, LevelVjp, StepOperator};
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
 use crate::time::trapezoidal::own_cells_power;
@@ -178,31 +179,6 @@ impl<'m> TimeStep<'m> {
         let mut points = self.points.clone();
         let dissipated = points.commit(self.model, &self.work_q, self.dt)?;
         Ok((points, dissipated))
-    }
-
-    /// wᵀ ∂R/∂θ of the step residual (scaled, over the free unknowns, at the current q_{n+1}) for
-    /// the parameters of material `material` ([`crate::material::Material::parameters`]): the
-    /// internal forces enter R with the factor of the scheme (½Δt midpoint, βΔt² Newmark) at the
-    /// evaluation point, and nothing else in R depends on a material parameter. The scaling of
-    /// the unknowns (from the moduli) is held: a numerical choice, not part of the equations.
-    pub fn parameter_vjp(&mut self, w: &[f64], material: usize) -> Result<Vec<f64>, String> {
-        self.evaluation_point();
-        let f_r = match self.scheme {
-            Scheme::Midpoint => 0.5 * self.dt,
-            Scheme::Newmark { beta, .. } => beta * self.dt * self.dt,
-        };
-        let full: Vec<f64> = free_weights(&self.dofs, w)
-            .into_iter()
-            .map(|x| f_r * x)
-            .collect();
-        crate::problem::statics::parameter_vjp(
-            self.model,
-            &self.work_q,
-            &self.points,
-            self.dt,
-            material,
-            &full,
-        )
     }
 
     /// Prepares the step to `prev.t + dt`: prescribed potentials `phi_d(t)` on the electrode nodes
@@ -464,6 +440,127 @@ impl<'m> TimeStep<'m> {
             a: saved.a_prev,
         };
         self.factor_point = Some(at);
+    }
+}
+
+impl StepOperator for TimeStep<'_> {
+    /// The step's equations see the previous level through the evaluation point (q_eval,
+    /// v_eval), the inertia term and the circuits' charges; each input's product is a
+    /// combination of the cells' transposed products at the evaluation point with the
+    /// coefficients of the scheme (∂q_eval/∂x, ∂v_eval/∂x, ∂m/∂x for the inertia term M·m).
+    fn level_vjp(&mut self, w: &[f64]) -> Result<LevelVjp, String> {
+        self.evaluation_point();
+        let (dt, model) = (self.dt, self.model);
+        let weights = free_weights(&self.dofs, w);
+        let n = weights.len();
+        let p = cell_products(
+            model,
+            &self.work_q,
+            Some(&self.work_v),
+            &self.viscosity,
+            &self.points,
+            dt,
+            &weights,
+        )?;
+        let f_r = self.residual_factor();
+        // the products through the evaluation configuration and velocity
+        let mut through_q: Vec<f64> = (0..n)
+            .map(|d| f_r * (p.stiffness[d] + p.viscous_configuration[d]))
+            .collect();
+        let mut through_v: Vec<f64> = p.viscous_velocity.iter().map(|x| f_r * x).collect();
+        for &(node, c) in &model.point_dampers {
+            for i in 0..3 {
+                through_v[node * FIELDS + i] += f_r * c * weights[node * FIELDS + i];
+            }
+        }
+        let midpoint = self.scheme == Scheme::Midpoint;
+        let mut circuits = Vec::with_capacity(model.circuits.len());
+        for (c, st) in model.circuits.iter().zip(&self.circuits) {
+            let d = c.nodes[0] * FIELDS + PHI;
+            let wq = f_r * weights[d];
+            let (_, dq) = st.charge_at(midpoint, dt, c.resistance, self.work_q[d]);
+            through_q[d] += wq * dq;
+            // the charge's derivatives in the circuit's start and its source: g = −dq
+            circuits.push(if midpoint {
+                CircuitStep {
+                    charge: wq,
+                    voltage: 0.0,
+                    source: [0.0, -wq * dq, 0.0],
+                }
+            } else {
+                CircuitStep {
+                    charge: wq,
+                    voltage: wq * dq,
+                    source: [-wq * dq, 0.0, -wq * dq],
+                }
+            });
+        }
+        // the inertia term M·m over the displacements
+        let mut inertia = weights.clone();
+        inertia
+            .iter_mut()
+            .skip(PHI)
+            .step_by(FIELDS)
+            .for_each(|x| *x = 0.0);
+        let mut mw = vec![0.0; n];
+        self.mass.mul(&inertia, &mut mw);
+        // (∂q_eval/∂x, ∂v_eval/∂x, ∂m/∂x) for x = q_{n+1}, q_n, v_n, a_n
+        let (new, q, v, a) = match self.scheme {
+            Scheme::Midpoint => (
+                (0.5, 1.0 / dt, 1.0 / dt),
+                (0.5, -1.0 / dt, -1.0 / dt),
+                (0.0, 0.0, -1.0),
+                (0.0, 0.0, 0.0),
+            ),
+            Scheme::Newmark { beta, gamma } => (
+                (1.0, gamma / (beta * dt), 1.0),
+                (0.0, -gamma / (beta * dt), -1.0),
+                (0.0, 1.0 - gamma / beta, -dt),
+                (
+                    0.0,
+                    dt * (1.0 - 0.5 * gamma / beta),
+                    -dt * dt * (0.5 - beta),
+                ),
+            ),
+        };
+        let combine = |(cq, cv, cm): (f64, f64, f64)| -> Vec<f64> {
+            (0..n)
+                .map(|d| cq * through_q[d] + cv * through_v[d] + cm * mw[d])
+                .collect()
+        };
+        Ok(LevelVjp {
+            q_new: combine(new),
+            q: combine(q),
+            v: combine(v),
+            a: combine(a),
+            points: p.points.iter().map(|x| f_r * x).collect(),
+            circuits,
+        })
+    }
+
+    /// wᵀ ∂R/∂θ of the step residual (scaled, over the free unknowns, at the current q_{n+1}) for
+    /// the parameters of material `material` ([`crate::material::Material::parameters`]): the
+    /// internal forces enter R with the factor of the scheme (½Δt midpoint, βΔt² Newmark) at the
+    /// evaluation point, and nothing else in R depends on a material parameter. The scaling of
+    /// the unknowns (from the moduli) is held: a numerical choice, not part of the equations.
+    fn parameter_vjp(&mut self, w: &[f64], material: usize) -> Result<Vec<f64>, String> {
+        self.evaluation_point();
+        let f_r = match self.scheme {
+            Scheme::Midpoint => 0.5 * self.dt,
+            Scheme::Newmark { beta, .. } => beta * self.dt * self.dt,
+        };
+        let full: Vec<f64> = free_weights(&self.dofs, w)
+            .into_iter()
+            .map(|x| f_r * x)
+            .collect();
+        crate::problem::statics::parameter_vjp(
+            self.model,
+            &self.work_q,
+            &self.points,
+            self.dt,
+            material,
+            &full,
+        )
     }
 }
 
