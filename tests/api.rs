@@ -396,3 +396,57 @@ fn a_run_resumed_through_the_library_equals_the_uninterrupted_run() {
     let csv = |d: &std::path::Path| std::fs::read_to_string(d.join("history.csv")).unwrap();
     assert_eq!(csv(&dir), csv(&whole));
 }
+
+/// Keeps the messages the library reports through the `log` facade.
+struct Captured(std::sync::Mutex<Vec<String>>);
+
+impl log::Log for Captured {
+    fn enabled(&self, _: &log::Metadata) -> bool {
+        true
+    }
+    fn log(&self, record: &log::Record) {
+        if let Ok(mut lines) = self.0.lock() {
+            lines.push(record.args().to_string());
+        }
+    }
+    fn flush(&self) {}
+}
+
+static CAPTURED: Captured = Captured(std::sync::Mutex::new(Vec::new()));
+
+#[test]
+fn a_run_on_the_ranks_reports_through_the_log_facade() {
+    log::set_logger(&CAPTURED).expect("the only logger of these tests");
+    log::set_max_level(log::LevelFilter::Info);
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path().join("logged");
+    checkpointed_run(&dir, Some(2)).outcome.unwrap_err();
+    read_checkpoint(&dir)
+        .unwrap()
+        .run_on_ranks(RankOptions::default())
+        .unwrap()
+        .outcome
+        .unwrap();
+    let lines = CAPTURED.0.lock().unwrap().clone();
+    let of_this_run = |start: &str| {
+        lines
+            .iter()
+            .any(|l| l.starts_with(start) && l.contains(&dir.display().to_string()))
+    };
+    assert!(
+        of_this_run("deasim: scenario `film`: 75 nodes, 32 hex8 cells, 300 dofs"),
+        "{lines:#?}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("deasim: linear solver: ")),
+        "{lines:#?}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("deasim: resuming `film` from step 1 (stage 0, 2 steps")),
+        "{lines:#?}"
+    );
+}

@@ -768,7 +768,38 @@ pub fn cmd_example(name: Option<&str>) -> i32 {
 
 #[cfg(test)]
 mod progress_tests {
-    use super::progress_time;
+    use super::{progress_time, Progress};
+    use crate::job::observer::Observer;
+    use crate::job::run::StepRecord;
+
+    /// A progress made before the plan is built takes the plan's nominal steps from its first
+    /// step, and counts from there.
+    #[test]
+    fn progress_learns_the_total_from_the_run() {
+        let plan = super::load(Some(std::path::Path::new("film")), &[]).unwrap();
+        let mut progress = Progress::new();
+        assert_eq!(progress.total_steps, 0);
+        let record = |step| StepRecord {
+            time: 0.0,
+            stage: "charge".into(),
+            step,
+            voltage: 0.0,
+            newton_iterations: 0,
+            dt: 0.0,
+            energies: Default::default(),
+            probes: Vec::new(),
+            max_electric_field: 0.0,
+            electrodes: Vec::new(),
+        };
+        progress.step(&plan, &record(0), &[], &[]);
+        progress.step(&plan, &record(1), &[], &[]);
+        assert_eq!(progress.total_steps, 15);
+        assert!(
+            progress.position().starts_with("1/15 steps, 7 %"),
+            "{}",
+            progress.position()
+        );
+    }
 
     /// µs steps are told apart; a ms step keeps its four decimals.
     #[test]
