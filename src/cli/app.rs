@@ -239,7 +239,7 @@ impl Observer for Progress {
         }
     }
 
-    // the closing line waits for the outputs ([`execute`]): a failed write is no "finished"
+    // the closing line waits for the outputs ([`report`]): a failed write is no "finished"
     fn finished(&mut self, _plan: &Plan, _s: &RunSummary) {
         if let Some(b) = &self.bar {
             b.finish_and_clear();
