@@ -1,7 +1,10 @@
 //! The library interface as a program uses it: build a simulation, override keys, run it, cancel
 //! it, read its results, and receive each kind of error, without the command line.
 
-use deasim::api::{Cancel, Error, FieldsKept, RunOptions, Simulation};
+use deasim::api::{
+    read_checkpoint, run_plan, Cancel, Error, FieldsKept, History, RankOptions, RankRun,
+    RunOptions, Simulation,
+};
 use deasim::element::CellFields;
 use deasim::job::observer::Observer;
 use deasim::job::plan::Plan;
@@ -266,4 +269,184 @@ fn the_small_signal_base_state_uses_the_plans_newton() {
     assert!(moved > 1e-6, "the relaxed state is another state: {moved}");
     let error = deasim::job::linear::base_state(&visco("1").plan().unwrap(), state).unwrap_err();
     assert!(error.contains("relaxed state was not reached"), "{error}");
+}
+
+/// Asserts that two histories are the same, bit for bit (a NaN equals a NaN).
+fn assert_same_history(a: &History, b: &History) {
+    assert_eq!(a.stage, b.stage);
+    assert_eq!(a.names(), b.names());
+    for ((name, x), (_, y)) in a.columns.iter().zip(&b.columns) {
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(x), bits(y), "column {name}: {x:?} vs {y:?}");
+    }
+}
+
+/// The film ramped in 8 steps with plots off: the scenario of the checkpoint tests.
+fn film_to_resume() -> Simulation {
+    film()
+        .set("stages.0.steps", "8")
+        .set("output.plots", "false")
+}
+
+/// Runs [`film_to_resume`] into `dir` with a checkpoint every 3 steps, cancelled after
+/// `after` accepted steps (no cancel: `None`).
+fn checkpointed_run(dir: &std::path::Path, after: Option<usize>) -> RankRun {
+    let cancel = Cancel::new();
+    let mut watcher = CancelAfter {
+        cancel: cancel.clone(),
+        after: after.unwrap_or(usize::MAX),
+        seen: 0,
+    };
+    film_to_resume()
+        .run_on_ranks(RankOptions {
+            out: Some(dir.to_path_buf()),
+            checkpoint_every: Some(3),
+            observers: vec![&mut watcher],
+            cancel: Some(cancel),
+            ..RankOptions::default()
+        })
+        .expect("the run starts")
+}
+
+#[test]
+fn a_run_on_the_ranks_of_one_process_writes_the_files_of_deasim_run() {
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path().join("out");
+    let run = checkpointed_run(&dir, None);
+    assert_eq!((run.rank, run.ranks), (0, 1));
+    assert_eq!(run.dir, dir);
+    let results = run.outcome.expect("the film converges");
+    assert_eq!(results.records.len(), 9);
+    let history = std::fs::read_to_string(dir.join("history.csv")).unwrap();
+    assert_eq!(history.lines().count(), 1 + results.records.len());
+    let summary = std::fs::read_to_string(dir.join("summary.json")).unwrap();
+    assert!(summary.contains("stages.0.steps=8"), "{summary}");
+    assert!(dir.join("checkpoint").is_dir(), "no checkpoints written");
+    // a finished run has nothing to resume
+    let error = read_checkpoint(&dir).expect_err("the run finished");
+    assert!(matches!(error, Error::Refused(_)), "{error:?}");
+    assert!(error.to_string().contains("already finished"), "{error}");
+    // another scenario's results are refused without `overwrite`
+    let error = Simulation::from_example("diaphragm")
+        .unwrap()
+        .run_on_ranks(RankOptions {
+            out: Some(dir.clone()),
+            ..RankOptions::default()
+        })
+        .expect_err("the directory holds the film's results");
+    assert!(matches!(error, Error::Refused(_)), "{error:?}");
+    // a directory that does not exist holds no checkpoint
+    let error = read_checkpoint(&scratch.path().join("none")).unwrap_err();
+    assert!(error.to_string().contains("no such directory"), "{error}");
+}
+
+#[test]
+fn a_run_resumed_through_the_library_equals_the_uninterrupted_run() {
+    let uninterrupted = film_to_resume().run(RunOptions::default()).unwrap();
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path().join("cut");
+    let run = checkpointed_run(&dir, Some(5));
+    let Err(Error::Interrupted { results, .. }) = run.outcome else {
+        panic!("not cancelled: {:?}", run.outcome);
+    };
+    assert_eq!(results.records.len(), 5);
+    // in this process: the state from the checkpoint, checked against the rebuilt plan
+    let resume = read_checkpoint(&dir).expect("a checkpoint to resume from");
+    assert!(resume.state().accepted >= 3, "{resume:?}");
+    assert_eq!(resume.every(), 3);
+    let sim = resume.simulation();
+    assert_eq!(sim.overrides(), film_to_resume().overrides());
+    let plan = sim.plan().unwrap();
+    let start = resume.start(&plan).expect("the checkpoint fits its plan");
+    let resumed = run_plan(
+        &plan,
+        RunOptions {
+            start: Some(start),
+            ..RunOptions::default()
+        },
+    )
+    .expect("the resumed run converges");
+    assert_same_history(&resumed.history, &uninterrupted.history);
+    assert_eq!(resumed.records.len(), 9);
+    // the plan of another model does not take the checkpoint's state
+    let other = film_to_resume()
+        .set("mesh.divisions", "[4, 4, 3]")
+        .plan()
+        .unwrap();
+    let Err(error) = resume.start(&other) else {
+        panic!("the state of a 4 × 4 × 2 mesh taken by a 4 × 4 × 3 one");
+    };
+    assert!(matches!(error, Error::Refused(_)), "{error:?}");
+    assert!(error.to_string().contains("does not match"), "{error}");
+    // the interval of the checkpoints is the run's own
+    let error = resume
+        .run_on_ranks(RankOptions {
+            checkpoint_every: Some(4),
+            ..RankOptions::default()
+        })
+        .expect_err("another interval");
+    assert!(error.to_string().contains("interval"), "{error}");
+    // in its output directory, as `deasim run --resume`: the files of an uninterrupted run
+    let resume = read_checkpoint(&dir).unwrap();
+    let run = resume.run_on_ranks(RankOptions::default()).unwrap();
+    let results = run.outcome.expect("the resumed run converges");
+    assert_same_history(&results.history, &uninterrupted.history);
+    let whole = scratch.path().join("whole");
+    checkpointed_run(&whole, None).outcome.unwrap();
+    let csv = |d: &std::path::Path| std::fs::read_to_string(d.join("history.csv")).unwrap();
+    assert_eq!(csv(&dir), csv(&whole));
+}
+
+/// Keeps the messages the library reports through the `log` facade.
+struct Captured(std::sync::Mutex<Vec<String>>);
+
+impl log::Log for Captured {
+    fn enabled(&self, _: &log::Metadata) -> bool {
+        true
+    }
+    fn log(&self, record: &log::Record) {
+        if let Ok(mut lines) = self.0.lock() {
+            lines.push(record.args().to_string());
+        }
+    }
+    fn flush(&self) {}
+}
+
+static CAPTURED: Captured = Captured(std::sync::Mutex::new(Vec::new()));
+
+#[test]
+fn a_run_on_the_ranks_reports_through_the_log_facade() {
+    log::set_logger(&CAPTURED).expect("the only logger of these tests");
+    log::set_max_level(log::LevelFilter::Info);
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path().join("logged");
+    checkpointed_run(&dir, Some(2)).outcome.unwrap_err();
+    read_checkpoint(&dir)
+        .unwrap()
+        .run_on_ranks(RankOptions::default())
+        .unwrap()
+        .outcome
+        .unwrap();
+    let lines = CAPTURED.0.lock().unwrap().clone();
+    let of_this_run = |start: &str| {
+        lines
+            .iter()
+            .any(|l| l.starts_with(start) && l.contains(&dir.display().to_string()))
+    };
+    assert!(
+        of_this_run("deasim: scenario `film`: 75 nodes, 32 hex8 cells, 300 dofs"),
+        "{lines:#?}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("deasim: linear solver: ")),
+        "{lines:#?}"
+    );
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("deasim: resuming `film` from step 1 (stage 0, 2 steps")),
+        "{lines:#?}"
+    );
 }

@@ -27,6 +27,28 @@ pub enum Error {
         reason: String,
         results: Box<Results>,
     },
+    /// The run ended, but an output file could not be written (`message` says which);
+    /// `results` hold its outcome (its summary says whether it converged or was stopped).
+    #[error("{message}")]
+    Output {
+        path: PathBuf,
+        message: String,
+        results: Box<Results>,
+    },
+    /// The run cannot be carried out as asked: its output directory holds another run's results
+    /// or cannot be prepared, a checkpoint does not fit the scenario or this run, or an MPI
+    /// launcher started several processes for a solver that is not distributed.
+    #[error("{0}")]
+    Refused(String),
+    /// The MPI ranks of a distributed run could not work together (a collective call failed, a
+    /// rank's part of the plan could not be made).
+    #[error("{0}")]
+    Ranks(String),
+    /// Another MPI rank found the fault and reports it; this rank stays silent. `input`: the
+    /// fault is of the input's kind ([`Error::Input`], [`Error::Refused`]), else of the ranks'
+    /// ([`Error::Ranks`]).
+    #[error("another MPI rank failed (its message is on that rank)")]
+    OtherRank { input: bool },
 }
 
 impl Error {
@@ -41,7 +63,9 @@ impl Error {
     /// The results of a run that stopped early (every accepted step), if it started.
     pub fn results(&self) -> Option<&Results> {
         match self {
-            Error::Solve { results, .. } | Error::Interrupted { results, .. } => Some(results),
+            Error::Solve { results, .. }
+            | Error::Interrupted { results, .. }
+            | Error::Output { results, .. } => Some(results),
             _ => None,
         }
     }

@@ -1,13 +1,16 @@
 //! The library's interface for programs: build a [`Simulation`] from a scenario (a file, a TOML
 //! text or an embedded example) with overrides by key path (the strings `--set` takes), run it
-//! with observers and a [`Cancel`] token, and read its [`Results`]; every failure is one
-//! [`Error`] that keeps its kind. Nothing here prints; the command line and the Python package
-//! are front ends on it.
+//! with observers and a [`Cancel`] token (in this process, or on the MPI ranks a launcher
+//! started, writing the files of `deasim run`), resume a checkpointed run, and read its
+//! [`Results`]; every failure is one [`Error`] that keeps its kind. Nothing here prints; the
+//! command line and the Python package are front ends on it.
 
 mod error;
+mod ranks;
 mod results;
 mod simulation;
 
 pub use error::Error;
+pub use ranks::{launched_rank, launched_size, read_checkpoint, RankOptions, RankRun, Resume};
 pub use results::{FieldsKept, History, ProbeStatistics, Results, StepFields};
 pub use simulation::{prepare_output, read_scenario, run_plan, Cancel, RunOptions, Simulation};

@@ -17,12 +17,12 @@ use std::sync::Arc;
 /// A scenario and its overrides: what [`Simulation::plan`] builds and [`Simulation::run`] runs.
 #[derive(Debug, Clone)]
 pub struct Simulation {
-    text: String,
+    pub(super) text: String,
     /// The name the scenario is read under (its path, `<embedded NAME>`, `<text>`), in errors.
-    name: String,
+    pub(super) name: String,
     /// The directory its relative paths (meshes, data) are read from.
-    base: Option<PathBuf>,
-    overrides: Vec<String>,
+    pub(super) base: Option<PathBuf>,
+    pub(super) overrides: Vec<String>,
 }
 
 impl Simulation {
@@ -33,6 +33,19 @@ impl Simulation {
             message: format!("cannot read the scenario: {e}"),
         })?;
         let (text, name, base) = read_scenario(Some(path))?;
+        Ok(Simulation {
+            text,
+            name,
+            base,
+            overrides: Vec::new(),
+        })
+    }
+
+    /// The scenario as the command line reads it ([`read_scenario`]): the file `path`, `-` for
+    /// standard input, the name of an embedded example when no such file exists, or the
+    /// default example when `None`.
+    pub fn read(path: Option<&Path>) -> Result<Simulation, Error> {
+        let (text, name, base) = read_scenario(path)?;
         Ok(Simulation {
             text,
             name,
@@ -157,7 +170,8 @@ pub struct RunOptions<'a> {
     pub overrides: Vec<String>,
 }
 
-/// Runs `plan`: the results of a converged run, or the error with every step accepted before.
+/// Runs `plan`: the results of a converged run, or the error with every step accepted before
+/// (an output of `out` that could not be written: [`Error::Output`]).
 pub fn run_plan(plan: &Plan, options: RunOptions) -> Result<Results, Error> {
     let RunOptions {
         mut observers,
@@ -203,7 +217,11 @@ pub fn run_plan(plan: &Plan, options: RunOptions) -> Result<Results, Error> {
             .warnings
             .extend(writer.errors.iter().cloned());
         if let Some(message) = writer.write_failure().or(dir.record().err()) {
-            return Err(Error::Io { path, message });
+            return Err(Error::Output {
+                path,
+                message,
+                results: Box::new(results),
+            });
         }
         return outcome(results);
     }
@@ -211,7 +229,7 @@ pub fn run_plan(plan: &Plan, options: RunOptions) -> Result<Results, Error> {
 }
 
 /// The results of a run, or its error.
-fn outcome(results: Results) -> Result<Results, Error> {
+pub(super) fn outcome(results: Results) -> Result<Results, Error> {
     let summary = &results.summary;
     if summary.interrupted {
         let reason = summary

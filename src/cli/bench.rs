@@ -14,23 +14,8 @@ use crate::solve::newton::{NewtonSettings, NonlinearSystem};
 use crate::solve::stepping::{LoadedSystem, StepControl};
 use std::time::Instant;
 
-/// Peak resident memory of this process (MiB), from /proc (NaN where unavailable).
-pub fn peak_memory_mib() -> f64 {
-    peak_memory_in("/proc/self/status")
-}
-
-/// The peak resident memory (MiB) in a /proc status file (NaN where unavailable).
-fn peak_memory_in(status: &str) -> f64 {
-    std::fs::read_to_string(status)
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|v| v.parse::<f64>().ok())
-        })
-        .map_or(f64::NAN, |kib| kib / 1024.0)
-}
+use crate::io::memory::peak_memory_in;
+pub use crate::io::memory::peak_memory_mib;
 
 /// Column titles of [`bench_film`]'s rows.
 pub const HEADER: &str = "          mesh      dofs    nnz(K) assem_s resid_s factor1_s numer_s solve_s newton_s static_s its L_nnz(M) peak_MiB";

@@ -2,6 +2,7 @@
 //! memory allows) and tabulates and plots every probe's final value, maximum and steady-state
 //! peak-to-peak against the swept value.
 
+use crate::api::{run_plan, Error, RunOptions};
 use crate::cli::app::{load, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
 use crate::element::CellFields;
 use crate::io::atomic::write_atomic;
@@ -9,7 +10,7 @@ use crate::io::build::{Plan, StageKind};
 use crate::io::output::OutputWriter;
 use crate::io::plot::{stacked_plot, PlotSpec, Series};
 use crate::job::observer::Observer;
-use crate::job::run::{run, StepRecord};
+use crate::job::run::StepRecord;
 use crate::job::state::RunSummary;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -168,15 +169,14 @@ pub fn figures(plan: &Plan, records: &[StepRecord]) -> Vec<ProbeFigures> {
         .collect()
 }
 
-/// Keeps the records and forwards everything to the run's output writer.
-struct Collect<'a> {
+/// Forwards the steps and the end of a run to its output writer (a sweep's runs write their
+/// history, fields and summary).
+struct Forward<'a> {
     writer: &'a mut OutputWriter,
-    records: Vec<StepRecord>,
 }
 
-impl Observer for Collect<'_> {
+impl Observer for Forward<'_> {
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
-        self.records.push(record.clone());
         self.writer.step(plan, record, state, fields);
     }
     fn finished(&mut self, plan: &Plan, summary: &RunSummary) {
@@ -380,12 +380,24 @@ fn run_one(dir: &Path, i: usize, value: f64, plan: &Plan, sets: &[(String, f64)]
             run_dir.join("sweep-value.json").display()
         ));
     }
-    let mut obs = Collect {
+    let mut forward = Forward {
         writer: &mut writer,
-        records: Vec::new(),
     };
-    let summary = run(plan, &mut obs);
-    let figures = figures(plan, &obs.records);
+    let ran = run_plan(
+        plan,
+        RunOptions {
+            observers: vec![&mut forward],
+            ..RunOptions::default()
+        },
+    );
+    let (summary, records) = match ran {
+        Ok(r) => (r.summary, r.records),
+        Err(Error::Solve { results, .. } | Error::Interrupted { results, .. }) => {
+            (results.summary, results.records)
+        }
+        Err(e) => return failed(e.to_string()),
+    };
+    let figures = figures(plan, &records);
     let failure = writer.write_failure();
     Outcome {
         value,

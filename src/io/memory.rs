@@ -122,6 +122,24 @@ pub fn check_set_up(nodes: u64, cells: u64, geometry: bool) -> Result<(), String
     ))
 }
 
+/// Peak resident memory of this process (MiB), from /proc (NaN where unavailable).
+pub fn peak_memory_mib() -> f64 {
+    peak_memory_in("/proc/self/status")
+}
+
+/// The peak resident memory (MiB) in a /proc status file (NaN where unavailable).
+pub fn peak_memory_in(status: &str) -> f64 {
+    std::fs::read_to_string(status)
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|v| v.parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |kib| kib / 1024.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
