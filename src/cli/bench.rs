@@ -509,11 +509,13 @@ pub fn bench_dynamic(
     let inputs = DynamicInputs {
         mass: &mass,
         viscosity: vec![0.0],
-        electrodes: vec![
-            (bottom, Waveform::constant(0.0)),
-            (top, Waveform::constant(20e3)),
-        ],
-        circuits: Vec::new(),
+        drive: crate::problem::drive::Drive {
+            voltages: vec![
+                (bottom, Waveform::constant(0.0)),
+                (top, Waveform::constant(20e3)),
+            ],
+            circuits: Vec::new(),
+        },
         points: Default::default(),
         part: None,
     };

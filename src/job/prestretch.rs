@@ -83,7 +83,7 @@ pub(super) fn prestretch(
                 StageTime {
                     duration,
                     points: outcome.points.clone(),
-                    drive: Vec::new(),
+                    drive: crate::problem::drive::Drive::none(),
                 },
                 None,
                 &control,
@@ -164,7 +164,7 @@ pub(super) fn prestretch(
             StageTime {
                 duration: 0.0,
                 points: PointStates::new(&pre),
-                drive: Vec::new(),
+                drive: crate::problem::drive::Drive::none(),
             },
             None,
             control,

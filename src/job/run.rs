@@ -18,6 +18,7 @@ use super::statics::{solve_static_from, StageTime};
 use crate::algebra::system::NonlinearSystem;
 use crate::problem::distributed::Held;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
+use crate::problem::drive::Drive;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
@@ -29,6 +30,7 @@ use crate::time::modal::ModeSettings;
 use crate::time::stage::{
     run_dynamic_from, DynamicInputs, DynamicResume, DynamicSettings, StageParts,
 };
+use crate::waveform::Waveform;
 use std::time::Instant;
 
 /// Runs every stage of the plan, with the plan's Newton settings and step control.
@@ -519,16 +521,16 @@ impl<'p, 'o> Job<'p, 'o> {
             .collect();
         // a quasi-static stage's electrodes follow their waveforms in stage time
         let drive = if quasi_static {
-            stage_waveforms(plan, stage)
+            plan.drive(stage)
         } else {
-            Vec::new()
+            Drive::none()
         };
         let voltage_at = |s: f64| -> f64 {
             let pick = |m: f64, v: f64| if v.abs() > m.abs() { v } else { m };
             if quasi_static {
                 drive
-                    .iter()
-                    .map(|(_, w)| w.value(s * stage.duration))
+                    .voltages_at(s * stage.duration)
+                    .map(|(_, v)| v)
                     .fold(0.0, pick)
             } else {
                 start_voltages
@@ -1016,19 +1018,7 @@ impl<'p, 'o> Job<'p, 'o> {
         let inputs = DynamicInputs {
             mass: &mass,
             viscosity: plan.viscosities.clone(),
-            electrodes: stage_waveforms(plan, stage),
-            circuits: plan
-                .electrodes
-                .iter()
-                .filter(|e| e.resistance.is_some())
-                .map(|e| {
-                    if stage.electrodes_on {
-                        e.voltage.clone()
-                    } else {
-                        crate::waveform::Waveform::constant(0.0)
-                    }
-                })
-                .collect(),
+            drive: plan.drive(stage),
             points: self.points.clone(),
             part,
         };
@@ -1175,17 +1165,46 @@ impl<'p, 'o> Job<'p, 'o> {
 }
 
 impl Plan {
-    /// The prescribed values of a stage's end: supports and electrodes at their end voltages.
-    /// In dynamic stages a circuit's electrode is free, but its potential counts as prescribed in
-    /// the flags: the circuit does work −Q·ΔV on the body, like a voltage electrode.
-    pub fn stage_conditions(&self, model: &mut Model, stage: &Stage) -> Vec<bool> {
+    /// The drive of a stage: the prescribed electrodes with the waveforms they follow in stage
+    /// time and the circuits' sources, every one at 0 V when the stage has its electrodes off.
+    /// Static stages ramp to its value at their end, quasi-static stages follow it in time,
+    /// dynamic steps take it at their time levels.
+    pub fn drive(&self, stage: &Stage) -> Drive {
         let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
+        let waveform = |w: &Waveform| {
+            if stage.electrodes_on {
+                w.clone()
+            } else {
+                Waveform::constant(0.0)
+            }
+        };
+        Drive {
+            voltages: self
+                .electrodes
+                .iter()
+                .filter(|e| e.prescribed(dynamic))
+                .map(|e| (e.nodes.clone(), waveform(&e.voltage)))
+                .collect(),
+            circuits: self
+                .electrodes
+                .iter()
+                .filter(|e| e.resistance.is_some())
+                .map(|e| waveform(&e.voltage))
+                .collect(),
+        }
+    }
+
+    /// The prescribed values of a stage's end: supports and electrodes at their drive's voltages
+    /// at the stage's end. In dynamic stages a circuit's electrode is free, but its potential
+    /// counts as prescribed in the flags: the circuit does work −Q·ΔV on the body, like a voltage
+    /// electrode.
+    pub fn stage_conditions(&self, model: &mut Model, stage: &Stage) -> Vec<bool> {
         model.dirichlet = self.supports.clone();
-        for e in self.electrodes.iter().filter(|e| e.prescribed(dynamic)) {
+        for (nodes, value) in self.drive(stage).voltages_at(stage.duration) {
             model.dirichlet.push(Dirichlet {
-                nodes: e.nodes.clone(),
+                nodes: nodes.to_vec(),
                 field: Field::Phi,
-                value: stage_voltage(stage, &e.voltage, stage.duration),
+                value,
             });
         }
         let mut flags = constrained_flags(model.mesh.n_nodes(), &model.dirichlet);
@@ -1198,27 +1217,9 @@ impl Plan {
     }
 }
 
-/// Every electrode's nodes with the waveform it follows in a stage (held at 0 V when the stage
-/// has its electrodes off).
-fn stage_waveforms(plan: &Plan, stage: &Stage) -> Vec<(Vec<usize>, crate::waveform::Waveform)> {
-    let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
-    plan.electrodes
-        .iter()
-        .filter(|e| e.prescribed(dynamic))
-        .map(|e| {
-            let w = if stage.electrodes_on {
-                e.voltage.clone()
-            } else {
-                crate::waveform::Waveform::constant(0.0)
-            };
-            (e.nodes.clone(), w)
-        })
-        .collect()
-}
-
 /// The voltage of an electrode's waveform at stage time `t`: waveforms run on stage time (0 at the
 /// start of the stage), as Abaqus' step time; a stage with its electrodes off holds them at 0 V.
-fn stage_voltage(stage: &Stage, w: &crate::waveform::Waveform, t: f64) -> f64 {
+fn stage_voltage(stage: &Stage, w: &Waveform, t: f64) -> f64 {
     if stage.electrodes_on {
         w.value(t)
     } else {

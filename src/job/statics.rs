@@ -18,7 +18,7 @@ use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepCo
 pub struct StageTime {
     pub duration: f64,
     pub points: PointStates,
-    pub drive: Vec<(Vec<usize>, crate::waveform::Waveform)>,
+    pub drive: crate::problem::drive::Drive,
 }
 
 /// Outcome of a static ramp.

@@ -5,6 +5,7 @@ pub mod assembly;
 pub mod circuit;
 pub mod distributed;
 pub mod dofs;
+pub mod drive;
 pub mod examples;
 pub mod faces;
 pub mod loads;

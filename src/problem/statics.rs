@@ -9,6 +9,7 @@ use crate::element::{CellFields, CellInput};
 use crate::material::{Material, ParameterDerivative};
 use crate::problem::assembly::{Assembler, GlobalTerms};
 use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::drive::Drive;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::step::{cell_products, LevelVjp, StepOperator};
@@ -49,9 +50,9 @@ pub struct StaticProblem<'m> {
     /// Load factor of the committed state, and of the current one.
     committed_load: f64,
     s: f64,
-    /// Electrodes that follow their waveforms in stage time (a quasi-static stage): at load
-    /// factor s, the potential of their nodes is w(s·`duration`).
-    pub drive: Vec<(Vec<usize>, crate::waveform::Waveform)>,
+    /// The stage's drive when its electrodes follow their waveforms in stage time (a
+    /// quasi-static stage): at load factor s, their potentials are the drive's at s·`duration`.
+    pub drive: Drive,
     /// Energy dissipated by the material points over the accepted steps (J), and over the last
     /// one.
     pub dissipated: f64,
@@ -157,7 +158,7 @@ impl<'m> StaticProblem<'m> {
             duration: 0.0,
             committed_load: 0.0,
             s: 0.0,
-            drive: Vec::new(),
+            drive: Drive::none(),
             dissipated: 0.0,
             dissipated_step: 0.0,
             extra_charges: Vec::new(),
@@ -829,12 +830,8 @@ impl LoadedSystem for StaticProblem<'_> {
                 self.state[d] = self.start[d] + s * (end[d] - self.start[d]);
             }
         }
-        for (nodes, w) in &self.drive {
-            let v = w.value(s * self.duration);
-            for &n in nodes {
-                self.state[DofMap::dof(n, PHI)] = v;
-            }
-        }
+        self.drive
+            .apply_voltages(&mut self.state, s * self.duration);
     }
 
     /// Commits the material points' internal variables at the accepted state.

@@ -11,12 +11,12 @@ use crate::algebra::exchange::{Exchange, LocalEquations};
 use crate::algebra::system::NonlinearSystem;
 use crate::problem::distributed::{agree, Division, Held};
 use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
+use crate::problem::drive::Drive;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
 use crate::solve::linear::{LinearSolver, SolverSettings, SolverStats, StepJacobian};
 use crate::solve::newton::{newton, NewtonSettings};
-use crate::waveform::Waveform;
 
 /// A time integration method of a dynamic stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -131,9 +131,8 @@ pub struct DynamicFailure {
 pub struct DynamicInputs<'a> {
     pub mass: &'a NodalMass,
     pub viscosity: Vec<f64>,
-    pub electrodes: Vec<(Vec<usize>, Waveform)>,
-    /// The source of each of the model's circuits (`model.circuits` order).
-    pub circuits: Vec<Waveform>,
+    /// The stage's electrode voltages and circuit sources in stage time.
+    pub drive: Drive,
     /// The committed internal variables of the material points at the start level (empty for
     /// elastic materials).
     pub points: PointStates,
@@ -289,12 +288,7 @@ impl<'m> Projector<'m> {
         let p = self.problem.inner_mut();
         p.extra_charges = charges;
         p.state.copy_from_slice(q);
-        for (nodes, w) in &inputs.electrodes {
-            let v = w.value(t);
-            for &node in nodes {
-                p.state[node * FIELDS + PHI] = v;
-            }
-        }
+        inputs.drive.apply_voltages(&mut p.state, t);
         newton(
             self.problem.system(),
             self.solver.as_mut(),
@@ -337,18 +331,17 @@ impl Stepper for ImplicitStepper<'_, '_> {
 
     fn attempt(&mut self, h: f64) -> Result<Attempt, StepError> {
         let t0 = self.step.inner().prev.t;
-        let voltages: Vec<(&[usize], f64, f64)> = self
-            .inputs
-            .electrodes
-            .iter()
-            .map(|(n, w)| (n.as_slice(), w.value(t0 + 0.5 * h), w.value(t0 + h)))
+        let drive = &self.inputs.drive;
+        let voltages: Vec<(&[usize], f64, f64)> = drive
+            .voltages_at(t0 + 0.5 * h)
+            .zip(drive.voltages_at(t0 + h))
+            .map(|((nodes, mid), (_, end))| (nodes, mid, end))
             .collect();
         self.step.inner_mut().begin(h, &voltages);
-        let sources: Vec<[f64; 3]> = self
-            .inputs
-            .circuits
-            .iter()
-            .map(|w| [w.value(t0), w.value(t0 + 0.5 * h), w.value(t0 + h)])
+        let at = |t: f64| drive.circuit_sources_at(t);
+        let (start, mid, end) = (at(t0), at(t0 + 0.5 * h), at(t0 + h));
+        let sources: Vec<[f64; 3]> = (0..start.len())
+            .map(|i| [start[i], mid[i], end[i]])
             .collect();
         if let Err(e) = self.step.inner_mut().begin_circuits(&sources) {
             return Err(StepError::Fatal(e, 0));
@@ -708,11 +701,11 @@ pub fn run_dynamic_from(
     };
     let part = inputs.part;
     let mut step_model = model.clone();
-    for (nodes, w) in &inputs.electrodes {
+    for (nodes, v) in inputs.drive.voltages_at(start.t) {
         step_model.dirichlet.push(Dirichlet {
-            nodes: nodes.clone(),
+            nodes: nodes.to_vec(),
             field: Field::Phi,
-            value: w.value(start.t),
+            value: v,
         });
     }
     let proj_model = Projector::model(&step_model);

@@ -44,11 +44,13 @@ pub fn simulate(
     let inputs = DynamicInputs {
         mass: &mass,
         viscosity: vec![eta],
-        electrodes: vec![
-            (bottom.to_vec(), Waveform::constant(0.0)),
-            (top.to_vec(), Waveform::constant(volts)),
-        ],
-        circuits: Vec::new(),
+        drive: crate::problem::drive::Drive {
+            voltages: vec![
+                (bottom.to_vec(), Waveform::constant(0.0)),
+                (top.to_vec(), Waveform::constant(volts)),
+            ],
+            circuits: Vec::new(),
+        },
         points: Default::default(),
         part: None,
     };

@@ -116,7 +116,7 @@ pub fn cell_stress(
             StageTime {
                 duration,
                 points: points.clone(),
-                drive: Vec::new(),
+                drive: crate::problem::drive::Drive::none(),
             },
             None,
             &StepControl {
