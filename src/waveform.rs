@@ -91,6 +91,11 @@ impl Waveform {
         self.offset + self.amplitude * self.shape_value(t)
     }
 
+    /// ∂value/∂amplitude and ∂value/∂offset at time `t`: the shape's value and 1.
+    pub fn derivatives(&self, t: f64) -> [f64; 2] {
+        [self.shape_value(t), 1.0]
+    }
+
     fn periodic_time(&self, t: f64, frequency: f64) -> f64 {
         // fraction of the period in [0, 1)
         let x = t * frequency + self.phase_deg / 360.0;
@@ -185,6 +190,45 @@ fn table_value(points: &[(f64, f64)], t: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    /// ∂value/∂amplitude and ∂value/∂offset against differences of the value, for a periodic
+    /// and a stepped signal.
+    #[test]
+    fn derivatives_in_amplitude_and_offset() {
+        let square = Waveform {
+            shape: Shape::Square {
+                frequency: 2.0,
+                duty: 0.5,
+                bipolar: true,
+            },
+            amplitude: 3e3,
+            offset: 100.0,
+            phase_deg: 30.0,
+        };
+        let step = Waveform {
+            shape: Shape::Step {
+                at: 0.1,
+                rise_time: 0.2,
+            },
+            ..Waveform::constant(2e3)
+        };
+        for w in [square, step] {
+            for t in [0.0, 0.13, 0.2, 0.45, 0.9] {
+                let d = w.derivatives(t);
+                let moved = |da: f64, db: f64| Waveform {
+                    amplitude: w.amplitude + da,
+                    offset: w.offset + db,
+                    ..w.clone()
+                };
+                let fa = (moved(1.0, 0.0).value(t) - moved(-1.0, 0.0).value(t)) / 2.0;
+                let fb = (moved(0.0, 1.0).value(t) - moved(0.0, -1.0).value(t)) / 2.0;
+                assert!(
+                    (fa - d[0]).abs() < 1e-9 && (fb - d[1]).abs() < 1e-9,
+                    "{t}: {d:?}"
+                );
+            }
+        }
+    }
+
     use super::*;
 
     fn wave(shape: Shape) -> Waveform {

@@ -644,3 +644,75 @@ fn level_products_of_load_steps_match_finite_differences() {
         }
     }
 }
+
+/// wᵀR of the step of `general_step` (seed 41) for a model and nodal masses, with `w` of that
+/// seed, and the step's scaled unknowns held at `scale`.
+fn seeded_wr(
+    plan: &Plan,
+    model: &Model,
+    nodal: &NodalMass,
+    (dt, scheme): (f64, Scheme),
+    scale: Option<[f64; FIELDS]>,
+) -> (f64, Vec<f64>, [f64; FIELDS]) {
+    let mut next = generator(41);
+    let mut step = general_step(plan, model, nodal, (dt, scheme), scale, &mut next);
+    let w: Vec<f64> = (0..step.dofs.n_free).map(|_| next()).collect();
+    let mut r = vec![0.0; step.dofs.n_free];
+    step.evaluate(&mut r, None).unwrap();
+    let wr = w.iter().zip(&r).map(|(a, b)| a * b).sum();
+    (wr, w, step.dofs.scale)
+}
+
+/// The step's products in a rigid pad's mass and in a circuit's resistance against central
+/// differences of wᵀR in them.
+#[test]
+fn mass_and_resistance_products_match_finite_differences() {
+    for scheme in SCHEMES {
+        // the diaphragm's pad mass
+        let plan = plan_of(example("diaphragm").unwrap(), &[]);
+        let (model, dt, mass) = dynamic_model(&plan);
+        let node = plan.rigid[0].nodes[0];
+        let nodal = nodal_mass(&plan, &model, mass);
+        let (_, w, scale) = seeded_wr(&plan, &model, &nodal, (dt, scheme), None);
+        let mut next = generator(41);
+        let step = general_step(&plan, &model, &nodal, (dt, scheme), None, &mut next);
+        let analytic = step.point_mass_vjp(&w, node);
+        let h = 1e-4 * plan.rigid[0].mass;
+        let at = |dm: f64| {
+            let mut m = nodal_mass(&plan, &model, mass);
+            m.add_point_mass(node, dm);
+            seeded_wr(&plan, &model, &m, (dt, scheme), Some(scale)).0
+        };
+        let fd = (at(h) - at(-h)) / (2.0 * h);
+        assert!(analytic != 0.0);
+        assert!(
+            (fd - analytic).abs() <= 1e-6 * analytic.abs(),
+            "{scheme:?}: pad mass {fd} vs {analytic}"
+        );
+        // a film driven through a resistance
+        let text = example("film-vibration").unwrap().replace(
+            "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
+            "circuit = { source = { waveform = \"step\", amplitude = 1e3, at = 0.0 }, resistance = 1e6 }",
+        );
+        let plan = plan_of(&text, &["materials.elastomer.viscosity=100"]);
+        let (model, dt, mass) = dynamic_model(&plan);
+        let nodal = nodal_mass(&plan, &model, mass);
+        let (_, w, scale) = seeded_wr(&plan, &model, &nodal, (dt, scheme), None);
+        let mut next = generator(41);
+        let mut step = general_step(&plan, &model, &nodal, (dt, scheme), None, &mut next);
+        let analytic = step.resistance_vjp(&w, 0);
+        let r0 = model.circuits[0].resistance;
+        let at = |dr: f64| {
+            let mut m = model.clone();
+            m.circuits[0].resistance = r0 + dr;
+            seeded_wr(&plan, &m, &nodal, (dt, scheme), Some(scale)).0
+        };
+        let h = 1e-4 * r0;
+        let fd = (at(h) - at(-h)) / (2.0 * h);
+        assert!(analytic != 0.0);
+        assert!(
+            (fd - analytic).abs() <= 1e-6 * analytic.abs(),
+            "{scheme:?}: resistance {fd} vs {analytic}"
+        );
+    }
+}

@@ -181,6 +181,51 @@ impl<'m> TimeStep<'m> {
         Ok((points, dissipated))
     }
 
+    /// wᵀ∂R/∂m of the step residual in the point mass of a node (a rigid pad's, kg): the
+    /// inertia term's M·m has m at the node's displacements.
+    pub fn point_mass_vjp(&self, w: &[f64], node: usize) -> f64 {
+        let weights = free_weights(&self.dofs, w);
+        (0..3)
+            .map(|i| node * FIELDS + i)
+            .map(|d| weights[d] * self.inertia_term(d))
+            .sum()
+    }
+
+    /// wᵀ∂R/∂R_c of the step residual in the series resistance of circuit `circuit` (Ω, the
+    /// model's): the charge at the evaluation point is Q_n + g·(drop), g = Δt/(2R_c), so
+    /// ∂Q/∂R_c = −(Q − Q_n)/R_c.
+    pub fn resistance_vjp(&mut self, w: &[f64], circuit: usize) -> f64 {
+        self.evaluation_point();
+        let c = &self.model.circuits[circuit];
+        let d = c.nodes[0] * FIELDS + PHI;
+        let e = self.dofs.eq[d];
+        if e == CONSTRAINED {
+            return 0.0;
+        }
+        let st = &self.circuits[circuit];
+        let midpoint = self.scheme == Scheme::Midpoint;
+        let (q, _) = st.charge_at(midpoint, self.dt, c.resistance, self.work_q[d]);
+        self.dofs.scale[PHI] * w[e] * self.residual_factor() * (-(q - st.charge) / c.resistance)
+    }
+
+    /// The inertia term m of dof `d` (R gets M·m): midpoint v̄ − v_n, Newmark βΔt² a_{n+1}; 0 for
+    /// a potential.
+    fn inertia_term(&self, d: usize) -> f64 {
+        if d % FIELDS == PHI {
+            return 0.0;
+        }
+        let dt = self.dt;
+        match self.scheme {
+            Scheme::Midpoint => (self.q[d] - self.prev.q[d]) / dt - self.prev.v[d],
+            Scheme::Newmark { beta, .. } => {
+                self.q[d]
+                    - self.prev.q[d]
+                    - dt * self.prev.v[d]
+                    - beta * dt * dt * (0.5 / beta - 1.0) * self.prev.a[d]
+            }
+        }
+    }
+
     /// Prepares the step to `prev.t + dt`: prescribed potentials `phi_d(t)` on the electrode nodes
     /// (midpoint: set so that the midpoint potential equals the voltage at t_{n+½}), and the
     /// predictor q_{n+1} = q_n + Δt v_n.
@@ -704,19 +749,7 @@ impl NonlinearSystem for TimeStep<'_> {
         }
         // inertia: midpoint M(v̄ − v_n); Newmark βΔt² M a_{n+1}
         for d in 0..self.q.len() {
-            self.work_m[d] = if d % FIELDS == PHI {
-                0.0
-            } else {
-                match self.scheme {
-                    Scheme::Midpoint => self.work_v[d] - self.prev.v[d],
-                    Scheme::Newmark { beta, .. } => {
-                        self.q[d]
-                            - self.prev.q[d]
-                            - dt * self.prev.v[d]
-                            - beta * dt * dt * (0.5 / beta - 1.0) * self.prev.a[d]
-                    }
-                }
-            };
+            self.work_m[d] = self.inertia_term(d);
         }
         let mut mv = vec![0.0; self.q.len()];
         self.mass.mul(&self.work_m, &mut mv);

@@ -5,7 +5,7 @@
 
 use super::materials::build_material;
 use super::Ctx;
-use crate::io::scenario::{closest, InputError, Scenario};
+use crate::io::scenario::{closest, InputError, Scenario, VoltageSpec};
 
 /// A material parameter named by a key path.
 #[derive(Debug, Clone, PartialEq)]
@@ -157,6 +157,116 @@ pub fn material_parameter(s: &Scenario, file: &str, key: &str) -> Result<Paramet
     ))
 }
 
+/// A differentiable scalar of a scenario, named by its key path.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Parameter {
+    /// An entry of a material's parameter vector θ.
+    Material(ParameterKey),
+    /// A scalar of an electrode's voltage (`source`: of its circuit's source): the waveform's
+    /// `amplitude` (a constant voltage is one) or its `offset`; V.
+    Voltage {
+        electrode: String,
+        source: bool,
+        offset: bool,
+        value: f64,
+    },
+    /// The charge of a charge-controlled electrode (C).
+    Charge { electrode: String, value: f64 },
+    /// The series resistance of an electrode's circuit (Ω).
+    Resistance { electrode: String, value: f64 },
+    /// The mass of a rigid pad (kg), by its index in `loads.rigid`.
+    RigidMass { index: usize, value: f64 },
+    /// The pre-stretch λ.
+    Prestretch { value: f64 },
+}
+
+impl Parameter {
+    /// Its value in the scenario (SI).
+    pub fn value(&self) -> f64 {
+        match self {
+            Parameter::Material(k) => k.value,
+            Parameter::Voltage { value, .. }
+            | Parameter::Charge { value, .. }
+            | Parameter::Resistance { value, .. }
+            | Parameter::RigidMass { value, .. }
+            | Parameter::Prestretch { value } => *value,
+        }
+    }
+}
+
+/// The differentiable parameter that `key` names in scenario `s` (from file `file`): a
+/// material's (see [`material_parameter`]), an electrode's voltage amplitude or offset, charge,
+/// or circuit source and resistance, a rigid pad's mass, or the pre-stretch. Any other key of the
+/// scenario (`mesh.divisions`, a waveform's frequency) is refused naming the key and what is
+/// differentiable; an unknown key gets the "did you mean" of the scenario's errors.
+pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, InputError> {
+    let ctx = Ctx::plain(file);
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.first() == Some(&"materials") {
+        return material_parameter(s, file, key).map(Parameter::Material);
+    }
+    if let Some(unknown) = unknown_part(s, &parts) {
+        return Err(ctx.err(key, unknown));
+    }
+    let voltage = |electrode: &str, spec: &VoltageSpec, rest: &[&str], source: bool| {
+        let offset = match (spec, rest) {
+            (VoltageSpec::Constant(_), []) => false,
+            (VoltageSpec::Waveform(_), ["amplitude"]) => false,
+            (VoltageSpec::Waveform(_), ["offset"]) => true,
+            _ => return None,
+        };
+        let value = match spec {
+            VoltageSpec::Constant(v) => *v,
+            VoltageSpec::Waveform(w) if offset => w.offset,
+            VoltageSpec::Waveform(w) => w.amplitude,
+        };
+        Some(Parameter::Voltage {
+            electrode: electrode.to_string(),
+            source,
+            offset,
+            value,
+        })
+    };
+    let found = match parts.as_slice() {
+        ["electrodes", name, rest @ ..] => s.electrodes.get(*name).and_then(|e| match rest {
+            ["voltage", tail @ ..] => voltage(name, &e.voltage, tail, false),
+            ["charge"] => e.charge.map(|value| Parameter::Charge {
+                electrode: name.to_string(),
+                value,
+            }),
+            ["circuit", "resistance"] => e.circuit.as_ref().map(|c| Parameter::Resistance {
+                electrode: name.to_string(),
+                value: c.resistance,
+            }),
+            ["circuit", "source", tail @ ..] => e
+                .circuit
+                .as_ref()
+                .and_then(|c| voltage(name, &c.source, tail, true)),
+            _ => None,
+        }),
+        ["loads", "rigid", index, "mass"] => {
+            let rigid = s.loads.as_ref().map(|l| l.rigid.as_slice()).unwrap_or(&[]);
+            index.parse::<usize>().ok().and_then(|i| {
+                rigid.get(i).map(|r| Parameter::RigidMass {
+                    index: i,
+                    value: r.mass,
+                })
+            })
+        }
+        ["prestretch", "stretch"] => s
+            .prestretch
+            .as_ref()
+            .map(|p| Parameter::Prestretch { value: p.stretch }),
+        _ => None,
+    };
+    found.ok_or_else(|| {
+        ctx.err(
+            key,
+            "not a differentiable parameter: expected a material's              (`materials.<name>.<parameter>`), an electrode's voltage amplitude or offset              (`electrodes.<name>.voltage`, `electrodes.<name>.voltage.amplitude`,              `electrodes.<name>.voltage.offset`, the same below `electrodes.<name>.circuit.source`),              `electrodes.<name>.charge`, `electrodes.<name>.circuit.resistance`,              `loads.rigid.<i>.mass` or `prestretch.stretch`",
+        )
+    })
+}
+
 /// The value at `path` below `v` (tables by key, arrays by index).
 fn lookup<'a>(v: &'a toml::Value, path: &[&str]) -> Option<&'a toml::Value> {
     path.iter().try_fold(v, |cur, part| match cur {
@@ -188,8 +298,7 @@ fn unknown_part(s: &Scenario, parts: &[&str]) -> Option<String> {
                     .map(|c| format!("; did you mean `{parent}{c}`?"))
                     .unwrap_or_default();
                 return Some(format!(
-                    "unknown key `{so_far}` (not in the scenario; a differentiable parameter is \
-                     a material's: `materials.<name>.<parameter>`){hint}"
+                    "unknown key `{so_far}` (not in the scenario){hint}"
                 ));
             }
         }
@@ -369,5 +478,79 @@ mod tests {
             2 * (MATERIAL_KEYS.len() + 1),
             "{msg}"
         );
+    }
+
+    /// Every kind of parameter outside the materials is named by its key path, with its value;
+    /// keys that hold no differentiable number are refused naming the key.
+    #[test]
+    fn device_parameters_are_named_by_their_key_paths() {
+        let example =
+            |name: &str| parse(crate::io::examples::example(name).unwrap(), FILE, &[]).unwrap();
+        let film = example("film-vibration");
+        let p = |s: &Scenario, key: &str| parameter(s, FILE, key).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(
+            p(&film, "electrodes.top.voltage.amplitude"),
+            Parameter::Voltage {
+                electrode: "top".into(),
+                source: false,
+                offset: false,
+                value: 20e3
+            }
+        );
+        assert_eq!(p(&film, "electrodes.top.voltage.offset").value(), 0.0);
+        assert_eq!(p(&film, "electrodes.bottom.voltage").value(), 0.0);
+        let disc = example("diaphragm");
+        assert_eq!(
+            p(&disc, "loads.rigid.0.mass"),
+            Parameter::RigidMass {
+                index: 0,
+                value: 0.04622
+            }
+        );
+        assert!(
+            matches!(p(&disc, "prestretch.stretch"), Parameter::Prestretch { value } if value > 1.0)
+        );
+        assert!(matches!(
+            p(&film, "materials.elastomer.mu"),
+            Parameter::Material(ParameterKey { entry: 0, .. })
+        ));
+        let circuit = parse(
+            &crate::io::examples::example("film-vibration")
+                .unwrap()
+                .replace(
+                    "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
+                    "circuit = { source = 1e3, resistance = 1e6 }",
+                ),
+            FILE,
+            &[],
+        )
+        .unwrap();
+        assert_eq!(
+            p(&circuit, "electrodes.top.circuit.resistance"),
+            Parameter::Resistance {
+                electrode: "top".into(),
+                value: 1e6
+            }
+        );
+        assert_eq!(p(&circuit, "electrodes.top.circuit.source").value(), 1e3);
+        for key in [
+            "mesh.divisions",
+            "electrodes.top.voltage.at",
+            "electrodes.top.voltage.waveform",
+            "electrodes.top.set",
+            "loads.rigid.0.damping",
+        ] {
+            let s = if key.starts_with("loads") {
+                &disc
+            } else {
+                &film
+            };
+            let e = parameter(s, FILE, key).expect_err(key);
+            let msg = e.to_string();
+            assert_eq!(e.key.as_deref(), Some(key), "{msg}");
+            assert!(msg.contains("not a differentiable parameter"), "{msg}");
+        }
+        let e = parameter(&film, FILE, "electrodes.top.voltage.amplitud").unwrap_err();
+        assert!(e.to_string().contains("did you mean"), "{e}");
     }
 }
