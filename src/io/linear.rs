@@ -4,8 +4,8 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{stacked_plot_scaled, PlotSpec, Scale, Series};
-use crate::io::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuPiece};
-use crate::job::plan::{FieldFormat, Plan};
+use crate::io::vtu::{write_pvd, write_vtu_as, CellType, Encoding, VtuPiece};
+use crate::job::plan::Plan;
 use crate::job::state::FrequencyResponse;
 use crate::problem::dofs::{FIELDS, PHI};
 use crate::time::modal::Mode;
@@ -43,6 +43,7 @@ pub fn write_modes(
         .flat_map(|a| state[a * FIELDS..a * FIELDS + 3].to_vec())
         .collect();
     let cell_type = CellType::from(mesh.kind);
+    let encoding = Encoding::from(plan.output.fields_format);
     let mut entries = Vec::new();
     for (i, m) in found.iter().enumerate() {
         let largest = (0..n)
@@ -62,34 +63,17 @@ pub fn write_modes(
             .map(|a| m.shape[a * FIELDS + PHI] / largest)
             .collect();
         let name = format!("mode_{:02}.vtu", i + 1);
-        let piece = VtuPiece {
-            points: &mesh.nodes,
+        let piece = VtuPiece::fields(
+            &mesh.nodes,
             cell_type,
-            connectivity: &mesh.connectivity,
-            point_data: vec![
-                DataArray {
-                    name: "displacement",
-                    components: 3,
-                    values: &disp,
-                },
-                DataArray {
-                    name: "mode_shape",
-                    components: 3,
-                    values: &shape,
-                },
-                DataArray {
-                    name: "mode_potential",
-                    components: 1,
-                    values: &phi,
-                },
+            &mesh.connectivity,
+            &[
+                ("displacement", 3, &disp),
+                ("mode_shape", 3, &shape),
+                ("mode_potential", 1, &phi),
             ],
-            cell_data: Vec::new(),
-        };
-        let encoding = match plan.output.fields_format {
-            FieldFormat::Binary => Encoding::Binary,
-            FieldFormat::Compressed => Encoding::Compressed,
-            FieldFormat::Ascii => Encoding::Ascii,
-        };
+            &[],
+        );
         write_vtu_as(&shapes_dir.join(&name), &piece, encoding).map_err(|e| e.to_string())?;
         entries.push((m.frequency, format!("{stem}/{name}")));
     }
