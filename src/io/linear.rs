@@ -212,8 +212,11 @@ mod tests {
     /// 0 V) is left out and reported, and the other plots are drawn.
     #[test]
     fn bode_plots_carry_units_and_skip_probes_without_a_response() {
-        let dir = std::env::temp_dir().join(format!("deasim-bode-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-bode-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path().join("out");
         let frequencies: Vec<f64> = (0..30).map(|i| 10f64.powf(i as f64 / 10.0)).collect();
         let n = frequencies.len();
         let r = FrequencyResponse {
@@ -248,6 +251,5 @@ mod tests {
         assert!(dir.join("bode_zero.svg").exists());
         assert_eq!(per_volt("V/m"), "1/m");
         assert_eq!(per_volt("-"), "1/V");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }
