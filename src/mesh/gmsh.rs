@@ -665,14 +665,20 @@ impl<'a> Reader<'a> {
         self.end(S)
     }
 
+    /// The head of a MSH 4.1 `$Nodes` or `$Elements` section (of `what`s: `node` or `element`):
+    /// the number of entity blocks, returned, then the number of `what`s and their tag range.
+    fn blocks41(&mut self, what: &str, section: &str) -> Res<u64> {
+        let blocks = self.sz("the number of entity blocks", section)?;
+        self.sz(&format!("the number of {what}s"), section)?;
+        self.sz(&format!("the smallest {what} tag"), section)?;
+        self.sz(&format!("the largest {what} tag"), section)?;
+        Ok(blocks)
+    }
+
     fn nodes41(&mut self, raw: &mut Raw) -> Res<()> {
         const S: &str = "Nodes";
         raw.seen_nodes = true;
-        let blocks = self.sz("the number of entity blocks", S)?;
-        self.sz("the number of nodes", S)?;
-        self.sz("the smallest node tag", S)?;
-        self.sz("the largest node tag", S)?;
-        for _ in 0..blocks {
+        for _ in 0..self.blocks41("node", S)? {
             let dim = self.i("an entity dimension", S)?;
             self.i("an entity tag", S)?;
             let parametric = self.i("the parametric flag (0 or 1)", S)?;
@@ -706,11 +712,7 @@ impl<'a> Reader<'a> {
     fn elements41(&mut self, raw: &mut Raw) -> Res<()> {
         const S: &str = "Elements";
         raw.seen_elements = true;
-        let blocks = self.sz("the number of entity blocks", S)?;
-        self.sz("the number of elements", S)?;
-        self.sz("the smallest element tag", S)?;
-        self.sz("the largest element tag", S)?;
-        for _ in 0..blocks {
+        for _ in 0..self.blocks41("element", S)? {
             let dim = self.i("an entity dimension", S)?;
             let tag = self.i("an entity tag", S)?;
             let at = (self.line, self.pos);
