@@ -1727,6 +1727,48 @@ mod tests {
         assert!(e.contains("byte ") && e.contains("truncated"), "{e}");
     }
 
+    /// The heads of the MSH 4.1 `$Nodes` and `$Elements` sections: every number is named.
+    #[test]
+    fn section_heads_of_msh41_name_each_number() {
+        let f = "film-tet4-msh41.msh";
+        for (from, to, message) in [
+            (
+                "$Nodes\n23 ",
+                "$Nodes\nx ",
+                "the number of entity blocks in $Nodes",
+            ),
+            (
+                "$Nodes\n23 24 ",
+                "$Nodes\n23 x ",
+                "the number of nodes in $Nodes",
+            ),
+            (
+                "\n23 24 1 ",
+                "\n23 24 x ",
+                "the smallest node tag in $Nodes",
+            ),
+            (
+                "\n23 24 1 24\n",
+                "\n23 24 1 x\n",
+                "the largest node tag in $Nodes",
+            ),
+            ("\n7 86 ", "\n7 x ", "the number of elements in $Elements"),
+            (
+                "\n7 86 1 ",
+                "\n7 86 x ",
+                "the smallest element tag in $Elements",
+            ),
+            (
+                "\n7 86 1 86\n",
+                "\n7 86 1 x\n",
+                "the largest element tag in $Elements",
+            ),
+        ] {
+            let e = err_of(&replace_in(f, from, to));
+            assert!(e.contains(&format!("expected {message}")), "{e}");
+        }
+    }
+
     /// The checks the 3-D and the meridian builders share, as the 3-D reader words them, and the
     /// names of unnamed groups.
     #[test]
