@@ -476,8 +476,11 @@ mod tests {
     /// run's list, and a step whose part of another rank is missing is skipped with a warning.
     #[test]
     fn the_parts_of_a_step_are_kept_by_rank_and_an_incomplete_step_is_skipped() {
-        let dir = std::env::temp_dir().join(format!("deasim-ck-parts-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-ck-parts-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path().join("out");
         let part = |rank: u64, accepted: usize| {
             let mut c = sample();
             c.ranks = 2;
@@ -513,7 +516,6 @@ mod tests {
                 && warnings[0].contains("the part of rank 1 is missing"),
             "{warnings:?}"
         );
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -4,8 +4,8 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{stacked_plot_scaled, PlotSpec, Scale, Series};
-use crate::io::vtu::{write_pvd, write_vtu_as, CellType, DataArray, Encoding, VtuPiece};
-use crate::job::plan::{FieldFormat, Plan};
+use crate::io::vtu::{write_pvd, write_vtu_as, CellType, Encoding, VtuPiece};
+use crate::job::plan::Plan;
 use crate::job::state::FrequencyResponse;
 use crate::problem::dofs::{FIELDS, PHI};
 use crate::time::modal::Mode;
@@ -43,6 +43,7 @@ pub fn write_modes(
         .flat_map(|a| state[a * FIELDS..a * FIELDS + 3].to_vec())
         .collect();
     let cell_type = CellType::from(mesh.kind);
+    let encoding = Encoding::from(plan.output.fields_format);
     let mut entries = Vec::new();
     for (i, m) in found.iter().enumerate() {
         let largest = (0..n)
@@ -62,34 +63,17 @@ pub fn write_modes(
             .map(|a| m.shape[a * FIELDS + PHI] / largest)
             .collect();
         let name = format!("mode_{:02}.vtu", i + 1);
-        let piece = VtuPiece {
-            points: &mesh.nodes,
+        let piece = VtuPiece::fields(
+            &mesh.nodes,
             cell_type,
-            connectivity: &mesh.connectivity,
-            point_data: vec![
-                DataArray {
-                    name: "displacement",
-                    components: 3,
-                    values: &disp,
-                },
-                DataArray {
-                    name: "mode_shape",
-                    components: 3,
-                    values: &shape,
-                },
-                DataArray {
-                    name: "mode_potential",
-                    components: 1,
-                    values: &phi,
-                },
+            &mesh.connectivity,
+            &[
+                ("displacement", 3, &disp),
+                ("mode_shape", 3, &shape),
+                ("mode_potential", 1, &phi),
             ],
-            cell_data: Vec::new(),
-        };
-        let encoding = match plan.output.fields_format {
-            FieldFormat::Binary => Encoding::Binary,
-            FieldFormat::Compressed => Encoding::Compressed,
-            FieldFormat::Ascii => Encoding::Ascii,
-        };
+            &[],
+        );
         write_vtu_as(&shapes_dir.join(&name), &piece, encoding).map_err(|e| e.to_string())?;
         entries.push((m.frequency, format!("{stem}/{name}")));
     }
@@ -228,8 +212,11 @@ mod tests {
     /// 0 V) is left out and reported, and the other plots are drawn.
     #[test]
     fn bode_plots_carry_units_and_skip_probes_without_a_response() {
-        let dir = std::env::temp_dir().join(format!("deasim-bode-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-bode-")
+            .tempdir()
+            .unwrap();
+        let dir = tmp.path().join("out");
         let frequencies: Vec<f64> = (0..30).map(|i| 10f64.powf(i as f64 / 10.0)).collect();
         let n = frequencies.len();
         let r = FrequencyResponse {
@@ -264,6 +251,5 @@ mod tests {
         assert!(dir.join("bode_zero.svg").exists());
         assert_eq!(per_volt("V/m"), "1/m");
         assert_eq!(per_volt("-"), "1/V");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

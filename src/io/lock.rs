@@ -116,8 +116,12 @@ mod tests {
 
     #[test]
     fn second_lock_is_refused_and_stale_one_taken_over() {
-        let dir = std::env::temp_dir().join(format!("deasim-lock-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-lock-")
+            .tempdir()
+            .unwrap();
+        // a directory that does not exist yet: the lock creates it
+        let dir = tmp.path().join("out");
         let lock = DirLock::acquire(&dir).unwrap();
         let e = DirLock::acquire(&dir).unwrap_err();
         assert!(
@@ -135,6 +139,5 @@ mod tests {
             std::process::id().to_string()
         );
         drop(lock);
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -11,7 +11,7 @@ use super::pieces::Pieces;
 use super::plot::{stacked_plot, PlotError, PlotSpec, Series};
 use super::revolve::{Components, RevolvedMesh};
 use super::vtu::{
-    write_pvd, write_pvtu, write_vtu_as, CellType, DataArray, Encoding, VtuError, VtuPiece,
+    write_pvd, write_pvtu, write_vtu_as, CellType, DataArray, Encoding, Field, VtuError, VtuPiece,
 };
 use crate::element::CellFields;
 use crate::job::observer::Observer;
@@ -79,15 +79,47 @@ pub struct OutputWriter {
     piece_only: bool,
 }
 
-/// The arrays of one field file of the meridian section, for its revolved view: nodal
-/// (u_r, u_z, 0) and Φ, and per cell e, the three stress tensors (total, mechanical, Maxwell) and
-/// J, components in (R, Z, Θ).
+/// The arrays of one field file: nodal u and Φ, and per cell e, the three stress tensors (total,
+/// mechanical, Maxwell) and J; for an axisymmetric model (u_r, u_z, 0) and components in
+/// (R, Z, Θ), which its revolved view turns into 3-D ones.
 struct Section<'a> {
     disp: &'a [f64],
     phi: &'a [f64],
     e: &'a [f64],
     tensors: [&'a [f64]; 3],
     j: &'a [f64],
+}
+
+impl<'a> Section<'a> {
+    /// The field file of these arrays on `points` with the cells `connectivity` of `cell_type`:
+    /// displacement and potential per node; electric field, the three stresses, J and the
+    /// material's `states` (one scalar each) per cell.
+    fn piece(
+        &self,
+        points: &'a [[f64; 3]],
+        cell_type: CellType,
+        connectivity: &'a [usize],
+        states: &'a [(String, Vec<f64>)],
+    ) -> VtuPiece<'a> {
+        let [sigma, sigma_mech, maxwell] = self.tensors;
+        let cell_data: Vec<Field> = [
+            ("electric_field", 3, self.e),
+            ("cauchy_stress", 9, sigma),
+            ("mechanical_stress", 9, sigma_mech),
+            ("maxwell_stress", 9, maxwell),
+            ("J", 1, self.j),
+        ]
+        .into_iter()
+        .chain(states.iter().map(|(n, v)| (n.as_str(), 1, v.as_slice())))
+        .collect();
+        VtuPiece::fields(
+            points,
+            cell_type,
+            connectivity,
+            &[("displacement", 3, self.disp), ("potential", 1, self.phi)],
+            &cell_data,
+        )
+    }
 }
 
 /// Name and SI unit of the parameter of continuation stage `stage`.
@@ -510,64 +542,8 @@ impl OutputWriter {
         let sigma_mech: Vec<f64> = fields.iter().flat_map(|f| f.sigma_mech).collect();
         let maxwell: Vec<f64> = sigma.iter().zip(&sigma_mech).map(|(t, m)| t - m).collect();
         let j: Vec<f64> = fields.iter().map(|f| f.j).collect();
-        let cell_type = CellType::from(mesh.kind);
         let name = format!("step_{:05}.vtu", self.pvd.len());
-        let mut piece = VtuPiece {
-            points: &mesh.nodes,
-            cell_type,
-            connectivity: &mesh.connectivity,
-            point_data: vec![
-                DataArray {
-                    name: "displacement",
-                    components: 3,
-                    values: &disp,
-                },
-                DataArray {
-                    name: "potential",
-                    components: 1,
-                    values: &phi,
-                },
-            ],
-            cell_data: vec![
-                DataArray {
-                    name: "electric_field",
-                    components: 3,
-                    values: &e,
-                },
-                DataArray {
-                    name: "cauchy_stress",
-                    components: 9,
-                    values: &sigma,
-                },
-                DataArray {
-                    name: "mechanical_stress",
-                    components: 9,
-                    values: &sigma_mech,
-                },
-                DataArray {
-                    name: "maxwell_stress",
-                    components: 9,
-                    values: &maxwell,
-                },
-                DataArray {
-                    name: "J",
-                    components: 1,
-                    values: &j,
-                },
-            ],
-        };
-        for (n, values) in &self.point_states {
-            piece.cell_data.push(DataArray {
-                name: n,
-                components: 1,
-                values,
-            });
-        }
-        let encoding = match plan.output.fields_format {
-            crate::job::plan::FieldFormat::Ascii => Encoding::Ascii,
-            crate::job::plan::FieldFormat::Binary => Encoding::Binary,
-            crate::job::plan::FieldFormat::Compressed => Encoding::Compressed,
-        };
+        let encoding = Encoding::from(plan.output.fields_format);
         let index = self.pvd.len();
         let section = Section {
             disp: &disp,
@@ -576,6 +552,12 @@ impl OutputWriter {
             tensors: [&sigma, &sigma_mech, &maxwell],
             j: &j,
         };
+        let piece = section.piece(
+            &mesh.nodes,
+            CellType::from(mesh.kind),
+            &mesh.connectivity,
+            &self.point_states,
+        );
         if self.revolved.is_none() {
             if let Some(revolve) = plan.output.revolve {
                 self.revolved = RevolvedMesh::new(&plan.model.mesh, revolve);
@@ -644,57 +626,14 @@ impl OutputWriter {
             s.tensors.map(|t| mesh.cell_array(Components::Tensor, t));
         let j = mesh.cell_array(Components::Scalar, s.j);
         let states = mesh.named_cell_scalars(&self.point_states);
-        let mut piece = VtuPiece {
-            points: &mesh.points,
-            cell_type: mesh.cell_type,
-            connectivity: &mesh.connectivity,
-            point_data: vec![
-                DataArray {
-                    name: "displacement",
-                    components: 3,
-                    values: &disp,
-                },
-                DataArray {
-                    name: "potential",
-                    components: 1,
-                    values: &phi,
-                },
-            ],
-            cell_data: vec![
-                DataArray {
-                    name: "electric_field",
-                    components: 3,
-                    values: &e,
-                },
-                DataArray {
-                    name: "cauchy_stress",
-                    components: 9,
-                    values: &sigma,
-                },
-                DataArray {
-                    name: "mechanical_stress",
-                    components: 9,
-                    values: &sigma_mech,
-                },
-                DataArray {
-                    name: "maxwell_stress",
-                    components: 9,
-                    values: &maxwell,
-                },
-                DataArray {
-                    name: "J",
-                    components: 1,
-                    values: &j,
-                },
-            ],
+        let revolved = Section {
+            disp: &disp,
+            phi: &phi,
+            e: &e,
+            tensors: [&sigma, &sigma_mech, &maxwell],
+            j: &j,
         };
-        for (n, values) in &states {
-            piece.cell_data.push(DataArray {
-                name: n,
-                components: 1,
-                values,
-            });
-        }
+        let piece = revolved.piece(&mesh.points, mesh.cell_type, &mesh.connectivity, &states);
         let name = format!("revolved_{index:05}.vtu");
         Some(write_vtu_as(&self.dir.join("fields").join(&name), &piece, encoding).map(|()| name))
     }

@@ -309,18 +309,23 @@ fn snapshot(dir: &Path) -> BTreeMap<String, Stamp> {
 mod tests {
     use super::*;
 
-    fn tmp(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("deasim-results-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
+    /// A results directory, `out` in a fresh temporary directory (removed when the first is
+    /// dropped) that also holds what a manifest may point at outside it.
+    fn tmp(name: &str) -> (tempfile::TempDir, PathBuf) {
+        let t = tempfile::Builder::new()
+            .prefix(&format!("deasim-results-{name}-"))
+            .tempdir()
+            .unwrap();
+        let d = t.path().join("out");
         std::fs::create_dir_all(&d).unwrap();
-        d
+        (t, d)
     }
 
     /// A command's own results are replaced; another command's are refused, and with
     /// `overwrite` all of them go; a file deasim did not write stays.
     #[test]
     fn own_results_are_replaced_and_others_refused_unless_overwrite() {
-        let d = tmp("rule");
+        let (_tmp, d) = tmp("rule");
         std::fs::write(d.join("notes.txt"), "mine").unwrap();
         let mut r = ResultsDir::open(&d, "modes", "film", "", false).unwrap();
         std::fs::create_dir_all(d.join("modes")).unwrap();
@@ -356,21 +361,18 @@ mod tests {
         let _r = ResultsDir::open(&d, "run", "film", "", true).unwrap();
         assert!(d.join("../outside-deasim-results").exists());
         assert!(!d.join("notes.txt").exists());
-        let _ = std::fs::remove_file(d.join("../outside-deasim-results"));
-        let _ = std::fs::remove_dir_all(&d);
     }
 
     /// A directory written before the manifest existed: another command's results are recognised
     /// by their files and refused.
     #[test]
     fn results_without_a_manifest_are_recognised() {
-        let d = tmp("legacy");
+        let (_tmp, d) = tmp("legacy");
         std::fs::write(d.join("frequency_response.csv"), "1").unwrap();
         let e = ResultsDir::open(&d, "run", "film", "", false).unwrap_err();
         assert!(e.contains("`deasim response`"), "{e}");
         assert!(d.join("frequency_response.csv").exists());
         let _r = ResultsDir::open(&d, "run", "film", "", true).unwrap();
         assert!(!d.join("frequency_response.csv").exists());
-        let _ = std::fs::remove_dir_all(&d);
     }
 }

@@ -109,6 +109,40 @@ pub struct VtuPiece<'a> {
     pub cell_data: Vec<DataArray<'a>>,
 }
 
+/// A field array given as (name, components, values): see [`DataArray`].
+pub type Field<'a> = (&'a str, usize, &'a [f64]);
+
+impl<'a> VtuPiece<'a> {
+    /// The field file of the cells `connectivity` (of `cell_type`) on `points`: the nodal arrays
+    /// `point_data` and the cell arrays `cell_data`, in the order given. What the field, mode
+    /// and revolved files write goes through here.
+    pub fn fields(
+        points: &'a [[f64; 3]],
+        cell_type: CellType,
+        connectivity: &'a [usize],
+        point_data: &[Field<'a>],
+        cell_data: &[Field<'a>],
+    ) -> Self {
+        let arrays = |fields: &[Field<'a>]| {
+            fields
+                .iter()
+                .map(|&(name, components, values)| DataArray {
+                    name,
+                    components,
+                    values,
+                })
+                .collect()
+        };
+        VtuPiece {
+            points,
+            cell_type,
+            connectivity,
+            point_data: arrays(point_data),
+            cell_data: arrays(cell_data),
+        }
+    }
+}
+
 /// Errors of the VTU/PVD writer. Every message starts with the file path.
 #[derive(Debug, thiserror::Error)]
 pub enum VtuError {
@@ -183,6 +217,18 @@ pub enum Encoding {
     Ascii,
     /// zlib-compressed blocks (VTK's `compressor="vtkZLibDataCompressor"`).
     Compressed,
+}
+
+/// The encoding of the field files of `output.vtu_format`.
+impl From<crate::job::plan::FieldFormat> for Encoding {
+    fn from(format: crate::job::plan::FieldFormat) -> Self {
+        use crate::job::plan::FieldFormat;
+        match format {
+            FieldFormat::Ascii => Encoding::Ascii,
+            FieldFormat::Binary => Encoding::Binary,
+            FieldFormat::Compressed => Encoding::Compressed,
+        }
+    }
 }
 
 /// Uncompressed size of the blocks of a compressed array (bytes), as VTK writes them.
@@ -819,5 +865,46 @@ mod tests {
         assert!(matches!(err, VtuError::InvalidPvdEntry { index: 0, .. }));
         // The previous file is untouched by the failed write.
         assert_eq!(fs::read_to_string(&path).expect("read"), text);
+    }
+
+    /// A field file's piece from (name, components, values) lists: the arrays in the order
+    /// given, each a view of its values; written, it reads back with the names and values.
+    #[test]
+    fn fields_piece_keeps_the_arrays_in_order() {
+        let (points, conn) = two_hex_mesh();
+        let u: Vec<f64> = (0..3 * points.len()).map(|i| i as f64).collect();
+        let phi = vec![2.5; points.len()];
+        let j = vec![1.0, 1.25];
+        let piece = VtuPiece::fields(
+            &points,
+            CellType::Hex8,
+            &conn,
+            &[("displacement", 3, &u), ("potential", 1, &phi)],
+            &[("J", 1, &j)],
+        );
+        fn names<'a>(a: &[DataArray<'a>]) -> Vec<(&'a str, usize, *const f64)> {
+            a.iter()
+                .map(|a| (a.name, a.components, a.values.as_ptr()))
+                .collect()
+        }
+        assert_eq!(
+            names(&piece.point_data),
+            [
+                ("displacement", 3, u.as_ptr()),
+                ("potential", 1, phi.as_ptr())
+            ]
+        );
+        assert_eq!(names(&piece.cell_data), [("J", 1, j.as_ptr())]);
+        assert_eq!(piece.connectivity, conn.as_slice());
+        let tmp = tempfile::Builder::new()
+            .prefix("deasim-vtu-fields-")
+            .tempdir()
+            .unwrap();
+        let path = tmp.path().join("f.vtu");
+        write_vtu_as(&path, &piece, Encoding::Ascii).expect("write");
+        let text = fs::read_to_string(&path).expect("read");
+        let at = |name: &str| text.find(&format!("Name=\"{name}\"")).expect(name);
+        assert!(at("displacement") < at("potential") && at("potential") < at("J"));
+        assert!(text.contains("1e0 1.25e0"), "{text}");
     }
 }

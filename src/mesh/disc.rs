@@ -440,20 +440,9 @@ pub fn disc_mesh(spec: &DiscSpec) -> Result<Mesh, String> {
         }
     }
 
-    let mut mesh = Mesh {
-        kind: spec.kind,
-        nodes,
-        connectivity,
-        node_sets: BTreeMap::new(),
-        face_sets: BTreeMap::new(),
-        cell_sets: BTreeMap::new(),
-    };
+    let mut mesh = Mesh::new(spec.kind, nodes, connectivity);
     mesh.face_sets = classify_boundary(&mesh, spec)?;
-    let names: Vec<String> = mesh.face_sets.keys().cloned().collect();
-    for name in names {
-        let nodes = mesh.face_set_nodes(&name).expect("face set exists");
-        mesh.node_sets.insert(name, nodes);
-    }
+    mesh.insert_face_set_nodes();
     let tol = 1e-9 * spec.radius;
     let pad_nodes: Vec<usize> = (0..mesh.n_nodes())
         .filter(|&n| radius_of(mesh.nodes[n]) <= spec.pad_radius + tol)
@@ -549,6 +538,7 @@ fn classify_boundary(
 mod tests {
     use super::*;
     use crate::fem::ReferenceElement;
+    use crate::mesh::test_geometry::{area_vector, cross, dot, sub, volume};
     use std::collections::BTreeSet;
     use std::f64::consts::PI;
 
@@ -578,36 +568,6 @@ mod tests {
         v
     }
 
-    fn volume(mesh: &Mesh) -> f64 {
-        let el = ReferenceElement::new(mesh.kind);
-        let mut coords = vec![[0.0; 3]; mesh.kind.nodes_per_cell()];
-        let mut v = 0.0;
-        for c in 0..mesh.n_cells() {
-            mesh.cell_coords_into(c, &mut coords);
-            let g = el
-                .geometry(&coords)
-                .unwrap_or_else(|e| panic!("cell {c} degenerate: {e:?}"));
-            v += g.weights[..g.n_qp].iter().sum::<f64>();
-        }
-        v
-    }
-
-    fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-    }
-
-    fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
-    }
-
-    fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    }
-
     fn norm(a: [f64; 3]) -> f64 {
         dot(a, a).sqrt()
     }
@@ -618,16 +578,6 @@ mod tests {
             .iter()
             .map(|&l| m.nodes[cell[l]])
             .collect()
-    }
-
-    /// Area vector (area × outward normal for the faces' ordering) of a triangle or quad.
-    fn area_vector(p: &[[f64; 3]]) -> [f64; 3] {
-        let c = if p.len() == 3 {
-            cross(sub(p[1], p[0]), sub(p[2], p[0]))
-        } else {
-            cross(sub(p[2], p[0]), sub(p[3], p[1]))
-        };
-        c.map(|x| 0.5 * x)
     }
 
     #[test]

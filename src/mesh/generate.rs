@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 /// The six tetrahedra of the Kuhn subdivision of a hexahedron (VTK node order), all sharing the
 /// diagonal 0–6. Translated copies of a hexahedron give a conforming tetrahedral mesh.
-const HEX_TO_TETS: [[usize; 4]; 6] = [
+pub(super) const HEX_TO_TETS: [[usize; 4]; 6] = [
     [0, 1, 2, 6],
     [0, 2, 3, 6],
     [0, 3, 7, 6],
@@ -13,6 +13,26 @@ const HEX_TO_TETS: [[usize; 4]; 6] = [
     [0, 4, 5, 6],
     [0, 5, 1, 6],
 ];
+
+/// The corners (VTK order) of hexahedron (i, j, k) of a structured grid whose node (i, j, k) is
+/// `node_id(i, j, k)`.
+pub(super) fn hex_corners(
+    node_id: impl Fn(usize, usize, usize) -> usize,
+    i: usize,
+    j: usize,
+    k: usize,
+) -> [usize; 8] {
+    [
+        node_id(i, j, k),
+        node_id(i + 1, j, k),
+        node_id(i + 1, j + 1, k),
+        node_id(i, j + 1, k),
+        node_id(i, j, k + 1),
+        node_id(i + 1, j, k + 1),
+        node_id(i + 1, j + 1, k + 1),
+        node_id(i, j + 1, k + 1),
+    ]
+}
 
 /// A block `[0, size[0]] × [0, size[1]] × [0, size[2]]` (m) with `divisions` cells per direction,
 /// hexahedra or tetrahedra (each hexahedron split into six; tet10 with straight edges).
@@ -56,16 +76,7 @@ pub fn box_mesh(size: [f64; 3], divisions: [usize; 3], kind: ElementKind) -> Mes
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
-                let h = [
-                    node_id(i, j, k),
-                    node_id(i + 1, j, k),
-                    node_id(i + 1, j + 1, k),
-                    node_id(i, j + 1, k),
-                    node_id(i, j, k + 1),
-                    node_id(i + 1, j, k + 1),
-                    node_id(i + 1, j + 1, k + 1),
-                    node_id(i, j + 1, k + 1),
-                ];
+                let h = hex_corners(node_id, i, j, k);
                 match kind {
                     ElementKind::Hex8 => {
                         connectivity.extend_from_slice(&h);

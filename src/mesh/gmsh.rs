@@ -665,14 +665,20 @@ impl<'a> Reader<'a> {
         self.end(S)
     }
 
+    /// The head of a MSH 4.1 `$Nodes` or `$Elements` section (of `what`s: `node` or `element`):
+    /// the number of entity blocks, returned, then the number of `what`s and their tag range.
+    fn blocks41(&mut self, what: &str, section: &str) -> Res<u64> {
+        let blocks = self.sz("the number of entity blocks", section)?;
+        self.sz(&format!("the number of {what}s"), section)?;
+        self.sz(&format!("the smallest {what} tag"), section)?;
+        self.sz(&format!("the largest {what} tag"), section)?;
+        Ok(blocks)
+    }
+
     fn nodes41(&mut self, raw: &mut Raw) -> Res<()> {
         const S: &str = "Nodes";
         raw.seen_nodes = true;
-        let blocks = self.sz("the number of entity blocks", S)?;
-        self.sz("the number of nodes", S)?;
-        self.sz("the smallest node tag", S)?;
-        self.sz("the largest node tag", S)?;
-        for _ in 0..blocks {
+        for _ in 0..self.blocks41("node", S)? {
             let dim = self.i("an entity dimension", S)?;
             self.i("an entity tag", S)?;
             let parametric = self.i("the parametric flag (0 or 1)", S)?;
@@ -706,11 +712,7 @@ impl<'a> Reader<'a> {
     fn elements41(&mut self, raw: &mut Raw) -> Res<()> {
         const S: &str = "Elements";
         raw.seen_elements = true;
-        let blocks = self.sz("the number of entity blocks", S)?;
-        self.sz("the number of elements", S)?;
-        self.sz("the smallest element tag", S)?;
-        self.sz("the largest element tag", S)?;
-        for _ in 0..blocks {
+        for _ in 0..self.blocks41("element", S)? {
             let dim = self.i("an entity dimension", S)?;
             let tag = self.i("an entity tag", S)?;
             let at = (self.line, self.pos);
@@ -988,13 +990,13 @@ impl Raw {
         }
     }
 
+    /// The 3-D mesh of the file (see [`read_msh`]).
     fn build(self, file: &str, scale: f64) -> Res<GmshMesh> {
         let err = |message: String| GmshError {
             file: file.into(),
             at: None,
             message,
         };
-        let format = self.format();
         let first = self.volumes.first().ok_or_else(|| {
             if self.surfaces > 0 {
                 err(format!(
@@ -1011,19 +1013,9 @@ impl Raw {
             }
         })?;
         let kind = first.kind;
-        if let Some(o) = self.volumes.iter().find(|e| e.kind != kind) {
-            return Err(err(format!(
-                "mixed volume element kinds: {} (element {}) and {} (element {}); deasim needs one \
-                 kind per mesh",
-                kind.name(),
-                first.tag,
-                o.kind.name(),
-                o.tag
-            )));
-        }
-        let groups_of = |g: Option<Group>| self.groups_of(g);
+        one_kind(&self.volumes, "volume", &err)?;
         for &(g, t, etag) in &self.odd_faces {
-            if let Some((d, p)) = groups_of(Some(g)).first() {
+            if let Some((d, p)) = self.groups_of(Some(g)).first() {
                 let name = self.names.get(&(*d, *p)).cloned().unwrap_or(format!("{p}"));
                 return Err(err(format!(
                     "element {etag} of physical surface `{name}` has type {t}, not supported: \
@@ -1031,60 +1023,11 @@ impl Raw {
                 )));
             }
         }
-        let group_name = |(d, p): (i32, i32)| -> String {
-            self.names.get(&(d, p)).cloned().unwrap_or_else(|| {
-                if d == 3 {
-                    format!("volume{p}")
-                } else {
-                    format!("surface{p}")
-                }
-            })
-        };
-        let node_pos: HashMap<u64, usize> = self
-            .node_tags
-            .iter()
-            .enumerate()
-            .map(|(i, &t)| (t, i))
-            .collect();
-        if node_pos.len() != self.node_tags.len() {
-            return Err(err("a node tag appears twice in $Nodes".into()));
-        }
-        // unique cells (MSH 2.2 repeats an element once per physical group), Gmsh node positions
-        let npc = kind.nodes_per_cell();
-        let mut cells: Vec<Vec<usize>> = Vec::new();
-        let mut cell_groups: Vec<Vec<(i32, i32)>> = Vec::new();
-        let mut cell_tags: Vec<u64> = Vec::new();
-        let mut by_nodes: HashMap<Vec<usize>, usize> = HashMap::new();
-        for e in &self.volumes {
-            let mut pos = Vec::with_capacity(npc);
-            for &t in &e.nodes {
-                pos.push(*node_pos.get(&t).ok_or_else(|| {
-                    err(format!(
-                        "element {} refers to node {t}, which is not in $Nodes",
-                        e.tag
-                    ))
-                })?);
-            }
-            if kind == ElementKind::Tet10 {
-                // Gmsh: mid-edge nodes of 0–1, 1–2, 2–0, 0–3, 2–3, 1–3; VTK: …, 1–3, 2–3
-                pos.swap(8, 9);
-            }
-            let mut key = pos.clone();
-            key.sort_unstable();
-            if key.windows(2).any(|w| w[0] == w[1]) {
-                return Err(err(format!("element {} repeats a node", e.tag)));
-            }
-            let c = *by_nodes.entry(key).or_insert_with(|| {
-                cells.push(pos);
-                cell_groups.push(Vec::new());
-                cell_tags.push(e.tag);
-                cells.len() - 1
-            });
-            cell_groups[c].extend(groups_of(e.group));
-        }
+        let node_pos = self.node_positions(&err)?;
+        let cells = self.unique_cells(&self.volumes, &node_pos, &err)?;
         // compact numbering in file order
         let mut new_index = vec![usize::MAX; self.coords.len()];
-        for cell in &cells {
+        for cell in &cells.nodes {
             for &p in cell {
                 new_index[p] = 0;
             }
@@ -1097,46 +1040,13 @@ impl Raw {
                 nodes.push([scale * x[0], scale * x[1], scale * x[2]]);
             }
         }
-        let mut connectivity = Vec::with_capacity(cells.len() * npc);
-        let mut reoriented = 0;
-        let mut x = vec![[0.0; 3]; npc];
-        for (c, cell) in cells.iter().enumerate() {
-            let mut ids: Vec<usize> = cell.iter().map(|&p| new_index[p]).collect();
-            for (xa, &n) in x.iter_mut().zip(&ids) {
-                *xa = nodes[n];
-            }
-            let det = orientation(kind, &x);
-            if det.is_nan() || det == 0.0 {
-                return Err(err(format!(
-                    "volume element {} is degenerate (zero volume)",
-                    cell_tags[c]
-                )));
-            }
-            if det < 0.0 {
-                ids = mirror(kind).iter().map(|&l| ids[l]).collect();
-                reoriented += 1;
-            }
-            connectivity.extend_from_slice(&ids);
-        }
-        // sets
-        let mut cell_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
-        let mut face_sets: BTreeMap<String, Vec<FaceRef>> = BTreeMap::new();
-        // named groups exist even when empty
-        for (&(d, _), name) in &self.names {
-            if d == 3 {
-                cell_sets.entry(name.clone()).or_default();
-            } else if d == 2 {
-                face_sets.entry(name.clone()).or_default();
-            }
-        }
-        for (c, gs) in cell_groups.iter().enumerate() {
-            for &g in gs {
-                cell_sets.entry(group_name(g)).or_default().push(c);
-            }
-        }
+        let (connectivity, reoriented) = oriented(kind, &cells, &new_index, &nodes, &err)?;
+        // sets; named groups exist even when empty
+        let mut sets = self.sets(3, &cells);
+        let npc = kind.nodes_per_cell();
         let corners = kind.face_corners();
         let mut face_of: HashMap<[usize; 4], FaceRef> = HashMap::new();
-        for c in 0..cells.len() {
+        for c in 0..cells.nodes.len() {
             let cell = &connectivity[c * npc..(c + 1) * npc];
             for (f, local) in kind.faces().iter().enumerate() {
                 let mut key = [usize::MAX; 4];
@@ -1147,28 +1057,20 @@ impl Raw {
                 face_of.entry(key).or_insert(FaceRef { cell: c, face: f });
             }
         }
+        let renumbering = Renumbering {
+            pos: &node_pos,
+            new_index: &new_index,
+            cells: "volume",
+        };
         for face in &self.faces {
-            let gs = groups_of(Some(face.group));
-            if gs.is_empty() {
+            let gs = self.groups_of(Some(face.group));
+            let Some(&g0) = gs.first() else {
                 continue;
-            }
-            let name = group_name(gs[0]);
+            };
+            let name = self.group_name(g0);
             let mut key = [usize::MAX; 4];
-            for (k, t) in face.corners.iter().enumerate() {
-                let p = node_pos.get(t).ok_or_else(|| {
-                    err(format!(
-                        "surface element {} refers to node {t}, which is not in $Nodes",
-                        face.tag
-                    ))
-                })?;
-                key[k] = new_index[*p];
-                if key[k] == usize::MAX {
-                    return Err(err(format!(
-                        "surface element {} of physical group `{name}` has node {t}, which no \
-                         volume element uses",
-                        face.tag
-                    )));
-                }
+            for (k, &t) in face.corners.iter().enumerate() {
+                key[k] = renumbering.node("surface", face.tag, t, &name, &err)?;
             }
             key.sort_unstable();
             let f = face_of.get(&key).ok_or_else(|| {
@@ -1180,46 +1082,11 @@ impl Raw {
                 ))
             })?;
             for g in gs {
-                face_sets.entry(group_name(g)).or_default().push(*f);
+                sets.faces.entry(self.group_name(g)).or_default().push(*f);
             }
         }
-        if let Some(n) = cell_sets.keys().find(|n| face_sets.contains_key(*n)) {
-            return Err(err(format!(
-                "the physical name `{n}` names both a volume and a surface group"
-            )));
-        }
-        cell_sets.values_mut().for_each(|s| {
-            s.sort_unstable();
-            s.dedup();
-        });
-        face_sets.values_mut().for_each(|s| {
-            s.sort_unstable();
-            s.dedup();
-        });
-        let mut mesh = Mesh {
-            kind,
-            nodes,
-            connectivity,
-            node_sets: BTreeMap::new(),
-            face_sets,
-            cell_sets,
-        };
-        let mut node_sets = BTreeMap::new();
-        for name in mesh.face_sets.keys() {
-            node_sets.insert(name.clone(), mesh.face_set_nodes(name).unwrap_or_default());
-        }
-        for (name, cells) in &mesh.cell_sets {
-            let mut n: Vec<usize> = cells.iter().flat_map(|&c| mesh.cell(c).to_vec()).collect();
-            n.sort_unstable();
-            n.dedup();
-            node_sets.insert(name.clone(), n);
-        }
-        mesh.node_sets = node_sets;
-        Ok(GmshMesh {
-            mesh,
-            reoriented,
-            format: format.into(),
-        })
+        sets.distinct_names(["volume", "surface", "point"], &err)?;
+        Ok(sets.mesh(kind, nodes, connectivity, reoriented, self.format()))
     }
 }
 
@@ -1248,133 +1115,33 @@ impl Raw {
         let ElementKind::Meridian(mk) = kind else {
             return Err(err("internal: a surface cell of a 3-D kind".into()));
         };
-        if let Some(o) = self.cells2d.iter().find(|e| e.kind != kind) {
-            return Err(err(format!(
-                "mixed surface element kinds: {} (element {}) and {} (element {}); deasim needs one \
-                 kind per mesh",
-                kind.name(),
-                first.tag,
-                o.kind.name(),
-                o.tag
-            )));
-        }
-        let dim_word = |d: i32| match d {
-            0 => "point",
-            1 => "curve",
-            2 => "surface",
-            _ => "volume",
-        };
-        let group_name = |(d, p): (i32, i32)| -> String {
-            self.names
-                .get(&(d, p))
-                .cloned()
-                .unwrap_or_else(|| format!("{}{p}", dim_word(d)))
-        };
+        one_kind(&self.cells2d, "surface", &err)?;
         for &(g, t, etag) in &self.odd_curves {
             if let Some(&dp) = self.groups_of(Some(g)).first() {
                 return Err(err(format!(
                     "element {etag} of physical curve `{}` has type {t}, not supported: \
                      {MERIDIAN_SUPPORTED}",
-                    group_name(dp)
+                    self.group_name(dp)
                 )));
             }
         }
-        let node_pos: HashMap<u64, usize> = self
-            .node_tags
-            .iter()
-            .enumerate()
-            .map(|(i, &t)| (t, i))
-            .collect();
-        if node_pos.len() != self.node_tags.len() {
-            return Err(err("a node tag appears twice in $Nodes".into()));
-        }
-        // unique cells (MSH 2.2 repeats an element once per physical group), Gmsh node positions
-        let npc = kind.nodes_per_cell();
-        let mut cells: Vec<Vec<usize>> = Vec::new();
-        let mut cell_groups: Vec<Vec<(i32, i32)>> = Vec::new();
-        let mut cell_tags: Vec<u64> = Vec::new();
-        let mut by_nodes: HashMap<Vec<usize>, usize> = HashMap::new();
-        for e in &self.cells2d {
-            let mut pos = Vec::with_capacity(npc);
-            for &t in &e.nodes {
-                pos.push(*node_pos.get(&t).ok_or_else(|| {
-                    err(format!(
-                        "element {} refers to node {t}, which is not in $Nodes",
-                        e.tag
-                    ))
-                })?);
-            }
-            let mut key = pos.clone();
-            key.sort_unstable();
-            if key.windows(2).any(|w| w[0] == w[1]) {
-                return Err(err(format!("element {} repeats a node", e.tag)));
-            }
-            let c = *by_nodes.entry(key).or_insert_with(|| {
-                cells.push(pos);
-                cell_groups.push(Vec::new());
-                cell_tags.push(e.tag);
-                cells.len() - 1
-            });
-            cell_groups[c].extend(self.groups_of(e.group));
-        }
-        let (nodes, new_index) = self.meridian_nodes(&cells, &cell_tags, scale, &err)?;
-        let mut connectivity = Vec::with_capacity(cells.len() * npc);
-        let mut reoriented = 0;
-        let mut x = vec![[0.0; 3]; npc];
-        for (c, cell) in cells.iter().enumerate() {
-            let mut ids: Vec<usize> = cell.iter().map(|&p| new_index[p]).collect();
-            for (xa, &n) in x.iter_mut().zip(&ids) {
-                *xa = nodes[n];
-            }
-            let det = orientation(kind, &x);
-            if det.is_nan() || det == 0.0 {
-                return Err(err(format!(
-                    "surface element {} is degenerate (zero area)",
-                    cell_tags[c]
-                )));
-            }
-            if det < 0.0 {
-                ids = mirror(kind).iter().map(|&l| ids[l]).collect();
-                reoriented += 1;
-            }
-            connectivity.extend_from_slice(&ids);
-        }
+        let node_pos = self.node_positions(&err)?;
+        let cells = self.unique_cells(&self.cells2d, &node_pos, &err)?;
+        let (nodes, new_index) = self.meridian_nodes(&cells.nodes, &cells.tags, scale, &err)?;
+        let (connectivity, reoriented) = oriented(kind, &cells, &new_index, &nodes, &err)?;
         // sets; named groups exist even when empty
-        let mut cell_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
-        let mut face_sets: BTreeMap<String, Vec<FaceRef>> = BTreeMap::new();
-        let mut point_sets: BTreeMap<String, Vec<usize>> = BTreeMap::new();
-        for (&(d, _), name) in &self.names {
-            if d == 2 {
-                cell_sets.entry(name.clone()).or_default();
-            } else if d == 1 {
-                face_sets.entry(name.clone()).or_default();
-            } else if d == 0 {
-                point_sets.entry(name.clone()).or_default();
-            }
-        }
-        for (c, gs) in cell_groups.iter().enumerate() {
-            for &g in gs {
-                cell_sets.entry(group_name(g)).or_default().push(c);
-            }
-        }
-        // a node of the mesh by its tag, for the lines and points of groups
-        let node_of = |what: &str, tag: u64, t: u64, name: &str| -> Res<usize> {
-            let p = node_pos.get(&t).ok_or_else(|| {
-                err(format!(
-                    "{what} element {tag} refers to node {t}, which is not in $Nodes"
-                ))
-            })?;
-            match new_index[*p] {
-                usize::MAX => Err(err(format!(
-                    "{what} element {tag} of physical group `{name}` has node {t}, which no \
-                     surface element uses"
-                ))),
-                n => Ok(n),
-            }
+        let mut sets = self.sets(2, &cells);
+        let renumbering = Renumbering {
+            pos: &node_pos,
+            new_index: &new_index,
+            cells: "surface",
         };
+        let node_of =
+            |what: &str, tag: u64, t: u64, name: &str| renumbering.node(what, tag, t, name, &err);
+        let npc = kind.nodes_per_cell();
         let sides = mk.sides();
         let mut side_of: HashMap<[usize; 2], FaceRef> = HashMap::new();
-        for c in 0..cells.len() {
+        for c in 0..cells.nodes.len() {
             let cell = &connectivity[c * npc..(c + 1) * npc];
             for (f, local) in sides.iter().enumerate() {
                 let mut key = [cell[local[0]], cell[local[1]]];
@@ -1387,7 +1154,7 @@ impl Raw {
             let Some(&g0) = gs.first() else {
                 continue;
             };
-            let name = group_name(g0);
+            let name = self.group_name(g0);
             let quadratic = line.corners.len() == 3;
             if quadratic != mk.is_quadratic() {
                 return Err(err(format!(
@@ -1431,7 +1198,7 @@ impl Raw {
                 }
             }
             for g in gs {
-                face_sets.entry(group_name(g)).or_default().push(*f);
+                sets.faces.entry(self.group_name(g)).or_default().push(*f);
             }
         }
         for point in &self.points {
@@ -1442,60 +1209,13 @@ impl Raw {
             let Some(&t) = point.corners.first() else {
                 continue;
             };
-            let n = node_of("point", point.tag, t, &group_name(g0))?;
+            let n = node_of("point", point.tag, t, &self.group_name(g0))?;
             for g in gs {
-                point_sets.entry(group_name(g)).or_default().push(n);
+                sets.points.entry(self.group_name(g)).or_default().push(n);
             }
         }
-        let names = [
-            ("surface", cell_sets.keys().collect::<Vec<_>>()),
-            ("curve", face_sets.keys().collect()),
-            ("point", point_sets.keys().collect()),
-        ];
-        for (i, (a, na)) in names.iter().enumerate() {
-            for (b, nb) in &names[i + 1..] {
-                if let Some(n) = na.iter().find(|n| nb.contains(n)) {
-                    return Err(err(format!(
-                        "the physical name `{n}` names both a {a} and a {b} group"
-                    )));
-                }
-            }
-        }
-        cell_sets
-            .values_mut()
-            .chain(point_sets.values_mut())
-            .for_each(|s| {
-                s.sort_unstable();
-                s.dedup();
-            });
-        face_sets.values_mut().for_each(|s| {
-            s.sort_unstable();
-            s.dedup();
-        });
-        let mut mesh = Mesh {
-            kind,
-            nodes,
-            connectivity,
-            node_sets: BTreeMap::new(),
-            face_sets,
-            cell_sets,
-        };
-        let mut node_sets = point_sets;
-        for name in mesh.face_sets.keys() {
-            node_sets.insert(name.clone(), mesh.face_set_nodes(name).unwrap_or_default());
-        }
-        for (name, cells) in &mesh.cell_sets {
-            let mut n: Vec<usize> = cells.iter().flat_map(|&c| mesh.cell(c).to_vec()).collect();
-            n.sort_unstable();
-            n.dedup();
-            node_sets.insert(name.clone(), n);
-        }
-        mesh.node_sets = node_sets;
-        Ok(GmshMesh {
-            mesh,
-            reoriented,
-            format: self.format().into(),
-        })
+        sets.distinct_names(["surface", "curve", "point"], &err)?;
+        Ok(sets.mesh(kind, nodes, connectivity, reoriented, self.format()))
     }
 
     /// The nodes the meridian cells use (m), in file order, and the new index of each Gmsh node
@@ -1556,6 +1276,281 @@ impl Raw {
         }
         Ok((nodes, new_index))
     }
+
+    /// The name of physical group (dimension, tag): its own, or `point<tag>`, `curve<tag>`,
+    /// `surface<tag>` or `volume<tag>` for a group without a name.
+    fn group_name(&self, (d, p): (i32, i32)) -> String {
+        self.names.get(&(d, p)).cloned().unwrap_or_else(|| {
+            let word = match d {
+                0 => "point",
+                1 => "curve",
+                2 => "surface",
+                _ => "volume",
+            };
+            format!("{word}{p}")
+        })
+    }
+
+    /// The position of each node tag in `$Nodes`; a tag may appear once.
+    fn node_positions(&self, err: &dyn Fn(String) -> GmshError) -> Res<HashMap<u64, usize>> {
+        let node_pos: HashMap<u64, usize> = self
+            .node_tags
+            .iter()
+            .enumerate()
+            .map(|(i, &t)| (t, i))
+            .collect();
+        if node_pos.len() != self.node_tags.len() {
+            return Err(err("a node tag appears twice in $Nodes".into()));
+        }
+        Ok(node_pos)
+    }
+
+    /// The distinct cells of `elements` (MSH 2.2 repeats an element once per physical group),
+    /// their nodes as positions in `$Nodes` in deasim's order, with the groups of all repeats.
+    fn unique_cells(
+        &self,
+        elements: &[Element],
+        node_pos: &HashMap<u64, usize>,
+        err: &dyn Fn(String) -> GmshError,
+    ) -> Res<Cells> {
+        let mut cells = Cells {
+            nodes: Vec::new(),
+            groups: Vec::new(),
+            tags: Vec::new(),
+        };
+        let mut by_nodes: HashMap<Vec<usize>, usize> = HashMap::new();
+        for e in elements {
+            let mut pos = Vec::with_capacity(e.nodes.len());
+            for &t in &e.nodes {
+                pos.push(*node_pos.get(&t).ok_or_else(|| {
+                    err(format!(
+                        "element {} refers to node {t}, which is not in $Nodes",
+                        e.tag
+                    ))
+                })?);
+            }
+            if e.kind == ElementKind::Tet10 {
+                // Gmsh: mid-edge nodes of 0–1, 1–2, 2–0, 0–3, 2–3, 1–3; VTK: …, 1–3, 2–3
+                pos.swap(8, 9);
+            }
+            let mut key = pos.clone();
+            key.sort_unstable();
+            if key.windows(2).any(|w| w[0] == w[1]) {
+                return Err(err(format!("element {} repeats a node", e.tag)));
+            }
+            let c = *by_nodes.entry(key).or_insert_with(|| {
+                cells.nodes.push(pos);
+                cells.groups.push(Vec::new());
+                cells.tags.push(e.tag);
+                cells.nodes.len() - 1
+            });
+            cells.groups[c].extend(self.groups_of(e.group));
+        }
+        Ok(cells)
+    }
+
+    /// An empty set of each named physical group of dimension `d` (named groups exist even when
+    /// empty).
+    fn named_sets<T>(&self, d: i32) -> BTreeMap<String, Vec<T>> {
+        self.names
+            .iter()
+            .filter(|(&(gd, _), _)| gd == d)
+            .map(|(_, name)| (name.clone(), Vec::new()))
+            .collect()
+    }
+
+    /// The sets of a mesh whose cells have dimension `dim`: the named groups' (cell sets of
+    /// dimension `dim`, face sets of `dim − 1`, point sets of a meridian mesh's points), with
+    /// every cell in the cell sets of its groups.
+    fn sets(&self, dim: i32, cells: &Cells) -> Sets {
+        let mut sets = Sets {
+            cells: self.named_sets(dim),
+            faces: self.named_sets(dim - 1),
+            points: if dim == 2 {
+                self.named_sets(0)
+            } else {
+                BTreeMap::new()
+            },
+        };
+        for (c, gs) in cells.groups.iter().enumerate() {
+            for &g in gs {
+                sets.cells.entry(self.group_name(g)).or_default().push(c);
+            }
+        }
+        sets
+    }
+}
+
+/// The cells of a file, one per distinct set of nodes, before renumbering.
+struct Cells {
+    /// Each cell's nodes as positions in `$Nodes`, in deasim's node order.
+    nodes: Vec<Vec<usize>>,
+    /// The physical groups (dimension, tag) of each cell.
+    groups: Vec<Vec<(i32, i32)>>,
+    /// The tag of the element each cell was first read from.
+    tags: Vec<u64>,
+}
+
+/// The mesh node of each node of the file.
+struct Renumbering<'a> {
+    /// The position in `$Nodes` of each node tag.
+    pos: &'a HashMap<u64, usize>,
+    /// The mesh node of each position, `usize::MAX` for a node no cell uses.
+    new_index: &'a [usize],
+    /// What the cells are: `volume` or `surface` elements.
+    cells: &'static str,
+}
+
+impl Renumbering<'_> {
+    /// The mesh node of node `t` of the `what` element `tag` of physical group `name`.
+    fn node(
+        &self,
+        what: &str,
+        tag: u64,
+        t: u64,
+        name: &str,
+        err: &dyn Fn(String) -> GmshError,
+    ) -> Res<usize> {
+        let p = self.pos.get(&t).ok_or_else(|| {
+            err(format!(
+                "{what} element {tag} refers to node {t}, which is not in $Nodes"
+            ))
+        })?;
+        match self.new_index[*p] {
+            usize::MAX => Err(err(format!(
+                "{what} element {tag} of physical group `{name}` has node {t}, which no {} \
+                 element uses",
+                self.cells
+            ))),
+            n => Ok(n),
+        }
+    }
+}
+
+/// The named sets of a mesh being built: cell, face and (meridian) point sets.
+struct Sets {
+    cells: BTreeMap<String, Vec<usize>>,
+    faces: BTreeMap<String, Vec<FaceRef>>,
+    points: BTreeMap<String, Vec<usize>>,
+}
+
+impl Sets {
+    /// An error if one name names groups of two kinds; `words` are the kinds of the cell, face
+    /// and point sets.
+    fn distinct_names(&self, words: [&str; 3], err: &dyn Fn(String) -> GmshError) -> Res<()> {
+        let names = [
+            self.cells.keys().collect::<Vec<_>>(),
+            self.faces.keys().collect(),
+            self.points.keys().collect(),
+        ];
+        for i in 0..3 {
+            for j in i + 1..3 {
+                if let Some(n) = names[i].iter().find(|n| names[j].contains(n)) {
+                    return Err(err(format!(
+                        "the physical name `{n}` names both a {} and a {} group",
+                        words[i], words[j]
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The mesh with these sets, each sorted and without repeats; its node sets are the point
+    /// sets and the nodes of every face set and cell set.
+    fn mesh(
+        mut self,
+        kind: ElementKind,
+        nodes: Vec<[f64; 3]>,
+        connectivity: Vec<usize>,
+        reoriented: usize,
+        format: &str,
+    ) -> GmshMesh {
+        self.cells
+            .values_mut()
+            .chain(self.points.values_mut())
+            .for_each(|s| {
+                s.sort_unstable();
+                s.dedup();
+            });
+        self.faces.values_mut().for_each(|s| {
+            s.sort_unstable();
+            s.dedup();
+        });
+        let mut mesh = Mesh {
+            kind,
+            nodes,
+            connectivity,
+            node_sets: self.points,
+            face_sets: self.faces,
+            cell_sets: self.cells,
+        };
+        mesh.insert_face_set_nodes();
+        for (name, cells) in &mesh.cell_sets {
+            let mut n: Vec<usize> = cells.iter().flat_map(|&c| mesh.cell(c).to_vec()).collect();
+            n.sort_unstable();
+            n.dedup();
+            mesh.node_sets.insert(name.clone(), n);
+        }
+        GmshMesh {
+            mesh,
+            reoriented,
+            format: format.into(),
+        }
+    }
+}
+
+/// An error unless all `elements` (at least one) are of one kind; `what` they are: `volume` or
+/// `surface` elements.
+fn one_kind(elements: &[Element], what: &str, err: &dyn Fn(String) -> GmshError) -> Res<()> {
+    let first = &elements[0];
+    match elements.iter().find(|e| e.kind != first.kind) {
+        Some(o) => Err(err(format!(
+            "mixed {what} element kinds: {} (element {}) and {} (element {}); deasim needs one \
+             kind per mesh",
+            first.kind.name(),
+            first.tag,
+            o.kind.name(),
+            o.tag
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The connectivity of `cells` in the mesh's node numbers (`new_index` of their positions, at
+/// `nodes`), inverted cells mirrored, and how many were; a degenerate cell is an error.
+fn oriented(
+    kind: ElementKind,
+    cells: &Cells,
+    new_index: &[usize],
+    nodes: &[[f64; 3]],
+    err: &dyn Fn(String) -> GmshError,
+) -> Res<(Vec<usize>, usize)> {
+    let npc = kind.nodes_per_cell();
+    let mut connectivity = Vec::with_capacity(cells.nodes.len() * npc);
+    let mut reoriented = 0;
+    let mut x = vec![[0.0; 3]; npc];
+    for (cell, tag) in cells.nodes.iter().zip(&cells.tags) {
+        let mut ids: Vec<usize> = cell.iter().map(|&p| new_index[p]).collect();
+        for (xa, &n) in x.iter_mut().zip(&ids) {
+            *xa = nodes[n];
+        }
+        let det = orientation(kind, &x);
+        if det.is_nan() || det == 0.0 {
+            return Err(err(match kind {
+                ElementKind::Meridian(_) => {
+                    format!("surface element {tag} is degenerate (zero area)")
+                }
+                _ => format!("volume element {tag} is degenerate (zero volume)"),
+            }));
+        }
+        if det < 0.0 {
+            ids = mirror(kind).iter().map(|&l| ids[l]).collect();
+            reoriented += 1;
+        }
+        connectivity.extend_from_slice(&ids);
+    }
+    Ok((connectivity, reoriented))
 }
 
 #[cfg(test)]
@@ -1730,6 +1725,112 @@ mod tests {
         let at = d.windows(9).position(|w| w == b"$Elements").unwrap() + 30;
         let e = parse_msh(&d[..at], "b.msh", 1.0).unwrap_err().to_string();
         assert!(e.contains("byte ") && e.contains("truncated"), "{e}");
+    }
+
+    /// The heads of the MSH 4.1 `$Nodes` and `$Elements` sections: every number is named.
+    #[test]
+    fn section_heads_of_msh41_name_each_number() {
+        let f = "film-tet4-msh41.msh";
+        for (from, to, message) in [
+            (
+                "$Nodes\n23 ",
+                "$Nodes\nx ",
+                "the number of entity blocks in $Nodes",
+            ),
+            (
+                "$Nodes\n23 24 ",
+                "$Nodes\n23 x ",
+                "the number of nodes in $Nodes",
+            ),
+            (
+                "\n23 24 1 ",
+                "\n23 24 x ",
+                "the smallest node tag in $Nodes",
+            ),
+            (
+                "\n23 24 1 24\n",
+                "\n23 24 1 x\n",
+                "the largest node tag in $Nodes",
+            ),
+            ("\n7 86 ", "\n7 x ", "the number of elements in $Elements"),
+            (
+                "\n7 86 1 ",
+                "\n7 86 x ",
+                "the smallest element tag in $Elements",
+            ),
+            (
+                "\n7 86 1 86\n",
+                "\n7 86 1 x\n",
+                "the largest element tag in $Elements",
+            ),
+        ] {
+            let e = err_of(&replace_in(f, from, to));
+            assert!(e.contains(&format!("expected {message}")), "{e}");
+        }
+    }
+
+    /// The checks the 3-D and the meridian builders share, as the 3-D reader words them, and the
+    /// names of unnamed groups.
+    #[test]
+    fn shared_checks_of_a_3d_file() {
+        let file = |names: &str, nodes: &str, elements: &[&str]| {
+            let n = names.lines().count();
+            let m = nodes.lines().count();
+            format!(
+                "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n{n}\n{names}\
+                 $EndPhysicalNames\n$Nodes\n{m}\n{nodes}$EndNodes\n$Elements\n{}\n{}\n\
+                 $EndElements\n",
+                elements.len(),
+                elements.join("\n")
+            )
+        };
+        let nodes = "1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 0\n";
+        let tet = "1 4 2 3 1 1 2 3 4";
+        let e = err_of(&file("", &nodes.replace("5 1 1 0", "1 1 1 0"), &[tet]));
+        assert!(
+            e.contains("t.msh: a node tag appears twice in $Nodes"),
+            "{e}"
+        );
+        let e = err_of(&file("", nodes, &["1 4 2 3 1 1 2 3 9"]));
+        assert!(
+            e.contains("t.msh: element 1 refers to node 9, which is not in $Nodes"),
+            "{e}"
+        );
+        let e = err_of(&file("", nodes, &["1 4 2 3 1 1 2 3 5"]));
+        assert!(
+            e.contains("t.msh: volume element 1 is degenerate (zero volume)"),
+            "{e}"
+        );
+        let e = err_of(&file("", nodes, &[tet, "2 2 2 4 1 1 2 8"]));
+        assert!(
+            e.contains("t.msh: surface element 2 refers to node 8, which is not in $Nodes"),
+            "{e}"
+        );
+        let e = err_of(&file(
+            "3 3 \"top\"\n2 4 \"top\"\n",
+            nodes,
+            &[tet, "2 2 2 4 1 1 2 3"],
+        ));
+        assert!(
+            e.contains("t.msh: the physical name `top` names both a volume and a surface group"),
+            "{e}"
+        );
+        // unnamed groups; a named one without elements; the node sets of cell and face sets
+        let g = parse(&file(
+            "2 6 \"side\"\n",
+            nodes,
+            &[tet, "2 2 2 4 1 1 2 4", "3 2 2 4 1 2 3 4"],
+        ))
+        .unwrap();
+        let m = &g.mesh;
+        assert_eq!(m.cell_sets.keys().collect::<Vec<_>>(), ["volume3"]);
+        assert_eq!(m.cell_sets["volume3"], [0]);
+        assert_eq!(m.face_sets.keys().collect::<Vec<_>>(), ["side", "surface4"]);
+        assert!(m.face_sets["side"].is_empty());
+        assert_eq!(m.face_sets["surface4"].len(), 2);
+        assert_eq!(m.node_sets["volume3"], [0, 1, 2, 3]);
+        assert_eq!(m.node_sets["surface4"], [0, 1, 2, 3]);
+        assert_eq!(m.node_sets["side"], Vec::<usize>::new());
     }
 
     /// A tetrahedron and a hexahedron in one file; an inverted tetrahedron; a face not on a cell.

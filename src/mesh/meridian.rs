@@ -133,10 +133,7 @@ pub fn structured(rs: &[f64], zs: &[f64], kind: MeridianKind) -> Result<Mesh, St
         face_sets,
         cell_sets: BTreeMap::from([("all".to_string(), (0..cell).collect())]),
     };
-    for name in ["inner", "outer", "bottom", "top"] {
-        let nodes = mesh.face_set_nodes(name).expect("face set exists");
-        mesh.node_sets.insert(name.into(), nodes);
-    }
+    mesh.insert_face_set_nodes();
     if rs[0] == 0.0 {
         let axis = mesh.node_sets["inner"].clone();
         mesh.node_sets.insert("axis".into(), axis);

@@ -11,6 +11,8 @@ pub mod partition;
 pub mod quadratic;
 pub mod sphere;
 pub mod stack;
+#[cfg(test)]
+pub(crate) mod test_geometry;
 
 use std::collections::BTreeMap;
 
@@ -221,6 +223,18 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// The cells `connectivity` of `kind` on `nodes`, without sets yet.
+    pub fn new(kind: ElementKind, nodes: Vec<[f64; 3]>, connectivity: Vec<usize>) -> Self {
+        Mesh {
+            kind,
+            nodes,
+            connectivity,
+            node_sets: BTreeMap::new(),
+            face_sets: BTreeMap::new(),
+            cell_sets: BTreeMap::new(),
+        }
+    }
+
     /// Number of cells.
     pub fn n_cells(&self) -> usize {
         self.connectivity.len() / self.kind.nodes_per_cell()
@@ -257,6 +271,17 @@ impl Mesh {
         nodes.sort_unstable();
         nodes.dedup();
         Some(nodes)
+    }
+
+    /// Gives every face set a node set of the same name: the nodes of its faces (a node set of
+    /// that name is replaced). The generators and the Gmsh reader name a boundary once.
+    pub fn insert_face_set_nodes(&mut self) {
+        let sets: Vec<(String, Vec<usize>)> = self
+            .face_sets
+            .keys()
+            .map(|name| (name.clone(), self.face_set_nodes(name).unwrap_or_default()))
+            .collect();
+        self.node_sets.extend(sets);
     }
 
     /// Nodes of a named set: a node set, or else the nodes of a face set, or else of a cell set.
@@ -378,5 +403,36 @@ impl Mesh {
             colours[k].push(c);
         }
         colours
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A mesh starts without sets; every face set then gets the node set of its faces, replacing
+    /// one of the same name and leaving the others.
+    #[test]
+    fn face_sets_give_node_sets_of_the_same_name() {
+        let nodes = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let mut m = Mesh::new(ElementKind::Tet4, nodes, vec![0, 1, 2, 3]);
+        assert!(m.node_sets.is_empty() && m.face_sets.is_empty() && m.cell_sets.is_empty());
+        m.face_sets
+            .insert("a".into(), vec![FaceRef { cell: 0, face: 0 }]);
+        m.face_sets.insert("none".into(), vec![]);
+        m.node_sets.insert("a".into(), vec![3]);
+        m.node_sets.insert("b".into(), vec![1]);
+        m.insert_face_set_nodes();
+        let mut a: Vec<usize> = ElementKind::Tet4.faces()[0].to_vec();
+        a.sort_unstable();
+        assert_eq!(m.node_sets["a"], a);
+        assert_eq!(m.node_sets["none"], Vec::<usize>::new());
+        assert_eq!(m.node_sets["b"], [1]);
+        assert_eq!(m.node_sets.len(), 3);
     }
 }

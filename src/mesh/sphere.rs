@@ -10,7 +10,7 @@
 //! (the symmetry planes), and the cell set `all`.
 
 use super::{ElementKind, FaceRef, Mesh};
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 
 /// The octant shell of inner radius `r_in` and outer radius `r_out` (m), `n` cells along each
 /// edge of the three cube faces and `layers` cells through the thickness.
@@ -74,14 +74,11 @@ pub fn sphere_octant(r_in: f64, r_out: f64, n: usize, layers: usize) -> Mesh {
             h.swap(5, 7);
         }
     }
-    let mut mesh = Mesh {
-        kind: ElementKind::Hex8,
+    let mut mesh = Mesh::new(
+        ElementKind::Hex8,
         nodes,
-        connectivity: connectivity.iter().flatten().copied().collect(),
-        node_sets: BTreeMap::new(),
-        face_sets: BTreeMap::new(),
-        cell_sets: BTreeMap::new(),
-    };
+        connectivity.iter().flatten().copied().collect(),
+    );
     let tol = 1e-9 * r_out;
     let on = |p: [f64; 3], name: &str| -> bool {
         let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();

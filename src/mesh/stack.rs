@@ -34,6 +34,7 @@
 //! |x|, |y| ≤ edge) and `border` (the passive border, empty when `border = 0`). Set membership uses
 //! a tolerance of `1e-9 · max(Lx, Ly)`.
 
+use super::generate::{hex_corners, HEX_TO_TETS};
 use super::{ElementKind, FaceRef, Mesh};
 use std::collections::BTreeMap;
 
@@ -225,16 +226,6 @@ fn axis_nodes(spec: &StackSpec, half: f64) -> Vec<f64> {
     }
 }
 
-/// The six tetrahedra of the Kuhn subdivision of a hexahedron (as the `box` generator).
-const HEX_TO_TETS: [[usize; 4]; 6] = [
-    [0, 1, 2, 6],
-    [0, 2, 3, 6],
-    [0, 3, 7, 6],
-    [0, 7, 4, 6],
-    [0, 4, 5, 6],
-    [0, 5, 1, 6],
-];
-
 /// A stack mesh (see the module documentation for the geometry and the sets).
 pub fn stack_mesh(spec: &StackSpec) -> Result<Mesh, String> {
     if spec.kind.meridian().is_some() {
@@ -281,16 +272,7 @@ pub fn stack_mesh(spec: &StackSpec) -> Result<Mesh, String> {
     for k in 0..nz {
         for j in 0..ny {
             for i in 0..nx {
-                let h = [
-                    node_id(i, j, k),
-                    node_id(i + 1, j, k),
-                    node_id(i + 1, j + 1, k),
-                    node_id(i, j + 1, k),
-                    node_id(i, j, k + 1),
-                    node_id(i + 1, j, k + 1),
-                    node_id(i + 1, j + 1, k + 1),
-                    node_id(i, j + 1, k + 1),
-                ];
+                let h = hex_corners(node_id, i, j, k);
                 let first = cell;
                 match spec.kind {
                     ElementKind::Hex8 => {
@@ -316,14 +298,7 @@ pub fn stack_mesh(spec: &StackSpec) -> Result<Mesh, String> {
             }
         }
     }
-    let mut mesh = Mesh {
-        kind: spec.kind,
-        nodes,
-        connectivity,
-        node_sets: BTreeMap::new(),
-        face_sets: BTreeMap::new(),
-        cell_sets: BTreeMap::new(),
-    };
+    let mut mesh = Mesh::new(spec.kind, nodes, connectivity);
     mesh.face_sets = classify_faces(&mesh, spec, tol);
     node_sets_from_faces(&mut mesh, spec.films);
     mesh.cell_sets
@@ -335,11 +310,7 @@ pub fn stack_mesh(spec: &StackSpec) -> Result<Mesh, String> {
 
 /// Node sets: those of every face set, and `high_voltage` (odd electrodes) and `ground` (even).
 fn node_sets_from_faces(mesh: &mut Mesh, films: usize) {
-    let names: Vec<String> = mesh.face_sets.keys().cloned().collect();
-    for name in names {
-        let set = mesh.face_set_nodes(&name).expect("face set exists");
-        mesh.node_sets.insert(name, set);
-    }
+    mesh.insert_face_set_nodes();
     let (mut high, mut ground) = (Vec::new(), Vec::new());
     for k in 0..=films {
         let set = &mesh.node_sets[&format!("electrode_{k}")];
@@ -413,6 +384,7 @@ fn classify_faces(mesh: &Mesh, spec: &StackSpec, tol: f64) -> BTreeMap<String, V
 mod tests {
     use super::*;
     use crate::fem::ReferenceElement;
+    use crate::mesh::test_geometry::{dot, sub, volume};
     use std::collections::BTreeSet;
 
     const KINDS: [ElementKind; 3] = [ElementKind::Hex8, ElementKind::Tet4, ElementKind::Tet10];
@@ -439,22 +411,6 @@ mod tests {
         v
     }
 
-    fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-    }
-
-    fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
-    }
-
-    fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    }
-
     /// Area vector of a face (corners only: the faces are planar).
     fn area_vector(m: &Mesh, f: &FaceRef) -> [f64; 3] {
         let cell = m.cell(f.cell);
@@ -463,26 +419,7 @@ mod tests {
             .iter()
             .map(|&l| m.nodes[cell[l]])
             .collect();
-        let c = if p.len() == 3 {
-            cross(sub(p[1], p[0]), sub(p[2], p[0]))
-        } else {
-            cross(sub(p[2], p[0]), sub(p[3], p[1]))
-        };
-        c.map(|x| 0.5 * x)
-    }
-
-    fn volume(mesh: &Mesh) -> f64 {
-        let el = ReferenceElement::new(mesh.kind);
-        let mut coords = vec![[0.0; 3]; mesh.kind.nodes_per_cell()];
-        let mut v = 0.0;
-        for c in 0..mesh.n_cells() {
-            mesh.cell_coords_into(c, &mut coords);
-            let g = el
-                .geometry(&coords)
-                .unwrap_or_else(|e| panic!("cell {c} degenerate: {e:?}"));
-            v += g.weights[..g.n_qp].iter().sum::<f64>();
-        }
-        v
+        crate::mesh::test_geometry::area_vector(&p)
     }
 
     fn copies(s: &StackSpec) -> f64 {

@@ -354,11 +354,12 @@ mod tests {
         build_electrodes(&CTX, &s, &p.model.mesh, Some(base_dir))
     }
 
-    /// A fresh directory for the CSV files of one test (the test removes it).
-    fn dir(test: &str) -> std::path::PathBuf {
-        let d = std::env::temp_dir().join(format!("deasim-build-{}-{test}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    /// A fresh directory for the CSV files of one test, removed when it is dropped.
+    fn dir(test: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("deasim-build-{test}-"))
+            .tempdir()
+            .unwrap()
     }
 
     #[test]
@@ -419,7 +420,8 @@ mod tests {
             &top("{ waveform = \"ramp\", amplitude = 40.0, rise_time = 2.0 }"),
         )]);
         assert_eq!(p.electrodes[1].voltage.value(0.5), 10.0);
-        let d = dir("table");
+        let tmp = dir("table");
+        let d = tmp.path().to_path_buf();
         std::fs::write(
             d.join("v.csv"),
             "time,value\n# volts\n0, 0\n1, 100\n\n2, 50\n",
@@ -436,7 +438,6 @@ mod tests {
             &d,
         );
         assert_eq!(e.unwrap()[1].voltage.value(1.0), 200.0);
-        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]
@@ -522,7 +523,8 @@ mod tests {
 
     #[test]
     fn bad_tables_are_rejected() {
-        let d = dir("bad-tables");
+        let tmp = dir("bad-tables");
+        let d = tmp.path().to_path_buf();
         std::fs::write(d.join("bad.csv"), "time,value\n0, 0\n1, x\n").unwrap();
         std::fs::write(d.join("back.csv"), "0, 0\n1, 1\n1, 2\n").unwrap();
         let key = "electrodes.top.voltage.file";
@@ -542,6 +544,5 @@ mod tests {
             key,
             "back.csv: expected at least one row and strictly increasing",
         );
-        let _ = std::fs::remove_dir_all(&d);
     }
 }

@@ -814,6 +814,11 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/gmsh")
     }
 
+    /// The error of the `[mesh]` table `mesh` on the Gmsh test files.
+    fn gmsh_mesh_error(mesh: &str) -> InputError {
+        build_mesh(&CTX, &scenario(&[("mesh", mesh)]), Some(&gmsh_dir())).unwrap_err()
+    }
+
     #[test]
     fn box_meshes_of_every_element_kind() {
         let p = plan(&[]);
@@ -974,12 +979,7 @@ mod tests {
             "mesh.pad_radius",
             "applies to the `disc` generator, not to `generator = \"sphere\"`",
         );
-        let e = build_mesh(
-            &CTX,
-            &scenario(&[("mesh", "[mesh]\nfile = \"film-hex8-msh22.msh\"\nradial = 4")]),
-            Some(&gmsh_dir()),
-        )
-        .unwrap_err();
+        let e = gmsh_mesh_error("[mesh]\nfile = \"film-hex8-msh22.msh\"\nradial = 4");
         assert_names(
             &e,
             "mesh.radial",
@@ -1008,15 +1008,7 @@ mod tests {
             "mesh.formulation",
             "unknown formulation `b-bar`",
         );
-        let e = build_mesh(
-            &CTX,
-            &scenario(&[(
-                "mesh",
-                "[mesh]\nfile = \"film-hex8-msh22.msh\"\nelement = \"tet4\"",
-            )]),
-            Some(&gmsh_dir()),
-        )
-        .unwrap_err();
+        let e = gmsh_mesh_error("[mesh]\nfile = \"film-hex8-msh22.msh\"\nelement = \"tet4\"");
         assert_names(&e, "mesh.element", "`tet4` given, but");
         assert!(e.message.ends_with("holds hex8 cells"), "{e}");
     }
@@ -1049,82 +1041,23 @@ mod tests {
 
     #[test]
     fn a_missing_gmsh_file_is_rejected() {
-        let e = build_mesh(
-            &CTX,
-            &scenario(&[("mesh", "[mesh]\nfile = \"no-such-file.msh\"")]),
-            Some(&gmsh_dir()),
-        )
-        .unwrap_err();
+        let e = gmsh_mesh_error("[mesh]\nfile = \"no-such-file.msh\"");
         assert_names(&e, "mesh.file", "no-such-file.msh");
-        let e = build_mesh(
-            &CTX,
-            &scenario(&[(
-                "mesh",
-                "[mesh]\nfile = \"film-hex8-msh22.msh\"\nscale = 0.0",
-            )]),
-            Some(&gmsh_dir()),
-        )
-        .unwrap_err();
+        let e = gmsh_mesh_error("[mesh]\nfile = \"film-hex8-msh22.msh\"\nscale = 0.0");
         assert_names(&e, "mesh.scale", "factor from file units to m");
     }
 
-    /// The meridian R ∈ [0, 2], Z ∈ [0, 1] (mm) in two quad8 cells, written by Gmsh 4.15 (MSH 2.2):
-    /// curves `axis`, `bottom`, `top`, `outer`, surface `film`, point `corner`.
-    const MERIDIAN_QUAD8: &str = r#"$MeshFormat
-2.2 0 8
-$EndMeshFormat
-$PhysicalNames
-6
-0 6 "corner"
-1 1 "axis"
-1 2 "bottom"
-1 3 "top"
-1 4 "outer"
-2 5 "film"
-$EndPhysicalNames
-$Nodes
-13
-1 0 0 0
-2 2 0 0
-3 2 1 0
-4 0 1 0
-5 0.9999999999973842 0 0
-6 0.4999999999988369 0 0
-7 1.499999999998692 0 0
-8 2 0.4999999999986718 0
-9 1.000000000004119 1 0
-10 1.50000000000152 1 0
-11 0.5000000000020595 1 0
-12 0 0.5000000000013304 0
-13 1.000000000000752 0.5 0
-$EndNodes
-$Elements
-9
-1 15 2 6 2 2
-2 8 2 2 1 1 5 6
-3 8 2 2 1 5 2 7
-4 8 2 4 2 2 3 8
-5 8 2 3 3 3 9 10
-6 8 2 3 3 9 4 11
-7 8 2 1 4 4 1 12
-8 16 2 5 1 1 5 9 4 6 13 11 12
-9 16 2 5 1 5 2 3 9 7 8 10 13
-$EndElements
-"#;
-
-    /// An axisymmetric scenario on a Gmsh meridian file (written to a temporary directory): the
-    /// model has the file's quad8 cells and sets, the axis nodes held radially, the electrodes on
-    /// the physical curves.
+    /// An axisymmetric scenario on a Gmsh meridian file (R ∈ [0, 2], Z ∈ [0, 1] mm in 4 × 2 quad8
+    /// cells): the model has the file's cells and sets, the axis nodes held radially, the
+    /// electrodes on the physical curves.
     #[test]
     fn axisymmetric_scenario_on_a_gmsh_meridian_file() {
-        let dir = std::env::temp_dir().join(format!("deasim-meridian-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        std::fs::write(dir.join("rect.msh"), MERIDIAN_QUAD8).unwrap();
+        let dir = gmsh_dir();
         let s = scenario(&[
             (
                 "mesh",
-                "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"rect.msh\"\nscale = 1e-3\n\
-                 element = \"quad8\"",
+                "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"meridian-quad8-msh22.msh\"\n\
+                 scale = 1e-3\nelement = \"quad8\"",
             ),
             (
                 "constraints",
@@ -1139,18 +1072,18 @@ $EndElements
         let p = crate::io::build::build(&s, FILE, Some(&dir));
         let wrong = scenario(&[(
             "mesh",
-            "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"rect.msh\"\nelement = \"tri6\"",
+            "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"meridian-quad8-msh22.msh\"\n\
+             element = \"tri6\"",
         )]);
         let e = build_mesh(&CTX, &wrong, Some(&dir));
-        let _ = std::fs::remove_dir_all(&dir);
         let p = p.unwrap_or_else(|e| panic!("{e}"));
         let m = &p.model.mesh;
         assert_eq!(m.kind, ElementKind::Meridian(MeridianKind::Quad8));
-        assert_eq!((m.n_cells(), m.n_nodes()), (2, 13));
+        assert_eq!((m.n_cells(), m.n_nodes()), (8, 37));
         assert!(p.model.is_axisymmetric());
         assert!(p.warnings.is_empty(), "{:?}", p.warnings);
         let axis = m.node_sets["axis"].clone();
-        assert_eq!(axis.len(), 3);
+        assert_eq!(axis.len(), 5);
         assert!(axis.iter().all(|&n| m.nodes[n][0] == 0.0));
         // the axis nodes are held radially (slot 0) by the model's own supports
         assert!(p
@@ -1158,7 +1091,7 @@ $EndElements
             .iter()
             .any(|d| d.field == crate::problem::dofs::Field::Ux && d.nodes == axis));
         let top = &p.electrodes.iter().find(|e| e.name == "top").unwrap().nodes;
-        assert_eq!(top.len(), 5);
+        assert_eq!(top.len(), 9);
         assert!(top.iter().all(|&n| (m.nodes[n][1] - 1e-3).abs() < 1e-15));
         let e = e.unwrap_err();
         assert_names(&e, "mesh.element", "`tri6` given, but");
@@ -1169,41 +1102,21 @@ $EndElements
     /// `geometry` reads it.
     #[test]
     fn gmsh_files_of_the_other_geometry_are_rejected() {
-        let e = build_mesh(
-            &CTX,
-            &scenario(&[("mesh", "[mesh]\nfile = \"meridian-tri6-msh41.msh\"")]),
-            Some(&gmsh_dir()),
-        )
-        .unwrap_err();
+        let e = gmsh_mesh_error("[mesh]\nfile = \"meridian-tri6-msh41.msh\"");
         assert_names(&e, "mesh.file", "holds a 2-D mesh (tri6 cells)");
         assert!(
             e.message.contains("give `geometry = \"axisymmetric\"`"),
             "{e}"
         );
-        let e = build_mesh(
-            &CTX,
-            &scenario(&[(
-                "mesh",
-                "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"film-tet4-msh22.msh\"",
-            )]),
-            Some(&gmsh_dir()),
-        )
-        .unwrap_err();
+        let e =
+            gmsh_mesh_error("[mesh]\ngeometry = \"axisymmetric\"\nfile = \"film-tet4-msh22.msh\"");
         assert_names(&e, "mesh.file", "holds a 3-D mesh (tet4 cells)");
         assert!(
             e.message.contains("remove `geometry = \"axisymmetric\"`"),
             "{e}"
         );
         // a file neither way reads: the reader's own message
-        let e = build_mesh(
-            &CTX,
-            &scenario(&[(
-                "mesh",
-                "[mesh]\ngeometry = \"axisymmetric\"\nfile = \"no-such-file.msh\"",
-            )]),
-            Some(&gmsh_dir()),
-        )
-        .unwrap_err();
+        let e = gmsh_mesh_error("[mesh]\ngeometry = \"axisymmetric\"\nfile = \"no-such-file.msh\"");
         assert_names(&e, "mesh.file", "no-such-file.msh: cannot read");
     }
 }
