@@ -46,14 +46,15 @@ pub fn run_with(
     start: Option<RunState>,
 ) -> RunSummary {
     let mut observers = Observers(observers);
-    let mut job = Job::new(plan, &plan.newton, &mut observers, start.as_ref());
     let mut model = plan.model.clone();
-    if let Some(s) = &start {
-        model.dead_load_start = s.dead_load_start;
+    let resuming = start.is_some();
+    let mut job = Job::new(plan, &plan.newton, &mut observers, start);
+    let mut resume = None;
+    if resuming {
+        model.dead_load_start = job.state.dead_load_start;
+        resume = Some((job.state.position.clone(), job.state.step_no));
     }
-    let first = start.as_ref().map_or(0, |s| s.stage);
-    let mut resume = start.map(|s| (s.position, s.step_no));
-    for si in first..plan.stages.len() {
+    for si in job.state.stage..plan.stages.len() {
         if !job.stage(si, &mut model, resume.take()) {
             break;
         }
@@ -68,24 +69,15 @@ struct Job<'p, 'o> {
     observer: &'o mut dyn Observer,
     rec: Recorder<'p>,
     summary: RunSummary,
-    q: Vec<f64>,
-    v: Vec<f64>,
-    a: Vec<f64>,
-    /// Global time at the start of the current stage.
-    time: f64,
-    dissipated: f64,
-    accepted: usize,
-    /// Steps and Newton iterations of the pre-stretch, recorded under the first stage.
-    first_step: usize,
-    prestretch_iterations: usize,
-    wall_before: f64,
+    /// The evolving state of the run: nodal values, velocities, stage position, dissipated
+    /// energy, pressure fractions (the point states live in `points`, the records in `rec`; a
+    /// checkpoint completes a copy of it with them).
+    state: RunState,
     started: Instant,
     /// The first failure to evaluate a record in the current stage.
     record_error: Option<String>,
-    /// Committed internal variables of the material points.
+    /// Committed internal variables of the material points: their only live copy.
     points: PointStates,
-    /// The fraction of each pressure acting at the start of the current stage.
-    pressure_fraction: Vec<f64>,
 }
 
 impl<'p, 'o> Job<'p, 'o> {
@@ -93,10 +85,50 @@ impl<'p, 'o> Job<'p, 'o> {
         plan: &'p Plan,
         newton: &'p NewtonSettings,
         observer: &'o mut dyn Observer,
-        start: Option<&RunState>,
+        start: Option<RunState>,
     ) -> Self {
         let n = plan.model.mesh.n_nodes() * FIELDS;
         let whole = plan.whole_nodes() * FIELDS;
+        let resumed = start.is_some();
+        let mut state = start.unwrap_or_else(|| RunState {
+            accepted: 0,
+            stage: 0,
+            stage_time: 0.0,
+            step_no: 0,
+            first_step: 0,
+            prestretch_iterations: 0,
+            // not read: a run from the start begins its first stage afresh
+            position: StagePosition::Static {
+                ramp: RampPosition::default(),
+                stage_start: Vec::new(),
+                last_load: 0.0,
+            },
+            q: vec![0.0; n],
+            v: vec![0.0; n],
+            a: vec![0.0; n],
+            points: Vec::new(),
+            dissipated: 0.0,
+            dead_load_start: plan.model.dead_load_start,
+            pressure_start: Vec::new(),
+            recorder: RecorderState::default(),
+            stages: Vec::new(),
+            warnings: Vec::new(),
+            records: Vec::new(),
+            wall_s: 0.0,
+        });
+        let pressures = plan.model.pressures.len();
+        if state.pressure_start.len() != pressures {
+            // an older checkpoint: the fractions the stage before left
+            state.pressure_start = if state.stage > 0 {
+                plan.pressure_targets(state.stage - 1)
+            } else {
+                vec![0.0; pressures]
+            };
+        }
+        let mut points = PointStates::new(&plan.model);
+        if let Some(p) = PointStates::with_data(&plan.model, std::mem::take(&mut state.points)) {
+            points = p;
+        }
         let mut job = Job {
             plan,
             newton,
@@ -105,25 +137,16 @@ impl<'p, 'o> Job<'p, 'o> {
             summary: RunSummary {
                 converged: true,
                 error: None,
-                stages: Vec::new(),
+                stages: std::mem::take(&mut state.stages),
                 wall_s: 0.0,
                 dofs: whole,
                 warnings: plan.warnings.clone(),
                 interrupted: false,
             },
-            q: vec![0.0; n],
-            v: vec![0.0; n],
-            a: vec![0.0; n],
-            time: 0.0,
-            dissipated: 0.0,
-            accepted: 0,
-            first_step: 0,
-            prestretch_iterations: 0,
-            wall_before: 0.0,
             started: Instant::now(),
             record_error: None,
-            points: PointStates::new(&plan.model),
-            pressure_fraction: vec![0.0; plan.model.pressures.len()],
+            points,
+            state,
         };
         crate::solve::interrupt::clear_local();
         if !plan.solver.gives_inertia() {
@@ -133,33 +156,17 @@ impl<'p, 'o> Job<'p, 'o> {
                 plan.solver.kind.name()
             ));
         }
-        if let Some(s) = start {
-            if s.pressure_start.len() == job.pressure_fraction.len() {
-                job.pressure_fraction.clone_from(&s.pressure_start);
-            } else if s.stage > 0 {
-                job.pressure_fraction = plan.pressure_targets(s.stage - 1);
-            }
-            job.q.clone_from(&s.q);
-            job.v.clone_from(&s.v);
-            job.a.clone_from(&s.a);
+        if resumed {
+            let s = &mut job.state;
             job.rec.restore(&s.recorder, &s.records);
-            job.summary.stages = s.stages.clone();
-            job.summary.warnings = s.warnings.clone();
-            job.time = s.stage_time;
-            job.dissipated = s.dissipated;
-            job.accepted = s.accepted;
-            job.wall_before = s.wall_s;
-            job.first_step = s.first_step;
-            job.prestretch_iterations = s.prestretch_iterations;
-            if let Some(p) = PointStates::with_data(&plan.model, s.points.clone()) {
-                job.points = p;
-            }
+            job.summary.warnings = std::mem::take(&mut s.warnings);
+            let records = std::mem::take(&mut s.records);
             // the fields of the last recorded state, for writers that complete a stage's files
             // (of this process's cells when processes share them, as a step's record gives them)
             let fields = crate::problem::statics::record_with(&plan.model, &s.q, &job.points)
                 .map(|r| r.fields)
                 .unwrap_or_default();
-            job.observer.resumed(plan, &s.records, &s.q, &fields);
+            job.observer.resumed(plan, &records, &s.q, &fields);
         }
         job
     }
@@ -181,25 +188,18 @@ impl<'p, 'o> Job<'p, 'o> {
             }
         }
         Ok(RunState {
-            accepted: self.accepted,
             stage,
-            stage_time: self.time,
             step_no,
-            first_step: self.first_step,
-            prestretch_iterations: self.prestretch_iterations,
             position,
             q: q.to_vec(),
-            v: self.v.clone(),
-            a: self.a.clone(),
             points: self.points.merged(model)?,
-            dissipated: self.dissipated,
             dead_load_start: model.dead_load_start,
-            pressure_start: self.pressure_fraction.clone(),
             recorder: self.rec.state(),
             stages: self.summary.stages.clone(),
             warnings: self.summary.warnings.clone(),
             records: self.rec.history.clone(),
-            wall_s: self.wall_before + self.started.elapsed().as_secs_f64(),
+            wall_s: self.state.wall_s + self.started.elapsed().as_secs_f64(),
+            ..self.state.clone()
         })
     }
 
@@ -209,7 +209,7 @@ impl<'p, 'o> Job<'p, 'o> {
         stopping: bool,
         state: impl FnOnce(&Self) -> Result<RunState, String>,
     ) {
-        if self.observer.wants_state(self.accepted, stopping) {
+        if self.observer.wants_state(self.state.accepted, stopping) {
             let written = state(self).and_then(|s| self.observer.run_state(self.plan, &s));
             if let Err(e) = written {
                 self.rec
@@ -250,7 +250,7 @@ impl<'p, 'o> Job<'p, 'o> {
             iterations,
             dt,
             kinetic,
-            self.dissipated,
+            self.state.dissipated,
         ) {
             Ok((r, f)) => {
                 self.observer.step(self.plan, &r, q, &f);
@@ -279,7 +279,7 @@ impl<'p, 'o> Job<'p, 'o> {
         // volume-controlled one acting here starts from there and is an unknown
         let targets = plan.pressure_targets(si);
         for (i, p) in model.pressures.iter_mut().enumerate() {
-            let (from, to) = (self.pressure_fraction[i], targets[i]);
+            let (from, to) = (self.state.pressure_start[i], targets[i]);
             p.volume = plan.pressure_volumes[i].filter(|_| to != 0.0);
             p.ramp = if p.volume.is_some() {
                 [from, from]
@@ -288,8 +288,8 @@ impl<'p, 'o> Job<'p, 'o> {
             };
         }
         if position.is_none() {
-            self.first_step = 0;
-            self.prestretch_iterations = 0;
+            self.state.first_step = 0;
+            self.state.prestretch_iterations = 0;
             if si == 0 && !self.initial_phase(model, stage, &prescribed, stage_start) {
                 return false;
             }
@@ -339,9 +339,9 @@ impl<'p, 'o> Job<'p, 'o> {
         // where the stage left the pressures: at the last record (a continuation's path may end
         // short of its load 1, a volume-controlled pressure where its volume needed it)
         if self.rec.pressure_now.len() == model.pressures.len() {
-            self.pressure_fraction.clone_from(&self.rec.pressure_now);
+            self.state.pressure_start.clone_from(&self.rec.pressure_now);
         }
-        self.time += stage.duration;
+        self.state.stage_time += stage.duration;
         true
     }
 
@@ -357,10 +357,11 @@ impl<'p, 'o> Job<'p, 'o> {
                     shift_hz: *shift_hz,
                     ..Default::default()
                 };
-                match modes_at(plan, &self.q, &settings) {
+                match modes_at(plan, &self.state.q, &settings) {
                     Ok(found) => {
                         summary.modes_hz = found.iter().map(|m| m.frequency).collect();
-                        self.observer.modes(plan, &stage.name, &self.q, &found);
+                        self.observer
+                            .modes(plan, &stage.name, &self.state.q, &found);
                         None
                     }
                     Err(e) => Some(format!("stage `{}`: modes: {e}", stage.name)),
@@ -374,7 +375,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 summary.kind = "frequency-response".into();
                 match frequency_response_at(
                     plan,
-                    &self.q,
+                    &self.state.q,
                     &self.rec.reference,
                     *electrode,
                     frequencies,
@@ -406,9 +407,9 @@ impl<'p, 'o> Job<'p, 'o> {
     ) -> bool {
         let plan = self.plan;
         match self.rec.record(
-            &self.q,
+            &self.state.q,
             prescribed,
-            self.time,
+            self.state.stage_time,
             &stage.name,
             0,
             0,
@@ -416,7 +417,7 @@ impl<'p, 'o> Job<'p, 'o> {
             0.0,
             0.0,
         ) {
-            Ok((r, f)) => self.observer.step(plan, &r, &self.q, &f),
+            Ok((r, f)) => self.observer.step(plan, &r, &self.state.q, &f),
             Err(e) => {
                 self.summary.converged = false;
                 self.summary.error = Some(format!("initial state: {e}"));
@@ -429,7 +430,7 @@ impl<'p, 'o> Job<'p, 'o> {
         match prestretch(
             plan,
             model,
-            &self.q,
+            &self.state.q,
             &self.points,
             p,
             self.newton,
@@ -438,14 +439,14 @@ impl<'p, 'o> Job<'p, 'o> {
             &mut *self.observer,
         ) {
             Ok(o) => {
-                self.q = o.state;
-                self.first_step = o.steps;
-                self.prestretch_iterations = o.iterations;
-                self.rec.reference = self.q.clone();
+                self.state.q = o.state;
+                self.state.first_step = o.steps;
+                self.state.prestretch_iterations = o.iterations;
+                self.rec.reference = self.state.q.clone();
                 self.rec.points.clone_from(&o.points);
                 self.points = o.points;
-                self.dissipated += o.dissipated;
-                self.time += o.time;
+                self.state.dissipated += o.dissipated;
+                self.state.stage_time += o.time;
                 true
             }
             Err(e) => {
@@ -485,8 +486,8 @@ impl<'p, 'o> Job<'p, 'o> {
             "static"
         }
         .into();
-        self.v.iter_mut().for_each(|v| *v = 0.0);
-        self.a.iter_mut().for_each(|v| *v = 0.0);
+        self.state.v.iter_mut().for_each(|v| *v = 0.0);
+        self.state.a.iter_mut().for_each(|v| *v = 0.0);
         let (stage_start, resume_at, mut step_no, mut last_load) = match position {
             Some((
                 StagePosition::Static {
@@ -497,11 +498,11 @@ impl<'p, 'o> Job<'p, 'o> {
                 step_no,
             )) => (
                 stage_start,
-                Some((self.q.clone(), ramp)),
+                Some((self.state.q.clone(), ramp)),
                 step_no,
                 last_load,
             ),
-            _ => (self.q.clone(), None, self.first_step, 0.0),
+            _ => (self.state.q.clone(), None, self.state.first_step, 0.0),
         };
         let start_voltages: Vec<f64> = match plan.electrode_voltages(&stage_start) {
             Ok(v) => plan
@@ -565,7 +566,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 }
             }
         }
-        let time = self.time;
+        let time = self.state.stage_time;
         let model_ref: &Model = model;
         let outcome = solve_static_from(
             model_ref,
@@ -582,7 +583,7 @@ impl<'p, 'o> Job<'p, 'o> {
             plan.part.as_ref().map(|p| &p.stages),
             |p, acc| {
                 step_no += 1;
-                self.dissipated += p.dissipated_step;
+                self.state.dissipated += p.dissipated_step;
                 self.points.clone_from(&p.points);
                 self.rec.points.clone_from(&p.points);
                 let t = time + acc.load * stage.duration;
@@ -603,7 +604,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     dt,
                     0.0,
                 );
-                self.accepted += 1;
+                self.state.accepted += 1;
                 last_position = acc.position;
                 self.offer_state(false, |job| {
                     job.state(
@@ -635,19 +636,19 @@ impl<'p, 'o> Job<'p, 'o> {
                 )
             });
         }
-        self.q = outcome.state;
+        self.state.q = outcome.state;
         self.points = outcome.points;
         summary.steps = step_no;
         summary.linear = outcome.linear;
         match outcome.result {
             Ok(r) => {
-                summary.newton_iterations = r.newton_iterations + self.prestretch_iterations;
+                summary.newton_iterations = r.newton_iterations + self.state.prestretch_iterations;
                 // the tractions are now fully applied; later static stages keep them
                 model.dead_load_start = 1.0;
                 None
             }
             Err(f) => {
-                summary.newton_iterations = f.newton_iterations + self.prestretch_iterations;
+                summary.newton_iterations = f.newton_iterations + self.state.prestretch_iterations;
                 // a limit point with a voltage on (ramped, or held while the material creeps)
                 let electric = start_voltages
                     .iter()
@@ -663,7 +664,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 // the evidence beyond the failed step: a material at its locking limit in the
                 // last converged state, or input whose scales leave nothing physical to solve
                 let locked = (!interrupted)
-                    .then(|| crate::problem::statics::nearest_locking(model_ref, &self.q))
+                    .then(|| crate::problem::statics::nearest_locking(model_ref, &self.state.q))
                     .flatten()
                     .filter(|l| l.0 >= LOCKED_FRACTION);
                 let implausible = (!interrupted)
@@ -721,7 +722,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 let t0 = model.dead_load_start;
                 let charge_at = |q: f64, s: f64| q * (t0 + s * (1.0 - t0));
                 let voltages = plan
-                    .electrode_voltages(&self.q)
+                    .electrode_voltages(&self.state.q)
                     .unwrap_or_else(|_| vec![f64::NAN; plan.electrodes.len()]);
                 for (e, voltage) in plan.electrodes.iter().zip(voltages) {
                     if let Some(q) = e.charge {
@@ -738,7 +739,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     "{what} in stage `{}` at t = {:.6} s: no stable equilibrium beyond load factor {:.6} \
                      (tried {:.6}); {}; last failure: {}",
                     stage.name,
-                    self.time + f.last_converged * stage.duration,
+                    self.state.stage_time + f.last_converged * stage.duration,
                     f.last_converged,
                     f.attempted,
                     controls.join("; "),
@@ -775,9 +776,9 @@ impl<'p, 'o> Job<'p, 'o> {
             unreachable!("a continuation stage")
         };
         summary.kind = "continuation".into();
-        self.v.iter_mut().for_each(|v| *v = 0.0);
-        self.a.iter_mut().for_each(|v| *v = 0.0);
-        let stage_start = self.q.clone();
+        self.state.v.iter_mut().for_each(|v| *v = 0.0);
+        self.state.a.iter_mut().for_each(|v| *v = 0.0);
+        let stage_start = self.state.q.clone();
         let t0 = model.dead_load_start;
         let (column, unit) = parameter.column(plan);
         // the parameter at the stage's start and end (load factor 0 and 1)
@@ -827,7 +828,7 @@ impl<'p, 'o> Job<'p, 'o> {
             },
             ..Default::default()
         };
-        let time = self.time;
+        let time = self.state.stage_time;
         let model_ref: &Model = model;
         let mut problem = StaticProblem::new(model_ref, Some(stage_start));
         problem.duration = stage.duration;
@@ -838,7 +839,7 @@ impl<'p, 'o> Job<'p, 'o> {
             Err(e) => return Some(format!("stage `{}`: {e}", stage.name)),
         };
         let mut solver = plan.solver.build();
-        let mut step_no = self.first_step;
+        let mut step_no = self.state.first_step;
         let mut last_load = 0.0;
         let mut previous_probe: Option<f64> = None;
         let mut reached = false;
@@ -876,7 +877,7 @@ impl<'p, 'o> Job<'p, 'o> {
                         dt,
                         0.0,
                     );
-                    self.accepted += 1;
+                    self.state.accepted += 1;
                     let probes = record.map(|r| r.probes).unwrap_or_default();
                     self.observer.path_point(
                         plan,
@@ -930,12 +931,12 @@ impl<'p, 'o> Job<'p, 'o> {
             ));
         }
         let problem = held.into_inner();
-        self.q = problem.state;
+        self.state.q = problem.state;
         self.points = problem.points;
         summary.steps = step_no;
         match result {
             Ok(report) => {
-                summary.newton_iterations = report.iterations + self.prestretch_iterations;
+                summary.newton_iterations = report.iterations + self.state.prestretch_iterations;
                 // later stages start from the dead loads where the path ended
                 model.dead_load_start = t0 + last_load * (1.0 - t0);
                 let missed = match (target, &report.end) {
@@ -956,7 +957,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 })
             }
             Err(f) => {
-                summary.newton_iterations = f.iterations + self.prestretch_iterations;
+                summary.newton_iterations = f.iterations + self.state.prestretch_iterations;
                 Some(format!(
                     "continuation in stage `{}` stopped after {} points at load factor {:.6} \
                      ({column} = {} {unit}): {}",
@@ -1034,13 +1035,13 @@ impl<'p, 'o> Job<'p, 'o> {
         // the integrator runs on stage time; records get the global time
         let (t0, resume, mut step_no) = match position {
             Some((StagePosition::Dynamic { t, driver }, step_no)) => (t, Some(driver), step_no),
-            _ => (0.0, None, self.first_step),
+            _ => (0.0, None, self.state.first_step),
         };
         let start_level = TimeLevel {
             t: t0,
-            q: self.q.clone(),
-            v: self.v.clone(),
-            a: self.a.clone(),
+            q: self.state.q.clone(),
+            v: self.state.v.clone(),
+            a: self.state.a.clone(),
         };
         let mut last = resume.clone().unwrap_or(DynamicResume {
             t_start: 0.0,
@@ -1051,8 +1052,8 @@ impl<'p, 'o> Job<'p, 'o> {
             projection_factor: None,
             linear: Default::default(),
         });
-        let mut mv = vec![0.0; self.q.len()];
-        let time = self.time;
+        let mut mv = vec![0.0; self.state.q.len()];
+        let time = self.state.stage_time;
         let model_ref: &Model = model;
         // the stage's linear work up to its last accepted step
         let mut linear = Default::default();
@@ -1066,7 +1067,7 @@ impl<'p, 'o> Job<'p, 'o> {
             |level, info| {
                 step_no += 1;
                 linear = info.linear;
-                self.dissipated += info.dissipated;
+                self.state.dissipated += info.dissipated;
                 if let Some(p) = info.points {
                     self.points.clone_from(p);
                     self.rec.points.clone_from(p);
@@ -1088,12 +1089,12 @@ impl<'p, 'o> Job<'p, 'o> {
                     info.dt,
                     kinetic,
                 );
-                self.accepted += 1;
+                self.state.accepted += 1;
                 last = info.resume_point(0.0);
-                if self.observer.wants_state(self.accepted, false) {
+                if self.observer.wants_state(self.state.accepted, false) {
                     let r = last.clone();
-                    self.v.clone_from(&level.v);
-                    self.a.clone_from(&level.a);
+                    self.state.v.clone_from(&level.v);
+                    self.state.a.clone_from(&level.a);
                     self.offer_state(false, |job| {
                         job.state(
                             model_ref,
@@ -1120,8 +1121,8 @@ impl<'p, 'o> Job<'p, 'o> {
                 summary.newton_iterations = f.newton_iterations;
                 summary.linear = f.linear;
                 if crate::solve::interrupt::requested() {
-                    self.v.clone_from(&level.v);
-                    self.a.clone_from(&level.a);
+                    self.state.v.clone_from(&level.v);
+                    self.state.a.clone_from(&level.a);
                     let r = last.clone();
                     self.offer_state(true, |job| {
                         job.state(
@@ -1141,23 +1142,23 @@ impl<'p, 'o> Job<'p, 'o> {
                     Some(format!(
                         "dynamic stage `{}` stopped at t = {:.6e} s: {}",
                         stage.name,
-                        self.time + f.t,
+                        self.state.stage_time + f.t,
                         f.reason
                     )),
                 )
             }
         };
-        self.q = level.q;
+        self.state.q = level.q;
         model.dead_load_start = 1.0;
-        self.v = level.v;
-        self.a = level.a;
+        self.state.v = level.v;
+        self.state.a = level.a;
         failure
     }
 
     /// Ends the run: the summary, sent to the observers.
     fn finish(mut self) -> RunSummary {
         self.summary.warnings.append(&mut self.rec.warnings);
-        self.summary.wall_s = self.wall_before + self.started.elapsed().as_secs_f64();
+        self.summary.wall_s = self.state.wall_s + self.started.elapsed().as_secs_f64();
         self.summary.interrupted = crate::solve::interrupt::requested() && !self.summary.converged;
         self.observer.finished(self.plan, &self.summary);
         self.summary

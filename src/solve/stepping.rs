@@ -47,7 +47,7 @@ pub struct AcceptedStep {
 }
 
 /// The ramp's position between two steps: enough to continue it with [`ramp_from`].
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RampPosition {
     /// Load factor of the converged state.
     pub load: f64,
