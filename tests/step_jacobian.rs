@@ -716,3 +716,44 @@ fn mass_and_resistance_products_match_finite_differences() {
         );
     }
 }
+
+/// The explicit trapezoidal step's velocity equation: its products in the new positions, the
+/// previous positions and velocities and the given forces against central differences.
+#[test]
+fn level_products_of_the_trapezoidal_step_match_finite_differences() {
+    use deasim::time::trapezoidal::TrapezoidalStep;
+    for plan in [
+        film(&["materials.elastomer.viscosity=100"]),
+        plan_of(
+            example("diaphragm").unwrap(),
+            &["materials.vhb.viscosity=50"],
+        ),
+    ] {
+        let (model, dt, mass) = dynamic_model(&plan);
+        let nodal = nodal_mass(&plan, &model, mass);
+        let mut next = generator(53);
+        let reference = general_step(&plan, &model, &nodal, (dt, SCHEMES[0]), None, &mut next);
+        let mut step = TrapezoidalStep::new(&model, &nodal, plan.viscosities.clone());
+        step.dt = dt;
+        step.q_n.clone_from(&reference.prev.q);
+        step.v_n.clone_from(&reference.prev.v);
+        step.q.clone_from(&reference.q);
+        step.f_n = (0..step.q.len()).map(|_| next()).collect();
+        let w: Vec<f64> = (0..step.n()).map(|_| next()).collect();
+        let vjp = step.level_vjp(&w).unwrap();
+        let inputs: [(&str, Input<TrapezoidalStep>, &[f64]); 4] = [
+            ("q_new", |s| &mut s.q, &vjp.q_new),
+            ("q", |s| &mut s.q_n, &vjp.q),
+            ("v", |s| &mut s.v_n, &vjp.v),
+            ("forces", |s| &mut s.f_n, &vjp.forces),
+        ];
+        let q = step.q_n.clone();
+        for (name, input, product) in inputs {
+            for _ in 0..3 {
+                let delta = nodal_direction(input(&mut step), &q, &mut next);
+                let e = directional_error(&mut step, &w, input, product, &delta);
+                assert!(e <= 1e-6, "{name} off by {e:e}");
+            }
+        }
+    }
+}

@@ -178,6 +178,14 @@ impl DofMap {
         }
         f
     }
+
+    /// Each equation's field group for Newton's table: 0 displacement, 1 potential.
+    pub fn groups(&self) -> Vec<u8> {
+        self.field_of_equation()
+            .into_iter()
+            .map(|f| u8::from(f == PHI))
+            .collect()
+    }
 }
 
 /// A tie: `field` of every node in `nodes` takes one common increment (a rigid translation of a

@@ -754,11 +754,7 @@ impl NonlinearSystem for StaticProblem<'_> {
     }
 
     fn groups(&self) -> Vec<u8> {
-        self.dofs
-            .field_of_equation()
-            .into_iter()
-            .map(|f| u8::from(f == PHI))
-            .collect()
+        self.dofs.groups()
     }
 
     fn shares_cells(&self) -> bool {

@@ -33,6 +33,10 @@ pub struct LevelVjp {
     /// In each circuit's state at the start of the step: the fields of a [`CircuitStep`] hold
     /// wᵀ∂R/∂(charge, voltage, source values).
     pub circuits: Vec<CircuitStep>,
+    /// In the conservative forces at the previous level that an explicit step takes as given
+    /// (∇_u V − f_ext at q_n, N; their own derivatives are those of the load step that gives
+    /// them).
+    pub forces: Vec<f64>,
 }
 
 /// One step of a stage as a nonlinear system in its new state, with the transposed products of

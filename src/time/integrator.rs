@@ -580,6 +580,7 @@ impl StepOperator for TimeStep<'_> {
             a: combine(a),
             points: p.points.iter().map(|x| f_r * x).collect(),
             circuits,
+            forces: Vec::new(),
         })
     }
 
@@ -809,11 +810,7 @@ impl NonlinearSystem for TimeStep<'_> {
     }
 
     fn groups(&self) -> Vec<u8> {
-        self.dofs
-            .field_of_equation()
-            .into_iter()
-            .map(|f| u8::from(f == PHI))
-            .collect()
+        self.dofs.groups()
     }
 
     fn shares_cells(&self) -> bool {

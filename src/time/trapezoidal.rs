@@ -11,9 +11,12 @@ use super::mass::NodalMass;
 use crate::algebra::csr::CsrMatrix;
 use crate::element::{KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::Assembler;
+use crate::problem::dofs::free_weights;
 use crate::problem::dofs::{Dirichlet, DofMap, Field, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
+use crate::problem::points::PointStates;
 use crate::problem::statics::{discretize, layout_of};
+use crate::problem::step::{cell_products, LevelVjp, StepOperator};
 use crate::solve::newton::NonlinearSystem;
 
 /// The velocity equation of one trapezoidal step; the unknown is u_{n+1} (the potential is held).
@@ -128,6 +131,46 @@ pub(crate) fn own_cells_power(
         Ok(())
     });
     (total, outcome.err())
+}
+
+/// The velocity equation R = M(v̄ − v_n) + (Δt/2)[f_n + r_vis(q_n, v̄)], v̄ = (q_{n+1} − q_n)/Δt:
+/// its inputs are q_{n+1}, q_n (through v̄ and the viscous forces' configuration), v_n and the
+/// forces f_n; no material parameter enters it but through f_n.
+impl StepOperator for TrapezoidalStep<'_> {
+    fn level_vjp(&mut self, w: &[f64]) -> Result<LevelVjp, String> {
+        let (dt, vbar) = (self.dt, self.velocity());
+        let weights = free_weights(&self.dofs, w);
+        let p = cell_products(
+            &self.model,
+            &self.q_n,
+            Some(&vbar),
+            &self.viscosity,
+            &PointStates::default(),
+            dt,
+            &weights,
+        )?;
+        let mut mw = vec![0.0; weights.len()];
+        self.mass.mul(&weights, &mut mw);
+        let viscous = |d: usize| 0.5 * p.viscous_velocity[d];
+        Ok(LevelVjp {
+            q_new: (0..mw.len()).map(|d| mw[d] / dt + viscous(d)).collect(),
+            q: (0..mw.len())
+                .map(|d| -mw[d] / dt - viscous(d) + 0.5 * dt * p.viscous_configuration[d])
+                .collect(),
+            v: mw.iter().map(|x| -x).collect(),
+            forces: weights.iter().map(|x| 0.5 * dt * x).collect(),
+            ..LevelVjp::default()
+        })
+    }
+
+    fn parameter_vjp(&mut self, _w: &[f64], material: usize) -> Result<Vec<f64>, String> {
+        let theta = self
+            .model
+            .materials
+            .get(material)
+            .and_then(|m| m.parameters());
+        Ok(vec![0.0; theta.map_or(0, |t| t.values.len())])
+    }
 }
 
 impl NonlinearSystem for TrapezoidalStep<'_> {
