@@ -8,6 +8,7 @@ use deasim::cli::validate::dynamics::{
 };
 use deasim::problem::dofs::FIELDS;
 use deasim::problem::model::Model;
+use deasim::time::integrator::Scheme;
 use deasim::time::integrator::TimeLevel;
 use deasim::time::stage::Method;
 use deasim::waveform::{Shape, Waveform};
@@ -40,7 +41,7 @@ fn energy_is_conserved_without_drift() {
         &bottom,
         20e3,
         0.0,
-        Method::Midpoint,
+        Method::Implicit(Scheme::Midpoint),
         dt,
         10_000,
         None,
@@ -71,7 +72,7 @@ fn energy_is_conserved_without_drift() {
         &bottom,
         20e3,
         0.0,
-        Method::Midpoint,
+        Method::Implicit(Scheme::Midpoint),
         dt / 2.0,
         2_000,
         None,
@@ -82,7 +83,7 @@ fn energy_is_conserved_without_drift() {
         &bottom,
         20e3,
         0.0,
-        Method::Midpoint,
+        Method::Implicit(Scheme::Midpoint),
         dt,
         1_000,
         None,
@@ -126,11 +127,11 @@ fn trajectory_converges_at_second_order() {
     let (model, bottom, top) = grounded_block().unwrap();
     let corner = model.mesh.nearest_node([2e-3, 2e-3, 1e-3]);
     for scheme in [
-        Method::Midpoint,
-        Method::Newmark {
+        Method::Implicit(Scheme::Midpoint),
+        Method::Implicit(Scheme::Newmark {
             beta: 0.25,
             gamma: 0.5,
-        },
+        }),
         Method::Trapezoidal,
     ] {
         let t_end = 2e-4;
@@ -186,7 +187,7 @@ fn viscous_vibration_decays_and_balances_energy() {
         &bottom,
         20e3,
         eta,
-        Method::Midpoint,
+        Method::Implicit(Scheme::Midpoint),
         dt,
         3000,
         None,
@@ -221,7 +222,7 @@ fn viscous_vibration_decays_and_balances_energy() {
         &bottom,
         20e3,
         eta,
-        Method::Midpoint,
+        Method::Implicit(Scheme::Midpoint),
         dt,
         500,
         None,
@@ -232,7 +233,7 @@ fn viscous_vibration_decays_and_balances_energy() {
         &bottom,
         20e3,
         eta,
-        Method::Midpoint,
+        Method::Implicit(Scheme::Midpoint),
         dt / 2.0,
         1000,
         None,

@@ -12,6 +12,7 @@ use crate::problem::statics::StaticProblem;
 use crate::solve::linear::{Ordering, SolverKind, SolverSettings};
 use crate::solve::newton::{NewtonSettings, NonlinearSystem};
 use crate::solve::stepping::{LoadedSystem, StepControl};
+use crate::time::integrator::Scheme;
 use std::time::Instant;
 
 use crate::io::memory::peak_memory_in;
@@ -529,7 +530,7 @@ pub fn bench_dynamic(
     let settings = DynamicSettings {
         duration: dt * steps as f64,
         dt,
-        scheme: Method::Midpoint,
+        scheme: Method::Implicit(Scheme::Midpoint),
         min_fraction: 1.0 / 1024.0,
         easy_iterations: 6,
         reuse_factorization: reuse,

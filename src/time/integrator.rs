@@ -35,8 +35,8 @@ use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
 use crate::time::trapezoidal::own_cells_power;
 
-/// A time integration scheme.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// An implicit time integration scheme.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Scheme {
     /// Midpoint variational integrator (symplectic, momentum preserving).
     Midpoint,

@@ -21,10 +21,8 @@ use crate::solve::newton::{newton, NewtonSettings};
 /// A time integration method of a dynamic stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Method {
-    /// Implicit midpoint variational integrator.
-    Midpoint,
-    /// Implicit Newmark.
-    Newmark { beta: f64, gamma: f64 },
+    /// An implicit scheme: the midpoint variational integrator or Newmark.
+    Implicit(Scheme),
     /// Explicit trapezoidal variational integrator (Störmer–Verlet), see `trapezoidal.rs`.
     Trapezoidal,
 }
@@ -33,8 +31,7 @@ impl Method {
     /// Name for messages and files.
     pub fn name(self) -> &'static str {
         match self {
-            Method::Midpoint => "midpoint",
-            Method::Newmark { .. } => "newmark",
+            Method::Implicit(scheme) => scheme.name(),
             Method::Trapezoidal => "trapezoidal",
         }
     }
@@ -729,8 +726,7 @@ pub fn run_dynamic_from(
     let last_h = resume.as_ref().map_or(f64::NAN, |r| r.last_h);
     let mut start = start;
     let scheme = match settings.scheme {
-        Method::Midpoint => Scheme::Midpoint,
-        Method::Newmark { beta, gamma } => Scheme::Newmark { beta, gamma },
+        Method::Implicit(scheme) => scheme,
         Method::Trapezoidal => {
             if resume.is_none() {
                 let t = start.t;

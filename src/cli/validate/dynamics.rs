@@ -10,6 +10,7 @@ use crate::problem::examples::{block, slender_bar};
 use crate::problem::model::Model;
 use crate::problem::statics::energies;
 use crate::solve::newton::NewtonSettings;
+use crate::time::integrator::Scheme;
 use crate::time::integrator::TimeLevel;
 use crate::time::mass::{MassKind, NodalMass};
 use crate::time::stage::{run_dynamic, DynamicInputs, DynamicSettings, Method};
@@ -168,7 +169,7 @@ fn energy_cases() -> Result<Vec<Case>, String> {
             &bottom,
             20e3,
             0.0,
-            Method::Midpoint,
+            Method::Implicit(Scheme::Midpoint),
             dt,
             steps,
             None,
@@ -249,7 +250,7 @@ pub fn free_body() -> Result<FreeBody, String> {
         &bottom,
         20e3,
         0.0,
-        Method::Midpoint,
+        Method::Implicit(Scheme::Midpoint),
         1e-6,
         500,
         Some(v0.clone()),
@@ -320,7 +321,7 @@ pub fn bar_frequency(l: f64, mu: f64, period: f64) -> Result<f64, String> {
         &[],
         0.0,
         0.0,
-        Method::Midpoint,
+        Method::Implicit(Scheme::Midpoint),
         period / 100.0,
         500,
         Some(v0),

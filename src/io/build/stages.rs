@@ -5,6 +5,7 @@ use super::{Ctx, Electrode, Stage, StageKind, MIN_STEPS_PER_PERIOD};
 use crate::io::scenario::{closest, InputError, Scenario, StageSpec};
 use crate::job::plan::ResponseMethod;
 use crate::job::plan::{PathParameter, PathTarget};
+use crate::time::integrator::Scheme;
 use crate::time::mass::MassKind;
 use crate::time::stage::Method;
 use crate::units::Short;
@@ -715,12 +716,12 @@ pub(super) fn check_internal_variables(
 /// `integrator`: `midpoint` (default), `trapezoidal` or `newmark` (β = 1/4, γ = 1/2).
 fn integrator(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<Method, InputError> {
     Ok(match st.integrator.as_deref().unwrap_or("midpoint") {
-        "midpoint" => Method::Midpoint,
+        "midpoint" => Method::Implicit(Scheme::Midpoint),
         "trapezoidal" => Method::Trapezoidal,
-        "newmark" => Method::Newmark {
+        "newmark" => Method::Implicit(Scheme::Newmark {
             beta: 0.25,
             gamma: 0.5,
-        },
+        }),
         o => {
             let hint = closest(o, ["midpoint", "newmark", "trapezoidal"])
                 .map(|c| format!("; did you mean `{c}`?"))
@@ -800,7 +801,7 @@ mod tests {
             st[0].kind,
             StageKind::Dynamic {
                 dt: 0.01,
-                scheme: Method::Midpoint,
+                scheme: Method::Implicit(Scheme::Midpoint),
                 mass: MassKind::Consistent
             }
         );
@@ -810,10 +811,10 @@ mod tests {
             st[0].kind,
             StageKind::Dynamic {
                 dt: 0.01,
-                scheme: Method::Newmark {
+                scheme: Method::Implicit(Scheme::Newmark {
                     beta: 0.25,
                     gamma: 0.5
-                },
+                }),
                 mass: MassKind::Lumped
             }
         );
