@@ -138,11 +138,7 @@ pub fn stress_weights_md(
     let mut df = [Mat3::zeros(); MAX_QP];
     let mut c = 0.0;
     for q in 0..geom.n_qp {
-        let (f, _) = if geom.axisymmetric {
-            meridian_kinematics(&geom.grad[q][..n], &geom.hoop(q)[..n], &u[..n], &phi[..n])
-        } else {
-            kinematics(&geom.grad[q][..n], &u[..n], &phi[..n])
-        };
+        let (f, _) = point_kinematics(geom, q, &u[..n], &phi[..n]);
         df[q] = f - Mat3::identity();
         c += geom.weights[q] * k.j[q] * k.finv_t[q].dot(&df[q]);
     }
@@ -153,6 +149,17 @@ pub fn stress_weights_md(
         out[q] = (df[q] * k.alpha[q] + fbar * (mean - trace)) * geom.weights[q];
     }
     Ok(())
+}
+
+/// The compatible F and E₀ at point q of a 3-D or meridian cell from its nodal values.
+#[inline(always)]
+fn point_kinematics(geom: &CellGeometry, q: usize, u: &[[f64; 3]], phi: &[f64]) -> (Mat3, Vec3) {
+    let n = geom.n_nodes;
+    if geom.axisymmetric {
+        meridian_kinematics(&geom.grad[q][..n], &geom.hoop(q)[..n], u, phi)
+    } else {
+        kinematics(&geom.grad[q][..n], u, phi)
+    }
 }
 
 /// Kinematics of a cell under the mean-dilatation formulation.
@@ -199,11 +206,7 @@ impl MdKinematics {
         let (u, phi) = split_local(n, local);
         let mut v = 0.0;
         for q in 0..geom.n_qp {
-            let (f, e0) = if geom.axisymmetric {
-                meridian_kinematics(&geom.grad[q][..n], &geom.hoop(q)[..n], &u[..n], &phi[..n])
-            } else {
-                kinematics(&geom.grad[q][..n], &u[..n], &phi[..n])
-            };
+            let (f, e0) = point_kinematics(geom, q, &u[..n], &phi[..n]);
             // F⁻ᵀ = cof F / J, J from the cofactors (one division instead of nine)
             let cof = cofactor(&f);
             let j = f[(0, 0)] * cof[(0, 0)] + f[(0, 1)] * cof[(0, 1)] + f[(0, 2)] * cof[(0, 2)];
