@@ -5,7 +5,8 @@ mod common;
 
 use common::vtu::{read_pvtu, read_vtu, ReadError, BLOCK};
 use deasim::io::vtu::{
-    write_pvtu, write_vtu, write_vtu_as, CellType, DataArray, Encoding, VtuPiece,
+    write_pvd, write_pvtu, write_vtu, write_vtu_as, CellType, DataArray, Encoding, VtuError,
+    VtuPiece,
 };
 use std::collections::BTreeMap;
 use std::fs;
@@ -508,4 +509,244 @@ fn reader_rejects_malformed_input() {
 
     let missing = dir.join("missing.vtu");
     assert!(matches!(read_vtu(&missing), Err(ReadError::Io { .. })));
+}
+
+// The writer's own checks: bad input is refused naming the array or the mesh.
+#[test]
+fn length_mismatch_is_an_error_naming_the_array() {
+    let tmp = tempfile::Builder::new()
+        .prefix("deasim-vtu-len-")
+        .tempdir()
+        .unwrap();
+    let dir = tmp.path();
+    let path = dir.join("bad.vtu");
+    let (points, conn) = two_hex_mesh();
+    let short = vec![0.0; 3 * points.len() - 1];
+    let piece = VtuPiece {
+        points: &points,
+        cell_type: CellType::Hex8,
+        connectivity: &conn,
+        point_data: vec![DataArray {
+            name: "displacement",
+            components: 3,
+            values: &short,
+        }],
+        cell_data: vec![],
+    };
+    let err = write_vtu(&path, &piece).expect_err("must fail");
+    assert!(matches!(err, VtuError::LengthMismatch { .. }), "{err:?}");
+    let msg = err.to_string();
+    assert!(msg.contains("displacement"), "{msg}");
+    assert!(msg.contains("bad.vtu"), "{msg}");
+    assert!(!path.exists());
+
+    let cell_vals = vec![1.0; 3];
+    let piece = VtuPiece {
+        point_data: vec![],
+        cell_data: vec![DataArray {
+            name: "energy",
+            components: 1,
+            values: &cell_vals,
+        }],
+        ..piece
+    };
+    let msg = write_vtu(&path, &piece).expect_err("must fail").to_string();
+    assert!(msg.contains("energy") && msg.contains("cells"), "{msg}");
+}
+
+#[test]
+fn non_finite_values_are_errors_naming_array_and_index() {
+    let tmp = tempfile::Builder::new()
+        .prefix("deasim-vtu-nan-")
+        .tempdir()
+        .unwrap();
+    let dir = tmp.path();
+    let path = dir.join("nan.vtu");
+    let (points, conn) = two_hex_mesh();
+    let mut phi = vec![1.0; points.len()];
+    phi[7] = f64::NAN;
+    let piece = VtuPiece {
+        points: &points,
+        cell_type: CellType::Hex8,
+        connectivity: &conn,
+        point_data: vec![DataArray {
+            name: "potential",
+            components: 1,
+            values: &phi,
+        }],
+        cell_data: vec![],
+    };
+    match write_vtu(&path, &piece) {
+        Err(VtuError::NonFinite { name, index, .. }) => {
+            assert_eq!(name, "potential");
+            assert_eq!(index, 7);
+        }
+        other => panic!("expected NonFinite, got {other:?}"),
+    }
+    assert!(!path.exists());
+
+    let mut bad_points = points.clone();
+    bad_points[2][1] = f64::INFINITY;
+    let piece = VtuPiece {
+        points: &bad_points,
+        point_data: vec![],
+        ..piece
+    };
+    match write_vtu(&path, &piece) {
+        Err(VtuError::NonFinite { name, index, .. }) => {
+            assert_eq!(name, "Points");
+            assert_eq!(index, 7);
+        }
+        other => panic!("expected NonFinite, got {other:?}"),
+    }
+}
+
+#[test]
+fn invalid_mesh_and_names_are_errors() {
+    let tmp = tempfile::Builder::new()
+        .prefix("deasim-vtu-mesh-")
+        .tempdir()
+        .unwrap();
+    let dir = tmp.path();
+    let path = dir.join("m.vtu");
+    let (points, conn) = two_hex_mesh();
+    let base = VtuPiece {
+        points: &points,
+        cell_type: CellType::Hex8,
+        connectivity: &conn[..12],
+        point_data: vec![],
+        cell_data: vec![],
+    };
+    assert!(matches!(
+        write_vtu(&path, &base),
+        Err(VtuError::InvalidMesh { .. })
+    ));
+    let mut bad_conn = conn.clone();
+    bad_conn[3] = 12;
+    let piece = VtuPiece {
+        connectivity: &bad_conn,
+        ..base.clone()
+    };
+    assert!(matches!(
+        write_vtu(&path, &piece),
+        Err(VtuError::InvalidMesh { .. })
+    ));
+    let vals = vec![0.0; 12];
+    let arr = DataArray {
+        name: "a",
+        components: 1,
+        values: &vals,
+    };
+    let piece = VtuPiece {
+        connectivity: &conn,
+        point_data: vec![arr, arr],
+        ..base.clone()
+    };
+    assert!(matches!(
+        write_vtu(&path, &piece),
+        Err(VtuError::InvalidArray { .. })
+    ));
+    let piece = VtuPiece {
+        connectivity: &conn,
+        point_data: vec![DataArray { name: "", ..arr }],
+        ..base.clone()
+    };
+    assert!(matches!(
+        write_vtu(&path, &piece),
+        Err(VtuError::InvalidArray { .. })
+    ));
+    let piece = VtuPiece {
+        connectivity: &conn,
+        point_data: vec![DataArray {
+            components: 0,
+            ..arr
+        }],
+        ..base
+    };
+    assert!(matches!(
+        write_vtu(&path, &piece),
+        Err(VtuError::InvalidArray { .. })
+    ));
+    assert!(!path.exists());
+}
+
+#[test]
+fn pvd_content() {
+    let tmp = tempfile::Builder::new()
+        .prefix("deasim-vtu-pvd-")
+        .tempdir()
+        .unwrap();
+    let dir = tmp.path();
+    let path = dir.join("run.pvd");
+    let entries = vec![
+        (0.0, "run_0000.vtu".to_string()),
+        (0.25, "run_0001.vtu".to_string()),
+        (1e-9, "steps/run_0002.vtu".to_string()),
+        (2.0, "a&b.vtu".to_string()),
+    ];
+    write_pvd(&path, &entries).expect("write");
+    let text = fs::read_to_string(&path).expect("read");
+    assert!(text.starts_with("<?xml version=\"1.0\"?>\n"));
+    assert!(text.contains("<VTKFile type=\"Collection\" version=\"0.1\""));
+    assert!(text.contains("<Collection>") && text.contains("</Collection>"));
+    assert!(text.trim_end().ends_with("</VTKFile>"));
+    let lines: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| l.starts_with("<DataSet"))
+        .collect();
+    assert_eq!(
+        lines,
+        vec![
+            "<DataSet timestep=\"0\" group=\"\" part=\"0\" file=\"run_0000.vtu\"/>",
+            "<DataSet timestep=\"0.25\" group=\"\" part=\"0\" file=\"run_0001.vtu\"/>",
+            "<DataSet timestep=\"1e-9\" group=\"\" part=\"0\" file=\"steps/run_0002.vtu\"/>",
+            "<DataSet timestep=\"2\" group=\"\" part=\"0\" file=\"a&amp;b.vtu\"/>",
+        ]
+    );
+    let err = write_pvd(&path, &[(f64::NAN, "x.vtu".to_string())]).expect_err("nan time");
+    assert!(matches!(err, VtuError::InvalidPvdEntry { index: 0, .. }));
+    // The previous file is untouched by the failed write.
+    assert_eq!(fs::read_to_string(&path).expect("read"), text);
+}
+
+/// A field file's piece from (name, components, values) lists: the arrays in the order
+/// given, each a view of its values; written, it reads back with the names and values.
+#[test]
+fn fields_piece_keeps_the_arrays_in_order() {
+    let (points, conn) = two_hex_mesh();
+    let u: Vec<f64> = (0..3 * points.len()).map(|i| i as f64).collect();
+    let phi = vec![2.5; points.len()];
+    let j = vec![1.0, 1.25];
+    let piece = VtuPiece::fields(
+        &points,
+        CellType::Hex8,
+        &conn,
+        &[("displacement", 3, &u), ("potential", 1, &phi)],
+        &[("J", 1, &j)],
+    );
+    fn names<'a>(a: &[DataArray<'a>]) -> Vec<(&'a str, usize, *const f64)> {
+        a.iter()
+            .map(|a| (a.name, a.components, a.values.as_ptr()))
+            .collect()
+    }
+    assert_eq!(
+        names(&piece.point_data),
+        [
+            ("displacement", 3, u.as_ptr()),
+            ("potential", 1, phi.as_ptr())
+        ]
+    );
+    assert_eq!(names(&piece.cell_data), [("J", 1, j.as_ptr())]);
+    assert_eq!(piece.connectivity, conn.as_slice());
+    let tmp = tempfile::Builder::new()
+        .prefix("deasim-vtu-fields-")
+        .tempdir()
+        .unwrap();
+    let path = tmp.path().join("f.vtu");
+    write_vtu_as(&path, &piece, Encoding::Ascii).expect("write");
+    let text = fs::read_to_string(&path).expect("read");
+    let at = |name: &str| text.find(&format!("Name=\"{name}\"")).expect(name);
+    assert!(at("displacement") < at("potential") && at("potential") < at("J"));
+    assert!(text.contains("1e0 1.25e0"), "{text}");
 }
