@@ -6,6 +6,7 @@
 //! units, mesh, fem, material, waveform, analytic → element → problem → solve, time → job → io →
 //! lumped → cli.
 
+pub mod adjoint;
 pub mod algebra;
 pub mod analytic;
 pub mod api;

@@ -58,6 +58,29 @@ the last accepted step).\n\nEnvironment: RAYON_NUM_THREADS (threads), DEASIM_NEW
         #[arg(long)]
         no_trial: bool,
     },
+    /// The gradient of the scenario's [[objective]] in its [[parameters]] by the discrete
+    /// adjoint of the run; writes OUT/gradient.json beside the run's files.
+    #[command(
+        after_help = "Exit status: 0 success; 1 the forward run failed; 2 bad input, or a stage, \
+material, parameter or objective term whose adjoint is not built yet (the message names it)."
+    )]
+    Gradient {
+        /// Scenario file (TOML), the name of an embedded example, or - for standard input.
+        scenario: Option<PathBuf>,
+        /// Output directory (default ./deasim-out/<scenario name>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a value by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Replace the results of a different scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
+        /// Also compare each derivative with a central finite difference (h = 1e-4·|p|) and run
+        /// a Taylor remainder test (its order must be about 2).
+        #[arg(long)]
+        check: bool,
+    },
     /// List the embedded examples, or print one as TOML.
     Example {
         /// The example to print (omit it for the list).
@@ -332,6 +355,19 @@ fn main() {
             set,
             no_trial,
         } => deasim::cli::app::cmd_check(&scenario, &set, !no_trial),
+        Command::Gradient {
+            scenario,
+            out,
+            set,
+            overwrite,
+            check,
+        } => deasim::cli::gradient::cmd_gradient(
+            scenario.as_deref(),
+            out.as_deref(),
+            &set,
+            overwrite,
+            check,
+        ),
         Command::Example { name } => deasim::cli::app::cmd_example(name.as_deref()),
         Command::Lumped {
             scenario,

@@ -360,7 +360,6 @@ fn volume_control_ramps_through_the_pressure_maximum_with_every_state_stable() {
     // the pressure is an unknown (fraction of 1 Pa): the cavity grows to 2³ times its volume
     let mut pressure = Pressure::new(faces, 1.0);
     pressure.volume = Some(8.0 * v0);
-    pressure.ramp = [0.0, 0.0];
     model.pressures.push(pressure);
     let stretch = |state: &[f64]| inner_stretch(&model, state);
     let mut problem = StaticProblem::new(&model, None);

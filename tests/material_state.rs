@@ -95,7 +95,7 @@ fn run_stage(
         StageTime {
             duration,
             points,
-            drive: deasim::problem::drive::Drive::none(),
+            drive: deasim::problem::drive::Drive::ramped(m),
         },
         resume,
         &StepControl {
@@ -311,7 +311,7 @@ fn resumed_ramp_with_point_states_is_bitwise() {
         StageTime {
             duration: 1.0,
             points: PointStates::new(&m),
-            drive: deasim::problem::drive::Drive::none(),
+            drive: deasim::problem::drive::Drive::ramped(&m),
         },
         None,
         &StepControl {

@@ -573,11 +573,13 @@ fn static_level_errors(plan: &Plan) -> Vec<(&'static str, f64)> {
     use deasim::problem::statics::StaticProblem;
     let mut model = plan.model.clone();
     model.dirichlet = plan.supports.clone();
-    for p in &mut model.pressures {
-        p.ramp = [0.5, 1.0];
-    }
     let mut next = generator(31);
     let mut problem = StaticProblem::new(&model, None);
+    let mut drive = deasim::problem::drive::Drive::ramped(&model);
+    for r in &mut drive.pressures {
+        r.from = 0.5;
+    }
+    problem.set_drive(drive);
     problem.duration = 1.0;
     problem.set_load(0.7);
     let x: Vec<f64> = (0..problem.dofs.n_free).map(|_| next()).collect();

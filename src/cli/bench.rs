@@ -515,7 +515,7 @@ pub fn bench_dynamic(
                 (bottom, Waveform::constant(0.0)),
                 (top, Waveform::constant(20e3)),
             ],
-            circuits: Vec::new(),
+            ..crate::problem::drive::Drive::held(&model)
         },
         points: Default::default(),
         part: None,

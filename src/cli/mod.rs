@@ -3,6 +3,7 @@
 pub mod app;
 pub mod bench;
 pub mod estimate;
+pub mod gradient;
 pub mod lumped;
 pub mod material;
 pub mod modes;

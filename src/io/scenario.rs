@@ -91,6 +91,57 @@ pub struct Scenario {
     /// The linear solver.
     #[serde(default)]
     pub solver: Option<SolverSpec>,
+    /// The differentiable parameters that `deasim gradient` (and calibration and control)
+    /// addresses; a plain run ignores them.
+    #[serde(default)]
+    pub parameters: Vec<ParameterSpec>,
+    /// The terms of the objective J of `deasim gradient`, summed; a plain run ignores them.
+    #[serde(default)]
+    pub objective: Vec<ObjectiveSpec>,
+}
+
+/// `[[parameters]]`: a differentiable scalar of the scenario by its key path (the string `--set`
+/// takes), with optional bounds and the scale an optimiser works in.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterSpec {
+    pub path: String,
+    #[serde(default)]
+    pub lower: Option<f64>,
+    #[serde(default)]
+    pub upper: Option<f64>,
+    /// `linear` (default) or `log`.
+    #[serde(default)]
+    pub scale: Option<String>,
+}
+
+/// `[[objective]]`: one term of J (`kind` says which keys it takes).
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectiveSpec {
+    /// `probe-final`, `probe-misfit`, `drive-effort`, `rest` or `field-penalty`.
+    pub kind: String,
+    #[serde(default)]
+    pub probe: Option<String>,
+    #[serde(default)]
+    pub stage: Option<String>,
+    /// The measured history: a CSV file with the header `time,value` (path relative to the
+    /// scenario).
+    #[serde(default)]
+    pub data: Option<String>,
+    #[serde(default)]
+    pub target: Option<f64>,
+    /// Default 1.
+    #[serde(default)]
+    pub weight: Option<f64>,
+    #[serde(default)]
+    pub electrode: Option<String>,
+    /// `value` or `rate` (drive effort).
+    #[serde(default)]
+    pub of: Option<String>,
+    /// V/m (field penalty).
+    #[serde(default)]
+    pub limit: Option<f64>,
 }
 
 /// `[solver]`: the linear solver of every stage.

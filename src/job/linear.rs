@@ -36,7 +36,6 @@ pub fn held_model(plan: &Plan, state: &[f64], drive: Option<(usize, f64)>) -> Mo
             value,
         });
     }
-    model.dead_load_start = 1.0;
     model
 }
 
@@ -91,6 +90,7 @@ pub fn base_state(plan: &Plan, state: &[f64]) -> Result<(Model, Vec<f64>), Strin
         &relaxed,
         &plan.solver,
         Some(state.to_vec()),
+        crate::problem::drive::Drive::held(&relaxed),
         &StepControl {
             steps: 1,
             ..plan.step_control.clone()

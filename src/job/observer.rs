@@ -3,6 +3,7 @@
 use super::plan::Plan;
 use super::state::{FrequencyResponse, LimitRecord, PathRecord, RunState, RunSummary, StepRecord};
 use crate::element::CellFields;
+use crate::problem::statics::StaticProblem;
 use crate::time::modal::Mode;
 
 /// Receives the progress of a run.
@@ -34,6 +35,10 @@ pub trait Observer {
     fn path_point(&mut self, _plan: &Plan, _point: &PathRecord) {}
     /// A continuation stage located a limit point of its parameter.
     fn limit_point(&mut self, _plan: &Plan, _limit: &LimitRecord) {}
+    /// A static or quasi-static load step of stage `stage` was accepted at load factor `load`
+    /// (before its [`Observer::step`]): the problem holds the converged state, the committed
+    /// point states and the stage's drive, what the adjoint of the run replays.
+    fn load_step(&mut self, _stage: usize, _load: f64, _problem: &StaticProblem<'_>) {}
     /// Whether this observer may ask for run states (the run then keeps its history).
     fn takes_states(&self) -> bool {
         false
@@ -55,6 +60,11 @@ pub struct Observers<'a, 'b>(pub &'a mut [&'b mut dyn Observer]);
 impl Observer for Observers<'_, '_> {
     fn stage_started(&mut self, index: usize, name: &str) {
         self.0.iter_mut().for_each(|o| o.stage_started(index, name));
+    }
+    fn load_step(&mut self, stage: usize, load: f64, problem: &StaticProblem<'_>) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.load_step(stage, load, problem));
     }
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
         self.0

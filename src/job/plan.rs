@@ -139,6 +139,19 @@ pub struct Stage {
     pub electrodes_on: bool,
 }
 
+impl Stage {
+    /// The waveform an electrode or circuit source with waveform `w` follows in this stage, in
+    /// stage time (0 at the stage's start, as Abaqus' step time): `w`, or 0 V when the stage has
+    /// its electrodes off.
+    pub fn waveform(&self, w: &crate::waveform::Waveform) -> crate::waveform::Waveform {
+        if self.electrodes_on {
+            w.clone()
+        } else {
+            crate::waveform::Waveform::constant(0.0)
+        }
+    }
+}
+
 /// Output settings.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct OutputPlan {

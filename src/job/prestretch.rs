@@ -83,7 +83,7 @@ pub(super) fn prestretch(
                 StageTime {
                     duration,
                     points: outcome.points.clone(),
-                    drive: crate::problem::drive::Drive::none(),
+                    drive: crate::problem::drive::Drive::ramped(&pre),
                 },
                 None,
                 &control,
@@ -155,7 +155,15 @@ pub(super) fn prestretch(
         &crate::problem::statics::StaticProblem<'_>,
         &crate::solve::stepping::AcceptedStep,
     )| match division {
-        None => solve_static_with(&pre, &plan.solver, Some(initial), control, newton, on_step),
+        None => solve_static_with(
+            &pre,
+            &plan.solver,
+            Some(initial),
+            crate::problem::drive::Drive::ramped(&pre),
+            control,
+            newton,
+            on_step,
+        ),
         Some(_) => solve_static_from(
             &pre,
             &plan.solver,
@@ -164,7 +172,7 @@ pub(super) fn prestretch(
             StageTime {
                 duration: 0.0,
                 points: PointStates::new(&pre),
-                drive: crate::problem::drive::Drive::none(),
+                drive: crate::problem::drive::Drive::ramped(&pre),
             },
             None,
             control,

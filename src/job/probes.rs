@@ -20,6 +20,24 @@ impl NodalQuantity {
             NodalQuantity::Potential => s[3],
         }
     }
+
+    /// `weight` · ∂(value at `node`)/∂state added into `out` (4 values per node); the magnitude
+    /// of a zero displacement has none (its subgradient 0 is taken).
+    fn add_gradient(self, state: &[f64], node: usize, weight: f64, out: &mut [f64]) {
+        let i = node * 4;
+        match self {
+            NodalQuantity::Component(c) => out[i + c] += weight,
+            NodalQuantity::Potential => out[i + 3] += weight,
+            NodalQuantity::Magnitude => {
+                let m = self.value(state, node);
+                if m > 0.0 {
+                    for c in 0..3 {
+                        out[i + c] += weight * state[i + c] / m;
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// What a probe measures.
@@ -204,6 +222,48 @@ pub enum Share {
 }
 
 impl Probe {
+    /// ∂(value)/∂state (4 values per node) at `state` on the whole model, for the probes that
+    /// read the nodal values alone (means, extremes, points and deflections, whose reference
+    /// state is held); `None` for the others (reactions, charges, energies, fields, areas,
+    /// volumes). An extreme takes the derivative of its extreme node.
+    pub fn state_gradient(&self, state: &[f64]) -> Option<Vec<f64>> {
+        let mut g = vec![0.0; state.len()];
+        let extreme = |q: &NodalQuantity, nodes: &[usize], sign: f64| {
+            nodes
+                .iter()
+                .copied()
+                .max_by(|&a, &b| (sign * q.value(state, a)).total_cmp(&(sign * q.value(state, b))))
+        };
+        match &self.kind {
+            ProbeKind::Mean(q, nodes, weights) => {
+                let total: f64 = weights.iter().sum();
+                for (&n, w) in nodes.iter().zip(weights) {
+                    q.add_gradient(state, n, w / total, &mut g);
+                }
+            }
+            ProbeKind::Max(q, nodes) => {
+                if let Some(n) = extreme(q, nodes, 1.0) {
+                    q.add_gradient(state, n, 1.0, &mut g);
+                }
+            }
+            ProbeKind::Min(q, nodes) => {
+                if let Some(n) = extreme(q, nodes, -1.0) {
+                    q.add_gradient(state, n, 1.0, &mut g);
+                }
+            }
+            ProbeKind::Point(q, n) => q.add_gradient(state, *n, 1.0, &mut g),
+            ProbeKind::Deflection(nodes, axial) => {
+                let w = -1.0 / (nodes.len() as f64).max(1.0);
+                for &n in nodes {
+                    g[n * 4 + axial] += w;
+                }
+            }
+            _ => return None,
+        }
+        g.iter_mut().for_each(|v| *v *= self.scale);
+        Some(g)
+    }
+
     /// The probe's value.
     pub fn evaluate(&self, inp: &ProbeInput) -> f64 {
         let share = match self.share(inp) {

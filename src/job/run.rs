@@ -18,7 +18,7 @@ use super::statics::{solve_static_from, StageTime};
 use crate::algebra::system::NonlinearSystem;
 use crate::problem::distributed::Held;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
-use crate::problem::drive::Drive;
+use crate::problem::drive::{Drive, Ramp};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
@@ -51,7 +51,6 @@ pub fn run_with(
     let mut job = Job::new(plan, &plan.newton, &mut observers, start);
     let mut resume = None;
     if resuming {
-        model.dead_load_start = job.state.dead_load_start;
         resume = Some((job.state.position.clone(), job.state.step_no));
     }
     for si in job.state.stage..plan.stages.len() {
@@ -108,7 +107,7 @@ impl<'p, 'o> Job<'p, 'o> {
             a: vec![0.0; n],
             points: Vec::new(),
             dissipated: 0.0,
-            dead_load_start: plan.model.dead_load_start,
+            dead_load_start: 0.0,
             pressure_start: Vec::new(),
             recorder: RecorderState::default(),
             stages: Vec::new(),
@@ -193,7 +192,7 @@ impl<'p, 'o> Job<'p, 'o> {
             position,
             q: q.to_vec(),
             points: self.points.merged(model)?,
-            dead_load_start: model.dead_load_start,
+            dead_load_start: self.state.dead_load_start,
             recorder: self.rec.state(),
             stages: self.summary.stages.clone(),
             warnings: self.summary.warnings.clone(),
@@ -275,18 +274,12 @@ impl<'p, 'o> Job<'p, 'o> {
         self.observer.stage_started(si, &stage.name);
         let stage_start = Instant::now();
         let prescribed = plan.stage_conditions(model, stage);
-        // each pressure ramps from where the last stage left it to on (1) or off (0); a
-        // volume-controlled one acting here starts from there and is an unknown
+        // a volume-controlled pressure acting in the stage is an unknown of it
         let targets = plan.pressure_targets(si);
         for (i, p) in model.pressures.iter_mut().enumerate() {
-            let (from, to) = (self.state.pressure_start[i], targets[i]);
-            p.volume = plan.pressure_volumes[i].filter(|_| to != 0.0);
-            p.ramp = if p.volume.is_some() {
-                [from, from]
-            } else {
-                [from, to]
-            };
+            p.volume = plan.pressure_volumes[i].filter(|_| targets[i] != 0.0);
         }
+        let drive = plan.drive(si, self.state.dead_load_start, &self.state.pressure_start);
         if position.is_none() {
             self.state.first_step = 0;
             self.state.prestretch_iterations = 0;
@@ -307,16 +300,16 @@ impl<'p, 'o> Job<'p, 'o> {
         };
         let failure = match stage.kind {
             StageKind::Static { steps } | StageKind::QuasiStatic { steps } => {
-                self.static_stage(si, model, steps, &prescribed, position, &mut summary)
+                self.static_stage(si, model, drive, steps, &prescribed, position, &mut summary)
             }
             StageKind::Dynamic { .. } => {
-                self.dynamic_stage(si, model, &prescribed, position, &mut summary)
+                self.dynamic_stage(si, model, drive, &prescribed, position, &mut summary)
             }
             StageKind::Modes { .. } | StageKind::FrequencyResponse { .. } => {
                 self.linearised_stage(stage, &mut summary)
             }
             StageKind::Continuation { .. } => {
-                self.continuation_stage(si, model, &prescribed, &mut summary)
+                self.continuation_stage(si, model, drive, &prescribed, &mut summary)
             }
         };
         summary.wall_s = stage_start.elapsed().as_secs_f64();
@@ -468,10 +461,12 @@ impl<'p, 'o> Job<'p, 'o> {
     }
 
     /// A static stage: the load ramp to the stage's targets. Returns the failure, if any.
+    #[allow(clippy::too_many_arguments)]
     fn static_stage(
         &mut self,
         si: usize,
         model: &mut Model,
+        mut drive: Drive,
         steps: usize,
         prescribed: &[bool],
         position: Option<(StagePosition, usize)>,
@@ -504,6 +499,19 @@ impl<'p, 'o> Job<'p, 'o> {
             ),
             _ => (self.state.q.clone(), None, self.state.first_step, 0.0),
         };
+        // a resumed volume-controlled pressure continues from its level at the last record
+        if resume_at.is_some() {
+            for ((p, r), &level) in model
+                .pressures
+                .iter()
+                .zip(drive.pressures.iter_mut())
+                .zip(&self.rec.prev_pressure)
+            {
+                if p.volume.is_some() {
+                    *r = Ramp::held_at(level);
+                }
+            }
+        }
         let start_voltages: Vec<f64> = match plan.electrode_voltages(&stage_start) {
             Ok(v) => plan
                 .electrodes
@@ -520,12 +528,6 @@ impl<'p, 'o> Job<'p, 'o> {
             .filter(|e| e.charge.is_none())
             .map(|e| stage_voltage(stage, &e.voltage, stage.duration))
             .collect();
-        // a quasi-static stage's electrodes follow their waveforms in stage time
-        let drive = if quasi_static {
-            plan.drive(stage)
-        } else {
-            Drive::none()
-        };
         let voltage_at = |s: f64| -> f64 {
             let pick = |m: f64, v: f64| if v.abs() > m.abs() { v } else { m };
             if quasi_static {
@@ -558,14 +560,6 @@ impl<'p, 'o> Job<'p, 'o> {
             },
             |r| r.1,
         );
-        // a resumed volume-controlled pressure continues from its level at the last record
-        if resume_at.is_some() {
-            for (p, &level) in model.pressures.iter_mut().zip(&self.rec.prev_pressure) {
-                if p.volume.is_some() {
-                    p.ramp = [level, level];
-                }
-            }
-        }
         let time = self.state.stage_time;
         let model_ref: &Model = model;
         let outcome = solve_static_from(
@@ -583,6 +577,7 @@ impl<'p, 'o> Job<'p, 'o> {
             plan.part.as_ref().map(|p| &p.stages),
             |p, acc| {
                 step_no += 1;
+                self.observer.load_step(si, acc.load, p);
                 self.state.dissipated += p.dissipated_step;
                 self.points.clone_from(&p.points);
                 self.rec.points.clone_from(&p.points);
@@ -591,8 +586,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 last_load = acc.load;
                 self.rec.sudden_loads = false;
                 self.rec.circuit_current = false;
-                self.rec.external_factor =
-                    model_ref.dead_load_start + acc.load * (1.0 - model_ref.dead_load_start);
+                self.rec.external_factor = p.load();
                 self.rec.pressure_now = p.pressure_fractions();
                 self.record(
                     &p.state,
@@ -644,7 +638,7 @@ impl<'p, 'o> Job<'p, 'o> {
             Ok(r) => {
                 summary.newton_iterations = r.newton_iterations + self.state.prestretch_iterations;
                 // the tractions are now fully applied; later static stages keep them
-                model.dead_load_start = 1.0;
+                self.state.dead_load_start = 1.0;
                 None
             }
             Err(f) => {
@@ -719,8 +713,7 @@ impl<'p, 'o> Job<'p, 'o> {
                         volts(voltage_at(f.attempted))
                     ));
                 }
-                let t0 = model.dead_load_start;
-                let charge_at = |q: f64, s: f64| q * (t0 + s * (1.0 - t0));
+                let charge_at = |q: f64, s: f64| q * drive.dead_loads.at(s);
                 let voltages = plan
                     .electrode_voltages(&self.state.q)
                     .unwrap_or_else(|_| vec![f64::NAN; plan.electrodes.len()]);
@@ -757,6 +750,7 @@ impl<'p, 'o> Job<'p, 'o> {
         &mut self,
         si: usize,
         model: &mut Model,
+        drive: Drive,
         prescribed: &[bool],
         summary: &mut StageSummary,
     ) -> Option<String> {
@@ -779,7 +773,7 @@ impl<'p, 'o> Job<'p, 'o> {
         self.state.v.iter_mut().for_each(|v| *v = 0.0);
         self.state.a.iter_mut().for_each(|v| *v = 0.0);
         let stage_start = self.state.q.clone();
-        let t0 = model.dead_load_start;
+        let t0 = drive.dead_loads.from;
         let (column, unit) = parameter.column(plan);
         // the parameter at the stage's start and end (load factor 0 and 1)
         let (p0, p1) = match parameter {
@@ -797,8 +791,8 @@ impl<'p, 'o> Job<'p, 'o> {
                 (q * t0, q)
             }
             PathParameter::Pressure { index } => {
-                let p = &model.pressures[*index];
-                (p.value * p.ramp[0], p.value * p.ramp[1])
+                let (p, r) = (&model.pressures[*index], drive.pressures[*index]);
+                (p.value * r.from, p.value * r.to)
             }
             PathParameter::Force => (t0, 1.0),
         };
@@ -831,6 +825,7 @@ impl<'p, 'o> Job<'p, 'o> {
         let time = self.state.stage_time;
         let model_ref: &Model = model;
         let mut problem = StaticProblem::new(model_ref, Some(stage_start));
+        problem.set_drive(drive);
         problem.duration = stage.duration;
         problem.points = self.points.clone();
         // the whole problem, or on a rank's part the rank's owned unknowns
@@ -858,13 +853,9 @@ impl<'p, 'o> Job<'p, 'o> {
                     step_no += 1;
                     self.rec.sudden_loads = false;
                     self.rec.circuit_current = false;
-                    self.rec.external_factor = t0 + pt.load * (1.0 - t0);
-                    self.rec.pressure_now = p
-                        .model
-                        .pressures
-                        .iter()
-                        .map(|x| x.fraction(pt.load))
-                        .collect();
+                    self.rec.external_factor = p.drive().dead_loads.at(pt.load);
+                    self.rec.pressure_now =
+                        p.drive().pressures.iter().map(|r| r.at(pt.load)).collect();
                     let dt = (pt.load - last_load) * stage.duration;
                     last_load = pt.load;
                     let record = self.record(
@@ -938,7 +929,7 @@ impl<'p, 'o> Job<'p, 'o> {
             Ok(report) => {
                 summary.newton_iterations = report.iterations + self.state.prestretch_iterations;
                 // later stages start from the dead loads where the path ended
-                model.dead_load_start = t0 + last_load * (1.0 - t0);
+                self.state.dead_load_start = t0 + last_load * (1.0 - t0);
                 let missed = match (target, &report.end) {
                     (PathTarget::Points, _) | (PathTarget::Load(_), PathEnd::TargetLoad) => false,
                     (PathTarget::Probe { .. }, _) => !reached,
@@ -976,6 +967,7 @@ impl<'p, 'o> Job<'p, 'o> {
         &mut self,
         si: usize,
         model: &mut Model,
+        drive: Drive,
         prescribed: &[bool],
         position: Option<(StagePosition, usize)>,
         summary: &mut StageSummary,
@@ -1019,7 +1011,7 @@ impl<'p, 'o> Job<'p, 'o> {
         let inputs = DynamicInputs {
             mass: &mass,
             viscosity: plan.viscosities.clone(),
-            drive: plan.drive(stage),
+            drive,
             points: self.points.clone(),
             part,
         };
@@ -1149,7 +1141,7 @@ impl<'p, 'o> Job<'p, 'o> {
             }
         };
         self.state.q = level.q;
-        model.dead_load_start = 1.0;
+        self.state.dead_load_start = 1.0;
         self.state.v = level.v;
         self.state.a = level.a;
         failure
@@ -1166,33 +1158,70 @@ impl<'p, 'o> Job<'p, 'o> {
 }
 
 impl Plan {
-    /// The drive of a stage: the prescribed electrodes with the waveforms they follow in stage
-    /// time and the circuits' sources, every one at 0 V when the stage has its electrodes off.
-    /// Static stages ramp to its value at their end, quasi-static stages follow it in time,
-    /// dynamic steps take it at their time levels.
-    pub fn drive(&self, stage: &Stage) -> Drive {
-        let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
-        let waveform = |w: &Waveform| {
-            if stage.electrodes_on {
-                w.clone()
-            } else {
-                Waveform::constant(0.0)
-            }
+    /// The drive of stage `si`, its loads starting where the stages before left them (the dead
+    /// loads at the fraction `dead_loads_from` of their value, each pressure at its fraction in
+    /// `pressures_from`):
+    /// - the prescribed electrodes' waveforms and the circuits' sources, at 0 V when the stage has
+    ///   its electrodes off; quasi-static stages follow them in stage time, dynamic steps take
+    ///   them at their time levels; a static stage holds its electrodes among its supports
+    ///   instead, ramped to their values at its end ([`Plan::stage_conditions`]);
+    /// - a static, quasi-static or continuation stage ramps the dead loads on to full and each
+    ///   pressure to on (1) or off (0) as the stage says; a volume-controlled pressure acting in
+    ///   the stage starts from its fraction, which is then an unknown;
+    /// - a dynamic stage holds the dead loads at full value.
+    pub fn drive(&self, si: usize, dead_loads_from: f64, pressures_from: &[f64]) -> Drive {
+        let stage = &self.stages[si];
+        let (dynamic, ramped_voltages) = match stage.kind {
+            StageKind::Dynamic { .. } => (true, true),
+            StageKind::QuasiStatic { .. } => (false, true),
+            _ => (false, false),
         };
-        Drive {
-            voltages: self
-                .electrodes
-                .iter()
-                .filter(|e| e.prescribed(dynamic))
-                .map(|e| (e.nodes.clone(), waveform(&e.voltage)))
-                .collect(),
+        let targets = self.pressure_targets(si);
+        let mut drive = Drive {
+            voltages: if ramped_voltages {
+                self.voltage_waveforms(stage, dynamic)
+            } else {
+                Vec::new()
+            },
             circuits: self
                 .electrodes
                 .iter()
                 .filter(|e| e.resistance.is_some())
-                .map(|e| waveform(&e.voltage))
+                .map(|e| stage.waveform(&e.voltage))
                 .collect(),
+            dead_loads: Ramp {
+                from: dead_loads_from,
+                to: 1.0,
+            },
+            pressures: (0..targets.len())
+                .map(|i| {
+                    let from = pressures_from[i];
+                    if self.pressure_volumes[i].is_some() && targets[i] != 0.0 {
+                        Ramp::held_at(from)
+                    } else {
+                        Ramp {
+                            from,
+                            to: targets[i],
+                        }
+                    }
+                })
+                .collect(),
+            supports: Vec::new(),
+        };
+        if dynamic {
+            drive.dead_loads = Ramp::HELD;
         }
+        drive
+    }
+
+    /// The prescribed electrodes' nodes and the waveforms they follow in `stage` (0 V when the
+    /// stage has its electrodes off); `dynamic`: the circuits' electrodes are free.
+    fn voltage_waveforms(&self, stage: &Stage, dynamic: bool) -> Vec<(Vec<usize>, Waveform)> {
+        self.electrodes
+            .iter()
+            .filter(|e| e.prescribed(dynamic))
+            .map(|e| (e.nodes.clone(), stage.waveform(&e.voltage)))
+            .collect()
     }
 
     /// The prescribed values of a stage's end: supports and electrodes at their drive's voltages
@@ -1201,11 +1230,12 @@ impl Plan {
     /// electrode.
     pub fn stage_conditions(&self, model: &mut Model, stage: &Stage) -> Vec<bool> {
         model.dirichlet = self.supports.clone();
-        for (nodes, value) in self.drive(stage).voltages_at(stage.duration) {
+        let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
+        for (nodes, waveform) in self.voltage_waveforms(stage, dynamic) {
             model.dirichlet.push(Dirichlet {
-                nodes: nodes.to_vec(),
+                nodes,
                 field: Field::Phi,
-                value,
+                value: waveform.value(stage.duration),
             });
         }
         let mut flags = constrained_flags(model.mesh.n_nodes(), &model.dirichlet);
@@ -1218,14 +1248,9 @@ impl Plan {
     }
 }
 
-/// The voltage of an electrode's waveform at stage time `t`: waveforms run on stage time (0 at the
-/// start of the stage), as Abaqus' step time; a stage with its electrodes off holds them at 0 V.
+/// The voltage of an electrode's waveform at stage time `t` of `stage` ([`Stage::waveform`]).
 fn stage_voltage(stage: &Stage, w: &Waveform, t: f64) -> f64 {
-    if stage.electrodes_on {
-        w.value(t)
-    } else {
-        0.0
-    }
+    stage.waveform(w).value(t)
 }
 
 /// A material point at this fraction of its locking limit (or beyond) in the last converged state

@@ -14,7 +14,7 @@ use crate::solve::stepping::{ramp, AcceptedStep, RampFailure, RampReport, StepCo
 /// What a static stage runs in time: its duration (s; a load step Δs lasts Δs·duration for
 /// materials with internal variables), the committed point states it starts from, and the
 /// electrodes that follow their waveforms in stage time (quasi-static stages).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct StageTime {
     pub duration: f64,
     pub points: PointStates,
@@ -33,7 +33,7 @@ pub struct StaticOutcome {
 }
 
 /// Ramps the model's Dirichlet values from `initial` (zero state when `None`), and its dead loads
-/// from `model.dead_load_start`, to their targets in `steps` steps.
+/// and pressures from nothing, to their targets in `steps` steps.
 /// `on_step` sees the problem after every accepted step.
 pub fn solve_static(
     model: &Model,
@@ -46,22 +46,26 @@ pub fn solve_static(
         model,
         &SolverSettings::default(),
         initial,
+        crate::problem::drive::Drive::ramped(model),
         control,
         newton,
         on_step,
     )
 }
 
-/// [`solve_static`] with the linear solver of `solver` (a plan's `[solver]`).
+/// [`solve_static`] with the linear solver of `solver` (a plan's `[solver]`) and the loads of
+/// `drive`.
 pub fn solve_static_with(
     model: &Model,
     solver: &SolverSettings,
     initial: Option<Vec<f64>>,
+    drive: crate::problem::drive::Drive,
     control: &StepControl,
     newton: &NewtonSettings,
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, initial);
+    problem.set_drive(drive);
     let mut solver = solver.build();
     // a serial solver needs the whole tangent on every process
     if !solver.sums_shared_entries() {
@@ -101,7 +105,7 @@ pub fn solve_static_from(
     let mut problem = StaticProblem::new(model, Some(stage_start));
     problem.duration = history.duration;
     problem.points = history.points;
-    problem.drive = history.drive;
+    problem.set_drive(history.drive);
     let position = resume.map(|(state, position)| {
         problem.state.copy_from_slice(&state);
         problem.set_load(position.load);

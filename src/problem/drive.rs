@@ -1,27 +1,116 @@
-//! The drive of a stage: what its electrodes are held at or fed with, as functions of the stage
-//! time t (0 at the stage's start, as Abaqus' step time). Every stage kind evaluates the same
-//! drive: a static stage ramps to its value at the stage's end, a quasi-static stage follows it
-//! at t = s·duration of its load factor s, a dynamic step takes it at the step's time levels.
-//! The dead-load-like inputs (the charges of charge-controlled electrodes, pressures, supports)
-//! follow the stage's load factor in the model itself.
+//! The drive of a stage: every input that the stage prescribes, as functions of the stage time t
+//! (0 at the stage's start, as Abaqus' step time) or of its load factor s = t/duration. Every
+//! stage kind evaluates the same drive:
+//! - the electrodes at a prescribed potential follow their waveforms in stage time (a static
+//!   stage holds its own electrodes among the supports, ramped to their values at its end);
+//! - the circuits' sources follow their waveforms in stage time;
+//! - the dead loads (tractions, body and point forces, and the free charges of charge-controlled
+//!   electrodes, which enter as loads on their potential equations) and each pressure follow a
+//!   [`Ramp`] of their full value over the load factor;
+//! - the supports (prescribed displacements and held potentials) go from their values in the
+//!   stage's start state to the model's targets ([`Drive::supports`]).
+//!
+//! A dynamic step takes the drive at its time levels with the loads and supports held.
 
-use super::dofs::{FIELDS, PHI};
+use super::dofs::{apply_dirichlet, Dirichlet, DofMap, FIELDS, PHI};
+use super::model::Model;
 use crate::waveform::Waveform;
 
+/// A fraction of a load's full value that goes linearly from `from` at load factor 0 to `to` at
+/// load factor 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ramp {
+    pub from: f64,
+    pub to: f64,
+}
+
+impl Ramp {
+    /// On from nothing: 0 → 1.
+    pub const ON: Ramp = Ramp { from: 0.0, to: 1.0 };
+    /// Held at full value.
+    pub const HELD: Ramp = Ramp { from: 1.0, to: 1.0 };
+
+    /// The fraction `level` throughout.
+    pub fn held_at(level: f64) -> Ramp {
+        Ramp {
+            from: level,
+            to: level,
+        }
+    }
+
+    /// The fraction at load factor `s`.
+    pub fn at(&self, s: f64) -> f64 {
+        self.from + s * (self.to - self.from)
+    }
+}
+
 /// The electrode inputs of one stage.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Drive {
     /// Electrodes at a prescribed potential: their nodes and their voltage (V) in stage time
     /// (a stage with its electrodes off holds them at 0 V).
     pub voltages: Vec<(Vec<usize>, Waveform)>,
     /// The source voltage (V) of each of the model's circuits (`Model::circuits` order).
     pub circuits: Vec<Waveform>,
+    /// The fraction of the model's dead loads (and of the charges of charge-controlled
+    /// electrodes) over the load factor.
+    pub dead_loads: Ramp,
+    /// Each pressure's fraction of its value over the load factor (`Model::pressures` order; a
+    /// volume-controlled pressure starts at its `from`, its level is then an unknown).
+    pub pressures: Vec<Ramp>,
+    /// The supports: each constrained dof's value at load factor 0 and 1 (the stage's start
+    /// state and the model's target); filled by [`Drive::support_from`].
+    pub supports: Vec<(usize, Ramp)>,
 }
 
 impl Drive {
-    /// No electrode follows a waveform.
-    pub fn none() -> Drive {
-        Drive::default()
+    /// No waveform; the dead loads and pressures of `model` at full value, its supports held
+    /// at their targets (a linearised analysis about a loaded state, a dynamic stage's loads).
+    pub fn held(model: &Model) -> Drive {
+        Drive {
+            voltages: Vec::new(),
+            circuits: Vec::new(),
+            dead_loads: Ramp::HELD,
+            pressures: vec![Ramp::HELD; model.pressures.len()],
+            supports: Vec::new(),
+        }
+    }
+
+    /// No waveform; the dead loads and pressures of `model` ramped on from nothing (a first
+    /// static stage).
+    pub fn ramped(model: &Model) -> Drive {
+        Drive {
+            dead_loads: Ramp::ON,
+            pressures: vec![Ramp::ON; model.pressures.len()],
+            ..Drive::held(model)
+        }
+    }
+
+    /// Fills [`Drive::supports`]: every dof constrained by `targets` goes from its value in
+    /// `start` (4 values per node) to its target.
+    pub fn support_from(&mut self, start: &[f64], targets: &[Dirichlet]) {
+        let mut end = start.to_vec();
+        apply_dirichlet(&mut end, targets);
+        self.supports.clear();
+        for c in targets {
+            for &n in &c.nodes {
+                let d = DofMap::dof(n, c.field.index());
+                self.supports.push((
+                    d,
+                    Ramp {
+                        from: start[d],
+                        to: end[d],
+                    },
+                ));
+            }
+        }
+    }
+
+    /// Sets the supports' values at load factor `s` in `state`.
+    pub fn apply_supports(&self, state: &mut [f64], s: f64) {
+        for &(d, r) in &self.supports {
+            state[d] = r.at(s);
+        }
     }
 
     /// Each prescribed electrode's nodes and voltage (V) at stage time `t`.
@@ -61,6 +150,9 @@ mod tests {
         let drive = Drive {
             voltages: vec![(vec![0, 2], ramp.clone())],
             circuits: vec![Waveform::constant(5.0), ramp.clone()],
+            dead_loads: Ramp::HELD,
+            pressures: Vec::new(),
+            supports: Vec::new(),
         };
         let mut state = vec![0.0; 3 * FIELDS];
         drive.apply_voltages(&mut state, 1.0);

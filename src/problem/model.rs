@@ -35,17 +35,13 @@ pub struct Model {
     pub body_force: Vec<[f64; 3]>,
     /// Dead point forces (node, N), e.g. the weight of an attached mass.
     pub point_forces: Vec<(usize, [f64; 3])>,
-    /// Fraction of the dead loads (tractions, body and point forces) already applied when a static
-    /// stage starts (0 for the first stage that applies them, 1 afterwards): a static stage ramps
-    /// them from here to full.
-    pub dead_load_start: f64,
     /// Groups of dofs that move together (a rigid region's translations).
     pub ties: Vec<Tie>,
     /// Linear dashpots (node, N·s/m) on the translations of a node (of a rigid region: the
     /// damping of the attached mass by air and fixture); dynamics only.
     pub point_dampers: Vec<(usize, f64)>,
-    /// Follower pressures on face sets; statics scales them by the load factor like the dead
-    /// loads (from `dead_load_start`).
+    /// Follower pressures on face sets; a static stage's drive ramps each one's fraction of its
+    /// value over the load factor.
     pub pressures: Vec<crate::problem::pressure::Pressure>,
     /// Free charges (node, C) on the potential of tied (charge-controlled) electrodes: dead
     /// loads −Q on the potential equations, ramped like the forces.
@@ -101,7 +97,6 @@ impl Model {
             tractions: Vec::new(),
             body_force: Vec::new(),
             point_forces: Vec::new(),
-            dead_load_start: 0.0,
             ties: Vec::new(),
             point_dampers: Vec::new(),
             pressures: Vec::new(),
@@ -441,7 +436,6 @@ impl Model {
             })
             .collect();
         part.body_force = self.body_force.clone();
-        part.dead_load_start = self.dead_load_start;
         let on_owned = |list: &[(usize, f64)]| -> Vec<(usize, f64)> {
             list.iter()
                 .filter(|(n, _)| owned(*n))
@@ -555,7 +549,6 @@ pub mod data {
         tractions: &'a [Traction],
         body_force: &'a [[f64; 3]],
         point_forces: &'a [(usize, [f64; 3])],
-        dead_load_start: f64,
         ties: &'a [Tie],
         point_dampers: &'a [(usize, f64)],
         pressures: &'a [crate::problem::pressure::Pressure],
@@ -573,7 +566,6 @@ pub mod data {
         tractions: Vec<Traction>,
         body_force: Vec<[f64; 3]>,
         point_forces: Vec<(usize, [f64; 3])>,
-        dead_load_start: f64,
         ties: Vec<Tie>,
         point_dampers: Vec<(usize, f64)>,
         pressures: Vec<crate::problem::pressure::Pressure>,
@@ -594,7 +586,6 @@ pub mod data {
             tractions,
             body_force,
             point_forces,
-            dead_load_start,
             ties,
             point_dampers,
             pressures,
@@ -610,7 +601,6 @@ pub mod data {
             tractions,
             body_force,
             point_forces,
-            dead_load_start: *dead_load_start,
             ties,
             point_dampers,
             pressures,
@@ -643,7 +633,6 @@ pub mod data {
             tractions: r.tractions,
             body_force: r.body_force,
             point_forces: r.point_forces,
-            dead_load_start: r.dead_load_start,
             ties: r.ties,
             point_dampers: r.point_dampers,
             pressures: r.pressures,

@@ -31,29 +31,20 @@ use crate::problem::faces::{cross, dot, points, shape, side_points, side_shape};
 pub struct Pressure {
     pub faces: Vec<SurfaceFace>,
     pub value: f64,
-    /// The fraction of `value` acting at load factor 0 and 1 of the current stage: [0, 1] while
-    /// a static stage ramps it on, [1, 1] when held, [1, 0] when a stage releases it.
-    pub ramp: [f64; 2],
     /// Volume control: the volume (m³, of the meshed part) the faces enclose at the end of the
     /// current stage, reached linearly from the stage's start; the pressure's fraction is then an
-    /// unknown of the static problem (`None`: the pressure follows `ramp`).
+    /// unknown of the static problem (`None`: the pressure follows its stage's drive).
     pub volume: Option<f64>,
 }
 
 impl Pressure {
-    /// A pressure of `value` (Pa) on `faces`, ramped on from 0 by the first stage.
+    /// A pressure of `value` (Pa) on `faces`.
     pub fn new(faces: Vec<SurfaceFace>, value: f64) -> Self {
         Pressure {
             faces,
             value,
-            ramp: [0.0, 1.0],
             volume: None,
         }
-    }
-
-    /// The fraction of the pressure at load factor `s` of the current stage.
-    pub fn fraction(&self, s: f64) -> f64 {
-        self.ramp[0] + s * (self.ramp[1] - self.ramp[0])
     }
 }
 

@@ -8,7 +8,7 @@ use crate::algebra::system::{DofLayout, LoadedSystem, NonlinearSystem};
 use crate::element::{CellFields, CellInput};
 use crate::material::{Material, ParameterDerivative};
 use crate::problem::assembly::{Assembler, GlobalTerms};
-use crate::problem::dofs::{apply_dirichlet, constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::dofs::{constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::drive::Drive;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
@@ -30,11 +30,11 @@ pub struct StaticProblem<'m> {
     assembler: Assembler,
     /// Physical state, `FIELDS` values per node: u (m), Φ (V).
     pub state: Vec<f64>,
-    /// Prescribed values at load factor 0.
+    /// The state at load factor 0 (the supports' start values).
     start: Vec<f64>,
     cell_energy: Vec<f64>,
     floor: f64,
-    /// Load factor of the dead loads (`model.dead_load_start` until [`LoadedSystem::set_load`]).
+    /// Fraction of the dead loads at the current load factor (from [`StaticProblem::drive`]).
     load: f64,
     /// Nodal forces of the model's dead loads at full value (N, `FIELDS` per node); empty without
     /// dead loads.
@@ -50,9 +50,10 @@ pub struct StaticProblem<'m> {
     /// Load factor of the committed state, and of the current one.
     committed_load: f64,
     s: f64,
-    /// The stage's drive when its electrodes follow their waveforms in stage time (a
-    /// quasi-static stage): at load factor s, their potentials are the drive's at s·`duration`.
-    pub drive: Drive,
+    /// The stage's drive ([`StaticProblem::set_drive`]): at load factor s, the supports and
+    /// loads at s, the electrodes that follow waveforms at stage time s·`duration` (a
+    /// quasi-static stage).
+    drive: Drive,
     /// Energy dissipated by the material points over the accepted steps (J), and over the last
     /// one.
     pub dissipated: f64,
@@ -140,10 +141,10 @@ impl<'m> StaticProblem<'m> {
                 pressure: i,
                 start: crate::problem::pressure::enclosed_volume(&p.faces, &state),
                 target,
-                level: p.ramp[0],
+                level: 0.0,
             })
         });
-        StaticProblem {
+        let mut problem = StaticProblem {
             model,
             dofs,
             assembler,
@@ -151,19 +152,48 @@ impl<'m> StaticProblem<'m> {
             state,
             cell_energy: Vec::new(),
             floor,
-            load: model.dead_load_start,
+            load: 0.0,
             dead_load,
             factored_at: None,
             points: PointStates::new(model),
             duration: 0.0,
             committed_load: 0.0,
             s: 0.0,
-            drive: Drive::none(),
+            drive: Drive::ramped(model),
             dissipated: 0.0,
             dissipated_step: 0.0,
             extra_charges: Vec::new(),
             volume_control,
+        };
+        problem.set_drive(Drive::ramped(model));
+        problem
+    }
+
+    /// Takes the stage's drive: the supports go from the problem's start state to the model's
+    /// targets, the loads and the volume-controlled pressure's level start from the drive's
+    /// values at load factor 0 (the current load factor is kept).
+    pub fn set_drive(&mut self, mut drive: Drive) {
+        drive.support_from(&self.start, &self.model.dirichlet);
+        self.load = drive.dead_loads.at(self.s);
+        if let Some(c) = self.volume_control.as_mut() {
+            c.level = drive.pressures[c.pressure].from;
         }
+        self.drive = drive;
+    }
+
+    /// The stage's drive.
+    pub fn drive(&self) -> &Drive {
+        &self.drive
+    }
+
+    /// The state at load factor 0 (where the supports start).
+    pub fn start(&self) -> &[f64] {
+        &self.start
+    }
+
+    /// The load factor of the current state.
+    pub fn load_factor(&self) -> f64 {
+        self.s
     }
 
     /// The fraction of each pressure's value acting at the current state: its ramp at the load
@@ -173,7 +203,8 @@ impl<'m> StaticProblem<'m> {
             .model
             .pressures
             .iter()
-            .map(|p| p.fraction(self.s))
+            .zip(&self.drive.pressures)
+            .map(|(_, r)| r.at(self.s))
             .collect();
         if let Some(c) = &self.volume_control {
             f[c.pressure] = c.level;
@@ -811,21 +842,12 @@ impl StepOperator for StaticProblem<'_> {
 }
 
 impl LoadedSystem for StaticProblem<'_> {
-    /// Dirichlet values ramp linearly from the start state to the targets; dead loads ramp from
-    /// `model.dead_load_start` (of their full value) to full.
+    /// The supports, dead loads and pressures at load factor `s` of the drive, its waveforms
+    /// at stage time s·`duration`.
     fn set_load(&mut self, s: f64) {
         self.s = s;
-        let t0 = self.model.dead_load_start;
-        self.load = t0 + s * (1.0 - t0);
-        let targets = &self.model.dirichlet;
-        let mut end = self.state.clone();
-        apply_dirichlet(&mut end, targets);
-        for c in targets {
-            for &n in &c.nodes {
-                let d = DofMap::dof(n, c.field.index());
-                self.state[d] = self.start[d] + s * (end[d] - self.start[d]);
-            }
-        }
+        self.load = self.drive.dead_loads.at(s);
+        self.drive.apply_supports(&mut self.state, s);
         self.drive
             .apply_voltages(&mut self.state, s * self.duration);
     }

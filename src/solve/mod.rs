@@ -15,3 +15,4 @@ pub mod ordering;
 pub mod petsc;
 pub mod reused;
 pub mod stepping;
+pub mod transposed;

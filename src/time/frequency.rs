@@ -227,6 +227,7 @@ pub fn linearise(
 ) -> Result<Linearisation, String> {
     let relaxed = relaxed_model(model);
     let mut problem = StaticProblem::new(&relaxed, Some(state.to_vec()));
+    problem.set_drive(crate::problem::drive::Drive::held(&relaxed));
     if solver.as_ref().is_none_or(|s| !s.sums_shared_entries()) {
         // the tangent itself is used here, not only handed to a solver that sums the parts
         problem.assemble_every_cell();

@@ -139,6 +139,7 @@ pub fn modes(
     settings: &ModeSettings,
 ) -> Result<Vec<Mode>, String> {
     let mut problem = StaticProblem::new(model, Some(state.to_vec()));
+    problem.set_drive(crate::problem::drive::Drive::held(model));
     let mut lin = solver.build();
     if !lin.sums_shared_entries() {
         // this solver takes the whole tangent

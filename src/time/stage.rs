@@ -220,7 +220,9 @@ impl<'m> Projector<'m> {
         newton_settings: &NewtonSettings,
         part: Option<&Division>,
     ) -> Result<Self, String> {
-        let problem = Held::new(StaticProblem::new(model, Some(start.to_vec())), part)?;
+        let mut problem = StaticProblem::new(model, Some(start.to_vec()));
+        problem.set_drive(Drive::held(model));
+        let problem = Held::new(problem, part)?;
         let k = problem.inner().new_matrix();
         Ok(Projector {
             problem,
@@ -235,11 +237,10 @@ impl<'m> Projector<'m> {
     }
 
     /// The model of the projection: all displacements held, the potential prescribed where
-    /// `step_model` prescribes it, the dead loads at full value as in the step (the free charges
-    /// of charge-controlled electrodes among them).
+    /// `step_model` prescribes it (its drive holds the dead loads at full value as in the step,
+    /// the free charges of charge-controlled electrodes among them).
     fn model(step_model: &Model) -> Model {
         let mut proj_model = step_model.clone();
-        proj_model.dead_load_start = 1.0;
         let all: Vec<usize> = (0..step_model.mesh.n_nodes()).collect();
         proj_model.dirichlet = [Field::Ux, Field::Uy, Field::Uz]
             .into_iter()

@@ -50,7 +50,7 @@ pub fn simulate(
                 (bottom.to_vec(), Waveform::constant(0.0)),
                 (top.to_vec(), Waveform::constant(volts)),
             ],
-            circuits: Vec::new(),
+            ..crate::problem::drive::Drive::held(model)
         },
         points: Default::default(),
         part: None,

@@ -116,7 +116,7 @@ pub fn cell_stress(
             StageTime {
                 duration,
                 points: points.clone(),
-                drive: crate::problem::drive::Drive::none(),
+                drive: crate::problem::drive::Drive::ramped(&m),
             },
             None,
             &StepControl {

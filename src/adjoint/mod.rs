@@ -1,0 +1,19 @@
+//! Gradients of a run's objective J by the discrete adjoint of the steps the run accepted: the
+//! forward run records its accepted load steps ([`tape::Tape`]); the backward sweep
+//! ([`sweep::gradient`]) solves, from the last step to the first, the transposed step Jacobian
+//! for the adjoint λₙ,
+//!   (∂Rₙ/∂xₙ)ᵀ λₙ = ∂J/∂xₙ (+ what later steps take from xₙ),
+//! and sums dJ/dp = ∂J/∂p − Σₙ λₙᵀ ∂Rₙ/∂p. The derivatives are those of the discretised
+//! equations as solved, cut-backs included, so the gradient is exact for the computed solution
+//! up to the round-off of the solves (Giles & Pierce, Flow Turbul. Combust. 65 (2000) 393;
+//! Farrell et al., SIAM J. Sci. Comput. 35 (2013) C369).
+//!
+//! What is differentiated today: static and quasi-static stages of elastic materials, with the
+//! parameters of the materials and the voltage amplitudes and offsets of the electrodes; the
+//! objective terms `probe-final` and `probe-misfit` on probes of nodal values
+//! ([`objective::Objective`]). Other stages, materials with internal variables, a pre-stretch and
+//! other parameters or terms are refused with a message that names them.
+
+pub mod objective;
+pub mod sweep;
+pub mod tape;

@@ -1,0 +1,385 @@
+//! The objective J of a gradient: the sum of the scenario's `[[objective]]` terms, each a function
+//! of the states of the accepted steps of one stage.
+
+use super::tape::Tape;
+use crate::io::scenario::{InputError, ObjectiveSpec, Scenario};
+use crate::job::plan::Plan;
+use std::path::Path;
+
+/// One term of J.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Term {
+    /// ½ · weight · (probe at the stage's end − target)².
+    ProbeFinal {
+        probe: usize,
+        stage: usize,
+        target: f64,
+        weight: f64,
+    },
+    /// ½ · weight · Σₖ (probe(tₖ) − data(tₖ))² over the stage's accepted steps k (its start state
+    /// excluded), the data interpolated linearly at tₖ (the run's clock, s).
+    ProbeMisfit {
+        probe: usize,
+        stage: usize,
+        data: Vec<(f64, f64)>,
+        weight: f64,
+    },
+}
+
+/// J: the sum of its terms.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Objective {
+    pub terms: Vec<Term>,
+}
+
+/// The value of J and its partial derivatives in the taped states.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Evaluation {
+    pub value: f64,
+    /// ∂J/∂xₖ per taped step (stage by stage, in order; empty where J does not read it).
+    pub state: Vec<Vec<Vec<f64>>>,
+}
+
+impl Objective {
+    /// The terms of `s.objective` (scenario file `file`, data paths relative to `base`), checked
+    /// against `plan`: the probes and stages must exist, the probes must read nodal values, the
+    /// data must be a `time,value` CSV whose times increase and cover the stage.
+    pub fn build(
+        s: &Scenario,
+        plan: &Plan,
+        file: &str,
+        base: Option<&Path>,
+    ) -> Result<Objective, InputError> {
+        let mut terms = Vec::new();
+        if s.objective.is_empty() {
+            return Err(InputError::at_key(
+                file,
+                "objective",
+                "a gradient needs at least one [[objective]] term (kind = \"probe-final\" or \
+                 \"probe-misfit\")",
+            ));
+        }
+        for (i, o) in s.objective.iter().enumerate() {
+            let key = |k: &str| format!("objective.{i}.{k}");
+            terms.push(term(o, plan, file, base, &key)?);
+        }
+        Ok(Objective { terms })
+    }
+
+    /// J at the taped run, and ∂J/∂x at every taped step.
+    pub fn evaluate(&self, plan: &Plan, tape: &Tape) -> Result<Evaluation, String> {
+        let mut value = 0.0;
+        let mut state: Vec<Vec<Vec<f64>>> = tape
+            .stages
+            .iter()
+            .map(|st| vec![Vec::new(); st.steps.len()])
+            .collect();
+        let mut add = |si: usize, k: usize, g: &[f64], factor: f64| {
+            let slot = &mut state[si][k];
+            if slot.is_empty() {
+                slot.resize(g.len(), 0.0);
+            }
+            slot.iter_mut().zip(g).for_each(|(s, v)| *s += factor * v);
+        };
+        for t in &self.terms {
+            let (probe, stage) = match t {
+                Term::ProbeFinal { probe, stage, .. } | Term::ProbeMisfit { probe, stage, .. } => {
+                    (*probe, *stage)
+                }
+            };
+            let (name, p) = &plan.probes[probe];
+            let Some(si) = tape.stages.iter().position(|st| st.index == stage) else {
+                return Err(format!(
+                    "the objective reads stage `{}`, which the run did not reach",
+                    plan.stages[stage].name
+                ));
+            };
+            let st = &tape.stages[si];
+            let value_at = |x: &[f64]| -> Result<(f64, Vec<f64>), String> {
+                let g = p
+                    .state_gradient(x)
+                    .ok_or_else(|| format!("the probe `{name}` has no derivative in the state"))?;
+                Ok((nodal_value(p, x), g))
+            };
+            match t {
+                Term::ProbeFinal { target, weight, .. } => {
+                    let k = st.steps.len() - 1;
+                    let (v, g) = value_at(&st.steps[k].state)?;
+                    value += 0.5 * weight * (v - target).powi(2);
+                    add(si, k, &g, weight * (v - target));
+                }
+                Term::ProbeMisfit { data, weight, .. } => {
+                    for (k, step) in st.steps.iter().enumerate() {
+                        let (v, g) = value_at(&step.state)?;
+                        let d = interpolate(data, step.time);
+                        value += 0.5 * weight * (v - d).powi(2);
+                        add(si, k, &g, weight * (v - d));
+                    }
+                }
+            }
+        }
+        Ok(Evaluation { value, state })
+    }
+}
+
+/// The value of a probe of nodal values at `state` (its reference state the undeformed one).
+fn nodal_value(p: &crate::job::probes::Probe, state: &[f64]) -> f64 {
+    let zeros = vec![0.0; state.len()];
+    p.evaluate(&crate::job::probes::ProbeInput {
+        state,
+        reactions: &[],
+        electrodes: &[],
+        stored: 0.0,
+        electric: 0.0,
+        reference: &zeros,
+        max_field: 0.0,
+        symmetry: 1.0,
+        previous: (&[], 0.0),
+        circuit_energy: &[],
+        pressures: &[],
+        charges: &[],
+    })
+}
+
+/// Linear interpolation in increasing times `data` at `t` (inside their range).
+fn interpolate(data: &[(f64, f64)], t: f64) -> f64 {
+    let i = data
+        .partition_point(|&(ti, _)| ti < t)
+        .clamp(1, data.len() - 1);
+    let ((t0, v0), (t1, v1)) = (data[i - 1], data[i]);
+    if t1 == t0 {
+        return v1;
+    }
+    v0 + (t - t0) / (t1 - t0) * (v1 - v0)
+}
+
+/// One term from its table.
+fn term(
+    o: &ObjectiveSpec,
+    plan: &Plan,
+    file: &str,
+    base: Option<&Path>,
+    key: &dyn Fn(&str) -> String,
+) -> Result<Term, InputError> {
+    let err = |k: &str, m: String| InputError::at_key(file, key(k), m);
+    let weight = o.weight.unwrap_or(1.0);
+    if !weight.is_finite() || weight < 0.0 {
+        return Err(err(
+            "weight",
+            format!("expected a weight ≥ 0, got {weight}"),
+        ));
+    }
+    let probe = |o: &ObjectiveSpec| -> Result<usize, InputError> {
+        let name = o
+            .probe
+            .as_deref()
+            .ok_or_else(|| err("probe", "this term needs `probe`, a probe's name".into()))?;
+        let i = plan
+            .probes
+            .iter()
+            .position(|(n, _)| n == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = plan.probes.iter().map(|(n, _)| n.as_str()).collect();
+                err(
+                    "probe",
+                    format!("unknown probe `{name}` (probes: {})", names.join(", ")),
+                )
+            })?;
+        if plan.probes[i]
+            .1
+            .state_gradient(&vec![0.0; plan.model.mesh.n_nodes() * 4])
+            .is_none()
+        {
+            return Err(err(
+                "probe",
+                format!(
+                    "the probe `{name}` is not differentiated yet: an objective reads a probe \
+                     of nodal values (mean, max, min, point, deflection)"
+                ),
+            ));
+        }
+        Ok(i)
+    };
+    let stage = |o: &ObjectiveSpec| -> Result<usize, InputError> {
+        let names: Vec<&str> = plan.stages.iter().map(|s| s.name.as_str()).collect();
+        match o.stage.as_deref() {
+            None if plan.stages.len() == 1 => Ok(0),
+            None => Err(err(
+                "stage",
+                format!("this term needs `stage` (stages: {})", names.join(", ")),
+            )),
+            Some(n) => names.iter().position(|s| *s == n).ok_or_else(|| {
+                err(
+                    "stage",
+                    format!("unknown stage `{n}` (stages: {})", names.join(", ")),
+                )
+            }),
+        }
+    };
+    let unused = |keys: &[(&str, bool)]| -> Result<(), InputError> {
+        for (k, given) in keys {
+            if *given {
+                return Err(err(k, format!("`{k}` is no key of a `{}` term", o.kind)));
+            }
+        }
+        Ok(())
+    };
+    match o.kind.as_str() {
+        "probe-final" => {
+            unused(&[
+                ("data", o.data.is_some()),
+                ("electrode", o.electrode.is_some()),
+                ("of", o.of.is_some()),
+                ("limit", o.limit.is_some()),
+            ])?;
+            let target = o
+                .target
+                .ok_or_else(|| err("target", "a `probe-final` term needs `target`".into()))?;
+            Ok(Term::ProbeFinal {
+                probe: probe(o)?,
+                stage: stage(o)?,
+                target,
+                weight,
+            })
+        }
+        "probe-misfit" => {
+            unused(&[
+                ("target", o.target.is_some()),
+                ("electrode", o.electrode.is_some()),
+                ("of", o.of.is_some()),
+                ("limit", o.limit.is_some()),
+            ])?;
+            let path = o.data.as_deref().ok_or_else(|| {
+                err(
+                    "data",
+                    "a `probe-misfit` term needs `data`, a CSV file with the header `time,value`"
+                        .into(),
+                )
+            })?;
+            let full = base.map_or_else(|| Path::new(path).to_path_buf(), |b| b.join(path));
+            let data = read_data(&full).map_err(|m| err("data", m))?;
+            let si = stage(o)?;
+            let t0: f64 = plan.stages[..si].iter().map(|s| s.duration).sum();
+            let t1 = t0 + plan.stages[si].duration;
+            let (first, last) = (data[0].0, data[data.len() - 1].0);
+            if first > t0 + 1e-12 * t1.abs().max(1.0) || last < t1 - 1e-12 * t1.abs().max(1.0) {
+                return Err(err(
+                    "data",
+                    format!(
+                        "{}: the times {first} … {last} s do not cover the stage `{}` ({t0} … \
+                         {t1} s in the run's clock)",
+                        full.display(),
+                        plan.stages[si].name
+                    ),
+                ));
+            }
+            Ok(Term::ProbeMisfit {
+                probe: probe(o)?,
+                stage: si,
+                data,
+                weight,
+            })
+        }
+        "drive-effort" | "rest" | "field-penalty" => Err(err(
+            "kind",
+            format!(
+                "the term `{}` is not differentiated yet; available: probe-final, probe-misfit",
+                o.kind
+            ),
+        )),
+        other => Err(err(
+            "kind",
+            format!(
+                "unknown objective term `{other}`: expected probe-final, probe-misfit, \
+                 drive-effort, rest or field-penalty"
+            ),
+        )),
+    }
+}
+
+/// A `time,value` CSV: a header naming the two columns, then rows of two finite numbers with
+/// increasing times. An error names the file and the line.
+pub fn read_data(path: &Path) -> Result<Vec<(f64, f64)>, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let Some((hl, header)) = lines.next() else {
+        return Err(format!(
+            "{}: empty; expected the header `time,value`",
+            path.display()
+        ));
+    };
+    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let (Some(ti), Some(vi)) = (
+        cols.iter().position(|c| *c == "time"),
+        cols.iter().position(|c| *c == "value"),
+    ) else {
+        return Err(format!(
+            "{}:{}: the header `{header}` lacks the columns `time` and `value`",
+            path.display(),
+            hl + 1
+        ));
+    };
+    let mut data: Vec<(f64, f64)> = Vec::new();
+    for (ln, line) in lines {
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        let num = |i: usize, what: &str| -> Result<f64, String> {
+            let v = f
+                .get(i)
+                .and_then(|s| s.parse::<f64>().ok())
+                .filter(|v| v.is_finite());
+            v.ok_or_else(|| {
+                format!(
+                    "{}:{}: expected a finite number for `{what}`, got `{}`",
+                    path.display(),
+                    ln + 1,
+                    f.get(i).copied().unwrap_or("")
+                )
+            })
+        };
+        let (t, v) = (num(ti, "time")?, num(vi, "value")?);
+        if let Some(&(prev, _)) = data.last() {
+            if t <= prev {
+                return Err(format!(
+                    "{}:{}: the time {t} s does not follow {prev} s: times must increase",
+                    path.display(),
+                    ln + 1
+                ));
+            }
+        }
+        data.push((t, v));
+    }
+    if data.len() < 2 {
+        return Err(format!(
+            "{}: expected at least two rows of `time,value`",
+            path.display()
+        ));
+    }
+    Ok(data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Data are read with their header in any column order and interpolated linearly; bad rows
+    /// are refused naming the line.
+    #[test]
+    fn data_files_are_read_and_checked() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("d.csv");
+        std::fs::write(&p, "value,time\n1.0,0\n3.0,2\n").unwrap();
+        let d = read_data(&p).unwrap();
+        assert_eq!(d, vec![(0.0, 1.0), (2.0, 3.0)]);
+        assert_eq!(interpolate(&d, 0.5), 1.5);
+        std::fs::write(&p, "time,value\n0,1\n0,2\n").unwrap();
+        assert!(read_data(&p).unwrap_err().contains("d.csv:3"));
+        std::fs::write(&p, "time,value\n0,1\n1,nan\n").unwrap();
+        assert!(read_data(&p).unwrap_err().contains("d.csv:3"));
+        std::fs::write(&p, "t,v\n0,1\n").unwrap();
+        assert!(read_data(&p).unwrap_err().contains("lacks the columns"));
+    }
+}
