@@ -6,11 +6,13 @@
 //! command line and the Python package are front ends on it.
 
 mod error;
+mod linear;
 mod ranks;
 mod results;
 mod simulation;
 
 pub use error::Error;
+pub use linear::{check_biasable, loaded_modes, modes_plan, prepare, LoadedModes, Prepared};
 pub use ranks::{launched_rank, launched_size, read_checkpoint, RankOptions, RankRun, Resume};
 pub use results::{FieldsKept, History, ProbeStatistics, Results, StepFields};
 pub use simulation::{prepare_output, read_scenario, run_plan, Cancel, RunOptions, Simulation};
