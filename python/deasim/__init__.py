@@ -16,6 +16,7 @@ from ._deasim import (
     __version__,
     default_example,
     examples,
+    material_test,
 )
 from ._errors import DeasimError, DeasimIOError, Interrupted, ScenarioError, SolveError
 
@@ -26,6 +27,7 @@ __all__ = [
     "FrequencyResponse",
     "ReducedModel",
     "examples",
+    "material_test",
     "default_example",
     "DeasimError",
     "ScenarioError",

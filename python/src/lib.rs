@@ -427,6 +427,53 @@ impl Scenario {
         }
     }
 
+    /// The lumped diaphragm model of a `disc` scenario: its linearisation about the rest state
+    /// at 0 V (`linearised`: equilibrium, mass, damping, stiffness, natural_frequency,
+    /// damping_ratio, ...) and its simulation of the first dynamic stage (`history`: numpy
+    /// columns on the run's clock, the probes as the command's `lumped.csv` names them).
+    fn lumped<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let sim = self.sim.clone();
+        let file = "<scenario>".to_string();
+        let ran = py.detach(move || -> Result<_, Error> {
+            let scenario = sim.scenario()?;
+            let plan = sim.plan()?;
+            let setup = deasim::lumped::setup::from_scenario(&scenario, &plan, &file)?;
+            let (lin, history, dt) = setup.simulate().map_err(|e| {
+                Error::Refused(format!("the lumped model cannot be simulated: {e}"))
+            })?;
+            Ok((setup.start, setup.pad_capacitance, lin, history, dt))
+        });
+        let (start, pad, lin, history, dt) = ran.map_err(|e| to_py(py, e))?;
+        let d = PyDict::new(py);
+        let l = PyDict::new(py);
+        l.set_item("equilibrium", lin.equilibrium)?;
+        l.set_item("mass", lin.mass)?;
+        l.set_item("damping", lin.damping)?;
+        l.set_item("stiffness", lin.stiffness)?;
+        l.set_item("force_per_volt2", lin.force_per_volt2)?;
+        l.set_item("capacitance", lin.capacitance)?;
+        l.set_item("min_thickness", lin.min_thickness)?;
+        l.set_item("natural_frequency", lin.natural_frequency())?;
+        l.set_item("damping_ratio", lin.damping_ratio())?;
+        d.set_item("linearised", l)?;
+        d.set_item("dt", dt)?;
+        let h = PyDict::new(py);
+        let samples = &history.samples;
+        let col = |f: &dyn Fn(&deasim::lumped::Sample) -> f64| {
+            PyArray1::from_vec(py, samples.iter().map(f).collect())
+        };
+        h.set_item("time", col(&|s| start + s.time))?;
+        h.set_item("voltage", col(&|s| s.voltage))?;
+        h.set_item("deflection", col(&|s| s.deflection))?;
+        h.set_item("velocity", col(&|s| s.velocity))?;
+        h.set_item("capacitance", col(&|s| s.capacitance + pad))?;
+        h.set_item("charge", col(&|s| (s.capacitance + pad) * s.voltage))?;
+        h.set_item("max_field", col(&|s| s.max_field))?;
+        h.set_item("energy", col(&|s| s.energy))?;
+        d.set_item("history", h)?;
+        Ok(d)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "Scenario({}, {} override(s))",
@@ -874,6 +921,117 @@ impl ReducedModel {
     }
 }
 
+/// Homogeneous material-point tests of a preset (`material` a name of `deasim materials`) or of
+/// a scenario's material (`material` a `Scenario`, `name` the material, default its first):
+/// one record set per curve (per stretch rate), as numpy columns.
+#[pyfunction]
+#[pyo3(signature = (material, test="uniaxial", *, name=None, mode="uniaxial", stretch=2.5,
+    rates=vec![0.01, 0.03, 0.05], stress=None, ramp_time=0.1, hold=60.0, cycles=1, steps=200))]
+#[allow(clippy::too_many_arguments)]
+fn material_test<'py>(
+    py: Python<'py>,
+    material: &Bound<'py, PyAny>,
+    test: &str,
+    name: Option<String>,
+    mode: &str,
+    stretch: f64,
+    rates: Vec<f64>,
+    stress: Option<f64>,
+    ramp_time: f64,
+    hold: f64,
+    cycles: usize,
+    steps: usize,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    use deasim::material::registry::{build, preset, PRESETS};
+    let scenario_error = |message: String, key: Option<&str>| -> PyErr {
+        let e = deasim::io::scenario::InputError {
+            file: "<material_test>".into(),
+            position: None,
+            key: key.map(str::to_string),
+            message,
+        };
+        to_py(py, Error::Input(e))
+    };
+    let mat: std::sync::Arc<dyn deasim::material::Material> =
+        if let Ok(s) = material.extract::<PyRef<'_, Scenario>>() {
+            let sim = s.sim.clone();
+            let plan = py.detach(move || sim.plan()).map_err(|e| to_py(py, e))?;
+            let i = match &name {
+                Some(n) => plan
+                    .material_names
+                    .iter()
+                    .position(|m| m == n)
+                    .ok_or_else(|| {
+                        scenario_error(
+                            format!(
+                                "no material `{n}`; the scenario has {}",
+                                plan.material_names.join(", ")
+                            ),
+                            Some("name"),
+                        )
+                    })?,
+                None => 0,
+            };
+            plan.model.materials[i].clone()
+        } else {
+            let label: String = material.extract().map_err(|_| {
+                PyTypeError::new_err("material: expected a preset name (str) or a Scenario")
+            })?;
+            let Some((model, p)) = preset(&label) else {
+                return Err(scenario_error(
+                    format!(
+                        "`{label}` is not a preset; the presets are {}",
+                        PRESETS.join(", ")
+                    ),
+                    Some("material"),
+                ));
+            };
+            build(model, &p)
+                .map_err(|e| scenario_error(format!("preset `{label}`: {e}"), Some("material")))?
+                .0
+        };
+    let spec = deasim::material::lab::TestSpec {
+        test: test.to_string(),
+        mode: mode.to_string(),
+        stretch,
+        rates,
+        stress,
+        ramp_time,
+        hold,
+        cycles,
+        steps,
+    };
+    spec.check().map_err(|e| {
+        let key = e.split(':').next().map(str::to_string);
+        scenario_error(e, key.as_deref())
+    })?;
+    let curves = py.detach(|| spec.curves(mat.as_ref())).map_err(|reason| {
+        error_class(py, "SolveError")
+            .and_then(|c| c.call1((reason.clone(),)))
+            .and_then(|v| v.setattr("reason", reason).map(|_| v))
+            .map(PyErr::from_value)
+            .unwrap_or_else(|e| e)
+    })?;
+    curves
+        .iter()
+        .map(|c| {
+            let d = PyDict::new(py);
+            d.set_item("label", &c.label)?;
+            d.set_item("rate", c.rate)?;
+            let col = |f: fn(&deasim::material::point_history::PointRecord) -> f64| {
+                PyArray1::from_vec(py, c.records.iter().map(f).collect())
+            };
+            d.set_item("time", col(|r| r.t))?;
+            d.set_item("stretch", col(|r| r.stretch))?;
+            d.set_item("lateral_stretch", col(|r| r.lateral))?;
+            d.set_item("nominal_stress", col(|r| r.nominal))?;
+            d.set_item("cauchy_stress", col(|r| r.cauchy))?;
+            d.set_item("dissipated", col(|r| r.dissipated))?;
+            Ok(d)
+        })
+        .collect()
+}
+
 /// The names of the embedded examples.
 #[pyfunction]
 fn examples() -> Vec<String> {
@@ -897,6 +1055,7 @@ fn _deasim(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<FrequencyResponse>()?;
     m.add_class::<ReducedModel>()?;
     m.add_function(wrap_pyfunction!(examples, m)?)?;
+    m.add_function(wrap_pyfunction!(material_test, m)?)?;
     m.add_function(wrap_pyfunction!(default_example, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

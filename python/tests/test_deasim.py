@@ -205,3 +205,44 @@ def test_ctrl_c_stops_the_run_at_its_last_accepted_step():
     r = e.value.results
     assert r.interrupted and 0 < len(r) < 1006
     assert r.fields()["row"] == len(r) - 1
+
+
+def test_material_test_matches_the_command_line(cli, tmp_path):
+    cli(
+        ["material", "vhb4910-wang2016", "--rate", "0.05", "--steps", "20", "--out", "mt"],
+        tmp_path,
+    )
+    rows = [
+        line.split(",")
+        for line in (tmp_path / "mt" / "uniaxial.csv").read_text().splitlines()
+        if line and line[0].isdigit()
+    ]
+    curves = deasim.material_test("vhb4910-wang2016", "uniaxial", rates=[0.05], steps=20)
+    assert len(curves) == 1
+    c = curves[0]
+    assert c["stretch"].shape == (len(rows),) and c["nominal_stress"].dtype == np.float64
+    np.testing.assert_allclose(c["nominal_stress"], [float(r[4]) for r in rows], rtol=1e-9)
+    with pytest.raises(deasim.ScenarioError) as e:
+        deasim.material_test("vhb4910-wang2016", "torsion")
+    assert e.value.key == "test"
+    with pytest.raises(deasim.ScenarioError):
+        deasim.material_test("no-such-preset")
+    # a scenario's material
+    s = deasim.material_test(coarse(), "equibiaxial", stretch=1.5, rates=[0.1], steps=20)
+    assert s[0]["stretch"][-1] == pytest.approx(1.5)
+    assert np.all(np.diff(s[0]["nominal_stress"]) > 0)
+
+
+def test_lumped_model_matches_the_command_line(cli, tmp_path):
+    out = cli(["lumped", "--out", "lp"], tmp_path).stdout
+    line = next(x for x in out.splitlines() if "natural frequency" in x)
+    expect = float(line.split("natural frequency")[1].split("Hz")[0])
+    lumped = deasim.Scenario.from_example("diaphragm").lumped()
+    assert lumped["linearised"]["natural_frequency"] == pytest.approx(expect, abs=1e-4)
+    h = lumped["history"]
+    assert h["time"].shape == h["deflection"].shape
+    csv = (tmp_path / "lp" / "lumped.csv").read_text().splitlines()
+    assert len(csv) - 1 == h["time"].size
+    with pytest.raises(deasim.ScenarioError) as e:
+        deasim.Scenario.from_example("film").lumped()
+    assert e.value.key == "mesh.generator"
