@@ -246,3 +246,20 @@ def test_lumped_model_matches_the_command_line(cli, tmp_path):
     with pytest.raises(deasim.ScenarioError) as e:
         deasim.Scenario.from_example("film").lumped()
     assert e.value.key == "mesh.generator"
+
+
+def test_optional_converters_need_their_package():
+    r = coarse().run()
+    m = coarse().reduce(modes=2, bias=1500.0)
+    for call, module in [
+        (r.to_pandas, "pandas"),
+        (r.to_meshio, "meshio"),
+        (m.to_control, "control"),
+    ]:
+        try:
+            __import__(module)
+        except ImportError:
+            with pytest.raises(ImportError, match=f"pip install {module}"):
+                call()
+        else:
+            assert call() is not None
