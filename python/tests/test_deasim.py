@@ -263,3 +263,14 @@ def test_optional_converters_need_their_package():
                 call()
         else:
             assert call() is not None
+
+
+def test_readme_example_runs_as_written():
+    from conftest import REPO
+
+    readme = (REPO / "README.md").read_text()
+    section = readme.split("## Python", 1)[1]
+    code = section.split("```python", 1)[1].split("```", 1)[0]
+    namespace = {}
+    exec(compile(code, "README.md", "exec"), namespace)
+    assert namespace["A"].shape[0] == namespace["A"].shape[1] == namespace["B"].shape[0]
