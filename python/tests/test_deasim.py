@@ -274,3 +274,12 @@ def test_readme_example_runs_as_written():
     namespace = {}
     exec(compile(code, "README.md", "exec"), namespace)
     assert namespace["A"].shape[0] == namespace["A"].shape[1] == namespace["B"].shape[0]
+
+
+def test_analyses_report_the_run_to_the_loaded_state():
+    seen = []
+    m = coarse().modes(count=2, progress=seen.append)
+    assert len(m) == 2 and seen and all(info["stage"] != "actuate" for info in seen)
+    with pytest.raises(deasim.Interrupted) as e:
+        coarse().reduce(modes=2, progress=lambda info: False)
+    assert e.value.results.interrupted and len(e.value.results) == 1
