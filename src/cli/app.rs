@@ -357,7 +357,7 @@ fn report(ran: Result<RankRun, Error>) -> i32 {
 }
 
 /// Says why a run could not start (unless another rank says it) and gives its exit status.
-pub(crate) fn fail(e: &Error) -> i32 {
+pub fn fail(e: &Error) -> i32 {
     if !matches!(e, Error::OtherRank { .. }) {
         eprintln!("error: {e}");
     }

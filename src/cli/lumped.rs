@@ -12,9 +12,6 @@ use crate::lumped::History;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Samples per period of the linearised natural frequency, at least.
-const STEPS_PER_PERIOD: f64 = 60.0;
-
 /// Runs the command; returns the exit status.
 pub fn cmd_lumped(
     scenario: Option<&Path>,
@@ -168,7 +165,7 @@ fn names(plan: &Plan) -> Names {
 /// history in `compare` when given.
 fn run(setup: &LumpedSetup, plan: &Plan, dir: &Path, compare: Option<&Path>) -> Result<(), String> {
     let model = &setup.model;
-    let lin = model.linearise().map_err(|e| e.to_string())?;
+    let (lin, history, dt) = setup.simulate().map_err(|e| e.to_string())?;
     let peak = (0..2001)
         .map(|i| {
             setup
@@ -206,12 +203,6 @@ fn run(setup: &LumpedSetup, plan: &Plan, dir: &Path, compare: Option<&Path>) -> 
             Err(e) => println!("  no static equilibrium at the peak voltage {peak:.1} V: {e}"),
         }
     }
-    let dt = setup
-        .dt
-        .min(1.0 / (STEPS_PER_PERIOD * lin.natural_frequency().max(1e-12)));
-    let history = model
-        .simulate_from(&setup.waveform, lin.equilibrium, 0.0, setup.duration, dt)
-        .map_err(|e| e.to_string())?;
     std::fs::create_dir_all(dir.join("plots"))
         .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let n = names(plan);

@@ -7,23 +7,15 @@ use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED}
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{line_plot, PlotSpec, Series};
 use crate::io::results::ResultsDir;
-use crate::material::homogeneous::Mode;
-use crate::material::point_history::{run, Control, PointRecord};
+use crate::material::lab::{Curve, TestSpec};
+use crate::material::point_history::PointRecord;
 use crate::material::registry::{build, preset, PRESETS};
 use crate::material::Material;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// The kinds of test.
-pub const TESTS: [&str; 6] = [
-    "uniaxial",
-    "equibiaxial",
-    "pure-shear",
-    "cyclic",
-    "relaxation",
-    "creep",
-];
+pub use crate::material::lab::TESTS;
 
 /// What to run (the command line's arguments).
 #[derive(Debug, Clone)]
@@ -56,11 +48,21 @@ pub struct MaterialTest {
     pub overwrite: bool,
 }
 
-/// One curve of a test: its label (the rate) and its records.
-struct Curve {
-    label: String,
-    rate: f64,
-    records: Vec<PointRecord>,
+impl MaterialTest {
+    /// The test to run.
+    pub fn spec(&self) -> TestSpec {
+        TestSpec {
+            test: self.test.clone(),
+            mode: self.mode.clone(),
+            stretch: self.stretch,
+            rates: self.rates.clone(),
+            stress: self.stress,
+            ramp_time: self.ramp_time,
+            hold: self.hold,
+            cycles: self.cycles,
+            steps: self.steps,
+        }
+    }
 }
 
 /// Runs the command; returns the exit status.
@@ -72,7 +74,7 @@ pub fn cmd_material(args: &MaterialTest) -> i32 {
             return EXIT_BAD_INPUT;
         }
     };
-    if let Err(e) = check(args) {
+    if let Err(e) = args.spec().check().map_err(|e| format!("--{e}")) {
         eprintln!("error: {e}");
         return EXIT_BAD_INPUT;
     }
@@ -89,7 +91,7 @@ pub fn cmd_material(args: &MaterialTest) -> i32 {
             return EXIT_BAD_INPUT;
         }
     };
-    let curves = match curves(args, mat.as_ref()) {
+    let curves = match args.spec().curves(mat.as_ref()) {
         Ok(c) => c,
         Err(e) => {
             eprintln!("error: {e}");
@@ -146,166 +148,6 @@ fn material(args: &MaterialTest) -> Result<(String, Arc<dyn Material>), String> 
         format!("{}:{}", plan.name, names[i]),
         plan.model.materials[i].clone(),
     ))
-}
-
-fn mode(args: &MaterialTest) -> Result<Mode, String> {
-    let name = match args.test.as_str() {
-        "uniaxial" | "equibiaxial" | "pure-shear" => args.test.as_str(),
-        _ => args.mode.as_str(),
-    };
-    match name {
-        "uniaxial" => Ok(Mode::Uniaxial),
-        "equibiaxial" => Ok(Mode::Equibiaxial),
-        "pure-shear" => Ok(Mode::PureShear),
-        o => Err(format!(
-            "--mode: expected `uniaxial`, `equibiaxial` or `pure-shear`; got `{o}`"
-        )),
-    }
-}
-
-/// Validates the numbers of a test.
-fn check(args: &MaterialTest) -> Result<(), String> {
-    if !TESTS.contains(&args.test.as_str()) {
-        return Err(format!(
-            "--test: expected one of {}; got `{}`",
-            TESTS.join(", "),
-            args.test
-        ));
-    }
-    mode(args)?;
-    let positive = |what: &str, v: f64| {
-        if v.is_finite() && v > 0.0 {
-            Ok(())
-        } else {
-            Err(format!("{what}: must be a positive number; got {v}"))
-        }
-    };
-    positive("--stretch", args.stretch)?;
-    if (args.stretch - 1.0).abs() < 1e-12 && args.test != "creep" {
-        return Err("--stretch: 1 is the undeformed state; give the stretch to reach".into());
-    }
-    for r in &args.rates {
-        positive("--rate", *r)?;
-    }
-    if args.rates.is_empty() {
-        return Err("--rate: at least one stretch rate (1/s) is needed".into());
-    }
-    positive("--ramp-time", args.ramp_time)?;
-    if args.hold < 0.0 || !args.hold.is_finite() {
-        return Err(format!(
-            "--hold: must be a non-negative time in s; got {}",
-            args.hold
-        ));
-    }
-    if !(1..=1_000_000).contains(&args.steps) {
-        return Err(format!(
-            "--steps: must be between 1 and 1000000; got {}",
-            args.steps
-        ));
-    }
-    if !(1..=1000).contains(&args.cycles) {
-        return Err(format!(
-            "--cycles: must be between 1 and 1000; got {}",
-            args.cycles
-        ));
-    }
-    if args.test == "creep" {
-        match args.stress {
-            Some(s) if s.is_finite() && s != 0.0 => {}
-            Some(s) => {
-                return Err(format!(
-                    "--stress: must be a non-zero stress in Pa; got {s}"
-                ))
-            }
-            None => return Err("--stress: a creep test needs the held nominal stress in Pa".into()),
-        }
-    }
-    Ok(())
-}
-
-/// `steps` equal step ends over (a, b].
-fn segment(times: &mut Vec<f64>, a: f64, b: f64, steps: usize) {
-    times.extend((1..=steps).map(|i| a + (b - a) * i as f64 / steps as f64));
-}
-
-/// Runs the test's curves.
-fn curves(args: &MaterialTest, mat: &dyn Material) -> Result<Vec<Curve>, String> {
-    let mode = mode(args)?;
-    let (lmax, n) = (args.stretch, args.steps);
-    let failed = |label: &str, f: crate::material::point_history::PointFailure| {
-        format!(
-            "{} test, {label}: stopped at t = {:.6} s after {} steps: {}",
-            args.test,
-            f.t,
-            f.records.len(),
-            f.reason
-        )
-    };
-    match args.test.as_str() {
-        "uniaxial" | "equibiaxial" | "pure-shear" | "cyclic" => {
-            let cycles = if args.test == "cyclic" {
-                args.cycles
-            } else {
-                0
-            };
-            args.rates
-                .iter()
-                .map(|&rate| {
-                    let half = (lmax - 1.0).abs() / rate;
-                    let sign = (lmax - 1.0).signum();
-                    // a ramp to λmax, or triangles 1 → λmax → 1
-                    let l = move |t: f64| {
-                        if cycles == 0 {
-                            1.0 + sign * rate * t
-                        } else {
-                            let p = (t / half) % 2.0;
-                            let p = if p <= 1.0 { p } else { 2.0 - p };
-                            1.0 + sign * rate * half * p
-                        }
-                    };
-                    let mut times = Vec::new();
-                    for k in 0..(2 * cycles).max(1) {
-                        segment(&mut times, k as f64 * half, (k + 1) as f64 * half, n);
-                    }
-                    let label = format!("{rate} 1/s");
-                    run(mat, mode, &Control::Stretch(&l), &times)
-                        .map(|records| Curve {
-                            label: label.clone(),
-                            rate,
-                            records,
-                        })
-                        .map_err(|f| failed(&label, f))
-                })
-                .collect()
-        }
-        "relaxation" | "creep" => {
-            let ramp = args.ramp_time;
-            let mut times = Vec::new();
-            segment(&mut times, 0.0, ramp, n);
-            if args.hold > 0.0 {
-                segment(&mut times, ramp, ramp + args.hold, n);
-            }
-            let label = format!("ramp {ramp} s");
-            let result = if args.test == "relaxation" {
-                let l = |t: f64| 1.0 + (lmax - 1.0) * (t / ramp).min(1.0);
-                run(mat, mode, &Control::Stretch(&l), &times)
-            } else {
-                let s0 = args.stress.unwrap_or(0.0);
-                let s = |t: f64| s0 * (t / ramp).min(1.0);
-                run(mat, mode, &Control::Stress(&s), &times)
-            };
-            result
-                .map(|records| {
-                    vec![Curve {
-                        label: label.clone(),
-                        rate: 0.0,
-                        records,
-                    }]
-                })
-                .map_err(|f| failed(&label, f))
-        }
-        o => Err(format!("unknown test `{o}`")),
-    }
 }
 
 /// The CSV and the plots.

@@ -2,30 +2,19 @@
 //! on one electrode about its DC bias, by direct solves of the linearised system
 //! ([`crate::time::frequency`]); CSV and Bode plots.
 
-use crate::cli::app::{load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
-use crate::element::CellFields;
+use crate::api::Error;
+pub use crate::api::Prepared;
+use crate::cli::app::{
+    load_scenario, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_SOLVE_FAILED,
+};
 use crate::io::atomic::write_atomic;
 use crate::io::build::log_range;
 use crate::io::build::Plan;
 use crate::io::linear::write_response;
 use crate::io::plot::{PlotSpec, Series};
 use crate::io::results::ResultsDir;
-use crate::job::linear::{
-    check_linearisable, device_mass, has_branches, held_model, linear_probes, response_values,
-    zero_bias_warning, ProbeMap,
-};
-use crate::job::observer::Observer;
-use crate::job::plan::ResponseMethod;
 use crate::job::plan::StageKind;
-use crate::job::run::{run, StepRecord};
 use crate::job::state::FrequencyResponse;
-use crate::job::state::RunSummary;
-use crate::job::statics::solve_static;
-use crate::problem::dofs::{FIELDS, PHI};
-use crate::problem::model::Model;
-use crate::solve::newton::NewtonSettings;
-use crate::solve::stepping::StepControl;
-use crate::time::frequency::linearise;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -46,19 +35,6 @@ pub struct ResponseArgs {
     pub out: Option<PathBuf>,
     /// Replace another command's or scenario's results in the output directory.
     pub overwrite: bool,
-}
-
-/// Keeps the state and the probe values of the last accepted step.
-#[derive(Default)]
-struct LastState(Vec<f64>, Vec<f64>);
-
-impl Observer for LastState {
-    fn step(&mut self, _: &Plan, record: &StepRecord, state: &[f64], _: &[CellFields]) {
-        self.0.clear();
-        self.0.extend_from_slice(state);
-        self.1.clone_from(&record.probes);
-    }
-    fn finished(&mut self, _: &Plan, _: &RunSummary) {}
 }
 
 /// Runs the command; returns the exit status.
@@ -85,188 +61,30 @@ pub fn cmd_response(args: &ResponseArgs) -> i32 {
 
 type Outcome = (PathBuf, FrequencyResponse);
 
-/// The biased state of a scenario and its linearisation, shared by `response` and `reduce`.
-pub struct Prepared {
-    pub plan: Plan,
-    pub model: Model,
-    pub state: Vec<f64>,
-    pub lin: crate::time::frequency::Linearisation,
-    /// The probes that are linearised (plan indices; not the energies and the largest field).
-    pub probes: Vec<usize>,
-    pub bias: f64,
-    pub electrode: String,
-    /// The loaded state (before the bias) and the run's probe values there: deflections are
-    /// measured from the run's reference, which the linearisation does not know.
-    loaded: Vec<f64>,
-    loaded_probes: Vec<f64>,
-}
-
-impl Prepared {
-    /// The linearised probes' values at the biased state as the run reports them (offset and
-    /// reference included).
-    pub fn offsets(&self) -> Result<Vec<f64>, String> {
-        let (at_bias, at_load) = (
-            self.probe_values(&self.state)?,
-            self.probe_values(&self.loaded)?,
-        );
-        Ok(self
-            .probes
-            .iter()
-            .enumerate()
-            .map(|(k, &i)| {
-                let offset = self.plan.probes[i].1.offset;
-                at_bias[k] + (self.loaded_probes[i] - offset - at_load[k]) + offset
-            })
-            .collect())
-    }
-
-    /// The linearised probes about the biased state, deflections from the loaded state.
-    fn map(&self) -> ProbeMap<'_> {
-        ProbeMap {
-            plan: &self.plan,
-            model: &self.model,
-            state: &self.state,
-            reference: &self.loaded,
-            probes: self.probes.clone(),
-        }
-    }
-
-    /// The probes' values (offsets removed) at a state.
-    pub fn probe_values(&self, s: &[f64]) -> Result<Vec<f64>, String> {
-        self.map().values(s)
-    }
-
-    /// The probes' first-order change along the perturbation `dq` (`FIELDS` values per node).
-    pub fn gradient(&self, dq: &[f64]) -> Result<Vec<f64>, String> {
-        self.map().gradient(dq)
-    }
-
-    /// Names of the linearised probes.
-    pub fn names(&self) -> Vec<String> {
-        self.map().names()
-    }
-}
-
-/// Loads the scenario, runs its static stages before the first dynamic one, ramps the driven
-/// electrode to the bias and linearises there.
+/// Loads the scenario and prepares its biased linearisation ([`crate::api::prepare`]); prints
+/// the warning of a bias that drives nothing.
 pub fn prepare(
     scenario: Option<&Path>,
     overrides: &[String],
     electrode: Option<&str>,
     bias: Option<f64>,
 ) -> Result<Prepared, (i32, String)> {
-    let bad = |e: String| (EXIT_BAD_INPUT, e);
-    let failed = |e: String| (EXIT_SOLVE_FAILED, e);
-    let (_, mut plan) = load_scenario(scenario, overrides).map_err(|e| bad(e.to_string()))?;
-    let n_static = plan
-        .stages
-        .iter()
-        .take_while(|s| !matches!(s.kind, StageKind::Dynamic { .. }) && !s.kind.is_linearised())
-        .count();
-    if n_static == 0 {
-        return Err(bad(format!(
-            "`{}` starts with a dynamic stage: the small-signal model is taken about the state \
-             after the static stages before the first dynamic one; add a static stage first",
-            plan.name
-        )));
-    }
-    check_linearisable(&plan).map_err(bad)?;
-    if has_branches(&plan) {
-        return Err(bad(
-            "materials with `branches`: the command ramps to its bias without relaxing them; \
-             use a `frequency-response` stage (direct method) after a static stage instead"
-                .into(),
-        ));
-    }
-    let driven = match electrode {
-        Some(name) => plan
-            .electrodes
-            .iter()
-            .position(|e| e.name == name)
-            .ok_or_else(|| {
-                bad(format!(
-                    "--electrode: no electrode `{name}`; the scenario has {}",
-                    plan.electrodes
-                        .iter()
-                        .map(|e| e.name.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ))
-            })?,
-        None => plan
-            .electrodes
-            .iter()
-            .position(|e| e.voltage.amplitude != 0.0 || e.voltage.offset != 0.0)
-            .ok_or_else(|| {
-                bad("no electrode carries a voltage; name one with --electrode".into())
-            })?,
-    };
-    let full_stages = plan.stages.clone();
-    plan.stages.truncate(n_static);
-    let mut last = LastState::default();
-    let summary = run(&plan, &mut last);
-    plan.stages = full_stages;
-    if !summary.converged {
-        return Err(failed(format!(
-            "the loaded state was not reached: {}",
-            summary.error.unwrap_or_default()
-        )));
-    }
-    let loaded = last.0.clone();
-    let loaded_probes = last.1.clone();
-    let mut state = last.0;
-    // the biased state: the driven electrode ramped to the bias from the loaded state
-    let bias = bias.unwrap_or(state[plan.electrodes[driven].nodes[0] * FIELDS + PHI]);
-    if !bias.is_finite() {
-        return Err(bad(format!("--bias: expected a voltage in V; got {bias}")));
-    }
-    let model = held_model(&plan, &state, Some((driven, bias)));
-    let biased = solve_static(
-        &model,
-        Some(state.clone()),
-        &StepControl {
-            steps: 4,
-            ..Default::default()
+    let (_, plan) =
+        load_scenario(scenario, overrides).map_err(|e| (EXIT_BAD_INPUT, e.to_string()))?;
+    let p = crate::api::prepare(plan, electrode, bias, crate::api::RunOptions::default()).map_err(
+        |e| {
+            let code = match e {
+                Error::Input(_) | Error::Refused(_) => EXIT_BAD_INPUT,
+                Error::Interrupted { .. } => EXIT_INTERRUPTED,
+                _ => EXIT_SOLVE_FAILED,
+            };
+            (code, e.to_string())
         },
-        &NewtonSettings::default(),
-        |_, _| {},
-    );
-    if let Err(f) = biased.result {
-        return Err(failed(format!(
-            "the bias of {bias} V was not reached: {}",
-            f.reason
-        )));
+    )?;
+    if let Some(w) = &p.warning {
+        eprintln!("warning: {w} (--bias)");
     }
-    state = biased.state;
-    let mass = device_mass(&plan, &model);
-    let lin = linearise(
-        &model,
-        &state,
-        &mass,
-        &plan.viscosities,
-        &plan.electrodes[driven].nodes,
-        None,
-    )
-    .map_err(failed)?;
-    if !lin.drives_motion() {
-        eprintln!(
-            "warning: {} (--bias)",
-            zero_bias_warning(&plan.electrodes[driven].name, bias)
-        );
-    }
-    let probes = linear_probes(&plan);
-    let electrode = plan.electrodes[driven].name.clone();
-    Ok(Prepared {
-        plan,
-        model,
-        state,
-        lin,
-        probes,
-        bias,
-        electrode,
-        loaded,
-        loaded_probes,
-    })
+    Ok(p)
 }
 
 /// The response: a solve per frequency, the probes linearised along it.
@@ -302,34 +120,9 @@ pub fn response(args: &ResponseArgs) -> Result<Outcome, (i32, String)> {
     let hash = format!("{:016x}", p.plan.fingerprint());
     let mut results =
         ResultsDir::open(&dir, "response", &p.plan.name, &hash, args.overwrite).map_err(bad)?;
-    let (electrode, bias) = (p.electrode.clone(), p.bias);
-    let values = {
-        let map = ProbeMap {
-            plan: &p.plan,
-            model: &p.model,
-            state: &p.state,
-            reference: &p.loaded,
-            probes: p.probes.clone(),
-        };
-        response_values(
-            &mut p.lin,
-            &map,
-            &frequencies,
-            ResponseMethod::Direct,
-            &electrode,
-            bias,
-        )
-        .map_err(failed)?
-    };
-    let r = FrequencyResponse {
-        electrode,
-        bias,
-        frequencies,
-        probes: p.names().into_iter().zip(values).collect(),
-        method: ResponseMethod::Direct,
-        solved_by: p.lin.solved_by(),
-        warning: None,
-    };
+    let r = p
+        .frequency_response(&frequencies)
+        .map_err(|e| failed(e.to_string()))?;
     let unit = |name: &str| probe_unit(&p.plan, name);
     let written = write_response(&r, &dir, "frequency_response", Some((&dir, "png")), &unit);
     let recorded = results.record();
@@ -439,22 +232,10 @@ fn write_reduced(
 ) -> Result<Vec<String>, (i32, String)> {
     let bad = |e: String| (EXIT_BAD_INPUT, e);
     let failed = |e: String| (EXIT_SOLVE_FAILED, e);
-    let offsets = p.offsets().map_err(failed)?;
     let names = p.names();
-    let gradient = |dq: &[f64]| p.gradient(dq);
-    let model = crate::time::reduced::ReducedModel::build(
-        &p.lin,
-        args.modes,
-        &p.plan.solver,
-        &crate::time::reduced::Outputs {
-            names: names.clone(),
-            offsets: offsets.clone(),
-            gradient: &gradient,
-        },
-        &p.electrode,
-        p.bias,
-    )
-    .map_err(failed)?;
+    let model = p
+        .reduced_model(args.modes)
+        .map_err(|e| failed(e.to_string()))?;
     std::fs::create_dir_all(dir).map_err(|e| failed(format!("{}: {e}", dir.display())))?;
     let json = serde_json::to_string_pretty(&model).map_err(|e| failed(e.to_string()))?;
     let put = |name: &str, text: &str| -> Result<(), (i32, String)> {

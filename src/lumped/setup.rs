@@ -21,6 +21,25 @@ pub struct LumpedSetup {
     pub pad_capacitance: f64,
 }
 
+/// Samples per period of the linearised natural frequency, at least, in [`LumpedSetup::simulate`].
+pub const STEPS_PER_PERIOD: f64 = 60.0;
+
+impl LumpedSetup {
+    /// The linearisation about the rest state at 0 V, and the simulation of the first dynamic
+    /// stage's drive from there (stage time), with the stage's step or a shorter one that
+    /// resolves the natural period by [`STEPS_PER_PERIOD`] samples; the step (s) is the third.
+    pub fn simulate(&self) -> Result<(super::Linearised, super::History, f64), super::LumpedError> {
+        let lin = self.model.linearise()?;
+        let dt = self
+            .dt
+            .min(1.0 / (STEPS_PER_PERIOD * lin.natural_frequency().max(1e-12)));
+        let history =
+            self.model
+                .simulate_from(&self.waveform, lin.equilibrium, 0.0, self.duration, dt)?;
+        Ok((lin, history, dt))
+    }
+}
+
 /// Builds the lumped model of a `disc` scenario. Errors name the key that does not fit.
 pub fn from_scenario(s: &Scenario, plan: &Plan, file: &str) -> Result<LumpedSetup, InputError> {
     let err = |key: &str, msg: String| InputError::at_key(file, key, msg);

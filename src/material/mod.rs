@@ -29,6 +29,7 @@ pub mod gent;
 pub mod homogeneous;
 pub mod hyperelastic;
 pub mod isotropic;
+pub mod lab;
 pub mod maxwell;
 pub mod mooney_rivlin;
 pub mod neo_hooke;
