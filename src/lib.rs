@@ -9,6 +9,7 @@
 pub mod algebra;
 pub mod analytic;
 pub mod api;
+pub mod calibrate;
 pub mod cli;
 pub mod element;
 pub mod fem;

@@ -10,6 +10,9 @@ mod ranks;
 mod results;
 mod simulation;
 
+pub use crate::calibrate::{
+    calibrate_file as calibrate, CalibrateOptions, Calibration, CalibrationError,
+};
 pub use error::Error;
 pub use ranks::{launched_rank, launched_size, read_checkpoint, RankOptions, RankRun, Resume};
 pub use results::{FieldsKept, History, ProbeStatistics, Results, StepFields};
