@@ -743,12 +743,14 @@ pub fn read_csv(text: &str, file: &str, needs_time: bool) -> Result<Data, InputE
     let (stress, factor) = match (col("nominal_stress_pa"), col("nominal_stress_kpa")) {
         (Some(c), _) => (c, 1.0),
         (None, Some(c)) => (c, 1e3),
-        _ => return Err(at(
-            hline,
-            format!(
+        _ => {
+            return Err(at(
+                hline,
+                format!(
                 "no column `nominal_stress_pa` (or `nominal_stress_kpa`) in the header `{header}`"
             ),
-        )),
+            ))
+        }
     };
     let time = col("time_s");
     if needs_time && time.is_none() {
@@ -815,4 +817,29 @@ pub fn read_csv(text: &str, file: &str, needs_time: bool) -> Result<Data, InputE
         return Err(at(hline, "no data rows below the header".into()));
     }
     Ok(data)
+}
+
+/// A registry model's name and the material built.
+pub type NamedMaterial = (String, Arc<dyn Material>);
+
+/// The material of a TOML file's `[material]` table (a calibration's `fitted.toml`, or a spec),
+/// if the file has one; `None` when it has none (e.g. a scenario).
+pub fn material_table(text: &str, file: &str) -> Option<Result<NamedMaterial, InputError>> {
+    let table: toml::Table = toml::from_str(text).ok()?;
+    let value = table.get("material")?.clone();
+    Some((|| {
+        let spec: MaterialSpec = serde_path_to_error::deserialize(value).map_err(|e| {
+            let key = e.path().to_string().replace('[', ".").replace(']', "");
+            InputError::at_key(
+                file,
+                format!("material.{key}"),
+                e.into_inner().message().to_string(),
+            )
+        })?;
+        let (model, params) =
+            material_params(&spec).map_err(|(k, m)| InputError::at_key(file, k, m))?;
+        let (mat, _) = registry::build(&model, &params)
+            .map_err(|e| InputError::at_key(file, format!("material.{}", e.key), e.message))?;
+        Ok((model, mat))
+    })())
 }
