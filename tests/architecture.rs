@@ -26,6 +26,7 @@ const LAYERS: &[&[&str]] = &[
     &["time"],
     &["job"],
     &["io"],
+    &["calibrate"],
     &["lumped", "api"],
     &["cli"],
 ];
