@@ -10,6 +10,7 @@ pub mod adjoint;
 pub mod algebra;
 pub mod analytic;
 pub mod api;
+pub mod calibrate;
 pub mod cli;
 pub mod element;
 pub mod fem;

@@ -130,6 +130,22 @@ material, parameter or objective term whose adjoint is not built yet (the messag
         #[arg(long)]
         jobs: Option<usize>,
     },
+    /// Fit a material's parameters (hyperelastic base, Maxwell branches) to measured homogeneous
+    /// test curves: bounded least squares with exact Jacobians, standard errors, 95 % intervals
+    /// and correlations; calibration.json, fitted.toml and plots (docs/calibration.md).
+    Calibrate {
+        /// The calibration spec (TOML): [material], [[parameters]], [[experiments]], [fit].
+        spec: PathBuf,
+        /// Output directory (default ./deasim-out/calibrate-<spec name>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace the results of another command or scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
+        /// Number of starts (replaces the spec's `fit.starts`).
+        #[arg(long)]
+        starts: Option<usize>,
+    },
     /// The material models with their parameters, and the presets; with a name, that preset's
     /// resolved parameters (the values a scenario's `preset = NAME` uses).
     Materials {
@@ -399,6 +415,17 @@ fn main() {
             jobs,
             overwrite,
         ),
+        Command::Calibrate {
+            spec,
+            out,
+            overwrite,
+            starts,
+        } => deasim::cli::calibrate::cmd_calibrate(&deasim::cli::calibrate::CalibrateArgs {
+            spec,
+            out,
+            overwrite,
+            starts,
+        }),
         Command::Materials { name } => deasim::cli::material::cmd_materials(name.as_deref()),
         Command::Material {
             material,

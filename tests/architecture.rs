@@ -26,7 +26,7 @@ const LAYERS: &[&[&str]] = &[
     &["time"],
     &["job"],
     &["io"],
-    &["adjoint"],
+    &["adjoint", "calibrate"],
     &["lumped", "api"],
     &["cli"],
 ];

@@ -12,6 +12,9 @@ mod ranks;
 mod results;
 mod simulation;
 
+pub use crate::calibrate::{
+    calibrate_file as calibrate, CalibrateOptions, Calibration, CalibrationError,
+};
 pub use error::Error;
 pub use gradient::{GradientOptions, GradientReport, ParameterGradient, TaylorTest};
 pub use linear::{check_biasable, loaded_modes, modes_plan, prepare, LoadedModes, Prepared};

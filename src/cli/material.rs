@@ -112,7 +112,8 @@ pub fn cmd_material(args: &MaterialTest) -> i32 {
     }
 }
 
-/// The material: a preset by name, or a scenario file's material.
+/// The material: a preset by name, a file's `[material]` table (a calibration's `fitted.toml`),
+/// or a scenario file's material.
 fn material(args: &MaterialTest) -> Result<(String, Arc<dyn Material>), String> {
     if let Some((model, p)) = preset(&args.material) {
         if args.name.is_some() {
@@ -131,6 +132,15 @@ fn material(args: &MaterialTest) -> Result<(String, Arc<dyn Material>), String> 
             args.material,
             PRESETS.join(", ")
         ));
+    }
+    // a `[material]` table alone: a calibration's fitted.toml (or its spec)
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if let Some(m) = crate::calibrate::spec::material_table(&text, &args.material) {
+        let (model, mat) = m.map_err(|e| e.to_string())?;
+        let stem = path
+            .file_stem()
+            .map_or(model, |s| s.to_string_lossy().into_owned());
+        return Ok((stem, mat));
     }
     let (_, plan) = load_scenario(Some(path), &[]).map_err(|e| e.to_string())?;
     let names = &plan.material_names;

@@ -2,6 +2,7 @@
 
 pub mod app;
 pub mod bench;
+pub mod calibrate;
 pub mod estimate;
 pub mod gradient;
 pub mod lumped;
