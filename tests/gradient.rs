@@ -148,3 +148,47 @@ fn unsupported_and_bad_input_is_refused() {
     let e = bad(probe_final).unwrap_err();
     assert!(e.to_string().contains("parameters"), "{e}");
 }
+
+/// The axisymmetric balloon (mean-dilatation kernel) charged, then inflated by a follower
+/// pressure in a static stage: the pressure's load stiffness makes the step Jacobian
+/// unsymmetric, and the adjoint solves with its transpose.
+#[test]
+fn an_axisymmetric_balloon_under_a_follower_pressure() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = deasim::io::examples::example("balloon").unwrap();
+    let start = base.find("[[stages]]\nname = \"inflate\"").unwrap();
+    let end = base[start..].find("[probes.").unwrap() + start;
+    let text = format!(
+        "{}[[stages]]\nname = \"inflate\"\nkind = \"static\"\nsteps = 4\n\n{}{}",
+        &base[..start],
+        &base[end..],
+        r#"
+[[parameters]]
+path = "materials.elastomer.mu"
+[[parameters]]
+path = "materials.elastomer.jm"
+[[parameters]]
+path = "materials.elastomer.permittivity"
+[[parameters]]
+path = "electrodes.outside.voltage"
+
+[[objective]]
+kind = "probe-final"
+probe = "stretch"
+stage = "inflate"
+target = 1.5
+"#
+    );
+    let sim = Simulation::from_toml(&text, Some(dir.path())).with_overrides(&[
+        "loads.pressure.0.value=4e3".into(),
+        "mesh.radial=8".into(),
+        "solver.newton_rtol=1e-13".into(),
+    ]);
+    let r = sim
+        .gradient(&GradientOptions {
+            check: true,
+            ..Default::default()
+        })
+        .unwrap();
+    assert_checked(&r, 1e-6);
+}
