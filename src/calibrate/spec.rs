@@ -554,35 +554,7 @@ pub fn material_params(m: &MaterialSpec) -> Result<(String, MaterialParams), (St
             ));
         }
     }
-    if let Some(b) = &m.branches {
-        p.branches = b.iter().map(|b| (b.mu, b.tau)).collect();
-    }
-    if let Some(mu) = &m.mu {
-        p.mu = mu.to_vec();
-    }
-    if let Some(a) = &m.alpha {
-        p.alpha = a.clone();
-    }
-    for (slot, value) in [
-        (&mut p.lambda, m.lambda),
-        (&mut p.kappa, m.kappa),
-        (&mut p.c10, m.c10),
-        (&mut p.c20, m.c20),
-        (&mut p.c30, m.c30),
-        (&mut p.c01, m.c01),
-        (&mut p.d1, m.d1),
-        (&mut p.d2, m.d2),
-        (&mut p.d3, m.d3),
-        (&mut p.jm, m.jm),
-        (&mut p.lambda_m, m.lambda_m),
-        (&mut p.permittivity, m.permittivity),
-        (&mut p.c1, m.c1),
-        (&mut p.c2, m.c2),
-    ] {
-        if value.is_some() {
-            *slot = value;
-        }
-    }
+    crate::io::build::override_parameters(m, &mut p);
     Ok((model, p))
 }
 

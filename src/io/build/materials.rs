@@ -239,8 +239,9 @@ fn model_and_preset(
     Ok((model.to_string(), params))
 }
 
-/// Parameters given in the scenario override the preset's.
-fn override_parameters(m: &MaterialSpec, p: &mut MaterialParams) {
+/// Parameters given in a material table `m` override those of `p` (a preset's): what a scenario
+/// and a calibration spec both read.
+pub fn override_parameters(m: &MaterialSpec, p: &mut MaterialParams) {
     if let Some(b) = &m.branches {
         p.branches = b.iter().map(|b| (b.mu, b.tau)).collect();
     }

@@ -21,6 +21,7 @@ mod stages;
 use super::scenario::{closest, InputError, OutputSpec, Scenario};
 pub use crate::job::plan::{Electrode, OutputPlan, Plan, Prestretch, Rigid, Stage, StageKind};
 use crate::mesh::{ElementKind, Mesh};
+pub use materials::override_parameters;
 pub use parameters::{material_parameter, parameter, Parameter, ParameterKey};
 pub use stages::log_range;
 use std::path::Path;
