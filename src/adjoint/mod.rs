@@ -14,6 +14,8 @@
 //! ([`objective::Objective`]). Other stages, materials with internal variables, a pre-stretch and
 //! other parameters or terms are refused with a message that names them.
 
+pub mod dynamic;
 pub mod objective;
+pub mod sink;
 pub mod sweep;
 pub mod tape;

@@ -1,14 +1,19 @@
-//! The record of a forward run that its adjoint replays: for every static or quasi-static stage
-//! the run went through, its model (supports and electrodes as the stage holds them), its drive
-//! and duration, and the converged state of each accepted load step with its load factor.
+//! The record of a forward run that its adjoint replays: for every static, quasi-static or
+//! dynamic stage the run went through, its model (supports and electrodes as the stage holds
+//! them), its drive and duration, and the converged state of each accepted step: a load step
+//! with its load factor, or a time step with its size, velocities, accelerations and the
+//! step's unknown before the potential's projection.
 
 use crate::element::CellFields;
-use crate::job::observer::Observer;
+use crate::job::observer::{DynamicStart, Observer};
 use crate::job::plan::Plan;
 use crate::job::state::{RunSummary, StepRecord};
 use crate::problem::drive::Drive;
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
+use crate::time::integrator::TimeLevel;
+use crate::time::mass::NodalMass;
+use crate::time::stage::{DynamicStepInfo, Method};
 
 /// One accepted load step.
 #[derive(Debug, Clone)]
@@ -19,6 +24,26 @@ pub struct TapedStep {
     pub time: f64,
     /// The converged state, 4 values per node.
     pub state: Vec<f64>,
+    /// A time step's: its size (s), the new level's velocities and accelerations, and the
+    /// step's unknown before the midpoint scheme's projection of the potential (empty when it
+    /// is `state`). Empty for a load step.
+    pub dt: f64,
+    pub v: Vec<f64>,
+    pub a: Vec<f64>,
+    pub iterate: Vec<f64>,
+}
+
+/// What a dynamic stage's steps need besides the model and drive.
+#[derive(Debug, Clone)]
+pub struct TapedDynamics {
+    pub mass: NodalMass,
+    /// Kelvin–Voigt viscosity of each material (Pa·s).
+    pub viscosity: Vec<f64>,
+    pub method: Method,
+    /// The start level as given to the integrator (stage time).
+    pub given: TimeLevel,
+    /// The level its first step started from (after Newmark's consistent acceleration).
+    pub initial: Option<TimeLevel>,
 }
 
 /// One static or quasi-static stage of the run.
@@ -33,6 +58,8 @@ pub struct TapedStage {
     /// The state the stage started from.
     pub start: Vec<f64>,
     pub steps: Vec<TapedStep>,
+    /// A dynamic stage's integrator (`None`: a static or quasi-static stage).
+    pub dynamics: Option<TapedDynamics>,
 }
 
 /// The taped run: an [`Observer`] that keeps the accepted load steps.
@@ -66,7 +93,14 @@ impl Tape {
     pub fn state_bytes(&self) -> usize {
         self.stages
             .iter()
-            .map(|s| (s.start.len() + s.steps.iter().map(|k| k.state.len()).sum::<usize>()) * 8)
+            .map(|s| {
+                let steps: usize = s
+                    .steps
+                    .iter()
+                    .map(|k| k.state.len() + k.v.len() + k.a.len() + k.iterate.len())
+                    .sum();
+                (s.start.len() + steps) * 8
+            })
             .sum()
     }
 }
@@ -81,6 +115,7 @@ impl Observer for Tape {
                 duration: problem.duration,
                 start: problem.start().to_vec(),
                 steps: Vec::new(),
+                dynamics: None,
             });
         }
         let st = self.stages.last_mut().expect("a stage was just pushed");
@@ -88,6 +123,55 @@ impl Observer for Tape {
             load,
             time: self.starts[stage] + load * st.duration,
             state: problem.state.clone(),
+            dt: 0.0,
+            v: Vec::new(),
+            a: Vec::new(),
+            iterate: Vec::new(),
+        });
+    }
+
+    fn dynamic_started(&mut self, stage: usize, start: &DynamicStart<'_>) {
+        let inputs = start.inputs;
+        self.stages.push(TapedStage {
+            index: stage,
+            model: start.model.clone(),
+            drive: inputs.drive.clone(),
+            duration: 0.0,
+            start: start.start.q.clone(),
+            steps: Vec::new(),
+            dynamics: Some(TapedDynamics {
+                mass: inputs.mass.clone(),
+                viscosity: inputs.viscosity.clone(),
+                method: start.method,
+                given: start.start.clone(),
+                initial: None,
+            }),
+        });
+    }
+
+    fn time_step(&mut self, stage: usize, level: &TimeLevel, info: &DynamicStepInfo<'_>) {
+        let start = self.starts[stage];
+        let Some(st) = self.stages.last_mut().filter(|s| s.index == stage) else {
+            return;
+        };
+        if let Some(d) = st.dynamics.as_mut() {
+            if d.initial.is_none() {
+                d.initial = Some(info.prev.clone());
+            }
+        }
+        st.duration = level.t;
+        st.steps.push(TapedStep {
+            load: 1.0,
+            time: start + level.t,
+            state: level.q.clone(),
+            dt: info.dt,
+            v: level.v.clone(),
+            a: level.a.clone(),
+            iterate: if info.iterate == level.q.as_slice() {
+                Vec::new()
+            } else {
+                info.iterate.to_vec()
+            },
         });
     }
 

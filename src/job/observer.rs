@@ -3,8 +3,22 @@
 use super::plan::Plan;
 use super::state::{FrequencyResponse, LimitRecord, PathRecord, RunState, RunSummary, StepRecord};
 use crate::element::CellFields;
+use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
+use crate::time::integrator::TimeLevel;
 use crate::time::modal::Mode;
+use crate::time::stage::{DynamicInputs, DynamicStepInfo, Method};
+
+/// What a dynamic stage starts from, for an observer that replays its steps (the adjoint's
+/// tape): the model with the stage's supports held, its mass, viscosities, drive and the
+/// internal variables of its material points, the integration method, and the start level as
+/// given to the integrator (stage time).
+pub struct DynamicStart<'a> {
+    pub model: &'a Model,
+    pub inputs: &'a DynamicInputs<'a>,
+    pub method: Method,
+    pub start: &'a TimeLevel,
+}
 
 /// Receives the progress of a run.
 pub trait Observer {
@@ -39,6 +53,12 @@ pub trait Observer {
     /// (before its [`Observer::step`]): the problem holds the converged state, the committed
     /// point states and the stage's drive, what the adjoint of the run replays.
     fn load_step(&mut self, _stage: usize, _load: f64, _problem: &StaticProblem<'_>) {}
+    /// Dynamic stage `stage` starts (before its first [`Observer::time_step`]).
+    fn dynamic_started(&mut self, _stage: usize, _start: &DynamicStart<'_>) {}
+    /// A time step of dynamic stage `stage` was accepted (before its [`Observer::step`]):
+    /// `level` is the new level in stage time, `info` holds the level it started from and its
+    /// unknown before the potential's projection.
+    fn time_step(&mut self, _stage: usize, _level: &TimeLevel, _info: &DynamicStepInfo<'_>) {}
     /// Whether this observer may ask for run states (the run then keeps its history).
     fn takes_states(&self) -> bool {
         false
@@ -65,6 +85,16 @@ impl Observer for Observers<'_, '_> {
         self.0
             .iter_mut()
             .for_each(|o| o.load_step(stage, load, problem));
+    }
+    fn dynamic_started(&mut self, stage: usize, start: &DynamicStart<'_>) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.dynamic_started(stage, start));
+    }
+    fn time_step(&mut self, stage: usize, level: &TimeLevel, info: &DynamicStepInfo<'_>) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.time_step(stage, level, info));
     }
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {
         self.0

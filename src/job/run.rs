@@ -6,7 +6,7 @@
 //! run that went on.
 
 use super::linear::{frequency_response_at, modes_at};
-use super::observer::{Observer, Observers};
+use super::observer::{DynamicStart, Observer, Observers};
 use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
 use super::recorder::Recorder;
@@ -1047,6 +1047,15 @@ impl<'p, 'o> Job<'p, 'o> {
         let mut mv = vec![0.0; self.state.q.len()];
         let time = self.state.stage_time;
         let model_ref: &Model = model;
+        self.observer.dynamic_started(
+            si,
+            &DynamicStart {
+                model: model_ref,
+                inputs: &inputs,
+                method: scheme,
+                start: &start_level,
+            },
+        );
         // the stage's linear work up to its last accepted step
         let mut linear = Default::default();
         let outcome = run_dynamic_from(
@@ -1057,6 +1066,7 @@ impl<'p, 'o> Job<'p, 'o> {
             self.newton,
             resume,
             |level, info| {
+                self.observer.time_step(si, level, info);
                 step_no += 1;
                 linear = info.linear;
                 self.state.dissipated += info.dissipated;

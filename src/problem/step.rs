@@ -160,6 +160,43 @@ pub fn cell_products(
     Ok(out)
 }
 
+/// wᵀ∂f_vis/∂η of the Kelvin–Voigt forces of material `material` at configuration `q` and
+/// velocity `v` in its viscosity η (the forces are linear in η: wᵀ f_vis at η = 1), with `w`
+/// over every dof; summed over the processes that share the cells.
+pub fn viscosity_vjp(
+    model: &Model,
+    q: &[f64],
+    v: &[f64],
+    material: usize,
+    w: &[f64],
+) -> Result<f64, String> {
+    let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+    let (mut r, mut wl, mut vl) = (vec![0.0; nl], vec![0.0; nl], vec![0.0; nl]);
+    let mut sum = [0.0];
+    let outcome = model.for_each_cell_where(
+        q,
+        |c| model.owns(c) && model.cell_material[c] == material,
+        |c, g, _, local| {
+            let nodes = model.mesh.cell(c);
+            gather(nodes, w, &mut wl);
+            gather(nodes, v, &mut vl);
+            r.fill(0.0);
+            KelvinVoigtKernel { eta: 1.0 }
+                .forces(g, local, &vl, &mut r, None)
+                .map_err(|e| {
+                    (
+                        c,
+                        format!("cell {c}: {} at quadrature point {}", e.error, e.qp),
+                    )
+                })?;
+            sum[0] += wl.iter().zip(&r).map(|(a, b)| a * b).sum::<f64>();
+            Ok::<(), (usize, String)>(())
+        },
+    );
+    model.sum_over_processes(&mut sum, outcome.err())?;
+    Ok(sum[0])
+}
+
 /// The cell's values of a nodal vector `x` (4 per node) into `local`.
 fn gather(nodes: &[usize], x: &[f64], local: &mut [f64]) {
     for (a, &node) in nodes.iter().enumerate() {

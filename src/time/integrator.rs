@@ -191,6 +191,22 @@ impl<'m> TimeStep<'m> {
             .sum()
     }
 
+    /// wᵀ∂R/∂η of the step residual in the Kelvin–Voigt viscosity of material `material`
+    /// (Pa·s): the viscous forces enter with the factor of the internal forces at the
+    /// evaluation point and velocity.
+    pub fn viscosity_vjp(&mut self, w: &[f64], material: usize) -> Result<f64, String> {
+        self.evaluation_point();
+        let weights = free_weights(&self.dofs, w);
+        let p = crate::problem::step::viscosity_vjp(
+            self.model,
+            &self.work_q,
+            &self.work_v,
+            material,
+            &weights,
+        )?;
+        Ok(self.residual_factor() * p)
+    }
+
     /// wᵀ∂R/∂R_c of the step residual in the series resistance of circuit `circuit` (Ω, the
     /// model's): the charge at the evaluation point is Q_n + g·(drop), g = Δt/(2R_c), so
     /// ∂Q/∂R_c = −(Q − Q_n)/R_c.

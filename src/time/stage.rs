@@ -76,6 +76,12 @@ pub struct DynamicStepInfo<'a> {
     /// The linear solvers' work of the stage so far (the steps' and the projections'), failed
     /// attempts included; a resumed stage's includes the work before its checkpoint.
     pub linear: SolverStats,
+    /// The level the step started from (after a scheme's start-up at the stage's first step:
+    /// Newmark's consistent acceleration).
+    pub prev: &'a TimeLevel,
+    /// The step's converged unknown q_{n+1} before the midpoint scheme's electrostatic
+    /// projection (the new level's q for the other schemes): what a discrete adjoint replays.
+    pub iterate: &'a [f64],
 }
 
 impl DynamicStepInfo<'_> {
@@ -174,6 +180,8 @@ enum StepError {
 /// updated internal variables (`None` for elastic materials).
 struct Attempt {
     level: TimeLevel,
+    /// The step's converged unknown before a projection of the potential.
+    iterate: Vec<f64>,
     iterations: usize,
     dissipated: f64,
     points: Option<PointStates>,
@@ -193,6 +201,20 @@ trait Stepper {
     fn position(&self) -> (f64, Option<&FactorPoint>, Option<&[f64]>);
     /// The work of the step's and the projection's linear solvers so far.
     fn linear(&self) -> SolverStats;
+}
+
+/// The model of a dynamic stage's steps: `model` (its supports held) with the potential of the
+/// drive's electrodes prescribed (their values, here at stage time `t`, are set by each step).
+pub fn step_model(model: &Model, drive: &Drive, t: f64) -> Model {
+    let mut step_model = model.clone();
+    for (nodes, v) in drive.voltages_at(t) {
+        step_model.dirichlet.push(Dirichlet {
+            nodes: nodes.to_vec(),
+            field: Field::Phi,
+            value: v,
+        });
+    }
+    step_model
 }
 
 /// The model of a dynamic stage's electrostatic projection, from the stage's model with its
@@ -384,6 +406,7 @@ impl Stepper for ImplicitStepper<'_, '_> {
             }
         };
         let mut level = self.step.inner().end_level();
+        let iterate = level.q.clone();
         if self.scheme == Scheme::Midpoint {
             // Gauss's law at t_{n+1}: solve for the potential with u_{n+1} held
             let t1 = level.t;
@@ -394,6 +417,7 @@ impl Stepper for ImplicitStepper<'_, '_> {
         }
         Ok(Attempt {
             level,
+            iterate,
             iterations: rep.iterations,
             dissipated,
             points,
@@ -494,7 +518,8 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
                 .zip(&level.q)
                 .map(|(a, b)| (a - b) / h)
                 .collect();
-            let mut q1 = trap.q.clone();
+            let iterate = trap.q.clone();
+            let mut q1 = iterate.clone();
             projector.project(&mut q1, inputs, t0 + h, Vec::new())?;
             let f1 = agreed(part, forces.forces_at(&q1, &vbar))?;
             let mut mv = vec![0.0; vbar.len()];
@@ -515,10 +540,10 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
                 Ok((0.5 * h * (p0 + p1w), f_next))
             })();
             let (dissipated, f_next) = agreed(part, rest)?;
-            Ok((rep.iterations, q1, v1, dissipated, f_next))
+            Ok((rep.iterations, iterate, q1, v1, dissipated, f_next))
         });
         match attempt {
-            Ok((iterations, q, v, dissipated, f_next)) => {
+            Ok((iterations, iterate, q, v, dissipated, f_next)) => {
                 self.f_next = f_next;
                 Ok(Attempt {
                     level: TimeLevel {
@@ -527,6 +552,7 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
                         v,
                         a: level.a.clone(),
                     },
+                    iterate,
                     iterations,
                     dissipated,
                     points: None,
@@ -599,6 +625,8 @@ fn step_loop(
                     step_factor,
                     projection_factor,
                     linear: base + stepper.linear(),
+                    prev: stepper.level(),
+                    iterate: &a.iterate,
                 };
                 on_step(&a.level, &info);
                 stepper.accept(a.level, a.points);
@@ -698,14 +726,7 @@ pub fn run_dynamic_from(
         )
     };
     let part = inputs.part;
-    let mut step_model = model.clone();
-    for (nodes, v) in inputs.drive.voltages_at(start.t) {
-        step_model.dirichlet.push(Dirichlet {
-            nodes: nodes.to_vec(),
-            field: Field::Phi,
-            value: v,
-        });
-    }
+    let step_model = step_model(model, &inputs.drive, start.t);
     let proj_model = Projector::model(&step_model);
     let mut projector = Projector::new(
         &proj_model,

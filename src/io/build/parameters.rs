@@ -176,6 +176,12 @@ pub enum Parameter {
     Resistance { electrode: String, value: f64 },
     /// The mass of a rigid pad (kg), by its index in `loads.rigid`.
     RigidMass { index: usize, value: f64 },
+    /// The Kelvin–Voigt viscosity η of a material (Pa·s), by its index in the plan.
+    Viscosity {
+        material: String,
+        material_index: usize,
+        value: f64,
+    },
     /// The pre-stretch λ.
     Prestretch { value: f64 },
 }
@@ -189,6 +195,7 @@ impl Parameter {
             | Parameter::Charge { value, .. }
             | Parameter::Resistance { value, .. }
             | Parameter::RigidMass { value, .. }
+            | Parameter::Viscosity { value, .. }
             | Parameter::Prestretch { value } => *value,
         }
     }
@@ -202,6 +209,24 @@ impl Parameter {
 pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, InputError> {
     let ctx = Ctx::plain(file);
     let parts: Vec<&str> = key.split('.').collect();
+    if let ["materials", name, "viscosity"] = parts.as_slice() {
+        if let Some(material_index) = s.materials.keys().position(|n| n == name) {
+            let value = s.materials[*name].viscosity.unwrap_or(0.0);
+            if value > 0.0 {
+                return Ok(Parameter::Viscosity {
+                    material: name.to_string(),
+                    material_index,
+                    value,
+                });
+            }
+            return Err(ctx.err(
+                key,
+                format!(
+                    "material `{name}` has no Kelvin–Voigt viscosity to differentiate: give                      `materials.{name}.viscosity` a value > 0"
+                ),
+            ));
+        }
+    }
     if parts.first() == Some(&"materials") {
         return material_parameter(s, file, key).map(Parameter::Material);
     }
@@ -262,7 +287,13 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
     found.ok_or_else(|| {
         ctx.err(
             key,
-            "not a differentiable parameter: expected a material's              (`materials.<name>.<parameter>`), an electrode's voltage amplitude or offset              (`electrodes.<name>.voltage`, `electrodes.<name>.voltage.amplitude`,              `electrodes.<name>.voltage.offset`, the same below `electrodes.<name>.circuit.source`),              `electrodes.<name>.charge`, `electrodes.<name>.circuit.resistance`,              `loads.rigid.<i>.mass` or `prestretch.stretch`",
+            "not a differentiable parameter: expected a material's \
+             (`materials.<name>.<parameter>`, `materials.<name>.viscosity`), an electrode's \
+             voltage amplitude or offset (`electrodes.<name>.voltage`, \
+             `electrodes.<name>.voltage.amplitude`, `electrodes.<name>.voltage.offset`, the \
+             same below `electrodes.<name>.circuit.source`), `electrodes.<name>.charge`, \
+             `electrodes.<name>.circuit.resistance`, `loads.rigid.<i>.mass` or \
+             `prestretch.stretch`",
         )
     })
 }

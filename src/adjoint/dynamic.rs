@@ -1,0 +1,400 @@
+//! The adjoint of a dynamic stage: its accepted midpoint or Newmark steps, last to first.
+//!
+//! A step n → n+1 of size Δt solves R(y; qₙ, vₙ, aₙ, θ) = 0 for the free unknowns of y (the
+//! step's q_{n+1}); its prescribed entries are qₙ's (supports) or the drive's (electrodes:
+//! 2V(t_{n+½}) − Φₙ for the midpoint scheme, V(t_{n+1}) for Newmark). The new level follows:
+//! - midpoint: v_{n+1} = 2(y − qₙ)/Δt − vₙ on the displacements, and the potential of q_{n+1}
+//!   is y's projected onto electrostatic equilibrium at y's displacements with the electrodes
+//!   at V(t_{n+1}) (P(Φ; u) = 0, a static problem with every displacement held);
+//! - Newmark: q_{n+1} = y, a_{n+1} = (y − qₙ − Δt vₙ)/(βΔt²) − (1/(2β) − 1)aₙ,
+//!   v_{n+1} = vₙ + Δt((1 − γ)aₙ + γa_{n+1}).
+//!
+//! With the cotangents (q̄, v̄, ā) of the new level, the step's adjoint runs these relations
+//! backwards: the projection's adjoint μ solves (∂P/∂Φ)ᵀμ = q̄_Φ and gives y's displacements
+//! q̄_u − μᵀ∂P/∂u; the velocity relations give ȳ and part of (q̄ₙ, v̄ₙ, āₙ); the step's adjoint
+//! λ solves Jᵀλ = ȳ over the free unknowns with the exact step Jacobian J, and
+//! (q̄ₙ, v̄ₙ, āₙ) −= λᵀ∂R/∂(qₙ, vₙ, aₙ), dJ/dp −= λᵀ∂R/∂p; the prescribed entries of y carry
+//! ȳ − λᵀ∂R/∂y to qₙ or to the drive's voltages.
+//!
+//! Newmark's first step starts from the consistent acceleration a₀ = −M⁻¹f(q₀', v₀) at the
+//! start q₀' projected onto electrostatic equilibrium: its adjoint z = M⁻¹ā₀ gives
+//! q̄₀' −= (∂f/∂q)ᵀz, v̄₀ −= (∂f/∂v)ᵀz and dJ/dp −= zᵀ∂f/∂p (−zᵀ(∂M/∂m)a₀ for a pad's mass).
+
+use super::sink::{waveform_dofs, Sink};
+use super::tape::{TapedDynamics, TapedStage};
+use crate::algebra::system::{LoadedSystem, NonlinearSystem};
+use crate::io::build::Parameter;
+use crate::job::plan::Plan;
+use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::drive::Drive;
+use crate::problem::model::Model;
+use crate::problem::points::PointStates;
+use crate::problem::statics::StaticProblem;
+use crate::problem::step::{cell_products, viscosity_vjp, StepOperator};
+use crate::solve::transposed::TransposedLu;
+use crate::time::integrator::{Scheme, TimeLevel, TimeStep};
+use crate::time::stage::{projection_model, step_model, Method};
+
+/// The cotangents ∂J/∂· of a time level's positions, velocities and accelerations (4 values
+/// per node each).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cotangent {
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+    pub a: Vec<f64>,
+}
+
+impl Cotangent {
+    pub fn zeros(n: usize) -> Self {
+        Cotangent {
+            q: vec![0.0; n],
+            v: vec![0.0; n],
+            a: vec![0.0; n],
+        }
+    }
+}
+
+/// What the stage's steps share.
+struct Stage<'a> {
+    dynamics: &'a TapedDynamics,
+    drive: &'a Drive,
+    scheme: Scheme,
+    step_model: Model,
+    projection: Model,
+    waveform: Vec<usize>,
+    /// Whether the stage's electrodes follow their waveforms (off: grounded).
+    electrodes_on: bool,
+}
+
+/// The adjoint of the dynamic stage `st` of a taped run: `state_grads[k]` is ∂J/∂q of its k-th
+/// accepted level (empty: none), `end` the cotangent of its last level from the stages after
+/// it. The parameters' derivatives go to `sink`; returns the cotangent of the level the stage
+/// started from (as given to the integrator).
+pub fn sweep(
+    plan: &Plan,
+    st: &TapedStage,
+    state_grads: &[Vec<f64>],
+    end: Cotangent,
+    sink: &mut Sink,
+) -> Result<Cotangent, String> {
+    let dynamics = st
+        .dynamics
+        .as_ref()
+        .ok_or("a static stage given to the dynamic adjoint")?;
+    let stage = &plan.stages[st.index];
+    let scheme = match dynamics.method {
+        Method::Implicit(s) => s,
+        Method::Trapezoidal => {
+            return Err(format!(
+                "stage `{}`: the adjoint of the explicit trapezoidal scheme is not built; use \
+                 scheme = \"midpoint\" or \"newmark\"",
+                stage.name
+            ))
+        }
+    };
+    let step_model = step_model(&st.model, &st.drive, dynamics.given.t);
+    let projection = projection_model(&step_model);
+    let n = st.start.len();
+    let s = Stage {
+        dynamics,
+        drive: &st.drive,
+        scheme,
+        waveform: waveform_dofs(&st.drive, n),
+        step_model,
+        projection,
+        electrodes_on: stage.electrodes_on,
+    };
+    let initial = dynamics
+        .initial
+        .as_ref()
+        .ok_or_else(|| format!("stage `{}` took no step", stage.name))?;
+    // the levels in stage time, as the integrator reached them
+    let mut levels: Vec<TimeLevel> = Vec::with_capacity(st.steps.len());
+    let mut t = initial.t;
+    for k in &st.steps {
+        t += k.dt;
+        levels.push(TimeLevel {
+            t,
+            q: k.state.clone(),
+            v: k.v.clone(),
+            a: k.a.clone(),
+        });
+    }
+    let mut c = end;
+    for k in (0..st.steps.len()).rev() {
+        if let Some(g) = state_grads.get(k).filter(|g| !g.is_empty()) {
+            c.q.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        }
+        let prev = if k == 0 { initial } else { &levels[k - 1] };
+        let taped = &st.steps[k];
+        let iterate = if taped.iterate.is_empty() {
+            &taped.state
+        } else {
+            &taped.iterate
+        };
+        c = step_adjoint(&s, prev, &levels[k], iterate, taped.dt, c, sink)?;
+    }
+    match scheme {
+        Scheme::Midpoint => Ok(c),
+        Scheme::Newmark { .. } => newmark_start_adjoint(&s, initial, c, sink),
+    }
+}
+
+/// The adjoint of one step from `prev` to `level` with the step's unknown `iterate`.
+fn step_adjoint(
+    s: &Stage,
+    prev: &TimeLevel,
+    level: &TimeLevel,
+    iterate: &[f64],
+    dt: f64,
+    c: Cotangent,
+    sink: &mut Sink,
+) -> Result<Cotangent, String> {
+    let n = c.q.len();
+    let mut out = Cotangent::zeros(n);
+    // ȳ: through the projection of the potential (midpoint) or directly (Newmark)
+    let mut cy = match s.scheme {
+        Scheme::Midpoint => {
+            let mut cy = vec![0.0; n];
+            projection_adjoint(s, &level.q, &c.q, level.t, &mut cy, sink)?;
+            cy
+        }
+        Scheme::Newmark { .. } => c.q.clone(),
+    };
+    // the velocity and acceleration of the new level
+    for d in 0..n {
+        if d % FIELDS == PHI {
+            out.v[d] += c.v[d];
+            out.a[d] += c.a[d];
+            continue;
+        }
+        match s.scheme {
+            Scheme::Midpoint => {
+                cy[d] += 2.0 / dt * c.v[d];
+                out.q[d] -= 2.0 / dt * c.v[d];
+                out.v[d] -= c.v[d];
+                out.a[d] += c.a[d];
+            }
+            Scheme::Newmark { beta, gamma } => {
+                let ca = c.a[d] + dt * gamma * c.v[d];
+                let k = ca / (beta * dt * dt);
+                cy[d] += k;
+                out.q[d] -= k;
+                out.v[d] += c.v[d] - dt * k;
+                out.a[d] += dt * (1.0 - gamma) * c.v[d] - (0.5 / beta - 1.0) * ca;
+            }
+        }
+    }
+    // the step's equations
+    let mut step = TimeStep::new(
+        &s.step_model,
+        &s.dynamics.mass,
+        s.dynamics.viscosity.clone(),
+        s.scheme,
+        prev.clone(),
+    );
+    step.dt = dt;
+    step.q.copy_from_slice(iterate);
+    step.exact_jacobian = true;
+    let lambda = solve_adjoint(&mut step, &cy)?;
+    sink.step_materials(&mut step, &lambda)?;
+    for (i, node) in sink_rigid(sink) {
+        sink.rigid_mass(i, -step.point_mass_vjp(&lambda, node));
+    }
+    for m in sink_viscous(sink) {
+        let p = step.viscosity_vjp(&lambda, m)?;
+        sink.viscosity(m, -p);
+    }
+    let lv = step.level_vjp(&lambda)?;
+    for d in 0..n {
+        out.q[d] -= lv.q[d];
+        out.v[d] -= lv.v[d];
+        out.a[d] -= lv.a[d];
+    }
+    let t_mid = prev.t + 0.5 * dt;
+    for (d, &e) in step.dofs.eq.iter().enumerate() {
+        if e != CONSTRAINED {
+            continue;
+        }
+        let a = cy[d] - lv.q_new[d];
+        match (s.waveform[d], s.scheme) {
+            (usize::MAX, _) => out.q[d] += a,
+            (k, Scheme::Midpoint) => {
+                if s.electrodes_on {
+                    sink.voltage(s.drive, k, t_mid, 2.0 * a);
+                }
+                out.q[d] -= a;
+            }
+            (k, Scheme::Newmark { .. }) => {
+                if s.electrodes_on {
+                    sink.voltage(s.drive, k, level.t, a);
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The rigid pads whose mass is asked for: (index, the node that carries the mass).
+fn sink_rigid(sink: &Sink) -> Vec<(usize, usize)> {
+    sink.parameters()
+        .iter()
+        .filter_map(|(_, p)| match p {
+            Parameter::RigidMass { index, .. } => Some(*index),
+            _ => None,
+        })
+        .filter_map(|i| sink.rigid_node(i).map(|node| (i, node)))
+        .collect()
+}
+
+/// The materials whose viscosity is asked for.
+fn sink_viscous(sink: &Sink) -> Vec<usize> {
+    let mut m: Vec<usize> = sink
+        .parameters()
+        .iter()
+        .filter_map(|(_, p)| match p {
+            Parameter::Viscosity { material_index, .. } => Some(*material_index),
+            _ => None,
+        })
+        .collect();
+    m.sort_unstable();
+    m.dedup();
+    m
+}
+
+/// λ with Jᵀλ = ȳ over the free unknowns of `system` (its scaled equations), J the matrix of
+/// its last [`NonlinearSystem::evaluate`], evaluated here.
+fn solve_adjoint(
+    system: &mut (impl NonlinearSystem + HasDofs),
+    cy: &[f64],
+) -> Result<Vec<f64>, String> {
+    let mut r = vec![0.0; system.n()];
+    let mut k = system.new_matrix();
+    system.evaluate(&mut r, Some(&mut k))?;
+    let dofs = system.dof_map();
+    let mut lambda = vec![0.0; dofs.n_free];
+    for (d, &e) in dofs.eq.iter().enumerate() {
+        if e != CONSTRAINED {
+            lambda[e] += dofs.scale[d % FIELDS] * cy[d];
+        }
+    }
+    TransposedLu::factor(&k)?.solve_in_place(&mut lambda);
+    Ok(lambda)
+}
+
+/// A system over a [`DofMap`].
+trait HasDofs {
+    fn dof_map(&self) -> &DofMap;
+}
+
+impl HasDofs for TimeStep<'_> {
+    fn dof_map(&self) -> &DofMap {
+        &self.dofs
+    }
+}
+
+impl HasDofs for StaticProblem<'_> {
+    fn dof_map(&self) -> &DofMap {
+        &self.dofs
+    }
+}
+
+/// The adjoint of the projection of the potential at stage time `t` whose result is `q`, for
+/// the cotangent `g` of that result: adds to `out` the cotangent of the inputs it held (the
+/// displacements, and potentials held by supports) and gives the electrodes' voltages at `t`
+/// and the materials' parameters theirs.
+fn projection_adjoint(
+    s: &Stage,
+    q: &[f64],
+    g: &[f64],
+    t: f64,
+    out: &mut [f64],
+    sink: &mut Sink,
+) -> Result<(), String> {
+    let mut problem = StaticProblem::new(&s.projection, Some(q.to_vec()));
+    problem.set_drive(Drive::held(&s.projection));
+    problem.state.copy_from_slice(q);
+    problem.set_load(1.0);
+    let mu = solve_adjoint(&mut problem, g)?;
+    sink.step_materials(&mut problem, &mu)?;
+    let lv = problem.level_vjp(&mu)?;
+    for (d, &e) in problem.dofs.eq.iter().enumerate() {
+        if e != CONSTRAINED {
+            continue;
+        }
+        let a = g[d] - lv.q_new[d];
+        match s.waveform[d] {
+            usize::MAX => out[d] += a,
+            k => {
+                if s.electrodes_on {
+                    sink.voltage(s.drive, k, t, a);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The adjoint of Newmark's start-up from the given level: the start's potential projected at
+/// its time, then the consistent acceleration. `c` is the cotangent of `initial`, the level it
+/// gave.
+fn newmark_start_adjoint(
+    s: &Stage,
+    initial: &TimeLevel,
+    c: Cotangent,
+    sink: &mut Sink,
+) -> Result<Cotangent, String> {
+    let n = c.q.len();
+    let model = &s.step_model;
+    let probe = TimeStep::new(
+        model,
+        &s.dynamics.mass,
+        s.dynamics.viscosity.clone(),
+        Scheme::Midpoint,
+        initial.clone(),
+    );
+    let z = s.dynamics.mass.solve_on(&c.a, &probe.dofs, 1e-14, None)?;
+    let points = PointStates::default();
+    let p = cell_products(
+        model,
+        &initial.q,
+        Some(&initial.v),
+        &s.dynamics.viscosity,
+        &points,
+        0.0,
+        &z,
+    )?;
+    let mut cq = c.q.clone();
+    let mut cv = c.v.clone();
+    for d in 0..n {
+        cq[d] -= p.stiffness[d] + p.viscous_configuration[d];
+        cv[d] -= p.viscous_velocity[d];
+    }
+    for &(node, damping) in &model.point_dampers {
+        for i in 0..3 {
+            cv[node * FIELDS + i] -= damping * z[node * FIELDS + i];
+        }
+    }
+    for m in sink.materials().to_vec() {
+        let vjp = crate::problem::statics::parameter_vjp(model, &initial.q, &points, 0.0, m, &z)?;
+        sink.materials_product(m, &vjp, -1.0);
+    }
+    for m in sink_viscous(sink) {
+        let p = viscosity_vjp(model, &initial.q, &initial.v, m, &z)?;
+        sink.viscosity(m, -p);
+    }
+    for (i, node) in sink_rigid(sink) {
+        let p: f64 = (0..3)
+            .map(|j| z[node * FIELDS + j] * initial.a[node * FIELDS + j])
+            .sum();
+        sink.rigid_mass(i, -p);
+    }
+    // the start's potential, projected at its time
+    let mut out = vec![0.0; n];
+    projection_adjoint(s, &initial.q, &cq, initial.t, &mut out, sink)?;
+    Ok(Cotangent {
+        q: out,
+        v: cv,
+        a: vec![0.0; n],
+    })
+}

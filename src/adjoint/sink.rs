@@ -1,0 +1,131 @@
+//! The gradient's accumulator: each step's adjoint hands it the products λᵀ∂R/∂p of the
+//! parameters that step depends on, and the cotangents of the drive's values (a voltage at a
+//! time), which it turns into the derivatives of the waveforms' parameters.
+
+use crate::io::build::Parameter;
+use crate::job::plan::Plan;
+use crate::problem::drive::Drive;
+use crate::problem::step::StepOperator;
+
+/// dJ/dp of the parameters named by their key paths, summed step by step.
+pub struct Sink<'a> {
+    plan: &'a Plan,
+    parameters: &'a [(String, Parameter)],
+    /// The materials whose parameters are asked for, by index in the plan.
+    materials: Vec<usize>,
+    /// dJ/dp, in the order of `parameters`.
+    pub grad: Vec<f64>,
+}
+
+impl<'a> Sink<'a> {
+    pub fn new(plan: &'a Plan, parameters: &'a [(String, Parameter)]) -> Self {
+        let mut materials: Vec<usize> = parameters
+            .iter()
+            .filter_map(|(_, p)| match p {
+                Parameter::Material(k) => Some(k.material_index),
+                _ => None,
+            })
+            .collect();
+        materials.sort_unstable();
+        materials.dedup();
+        Sink {
+            plan,
+            parameters,
+            materials,
+            grad: vec![0.0; parameters.len()],
+        }
+    }
+
+    /// The parameters asked for.
+    pub fn parameters(&self) -> &'a [(String, Parameter)] {
+        self.parameters
+    }
+
+    /// dJ/dθ −= λᵀ ∂R/∂θ of a step's residual in the materials' parameters.
+    pub fn step_materials(
+        &mut self,
+        op: &mut dyn StepOperator,
+        lambda: &[f64],
+    ) -> Result<(), String> {
+        for m in self.materials.clone() {
+            let vjp = op.parameter_vjp(lambda, m)?;
+            self.materials_product(m, &vjp, -1.0);
+        }
+        Ok(())
+    }
+
+    /// dJ/dθ += `factor` · `vjp` for the parameters of material `m` (`vjp` in the order of
+    /// the material's parameter vector).
+    pub fn materials_product(&mut self, m: usize, vjp: &[f64], factor: f64) {
+        for (i, (_, p)) in self.parameters.iter().enumerate() {
+            if let Parameter::Material(key) = p {
+                if key.material_index == m {
+                    self.grad[i] += factor * vjp[key.entry];
+                }
+            }
+        }
+    }
+
+    /// The materials whose parameters are asked for.
+    pub fn materials(&self) -> &[usize] {
+        &self.materials
+    }
+
+    /// dJ/dp += `a` · ∂V/∂p for the waveform `k` of `drive` at stage time `t`, `a` the
+    /// cotangent of that voltage, to the parameters that name its electrode.
+    pub fn voltage(&mut self, drive: &Drive, k: usize, t: f64, a: f64) {
+        let (nodes, waveform) = &drive.voltages[k];
+        for (i, (_, p)) in self.parameters.iter().enumerate() {
+            if let Parameter::Voltage {
+                electrode, offset, ..
+            } = p
+            {
+                let on_it = self
+                    .plan
+                    .electrodes
+                    .iter()
+                    .any(|e| &e.name == electrode && e.nodes == *nodes);
+                if on_it {
+                    self.grad[i] += a * waveform.derivatives(t)[usize::from(*offset)];
+                }
+            }
+        }
+    }
+
+    /// dJ/dm += `product` / (the symmetry factor) for the mass m of rigid pad `index`:
+    /// `product` is the derivative in the mass the mesh carries, m over the symmetry factor.
+    pub fn rigid_mass(&mut self, index: usize, product: f64) {
+        let factor = 1.0 / self.plan.symmetry_factor;
+        for (i, (_, p)) in self.parameters.iter().enumerate() {
+            if matches!(p, Parameter::RigidMass { index: j, .. } if *j == index) {
+                self.grad[i] += factor * product;
+            }
+        }
+    }
+
+    /// The node that carries the mass of rigid pad `index`.
+    pub fn rigid_node(&self, index: usize) -> Option<usize> {
+        self.plan.rigid.get(index).map(|r| r.nodes[0])
+    }
+
+    /// dJ/dη += `product` for the Kelvin–Voigt viscosity of material `m`.
+    pub fn viscosity(&mut self, m: usize, product: f64) {
+        for (i, (_, p)) in self.parameters.iter().enumerate() {
+            if matches!(p, Parameter::Viscosity { material_index, .. } if *material_index == m) {
+                self.grad[i] += product;
+            }
+        }
+    }
+}
+
+/// For each dof of a nodal vector (4 per node), the index of the drive's waveform that
+/// prescribes it, or `usize::MAX`.
+pub fn waveform_dofs(drive: &Drive, n_dofs: usize) -> Vec<usize> {
+    let mut out = vec![usize::MAX; n_dofs];
+    for (k, (nodes, _)) in drive.voltages.iter().enumerate() {
+        for &n in nodes {
+            out[n * crate::problem::dofs::FIELDS + crate::problem::dofs::PHI] = k;
+        }
+    }
+    out
+}
