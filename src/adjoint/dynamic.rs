@@ -25,7 +25,7 @@ use super::tape::{TapedDynamics, TapedStage};
 use crate::algebra::system::{LoadedSystem, NonlinearSystem};
 use crate::io::build::Parameter;
 use crate::job::plan::Plan;
-use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::dofs::{free_weights, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::drive::Drive;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
@@ -201,6 +201,8 @@ fn step_adjoint(
     for (i, node) in sink_rigid(sink) {
         sink.rigid_mass(i, -step.point_mass_vjp(&lambda, node));
     }
+    let factor = step.residual_factor();
+    sink.rigid_weight(&free_weights(&step.dofs, &lambda), factor);
     for m in sink_viscous(sink) {
         let p = step.viscosity_vjp(&lambda, m)?;
         sink.viscosity(m, -p);
@@ -213,10 +215,17 @@ fn step_adjoint(
     }
     let t_mid = prev.t + 0.5 * dt;
     for (d, &e) in step.dofs.eq.iter().enumerate() {
+        let a = cy[d] - lv.q_new[d];
         if e != CONSTRAINED {
+            // y = qₙ + Δt vₙ + (the tie's increment): the offsets within a tie (a pad, a
+            // charge-controlled electrode) are the previous level's (the sum of `a` over a
+            // tie vanishes)
+            out.q[d] += a;
+            if d % FIELDS != PHI {
+                out.v[d] += dt * a;
+            }
             continue;
         }
-        let a = cy[d] - lv.q_new[d];
         match (s.waveform[d], s.scheme) {
             (usize::MAX, _) => out.q[d] += a,
             (k, Scheme::Midpoint) => {
@@ -319,10 +328,12 @@ fn projection_adjoint(
     sink.step_materials(&mut problem, &mu)?;
     let lv = problem.level_vjp(&mu)?;
     for (d, &e) in problem.dofs.eq.iter().enumerate() {
+        let a = g[d] - lv.q_new[d];
         if e != CONSTRAINED {
+            // the offsets within a tie are those of the projection's start
+            out[d] += a;
             continue;
         }
-        let a = g[d] - lv.q_new[d];
         match s.waveform[d] {
             usize::MAX => out[d] += a,
             k => {
@@ -389,6 +400,7 @@ fn newmark_start_adjoint(
             .sum();
         sink.rigid_mass(i, -p);
     }
+    sink.rigid_weight(&z, 1.0);
     // the start's potential, projected at its time
     let mut out = vec![0.0; n];
     projection_adjoint(s, &initial.q, &cq, initial.t, &mut out, sink)?;

@@ -38,6 +38,8 @@ pub struct Evaluation {
     pub value: f64,
     /// ∂J/∂xₖ per taped step (stage by stage, in order; empty where J does not read it).
     pub state: Vec<Vec<Vec<f64>>>,
+    /// ∂J/∂(the reference state of deflections: the pre-stretched one).
+    pub reference: Vec<f64>,
 }
 
 impl Objective {
@@ -74,12 +76,24 @@ impl Objective {
             .iter()
             .map(|st| vec![Vec::new(); st.steps.len()])
             .collect();
-        let mut add = |si: usize, k: usize, g: &[f64], factor: f64| {
+        let n = plan.model.mesh.n_nodes() * crate::problem::dofs::FIELDS;
+        let reference_state = tape
+            .prestretch
+            .as_ref()
+            .map_or_else(|| vec![0.0; n], |(_, s)| s.clone());
+        let mut reference = vec![0.0; n];
+        let mut add = |si: usize, k: usize, g: &[f64], factor: f64, reads_reference: bool| {
             let slot = &mut state[si][k];
             if slot.is_empty() {
                 slot.resize(g.len(), 0.0);
             }
             slot.iter_mut().zip(g).for_each(|(s, v)| *s += factor * v);
+            if reads_reference {
+                reference
+                    .iter_mut()
+                    .zip(g)
+                    .for_each(|(s, v)| *s -= factor * v);
+            }
         };
         for t in &self.terms {
             let (probe, stage) = match t {
@@ -99,39 +113,42 @@ impl Objective {
                 let g = p
                     .state_gradient(x)
                     .ok_or_else(|| format!("the probe `{name}` has no derivative in the state"))?;
-                Ok((nodal_value(p, x), g))
+                Ok((nodal_value(p, x, &reference_state), g))
             };
             match t {
                 Term::ProbeFinal { target, weight, .. } => {
                     let k = st.steps.len() - 1;
                     let (v, g) = value_at(&st.steps[k].state)?;
                     value += 0.5 * weight * (v - target).powi(2);
-                    add(si, k, &g, weight * (v - target));
+                    add(si, k, &g, weight * (v - target), p.reads_reference());
                 }
                 Term::ProbeMisfit { data, weight, .. } => {
                     for (k, step) in st.steps.iter().enumerate() {
                         let (v, g) = value_at(&step.state)?;
                         let d = interpolate(data, step.time);
                         value += 0.5 * weight * (v - d).powi(2);
-                        add(si, k, &g, weight * (v - d));
+                        add(si, k, &g, weight * (v - d), p.reads_reference());
                     }
                 }
             }
         }
-        Ok(Evaluation { value, state })
+        Ok(Evaluation {
+            value,
+            state,
+            reference,
+        })
     }
 }
 
-/// The value of a probe of nodal values at `state` (its reference state the undeformed one).
-fn nodal_value(p: &crate::job::probes::Probe, state: &[f64]) -> f64 {
-    let zeros = vec![0.0; state.len()];
+/// The value of a probe of nodal values at `state`, deflections measured from `reference`.
+fn nodal_value(p: &crate::job::probes::Probe, state: &[f64], reference: &[f64]) -> f64 {
     p.evaluate(&crate::job::probes::ProbeInput {
         state,
         reactions: &[],
         electrodes: &[],
         stored: 0.0,
         electric: 0.0,
-        reference: &zeros,
+        reference,
         max_field: 0.0,
         symmetry: 1.0,
         previous: (&[], 0.0),

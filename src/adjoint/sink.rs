@@ -4,6 +4,7 @@
 
 use crate::io::build::Parameter;
 use crate::job::plan::Plan;
+use crate::problem::dofs::FIELDS;
 use crate::problem::drive::Drive;
 use crate::problem::step::StepOperator;
 
@@ -103,6 +104,20 @@ impl<'a> Sink<'a> {
         }
     }
 
+    /// dJ/dm −= λᵀ∂R/∂m for the masses of the rigid pads through their weights, a dead load
+    /// −`factor` · m·g in R at each pad's first node; `w` is λ over every dof (unscaled).
+    pub fn rigid_weight(&mut self, w: &[f64], factor: f64) {
+        for i in 0..self.parameters.len() {
+            let Parameter::RigidMass { index, .. } = self.parameters[i].1 else {
+                continue;
+            };
+            let r = &self.plan.rigid[index];
+            let node = r.nodes[0];
+            let p: f64 = (0..3).map(|k| w[node * FIELDS + k] * r.gravity[k]).sum();
+            self.grad[i] += factor * p / self.plan.symmetry_factor;
+        }
+    }
+
     /// The node that carries the mass of rigid pad `index`.
     pub fn rigid_node(&self, index: usize) -> Option<usize> {
         self.plan.rigid.get(index).map(|r| r.nodes[0])
@@ -124,7 +139,7 @@ pub fn waveform_dofs(drive: &Drive, n_dofs: usize) -> Vec<usize> {
     let mut out = vec![usize::MAX; n_dofs];
     for (k, (nodes, _)) in drive.voltages.iter().enumerate() {
         for &n in nodes {
-            out[n * crate::problem::dofs::FIELDS + crate::problem::dofs::PHI] = k;
+            out[n * FIELDS + crate::problem::dofs::PHI] = k;
         }
     }
     out

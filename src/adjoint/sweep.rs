@@ -19,7 +19,7 @@ use super::tape::{Tape, TapedStage};
 use crate::algebra::system::{LoadedSystem, NonlinearSystem};
 use crate::io::build::Parameter;
 use crate::job::plan::{Plan, StageKind};
-use crate::problem::dofs::{CONSTRAINED, FIELDS, PHI};
+use crate::problem::dofs::{free_weights, CONSTRAINED, FIELDS, PHI};
 use crate::problem::statics::StaticProblem;
 use crate::problem::step::StepOperator;
 use crate::solve::transposed::TransposedLu;
@@ -63,10 +63,10 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
     if !plan.model.circuits.is_empty() {
         return Err("the adjoint of electrodes driven through circuits is not built yet".into());
     }
-    if plan.prestretch.is_some() {
+    if plan.prestretch.is_some_and(|p| p.timed()) {
         return Err(
-            "the adjoint of the pre-stretch is not built yet: gradients cover runs \
-                    without `[prestretch]`"
+            "the adjoint of a timed pre-stretch (`duration` or `hold`) is not built yet: \
+             gradients cover an instantaneous `[prestretch]`"
                 .into(),
         );
     }
@@ -90,12 +90,13 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
             Parameter::Material(_)
             | Parameter::Voltage { source: false, .. }
             | Parameter::RigidMass { .. }
-            | Parameter::Viscosity { .. } => {}
+            | Parameter::Viscosity { .. }
+            | Parameter::Prestretch { .. } => {}
             _ => {
                 return Err(format!(
                     "parameter `{path}`: its derivative is not built yet; gradients cover the \
                      materials' parameters and viscosities, the electrodes' voltage amplitudes \
-                     and offsets, and the rigid pads' masses"
+                     and offsets, the rigid pads' masses and the pre-stretch"
                 ))
             }
         }
@@ -104,28 +105,67 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
 }
 
 /// J at the taped run of `plan` and its gradient in `parameters` (named by their key paths), by
-/// the adjoint of the taped steps. The run must be one [`check_supported`] accepts.
+/// the adjoint of the taped steps. `supports[i]` holds the derivatives of the values of
+/// `plan.supports` in parameter i (empty: they do not depend on it), which a pre-stretch's
+/// targets do. The run must be one [`check_supported`] accepts.
 pub fn gradient(
     plan: &Plan,
     tape: &Tape,
     objective: &Objective,
     parameters: &[(String, Parameter)],
+    supports: &[Vec<f64>],
 ) -> Result<Gradient, String> {
     check_supported(plan, parameters)?;
     let eval = objective.evaluate(plan, tape)?;
     let mut sink = Sink::new(plan, parameters);
     let n_dofs = plan.model.mesh.n_nodes() * FIELDS;
+    // each dof's support (the last that prescribes it, as they are applied in order)
+    let mut support_of = vec![usize::MAX; n_dofs];
+    for (j, d) in plan.supports.iter().enumerate() {
+        for &n in &d.nodes {
+            support_of[n * FIELDS + d.field.index()] = j;
+        }
+    }
+    // ∂J/∂(the supports' values)
+    let mut support_cotangent = vec![0.0; plan.supports.len()];
     // ∂J/∂(the level a stage ends in), from the stages after it
     let mut carry = Cotangent::zeros(n_dofs);
     for (ti, st) in tape.stages.iter().enumerate().rev() {
         carry = if st.dynamics.is_some() {
             dynamic::sweep(plan, st, &eval.state[ti], carry, &mut sink)?
         } else {
+            let (from, to) = static_stage(plan, st, &eval.state[ti], &carry.q, &mut sink)?;
+            for (d, &j) in support_of.iter().enumerate() {
+                if j != usize::MAX {
+                    support_cotangent[j] += to[d];
+                }
+            }
             Cotangent {
-                q: static_stage(plan, st, &eval.state[ti], &carry.q, &mut sink)?,
+                q: from,
                 ..Cotangent::zeros(n_dofs)
             }
         };
+    }
+    if let Some((model, state)) = &tape.prestretch {
+        // the first stage starts from the pre-stretched state, the deflections' reference
+        let mut c = carry.q;
+        c.iter_mut().zip(&eval.reference).for_each(|(a, b)| *a += b);
+        prestretch(
+            plan,
+            model,
+            state,
+            &c,
+            &support_of,
+            &mut support_cotangent,
+            &mut sink,
+        )?;
+    }
+    for (i, dg) in supports.iter().enumerate() {
+        sink.grad[i] += dg
+            .iter()
+            .zip(&support_cotangent)
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
     }
     Ok(Gradient {
         objective: eval.value,
@@ -133,16 +173,74 @@ pub fn gradient(
     })
 }
 
+/// The adjoint of the pre-stretch phase, whose solution `state` of the problem `model` has the
+/// cotangent `c`: its supports' targets get theirs (`support_of`: each dof's support), the
+/// electrodes held at their first voltages theirs, and the materials' parameters theirs.
+fn prestretch(
+    plan: &Plan,
+    model: &crate::problem::model::Model,
+    state: &[f64],
+    c: &[f64],
+    support_of: &[usize],
+    support_cotangent: &mut [f64],
+    sink: &mut Sink,
+) -> Result<(), String> {
+    let mut problem = StaticProblem::new(model, Some(state.to_vec()));
+    problem.set_drive(crate::problem::drive::Drive::held(model));
+    problem.set_load(1.0);
+    problem.state.copy_from_slice(state);
+    let mut r = vec![0.0; problem.n()];
+    let mut kmat = problem.new_matrix();
+    problem.evaluate(&mut r, Some(&mut kmat))?;
+    let dofs = &problem.dofs;
+    let mut lambda = vec![0.0; dofs.n_free];
+    for (d, &e) in dofs.eq.iter().enumerate() {
+        if e != CONSTRAINED {
+            lambda[e] += dofs.scale[d % FIELDS] * c[d];
+        }
+    }
+    TransposedLu::factor(&kmat)?.solve_in_place(&mut lambda);
+    sink.step_materials(&mut problem, &lambda)?;
+    let lv = problem.level_vjp(&lambda)?;
+    let on = plan.stages.first().is_some_and(|s| s.electrodes_on);
+    for (d, &e) in problem.dofs.eq.iter().enumerate() {
+        if e != CONSTRAINED {
+            continue;
+        }
+        let a = c[d] - lv.q_new[d];
+        if support_of[d] != usize::MAX {
+            support_cotangent[support_of[d]] += a;
+        } else if on && d % FIELDS == PHI {
+            let node = d / FIELDS;
+            for (i, (_, p)) in sink.parameters().iter().enumerate() {
+                if let Parameter::Voltage {
+                    electrode, offset, ..
+                } = p
+                {
+                    let held = plan
+                        .electrodes
+                        .iter()
+                        .find(|el| &el.name == electrode && el.nodes.contains(&node));
+                    if let Some(el) = held {
+                        sink.grad[i] += a * el.voltage.derivatives(0.0)[usize::from(*offset)];
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The adjoint of the static or quasi-static stage `st`, its k-th load step's state having the
 /// cotangent `state_grads[k]` (empty: none) and its last one `end` besides. Returns the
-/// cotangent of the state the stage started from.
+/// cotangents of the state the stage started from and of its prescribed targets.
 fn static_stage(
     plan: &Plan,
     st: &TapedStage,
     state_grads: &[Vec<f64>],
     end: &[f64],
     sink: &mut Sink,
-) -> Result<Vec<f64>, String> {
+) -> Result<(Vec<f64>, Vec<f64>), String> {
     let stage = &plan.stages[st.index];
     let n_dofs = end.len();
     let mut problem = StaticProblem::new(&st.model, Some(st.start.clone()));
@@ -152,6 +250,12 @@ fn static_stage(
     let waveform_dof = waveform_dofs(&st.drive, n_dofs);
     let mut from = vec![0.0; n_dofs];
     let mut to = vec![0.0; n_dofs];
+    // the prescribed dofs that the drive's supports move (the others keep their start value:
+    // a tie held as a whole, a rigid pad's radial slot on the axis)
+    let mut ramped = vec![false; n_dofs];
+    for &(d, _) in &st.drive.supports {
+        ramped[d] = true;
+    }
     for (k, step) in st.steps.iter().enumerate().rev() {
         let mut g = state_grads[k].clone();
         if g.is_empty() {
@@ -174,20 +278,27 @@ fn static_stage(
         }
         TransposedLu::factor(&kmat)?.solve_in_place(&mut lambda);
         sink.step_materials(&mut problem, &lambda)?;
+        let dead = problem.drive().dead_loads.at(step.load);
+        sink.rigid_weight(&free_weights(&problem.dofs, &lambda), dead);
         let lv = problem.level_vjp(&lambda)?;
         let eq = problem.dofs.eq.clone();
         for d in 0..n_dofs {
+            let a = g[d] - lv.q_new[d];
             if eq[d] != CONSTRAINED {
+                // a tied dof moves with its tie from its start value: the offsets within a
+                // tie are the start's (the sum of `a` over a tie vanishes)
+                from[d] += a;
                 continue;
             }
-            let a = g[d] - lv.q_new[d];
             if waveform_dof[d] != usize::MAX {
                 if stage.electrodes_on {
                     sink.voltage(&st.drive, waveform_dof[d], step.load * st.duration, a);
                 }
-            } else {
+            } else if ramped[d] {
                 to[d] += step.load * a;
                 from[d] += (1.0 - step.load) * a;
+            } else {
+                from[d] += a;
             }
         }
     }
@@ -213,5 +324,5 @@ fn static_stage(
         sink.grad[i] += dv * held;
     }
     // the supports' start values are the state the stage before ended in
-    Ok(from)
+    Ok((from, to))
 }

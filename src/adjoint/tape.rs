@@ -66,6 +66,8 @@ pub struct TapedStage {
 #[derive(Debug, Clone)]
 pub struct Tape {
     pub stages: Vec<TapedStage>,
+    /// The pre-stretch phase's problem and solution (the reference of deflections), if any.
+    pub prestretch: Option<(Model, Vec<f64>)>,
     /// Start time of each stage of the plan in the run's clock (s).
     starts: Vec<f64>,
 }
@@ -85,6 +87,7 @@ impl Tape {
             .collect();
         Tape {
             stages: Vec::new(),
+            prestretch: None,
             starts,
         }
     }
@@ -128,6 +131,10 @@ impl Observer for Tape {
             a: Vec::new(),
             iterate: Vec::new(),
         });
+    }
+
+    fn prestretched(&mut self, model: &Model, state: &[f64]) {
+        self.prestretch = Some((model.clone(), state.to_vec()));
     }
 
     fn dynamic_started(&mut self, stage: usize, start: &DynamicStart<'_>) {

@@ -53,6 +53,9 @@ pub trait Observer {
     /// (before its [`Observer::step`]): the problem holds the converged state, the committed
     /// point states and the stage's drive, what the adjoint of the run replays.
     fn load_step(&mut self, _stage: usize, _load: f64, _problem: &StaticProblem<'_>) {}
+    /// The pre-stretch phase converged: `model` is the problem it solved (the supports at their
+    /// targets, the electrodes at their first voltages), `state` its solution.
+    fn prestretched(&mut self, _model: &Model, _state: &[f64]) {}
     /// Dynamic stage `stage` starts (before its first [`Observer::time_step`]).
     fn dynamic_started(&mut self, _stage: usize, _start: &DynamicStart<'_>) {}
     /// A time step of dynamic stage `stage` was accepted (before its [`Observer::step`]):
@@ -85,6 +88,9 @@ impl Observer for Observers<'_, '_> {
         self.0
             .iter_mut()
             .for_each(|o| o.load_step(stage, load, problem));
+    }
+    fn prestretched(&mut self, model: &Model, state: &[f64]) {
+        self.0.iter_mut().for_each(|o| o.prestretched(model, state));
     }
     fn dynamic_started(&mut self, stage: usize, start: &DynamicStart<'_>) {
         self.0

@@ -433,6 +433,9 @@ pub struct Rigid {
     pub nodes: Vec<usize>,
     /// Attached mass carried by the mesh (kg; the physical mass divided by the symmetry factor).
     pub mass: f64,
+    /// The acceleration of gravity on it (m/s²): its weight, mass · gravity, is a dead load at
+    /// its first node.
+    pub gravity: [f64; 3],
 }
 
 /// How a frequency response is computed.

@@ -210,6 +210,7 @@ pub(super) fn prestretch(
         rec.warnings
             .push(format!("pre-stretch: output evaluation failed: {e}"));
     }
+    observer.prestretched(&pre, &final_state);
     Ok(PrestretchOutcome {
         state: final_state,
         steps: step_no,

@@ -264,6 +264,12 @@ impl Probe {
         Some(g)
     }
 
+    /// Whether the probe's value depends on the reference state (a deflection, whose gradient
+    /// in the reference is minus [`Probe::state_gradient`]).
+    pub fn reads_reference(&self) -> bool {
+        matches!(self.kind, ProbeKind::Deflection(..))
+    }
+
     /// The probe's value.
     pub fn evaluate(&self, inp: &ProbeInput) -> f64 {
         let share = match self.share(inp) {

@@ -390,6 +390,7 @@ fn build_rigid(
             set: r.set.clone(),
             nodes,
             mass,
+            gravity: g,
         });
     }
     Ok(rigid)
