@@ -2,7 +2,9 @@
 
 The engine is the Rust library; this package only converts. Build a :class:`Scenario`, run it
 and read its :class:`Results`, or take its small-signal models (:meth:`Scenario.modes`,
-:meth:`Scenario.frequency_response`, :meth:`Scenario.reduce`). See docs/python.md.
+:meth:`Scenario.frequency_response`, :meth:`Scenario.reduce`), its gradient
+(:meth:`Scenario.gradient`), or fit a material to measured curves (:func:`calibrate`). See
+docs/python.md.
 """
 
 from typing import Any, Dict
@@ -14,6 +16,7 @@ from ._deasim import (
     Results,
     Scenario,
     __version__,
+    calibrate,
     default_example,
     examples,
     material_test,
@@ -28,6 +31,7 @@ __all__ = [
     "ReducedModel",
     "examples",
     "material_test",
+    "calibrate",
     "default_example",
     "DeasimError",
     "ScenarioError",
