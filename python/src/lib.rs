@@ -1,8 +1,9 @@
 //! The Python module `deasim._deasim`: scenarios, runs and their results, the small-signal
 //! analyses (modes, frequency response, reduced model), the gradient and the material
-//! calibration over the library interface [`deasim::api`]. The engine runs with the GIL released; a progress callback and Ctrl-C are
-//! served between steps, and either stops the run cleanly at its last accepted state. The
-//! Python layer (`deasim/__init__.py`) adds only conveniences (pandas, meshio, python-control).
+//! calibration over the library interface [`deasim::api`]. The engine runs with the GIL
+//! released; a progress callback and Ctrl-C are served between the steps of a run, and either
+//! stops it cleanly at its last accepted state. The Python layer (`deasim/__init__.py`) adds
+//! only conveniences (pandas, meshio, python-control).
 
 use deasim::api::{self, Cancel, Error, FieldsKept, RunOptions, Simulation};
 use deasim::element::CellFields;
@@ -146,7 +147,7 @@ fn json_number(x: f64) -> serde_json::Value {
     serde_json::Number::from_f64(x).map_or(serde_json::Value::Null, serde_json::Value::Number)
 }
 
-/// The document `deasim gradient` writes to `gradient.json` (docs/output.md).
+/// The document `deasim gradient` writes to `gradient.json` (docs/gradient.md).
 fn gradient_json(r: &api::GradientReport) -> serde_json::Value {
     let mut gradient = serde_json::Map::new();
     let mut check = serde_json::Map::new();
