@@ -21,7 +21,14 @@ from ._deasim import (
     examples,
     material_test,
 )
-from ._errors import DeasimError, DeasimIOError, Interrupted, ScenarioError, SolveError
+from ._errors import (
+    DeasimError,
+    DeasimFileNotFoundError,
+    DeasimIOError,
+    Interrupted,
+    ScenarioError,
+    SolveError,
+)
 
 __all__ = [
     "Scenario",
@@ -37,6 +44,7 @@ __all__ = [
     "ScenarioError",
     "SolveError",
     "DeasimIOError",
+    "DeasimFileNotFoundError",
     "Interrupted",
     "__version__",
 ]

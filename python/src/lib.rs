@@ -36,6 +36,14 @@ fn to_py(py: Python<'_>, e: Error) -> PyErr {
             Error::Interrupted { reason, results } => {
                 ("Interrupted", None, Some(reason), Some(*results))
             }
+            // a file to read that does not exist: also a FileNotFoundError
+            Error::Io { path, message }
+                if message.starts_with("cannot read")
+                    && std::fs::metadata(&path)
+                        .is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) =>
+            {
+                ("DeasimFileNotFoundError", None, None, None)
+            }
             Error::Io { .. } => ("DeasimIOError", None, None, None),
             Error::Output { results, .. } => ("DeasimIOError", None, None, Some(*results)),
             Error::Refused(_) => ("ScenarioError", None, None, None),

@@ -43,6 +43,8 @@ def test_a_missing_file_is_an_os_error(tmp_path):
     with pytest.raises(deasim.DeasimIOError) as e:
         deasim.Scenario.from_file(missing)
     assert isinstance(e.value, OSError) and str(missing) in str(e.value)
+    assert isinstance(e.value, FileNotFoundError)
+    assert isinstance(e.value, deasim.DeasimFileNotFoundError)
     # a file the scenario names (a mesh) is the scenario's error, naming the key
     s = deasim.Scenario.from_example("film").set("mesh", {"file": str(tmp_path / "none.msh")})
     with pytest.raises(deasim.ScenarioError) as e:

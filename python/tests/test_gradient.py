@@ -130,8 +130,9 @@ def test_calibration_is_the_command_lines(cli, tmp_path):
 
 
 def test_calibration_errors_keep_their_kind(tmp_path):
-    with pytest.raises(deasim.DeasimIOError):
+    with pytest.raises(FileNotFoundError) as e:
         deasim.calibrate(tmp_path / "no-such-spec.toml")
+    assert isinstance(e.value, deasim.DeasimIOError) and "no-such-spec.toml" in str(e.value)
     spec = REPO / "tests" / "data" / "calibrate" / "hossain2012.toml"
     bad = spec.read_text().replace('path = "material.mu"', 'path = "material.mux"')
     with pytest.raises(deasim.ScenarioError) as e:
