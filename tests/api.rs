@@ -132,6 +132,23 @@ fn bad_input_names_its_key() {
     assert!(matches!(text, Error::Input(_)), "{text:?}");
 }
 
+/// Dropping the overrides gives the scenario as read: its text, its name in errors and its
+/// base directory stay.
+#[test]
+fn without_overrides_keeps_the_scenario_as_read() {
+    let bad = film().set("materials.elastomer.mu", "-1");
+    assert!(bad.plan().is_err());
+    let plain = bad.without_overrides();
+    assert!(plain.overrides().is_empty());
+    assert_eq!(plain.text(), bad.text());
+    assert!(plain.plan().is_ok());
+    let again = plain
+        .with_overrides(&["materials.elastomer.muu=1".into()])
+        .plan()
+        .unwrap_err();
+    assert!(again.to_string().starts_with("<embedded film>"), "{again}");
+}
+
 #[test]
 fn a_missing_file_is_an_io_error() {
     let path = std::path::Path::new("/nonexistent/deasim/scenario.toml");

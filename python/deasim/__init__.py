@@ -2,7 +2,9 @@
 
 The engine is the Rust library; this package only converts. Build a :class:`Scenario`, run it
 and read its :class:`Results`, or take its small-signal models (:meth:`Scenario.modes`,
-:meth:`Scenario.frequency_response`, :meth:`Scenario.reduce`). See docs/python.md.
+:meth:`Scenario.frequency_response`, :meth:`Scenario.reduce`), its gradient
+(:meth:`Scenario.gradient`), or fit a material to measured curves (:func:`calibrate`). See
+docs/python.md.
 """
 
 from typing import Any, Dict
@@ -14,11 +16,19 @@ from ._deasim import (
     Results,
     Scenario,
     __version__,
+    calibrate,
     default_example,
     examples,
     material_test,
 )
-from ._errors import DeasimError, DeasimIOError, Interrupted, ScenarioError, SolveError
+from ._errors import (
+    DeasimError,
+    DeasimFileNotFoundError,
+    DeasimIOError,
+    Interrupted,
+    ScenarioError,
+    SolveError,
+)
 
 __all__ = [
     "Scenario",
@@ -28,11 +38,13 @@ __all__ = [
     "ReducedModel",
     "examples",
     "material_test",
+    "calibrate",
     "default_example",
     "DeasimError",
     "ScenarioError",
     "SolveError",
     "DeasimIOError",
+    "DeasimFileNotFoundError",
     "Interrupted",
     "__version__",
 ]

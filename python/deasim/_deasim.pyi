@@ -57,6 +57,12 @@ class Scenario:
         progress: Optional[Progress] = None,
     ) -> "ReducedModel": ...
     def lumped(self) -> Dict[str, Any]: ...
+    def gradient(
+        self,
+        check: bool = False,
+        out: Optional[PathLike] = None,
+        overwrite: bool = False,
+    ) -> Dict[str, Any]: ...
 
 class Results:
     @property
@@ -147,3 +153,10 @@ def material_test(
     cycles: int = 1,
     steps: int = 200,
 ) -> List[Dict[str, Any]]: ...
+def calibrate(
+    spec: Union[PathLike, str, Dict[str, Any]],
+    out: Optional[PathLike] = None,
+    overwrite: bool = False,
+    starts: Optional[int] = None,
+    base: Optional[PathLike] = None,
+) -> Dict[str, Any]: ...

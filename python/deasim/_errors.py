@@ -26,6 +26,10 @@ class DeasimIOError(DeasimError, OSError):
     """A file could not be read or written."""
 
 
+class DeasimFileNotFoundError(DeasimIOError, FileNotFoundError):
+    """A file to read does not exist (also a ``FileNotFoundError``)."""
+
+
 class Interrupted(DeasimError):
     """The run was stopped on request (the progress callback returned False); ``results`` hold
     every step accepted before."""

@@ -1,12 +1,14 @@
 //! The Python module `deasim._deasim`: scenarios, runs and their results, the small-signal
-//! analyses (modes, frequency response, reduced model) over the library interface
-//! [`deasim::api`]. The engine runs with the GIL released; a progress callback and Ctrl-C are
-//! served between steps, and either stops the run cleanly at its last accepted state. The
-//! Python layer (`deasim/__init__.py`) adds only conveniences (pandas, meshio, python-control).
+//! analyses (modes, frequency response, reduced model), the gradient and the material
+//! calibration over the library interface [`deasim::api`]. The engine runs with the GIL
+//! released; a progress callback and Ctrl-C are served between the steps of a run, and either
+//! stops it cleanly at its last accepted state. The Python layer (`deasim/__init__.py`) adds
+//! only conveniences (pandas, meshio, python-control).
 
 use deasim::api::{self, Cancel, Error, FieldsKept, RunOptions, Simulation};
 use deasim::element::CellFields;
 use deasim::io::build::Plan;
+use deasim::io::scenario::InputError;
 use deasim::job::observer::Observer;
 use deasim::job::state::{RunSummary, StepRecord};
 use deasim::mesh::{ElementKind, MeridianKind};
@@ -34,6 +36,14 @@ fn to_py(py: Python<'_>, e: Error) -> PyErr {
             Error::Interrupted { reason, results } => {
                 ("Interrupted", None, Some(reason), Some(*results))
             }
+            // a file to read that does not exist: also a FileNotFoundError
+            Error::Io { path, message }
+                if message.starts_with("cannot read")
+                    && std::fs::metadata(&path)
+                        .is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) =>
+            {
+                ("DeasimFileNotFoundError", None, None, None)
+            }
             Error::Io { .. } => ("DeasimIOError", None, None, None),
             Error::Output { results, .. } => ("DeasimIOError", None, None, Some(*results)),
             Error::Refused(_) => ("ScenarioError", None, None, None),
@@ -54,44 +64,161 @@ fn to_py(py: Python<'_>, e: Error) -> PyErr {
     build().unwrap_or_else(|err| err)
 }
 
-/// A Python value as a TOML value (bool, int, float, str, list, tuple, dict, numpy scalars).
-fn to_toml(value: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
+/// A `ScenarioError` about `key` of `file` (a front end's name: `Scenario.set`, …).
+fn input_error(py: Python<'_>, file: &str, key: &str, message: String) -> PyErr {
+    let e = InputError {
+        file: file.to_string(),
+        position: None,
+        key: (!key.is_empty()).then(|| key.to_string()),
+        message,
+    };
+    to_py(py, Error::Input(e))
+}
+
+/// A Python value as a TOML value (bool, int, float, str, list, tuple, dict, numpy scalars);
+/// `Err` says what is wrong and where below the value (`path`, a dotted key path).
+fn to_toml(value: &Bound<'_, PyAny>, path: &str) -> Result<toml::Value, (String, String)> {
+    let wrong = |message: String| (path.to_string(), message);
+    let extracted = |e: PyErr| wrong(e.to_string());
     if value.is_instance_of::<PyBool>() {
-        return Ok(toml::Value::Boolean(value.extract()?));
+        return Ok(toml::Value::Boolean(value.extract().map_err(extracted)?));
     }
     if value.is_instance_of::<PyInt>() {
-        return Ok(toml::Value::Integer(value.extract()?));
+        return value
+            .extract::<i64>()
+            .map(toml::Value::Integer)
+            .map_err(|_| {
+                wrong(format!(
+                    "the integer {value} is beyond the range of a 64-bit integer"
+                ))
+            });
     }
     if value.is_instance_of::<PyFloat>() {
-        return Ok(toml::Value::Float(value.extract()?));
+        return Ok(toml::Value::Float(value.extract().map_err(extracted)?));
     }
     if value.is_instance_of::<PyString>() {
-        return Ok(toml::Value::String(value.extract()?));
+        return Ok(toml::Value::String(value.extract().map_err(extracted)?));
     }
     if let Ok(d) = value.cast::<PyDict>() {
         let mut table = toml::map::Map::new();
         for (k, v) in d.iter() {
-            let key: String = k
-                .extract()
-                .map_err(|_| PyTypeError::new_err("dictionary keys must be strings"))?;
-            table.insert(key, to_toml(&v)?);
+            let key: String = k.extract().map_err(|_| {
+                wrong(format!(
+                    "a table's keys must be strings; got the key {} ({})",
+                    k.repr().map_or_else(|_| "?".into(), |r| r.to_string()),
+                    k.get_type()
+                        .name()
+                        .map_or_else(|_| "?".into(), |n| n.to_string())
+                ))
+            })?;
+            let below = if path.is_empty() {
+                key.clone()
+            } else {
+                format!("{path}.{key}")
+            };
+            table.insert(key, to_toml(&v, &below)?);
         }
         return Ok(toml::Value::Table(table));
     }
     if value.is_instance_of::<PyList>() || value.is_instance_of::<PyTuple>() {
-        let items: Vec<Bound<'_, PyAny>> = value.extract()?;
+        let items: Vec<Bound<'_, PyAny>> = value.extract().map_err(extracted)?;
         return Ok(toml::Value::Array(
-            items.iter().map(to_toml).collect::<PyResult<_>>()?,
+            items
+                .iter()
+                .enumerate()
+                .map(|(i, v)| to_toml(v, &format!("{path}.{i}")))
+                .collect::<Result<_, _>>()?,
         ));
     }
     // numpy arrays and scalars
-    if value.hasattr("tolist")? {
-        return to_toml(&value.call_method0("tolist")?);
+    if value.hasattr("tolist").unwrap_or(false) {
+        let plain = value.call_method0("tolist").map_err(extracted)?;
+        return to_toml(&plain, path);
     }
-    Err(PyTypeError::new_err(format!(
+    Err(wrong(format!(
         "cannot give a {} as a scenario value: expected bool, int, float, str, list or dict",
-        value.get_type().name()?
+        value
+            .get_type()
+            .name()
+            .map_or_else(|_| "?".into(), |n| n.to_string())
     )))
+}
+
+/// A JSON document as Python objects (`json.loads`).
+fn json_to_py<'py>(py: Python<'py>, doc: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(doc).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// A finite number, or JSON null.
+fn json_number(x: f64) -> serde_json::Value {
+    serde_json::Number::from_f64(x).map_or(serde_json::Value::Null, serde_json::Value::Number)
+}
+
+/// The document `deasim gradient` writes to `gradient.json` (docs/gradient.md).
+fn gradient_json(r: &api::GradientReport) -> serde_json::Value {
+    let mut gradient = serde_json::Map::new();
+    let mut check = serde_json::Map::new();
+    for p in &r.parameters {
+        gradient.insert(p.path.clone(), json_number(p.gradient));
+        if let Some((fd, h)) = p.finite_difference {
+            check.insert(
+                p.path.clone(),
+                serde_json::json!({"finite_difference": json_number(fd), "h": h}),
+            );
+        }
+    }
+    let mut doc = serde_json::json!({
+        "objective": json_number(r.objective),
+        "gradient": gradient,
+        "forward_s": r.forward_s,
+        "adjoint_s": r.adjoint_s,
+        "peak_memory": r.tape_bytes,
+    });
+    if let Some(t) = &r.taylor {
+        doc["check"] = serde_json::Value::Object(check);
+        doc["taylor"] = serde_json::json!({
+            "h": t.remainders.iter().map(|x| x.0).collect::<Vec<_>>(),
+            "remainder": t.remainders.iter().map(|x| json_number(x.1)).collect::<Vec<_>>(),
+            "order": t.orders.iter().map(|&o| json_number(o)).collect::<Vec<_>>(),
+        });
+    }
+    doc
+}
+
+/// A `SolveError` with its `reason` (no results: nothing ran as a scenario).
+fn solve_error(py: Python<'_>, reason: String) -> PyErr {
+    error_class(py, "SolveError")
+        .and_then(|c| c.call1((reason.clone(),)))
+        .and_then(|v| v.setattr("reason", reason).map(|_| v))
+        .map(PyErr::from_value)
+        .unwrap_or_else(|e| e)
+}
+
+/// A count argument `name` of at least `min`, else a `ScenarioError` naming it.
+fn count(py: Python<'_>, file: &str, name: &str, value: i64, min: i64) -> PyResult<usize> {
+    if value < min {
+        return Err(input_error(
+            py,
+            file,
+            name,
+            format!("expected a whole number ≥ {min}; got {value}"),
+        ));
+    }
+    Ok(value as usize)
+}
+
+/// A number argument `name` that must be finite, else a `ScenarioError` naming it.
+fn finite(py: Python<'_>, file: &str, name: &str, value: f64) -> PyResult<f64> {
+    if !value.is_finite() {
+        return Err(input_error(
+            py,
+            file,
+            name,
+            format!("must be finite; got {value}"),
+        ));
+    }
+    Ok(value)
 }
 
 /// A column as a numpy array.
@@ -249,8 +376,9 @@ impl Scenario {
     /// A scenario given as nested dictionaries (the tables of the TOML file).
     #[staticmethod]
     #[pyo3(signature = (d, base=None))]
-    fn from_dict(d: &Bound<'_, PyDict>, base: Option<PathBuf>) -> PyResult<Self> {
-        let value = to_toml(d.as_any())?;
+    fn from_dict(py: Python<'_>, d: &Bound<'_, PyDict>, base: Option<PathBuf>) -> PyResult<Self> {
+        let value = to_toml(d.as_any(), "")
+            .map_err(|(key, message)| input_error(py, "Scenario.from_dict", &key, message))?;
         let text = toml::to_string(&value)
             .map_err(|e| PyValueError::new_err(format!("cannot write the scenario: {e}")))?;
         Ok(Self::from_toml(&text, base))
@@ -262,7 +390,8 @@ impl Scenario {
         key: &str,
         value: &Bound<'py, PyAny>,
     ) -> PyResult<PyRefMut<'py, Self>> {
-        let v = to_toml(value)?;
+        let v = to_toml(value, key)
+            .map_err(|(k, message)| input_error(slf.py(), "Scenario.set", &k, message))?;
         slf.sim = slf.sim.clone().set(key, &v.to_string());
         Ok(slf)
     }
@@ -279,13 +408,12 @@ impl Scenario {
         self.sim.text().to_string()
     }
 
-    /// The problems that stop the scenario from running: empty when it is valid.
+    /// The problems that stop the scenario from running: empty when it is valid. The library
+    /// stops at the first problem; an override it blames is dropped and the rest checked again,
+    /// so every wrong override is listed, and then the first problem of the text.
     fn check(&self, py: Python<'_>) -> Vec<String> {
         let sim = self.sim.clone();
-        match py.detach(move || sim.plan().map(|p| p.warnings.len())) {
-            Ok(_) => Vec::new(),
-            Err(e) => vec![e.to_string()],
-        }
+        py.detach(move || problems(&sim))
     }
 
     /// The warnings of a valid scenario's plan.
@@ -343,12 +471,14 @@ impl Scenario {
     fn modes(
         &self,
         py: Python<'_>,
-        count: usize,
+        count: i64,
         shift_hz: f64,
         out: Option<PathBuf>,
         progress: Option<Py<PyAny>>,
         overwrite: bool,
     ) -> PyResult<Modes> {
+        let count = self::count(py, "Scenario.modes", "count", count, 1)?;
+        let shift_hz = finite(py, "Scenario.modes", "shift_hz", shift_hz)?;
         let sim = self.sim.clone();
         let mut p = Progress::new(progress);
         let settings = ModeSettings {
@@ -390,6 +520,13 @@ impl Scenario {
         bias: Option<f64>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<FrequencyResponse> {
+        let file = "Scenario.frequency_response";
+        if let Some(b) = bias {
+            finite(py, file, "bias", b)?;
+        }
+        for (i, &f) in frequencies.iter().enumerate() {
+            finite(py, file, &format!("frequencies.{i}"), f)?;
+        }
         let sim = self.sim.clone();
         let mut p = Progress::new(progress);
         let ran = py.detach(|| {
@@ -409,11 +546,15 @@ impl Scenario {
     fn reduce(
         &self,
         py: Python<'_>,
-        modes: usize,
+        modes: i64,
         electrode: Option<String>,
         bias: Option<f64>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<ReducedModel> {
+        let modes = count(py, "Scenario.reduce", "modes", modes, 1)?;
+        if let Some(b) = bias {
+            finite(py, "Scenario.reduce", "bias", b)?;
+        }
         let sim = self.sim.clone();
         let mut p = Progress::new(progress);
         let ran = py.detach(|| {
@@ -425,6 +566,71 @@ impl Scenario {
             Ok((m, warning)) => Ok(ReducedModel { m, warning }),
             Err(e) => Err(p.error(py, e)),
         }
+    }
+
+    /// The gradient of the scenario's `[[objective]]` in its `[[parameters]]` by the discrete
+    /// adjoint (as `deasim gradient`): the document of `gradient.json` (`objective`,
+    /// `gradient` per key path, `forward_s`, `adjoint_s`, `peak_memory`; with `check` the
+    /// central finite differences `check` and the Taylor test `taylor`) and `values`, each
+    /// parameter's value. `out` receives the forward run's files and `gradient.json`.
+    #[pyo3(signature = (check=false, out=None, overwrite=false))]
+    fn gradient<'py>(
+        &self,
+        py: Python<'py>,
+        check: bool,
+        out: Option<PathBuf>,
+        overwrite: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let sim = self.sim.clone();
+        #[allow(clippy::needless_update)]
+        let options = api::GradientOptions {
+            out: out.clone(),
+            overwrite,
+            check,
+            ..Default::default()
+        };
+        let report = py
+            .detach(move || sim.gradient(&options))
+            .map_err(|e| to_py(py, e))?;
+        let doc = gradient_json(&report);
+        if let Some(dir) = &out {
+            let path = dir.join("gradient.json");
+            let text = serde_json::to_string_pretty(&doc).unwrap_or_default() + "\n";
+            deasim::io::atomic::write_atomic(&path, text.as_bytes()).map_err(|e| {
+                to_py(
+                    py,
+                    Error::Io {
+                        path: path.clone(),
+                        message: e.to_string(),
+                    },
+                )
+            })?;
+        }
+        // in the order of the parameters (JSON objects are sorted by key)
+        let d = json_to_py(py, &doc)?.cast_into::<PyDict>()?;
+        let ordered = |f: &dyn Fn(&api::ParameterGradient) -> Option<Py<PyAny>>| {
+            let m = PyDict::new(py);
+            for p in &report.parameters {
+                if let Some(v) = f(p) {
+                    m.set_item(&p.path, v)?;
+                }
+            }
+            PyResult::Ok(m)
+        };
+        let float = |x: f64| Some(PyFloat::new(py, x).into_any().unbind());
+        d.set_item("gradient", ordered(&|p| float(p.gradient))?)?;
+        d.set_item("values", ordered(&|p| float(p.value))?)?;
+        if report.taylor.is_some() {
+            let check = ordered(&|p| {
+                let (fd, h) = p.finite_difference?;
+                let c = PyDict::new(py);
+                c.set_item("finite_difference", fd).ok()?;
+                c.set_item("h", h).ok()?;
+                Some(c.into_any().unbind())
+            })?;
+            d.set_item("check", check)?;
+        }
+        Ok(d.into_any())
     }
 
     /// The lumped diaphragm model of a `disc` scenario: its linearisation about the rest state
@@ -480,6 +686,43 @@ impl Scenario {
             self.sim.text().lines().next().unwrap_or(""),
             self.sim.overrides().len()
         )
+    }
+}
+
+/// The problems of `sim`: its first, then, while that one is blamed on an override, the first
+/// of the scenario without that override (one plan build per wrong override); each once.
+fn problems(sim: &Simulation) -> Vec<String> {
+    let mut found: Vec<String> = Vec::new();
+    let mut overrides = sim.overrides().to_vec();
+    let mut current = sim.clone();
+    loop {
+        let e = match current.plan() {
+            Ok(_) => return found,
+            Err(e) => e,
+        };
+        let message = e.to_string();
+        // the same problem again, once blamed on an override that did not cause it
+        let plain = |m: &str| {
+            m.split(" (the value comes from `--set ")
+                .next()
+                .unwrap_or("")
+                .to_string()
+        };
+        if !found.iter().any(|f| plain(f) == plain(&message)) {
+            found.push(message);
+        }
+        let Error::Input(InputError { key: Some(k), .. }) = &e else {
+            return found;
+        };
+        // the override that gave the key (or a table above or below it), as the library blames
+        let Some(i) = overrides.iter().position(|o| {
+            let path = o.split_once('=').map_or(o.as_str(), |(p, _)| p).trim();
+            path == k || k.starts_with(&format!("{path}.")) || path.starts_with(&format!("{k}."))
+        }) else {
+            return found;
+        };
+        overrides.remove(i);
+        current = sim.without_overrides().with_overrides(&overrides);
     }
 }
 
@@ -1005,13 +1248,9 @@ fn material_test<'py>(
         let key = e.split(':').next().map(str::to_string);
         scenario_error(e, key.as_deref())
     })?;
-    let curves = py.detach(|| spec.curves(mat.as_ref())).map_err(|reason| {
-        error_class(py, "SolveError")
-            .and_then(|c| c.call1((reason.clone(),)))
-            .and_then(|v| v.setattr("reason", reason).map(|_| v))
-            .map(PyErr::from_value)
-            .unwrap_or_else(|e| e)
-    })?;
+    let curves = py
+        .detach(|| spec.curves(mat.as_ref()))
+        .map_err(|reason| solve_error(py, reason))?;
     curves
         .iter()
         .map(|c| {
@@ -1030,6 +1269,132 @@ fn material_test<'py>(
             Ok(d)
         })
         .collect()
+}
+
+/// Fits a material's parameters to measured homogeneous test curves (as `deasim calibrate`):
+/// `spec` a calibration spec (a path, its TOML text or its tables as a dict; relative data
+/// paths from the spec's directory, else from `base` or the working directory).
+#[pyfunction]
+#[pyo3(signature = (spec, out=None, overwrite=false, starts=None, base=None))]
+fn calibrate<'py>(
+    py: Python<'py>,
+    spec: &Bound<'py, PyAny>,
+    out: Option<PathBuf>,
+    overwrite: bool,
+    starts: Option<i64>,
+    base: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use deasim::calibrate::{output, read_problem, spec as cspec, CalibrationError};
+    let file = "calibrate";
+    let starts = match starts {
+        Some(s) => Some(count(py, file, "starts", s, 1)?),
+        None => None,
+    };
+    // the spec's text (with the name its errors give) or its path
+    let text: Option<(String, String)> = if let Ok(d) = spec.cast::<PyDict>() {
+        let value = to_toml(d.as_any(), "")
+            .map_err(|(key, message)| input_error(py, "<spec dict>", &key, message))?;
+        let text = toml::to_string(&value)
+            .map_err(|e| input_error(py, "<spec dict>", "", format!("cannot write it: {e}")))?;
+        Some((text, "<spec dict>".into()))
+    } else if let Ok(t) = spec.extract::<String>() {
+        (t.contains('\n') || t.contains('[')).then(|| (t, "<spec text>".into()))
+    } else {
+        None
+    };
+    let (what, problem) = match text {
+        Some((text, name)) => {
+            if cspec::has_objectives(&text) {
+                return Err(to_py(
+                    py,
+                    Error::Refused(format!("{name}: {}", cspec::DEVICE_NOT_AVAILABLE)),
+                ));
+            }
+            let base = match base {
+                Some(b) => b,
+                None => std::env::current_dir().unwrap_or_default(),
+            };
+            let p = cspec::parse(&text, &name, &base).map_err(|e| to_py(py, Error::Input(e)))?;
+            (name, p)
+        }
+        None => {
+            let path: PathBuf = spec.extract().map_err(|_| {
+                PyTypeError::new_err(
+                    "spec: expected a path, the spec's TOML text or its tables as a dict",
+                )
+            })?;
+            if let Err(e) = std::fs::metadata(&path) {
+                return Err(to_py(
+                    py,
+                    Error::Io {
+                        path: path.clone(),
+                        message: format!("cannot read the calibration spec: {e}"),
+                    },
+                ));
+            }
+            let p = read_problem(&path).map_err(|e| match e {
+                CalibrationError::Input(i) => to_py(py, Error::Input(i)),
+                other => to_py(py, Error::Refused(other.to_string())),
+            })?;
+            (path.display().to_string(), p)
+        }
+    };
+    let options = deasim::api::CalibrateOptions { starts };
+    let cal = py
+        .detach(|| deasim::calibrate::calibrate(&problem, &options))
+        .map_err(|e| match e {
+            CalibrationError::Input(i) => to_py(py, Error::Input(i)),
+            CalibrationError::Unsupported(m) => to_py(py, Error::Refused(m)),
+            CalibrationError::Failed(m) => solve_error(py, m),
+        })?;
+    if let Some(dir) = &out {
+        let mut results =
+            deasim::io::results::ResultsDir::open(dir, "calibrate", &what, "", overwrite)
+                .map_err(|e| to_py(py, Error::Refused(e)))?;
+        output::write(&cal, dir)
+            .and_then(|()| results.record())
+            .map_err(|message| {
+                to_py(
+                    py,
+                    Error::Io {
+                        path: dir.clone(),
+                        message,
+                    },
+                )
+            })?;
+    }
+    let d = json_to_py(py, &output::json(&cal))?.cast_into::<PyDict>()?;
+    // in the order of the spec (JSON objects are sorted by key)
+    let fitted = PyDict::new(py);
+    let parameters = PyDict::new(py);
+    let by_path = d.get_item("parameters")?;
+    for p in &cal.parameters {
+        fitted.set_item(&p.path, p.fitted)?;
+        if let Some(all) = &by_path {
+            parameters.set_item(&p.path, all.get_item(&p.path)?)?;
+        }
+    }
+    d.set_item("parameters", parameters)?;
+    d.set_item("fitted", fitted)?;
+    d.set_item("model", &cal.model)?;
+    d.set_item(
+        "fitted_toml",
+        output::fitted_toml(&cal).map_err(PyValueError::new_err)?,
+    )?;
+    let experiments = PyList::empty(py);
+    for e in &cal.experiments {
+        let x = PyDict::new(py);
+        x.set_item("name", &e.name)?;
+        x.set_item("rms", e.rms)?;
+        x.set_item("rms_initial", e.rms_initial)?;
+        x.set_item("stretch", column(py, &e.stretch))?;
+        x.set_item("time", e.time.as_ref().map(|t| column(py, t)))?;
+        x.set_item("measured", column(py, &e.measured))?;
+        x.set_item("model", column(py, &e.model))?;
+        experiments.append(x)?;
+    }
+    d.set_item("experiments", experiments)?;
+    Ok(d)
 }
 
 /// The names of the embedded examples.
@@ -1057,6 +1422,7 @@ fn _deasim(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(examples, m)?)?;
     m.add_function(wrap_pyfunction!(material_test, m)?)?;
     m.add_function(wrap_pyfunction!(default_example, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -104,8 +104,9 @@ def test_bad_key_raises_a_scenario_error_naming_it():
     with pytest.raises(deasim.DeasimIOError) as io:
         deasim.Scenario.from_file("/no/such/file.toml")
     assert isinstance(io.value, OSError)
-    with pytest.raises(TypeError):
+    with pytest.raises(deasim.ScenarioError) as e:
         coarse().set("materials.vhb.c10", object())
+    assert e.value.key == "materials.vhb.c10"
 
 
 def test_modes_match_the_command_line(cli, tmp_path):

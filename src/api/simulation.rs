@@ -97,6 +97,14 @@ impl Simulation {
         self
     }
 
+    /// The same scenario without its overrides.
+    pub fn without_overrides(&self) -> Simulation {
+        Simulation {
+            overrides: Vec::new(),
+            ..self.clone()
+        }
+    }
+
     /// The overrides, in the order they apply.
     pub fn overrides(&self) -> &[String] {
         &self.overrides
