@@ -150,42 +150,6 @@ fn json_to_py<'py>(py: Python<'py>, doc: &serde_json::Value) -> PyResult<Bound<'
     py.import("json")?.call_method1("loads", (text,))
 }
 
-/// A finite number, or JSON null.
-fn json_number(x: f64) -> serde_json::Value {
-    serde_json::Number::from_f64(x).map_or(serde_json::Value::Null, serde_json::Value::Number)
-}
-
-/// The document `deasim gradient` writes to `gradient.json` (docs/gradient.md).
-fn gradient_json(r: &api::GradientReport) -> serde_json::Value {
-    let mut gradient = serde_json::Map::new();
-    let mut check = serde_json::Map::new();
-    for p in &r.parameters {
-        gradient.insert(p.path.clone(), json_number(p.gradient));
-        if let Some((fd, h)) = p.finite_difference {
-            check.insert(
-                p.path.clone(),
-                serde_json::json!({"finite_difference": json_number(fd), "h": h}),
-            );
-        }
-    }
-    let mut doc = serde_json::json!({
-        "objective": json_number(r.objective),
-        "gradient": gradient,
-        "forward_s": r.forward_s,
-        "adjoint_s": r.adjoint_s,
-        "peak_memory": r.tape_bytes,
-    });
-    if let Some(t) = &r.taylor {
-        doc["check"] = serde_json::Value::Object(check);
-        doc["taylor"] = serde_json::json!({
-            "h": t.remainders.iter().map(|x| x.0).collect::<Vec<_>>(),
-            "remainder": t.remainders.iter().map(|x| json_number(x.1)).collect::<Vec<_>>(),
-            "order": t.orders.iter().map(|&o| json_number(o)).collect::<Vec<_>>(),
-        });
-    }
-    doc
-}
-
 /// A `SolveError` with its `reason` (no results: nothing ran as a scenario).
 fn solve_error(py: Python<'_>, reason: String) -> PyErr {
     error_class(py, "SolveError")
@@ -592,7 +556,7 @@ impl Scenario {
         let report = py
             .detach(move || sim.gradient(&options))
             .map_err(|e| to_py(py, e))?;
-        let doc = gradient_json(&report);
+        let doc = report.to_json();
         if let Some(dir) = &out {
             let path = dir.join("gradient.json");
             let text = serde_json::to_string_pretty(&doc).unwrap_or_default() + "\n";

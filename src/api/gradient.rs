@@ -58,6 +58,46 @@ pub struct GradientReport {
     pub taylor: Option<TaylorTest>,
 }
 
+impl GradientReport {
+    /// The document of `gradient.json`: `objective`, `gradient` (key path → dJ/dp),
+    /// `forward_s`, `adjoint_s`, `peak_memory` (bytes of the taped states), and when checked
+    /// the finite differences (`check`) and the Taylor test (`taylor`); a non-finite number is
+    /// null.
+    pub fn to_json(&self) -> serde_json::Value {
+        let num = |x: f64| {
+            serde_json::Number::from_f64(x)
+                .map_or(serde_json::Value::Null, serde_json::Value::Number)
+        };
+        let mut gradient = serde_json::Map::new();
+        let mut check = serde_json::Map::new();
+        for p in &self.parameters {
+            gradient.insert(p.path.clone(), num(p.gradient));
+            if let Some((fd, h)) = p.finite_difference {
+                check.insert(
+                    p.path.clone(),
+                    serde_json::json!({"finite_difference": num(fd), "h": h}),
+                );
+            }
+        }
+        let mut doc = serde_json::json!({
+            "objective": num(self.objective),
+            "gradient": gradient,
+            "forward_s": self.forward_s,
+            "adjoint_s": self.adjoint_s,
+            "peak_memory": self.tape_bytes,
+        });
+        if let Some(t) = &self.taylor {
+            doc["check"] = serde_json::Value::Object(check);
+            doc["taylor"] = serde_json::json!({
+                "h": t.remainders.iter().map(|x| x.0).collect::<Vec<_>>(),
+                "remainder": t.remainders.iter().map(|x| num(x.1)).collect::<Vec<_>>(),
+                "order": t.orders.iter().map(|&o| num(o)).collect::<Vec<_>>(),
+            });
+        }
+        doc
+    }
+}
+
 impl Simulation {
     /// Runs the scenario, taping its accepted steps, and computes its objective's gradient in
     /// its `[[parameters]]` by the discrete adjoint ([`crate::adjoint`]).

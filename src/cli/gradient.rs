@@ -44,37 +44,9 @@ pub fn cmd_gradient(
     EXIT_OK
 }
 
-/// `gradient.json`: `objective`, `gradient` (key path → dJ/dp), `forward_s`, `adjoint_s`,
-/// `peak_memory` (bytes of the taped states), and with `--check` the finite differences and the
-/// Taylor test.
+/// `gradient.json` ([`GradientReport::to_json`]).
 fn gradient_json(r: &GradientReport) -> String {
-    let mut gradient = serde_json::Map::new();
-    let mut check = serde_json::Map::new();
-    for p in &r.parameters {
-        gradient.insert(p.path.clone(), serde_json::json!(p.gradient));
-        if let Some((fd, h)) = p.finite_difference {
-            check.insert(
-                p.path.clone(),
-                serde_json::json!({"finite_difference": fd, "h": h}),
-            );
-        }
-    }
-    let mut doc = serde_json::json!({
-        "objective": r.objective,
-        "gradient": gradient,
-        "forward_s": r.forward_s,
-        "adjoint_s": r.adjoint_s,
-        "peak_memory": r.tape_bytes,
-    });
-    if let Some(t) = &r.taylor {
-        doc["check"] = serde_json::Value::Object(check);
-        doc["taylor"] = serde_json::json!({
-            "h": t.remainders.iter().map(|x| x.0).collect::<Vec<_>>(),
-            "remainder": t.remainders.iter().map(|x| x.1).collect::<Vec<_>>(),
-            "order": t.orders,
-        });
-    }
-    serde_json::to_string_pretty(&doc).unwrap_or_default() + "\n"
+    serde_json::to_string_pretty(&r.to_json()).unwrap_or_default() + "\n"
 }
 
 /// The terminal table: each parameter's value and derivative (and its check).
