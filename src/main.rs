@@ -80,6 +80,9 @@ material, parameter or objective term whose adjoint is not built yet (the messag
         /// a Taylor remainder test (its order must be about 2).
         #[arg(long)]
         check: bool,
+        /// The finite differences' step relative to each value (default 1e-4).
+        #[arg(long, value_name = "H")]
+        fd_step: Option<f64>,
     },
     /// List the embedded examples, or print one as TOML.
     Example {
@@ -377,12 +380,13 @@ fn main() {
             set,
             overwrite,
             check,
+            fd_step,
         } => deasim::cli::gradient::cmd_gradient(
             scenario.as_deref(),
             out.as_deref(),
             &set,
             overwrite,
-            check,
+            check.then_some(fd_step),
         ),
         Command::Example { name } => deasim::cli::app::cmd_example(name.as_deref()),
         Command::Lumped {

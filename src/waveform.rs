@@ -56,6 +56,19 @@ pub struct Waveform {
 }
 
 impl Waveform {
+    /// The piecewise-linear table through `points` (time in s, value), held before the first
+    /// and after the last.
+    pub fn table(points: &[(f64, f64)]) -> Self {
+        Waveform {
+            shape: Shape::Table {
+                points: points.to_vec(),
+            },
+            amplitude: 1.0,
+            offset: 0.0,
+            phase_deg: 0.0,
+        }
+    }
+
     /// A constant value.
     pub fn constant(value: f64) -> Self {
         Waveform {

@@ -558,17 +558,7 @@ impl Scenario {
             .map_err(|e| to_py(py, e))?;
         let doc = report.to_json();
         if let Some(dir) = &out {
-            let path = dir.join("gradient.json");
-            let text = serde_json::to_string_pretty(&doc).unwrap_or_default() + "\n";
-            deasim::io::atomic::write_atomic(&path, text.as_bytes()).map_err(|e| {
-                to_py(
-                    py,
-                    Error::Io {
-                        path: path.clone(),
-                        message: e.to_string(),
-                    },
-                )
-            })?;
+            report.write(dir, None).map_err(|e| to_py(py, e))?;
         }
         // in the order of the parameters (JSON objects are sorted by key)
         let d = json_to_py(py, &doc)?.cast_into::<PyDict>()?;

@@ -8,11 +8,13 @@
 //! up to the round-off of the solves (Giles & Pierce, Flow Turbul. Combust. 65 (2000) 393;
 //! Farrell et al., SIAM J. Sci. Comput. 35 (2013) C369).
 //!
-//! What is differentiated today: static and quasi-static stages of elastic materials, with the
-//! parameters of the materials and the voltage amplitudes and offsets of the electrodes; the
-//! objective terms `probe-final` and `probe-misfit` on probes of nodal values
-//! ([`objective::Objective`]). Other stages, materials with internal variables, a pre-stretch and
-//! other parameters or terms are refused with a message that names them.
+//! What is differentiated today: static, quasi-static and dynamic (midpoint, Newmark) stages of
+//! elastic materials with Kelvin–Voigt viscosity, rigid pads and an instantaneous pre-stretch
+//! ([`dynamic`] for the time steps), in the materials' parameters and viscosities, the
+//! electrodes' voltage amplitudes and offsets, the pads' masses, the pre-stretch, and the knots
+//! of controlled voltages ([`sink::ControlGradient`]); the objective terms `probe-final` and
+//! `probe-misfit` on probes of nodal values ([`objective::Objective`]). Anything else is refused
+//! with a message that names it.
 
 pub mod dynamic;
 pub mod objective;

@@ -8,9 +8,27 @@ use crate::problem::dofs::FIELDS;
 use crate::problem::drive::Drive;
 use crate::problem::step::StepOperator;
 
+/// dJ/dV at the knots of a control (`[[controls]]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlGradient {
+    /// The stage's index in the plan and the electrode's name.
+    pub stage: usize,
+    pub electrode: String,
+    /// The knots: stage time (s) and voltage (V).
+    pub knots: Vec<(f64, f64)>,
+    /// dJ/dV at each knot.
+    pub gradient: Vec<f64>,
+    /// The electrode's nodes.
+    nodes: Vec<usize>,
+}
+
 /// dJ/dp of the parameters named by their key paths, summed step by step.
 pub struct Sink<'a> {
     plan: &'a Plan,
+    /// The index of the stage whose steps are being swept.
+    pub stage: usize,
+    /// The controls, stage by stage.
+    pub controls: Vec<ControlGradient>,
     parameters: &'a [(String, Parameter)],
     /// The materials whose parameters are asked for, by index in the plan.
     materials: Vec<usize>,
@@ -29,8 +47,31 @@ impl<'a> Sink<'a> {
             .collect();
         materials.sort_unstable();
         materials.dedup();
+        let controls = plan
+            .stages
+            .iter()
+            .enumerate()
+            .flat_map(|(si, st)| {
+                st.controls
+                    .iter()
+                    .map(move |(name, knots)| ControlGradient {
+                        stage: si,
+                        electrode: name.clone(),
+                        knots: knots.clone(),
+                        gradient: vec![0.0; knots.len()],
+                        nodes: plan
+                            .electrodes
+                            .iter()
+                            .find(|e| &e.name == name)
+                            .map(|e| e.nodes.clone())
+                            .unwrap_or_default(),
+                    })
+            })
+            .collect();
         Sink {
             plan,
+            stage: 0,
+            controls,
             parameters,
             materials,
             grad: vec![0.0; parameters.len()],
@@ -76,6 +117,27 @@ impl<'a> Sink<'a> {
     /// cotangent of that voltage, to the parameters that name its electrode.
     pub fn voltage(&mut self, drive: &Drive, k: usize, t: f64, a: f64) {
         let (nodes, waveform) = &drive.voltages[k];
+        let stage = self.stage;
+        if let Some(c) = self
+            .controls
+            .iter_mut()
+            .find(|c| c.stage == stage && c.nodes == *nodes)
+        {
+            // the table's hat functions at t
+            let knots = &c.knots;
+            let last = knots.len() - 1;
+            if t <= knots[0].0 {
+                c.gradient[0] += a;
+            } else if t >= knots[last].0 {
+                c.gradient[last] += a;
+            } else {
+                let i = knots.partition_point(|p| p.0 <= t);
+                let x = (t - knots[i - 1].0) / (knots[i].0 - knots[i - 1].0);
+                c.gradient[i - 1] += a * (1.0 - x);
+                c.gradient[i] += a * x;
+            }
+            return;
+        }
         for (i, (_, p)) in self.parameters.iter().enumerate() {
             if let Parameter::Voltage {
                 electrode, offset, ..

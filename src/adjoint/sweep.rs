@@ -14,7 +14,7 @@
 
 use super::dynamic::{self, Cotangent};
 use super::objective::Objective;
-use super::sink::{waveform_dofs, Sink};
+use super::sink::{waveform_dofs, ControlGradient, Sink};
 use super::tape::{Tape, TapedStage};
 use crate::algebra::system::{LoadedSystem, NonlinearSystem};
 use crate::io::build::Parameter;
@@ -32,6 +32,8 @@ pub struct Gradient {
     pub objective: f64,
     /// dJ/dp per parameter, in the order given.
     pub gradient: Vec<f64>,
+    /// dJ/dV at the knots of each control, stage by stage.
+    pub controls: Vec<ControlGradient>,
 }
 
 /// Whether the adjoint of a run of `plan` with `parameters` is built; an error says what is not.
@@ -131,6 +133,7 @@ pub fn gradient(
     // ∂J/∂(the level a stage ends in), from the stages after it
     let mut carry = Cotangent::zeros(n_dofs);
     for (ti, st) in tape.stages.iter().enumerate().rev() {
+        sink.stage = st.index;
         carry = if st.dynamics.is_some() {
             dynamic::sweep(plan, st, &eval.state[ti], carry, &mut sink)?
         } else {
@@ -170,6 +173,7 @@ pub fn gradient(
     Ok(Gradient {
         objective: eval.value,
         gradient: sink.grad,
+        controls: sink.controls,
     })
 }
 

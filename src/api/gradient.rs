@@ -6,9 +6,11 @@ use super::simulation::{run_plan, RunOptions, Simulation};
 use crate::adjoint::objective::Objective;
 use crate::adjoint::sweep::{check_supported, gradient};
 use crate::adjoint::tape::Tape;
+use crate::io::atomic::write_atomic;
 use crate::io::build::parameter;
+use crate::io::plot::{line_plot, PlotSpec, Series};
 use crate::io::scenario::InputError;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// What [`Simulation::gradient`] does besides the gradient.
@@ -19,6 +21,10 @@ pub struct GradientOptions {
     pub overwrite: bool,
     /// Compare each derivative with a central finite difference and run a Taylor test.
     pub check: bool,
+    /// The finite differences' step relative to each value (default 10⁻⁴): smaller where J is
+    /// strongly nonlinear in a parameter (the truncation error falls as its square), larger
+    /// where the solves' tolerance makes J noisy.
+    pub fd_step: Option<f64>,
 }
 
 /// One parameter's derivative.
@@ -32,6 +38,24 @@ pub struct ParameterGradient {
     pub gradient: f64,
     /// The central finite difference (J(p+h) − J(p−h))/2h and its step h, when checked.
     pub finite_difference: Option<(f64, f64)>,
+}
+
+/// dJ/dV at the knots of one control (`[[controls]]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlReport {
+    /// Its index in the scenario's `[[controls]]`, its stage and electrode.
+    pub index: usize,
+    pub stage: String,
+    /// The stage's start in the run's clock (s).
+    pub stage_start: f64,
+    pub electrode: String,
+    /// The knots' stage times (s) and voltages (V).
+    pub times: Vec<f64>,
+    pub values: Vec<f64>,
+    /// dJ/dV at each knot (1/V times the unit of J).
+    pub gradient: Vec<f64>,
+    /// When checked: (knot, central finite difference, its step h in V) at a few knots.
+    pub finite_differences: Vec<(usize, f64, f64)>,
 }
 
 /// The Taylor remainder test in one direction δ: |J(p + hδ) − J(p) − h ∇J·δ| at halving h,
@@ -50,6 +74,7 @@ pub struct GradientReport {
     /// J.
     pub objective: f64,
     pub parameters: Vec<ParameterGradient>,
+    pub controls: Vec<ControlReport>,
     /// Wall times (s) of the forward run and of the adjoint sweep.
     pub forward_s: f64,
     pub adjoint_s: f64,
@@ -86,6 +111,32 @@ impl GradientReport {
             "adjoint_s": self.adjoint_s,
             "peak_memory": self.tape_bytes,
         });
+        if !self.controls.is_empty() {
+            doc["controls"] = serde_json::Value::Array(
+                self.controls
+                    .iter()
+                    .map(|c| {
+                        let mut v = serde_json::json!({
+                            "stage": c.stage,
+                            "electrode": c.electrode,
+                            "time": c.times,
+                            "value": c.values,
+                            "gradient": c.gradient.iter().map(|&g| num(g)).collect::<Vec<_>>(),
+                        });
+                        if !c.finite_differences.is_empty() {
+                            v["check"] = c
+                                .finite_differences
+                                .iter()
+                                .map(|&(k, fd, h)| {
+                                    serde_json::json!({"knot": k, "finite_difference": num(fd), "h": h})
+                                })
+                                .collect();
+                        }
+                        v
+                    })
+                    .collect(),
+            );
+        }
         if let Some(t) = &self.taylor {
             doc["check"] = serde_json::Value::Object(check);
             doc["taylor"] = serde_json::json!({
@@ -95,6 +146,85 @@ impl GradientReport {
             });
         }
         doc
+    }
+}
+
+impl GradientReport {
+    /// Writes `gradient.json` into `dir` and, when the scenario has controls, `controls.csv`
+    /// (the run's time in s, then dJ/dV of each control at its knots, a column
+    /// `<electrode>@<stage>` each, empty where a control has no knot) and, with `plot_format`
+    /// (`png` or `svg`), the plot `controls.<format>` of those derivatives. Returns the paths
+    /// written.
+    pub fn write(&self, dir: &Path, plot_format: Option<&str>) -> Result<Vec<PathBuf>, Error> {
+        let io = |path: &Path, e: String| Error::Io {
+            path: path.to_path_buf(),
+            message: e,
+        };
+        std::fs::create_dir_all(dir).map_err(|e| io(dir, e.to_string()))?;
+        let mut written = Vec::new();
+        let path = dir.join("gradient.json");
+        let text = serde_json::to_string_pretty(&self.to_json()).unwrap_or_default() + "\n";
+        write_atomic(&path, text.as_bytes()).map_err(|e| io(&path, e.to_string()))?;
+        written.push(path);
+        if self.controls.is_empty() {
+            return Ok(written);
+        }
+        // the rows: every knot time of every control, in order
+        let mut rows: Vec<(f64, usize, usize)> = self
+            .controls
+            .iter()
+            .enumerate()
+            .flat_map(|(ci, c)| {
+                c.times
+                    .iter()
+                    .enumerate()
+                    .map(move |(k, t)| (c.stage_start + t, ci, k))
+            })
+            .collect();
+        rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut csv = String::from("time");
+        for c in &self.controls {
+            csv += &format!(",{}@{}", c.electrode, c.stage);
+        }
+        csv.push('\n');
+        let mut i = 0;
+        while i < rows.len() {
+            let t = rows[i].0;
+            let mut cells = vec![String::new(); self.controls.len()];
+            while i < rows.len() && rows[i].0 == t {
+                let (_, ci, k) = rows[i];
+                cells[ci] = format!("{:e}", self.controls[ci].gradient[k]);
+                i += 1;
+            }
+            csv += &format!("{t:e},{}\n", cells.join(","));
+        }
+        let path = dir.join("controls.csv");
+        write_atomic(&path, csv.as_bytes()).map_err(|e| io(&path, e.to_string()))?;
+        written.push(path);
+        if let Some(format) = plot_format {
+            let series: Vec<Series> = self
+                .controls
+                .iter()
+                .map(|c| Series {
+                    label: format!("{} in {}", c.electrode, c.stage),
+                    x: c.times.iter().map(|t| c.stage_start + t).collect(),
+                    y: c.gradient.clone(),
+                })
+                .collect();
+            let path = dir.join(format!("controls.{format}"));
+            line_plot(
+                &path,
+                &PlotSpec {
+                    title: "the objective's gradient in the controlled voltages",
+                    x_label: "time [s]",
+                    y_label: "dJ/dV at the knots [1/V · unit of J]",
+                    series: &series,
+                },
+            )
+            .map_err(|e| io(&path, e.to_string()))?;
+            written.push(path);
+        }
+        Ok(written)
     }
 }
 
@@ -143,11 +273,71 @@ impl Simulation {
         let g =
             gradient(&plan, &tape, &objective, &parameters, &supports).map_err(Error::Refused)?;
         let adjoint_s = start.elapsed().as_secs_f64();
+        let controls = g
+            .controls
+            .iter()
+            .map(|c| {
+                let stage = plan.stages[c.stage].name.clone();
+                let index = scenario
+                    .controls
+                    .iter()
+                    .position(|s| {
+                        s.electrode == c.electrode && s.stage.as_deref().is_none_or(|n| n == stage)
+                    })
+                    .unwrap_or(0);
+                ControlReport {
+                    index,
+                    stage,
+                    stage_start: plan.stages[..c.stage].iter().map(|s| s.duration).sum(),
+                    electrode: c.electrode.clone(),
+                    times: c.knots.iter().map(|k| k.0).collect(),
+                    values: c.knots.iter().map(|k| k.1).collect(),
+                    gradient: c.gradient.clone(),
+                    finite_differences: Vec::new(),
+                }
+            })
+            .collect();
+        // a control without `values` starts at its electrode's waveform, whose amplitude and
+        // offset then move its knots
+        let mut derivatives = g.gradient.clone();
+        for c in &g.controls {
+            let spec = scenario
+                .controls
+                .iter()
+                .find(|s| s.electrode == c.electrode);
+            if spec.is_some_and(|s| s.values.is_some()) {
+                continue;
+            }
+            let stage = &plan.stages[c.stage];
+            let Some(e) = plan.electrodes.iter().find(|e| e.name == c.electrode) else {
+                continue;
+            };
+            for ((_, p), d) in parameters.iter().zip(derivatives.iter_mut()) {
+                if let crate::io::build::Parameter::Voltage {
+                    electrode,
+                    offset,
+                    source: false,
+                    ..
+                } = p
+                {
+                    if *electrode == c.electrode {
+                        let w = stage.waveform(&e.voltage);
+                        *d += c
+                            .knots
+                            .iter()
+                            .zip(&c.gradient)
+                            .map(|(k, g)| g * w.derivatives(k.0)[usize::from(*offset)])
+                            .sum::<f64>();
+                    }
+                }
+            }
+        }
         let mut report = GradientReport {
             objective: g.objective,
+            controls,
             parameters: parameters
                 .iter()
-                .zip(&g.gradient)
+                .zip(&derivatives)
                 .map(|((path, p), &d)| ParameterGradient {
                     path: path.clone(),
                     value: p.value(),
@@ -161,7 +351,12 @@ impl Simulation {
             taylor: None,
         };
         if options.check {
-            self.check_gradient(&mut report)?;
+            if let Some(h) = options.fd_step.filter(|h| !(h.is_finite() && *h > 0.0)) {
+                return Err(Error::Refused(format!(
+                    "the finite differences' relative step must be a positive number; got {h}"
+                )));
+            }
+            self.check_gradient(&mut report, options.fd_step)?;
         }
         Ok(report)
     }
@@ -216,13 +411,47 @@ impl Simulation {
         Ok(out)
     }
 
-    /// J with the parameters of `report` moved by `delta` (SI, in their order).
-    fn objective_at(&self, report: &GradientReport, delta: &[f64]) -> Result<f64, Error> {
+    /// J with the parameters of `report` moved by `delta` (SI, in their order) and the knots
+    /// of its controls by `knots` (V, control by control; empty: unmoved).
+    fn objective_at(
+        &self,
+        report: &GradientReport,
+        delta: &[f64],
+        knots: &[Vec<f64>],
+    ) -> Result<f64, Error> {
         let mut sim = self.clone();
         for (p, d) in report.parameters.iter().zip(delta) {
             if *d != 0.0 {
                 sim = sim.set(&p.path, &format!("{:e}", p.value + d));
             }
+        }
+        // the knots as the moved parameters place them (a control without `values` starts at
+        // its electrode's waveform), moved by `knots`
+        let moved = if knots.iter().any(|k| !k.is_empty()) {
+            Some(sim.plan()?)
+        } else {
+            None
+        };
+        for (c, d) in report.controls.iter().zip(knots) {
+            let Some(plan) = moved.as_ref().filter(|_| !d.is_empty()) else {
+                continue;
+            };
+            let base: Vec<f64> = plan
+                .stages
+                .iter()
+                .find(|s| s.name == c.stage)
+                .and_then(|s| s.controls.iter().find(|k| k.0 == c.electrode))
+                .map(|k| k.1.iter().map(|p| p.1).collect())
+                .unwrap_or_else(|| c.values.clone());
+            let values: Vec<String> = base
+                .iter()
+                .zip(d)
+                .map(|(v, x)| format!("{:e}", v + x))
+                .collect();
+            sim = sim.set(
+                &format!("controls.{}.values", c.index),
+                &format!("[{}]", values.join(", ")),
+            );
         }
         let scenario = sim.scenario()?;
         let plan = sim.plan()?;
@@ -242,28 +471,62 @@ impl Simulation {
             .map_err(Error::Refused)
     }
 
-    /// Central differences with h = 10⁻⁴·|p| (10⁻⁴ for p = 0) for each parameter, and the
-    /// Taylor test in the direction δ = h·(±1, ∓1, …) relative to each value, at h, h/2, h/4.
-    fn check_gradient(&self, report: &mut GradientReport) -> Result<(), Error> {
+    /// Central differences with h = ε·|p| (ε for p = 0; ε = `fd_step`, default 10⁻⁴) for each
+    /// parameter and at three knots of each control (the second, the middle and the last but
+    /// one, h = ε times the control's largest voltage, 1 V at least), and the Taylor test in the direction
+    /// δ = 10²h·(±1, ∓1, …) over every parameter and knot, at 1, 1/2, 1/4, 1/8 of it.
+    fn check_gradient(
+        &self,
+        report: &mut GradientReport,
+        fd_step: Option<f64>,
+    ) -> Result<(), Error> {
         let n = report.parameters.len();
-        let step = |v: f64| if v == 0.0 { 1e-4 } else { 1e-4 * v.abs() };
+        let rel = fd_step.unwrap_or(1e-4);
+        let step = |v: f64| if v == 0.0 { rel } else { rel * v.abs() };
+        let none: Vec<Vec<f64>> = vec![Vec::new(); report.controls.len()];
         for i in 0..n {
             let h = step(report.parameters[i].value);
             let mut d = vec![0.0; n];
             d[i] = h;
-            let up = self.objective_at(report, &d)?;
+            let up = self.objective_at(report, &d, &none)?;
             d[i] = -h;
-            let down = self.objective_at(report, &d)?;
+            let down = self.objective_at(report, &d, &none)?;
             report.parameters[i].finite_difference = Some(((up - down) / (2.0 * h), h));
         }
+        let knot_step =
+            |c: &ControlReport| rel * c.values.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        for ci in 0..report.controls.len() {
+            let c = &report.controls[ci];
+            let m = c.values.len();
+            let h = knot_step(c);
+            let mut picks = vec![1.min(m - 1), m / 2, m.saturating_sub(2)];
+            picks.dedup();
+            let mut fds = Vec::new();
+            for k in picks {
+                let mut knots = none.clone();
+                knots[ci] = vec![0.0; m];
+                knots[ci][k] = h;
+                let up = self.objective_at(report, &vec![0.0; n], &knots)?;
+                knots[ci][k] = -h;
+                let down = self.objective_at(report, &vec![0.0; n], &knots)?;
+                fds.push((k, (up - down) / (2.0 * h), h));
+            }
+            report.controls[ci].finite_differences = fds;
+        }
         // a direction that moves every parameter by a share of its own size
+        let sign = |i: usize| if i.is_multiple_of(2) { 1.0 } else { -1.0 };
         let direction: Vec<f64> = report
             .parameters
             .iter()
             .enumerate()
-            .map(|(i, p)| {
-                let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
-                sign * 1e2 * step(p.value)
+            .map(|(i, p)| sign(i) * 1e2 * step(p.value))
+            .collect();
+        let knot_direction: Vec<Vec<f64>> = report
+            .controls
+            .iter()
+            .map(|c| {
+                let h = knot_step(c);
+                (0..c.values.len()).map(|k| sign(k + 1) * 1e2 * h).collect()
             })
             .collect();
         let slope: f64 = report
@@ -271,12 +534,22 @@ impl Simulation {
             .iter()
             .zip(&direction)
             .map(|(p, d)| p.gradient * d)
-            .sum();
+            .sum::<f64>()
+            + report
+                .controls
+                .iter()
+                .zip(&knot_direction)
+                .map(|(c, d)| c.gradient.iter().zip(d).map(|(g, x)| g * x).sum::<f64>())
+                .sum::<f64>();
         let mut remainders = Vec::new();
         for k in 0..4 {
             let h = 0.5f64.powi(k);
             let d: Vec<f64> = direction.iter().map(|v| h * v).collect();
-            let j = self.objective_at(report, &d)?;
+            let knots: Vec<Vec<f64>> = knot_direction
+                .iter()
+                .map(|c| c.iter().map(|v| h * v).collect())
+                .collect();
+            let j = self.objective_at(report, &d, &knots)?;
             remainders.push((h, (j - report.objective - h * slope).abs()));
         }
         let orders = remainders

@@ -16,7 +16,7 @@ pub use crate::calibrate::{
     calibrate_file as calibrate, CalibrateOptions, Calibration, CalibrationError,
 };
 pub use error::Error;
-pub use gradient::{GradientOptions, GradientReport, ParameterGradient, TaylorTest};
+pub use gradient::{ControlReport, GradientOptions, GradientReport, ParameterGradient, TaylorTest};
 pub use linear::{check_biasable, loaded_modes, modes_plan, prepare, LoadedModes, Prepared};
 pub use ranks::{launched_rank, launched_size, read_checkpoint, RankOptions, RankRun, Resume};
 pub use results::{FieldsKept, History, ProbeStatistics, Results, StepFields};

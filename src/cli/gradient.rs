@@ -3,7 +3,6 @@
 
 use crate::api::{GradientOptions, GradientReport, Simulation};
 use crate::cli::app::{fail, EXIT_OK};
-use crate::io::atomic::write_atomic;
 use std::path::{Path, PathBuf};
 
 /// Runs the command; returns the exit status.
@@ -12,7 +11,8 @@ pub fn cmd_gradient(
     out: Option<&Path>,
     overrides: &[String],
     overwrite: bool,
-    check: bool,
+    // `Some(step)`: check against finite differences of that relative step (default 1e-4)
+    check: Option<Option<f64>>,
 ) -> i32 {
     let sim = match Simulation::read(scenario) {
         Ok(s) => s.with_overrides(overrides),
@@ -28,25 +28,26 @@ pub fn cmd_gradient(
     let options = GradientOptions {
         out: Some(dir.clone()),
         overwrite,
-        check,
+        check: check.is_some(),
+        fd_step: check.flatten(),
     };
     let report = match sim.gradient(&options) {
         Ok(r) => r,
         Err(e) => return fail(&e),
     };
-    let path = dir.join("gradient.json");
-    if let Err(e) = write_atomic(&path, gradient_json(&report).as_bytes()) {
-        eprintln!("error: {}: {e}", path.display());
-        return crate::cli::app::EXIT_SOLVE_FAILED;
-    }
+    let plot_format = match sim.plan() {
+        Ok(p) => p.output.plots.then_some(p.output.plot_format.clone()),
+        Err(e) => return fail(&e),
+    };
+    let written = match report.write(&dir, plot_format.as_deref()) {
+        Ok(w) => w,
+        Err(e) => return fail(&e),
+    };
     print!("{}", table(&report));
-    println!("wrote {}", path.display());
+    for path in written {
+        println!("wrote {}", path.display());
+    }
     EXIT_OK
-}
-
-/// `gradient.json` ([`GradientReport::to_json`]).
-fn gradient_json(r: &GradientReport) -> String {
-    serde_json::to_string_pretty(&r.to_json()).unwrap_or_default() + "\n"
 }
 
 /// The terminal table: each parameter's value and derivative (and its check).
@@ -82,6 +83,33 @@ fn table(r: &GradientReport) -> String {
             let _ = write!(s, "  {fd:>17.9e}  {rel:>9.1e}");
         }
         s.push('\n');
+    }
+    for c in &r.controls {
+        let largest = c
+            .gradient
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+        let _ = write!(
+            s,
+            "control {} in {}: {} knots",
+            c.electrode,
+            c.stage,
+            c.times.len()
+        );
+        if let Some((k, g)) = largest {
+            let _ = write!(s, ", largest |dJ/dV| {g:.6e} at t = {:.6e} s", c.times[k]);
+        }
+        s.push('\n');
+        for &(k, fd, _) in &c.finite_differences {
+            let g = c.gradient[k];
+            let rel = (g - fd).abs() / fd.abs().max(g.abs()).max(f64::MIN_POSITIVE);
+            let _ = writeln!(
+                s,
+                "  knot {k} (t = {:.6e} s): adjoint {g:.9e}, central FD {fd:.9e}, rel. diff {rel:.1e}",
+                c.times[k]
+            );
+        }
     }
     if let Some(t) = &r.taylor {
         let orders: Vec<String> = t.orders.iter().map(|o| format!("{o:.2}")).collect();

@@ -98,6 +98,32 @@ pub struct Scenario {
     /// The terms of the objective J of `deasim gradient`, summed; a plain run ignores them.
     #[serde(default)]
     pub objective: Vec<ObjectiveSpec>,
+    /// Controlled drives: an electrode whose voltage in a stage follows a piecewise-linear
+    /// table of knot values (the unknowns of `deasim gradient` and `deasim control`).
+    #[serde(default)]
+    pub controls: Vec<ControlSpec>,
+}
+
+/// `[[controls]]`: the voltage of `electrode` in `stage` as a piecewise-linear table with knots
+/// every `interval` s of stage time (default: the stage's nominal step), starting at the values
+/// of the electrode's waveform there (or `values`, one per knot); `lower`, `upper` (V) and
+/// `max_rate` (V/s) bound it for an optimiser.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct ControlSpec {
+    pub electrode: String,
+    #[serde(default)]
+    pub stage: Option<String>,
+    #[serde(default)]
+    pub interval: Option<f64>,
+    #[serde(default)]
+    pub values: Option<Vec<f64>>,
+    #[serde(default)]
+    pub lower: Option<f64>,
+    #[serde(default)]
+    pub upper: Option<f64>,
+    #[serde(default)]
+    pub max_rate: Option<f64>,
 }
 
 /// `[[parameters]]`: a differentiable scalar of the scenario by its key path (the string `--set`

@@ -137,12 +137,25 @@ pub struct Stage {
     pub duration: f64,
     /// Whether the electrodes follow their waveforms (else they are held at 0 V).
     pub electrodes_on: bool,
+    /// The electrodes whose voltage this stage takes from a control (`[[controls]]`) instead
+    /// of their waveform: the electrode's name and the table's knots (stage time in s, V).
+    #[serde(default)]
+    pub controls: Vec<(String, Vec<(f64, f64)>)>,
 }
 
 impl Stage {
     /// The waveform an electrode or circuit source with waveform `w` follows in this stage, in
     /// stage time (0 at the stage's start, as Abaqus' step time): `w`, or 0 V when the stage has
     /// its electrodes off.
+    /// The waveform electrode `e` follows in this stage: its control's table when the stage
+    /// controls it (and has its electrodes on), else [`Stage::waveform`] of its own.
+    pub fn electrode_waveform(&self, e: &Electrode) -> crate::waveform::Waveform {
+        match self.controls.iter().find(|(name, _)| *name == e.name) {
+            Some((_, knots)) if self.electrodes_on => crate::waveform::Waveform::table(knots),
+            _ => self.waveform(&e.voltage),
+        }
+    }
+
     pub fn waveform(&self, w: &crate::waveform::Waveform) -> crate::waveform::Waveform {
         if self.electrodes_on {
             w.clone()

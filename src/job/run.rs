@@ -526,7 +526,7 @@ impl<'p, 'o> Job<'p, 'o> {
             .electrodes
             .iter()
             .filter(|e| e.charge.is_none())
-            .map(|e| stage_voltage(stage, &e.voltage, stage.duration))
+            .map(|e| stage.electrode_waveform(e).value(stage.duration))
             .collect();
         let voltage_at = |s: f64| -> f64 {
             let pick = |m: f64, v: f64| if v.abs() > m.abs() { v } else { m };
@@ -784,7 +784,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     Ok(v) => v[*electrode],
                     Err(e) => return Some(format!("stage `{}`: {e}", stage.name)),
                 };
-                (start, stage_voltage(stage, &e.voltage, stage.duration))
+                (start, stage.electrode_waveform(e).value(stage.duration))
             }
             PathParameter::Charge { electrode } => {
                 let q = plan.electrodes[*electrode].charge.unwrap_or(0.0);
@@ -1230,7 +1230,7 @@ impl Plan {
         self.electrodes
             .iter()
             .filter(|e| e.prescribed(dynamic))
-            .map(|e| (e.nodes.clone(), stage.waveform(&e.voltage)))
+            .map(|e| (e.nodes.clone(), stage.electrode_waveform(e)))
             .collect()
     }
 
@@ -1256,11 +1256,6 @@ impl Plan {
         }
         flags
     }
-}
-
-/// The voltage of an electrode's waveform at stage time `t` of `stage` ([`Stage::waveform`]).
-fn stage_voltage(stage: &Stage, w: &Waveform, t: f64) -> f64 {
-    stage.waveform(w).value(t)
 }
 
 /// A material point at this fraction of its locking limit (or beyond) in the last converged state

@@ -9,6 +9,7 @@
 //! their waveforms), [`stages`], [`probes`] and [`solver`]. [`build`] calls them in a fixed order,
 //! so that a scenario with several errors always reports the same one first.
 
+mod controls;
 mod electrodes;
 mod loads;
 mod materials;
@@ -72,7 +73,8 @@ pub fn build_with(
         &electrodes,
         &model.mesh,
     ));
-    let stages = stages::build_stages(&ctx, s, &electrodes)?;
+    let mut stages = stages::build_stages(&ctx, s, &electrodes)?;
+    controls::build_controls(&ctx, s, &mut stages, &electrodes)?;
     stages::check_internal_variables(&ctx, &stages, &model)?;
     if let Some(e) = electrodes.iter().find(|e| e.charge.is_some()) {
         if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {

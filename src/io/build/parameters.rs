@@ -222,7 +222,8 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
             return Err(ctx.err(
                 key,
                 format!(
-                    "material `{name}` has no Kelvin–Voigt viscosity to differentiate: give                      `materials.{name}.viscosity` a value > 0"
+                    "material `{name}` has no Kelvin–Voigt viscosity to differentiate: give \
+                     `materials.{name}.viscosity` a value > 0"
                 ),
             ));
         }

@@ -122,6 +122,7 @@ fn build_stage(
             kind,
             duration: 0.0,
             electrodes_on: true,
+            controls: Vec::new(),
         });
     }
     for (k, v) in linear_keys {
@@ -183,6 +184,7 @@ fn build_stage(
         kind,
         duration,
         electrodes_on: st.electrodes_on.unwrap_or(true),
+        controls: Vec::new(),
     })
 }
 
