@@ -630,6 +630,9 @@ pub struct StageSpec {
     /// `modes`: the modes nearest to this frequency (Hz, default 0: the lowest).
     #[serde(default)]
     pub shift: Option<f64>,
+    /// `modes` of an axisymmetric model: the circumferential harmonic n (default 0), or a list.
+    #[serde(default)]
+    pub harmonic: Option<Numbers>,
     /// `frequency-response`: the electrode that carries the small voltage (default: the first
     /// with a non-zero voltage).
     #[serde(default)]

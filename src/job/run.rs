@@ -5,7 +5,7 @@
 //! numbers, bit for bit, as one without, and a run resumed from a state continues exactly as the
 //! run that went on.
 
-use super::linear::{frequency_response_at, modes_at};
+use super::linear::{frequency_response_at, modes_of_harmonics};
 use super::observer::{Observer, Observers};
 use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
@@ -343,14 +343,18 @@ impl<'p, 'o> Job<'p, 'o> {
     fn linearised_stage(&mut self, stage: &Stage, summary: &mut StageSummary) -> Option<String> {
         let plan = self.plan;
         match &stage.kind {
-            StageKind::Modes { count, shift_hz } => {
+            StageKind::Modes {
+                count,
+                shift_hz,
+                harmonics,
+            } => {
                 summary.kind = "modes".into();
                 let settings = ModeSettings {
                     count: *count,
                     shift_hz: *shift_hz,
                     ..Default::default()
                 };
-                match modes_at(plan, &self.state.q, &settings) {
+                match modes_of_harmonics(plan, &self.state.q, &settings, harmonics) {
                     Ok(found) => {
                         summary.modes_hz = found.iter().map(|m| m.frequency).collect();
                         self.observer
