@@ -97,7 +97,7 @@ fn lowest_transverse(model: &Model, state: &[f64], mass: &NodalMass, n: u32) -> 
     let found = if n == 0 {
         modes(model, state, mass, &Default::default(), &settings).unwrap()
     } else {
-        harmonic_modes(model, state, mass, &settings, n).unwrap()
+        harmonic_modes(model, state, mass, &settings, n, &[]).unwrap()
     };
     assert!(found.iter().all(|m| m.harmonic == n));
     found
@@ -144,7 +144,7 @@ fn axis_nodes_follow_the_regularity_conditions() {
         count: 6,
         ..Default::default()
     };
-    for m in harmonic_modes(&model, &state, &mass, &settings, 2).unwrap() {
+    for m in harmonic_modes(&model, &state, &mass, &settings, 2, &[]).unwrap() {
         let largest = m.shape.iter().fold(0.0f64, |s, v| s.max(v.abs()));
         assert!(largest > 0.0);
         for &a in &axis {
@@ -152,7 +152,7 @@ fn axis_nodes_follow_the_regularity_conditions() {
         }
     }
     let mut lateral = 0.0f64;
-    for m in harmonic_modes(&model, &state, &mass, &settings, 1).unwrap() {
+    for m in harmonic_modes(&model, &state, &mass, &settings, 1, &[]).unwrap() {
         for &a in &axis {
             let u = &m.shape[a * 4..a * 4 + 4];
             assert_eq!((u[1], u[3]), (0.0, 0.0));
@@ -355,4 +355,118 @@ fn stage_key_and_command_option() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--harmonic"));
+}
+
+/// The `diaphragm` whose pad has the rotary inertia `inertia` (kg·m²) about a diameter.
+fn tilting_diaphragm(inertia: f64) -> String {
+    let text = example("diaphragm").unwrap();
+    let old = "mass = 0.04622                # kg, the whole attached mass";
+    assert!(text.contains(old));
+    text.replace(
+        old,
+        &format!("mass = 0.04622\nrotary_inertia = {inertia:e}"),
+    )
+}
+
+/// A pad with a rotary inertia tilts in harmonic 1: a rocking mode appears (u_z = −α r over the
+/// pad) and, the tilt being one more freedom, no frequency rises (interlacing); with a rotary
+/// inertia far above the membrane's the rocking is the lowest mode and its frequency falls as
+/// 1/√I (the inertia enters the mass as I α̇²). The pad has the thin-disc inertia m a²/4 (a
+/// the pad's 7.5 mm radius). A 3-D model refuses the key.
+#[test]
+fn a_pad_with_rotary_inertia_rocks_in_harmonic_one() {
+    let sets: Vec<String> = [
+        "mesh.radial=12",
+        "mesh.layers=2",
+        "materials.vhb.viscosity=0",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let settings = ModeSettings {
+        count: 3,
+        ..Default::default()
+    };
+    let lowest = |text: &str| -> (Vec<Mode>, Vec<usize>, Vec<f64>) {
+        let mut scenario = parse(text, "t.toml", &sets).unwrap();
+        scenario.stages.truncate(1);
+        let plan = build(&scenario, "t.toml", None).unwrap();
+        let plan = modes_plan(plan, &settings).unwrap();
+        let loaded =
+            loaded_modes_of_harmonics(&plan, &settings, &[1], RunOptions::default()).unwrap();
+        let pad = plan.rigid[0].nodes.clone();
+        let state = loaded.state.clone();
+        (loaded.modes, pad, state)
+    };
+    let plain = lowest(example("diaphragm").unwrap()).0;
+    let disc = 0.04622 * 7.5e-3f64.powi(2) / 4.0;
+    let (tilting, pad, state) = lowest(&tilting_diaphragm(disc));
+    for (a, b) in tilting.iter().zip(&plain) {
+        assert!(
+            a.frequency <= b.frequency * (1.0 + 1e-9),
+            "{} {}",
+            a.frequency,
+            b.frequency
+        );
+    }
+    // the rocking mode: the one whose pad tilts most per unit modal mass
+    let tilt_of = |m: &Mode| {
+        let a = *pad
+            .iter()
+            .max_by(|&&a, &&b| state[a * 4].total_cmp(&state[b * 4]))
+            .unwrap();
+        m.shape[a * 4 + 1].abs()
+    };
+    let rock = tilting
+        .iter()
+        .max_by(|a, b| tilt_of(a).total_cmp(&tilt_of(b)))
+        .unwrap();
+    assert!(plain
+        .iter()
+        .all(|p| (p.frequency / rock.frequency - 1.0).abs() > 0.1));
+    // u_z = −α r on the pad: the same α at every pad node off the axis
+    let mut alphas = Vec::new();
+    let plan = build(
+        &parse(&tilting_diaphragm(disc), "t.toml", &sets).unwrap(),
+        "t.toml",
+        None,
+    )
+    .unwrap();
+    for &a in &pad {
+        let r = plan.model.mesh.nodes[a][0] + state[a * 4];
+        if r > 0.0 {
+            alphas.push(-rock.shape[a * 4 + 1] / r);
+        }
+    }
+    assert!(alphas[0].abs() > 0.0);
+    for a in &alphas {
+        assert!((a / alphas[0] - 1.0).abs() < 1e-9, "{alphas:?}");
+    }
+    let heavy = lowest(&tilting_diaphragm(1e-2)).0[0].frequency;
+    let heavier = lowest(&tilting_diaphragm(4e-2)).0[0].frequency;
+    let hz = |m: &[Mode]| m.iter().map(|m| m.frequency).collect::<Vec<_>>();
+    println!(
+        "harmonic 1: no tilt {:.4?} Hz; I = {disc:.3e} kg·m² {:.4?} Hz, rocking {:.4} Hz; \
+         lowest with I = 1e-2 {heavy:.5} Hz, 4e-2 {heavier:.5} Hz (ratio {:.5})",
+        hz(&plain),
+        hz(&tilting),
+        rock.frequency,
+        heavier / heavy
+    );
+    assert!((heavier / heavy - 0.5).abs() < 5e-3);
+    // a 3-D model's rigid regions do not rotate
+    let dir = common::tempdir("harmonic-tilt");
+    let text = example("diaphragm-3d").unwrap().replace(
+        "mass = 0.04622                # kg, the whole attached mass",
+        "mass = 0.04622\nrotary_inertia = 1e-6",
+    );
+    std::fs::write(dir.join("t.toml"), text).unwrap();
+    let o = common::deasim(&["check", "t.toml", "--no-trial"], &dir);
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(o.status.code(), Some(2), "{said}");
+    assert!(said.contains("loads.rigid.0.rotary_inertia"), "{said}");
 }

@@ -220,6 +220,11 @@ pub struct RigidSpec {
     /// the attached mass, a dashpot to ground; dynamic stages only.
     #[serde(default)]
     pub damping: f64,
+    /// Rotary inertia (kg·m², whole region) about a diameter through the node the mass is
+    /// attached to: an axisymmetric model's region then tilts in the modes of harmonic 1. Without
+    /// it a rigid region does not rotate (as in 3-D).
+    #[serde(default)]
+    pub rotary_inertia: Option<f64>,
 }
 
 /// The mesh: a generator with its parameters, or a file.

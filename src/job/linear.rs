@@ -16,7 +16,7 @@ use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::solve::stepping::StepControl;
 use crate::time::frequency::{linearise, relaxed_model, Linearisation};
-use crate::time::harmonic::harmonic_modes;
+use crate::time::harmonic::{harmonic_modes, Tilt};
 use crate::time::mass::{MassKind, NodalMass};
 use crate::time::modal::{modes, Mode, ModeSettings};
 use crate::time::reduced::{Outputs, ReducedModel};
@@ -112,7 +112,17 @@ pub fn modes_at(plan: &Plan, state: &[f64], settings: &ModeSettings) -> Result<V
     let relaxed = relaxed_model(&model);
     let mass = device_mass(plan, &relaxed);
     if settings.harmonic > 0 {
-        return harmonic_modes(&relaxed, &base, &mass, settings, settings.harmonic);
+        let tilts: Vec<Tilt> = plan
+            .rigid
+            .iter()
+            .filter_map(|r| {
+                r.rotary_inertia.map(|inertia| Tilt {
+                    node: r.nodes[0],
+                    inertia,
+                })
+            })
+            .collect();
+        return harmonic_modes(&relaxed, &base, &mass, settings, settings.harmonic, &tilts);
     }
     modes(&relaxed, &base, &mass, &plan.solver, settings)
 }

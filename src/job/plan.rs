@@ -438,6 +438,10 @@ pub struct Rigid {
     pub nodes: Vec<usize>,
     /// Attached mass carried by the mesh (kg; the physical mass divided by the symmetry factor).
     pub mass: f64,
+    /// Rotary inertia (kg·m²) about a diameter through the attachment node `nodes[0]`: the
+    /// region tilts in the modes of harmonic 1 of an axisymmetric model; `None`: no rotation.
+    #[serde(default)]
+    pub rotary_inertia: Option<f64>,
 }
 
 /// How a frequency response is computed.

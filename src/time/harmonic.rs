@@ -15,7 +15,10 @@
 //!   for n ≥ 2 every unknown is 0. An axis node held along the axis is held in place;
 //! - a rigid region (whose translations the model ties) keeps, for n = 1, its lateral
 //!   translation t (u_r = t, u_θ = −t, u_z = 0 at each of its nodes) with its attached mass, and
-//!   is held for n ≥ 2. Rigid regions carry no rotation (in 3-D too), so a pad does not tilt;
+//!   is held for n ≥ 2. Rigid regions carry no rotation (in 3-D too); one given a rotary inertia
+//!   I ([`Tilt`]) also tilts by α about the diameter through its attachment node at height z_c:
+//!   δx = α e_y × (x − z_c e_z) adds u_r = α(z − z_c), u_θ = −α(z − z_c), u_z = −α r (current r,
+//!   z), with the kinetic mass I of α;
 //! - a potential tied over an electrode (uniform on it) has no harmonic n ≥ 1: held.
 //!
 //! Harmonic 0 is the model's own axisymmetric analysis ([`crate::time::modal::modes`]).
@@ -30,6 +33,22 @@ use crate::time::mass::NodalMass;
 use crate::time::modal::{modes_of, Mode, ModeSettings};
 use std::collections::BTreeMap;
 
+/// A rigid region that tilts in harmonic 1: its attachment node (its first) and its rotary
+/// inertia (kg·m²) about a diameter through that node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tilt {
+    pub node: usize,
+    pub inertia: f64,
+}
+
+/// The equations of harmonic `n`: each dof's combination Σ coef · unknown (empty: held), the
+/// number of unknowns and the rotary inertias of the tilt unknowns.
+struct HarmonicDofs {
+    dof: Vec<Vec<(usize, f64)>>,
+    count: usize,
+    inertias: Vec<(usize, f64)>,
+}
+
 /// How a dof of the harmonic problem is set: held at 0, or `coef` times equation `eq`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Link {
@@ -39,9 +58,8 @@ enum Link {
     To(usize, f64),
 }
 
-/// The equation (and its coefficient: the dof is coef times the unknown) of every dof of harmonic
-/// `n` ≥ 1 of `model` (module docs), and the number of equations.
-fn harmonic_dofs(model: &Model, n: u32) -> (Vec<Option<(usize, f64)>>, usize) {
+/// The equations of every dof of harmonic `n` ≥ 1 of `model` about `state` (module docs).
+fn harmonic_dofs(model: &Model, state: &[f64], n: u32, tilts: &[Tilt]) -> HarmonicDofs {
     let mesh = &model.mesh;
     let nn = mesh.n_nodes();
     let mut held = vec![false; nn * FIELDS];
@@ -56,6 +74,8 @@ fn harmonic_dofs(model: &Model, n: u32) -> (Vec<Option<(usize, f64)>>, usize) {
     }
     let on_axis = |a: usize| mesh.nodes[a][0] == 0.0;
     let mut link = vec![Link::Free; nn * FIELDS];
+    // the tilting regions' nodes and attachment nodes
+    let mut tilting: Vec<(Vec<usize>, Tilt)> = Vec::new();
     for a in 0..nn {
         let d = a * FIELDS;
         if on_axis(a) {
@@ -94,6 +114,11 @@ fn harmonic_dofs(model: &Model, n: u32) -> (Vec<Option<(usize, f64)>>, usize) {
                 let lead = first * FIELDS;
                 let free =
                     n == 1 && !t.held && t.nodes.iter().all(|&a| on_axis(a) || !held[a * FIELDS]);
+                if free {
+                    if let Some(tilt) = tilts.iter().find(|x| x.node == first) {
+                        tilting.push((t.nodes.clone(), *tilt));
+                    }
+                }
                 for &a in &t.nodes {
                     let d = a * FIELDS;
                     link[d + 1] = Link::Held;
@@ -114,32 +139,53 @@ fn harmonic_dofs(model: &Model, n: u32) -> (Vec<Option<(usize, f64)>>, usize) {
         }
     }
     let scale = model.potential_scale();
-    let mut eq = vec![None; nn * FIELDS];
+    let mut dof = vec![Vec::new(); nn * FIELDS];
     let mut count = 0;
     for d in 0..nn * FIELDS {
         if link[d] == Link::Free {
-            eq[d] = Some((count, if d % FIELDS == PHI { scale } else { 1.0 }));
+            dof[d].push((count, if d % FIELDS == PHI { scale } else { 1.0 }));
             count += 1;
         }
     }
     for d in 0..nn * FIELDS {
         if let Link::To(lead, c) = link[d] {
-            eq[d] = eq[lead].map(|(e, cl)| (e, c * cl));
+            dof[d] = dof[lead].iter().map(|&(e, cl)| (e, c * cl)).collect();
         }
     }
-    (eq, count)
+    let mut inertias = Vec::new();
+    for (nodes, tilt) in tilting {
+        let alpha = count;
+        count += 1;
+        inertias.push((alpha, tilt.inertia));
+        let zc = mesh.nodes[tilt.node][1] + state[tilt.node * FIELDS + 1];
+        for a in nodes {
+            let d = a * FIELDS;
+            let r = mesh.nodes[a][0] + state[d];
+            let dz = mesh.nodes[a][1] + state[d + 1] - zc;
+            dof[d].push((alpha, dz));
+            dof[d + 2].push((alpha, -dz));
+            dof[d + 1].push((alpha, -r));
+        }
+    }
+    HarmonicDofs {
+        dof,
+        count,
+        inertias,
+    }
 }
 
 /// The natural modes of harmonic `n` ≥ 1 of the axisymmetric `model` (its Dirichlet conditions
 /// hold the supports and the electrode voltages) about the axisymmetric equilibrium `state`,
 /// with the model's mass `mass` (module docs). The shapes hold (u_r, u_z, u_θ, Φ) per node, the
-/// amplitudes of cos nΘ, cos nΘ, sin nΘ and cos nΘ; unit modal mass in the 3-D body.
+/// amplitudes of cos nΘ, cos nΘ, sin nΘ and cos nΘ; unit modal mass in the 3-D body. The rigid
+/// regions of `tilts` tilt in harmonic 1.
 pub fn harmonic_modes(
     model: &Model,
     state: &[f64],
     mass: &NodalMass,
     settings: &ModeSettings,
     n: u32,
+    tilts: &[Tilt],
 ) -> Result<Vec<Mode>, String> {
     if !model.is_axisymmetric() {
         return Err(format!(
@@ -159,7 +205,11 @@ pub fn harmonic_modes(
             "harmonic {n}: a material with internal variables: linearise about its relaxed state"
         ));
     }
-    let (eq, n_eq) = harmonic_dofs(model, n);
+    let HarmonicDofs {
+        dof: eq,
+        count: n_eq,
+        inertias,
+    } = harmonic_dofs(model, state, n, tilts);
     // rows of (K, M) entries
     let mut rows: Vec<BTreeMap<usize, (f64, f64)>> = vec![BTreeMap::new(); n_eq];
     let mut k = vec![0.0; crate::element::MAX_LOCAL * crate::element::MAX_LOCAL];
@@ -176,14 +226,13 @@ pub fn harmonic_modes(
             .iter()
             .enumerate()
         {
-            let Some((ei, ci)) = eq[ai * FIELDS + si] else {
-                continue;
-            };
-            for (j, &b) in cell.iter().enumerate() {
-                for s in 0..FIELDS {
-                    if let Some((ej, cj)) = eq[b * FIELDS + s] {
-                        rows[ei].entry(ej).or_insert((0.0, 0.0)).0 +=
-                            ci * cj * k[i * nl + j * FIELDS + s];
+            for &(ei, ci) in &eq[ai * FIELDS + si] {
+                for (j, &b) in cell.iter().enumerate() {
+                    for s in 0..FIELDS {
+                        for &(ej, cj) in &eq[b * FIELDS + s] {
+                            rows[ei].entry(ej).or_insert((0.0, 0.0)).0 +=
+                                ci * cj * k[i * nl + j * FIELDS + s];
+                        }
                     }
                 }
             }
@@ -195,11 +244,18 @@ pub fn harmonic_modes(
         for p in mass.row_ptr[a]..mass.row_ptr[a + 1] {
             let b = mass.col_idx[p];
             for s in 0..3 {
-                if let (Some((ei, ci)), Some((ej, cj))) = (eq[a * FIELDS + s], eq[b * FIELDS + s]) {
-                    rows[ei].entry(ej).or_insert((0.0, 0.0)).1 += factor * ci * cj * mass.values[p];
+                for &(ei, ci) in &eq[a * FIELDS + s] {
+                    for &(ej, cj) in &eq[b * FIELDS + s] {
+                        rows[ei].entry(ej).or_insert((0.0, 0.0)).1 +=
+                            factor * ci * cj * mass.values[p];
+                    }
                 }
             }
         }
+    }
+    // a tilt's kinetic mass is its rotary inertia (a rigid body's ½Iα̇², not a ring's)
+    for &(e, inertia) in &inertias {
+        rows[e].entry(e).or_insert((0.0, 0.0)).1 += inertia;
     }
     let mut row_ptr = vec![0];
     let (mut cols, mut kv, mut mv) = (Vec::new(), Vec::new(), Vec::new());
@@ -217,9 +273,10 @@ pub fn harmonic_modes(
         ..kmat.clone()
     };
     // the equations as the nodes of a map of their own: equation e is dof (e, its field)
+    // a tilt is a displacement unknown
     let mut field = vec![0; n_eq];
     for (d, e) in eq.iter().enumerate() {
-        if let Some((e, _)) = e {
+        if let [(e, _)] = e.as_slice() {
             field[*e] = d % FIELDS;
         }
     }
@@ -253,9 +310,10 @@ pub fn harmonic_modes(
         .map(|m| {
             let mut shape = vec![0.0; eq.len()];
             for (d, e) in eq.iter().enumerate() {
-                if let Some((e, c)) = e {
-                    shape[d] = c * m.shape[e * FIELDS + field[*e]];
-                }
+                shape[d] = e
+                    .iter()
+                    .map(|&(e, c)| c * m.shape[e * FIELDS + field[e]])
+                    .sum();
             }
             Mode {
                 shape,
