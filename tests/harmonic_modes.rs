@@ -237,8 +237,8 @@ fn with_stage(text: &str, stage: &str) -> String {
 
 /// A `modes` stage with `harmonic = [0, 1]` and `deasim modes --harmonic 0,1` write `count`
 /// modes of each harmonic with the `harmonic` column, the same numbers; harmonic 0 is the
-/// stage's own modes without the key. Bad values and harmonics of a 3-D model are refused with
-/// the key.
+/// stage's own modes without the key. Bad values, the key on other stages and harmonics of a
+/// 3-D model are refused with the key.
 #[test]
 fn stage_key_and_command_option() {
     let dir = common::tempdir("harmonic-stage");
@@ -328,6 +328,16 @@ fn stage_key_and_command_option() {
         (
             "neg.toml",
             diaphragm_with("kind = \"modes\"\nharmonic = [1, -2]"),
+            "stages.1.harmonic",
+        ),
+        (
+            "resp.toml",
+            diaphragm_with("kind = \"frequency-response\"\nharmonic = 1\nfrom = 1.0\nto = 10.0"),
+            "stages.1.harmonic",
+        ),
+        (
+            "static.toml",
+            diaphragm_with("kind = \"static\"\nharmonic = 1"),
             "stages.1.harmonic",
         ),
         (
