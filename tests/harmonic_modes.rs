@@ -277,6 +277,11 @@ fn stage_key_and_command_option() {
         String::from_utf8_lossy(&o.stderr)
     );
     let stage = read("run/modes.csv");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("run/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["modes_harmonic"], serde_json::json!([0, 0, 1, 1]));
+    assert_eq!(summary["modes"].as_array().unwrap().len(), 4);
     assert_eq!(stage.iter().map(|m| m.1).collect::<Vec<_>>(), [0, 0, 1, 1]);
     std::fs::write(
         dir.join("z.toml"),

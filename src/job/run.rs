@@ -296,6 +296,7 @@ impl<'p, 'o> Job<'p, 'o> {
             wall_s: 0.0,
             converged: true,
             modes_hz: Vec::new(),
+            modes_harmonic: Vec::new(),
             linear: Default::default(),
         };
         let failure = match stage.kind {
@@ -357,6 +358,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 match modes_of_harmonics(plan, &self.state.q, &settings, harmonics) {
                     Ok(found) => {
                         summary.modes_hz = found.iter().map(|m| m.frequency).collect();
+                        summary.modes_harmonic = found.iter().map(|m| m.harmonic).collect();
                         self.observer
                             .modes(plan, &stage.name, &self.state.q, &found);
                         None
@@ -457,6 +459,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     wall_s: started.elapsed().as_secs_f64(),
                     converged: false,
                     modes_hz: Vec::new(),
+                    modes_harmonic: Vec::new(),
                     linear: Default::default(),
                 });
                 false
