@@ -211,6 +211,10 @@ material, parameter or objective term whose adjoint is not built yet (the messag
         /// The modes nearest to this frequency (Hz); 0 gives the lowest.
         #[arg(long, default_value_t = 0.0)]
         shift: f64,
+        /// Circumferential harmonic n of an axisymmetric model (0: the axisymmetric modes), or
+        /// a list (1,2,3): `count` modes of each.
+        #[arg(long, value_delimiter = ',', default_value = "0")]
+        harmonic: Vec<u32>,
         /// Output directory (default ./deasim-out/<scenario name>-modes/).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -464,6 +468,7 @@ fn main() {
             scenario,
             count,
             shift,
+            harmonic,
             out,
             overwrite,
             set,
@@ -473,6 +478,7 @@ fn main() {
             &set,
             count,
             shift,
+            &harmonic,
             overwrite,
         ),
         Command::Response {

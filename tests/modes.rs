@@ -99,7 +99,9 @@ fn modes_command_writes_the_table_and_the_shapes() {
     // the axisymmetric model says which modes it cannot represent
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
-        stdout.contains("note: the axisymmetric model represents only axisymmetric modes"),
+        stdout.contains(
+            "note: an axisymmetric model finds the modes of one circumferential harmonic"
+        ),
         "{stdout}"
     );
     let csv = std::fs::read_to_string(dir.join("m/modes.csv")).unwrap();
@@ -150,7 +152,7 @@ fn modes_command_writes_the_table_and_the_shapes() {
     }
 }
 
-/// Which modes a model's symmetry hides is said for the axisymmetric diaphragm (harmonic 0 only),
+/// Which modes a model's symmetry hides is said for the axisymmetric diaphragm (one harmonic at a time),
 /// the quarter disc of `diaphragm-3d` (symmetric about both planes) and not for the full film.
 #[test]
 fn the_symmetry_of_a_model_names_the_modes_it_cannot_represent() {
@@ -164,7 +166,7 @@ fn the_symmetry_of_a_model_names_the_modes_it_cannot_represent() {
     };
     let ax = note("diaphragm").unwrap();
     assert!(
-        ax.contains("harmonic n = 0") && ax.contains("rocking"),
+        ax.contains("one circumferential harmonic at a time") && ax.contains("`harmonic = n`"),
         "{ax}"
     );
     let quarter = note("diaphragm-3d").unwrap();

@@ -11,7 +11,7 @@ use super::simulation::{run_plan, RunOptions};
 use crate::io::build::Plan;
 use crate::job::linear::{
     check_linearisable, device_mass, has_branches, held_model, linear_probes, mode_symmetry_note,
-    modes_at, response_values, zero_bias_warning, ProbeMap,
+    modes_of_harmonics, response_values, zero_bias_warning, ProbeMap,
 };
 use crate::job::plan::{ResponseMethod, StageKind};
 use crate::job::state::FrequencyResponse;
@@ -109,6 +109,17 @@ pub fn loaded_modes(
     settings: &ModeSettings,
     options: RunOptions,
 ) -> Result<LoadedModes, Error> {
+    loaded_modes_of_harmonics(plan, settings, &[settings.harmonic], options)
+}
+
+/// [`loaded_modes`] of each circumferential harmonic of `harmonics` (axisymmetric models), in
+/// that order.
+pub fn loaded_modes_of_harmonics(
+    plan: &Plan,
+    settings: &ModeSettings,
+    harmonics: &[u32],
+    options: RunOptions,
+) -> Result<LoadedModes, Error> {
     let results = loaded_run(plan, options)?;
     let state = last_state(&results);
     let bias = plan
@@ -116,7 +127,7 @@ pub fn loaded_modes(
         .iter()
         .map(|e| (e.name.clone(), state[e.nodes[0] * FIELDS + PHI]))
         .collect();
-    let modes = match modes_at(plan, &state, settings) {
+    let modes = match modes_of_harmonics(plan, &state, settings, harmonics) {
         Ok(m) => m,
         Err(reason) => {
             return Err(Error::Solve {

@@ -17,7 +17,10 @@ pub use crate::calibrate::{
 };
 pub use error::Error;
 pub use gradient::{ControlReport, GradientOptions, GradientReport, ParameterGradient, TaylorTest};
-pub use linear::{check_biasable, loaded_modes, modes_plan, prepare, LoadedModes, Prepared};
+pub use linear::{
+    check_biasable, loaded_modes, loaded_modes_of_harmonics, modes_plan, prepare, LoadedModes,
+    Prepared,
+};
 pub use ranks::{launched_rank, launched_size, read_checkpoint, RankOptions, RankRun, Resume};
 pub use results::{FieldsKept, History, ProbeStatistics, Results, StepFields};
 pub use simulation::{prepare_output, read_scenario, run_plan, Cancel, RunOptions, Simulation};

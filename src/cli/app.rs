@@ -577,9 +577,18 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                         s.duration,
                         s.kind.nominal_steps(s.duration)
                     ),
-                    StageKind::Modes { count, shift_hz } => println!(
-                        "stage {i} `{}`: modes, {count} nearest to {shift_hz} Hz",
-                        s.name
+                    StageKind::Modes {
+                        count,
+                        shift_hz,
+                        ref harmonics,
+                    } => println!(
+                        "stage {i} `{}`: modes, {count} nearest to {shift_hz} Hz{}",
+                        s.name,
+                        if harmonics == &[0] {
+                            String::new()
+                        } else {
+                            format!(" of each harmonic {harmonics:?}")
+                        }
                     ),
                     StageKind::Continuation {
                         steps,

@@ -3,7 +3,7 @@
 //! electrodes held at the voltages they have there (a DC bias lowers the frequencies). Writes a
 //! table and the mode shapes for ParaView.
 
-use crate::api::{loaded_modes, modes_plan, RunOptions};
+use crate::api::{loaded_modes_of_harmonics, modes_plan, RunOptions};
 use crate::cli::app::{fail, load_scenario, EXIT_BAD_INPUT, EXIT_OK, EXIT_SOLVE_FAILED};
 use crate::io::linear::write_modes;
 use crate::io::results::ResultsDir;
@@ -17,6 +17,7 @@ pub fn cmd_modes(
     overrides: &[String],
     count: usize,
     shift_hz: f64,
+    harmonics: &[u32],
     overwrite: bool,
 ) -> i32 {
     let (_, plan) = match load_scenario(scenario, overrides) {
@@ -35,6 +36,14 @@ pub fn cmd_modes(
         Ok(p) => p,
         Err(e) => return fail(&e),
     };
+    if harmonics.iter().any(|&n| n > 0) && !plan.model.is_axisymmetric() {
+        eprintln!(
+            "error: --harmonic: circumferential harmonics n ≥ 1 are modes of an axisymmetric \
+             model (`mesh.geometry = \"axisymmetric\"`); a 3-D model finds every mode with \
+             harmonic 0"
+        );
+        return EXIT_BAD_INPUT;
+    }
     let dir: PathBuf = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| Path::new("deasim-out").join(format!("{}-modes", plan.name)));
@@ -46,7 +55,8 @@ pub fn cmd_modes(
             return EXIT_BAD_INPUT;
         }
     };
-    let loaded = match loaded_modes(&plan, &settings, RunOptions::default()) {
+    let loaded = match loaded_modes_of_harmonics(&plan, &settings, harmonics, RunOptions::default())
+    {
         Ok(m) => m,
         Err(e) => return fail(&e),
     };
@@ -69,9 +79,15 @@ pub fn cmd_modes(
     if let Some(note) = &loaded.note {
         println!("note: {note}");
     }
-    println!("  mode  frequency_hz     residual");
+    println!("  mode  harmonic  frequency_hz     residual");
     for (i, m) in found.iter().enumerate() {
-        println!("  {:>4} {:>12.6} {:>12.1e}", i + 1, m.frequency, m.residual);
+        println!(
+            "  {:>4} {:>9} {:>13.6} {:>12.1e}",
+            i + 1,
+            m.harmonic,
+            m.frequency,
+            m.residual
+        );
     }
     let written = write_modes(&plan, &dir, "modes", state, found);
     match written.and(results.record()) {

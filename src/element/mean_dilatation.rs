@@ -720,6 +720,93 @@ fn fields_md(
     out
 }
 
+/// The second derivatives of a mean-dilatation cell's energy as bilinear forms in the point
+/// variations (δF_q, δE₀_q): per point q the weighted blocks (w_q, A_q, B_q, G_q) of
+/// ∂²ψ/∂F² + (H/V) ∂cof F/∂F, QᵀB̄ and Ḡ (the per-point part of
+/// [`cell_residual_tangent_md`]), and the couplings through θ̄ as linear forms:
+/// δθ̄ = Σ_q m_q : δF_q, b = Σ_q w_q b_q : δF_q, e = Σ_q w_q e_q · δE₀_q, with the Hessian part
+/// b ⊗ δθ̄ + δθ̄ ⊗ b + d δθ̄ ⊗ δθ̄ + δθ̄ ⊗ e + e ⊗ δθ̄. The same numbers as the tangent, for a
+/// kinematics other than the cell's own (the circumferential harmonics of a meridian cell).
+pub(crate) struct MdHessian {
+    pub points: Vec<(f64, Mat9, Mat93, Mat3)>,
+    /// m_q (cof F_q w_q / V), b_q, e_q per point.
+    pub m: Vec<[f64; 9]>,
+    pub b: Vec<[f64; 9]>,
+    pub e: Vec<[f64; 3]>,
+    pub d: f64,
+}
+
+/// [`MdHessian`] of a cell at `local`.
+pub(crate) fn md_hessian(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    local: &[f64],
+) -> Result<MdHessian, PointFailure> {
+    let nq = geom.n_qp;
+    let mut kin = MdKinematics::identity();
+    kin.compute(geom, local)?;
+    let theta = kin.theta;
+    let vol = kin.volume;
+    let mut tans = Vec::with_capacity(nq);
+    let mut s = [0.0; MAX_QP];
+    let mut h = 0.0;
+    for q in 0..nq {
+        let fbar = kin.fbar(q);
+        let t = mat
+            .tangent_at(&fbar, &kin.e0[q], hist.at(q))
+            .map_err(fail(q))?;
+        s[q] = t.p.dot(&fbar);
+        h += geom.weights[q] * s[q] / (3.0 * theta);
+        tans.push(t);
+    }
+    let pm = h / vol;
+    let mut out = MdHessian {
+        points: Vec::with_capacity(nq),
+        m: Vec::with_capacity(nq),
+        b: Vec::with_capacity(nq),
+        e: Vec::with_capacity(nq),
+        d: 0.0,
+    };
+    for (q, t) in tans.iter().enumerate() {
+        let w = geom.weights[q];
+        let (alpha, j) = (kin.alpha[q], kin.j[q]);
+        let fi = to9(&kin.finv_t[q]);
+        let f9 = to9(&kin.f[q]);
+        let pb9 = to9(&t.p);
+        let cof9 = fi * j;
+        let sq = s[q];
+        let a_f: Vec9 = t.a * f9;
+        let faf = f9.dot(&a_f);
+        let a2 = alpha * alpha;
+        let psi_f: Vec9 = pb9 * alpha - fi * (sq / 3.0);
+        let mut a_eff: Mat9 = t.a * a2;
+        for r9 in 0..9 {
+            let (kk, ll) = (r9 / 3, r9 % 3);
+            for c9 in 0..9 {
+                let (m, nn) = (c9 / 3, c9 % 3);
+                let mut v = a2
+                    * (-(fi[r9] * a_f[c9] + a_f[r9] * fi[c9]) / 3.0 + faf / 9.0 * fi[r9] * fi[c9]);
+                v += -alpha / 3.0 * (pb9[r9] * fi[c9] + fi[r9] * pb9[c9])
+                    + sq / 9.0 * fi[r9] * fi[c9]
+                    + sq / 3.0 * fi[kk * 3 + nn] * fi[m * 3 + ll];
+                v += pm * (cof9[c9] * cof9[r9] - cof9[m * 3 + ll] * cof9[kk * 3 + nn]) / j;
+                a_eff[(r9, c9)] += v;
+            }
+        }
+        let f_b: Vec3 = t.b.transpose() * f9;
+        let b_eff: Mat93 = (t.b - fi * f_b.transpose() / 3.0) * alpha;
+        let bq: Vec9 = ((a_f - fi * (faf / 3.0)) * a2 + psi_f) / (3.0 * theta);
+        out.d += w * (a2 * faf - 2.0 * sq) / (9.0 * theta * theta);
+        let eq: Vec3 = f_b * (alpha / (3.0 * theta));
+        out.points.push((w, a_eff, b_eff, t.g));
+        out.m.push(std::array::from_fn(|i| cof9[i] * w / vol));
+        out.b.push(std::array::from_fn(|i| bq[i]));
+        out.e.push([eq[0], eq[1], eq[2]]);
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -452,6 +452,7 @@ mod tests {
                     wall_s: 0.1,
                     converged: true,
                     modes_hz: vec![30.5],
+                    modes_harmonic: vec![0],
                     linear: Default::default(),
                 }],
                 warnings: vec![],

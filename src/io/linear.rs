@@ -12,7 +12,7 @@ use crate::time::modal::Mode;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// `<stem>.csv` (mode, frequency, eigenvalue, residual), `<stem>.pvd` and `<stem>/mode_NN.vtu`
+/// `<stem>.csv` (mode, frequency, eigenvalue, residual, circumferential harmonic), `<stem>.pvd` and `<stem>/mode_NN.vtu`
 /// (the shapes scaled to a largest displacement of 1 on the deformed state `state`), encoded as
 /// the field files (`output.vtu_format`).
 pub fn write_modes(
@@ -24,15 +24,16 @@ pub fn write_modes(
 ) -> Result<(), String> {
     let shapes_dir = dir.join(stem);
     std::fs::create_dir_all(&shapes_dir).map_err(|e| format!("{}: {e}", shapes_dir.display()))?;
-    let mut csv = String::from("mode,frequency_hz,eigenvalue_rad2_per_s2,residual\n");
+    let mut csv = String::from("mode,frequency_hz,eigenvalue_rad2_per_s2,residual,harmonic\n");
     for (i, m) in found.iter().enumerate() {
         let _ = writeln!(
             csv,
-            "{},{},{},{:e}",
+            "{},{},{},{:e},{}",
             i + 1,
             m.frequency,
             m.eigenvalue,
-            m.residual
+            m.residual,
+            m.harmonic
         );
     }
     let path = dir.join(format!("{stem}.csv"));

@@ -709,6 +709,9 @@ impl OutputWriter {
                 .iter()
                 .map(|&f| json_number(f))
                 .collect::<Vec<_>>());
+            if last.modes_harmonic.iter().any(|&n| n > 0) {
+                v["modes_harmonic"] = json!(last.modes_harmonic);
+            }
             if let Some(note) = crate::job::linear::mode_symmetry_note(plan) {
                 v["modes_note"] = json!(note);
             }

@@ -246,6 +246,11 @@ pub struct RigidSpec {
     /// the attached mass, a dashpot to ground; dynamic stages only.
     #[serde(default)]
     pub damping: f64,
+    /// Rotary inertia (kg·m², whole region) about a diameter through the node the mass is
+    /// attached to: an axisymmetric model's region then tilts in the modes of harmonic 1. Without
+    /// it a rigid region does not rotate (as in 3-D).
+    #[serde(default)]
+    pub rotary_inertia: Option<f64>,
 }
 
 /// The mesh: a generator with its parameters, or a file.
@@ -656,6 +661,9 @@ pub struct StageSpec {
     /// `modes`: the modes nearest to this frequency (Hz, default 0: the lowest).
     #[serde(default)]
     pub shift: Option<f64>,
+    /// `modes` of an axisymmetric model: the circumferential harmonic n (default 0), or a list.
+    #[serde(default)]
+    pub harmonic: Option<Numbers>,
     /// `frequency-response`: the electrode that carries the small voltage (default: the first
     /// with a non-zero voltage).
     #[serde(default)]

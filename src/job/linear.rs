@@ -16,6 +16,7 @@ use crate::problem::dofs::{Dirichlet, Field, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::solve::stepping::StepControl;
 use crate::time::frequency::{linearise, relaxed_model, Linearisation};
+use crate::time::harmonic::{harmonic_modes, Tilt};
 use crate::time::mass::{MassKind, NodalMass};
 use crate::time::modal::{modes, Mode, ModeSettings};
 use crate::time::reduced::{Outputs, ReducedModel};
@@ -110,7 +111,42 @@ pub fn modes_at(plan: &Plan, state: &[f64], settings: &ModeSettings) -> Result<V
     let (model, base) = base_state(plan, state)?;
     let relaxed = relaxed_model(&model);
     let mass = device_mass(plan, &relaxed);
+    if settings.harmonic > 0 {
+        let tilts: Vec<Tilt> = plan
+            .rigid
+            .iter()
+            .filter_map(|r| {
+                r.rotary_inertia.map(|inertia| Tilt {
+                    node: r.nodes[0],
+                    inertia,
+                })
+            })
+            .collect();
+        return harmonic_modes(&relaxed, &base, &mass, settings, settings.harmonic, &tilts);
+    }
     modes(&relaxed, &base, &mass, &plan.solver, settings)
+}
+
+/// [`modes_at`] of each circumferential harmonic of `harmonics` (axisymmetric models; `[0]` for
+/// the model's own modes), in that order, each harmonic's lowest (or nearest the shift) first.
+pub fn modes_of_harmonics(
+    plan: &Plan,
+    state: &[f64],
+    settings: &ModeSettings,
+    harmonics: &[u32],
+) -> Result<Vec<Mode>, String> {
+    let mut out = Vec::new();
+    for &n in harmonics {
+        out.extend(modes_at(
+            plan,
+            state,
+            &ModeSettings {
+                harmonic: n,
+                ..*settings
+            },
+        )?);
+    }
+    Ok(out)
 }
 
 /// The probes that have a linearisation (not the energies and the largest field), plan indices.
@@ -275,9 +311,9 @@ pub fn mode_symmetry_note(plan: &Plan) -> Option<String> {
     let f = plan.symmetry_factor;
     if plan.model.is_axisymmetric() {
         let mut note =
-            "the axisymmetric model represents only axisymmetric modes (circumferential \
-                        harmonic n = 0): rocking (n = 1) and modes with nodal diameters (n ≥ 1) \
-                        are not found"
+            "an axisymmetric model finds the modes of one circumferential harmonic at a time \
+                        (`harmonic`, default 0: the axisymmetric modes); lateral motion of a pad \
+                        (n = 1) and modes with n nodal diameters need `harmonic = n`"
                 .to_string();
         if f > 1.0 {
             note.push_str("; nor modes antisymmetric about its plane of symmetry");

@@ -743,6 +743,7 @@ mod tests {
         plan.stages[0].kind = StageKind::Modes {
             count: 3,
             shift_hz: 0.0,
+            harmonics: vec![0],
         };
         let e = messages(&plan, 2, 0).err().expect("refused");
         assert!(

@@ -46,8 +46,13 @@ pub enum StageKind {
         mass: MassKind,
     },
     /// The natural modes about the state the previous stage left: the `count` modes nearest to
-    /// `shift_hz` (Hz). Takes no time and changes no state.
-    Modes { count: usize, shift_hz: f64 },
+    /// `shift_hz` (Hz) of each circumferential harmonic of `harmonics` (`[0]`: the model's own
+    /// modes; n ≥ 1 for axisymmetric models). Takes no time and changes no state.
+    Modes {
+        count: usize,
+        shift_hz: f64,
+        harmonics: Vec<u32>,
+    },
     /// The frequency response of the probes to a small voltage on electrode `electrode` (plan
     /// index) about the state the previous stage left. Takes no time and changes no state.
     FrequencyResponse {
@@ -448,7 +453,12 @@ pub struct Rigid {
     pub mass: f64,
     /// The acceleration of gravity on it (m/s²): its weight, mass · gravity, is a dead load at
     /// its first node.
+    #[serde(default)]
     pub gravity: [f64; 3],
+    /// Rotary inertia (kg·m²) about a diameter through the attachment node `nodes[0]`: the
+    /// region tilts in the modes of harmonic 1 of an axisymmetric model; `None`: no rotation.
+    #[serde(default)]
+    pub rotary_inertia: Option<f64>,
 }
 
 /// How a frequency response is computed.

@@ -5,7 +5,7 @@
 //! numbers, bit for bit, as one without, and a run resumed from a state continues exactly as the
 //! run that went on.
 
-use super::linear::{frequency_response_at, modes_at};
+use super::linear::{frequency_response_at, modes_of_harmonics};
 use super::observer::{DynamicStart, Observer, Observers};
 use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
@@ -296,6 +296,7 @@ impl<'p, 'o> Job<'p, 'o> {
             wall_s: 0.0,
             converged: true,
             modes_hz: Vec::new(),
+            modes_harmonic: Vec::new(),
             linear: Default::default(),
         };
         let failure = match stage.kind {
@@ -343,16 +344,21 @@ impl<'p, 'o> Job<'p, 'o> {
     fn linearised_stage(&mut self, stage: &Stage, summary: &mut StageSummary) -> Option<String> {
         let plan = self.plan;
         match &stage.kind {
-            StageKind::Modes { count, shift_hz } => {
+            StageKind::Modes {
+                count,
+                shift_hz,
+                harmonics,
+            } => {
                 summary.kind = "modes".into();
                 let settings = ModeSettings {
                     count: *count,
                     shift_hz: *shift_hz,
                     ..Default::default()
                 };
-                match modes_at(plan, &self.state.q, &settings) {
+                match modes_of_harmonics(plan, &self.state.q, &settings, harmonics) {
                     Ok(found) => {
                         summary.modes_hz = found.iter().map(|m| m.frequency).collect();
+                        summary.modes_harmonic = found.iter().map(|m| m.harmonic).collect();
                         self.observer
                             .modes(plan, &stage.name, &self.state.q, &found);
                         None
@@ -453,6 +459,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     wall_s: started.elapsed().as_secs_f64(),
                     converged: false,
                     modes_hz: Vec::new(),
+                    modes_harmonic: Vec::new(),
                     linear: Default::default(),
                 });
                 false

@@ -88,6 +88,10 @@ pub struct StageSummary {
     /// Natural frequencies (Hz) found by a `modes` stage (empty for other kinds).
     #[serde(default)]
     pub modes_hz: Vec<f64>,
+    /// The circumferential harmonic of each of `modes_hz` (0 but for an axisymmetric model's
+    /// `harmonic`).
+    #[serde(default)]
+    pub modes_harmonic: Vec<u32>,
     /// The linear solvers' work (static and dynamic stages; a resumed static stage's from its
     /// checkpoint on; zero for modes and frequency-response stages).
     #[serde(default)]

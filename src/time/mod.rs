@@ -3,6 +3,7 @@
 //! vibrations about a converged state (modes, frequency response).
 
 pub mod frequency;
+pub mod harmonic;
 pub mod integrator;
 pub mod mass;
 pub mod modal;

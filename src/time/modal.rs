@@ -38,6 +38,10 @@ pub struct Mode {
     /// Relative residual ‖(S − σM)⁻¹Mφ − θφ‖_M / |θ| of the shift-inverted pair (θ = 1/(ω² − σ)),
     /// computed by one more solve.
     pub residual: f64,
+    /// Circumferential harmonic n of an axisymmetric model's mode (0: axisymmetric, and every
+    /// mode of a 3-D model); its shape holds the amplitudes of cos nΘ (u_r, u_z, Φ) and sin nΘ
+    /// (u_θ, slot 2) ([`crate::time::harmonic`]).
+    pub harmonic: u32,
 }
 
 /// Settings of [`modes`].
@@ -49,6 +53,8 @@ pub struct ModeSettings {
     pub shift_hz: f64,
     /// Relative residual at which a Ritz pair is accepted.
     pub tolerance: f64,
+    /// Circumferential harmonic n of an axisymmetric model (0: the axisymmetric modes).
+    pub harmonic: u32,
 }
 
 impl Default for ModeSettings {
@@ -57,6 +63,7 @@ impl Default for ModeSettings {
             count: 6,
             shift_hz: 0.0,
             tolerance: 1e-9,
+            harmonic: 0,
         }
     }
 }
@@ -317,6 +324,7 @@ fn lanczos_modes(
                         eigenvalue,
                         shape,
                         residual,
+                        harmonic: 0,
                     })
                 })
                 .collect::<Result<Vec<Mode>, String>>()?;

@@ -386,11 +386,31 @@ fn build_rigid(
         if mass > 0.0 && g != [0.0; 3] {
             model.point_forces.push((nodes[0], g.map(|a| mass * a)));
         }
+        let rotary_inertia = match r.rotary_inertia {
+            None => None,
+            Some(i) if !model.is_axisymmetric() => {
+                return Err(ctx.err(
+                    format!("{key}.rotary_inertia"),
+                    format!(
+                        "a rigid region of a 3-D model does not rotate (its translations are \
+                         tied); the tilt of a pad is an axisymmetric model's harmonic 1; got {i}"
+                    ),
+                ))
+            }
+            Some(i) if i.is_finite() && i > 0.0 => Some(i / symmetry_factor),
+            Some(i) => {
+                return Err(ctx.err(
+                    format!("{key}.rotary_inertia"),
+                    format!("expected a rotary inertia in kg·m² > 0; got {i}"),
+                ))
+            }
+        };
         rigid.push(Rigid {
             set: r.set.clone(),
             nodes,
             mass,
             gravity: g,
+            rotary_inertia,
         });
     }
     Ok(rigid)

@@ -112,6 +112,20 @@ pub fn build_with(
             ));
         }
     }
+    if !model.is_axisymmetric() {
+        if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
+            matches!(&st.kind, crate::job::plan::StageKind::Modes { harmonics, .. }
+                if harmonics.iter().any(|&n| n > 0))
+        }) {
+            return Err(ctx.err(
+                format!("stages.{i}.harmonic"),
+                "circumferential harmonics n ≥ 1 are modes of an axisymmetric model \
+                 (`mesh.geometry = \"axisymmetric\"`); a 3-D model finds every mode with \
+                 `harmonic = 0`"
+                    .to_string(),
+            ));
+        }
+    }
     if !model.circuits.is_empty() {
         if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
             matches!(

@@ -80,6 +80,7 @@ fn build_stage(
         ("to", st.to.is_some()),
         ("points", st.points.is_some()),
         ("method", st.method.is_some()),
+        ("harmonic", st.harmonic.is_some()),
     ];
     if matches!(st.kind.as_str(), "modes" | "frequency-response") {
         for (k, v) in [
@@ -114,6 +115,8 @@ fn build_stage(
         }
         let kind = if st.kind == "modes" {
             modes_kind(ctx, &key, st)?
+        } else if st.harmonic.is_some() {
+            return Err(ctx.err(format!("{key}.harmonic"), "applies to `modes` stages only"));
         } else {
             response_kind(ctx, &key, st, electrodes)?
         };
@@ -188,7 +191,11 @@ fn build_stage(
     })
 }
 
-/// `kind = "modes"`: `count` modes (default 6) nearest to `shift` (Hz, default 0).
+/// The largest circumferential harmonic a `modes` stage takes.
+const MAX_HARMONIC: f64 = 1000.0;
+
+/// `kind = "modes"`: `count` modes (default 6) nearest to `shift` (Hz, default 0) of each
+/// circumferential harmonic of `harmonic` (default 0).
 fn modes_kind(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<StageKind, InputError> {
     let count = st.count.unwrap_or(6);
     if !(1..=200).contains(&count) {
@@ -207,9 +214,36 @@ fn modes_kind(ctx: &Ctx, key: &str, st: &StageSpec) -> Result<StageKind, InputEr
             ),
         ));
     }
+    let harmonics = match &st.harmonic {
+        None => vec![0],
+        Some(h) => {
+            let values = h.to_vec();
+            let mut out = Vec::with_capacity(values.len());
+            for v in values {
+                if !(v.fract() == 0.0 && (0.0..=MAX_HARMONIC).contains(&v)) {
+                    return Err(ctx.err(
+                        format!("{key}.harmonic"),
+                        format!(
+                            "expected a circumferential harmonic n, an integer from 0 to \
+                             {MAX_HARMONIC}, or a list of them; got {v}"
+                        ),
+                    ));
+                }
+                out.push(v as u32);
+            }
+            if out.is_empty() {
+                return Err(ctx.err(
+                    format!("{key}.harmonic"),
+                    "expected at least one harmonic".to_string(),
+                ));
+            }
+            out
+        }
+    };
     Ok(StageKind::Modes {
         count: count as usize,
         shift_hz,
+        harmonics,
     })
 }
 
