@@ -54,13 +54,15 @@ impl Cotangent {
     }
 }
 
-/// What the stage's steps share.
-struct Stage<'a> {
+/// What the stage's steps share: the step's and the projection's systems, set up once and moved
+/// to each step's point.
+struct Stage<'a, 'm> {
     dynamics: &'a TapedDynamics,
     drive: &'a Drive,
     scheme: Scheme,
-    step_model: Model,
-    projection: Model,
+    step_model: &'m Model,
+    step: TimeStep<'m>,
+    projection: StaticProblem<'m>,
     waveform: Vec<usize>,
     /// Whether the stage's electrodes follow their waveforms (off: grounded).
     electrodes_on: bool,
@@ -93,21 +95,33 @@ pub fn sweep(
         }
     };
     let step_model = step_model(&st.model, &st.drive, dynamics.given.t);
-    let projection = projection_model(&step_model);
+    let projection_model = projection_model(&step_model);
     let n = st.start.len();
-    let s = Stage {
-        dynamics,
-        drive: &st.drive,
-        scheme,
-        waveform: waveform_dofs(&st.drive, n),
-        step_model,
-        projection,
-        electrodes_on: stage.electrodes_on,
-    };
     let initial = dynamics
         .initial
         .as_ref()
         .ok_or_else(|| format!("stage `{}` took no step", stage.name))?;
+    let mut step = TimeStep::new(
+        &step_model,
+        &dynamics.mass,
+        dynamics.viscosity.clone(),
+        scheme,
+        initial.clone(),
+    );
+    step.exact_jacobian = true;
+    let mut projection = StaticProblem::new(&projection_model, Some(st.start.clone()));
+    projection.set_drive(Drive::held(&projection_model));
+    projection.set_load(1.0);
+    let mut s = Stage {
+        dynamics,
+        drive: &st.drive,
+        scheme,
+        waveform: waveform_dofs(&st.drive, n),
+        step_model: &step_model,
+        step,
+        projection,
+        electrodes_on: stage.electrodes_on,
+    };
     // the levels in stage time, as the integrator reached them
     let mut levels: Vec<TimeLevel> = Vec::with_capacity(st.steps.len());
     let mut t = initial.t;
@@ -132,17 +146,17 @@ pub fn sweep(
         } else {
             &taped.iterate
         };
-        c = step_adjoint(&s, prev, &levels[k], iterate, taped.dt, c, sink)?;
+        c = step_adjoint(&mut s, prev, &levels[k], iterate, taped.dt, c, sink)?;
     }
     match scheme {
         Scheme::Midpoint => Ok(c),
-        Scheme::Newmark { .. } => newmark_start_adjoint(&s, initial, c, sink),
+        Scheme::Newmark { .. } => newmark_start_adjoint(&mut s, initial, c, sink),
     }
 }
 
 /// The adjoint of one step from `prev` to `level` with the step's unknown `iterate`.
 fn step_adjoint(
-    s: &Stage,
+    s: &mut Stage,
     prev: &TimeLevel,
     level: &TimeLevel,
     iterate: &[f64],
@@ -186,18 +200,12 @@ fn step_adjoint(
         }
     }
     // the step's equations
-    let mut step = TimeStep::new(
-        &s.step_model,
-        &s.dynamics.mass,
-        s.dynamics.viscosity.clone(),
-        s.scheme,
-        prev.clone(),
-    );
+    let step = &mut s.step;
+    step.prev.clone_from(prev);
     step.dt = dt;
     step.q.copy_from_slice(iterate);
-    step.exact_jacobian = true;
-    let lambda = solve_adjoint(&mut step, &cy)?;
-    sink.step_materials(&mut step, &lambda)?;
+    let lambda = solve_adjoint(step, &cy)?;
+    sink.step_materials(step, &lambda)?;
     for (i, node) in sink_rigid(sink) {
         sink.rigid_mass(i, -step.point_mass_vjp(&lambda, node));
     }
@@ -313,19 +321,17 @@ impl HasDofs for StaticProblem<'_> {
 /// displacements, and potentials held by supports) and gives the electrodes' voltages at `t`
 /// and the materials' parameters theirs.
 fn projection_adjoint(
-    s: &Stage,
+    s: &mut Stage,
     q: &[f64],
     g: &[f64],
     t: f64,
     out: &mut [f64],
     sink: &mut Sink,
 ) -> Result<(), String> {
-    let mut problem = StaticProblem::new(&s.projection, Some(q.to_vec()));
-    problem.set_drive(Drive::held(&s.projection));
+    let problem = &mut s.projection;
     problem.state.copy_from_slice(q);
-    problem.set_load(1.0);
-    let mu = solve_adjoint(&mut problem, g)?;
-    sink.step_materials(&mut problem, &mu)?;
+    let mu = solve_adjoint(problem, g)?;
+    sink.step_materials(problem, &mu)?;
     let lv = problem.level_vjp(&mu)?;
     for (d, &e) in problem.dofs.eq.iter().enumerate() {
         let a = g[d] - lv.q_new[d];
@@ -350,13 +356,13 @@ fn projection_adjoint(
 /// its time, then the consistent acceleration. `c` is the cotangent of `initial`, the level it
 /// gave.
 fn newmark_start_adjoint(
-    s: &Stage,
+    s: &mut Stage,
     initial: &TimeLevel,
     c: Cotangent,
     sink: &mut Sink,
 ) -> Result<Cotangent, String> {
     let n = c.q.len();
-    let model = &s.step_model;
+    let model = s.step_model;
     let probe = TimeStep::new(
         model,
         &s.dynamics.mass,
