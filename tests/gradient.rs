@@ -143,8 +143,12 @@ fn unsupported_and_bad_input_is_refused() {
     assert!(e.to_string().contains("charge"), "{e}");
     let e = bad("[[parameters]]\npath = \"materials.elastomer.mu\"\n[[objective]]\nkind = \"probe-misfit\"\nprobe = \"thickness_stretch\"\ndata = \"missing.csv\"\n").unwrap_err();
     assert!(e.to_string().contains("missing.csv"), "{e}");
-    let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"rest\"\n")).unwrap_err();
+    let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"field-penalty\"\n")).unwrap_err();
     assert!(e.to_string().contains("objective.1.kind"), "{e}");
+    let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"rest\"\n")).unwrap_err();
+    assert!(e.to_string().contains("objective.1.stage"), "{e}");
+    let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"drive-effort\"\nelectrode = \"top\"\n")).unwrap_err();
+    assert!(e.to_string().contains("objective.1.electrode"), "{e}");
     let e = bad(probe_final).unwrap_err();
     assert!(e.to_string().contains("parameters"), "{e}");
 }
@@ -418,4 +422,62 @@ fn a_control_at_its_waveforms_values_runs_the_same_drive() {
     for (a, b) in plain.iter().zip(&controlled) {
         assert!((a - b).abs() <= 1e-12 * a.abs(), "{a} {b}");
     }
+}
+
+/// A controlled film brought to rest: the kinetic energy at the stage's end, the drive's effort
+/// in its value and its rate, and a probe's final value, in the control's knots and μ. Each term
+/// weighs in J (measured with `deasim gradient`: 0.15, 0.38, 0.60 and 0.006 of J = 1.14).
+#[test]
+fn rest_and_drive_effort_in_the_knots_of_a_control() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = deasim::io::examples::example("film-vibration").unwrap();
+    let text = format!(
+        "{base}\n{}",
+        r#"
+[[parameters]]
+path = "materials.elastomer.mu"
+
+[[controls]]
+electrode = "top"
+interval = 1e-3
+values = [0.0, 8e3, 14e3, 18e3, 20e3]
+
+[[objective]]
+kind = "rest"
+weight = 1e6
+
+[[objective]]
+kind = "drive-effort"
+electrode = "top"
+weight = 1e-6
+
+[[objective]]
+kind = "drive-effort"
+electrode = "top"
+of = "rate"
+weight = 1e-11
+
+[[objective]]
+kind = "probe-final"
+probe = "inplane_stretch"
+target = 1.02
+weight = 100.0
+"#
+    );
+    let r = Simulation::from_toml(&text, Some(dir.path()))
+        .with_overrides(&[
+            "mesh.divisions=[2, 2, 1]".into(),
+            "stages.0.duration=4e-3".into(),
+            "stages.0.dt=2e-4".into(),
+            "materials.elastomer.viscosity=50.0".into(),
+            "solver.newton_rtol=1e-13".into(),
+            "output.plots=false".into(),
+        ])
+        .gradient(&GradientOptions {
+            check: true,
+            ..Default::default()
+        })
+        .unwrap();
+    assert_checked(&r, 1e-6);
+    assert_controls_checked(&r, 1e-6);
 }

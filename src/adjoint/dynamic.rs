@@ -68,14 +68,15 @@ struct Stage<'a, 'm> {
     electrodes_on: bool,
 }
 
-/// The adjoint of the dynamic stage `st` of a taped run: `state_grads[k]` is ∂J/∂q of its k-th
-/// accepted level (empty: none), `end` the cotangent of its last level from the stages after
+/// The adjoint of the dynamic stage `st` of a taped run: `state_grads[k]` and `velocity_grads[k]`
+/// are ∂J/∂q and ∂J/∂v of its k-th accepted level (empty: none), `end` the cotangent of its last level from the stages after
 /// it. The parameters' derivatives go to `sink`; returns the cotangent of the level the stage
 /// started from (as given to the integrator).
 pub fn sweep(
     plan: &Plan,
     st: &TapedStage,
     state_grads: &[Vec<f64>],
+    velocity_grads: &[Vec<f64>],
     end: Cotangent,
     sink: &mut Sink,
 ) -> Result<Cotangent, String> {
@@ -138,6 +139,9 @@ pub fn sweep(
     for k in (0..st.steps.len()).rev() {
         if let Some(g) = state_grads.get(k).filter(|g| !g.is_empty()) {
             c.q.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        }
+        if let Some(g) = velocity_grads.get(k).filter(|g| !g.is_empty()) {
+            c.v.iter_mut().zip(g).for_each(|(a, b)| *a += b);
         }
         let prev = if k == 0 { initial } else { &levels[k - 1] };
         let taped = &st.steps[k];

@@ -24,6 +24,17 @@ pub enum Term {
         data: Vec<(f64, f64)>,
         weight: f64,
     },
+    /// ½ · weight · ∫ V² dt (`rate`: ∫ (dV/dt)² dt) over a stage of a controlled electrode's
+    /// piecewise-linear voltage: exact for the table, a sum over its intervals.
+    DriveEffort {
+        /// The stage and the electrode's name (a control of that stage).
+        stage: usize,
+        electrode: String,
+        rate: bool,
+        weight: f64,
+    },
+    /// weight · ½ vᵀMv: the kinetic energy at the end of a dynamic stage.
+    Rest { stage: usize, weight: f64 },
 }
 
 /// J: the sum of its terms.
@@ -40,6 +51,11 @@ pub struct Evaluation {
     pub state: Vec<Vec<Vec<f64>>>,
     /// ∂J/∂(the reference state of deflections: the pre-stretched one).
     pub reference: Vec<f64>,
+    /// ∂J/∂vₖ per taped step of a dynamic stage (empty where J does not read it).
+    pub velocity: Vec<Vec<Vec<f64>>>,
+    /// ∂J/∂(the knots of each control) that J reads directly (the drive effort), in the plan's
+    /// order of the stages' controls.
+    pub controls: Vec<Vec<f64>>,
 }
 
 impl Objective {
@@ -82,6 +98,22 @@ impl Objective {
             .as_ref()
             .map_or_else(|| vec![0.0; n], |(_, s)| s.clone());
         let mut reference = vec![0.0; n];
+        let mut velocity: Vec<Vec<Vec<f64>>> = tape
+            .stages
+            .iter()
+            .map(|st| vec![Vec::new(); st.steps.len()])
+            .collect();
+        let knots: Vec<ControlKnots> = plan
+            .stages
+            .iter()
+            .enumerate()
+            .flat_map(|(si, s)| {
+                s.controls
+                    .iter()
+                    .map(move |(e, k)| (si, e.as_str(), k.as_slice()))
+            })
+            .collect();
+        let mut controls: Vec<Vec<f64>> = knots.iter().map(|k| vec![0.0; k.2.len()]).collect();
         let mut add = |si: usize, k: usize, g: &[f64], factor: f64, reads_reference: bool| {
             let slot = &mut state[si][k];
             if slot.is_empty() {
@@ -99,6 +131,47 @@ impl Objective {
             let (probe, stage) = match t {
                 Term::ProbeFinal { probe, stage, .. } | Term::ProbeMisfit { probe, stage, .. } => {
                     (*probe, *stage)
+                }
+                Term::DriveEffort {
+                    stage,
+                    electrode,
+                    rate,
+                    weight,
+                } => {
+                    let c = knots
+                        .iter()
+                        .position(|(si, e, _)| si == stage && e == electrode)
+                        .ok_or_else(|| format!("no control of `{electrode}` in the stage"))?;
+                    let (e, g) = effort(knots[c].2, *rate);
+                    value += 0.5 * weight * e;
+                    controls[c]
+                        .iter_mut()
+                        .zip(&g)
+                        .for_each(|(a, b)| *a += 0.5 * weight * b);
+                    continue;
+                }
+                Term::Rest { stage, weight } => {
+                    let Some(si) = tape.stages.iter().position(|st| st.index == *stage) else {
+                        return Err(format!(
+                            "the objective reads stage `{}`, which the run did not reach",
+                            plan.stages[*stage].name
+                        ));
+                    };
+                    let st = &tape.stages[si];
+                    let d = st.dynamics.as_ref().ok_or_else(|| {
+                        format!("stage `{}` is no dynamic stage", plan.stages[*stage].name)
+                    })?;
+                    let k = st.steps.len() - 1;
+                    let v = &st.steps[k].v;
+                    let mut mv = vec![0.0; v.len()];
+                    d.mass.mul(v, &mut mv);
+                    value += weight * 0.5 * v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
+                    let slot = &mut velocity[si][k];
+                    if slot.is_empty() {
+                        slot.resize(v.len(), 0.0);
+                    }
+                    slot.iter_mut().zip(&mv).for_each(|(s, m)| *s += weight * m);
+                    continue;
                 }
             };
             let (name, p) = &plan.probes[probe];
@@ -130,12 +203,15 @@ impl Objective {
                         add(si, k, &g, weight * (v - d), p.reads_reference());
                     }
                 }
+                Term::DriveEffort { .. } | Term::Rest { .. } => {}
             }
         }
         Ok(Evaluation {
             value,
             state,
             reference,
+            velocity,
+            controls,
         })
     }
 }
@@ -156,6 +232,34 @@ fn nodal_value(p: &crate::job::probes::Probe, state: &[f64], reference: &[f64]) 
         pressures: &[],
         charges: &[],
     })
+}
+
+/// A control as J reads it: its stage, its electrode's name and its knots (s, V).
+type ControlKnots<'a> = (usize, &'a str, &'a [(f64, f64)]);
+
+/// ∫ V² dt (`rate`: ∫ (dV/dt)² dt) of the piecewise-linear table through `knots` and its
+/// derivatives in the knots' values: on an interval of length h from a to b, h(a² + ab + b²)/3,
+/// or (b − a)²/h.
+fn effort(knots: &[(f64, f64)], rate: bool) -> (f64, Vec<f64>) {
+    let mut value = 0.0;
+    let mut g = vec![0.0; knots.len()];
+    for i in 1..knots.len() {
+        let ((t0, a), (t1, b)) = (knots[i - 1], knots[i]);
+        let h = t1 - t0;
+        if h <= 0.0 {
+            continue;
+        }
+        if rate {
+            value += (b - a).powi(2) / h;
+            g[i - 1] -= 2.0 * (b - a) / h;
+            g[i] += 2.0 * (b - a) / h;
+        } else {
+            value += h * (a * a + a * b + b * b) / 3.0;
+            g[i - 1] += h * (2.0 * a + b) / 3.0;
+            g[i] += h * (a + 2.0 * b) / 3.0;
+        }
+    }
+    (value, g)
 }
 
 /// Linear interpolation in increasing times `data` at `t` (inside their range).
@@ -297,12 +401,82 @@ fn term(
                 weight,
             })
         }
-        "drive-effort" | "rest" | "field-penalty" => Err(err(
+        "drive-effort" => {
+            unused(&[
+                ("probe", o.probe.is_some()),
+                ("data", o.data.is_some()),
+                ("target", o.target.is_some()),
+                ("limit", o.limit.is_some()),
+            ])?;
+            let si = stage(o)?;
+            let electrode = o.electrode.clone().ok_or_else(|| {
+                err(
+                    "electrode",
+                    "a `drive-effort` term needs `electrode`, a controlled electrode".into(),
+                )
+            })?;
+            if !plan.stages[si]
+                .controls
+                .iter()
+                .any(|(e, _)| *e == electrode)
+            {
+                return Err(err(
+                    "electrode",
+                    format!(
+                        "`{electrode}` is not controlled in stage `{}`: a drive effort reads a \
+                         control's table (add a [[controls]] entry for it)",
+                        plan.stages[si].name
+                    ),
+                ));
+            }
+            let rate = match o.of.as_deref() {
+                None | Some("value") => false,
+                Some("rate") => true,
+                Some(other) => {
+                    return Err(err(
+                        "of",
+                        format!(
+                        "expected \"value\" (∫V² dt) or \"rate\" (∫(dV/dt)² dt); got \"{other}\""
+                    ),
+                    ))
+                }
+            };
+            Ok(Term::DriveEffort {
+                stage: si,
+                electrode,
+                rate,
+                weight,
+            })
+        }
+        "rest" => {
+            unused(&[
+                ("probe", o.probe.is_some()),
+                ("data", o.data.is_some()),
+                ("target", o.target.is_some()),
+                ("electrode", o.electrode.is_some()),
+                ("of", o.of.is_some()),
+                ("limit", o.limit.is_some()),
+            ])?;
+            let si = stage(o)?;
+            if !matches!(
+                plan.stages[si].kind,
+                crate::job::plan::StageKind::Dynamic { .. }
+            ) {
+                return Err(err(
+                    "stage",
+                    format!(
+                        "stage `{}` is no dynamic stage: `rest` is its kinetic energy at the end",
+                        plan.stages[si].name
+                    ),
+                ));
+            }
+            Ok(Term::Rest { stage: si, weight })
+        }
+        "field-penalty" => Err(err(
             "kind",
-            format!(
-                "the term `{}` is not differentiated yet; available: probe-final, probe-misfit",
-                o.kind
-            ),
+            "the term `field-penalty` is not differentiated yet; available: probe-final, \
+             probe-misfit, drive-effort, rest"
+                .into(),
         )),
         other => Err(err(
             "kind",

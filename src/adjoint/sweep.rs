@@ -135,7 +135,14 @@ pub fn gradient(
     for (ti, st) in tape.stages.iter().enumerate().rev() {
         sink.stage = st.index;
         carry = if st.dynamics.is_some() {
-            dynamic::sweep(plan, st, &eval.state[ti], carry, &mut sink)?
+            dynamic::sweep(
+                plan,
+                st,
+                &eval.state[ti],
+                &eval.velocity[ti],
+                carry,
+                &mut sink,
+            )?
         } else {
             let (from, to) = static_stage(plan, st, &eval.state[ti], &carry.q, &mut sink)?;
             for (d, &j) in support_of.iter().enumerate() {
@@ -162,6 +169,10 @@ pub fn gradient(
             &mut support_cotangent,
             &mut sink,
         )?;
+    }
+    // the terms that read the controls' knots directly
+    for (c, g) in sink.controls.iter_mut().zip(&eval.controls) {
+        c.gradient.iter_mut().zip(g).for_each(|(a, b)| *a += b);
     }
     for (i, dg) in supports.iter().enumerate() {
         sink.grad[i] += dg
