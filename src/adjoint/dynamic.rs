@@ -20,18 +20,18 @@
 //! start q₀' projected onto electrostatic equilibrium: its adjoint z = M⁻¹ā₀ gives
 //! q̄₀' −= (∂f/∂q)ᵀz, v̄₀ −= (∂f/∂v)ᵀz and dJ/dp −= zᵀ∂f/∂p (−zᵀ(∂M/∂m)a₀ for a pad's mass).
 
+use super::lambda::solve_adjoint;
 use super::sink::{waveform_dofs, Sink};
 use super::tape::{TapedDynamics, TapedStage};
 use crate::algebra::system::{LoadedSystem, NonlinearSystem};
 use crate::io::build::Parameter;
 use crate::job::plan::Plan;
-use crate::problem::dofs::{free_weights, DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::dofs::{free_weights, CONSTRAINED, FIELDS, PHI};
 use crate::problem::drive::Drive;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
 use crate::problem::step::{cell_products, viscosity_vjp, StepOperator};
-use crate::solve::transposed::TransposedLu;
 use crate::time::integrator::{Scheme, TimeLevel, TimeStep};
 use crate::time::stage::{projection_model, step_model, Method};
 
@@ -281,43 +281,6 @@ fn sink_viscous(sink: &Sink) -> Vec<usize> {
     m.sort_unstable();
     m.dedup();
     m
-}
-
-/// λ with Jᵀλ = ȳ over the free unknowns of `system` (its scaled equations), J the matrix of
-/// its last [`NonlinearSystem::evaluate`], evaluated here.
-fn solve_adjoint(
-    system: &mut (impl NonlinearSystem + HasDofs),
-    cy: &[f64],
-) -> Result<Vec<f64>, String> {
-    let mut r = vec![0.0; system.n()];
-    let mut k = system.new_matrix();
-    system.evaluate(&mut r, Some(&mut k))?;
-    let dofs = system.dof_map();
-    let mut lambda = vec![0.0; dofs.n_free];
-    for (d, &e) in dofs.eq.iter().enumerate() {
-        if e != CONSTRAINED {
-            lambda[e] += dofs.scale[d % FIELDS] * cy[d];
-        }
-    }
-    TransposedLu::factor(&k)?.solve_in_place(&mut lambda);
-    Ok(lambda)
-}
-
-/// A system over a [`DofMap`].
-trait HasDofs {
-    fn dof_map(&self) -> &DofMap;
-}
-
-impl HasDofs for TimeStep<'_> {
-    fn dof_map(&self) -> &DofMap {
-        &self.dofs
-    }
-}
-
-impl HasDofs for StaticProblem<'_> {
-    fn dof_map(&self) -> &DofMap {
-        &self.dofs
-    }
 }
 
 /// The adjoint of the projection of the potential at stage time `t` whose result is `q`, for

@@ -17,6 +17,7 @@
 //! with a message that names it.
 
 pub mod dynamic;
+pub mod lambda;
 pub mod objective;
 pub mod sink;
 pub mod sweep;

@@ -13,16 +13,16 @@
 //!   (·sₙ), to the stage's start state (·(1 − sₙ)), or to its waveform's parameters.
 
 use super::dynamic::{self, Cotangent};
+use super::lambda::solve_adjoint;
 use super::objective::Objective;
 use super::sink::{waveform_dofs, ControlGradient, Sink};
 use super::tape::{Tape, TapedStage};
-use crate::algebra::system::{LoadedSystem, NonlinearSystem};
+use crate::algebra::system::LoadedSystem;
 use crate::io::build::Parameter;
 use crate::job::plan::{Plan, StageKind};
 use crate::problem::dofs::{free_weights, CONSTRAINED, FIELDS, PHI};
 use crate::problem::statics::StaticProblem;
 use crate::problem::step::StepOperator;
-use crate::solve::transposed::TransposedLu;
 use crate::time::stage::Method;
 
 /// J and its gradient.
@@ -204,17 +204,7 @@ fn prestretch(
     problem.set_drive(crate::problem::drive::Drive::held(model));
     problem.set_load(1.0);
     problem.state.copy_from_slice(state);
-    let mut r = vec![0.0; problem.n()];
-    let mut kmat = problem.new_matrix();
-    problem.evaluate(&mut r, Some(&mut kmat))?;
-    let dofs = &problem.dofs;
-    let mut lambda = vec![0.0; dofs.n_free];
-    for (d, &e) in dofs.eq.iter().enumerate() {
-        if e != CONSTRAINED {
-            lambda[e] += dofs.scale[d % FIELDS] * c[d];
-        }
-    }
-    TransposedLu::factor(&kmat)?.solve_in_place(&mut lambda);
+    let lambda = solve_adjoint(&mut problem, c)?;
     sink.step_materials(&mut problem, &lambda)?;
     let lv = problem.level_vjp(&lambda)?;
     let on = plan.stages.first().is_some_and(|s| s.electrodes_on);
@@ -281,17 +271,7 @@ fn static_stage(
         }
         problem.set_load(step.load);
         problem.state.copy_from_slice(&step.state);
-        let mut r = vec![0.0; problem.n()];
-        let mut kmat = problem.new_matrix();
-        problem.evaluate(&mut r, Some(&mut kmat))?;
-        let dofs = &problem.dofs;
-        let mut lambda = vec![0.0; dofs.n_free];
-        for (d, &e) in dofs.eq.iter().enumerate() {
-            if e != CONSTRAINED {
-                lambda[e] += dofs.scale[d % FIELDS] * g[d];
-            }
-        }
-        TransposedLu::factor(&kmat)?.solve_in_place(&mut lambda);
+        let lambda = solve_adjoint(&mut problem, &g)?;
         sink.step_materials(&mut problem, &lambda)?;
         let dead = problem.drive().dead_loads.at(step.load);
         sink.rigid_weight(&free_weights(&problem.dofs, &lambda), dead);
