@@ -389,6 +389,17 @@ fn bad_controls_are_refused() {
     );
     let e = bad("[[controls]]\nelectrode = \"top\"\nlower = 10.0\nupper = 1.0\n");
     assert!(e.contains("controls.0.upper"), "{e}");
+    // 0, like no interval, puts a knot at every nominal step: 0.01 s / 20 µs + 1 knots
+    let base = deasim::io::examples::example("film-vibration").unwrap();
+    for interval in ["", "interval = 0.0\n"] {
+        let plan = Simulation::from_toml(
+            &format!("{base}\n[[controls]]\nelectrode = \"top\"\n{interval}"),
+            None,
+        )
+        .plan()
+        .unwrap();
+        assert_eq!(plan.stages[0].controls[0].1.len(), 501, "{interval}");
+    }
 }
 
 /// A control replaces its electrode's waveform by the table through its knots: a run with the

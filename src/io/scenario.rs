@@ -105,7 +105,7 @@ pub struct Scenario {
 }
 
 /// `[[controls]]`: the voltage of `electrode` in `stage` as a piecewise-linear table with knots
-/// every `interval` s of stage time (default: the stage's nominal step), starting at the values
+/// every `interval` s of stage time (0 or absent: the stage's nominal step), starting at the values
 /// of the electrode's waveform there (or `values`, one per knot); `lower`, `upper` (V) and
 /// `max_rate` (V/s) bound it for an optimiser.
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]

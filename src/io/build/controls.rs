@@ -5,8 +5,9 @@ use super::Ctx;
 use crate::io::scenario::{InputError, Scenario};
 use crate::job::plan::{Electrode, Stage, StageKind};
 
-/// Puts each control of `s` on its stage: the knots every `interval` s of stage time (the last
-/// at the stage's end), at `values` or at the electrode's waveform there.
+/// Puts each control of `s` on its stage: the knots every `interval` s of stage time (0 or
+/// absent: the stage's nominal step; the last at the stage's end), at `values` or at the
+/// electrode's waveform there.
 pub(super) fn build_controls(
     ctx: &Ctx,
     s: &Scenario,
@@ -86,7 +87,8 @@ pub(super) fn build_controls(
             ));
         }
         let interval = match c.interval {
-            None => nominal,
+            // 0 or absent: a knot at every nominal step
+            None | Some(0.0) => nominal,
             Some(v) => ctx.positive(&key("interval"), Some(v), "knot interval in s")?,
         };
         let duration = stage.duration;
