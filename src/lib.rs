@@ -12,6 +12,7 @@ pub mod analytic;
 pub mod api;
 pub mod calibrate;
 pub mod cli;
+pub mod control;
 pub mod element;
 pub mod fem;
 pub mod io;

@@ -84,6 +84,36 @@ material, parameter or objective term whose adjoint is not built yet (the messag
         #[arg(long, value_name = "H")]
         fd_step: Option<f64>,
     },
+    /// The drive of the scenario's [[controls]] that minimises its [[objective]] (a projected
+    /// quasi-Newton method with adjoint gradients); writes OUT/control.json, control.csv,
+    /// controlled.toml and the optimised run's files.
+    #[command(
+        after_help = "Exit status: 0 success (control.json says whether the optimisation \
+converged); 1 the run at the starting drive failed; 2 bad input (bounds that exclude the starting \
+drive, a term or stage whose adjoint is not built)."
+    )]
+    Control {
+        /// Scenario file (TOML), the name of an embedded example, or - for standard input.
+        scenario: Option<PathBuf>,
+        /// Output directory (default ./deasim-out/<scenario name>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a value by its dotted path (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Replace the results of a different scenario found in the output directory.
+        #[arg(long)]
+        overwrite: bool,
+        /// Iterations at most.
+        #[arg(long, default_value_t = 200)]
+        max_iterations: usize,
+        /// Converged when the projected gradient has fallen by this factor from the start.
+        #[arg(long, default_value_t = 1e-6)]
+        gradient_tolerance: f64,
+        /// Converged when an iteration lowers the objective by less than this share of it.
+        #[arg(long, default_value_t = 1e-10)]
+        objective_tolerance: f64,
+    },
     /// List the embedded examples, or print one as TOML.
     Example {
         /// The example to print (omit it for the list).
@@ -391,6 +421,26 @@ fn main() {
             &set,
             overwrite,
             check.then_some(fd_step),
+        ),
+        Command::Control {
+            scenario,
+            out,
+            set,
+            overwrite,
+            max_iterations,
+            gradient_tolerance,
+            objective_tolerance,
+        } => deasim::cli::control::cmd_control(
+            scenario.as_deref(),
+            out.as_deref(),
+            &set,
+            overwrite,
+            deasim::api::ControlOptions {
+                max_iterations,
+                gradient_tolerance,
+                objective_tolerance,
+                ..Default::default()
+            },
         ),
         Command::Example { name } => deasim::cli::app::cmd_example(name.as_deref()),
         Command::Lumped {

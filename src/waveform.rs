@@ -6,15 +6,34 @@
 
 use std::f64::consts::PI;
 
+/// A rise over x ∈ [0, 1]: x, or the raised cosine (1 − cos πx)/2.
+fn rise(x: f64, cosine: bool) -> f64 {
+    if cosine {
+        0.5 * (1.0 - (PI * x).cos())
+    } else {
+        x
+    }
+}
+
 /// The shape of a signal.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Shape {
     /// 1 at all times.
     Constant,
-    /// Linear rise from 0 at t = 0 to 1 at t = `rise_time`, then 1.
-    Ramp { rise_time: f64 },
-    /// 0 before `at`, then 1 (with a linear rise over `rise_time` when it is positive).
-    Step { at: f64, rise_time: f64 },
+    /// Rise from 0 at t = 0 to 1 at t = `rise_time`, then 1: linear, or with `cosine` the
+    /// raised cosine (1 − cos πx)/2 of x = t/`rise_time`, which starts and ends at rest.
+    Ramp {
+        rise_time: f64,
+        #[serde(default)]
+        cosine: bool,
+    },
+    /// 0 before `at`, then 1 (with a rise over `rise_time` when it is positive, as `Ramp`'s).
+    Step {
+        at: f64,
+        rise_time: f64,
+        #[serde(default)]
+        cosine: bool,
+    },
     /// Square wave: high for the fraction `duty` of each period.
     Square {
         frequency: f64,
@@ -119,18 +138,22 @@ impl Waveform {
         let bip = |u: f64, bipolar: bool| if bipolar { 2.0 * u - 1.0 } else { u };
         match &self.shape {
             Shape::Constant => 1.0,
-            Shape::Ramp { rise_time } => {
+            Shape::Ramp { rise_time, cosine } => {
                 if *rise_time <= 0.0 {
                     1.0
                 } else {
-                    (t / rise_time).clamp(0.0, 1.0)
+                    rise((t / rise_time).clamp(0.0, 1.0), *cosine)
                 }
             }
-            Shape::Step { at, rise_time } => {
+            Shape::Step {
+                at,
+                rise_time,
+                cosine,
+            } => {
                 if t < *at {
                     0.0
                 } else if *rise_time > 0.0 {
-                    ((t - at) / rise_time).min(1.0)
+                    rise(((t - at) / rise_time).min(1.0), *cosine)
                 } else {
                     1.0
                 }
@@ -221,6 +244,7 @@ mod tests {
             shape: Shape::Step {
                 at: 0.1,
                 rise_time: 0.2,
+                cosine: false,
             },
             ..Waveform::constant(2e3)
         };
@@ -282,12 +306,16 @@ mod tests {
         });
         assert!(sine.value(0.0).abs() < 1e-9);
         assert!((sine.value(0.5) - 3000.0).abs() < 1e-9);
-        let ramp = wave(Shape::Ramp { rise_time: 2.0 });
+        let ramp = wave(Shape::Ramp {
+            rise_time: 2.0,
+            cosine: false,
+        });
         assert_eq!(ramp.value(1.0), 1500.0);
         assert_eq!(ramp.value(5.0), 3000.0);
         let step = wave(Shape::Step {
             at: 1.0,
             rise_time: 0.0,
+            cosine: false,
         });
         assert_eq!(step.value(0.999), 0.0);
         assert_eq!(step.value(1.0), 3000.0);

@@ -26,7 +26,7 @@ const LAYERS: &[&[&str]] = &[
     &["time"],
     &["job"],
     &["io"],
-    &["adjoint", "calibrate"],
+    &["adjoint", "calibrate", "control"],
     &["lumped", "api"],
     &["cli"],
 ];

@@ -307,8 +307,19 @@ fn waveforms_match_their_formulas() {
         .value(t);
         let ft_ref = off + a * (0.5 - 4.0 / (PI * PI) * (ws.cos() + (3.0 * ws).cos() / 9.0));
         assert!((ft - ft_ref).abs() < 1e-9);
-        let ramp = w(Shape::Ramp { rise_time: 0.5 }).value(t);
+        let ramp = w(Shape::Ramp {
+            rise_time: 0.5,
+            cosine: false,
+        })
+        .value(t);
         assert!((ramp - (off + a * (t / 0.5).min(1.0))).abs() < 1e-9);
+        let x = (t / 0.5).min(1.0);
+        let smooth = w(Shape::Ramp {
+            rise_time: 0.5,
+            cosine: true,
+        })
+        .value(t);
+        assert!((smooth - (off + a * 0.5 * (1.0 - (PI * x).cos()))).abs() < 1e-9);
     }
 }
 

@@ -2,27 +2,30 @@
 //! of the states of the accepted steps of one stage.
 
 use super::tape::Tape;
-use crate::io::scenario::{InputError, ObjectiveSpec, Scenario};
+use crate::io::scenario::{InputError, ObjectiveSpec, Scenario, VoltageSpec};
 use crate::job::plan::Plan;
 use std::path::Path;
 
 /// One term of J.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Term {
-    /// ½ · weight · (probe at the stage's end − target)².
+    /// ½ · weight · (probe at the stage's end − target)²; `relative`: the probe's value less
+    /// its value at the stage's start.
     ProbeFinal {
         probe: usize,
         stage: usize,
         target: f64,
         weight: f64,
+        relative: bool,
     },
-    /// ½ · weight · Σₖ (probe(tₖ) − data(tₖ))² over the stage's accepted steps k (its start state
-    /// excluded), the data interpolated linearly at tₖ (the run's clock, s).
+    /// ½ · weight · Σₖ (probe(tₖ) − target(tₖ))² over the stage's accepted steps k (its start
+    /// state excluded); `relative` as for [`Term::ProbeFinal`].
     ProbeMisfit {
         probe: usize,
         stage: usize,
-        data: Vec<(f64, f64)>,
+        target: Target,
         weight: f64,
+        relative: bool,
     },
     /// ½ · weight · ∫ V² dt (`rate`: ∫ (dV/dt)² dt) over a stage of a controlled electrode's
     /// piecewise-linear voltage: exact for the table, a sum over its intervals.
@@ -35,6 +38,28 @@ pub enum Term {
     },
     /// weight · ½ vᵀMv: the kinetic energy at the end of a dynamic stage.
     Rest { stage: usize, weight: f64 },
+}
+
+/// The target history of a misfit term.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Target {
+    /// `time,value` data in the run's clock (s), interpolated linearly.
+    Data(Vec<(f64, f64)>),
+    /// A waveform of stage time; the stage starts at `start` in the run's clock (s).
+    Waveform {
+        waveform: crate::waveform::Waveform,
+        start: f64,
+    },
+}
+
+impl Target {
+    /// The target at time `t` of the run's clock.
+    pub fn at(&self, t: f64) -> f64 {
+        match self {
+            Target::Data(d) => interpolate(d, t),
+            Target::Waveform { waveform, start } => waveform.value(t - start),
+        }
+    }
 }
 
 /// J: the sum of its terms.
@@ -114,6 +139,8 @@ impl Objective {
             })
             .collect();
         let mut controls: Vec<Vec<f64>> = knots.iter().map(|k| vec![0.0; k.2.len()]).collect();
+        // ∂J/∂(reference state) of relative terms of the first stage
+        let mut at_reference: Vec<f64> = Vec::new();
         let mut add = |si: usize, k: usize, g: &[f64], factor: f64, reads_reference: bool| {
             let slot = &mut state[si][k];
             if slot.is_empty() {
@@ -128,10 +155,19 @@ impl Objective {
             }
         };
         for t in &self.terms {
-            let (probe, stage) = match t {
-                Term::ProbeFinal { probe, stage, .. } | Term::ProbeMisfit { probe, stage, .. } => {
-                    (*probe, *stage)
+            let (probe, stage, relative) = match t {
+                Term::ProbeFinal {
+                    probe,
+                    stage,
+                    relative,
+                    ..
                 }
+                | Term::ProbeMisfit {
+                    probe,
+                    stage,
+                    relative,
+                    ..
+                } => (*probe, *stage, *relative),
                 Term::DriveEffort {
                     stage,
                     electrode,
@@ -188,24 +224,58 @@ impl Objective {
                     .ok_or_else(|| format!("the probe `{name}` has no derivative in the state"))?;
                 Ok((nodal_value(p, x, &reference_state), g))
             };
+            // the probe at the stage's start: the state the previous taped stage ended at, or
+            // the reference state (pre-stretched, or the undeformed one) before the first
+            let (v0, g0) = if !relative {
+                (0.0, Vec::new())
+            } else if si > 0 {
+                let prev = &tape.stages[si - 1];
+                value_at(&prev.steps[prev.steps.len() - 1].state)?
+            } else {
+                value_at(&reference_state)?
+            };
+            // dJ/d(probe at the start) = −Σ dJ/d(probe at the steps)
+            let mut start = 0.0;
             match t {
                 Term::ProbeFinal { target, weight, .. } => {
                     let k = st.steps.len() - 1;
                     let (v, g) = value_at(&st.steps[k].state)?;
-                    value += 0.5 * weight * (v - target).powi(2);
-                    add(si, k, &g, weight * (v - target), p.reads_reference());
+                    let r = v - v0 - target;
+                    value += 0.5 * weight * r * r;
+                    add(si, k, &g, weight * r, p.reads_reference());
+                    start -= weight * r;
                 }
-                Term::ProbeMisfit { data, weight, .. } => {
+                Term::ProbeMisfit { target, weight, .. } => {
                     for (k, step) in st.steps.iter().enumerate() {
                         let (v, g) = value_at(&step.state)?;
-                        let d = interpolate(data, step.time);
-                        value += 0.5 * weight * (v - d).powi(2);
-                        add(si, k, &g, weight * (v - d), p.reads_reference());
+                        let r = v - v0 - target.at(step.time);
+                        value += 0.5 * weight * r * r;
+                        add(si, k, &g, weight * r, p.reads_reference());
+                        start -= weight * r;
                     }
                 }
                 Term::DriveEffort { .. } | Term::Rest { .. } => {}
             }
+            if relative && start != 0.0 {
+                if si > 0 {
+                    let k = tape.stages[si - 1].steps.len() - 1;
+                    add(si - 1, k, &g0, start, p.reads_reference());
+                } else if !p.reads_reference() {
+                    // the start is the reference state itself (a deflection from it reads 0)
+                    if at_reference.is_empty() {
+                        at_reference.resize(g0.len(), 0.0);
+                    }
+                    at_reference
+                        .iter_mut()
+                        .zip(&g0)
+                        .for_each(|(s, v)| *s += start * v);
+                }
+            }
         }
+        reference
+            .iter_mut()
+            .zip(&at_reference)
+            .for_each(|(s, v)| *s += v);
         Ok(Evaluation {
             value,
             state,
@@ -353,34 +423,65 @@ fn term(
                 ("of", o.of.is_some()),
                 ("limit", o.limit.is_some()),
             ])?;
-            let target = o
-                .target
-                .ok_or_else(|| err("target", "a `probe-final` term needs `target`".into()))?;
+            let target = match &o.target {
+                Some(VoltageSpec::Constant(v)) if v.is_finite() => *v,
+                Some(_) => {
+                    return Err(err(
+                        "target",
+                        "a `probe-final` term's target is a number in the probe's unit".into(),
+                    ))
+                }
+                None => return Err(err("target", "a `probe-final` term needs `target`".into())),
+            };
             Ok(Term::ProbeFinal {
                 probe: probe(o)?,
                 stage: stage(o)?,
                 target,
                 weight,
+                relative: o.relative.unwrap_or(false),
             })
         }
         "probe-misfit" => {
             unused(&[
-                ("target", o.target.is_some()),
                 ("electrode", o.electrode.is_some()),
                 ("of", o.of.is_some()),
                 ("limit", o.limit.is_some()),
             ])?;
-            let path = o.data.as_deref().ok_or_else(|| {
-                err(
-                    "data",
-                    "a `probe-misfit` term needs `data`, a CSV file with the header `time,value`"
-                        .into(),
-                )
-            })?;
-            let full = base.map_or_else(|| Path::new(path).to_path_buf(), |b| b.join(path));
-            let data = read_data(&full).map_err(|m| err("data", m))?;
             let si = stage(o)?;
             let t0: f64 = plan.stages[..si].iter().map(|s| s.duration).sum();
+            let relative = o.relative.unwrap_or(false);
+            let path = match (&o.data, &o.target) {
+                (Some(_), Some(_)) => {
+                    return Err(err(
+                        "target",
+                        "give `data` (a CSV file) or `target` (a waveform), not both".into(),
+                    ))
+                }
+                (None, None) => {
+                    return Err(err(
+                        "data",
+                        "a `probe-misfit` term needs `data`, a CSV file with the header \
+                         `time,value`, or `target`, a number or waveform table of stage time"
+                            .into(),
+                    ))
+                }
+                (None, Some(t)) => {
+                    let waveform = crate::io::build::waveform(file, &key("target"), t, base)?;
+                    return Ok(Term::ProbeMisfit {
+                        probe: probe(o)?,
+                        stage: si,
+                        target: Target::Waveform {
+                            waveform,
+                            start: t0,
+                        },
+                        weight,
+                        relative,
+                    });
+                }
+                (Some(path), None) => path,
+            };
+            let full = base.map_or_else(|| Path::new(path).to_path_buf(), |b| b.join(path));
+            let data = read_data(&full).map_err(|m| err("data", m))?;
             let t1 = t0 + plan.stages[si].duration;
             let (first, last) = (data[0].0, data[data.len() - 1].0);
             if first > t0 + 1e-12 * t1.abs().max(1.0) || last < t1 - 1e-12 * t1.abs().max(1.0) {
@@ -397,8 +498,9 @@ fn term(
             Ok(Term::ProbeMisfit {
                 probe: probe(o)?,
                 stage: si,
-                data,
+                target: Target::Data(data),
                 weight,
+                relative,
             })
         }
         "drive-effort" => {
@@ -407,6 +509,7 @@ fn term(
                 ("data", o.data.is_some()),
                 ("target", o.target.is_some()),
                 ("limit", o.limit.is_some()),
+                ("relative", o.relative.is_some()),
             ])?;
             let si = stage(o)?;
             let electrode = o.electrode.clone().ok_or_else(|| {
@@ -456,6 +559,7 @@ fn term(
                 ("electrode", o.electrode.is_some()),
                 ("of", o.of.is_some()),
                 ("limit", o.limit.is_some()),
+                ("relative", o.relative.is_some()),
             ])?;
             let si = stage(o)?;
             if !matches!(

@@ -169,35 +169,17 @@ impl GradientReport {
         if self.controls.is_empty() {
             return Ok(written);
         }
-        // the rows: every knot time of every control, in order
-        let mut rows: Vec<(f64, usize, usize)> = self
+        let header: Vec<String> = self
             .controls
             .iter()
-            .enumerate()
-            .flat_map(|(ci, c)| {
-                c.times
-                    .iter()
-                    .enumerate()
-                    .map(move |(k, t)| (c.stage_start + t, ci, k))
-            })
+            .map(|c| format!("{}@{}", c.electrode, c.stage))
             .collect();
-        rows.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut csv = String::from("time");
-        for c in &self.controls {
-            csv += &format!(",{}@{}", c.electrode, c.stage);
-        }
-        csv.push('\n');
-        let mut i = 0;
-        while i < rows.len() {
-            let t = rows[i].0;
-            let mut cells = vec![String::new(); self.controls.len()];
-            while i < rows.len() && rows[i].0 == t {
-                let (_, ci, k) = rows[i];
-                cells[ci] = format!("{:e}", self.controls[ci].gradient[k]);
-                i += 1;
-            }
-            csv += &format!("{t:e},{}\n", cells.join(","));
-        }
+        let columns: Vec<(f64, &[f64], &[f64])> = self
+            .controls
+            .iter()
+            .map(|c| (c.stage_start, c.times.as_slice(), c.gradient.as_slice()))
+            .collect();
+        let csv = knots_csv(&header, &columns);
         let path = dir.join("controls.csv");
         write_atomic(&path, csv.as_bytes()).map_err(|e| io(&path, e.to_string()))?;
         written.push(path);
@@ -226,6 +208,40 @@ impl GradientReport {
         }
         Ok(written)
     }
+}
+
+/// A CSV of values at the knots of several controls: `time` (the run's clock, s) then one
+/// column per control (`header`), a row per distinct knot time, a cell empty where a control has
+/// no knot. Each column is (its stage's start, its knots' stage times, its values).
+pub(super) fn knots_csv(header: &[String], columns: &[(f64, &[f64], &[f64])]) -> String {
+    let mut rows: Vec<(f64, usize, usize)> = columns
+        .iter()
+        .enumerate()
+        .flat_map(|(ci, (start, times, _))| {
+            times
+                .iter()
+                .enumerate()
+                .map(move |(k, t)| (start + t, ci, k))
+        })
+        .collect();
+    rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut csv = String::from("time");
+    for h in header {
+        csv += &format!(",{h}");
+    }
+    csv.push('\n');
+    let mut i = 0;
+    while i < rows.len() {
+        let t = rows[i].0;
+        let mut cells = vec![String::new(); columns.len()];
+        while i < rows.len() && rows[i].0 == t {
+            let (_, ci, k) = rows[i];
+            cells[ci] = format!("{:e}", columns[ci].2[k]);
+            i += 1;
+        }
+        csv += &format!("{t:e},{}\n", cells.join(","));
+    }
+    csv
 }
 
 impl Simulation {

@@ -5,6 +5,7 @@
 //! [`Results`]; every failure is one [`Error`] that keeps its kind. Nothing here prints; the
 //! command line and the Python package are front ends on it.
 
+mod control;
 mod error;
 mod gradient;
 mod linear;
@@ -15,6 +16,8 @@ mod simulation;
 pub use crate::calibrate::{
     calibrate_file as calibrate, CalibrateOptions, Calibration, CalibrationError,
 };
+pub use crate::control::Iteration as ControlIteration;
+pub use control::{ControlOptions, Drive, ObjectiveTape, OptimalControl};
 pub use error::Error;
 pub use gradient::{ControlReport, GradientOptions, GradientReport, ParameterGradient, TaylorTest};
 pub use linear::{

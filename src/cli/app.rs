@@ -268,13 +268,44 @@ pub fn cmd_run(
     };
     catch_signals();
     let mut progress = Progress::new();
+    // a scenario's [[objective]] is evaluated on its run (in one process)
+    let mut objective = if launched_size() <= 1 {
+        match sim.objective_tape() {
+            Ok(t) => t,
+            Err(e) => return fail(&e),
+        }
+    } else {
+        None
+    };
+    let mut observers: Vec<&mut dyn Observer> = vec![&mut progress];
+    if let Some(t) = objective.as_mut() {
+        observers.push(t.observer());
+    }
     let ran = sim.run_on_ranks(RankOptions {
         out: out.map(Path::to_path_buf),
         overwrite,
         checkpoint_every,
-        observers: vec![&mut progress],
+        observers,
         cancel: None,
     });
+    if let (Some(t), Ok(run)) = (&objective, &ran) {
+        if run.outcome.is_ok() {
+            match t.value() {
+                Ok(j) => {
+                    println!("objective J = {j:.15e}");
+                    if let Err(m) = crate::io::output::add_to_summary(
+                        &run.dir,
+                        "objective",
+                        serde_json::json!(j),
+                    ) {
+                        eprintln!("error: {m}");
+                        return EXIT_SOLVE_FAILED;
+                    }
+                }
+                Err(e) => eprintln!("warning: the objective was not evaluated: {e}"),
+            }
+        }
+    }
     report(ran)
 }
 

@@ -461,7 +461,54 @@ pub fn cmd_bench(large: bool) -> i32 {
             Err(e) => println!("{name:>16} {e}"),
         }
     }
+    println!();
+    println!("optimal control of diaphragm-control (a knot every 1 ms):");
+    println!("{CONTROL_HEADER}");
+    for duration in [0.3, 1.0] {
+        match bench_control(duration, 200) {
+            Ok(row) => println!("{row}"),
+            Err(e) => println!("{duration:>10} s {e}"),
+        }
+    }
     0
+}
+
+/// Column titles of [`bench_control`]'s rows.
+pub const CONTROL_HEADER: &str =
+    "  stage_s  knots iterations runs  converged      J_start        J_end   wall_s s/run";
+
+/// The optimisation of `diaphragm-control` with its `actuate` stage `duration` s long (a knot
+/// every 1 ms) to convergence or `max_iterations`: iterations, runs (each with its adjoint), the
+/// objective before and after, and the wall time.
+pub fn bench_control(duration: f64, max_iterations: usize) -> Result<String, String> {
+    use crate::api::{ControlOptions, Simulation};
+    let sim = Simulation::from_example("diaphragm-control")
+        .map_err(|e| e.to_string())?
+        .with_overrides(&[
+            format!("stages.1.duration={duration}"),
+            "output.fields_every=0".into(),
+            "output.plots=false".into(),
+        ]);
+    let o = sim
+        .control(
+            &ControlOptions {
+                max_iterations,
+                ..Default::default()
+            },
+            |_| {},
+        )
+        .map_err(|e| e.to_string())?;
+    let knots: usize = o.drives.iter().map(|d| d.values.len()).sum();
+    Ok(format!(
+        "{duration:>9.2} {knots:>6} {:>10} {:>4} {:>10} {:>12.4e} {:>12.4e} {:>8.1} {:>5.2}",
+        o.history.len() - 1,
+        o.evaluations,
+        o.converged,
+        o.history[0].objective,
+        o.objective,
+        o.wall_s,
+        o.wall_s / o.evaluations as f64
+    ))
 }
 
 /// Column titles of [`bench_gradient`]'s rows.
@@ -841,6 +888,16 @@ mod tests {
         assert!(row.trim_start().starts_with("diaphragm"), "{row}");
         let e = bench_gradient("diaphragm-visco", &["stages.1.duration=0.02".into()]).unwrap_err();
         assert!(e.contains("not built"), "{e}");
+    }
+
+    /// A control row: nine figures, J falling.
+    #[test]
+    fn control_rows() {
+        let row = bench_control(0.05, 3).unwrap();
+        let cells: Vec<&str> = row.split_whitespace().collect();
+        assert_eq!(cells.len(), 9, "{row}");
+        let (start, end): (f64, f64) = (cells[5].parse().unwrap(), cells[6].parse().unwrap());
+        assert!(end < start, "{row}");
     }
 
     #[test]

@@ -3,6 +3,7 @@
 pub mod app;
 pub mod bench;
 pub mod calibrate;
+pub mod control;
 pub mod estimate;
 pub mod gradient;
 pub mod lumped;

@@ -31,6 +31,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../../scenarios/diaphragm-response.toml"),
     ),
     (
+        "diaphragm-control",
+        include_str!("../../scenarios/diaphragm-control.toml"),
+    ),
+    (
         "diaphragm-visco",
         include_str!("../../scenarios/diaphragm-visco.toml"),
     ),

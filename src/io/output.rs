@@ -1394,6 +1394,22 @@ impl OutputWriter {
     }
 }
 
+/// Adds `key` = `value` to the `summary.json` of the run in `dir` (a value computed from the
+/// whole run after it ended: the objective of its `[[objective]]` terms).
+pub fn add_to_summary(dir: &Path, key: &str, value: serde_json::Value) -> Result<(), String> {
+    let path = dir.join("summary.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let Some(map) = doc.as_object_mut() else {
+        return Err(format!("{}: not a JSON object", path.display()));
+    };
+    map.insert(key.to_string(), value);
+    let text = serde_json::to_string_pretty(&doc).unwrap_or_default() + "\n";
+    crate::io::atomic::write_atomic(&path, text.as_bytes())
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

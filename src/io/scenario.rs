@@ -155,8 +155,13 @@ pub struct ObjectiveSpec {
     /// scenario).
     #[serde(default)]
     pub data: Option<String>,
+    /// A number (`probe-final`), or a number or waveform table of stage time (`probe-misfit`,
+    /// instead of `data`), in the probe's unit.
     #[serde(default)]
-    pub target: Option<f64>,
+    pub target: Option<VoltageSpec>,
+    /// Targets and data measured from the probe's value at the stage's start.
+    #[serde(default)]
+    pub relative: Option<bool>,
     /// Default 1.
     #[serde(default)]
     pub weight: Option<f64>,
@@ -545,7 +550,7 @@ pub struct CircuitSpec {
 #[serde(untagged)]
 pub enum VoltageSpec {
     Constant(f64),
-    Waveform(WaveformSpec),
+    Waveform(Box<WaveformSpec>),
 }
 
 impl<'de> Deserialize<'de> for VoltageSpec {
@@ -571,7 +576,7 @@ impl<'de> Deserialize<'de> for VoltageSpec {
                 map: A,
             ) -> Result<VoltageSpec, A::Error> {
                 WaveformSpec::deserialize(serde::de::value::MapAccessDeserializer::new(map))
-                    .map(VoltageSpec::Waveform)
+                    .map(|w| VoltageSpec::Waveform(Box::new(w)))
             }
         }
         d.deserialize_any(V)
@@ -620,6 +625,9 @@ pub struct WaveformSpec {
     /// Rise time of `ramp` and `step` (s).
     #[serde(default)]
     pub rise_time: Option<f64>,
+    /// The rise of `ramp` and `step`: `linear` (default) or `cosine`.
+    #[serde(default)]
+    pub rise: Option<String>,
     /// CSV file `time,value` of a `table`, relative to the scenario.
     #[serde(default)]
     pub file: Option<String>,

@@ -144,7 +144,10 @@ mod tests {
     #[test]
     fn a_drive_gives_its_waveforms_at_stage_time() {
         let ramp = Waveform {
-            shape: crate::waveform::Shape::Ramp { rise_time: 2.0 },
+            shape: crate::waveform::Shape::Ramp {
+                rise_time: 2.0,
+                cosine: false,
+            },
             ..Waveform::constant(1e3)
         };
         let drive = Drive {

@@ -133,7 +133,7 @@ pub(super) fn ground_without_electrodes(
 }
 
 /// The voltage of an electrode at `key`: a number (V) or a waveform table.
-fn build_waveform(
+pub(super) fn build_waveform(
     ctx: &Ctx,
     key: &str,
     v: &VoltageSpec,
@@ -180,14 +180,32 @@ fn build_shape(ctx: &Ctx, key: &str, w: &WaveformSpec, bipolar: bool) -> Result<
             .transpose()
             .map(|r| r.unwrap_or(0.0))
     };
+    let cosine = match w.rise.as_deref() {
+        None | Some("linear") => false,
+        Some("cosine") if matches!(w.waveform.as_str(), "ramp" | "step") => true,
+        Some("cosine") => {
+            return Err(ctx.err(
+                k("rise"),
+                format!("`rise` shapes a `ramp` or `step`, not a `{}`", w.waveform),
+            ))
+        }
+        Some(other) => {
+            return Err(ctx.err(
+                k("rise"),
+                format!("expected \"linear\" or \"cosine\"; got \"{other}\""),
+            ))
+        }
+    };
     Ok(match w.waveform.as_str() {
         "constant" => Shape::Constant,
         "ramp" => Shape::Ramp {
             rise_time: rise_time()?,
+            cosine,
         },
         "step" => Shape::Step {
             at: ctx.finite(&k("at"), w.at.unwrap_or(0.0), "time in s")?,
             rise_time: rise_time()?,
+            cosine,
         },
         "square" => {
             let duty = w.duty.unwrap_or(0.5);

@@ -40,6 +40,17 @@ pub const MAX_DISTRIBUTED_CELLS: u64 = 400_000_000;
 
 /// Validates a scenario and builds its plan. `file` names the source in messages; `base_dir` is
 /// where relative file names point.
+/// The waveform of a number or waveform table at `key` of scenario `file` (CSV tables read
+/// from `base_dir`), checked as an electrode's voltage is.
+pub fn waveform(
+    file: &str,
+    key: &str,
+    v: &crate::io::scenario::VoltageSpec,
+    base_dir: Option<&Path>,
+) -> Result<crate::waveform::Waveform, InputError> {
+    electrodes::build_waveform(&Ctx::plain(file), key, v, base_dir)
+}
+
 pub fn build(s: &Scenario, file: &str, base_dir: Option<&Path>) -> Result<Plan, InputError> {
     build_with(s, file, base_dir, true)
 }

@@ -1,0 +1,647 @@
+//! Optimal control: the knots of a scenario's `[[controls]]` that minimise its `[[objective]]`,
+//! by the projected quasi-Newton method of [`crate::control`] on the reduced problem (each
+//! evaluation one forward run and its adjoint); and the objective of a plain run.
+
+use super::error::Error;
+use super::gradient::knots_csv;
+use super::results::Results;
+use super::simulation::{run_plan, RunOptions, Simulation};
+use crate::adjoint::objective::{Objective, Term};
+use crate::adjoint::sweep::{check_supported, gradient};
+use crate::adjoint::tape::Tape;
+use crate::control::{minimize, Feasible, Iteration, Options};
+use crate::io::atomic::write_atomic;
+use crate::io::plot::{line_plot, stacked_plot, PlotSpec, Series};
+use crate::io::scenario::{apply_override, InputError, Scenario};
+use crate::job::observer::Observer;
+use crate::job::plan::Plan;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How [`Simulation::control`] optimises and where it writes.
+#[derive(Debug, Clone)]
+pub struct ControlOptions {
+    /// Write the optimised run's files here (as `deasim run`).
+    pub out: Option<PathBuf>,
+    pub overwrite: bool,
+    /// Iterations at most (each one or more runs with their adjoints).
+    pub max_iterations: usize,
+    /// Converged when the projected gradient falls by this factor from the start.
+    pub gradient_tolerance: f64,
+    /// Converged when an iteration lowers J by less than this share of it.
+    pub objective_tolerance: f64,
+}
+
+impl Default for ControlOptions {
+    fn default() -> Self {
+        let o = Options::default();
+        ControlOptions {
+            out: None,
+            overwrite: false,
+            max_iterations: o.max_iterations,
+            gradient_tolerance: o.gradient_tolerance,
+            objective_tolerance: o.objective_tolerance,
+        }
+    }
+}
+
+/// One optimised control: its knots and bounds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Drive {
+    /// Its index in `[[controls]]`, its stage (with the stage's start in the run's clock, s)
+    /// and electrode.
+    pub index: usize,
+    pub stage: String,
+    pub stage_start: f64,
+    pub electrode: String,
+    /// Knot times (stage time, s), the starting and the optimised voltages (V), and dJ/dV
+    /// at the optimum.
+    pub times: Vec<f64>,
+    pub initial: Vec<f64>,
+    pub values: Vec<f64>,
+    pub gradient: Vec<f64>,
+    pub lower: Option<f64>,
+    pub upper: Option<f64>,
+    pub max_rate: Option<f64>,
+}
+
+/// The outcome of [`Simulation::control`].
+#[derive(Debug, Clone)]
+pub struct OptimalControl {
+    /// J of the optimised drive (its own run).
+    pub objective: f64,
+    /// Per accepted iteration (the start first): J, the projected gradient's largest entry in
+    /// the scaled knots, the runs made so far.
+    pub history: Vec<Iteration>,
+    pub converged: bool,
+    pub reason: String,
+    pub evaluations: usize,
+    pub wall_s: f64,
+    pub drives: Vec<Drive>,
+    /// The optimised run.
+    pub results: Results,
+    /// `controlled.toml`: the scenario with the optimised knots as its controls' values.
+    pub controlled: String,
+}
+
+/// Knot scale of a control (V): its bounds' range, else the largest of its |values|, its
+/// bounds and 1 kV; the optimiser works in knots divided by it.
+fn scale(lower: Option<f64>, upper: Option<f64>, values: &[f64]) -> f64 {
+    match (lower, upper) {
+        (Some(l), Some(u)) => u - l,
+        _ => values
+            .iter()
+            .chain(lower.iter())
+            .chain(upper.iter())
+            .fold(1e3f64, |m, v| m.max(v.abs())),
+    }
+}
+
+/// The controls of a plan as optimisation variables: (stage index, position in the stage's
+/// controls, spec index) and their scales.
+struct Layout {
+    slots: Vec<(usize, usize, usize, f64)>,
+}
+
+impl Layout {
+    fn new(scenario: &Scenario, plan: &Plan) -> Layout {
+        let mut slots = Vec::new();
+        for (si, stage) in plan.stages.iter().enumerate() {
+            for (ci, (electrode, knots)) in stage.controls.iter().enumerate() {
+                let index = scenario
+                    .controls
+                    .iter()
+                    .position(|s| {
+                        s.electrode == *electrode
+                            && s.stage.as_deref().is_none_or(|n| n == stage.name)
+                    })
+                    .unwrap_or(0);
+                let spec = &scenario.controls[index];
+                let values: Vec<f64> = knots.iter().map(|k| k.1).collect();
+                slots.push((si, ci, index, scale(spec.lower, spec.upper, &values)));
+            }
+        }
+        Layout { slots }
+    }
+
+    /// The scaled knots of `plan`.
+    fn variables(&self, plan: &Plan) -> Vec<f64> {
+        self.slots
+            .iter()
+            .flat_map(|&(si, ci, _, s)| plan.stages[si].controls[ci].1.iter().map(move |k| k.1 / s))
+            .collect()
+    }
+
+    /// `plan` with the knots `z` (scaled).
+    fn apply(&self, plan: &mut Plan, z: &[f64]) {
+        let mut at = 0;
+        for &(si, ci, _, s) in &self.slots {
+            for k in plan.stages[si].controls[ci].1.iter_mut() {
+                k.1 = z[at] * s;
+                at += 1;
+            }
+        }
+    }
+
+    /// The bounds and rate chains in the scaled knots.
+    fn feasible(&self, scenario: &Scenario, plan: &Plan) -> Feasible {
+        let mut set = Feasible::default();
+        for &(si, ci, index, s) in &self.slots {
+            let spec = &scenario.controls[index];
+            let knots = &plan.stages[si].controls[ci].1;
+            let first = set.lower.len();
+            for _ in knots {
+                set.lower
+                    .push(spec.lower.map_or(f64::NEG_INFINITY, |l| l / s));
+                set.upper.push(spec.upper.map_or(f64::INFINITY, |u| u / s));
+            }
+            if let Some(r) = spec.max_rate {
+                let limits = knots
+                    .windows(2)
+                    .map(|w| r * (w[1].0 - w[0].0) / s)
+                    .collect();
+                set.chains
+                    .push(((first..first + knots.len()).collect(), limits));
+            }
+        }
+        set
+    }
+}
+
+impl Simulation {
+    /// Optimises the knots of the scenario's `[[controls]]` for its `[[objective]]` within their
+    /// bounds and rate limits, then runs the optimised drive (writing its files to
+    /// `options.out`). `progress` sees every accepted iteration.
+    pub fn control(
+        &self,
+        options: &ControlOptions,
+        mut progress: impl FnMut(&Iteration),
+    ) -> Result<OptimalControl, Error> {
+        let start = Instant::now();
+        let scenario = self.scenario()?;
+        let plan = self.plan()?;
+        let input =
+            |key: &str, message: String| Error::Input(InputError::at_key(&self.name, key, message));
+        if scenario.controls.is_empty() {
+            return Err(input(
+                "controls",
+                "optimal control needs at least one [[controls]] entry (`electrode`, `stage`, \
+                 `interval`, `lower`, `upper`)"
+                    .into(),
+            ));
+        }
+        if !(options.gradient_tolerance >= 0.0 && options.objective_tolerance >= 0.0) {
+            return Err(Error::Refused(format!(
+                "the tolerances must be numbers ≥ 0; got {:e} (projected gradient) and {:e} \
+                 (objective change)",
+                options.gradient_tolerance, options.objective_tolerance
+            )));
+        }
+        check_supported(&plan, &[]).map_err(Error::Refused)?;
+        let objective = Objective::build(&scenario, &plan, &self.name, self.base.as_deref())
+            .map_err(Error::Input)?;
+        let layout = Layout::new(&scenario, &plan);
+        let set = layout.feasible(&scenario, &plan);
+        let z0 = layout.variables(&plan);
+        check_start(&layout, &set, &z0, &scenario, &plan)
+            .map_err(|(key, message)| input(&key, message))?;
+        let evaluate = |z: &[f64]| -> Result<(f64, Vec<f64>), Error> {
+            let mut p = plan.clone();
+            layout.apply(&mut p, z);
+            let mut tape = Tape::new(&p);
+            run_plan(
+                &p,
+                RunOptions {
+                    observers: vec![&mut tape],
+                    ..Default::default()
+                },
+            )?;
+            let g = gradient(&p, &tape, &objective, &[], &[]).map_err(Error::Refused)?;
+            let mut dz = Vec::with_capacity(z.len());
+            for &(si, ci, _, s) in &layout.slots {
+                let name = &p.stages[si].controls[ci].0;
+                let c = g
+                    .controls
+                    .iter()
+                    .find(|c| c.stage == si && c.electrode == *name)
+                    .ok_or_else(|| {
+                        Error::Refused(format!("no gradient of the control of `{name}`"))
+                    })?;
+                dz.extend(c.gradient.iter().map(|d| d * s));
+            }
+            Ok((g.objective, dz))
+        };
+        let minimum = minimize(
+            evaluate,
+            &z0,
+            &set,
+            &Options {
+                max_iterations: options.max_iterations,
+                gradient_tolerance: options.gradient_tolerance,
+                objective_tolerance: options.objective_tolerance,
+                ..Options::default()
+            },
+            &mut progress,
+        )?;
+        // the optimised run, with its files
+        let mut best = plan.clone();
+        layout.apply(&mut best, &minimum.x);
+        let mut tape = Tape::new(&best);
+        let results = run_plan(
+            &best,
+            RunOptions {
+                observers: vec![&mut tape],
+                out: options.out.clone(),
+                overwrite: options.overwrite,
+                overrides: self.overrides.clone(),
+                ..Default::default()
+            },
+        )?;
+        let value = objective
+            .evaluate(&best, &tape)
+            .map_err(Error::Refused)?
+            .value;
+        let mut at = 0;
+        let drives: Vec<Drive> = layout
+            .slots
+            .iter()
+            .map(|&(si, ci, index, s)| {
+                let spec = &scenario.controls[index];
+                let (electrode, knots) = &best.stages[si].controls[ci];
+                let n = knots.len();
+                let d = Drive {
+                    index,
+                    stage: best.stages[si].name.clone(),
+                    stage_start: best.stages[..si].iter().map(|s| s.duration).sum(),
+                    electrode: electrode.clone(),
+                    times: knots.iter().map(|k| k.0).collect(),
+                    initial: plan.stages[si].controls[ci].1.iter().map(|k| k.1).collect(),
+                    values: knots.iter().map(|k| k.1).collect(),
+                    gradient: minimum.gradient[at..at + n].iter().map(|g| g / s).collect(),
+                    lower: spec.lower,
+                    upper: spec.upper,
+                    max_rate: spec.max_rate,
+                };
+                at += n;
+                d
+            })
+            .collect();
+        let controlled = self.controlled_toml(&drives)?;
+        Ok(OptimalControl {
+            objective: value,
+            history: minimum.history,
+            converged: minimum.converged,
+            reason: minimum.reason,
+            evaluations: minimum.evaluations + 1,
+            wall_s: start.elapsed().as_secs_f64(),
+            drives,
+            results,
+            controlled,
+        })
+    }
+
+    /// The scenario with its overrides applied and each control's `values` set to `drives`,
+    /// its relative file paths made absolute so that it runs from anywhere.
+    fn controlled_toml(&self, drives: &[Drive]) -> Result<String, Error> {
+        let mut table: toml::Table = self.text.parse().map_err(|e: toml::de::Error| {
+            Error::Input(InputError::at_key(&self.name, "", e.to_string()))
+        })?;
+        let refused = |(k, m): (String, String)| Error::Refused(format!("`{k}`: {m}"));
+        for o in &self.overrides {
+            apply_override(&mut table, o).map_err(refused)?;
+        }
+        if let Some(controls) = table.get_mut("controls").and_then(|c| c.as_array_mut()) {
+            for d in drives {
+                if let Some(c) = controls.get_mut(d.index).and_then(|c| c.as_table_mut()) {
+                    c.insert(
+                        "values".into(),
+                        toml::Value::Array(
+                            d.values.iter().map(|v| toml::Value::Float(*v)).collect(),
+                        ),
+                    );
+                }
+            }
+        }
+        if let Some(base) = &self.base {
+            absolute_paths(&mut table, base);
+        }
+        Ok(format!(
+            "# The scenario with the optimised drive: each control's `values` are the optimised \
+             knots (V).\n{}",
+            toml::to_string(&table).map_err(|e| Error::Refused(e.to_string()))?
+        ))
+    }
+
+    /// The objective of a run: a [`Tape`] to observe it with, or `None` when the scenario has
+    /// no `[[objective]]`.
+    pub fn objective_tape(&self) -> Result<Option<ObjectiveTape>, Error> {
+        let scenario = self.scenario()?;
+        if scenario.objective.is_empty() {
+            return Ok(None);
+        }
+        let plan = self.plan()?;
+        let objective = Objective::build(&scenario, &plan, &self.name, self.base.as_deref())
+            .map_err(Error::Input)?;
+        let tape = Tape::new(&plan);
+        Ok(Some(ObjectiveTape {
+            plan,
+            objective,
+            tape,
+        }))
+    }
+}
+
+/// A run's tape and its scenario's objective: observe the run with it, then read J.
+pub struct ObjectiveTape {
+    plan: Plan,
+    objective: Objective,
+    tape: Tape,
+}
+
+impl ObjectiveTape {
+    /// The observer to run with.
+    pub fn observer(&mut self) -> &mut dyn Observer {
+        &mut self.tape
+    }
+
+    /// J of the observed run.
+    pub fn value(&self) -> Result<f64, Error> {
+        self.objective
+            .evaluate(&self.plan, &self.tape)
+            .map(|e| e.value)
+            .map_err(Error::Refused)
+    }
+}
+
+/// Makes the relative paths of the keys `file` and `data` absolute against `base`.
+fn absolute_paths(table: &mut toml::Table, base: &Path) {
+    for (key, value) in table.iter_mut() {
+        match value {
+            toml::Value::String(s)
+                if (key == "file" || key == "data") && Path::new(s.as_str()).is_relative() =>
+            {
+                *s = base.join(s.as_str()).display().to_string();
+            }
+            toml::Value::Table(t) => absolute_paths(t, base),
+            toml::Value::Array(a) => {
+                for v in a {
+                    if let toml::Value::Table(t) = v {
+                        absolute_paths(t, base);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The key and reason where the starting drive breaks a bound or a rate limit.
+fn check_start(
+    layout: &Layout,
+    set: &Feasible,
+    z0: &[f64],
+    scenario: &Scenario,
+    plan: &Plan,
+) -> Result<(), (String, String)> {
+    let mut at = 0;
+    for &(si, ci, index, s) in &layout.slots {
+        let spec = &scenario.controls[index];
+        let knots = &plan.stages[si].controls[ci].1;
+        let key = |k: &str| format!("controls.{index}.{k}");
+        for (k, &(t, v)) in knots.iter().enumerate() {
+            let tol = 1e-12 * s;
+            if let Some(l) = spec.lower.filter(|l| v < l - tol) {
+                return Err((
+                    key("lower"),
+                    format!(
+                        "the starting drive ({v:e} V at {t:e} s of stage `{}`) lies below \
+                         `lower` ({l:e} V): give `values` inside the bounds, or other bounds",
+                        plan.stages[si].name
+                    ),
+                ));
+            }
+            if let Some(u) = spec.upper.filter(|u| v > u + tol) {
+                return Err((
+                    key("upper"),
+                    format!(
+                        "the starting drive ({v:e} V at {t:e} s of stage `{}`) lies above \
+                         `upper` ({u:e} V): give `values` inside the bounds, or other bounds",
+                        plan.stages[si].name
+                    ),
+                ));
+            }
+            if let (Some(r), Some(&(t1, v1))) = (spec.max_rate, knots.get(k + 1)) {
+                let rate = (v1 - v) / (t1 - t);
+                if rate.abs() > r * (1.0 + 1e-12) {
+                    return Err((
+                        key("max_rate"),
+                        format!(
+                            "the starting drive changes at {rate:e} V/s between {t:e} and \
+                             {t1:e} s of stage `{}`, faster than `max_rate` ({r:e} V/s)",
+                            plan.stages[si].name
+                        ),
+                    ));
+                }
+            }
+        }
+        at += knots.len();
+    }
+    debug_assert!(at == z0.len() && set.lower.len() == at);
+    Ok(())
+}
+
+impl OptimalControl {
+    /// The document of `control.json`.
+    pub fn to_json(&self) -> serde_json::Value {
+        let num = |x: f64| {
+            serde_json::Number::from_f64(x)
+                .map_or(serde_json::Value::Null, serde_json::Value::Number)
+        };
+        serde_json::json!({
+            "objective": self.history.iter().map(|i| num(i.objective)).collect::<Vec<_>>(),
+            "final_objective": num(self.objective),
+            "gradient_norm": self.history.iter().map(|i| num(i.projected_gradient)).collect::<Vec<_>>(),
+            "evaluations_per_iteration": self.history.iter().map(|i| i.evaluations).collect::<Vec<_>>(),
+            "iterations": self.history.len() - 1,
+            "evaluations": self.evaluations,
+            "converged": self.converged,
+            "reason": self.reason,
+            "wall_s": self.wall_s,
+            "controls": self.drives.iter().map(|d| serde_json::json!({
+                "index": d.index,
+                "electrode": d.electrode,
+                "stage": d.stage,
+                "knots": d.times.len(),
+                "lower": d.lower,
+                "upper": d.upper,
+                "max_rate": d.max_rate,
+            })).collect::<Vec<_>>(),
+        })
+    }
+
+    /// Writes `control.json`, `control.csv` (`time` in the run's clock, s, then
+    /// `voltage:<electrode>` per control, V), `controlled.toml` and, with `plot_format`, the
+    /// plots `control.<format>` (the drive, starting and optimised) and `tracking.<format>` (each
+    /// probe the objective reads against its target). Returns the paths written.
+    pub fn write(&self, dir: &Path, plot_format: Option<&str>) -> Result<Vec<PathBuf>, Error> {
+        let io = |path: &Path, e: String| Error::Io {
+            path: path.to_path_buf(),
+            message: e,
+        };
+        std::fs::create_dir_all(dir).map_err(|e| io(dir, e.to_string()))?;
+        let mut written = Vec::new();
+        let mut put = |name: &str, text: &str| -> Result<(), Error> {
+            let path = dir.join(name);
+            write_atomic(&path, text.as_bytes()).map_err(|e| io(&path, e.to_string()))?;
+            written.push(path);
+            Ok(())
+        };
+        put(
+            "control.json",
+            &(serde_json::to_string_pretty(&self.to_json()).unwrap_or_default() + "\n"),
+        )?;
+        let header: Vec<String> = self
+            .drives
+            .iter()
+            .map(|d| {
+                if self
+                    .drives
+                    .iter()
+                    .filter(|o| o.electrode == d.electrode)
+                    .count()
+                    > 1
+                {
+                    format!("voltage:{}@{}", d.electrode, d.stage)
+                } else {
+                    format!("voltage:{}", d.electrode)
+                }
+            })
+            .collect();
+        let columns: Vec<(f64, &[f64], &[f64])> = self
+            .drives
+            .iter()
+            .map(|d| (d.stage_start, d.times.as_slice(), d.values.as_slice()))
+            .collect();
+        put("control.csv", &knots_csv(&header, &columns))?;
+        put("controlled.toml", &self.controlled)?;
+        if let Some(format) = plot_format {
+            let mut series = Vec::new();
+            for (d, name) in self.drives.iter().zip(&header) {
+                let x: Vec<f64> = d.times.iter().map(|t| d.stage_start + t).collect();
+                series.push(Series {
+                    label: format!("{name} (start)"),
+                    x: x.clone(),
+                    y: d.initial.clone(),
+                });
+                series.push(Series {
+                    label: format!("{name} (optimised)"),
+                    x,
+                    y: d.values.clone(),
+                });
+            }
+            let path = dir.join(format!("control.{format}"));
+            line_plot(
+                &path,
+                &PlotSpec {
+                    title: "the controlled drive",
+                    x_label: "time [s]",
+                    y_label: "voltage [V]",
+                    series: &series,
+                },
+            )
+            .map_err(|e| io(&path, e.to_string()))?;
+            written.push(path);
+        }
+        Ok(written)
+    }
+
+    /// The plot of each probe an objective term reads (from the optimised run's history)
+    /// against its target, one panel per term, into `path`; `false` when no term reads a probe.
+    pub fn plot_tracking(&self, sim: &Simulation, path: &Path) -> Result<bool, Error> {
+        let scenario = sim.scenario()?;
+        let plan = sim.plan()?;
+        let objective = Objective::build(&scenario, &plan, &sim.name, sim.base.as_deref())
+            .map_err(Error::Input)?;
+        let time = self.results.history.column("time").unwrap_or_default();
+        let mut panels: Vec<(String, String, Vec<Series>)> = Vec::new();
+        for term in &objective.terms {
+            let (probe, stage, relative) = match term {
+                Term::ProbeMisfit {
+                    probe,
+                    stage,
+                    relative,
+                    ..
+                }
+                | Term::ProbeFinal {
+                    probe,
+                    stage,
+                    relative,
+                    ..
+                } => (*probe, *stage, *relative),
+                _ => continue,
+            };
+            let (name, spec) = &plan.probes[probe];
+            let Some(values) = self.results.history.column(&format!("probe:{name}")) else {
+                continue;
+            };
+            let t0: f64 = plan.stages[..stage].iter().map(|s| s.duration).sum();
+            let t1 = t0 + plan.stages[stage].duration;
+            let (x, y): (Vec<f64>, Vec<f64>) = time
+                .iter()
+                .zip(values)
+                .filter(|(t, _)| **t >= t0 - 1e-12 && **t <= t1 + 1e-12)
+                .map(|(t, v)| (*t, *v))
+                .unzip();
+            // the probe at the stage's start: the last row before the stage's first step
+            let first = time
+                .iter()
+                .position(|t| *t > t0 + 1e-12 * t1.abs().max(1.0));
+            let v0 = match first {
+                Some(i) if relative && i > 0 => values[i - 1],
+                _ => 0.0,
+            };
+            let target: Vec<(f64, f64)> = match term {
+                Term::ProbeMisfit { target, .. } => {
+                    x.iter().map(|t| (*t, v0 + target.at(*t))).collect()
+                }
+                Term::ProbeFinal { target, .. } => vec![(t1, v0 + target)],
+                _ => continue,
+            };
+            panels.push((
+                format!("{name} in stage {}", plan.stages[stage].name),
+                spec.unit.clone(),
+                vec![
+                    Series {
+                        label: format!("{name} (optimised run)"),
+                        x,
+                        y,
+                    },
+                    Series {
+                        label: "target".into(),
+                        x: target.iter().map(|p| p.0).collect(),
+                        y: target.iter().map(|p| p.1).collect(),
+                    },
+                ],
+            ));
+        }
+        if panels.is_empty() {
+            return Ok(false);
+        }
+        let labels: Vec<String> = panels.iter().map(|p| format!("[{}]", p.1)).collect();
+        let specs: Vec<PlotSpec> = panels
+            .iter()
+            .zip(&labels)
+            .map(|(p, l)| PlotSpec {
+                title: &p.0,
+                x_label: "time [s]",
+                y_label: l,
+                series: &p.2,
+            })
+            .collect();
+        stacked_plot(path, &specs).map_err(|e| Error::Io {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        Ok(true)
+    }
+}
