@@ -80,6 +80,8 @@ pub struct OptimalControl {
     pub drives: Vec<Drive>,
     /// The optimised run.
     pub results: Results,
+    /// The run of the starting drive (for comparison).
+    pub start: Results,
     /// `controlled.toml`: the scenario with the optimised knots as its controls' values.
     pub controlled: String,
 }
@@ -243,6 +245,8 @@ impl Simulation {
             },
             &mut progress,
         )?;
+        // the starting drive's run, to compare with
+        let start_run = run_plan(&plan, RunOptions::default())?;
         // the optimised run, with its files
         let mut best = plan.clone();
         layout.apply(&mut best, &minimum.x);
@@ -296,6 +300,7 @@ impl Simulation {
             wall_s: start.elapsed().as_secs_f64(),
             drives,
             results,
+            start: start_run,
             controlled,
         })
     }
@@ -555,14 +560,13 @@ impl OptimalControl {
         Ok(written)
     }
 
-    /// The plot of each probe an objective term reads (from the optimised run's history)
-    /// against its target, one panel per term, into `path`; `false` when no term reads a probe.
+    /// The plot of each probe an objective term reads (in the optimised run and in the run of
+    /// the starting drive) against its target, one panel per term, into `path`; `false` when no term reads a probe.
     pub fn plot_tracking(&self, sim: &Simulation, path: &Path) -> Result<bool, Error> {
         let scenario = sim.scenario()?;
         let plan = sim.plan()?;
         let objective = Objective::build(&scenario, &plan, &sim.name, sim.base.as_deref())
             .map_err(Error::Input)?;
-        let time = self.results.history.column("time").unwrap_or_default();
         let mut panels: Vec<(String, String, Vec<Series>)> = Vec::new();
         for term in &objective.terms {
             let (probe, stage, relative) = match term {
@@ -581,24 +585,30 @@ impl OptimalControl {
                 _ => continue,
             };
             let (name, spec) = &plan.probes[probe];
-            let Some(values) = self.results.history.column(&format!("probe:{name}")) else {
-                continue;
-            };
             let t0: f64 = plan.stages[..stage].iter().map(|s| s.duration).sum();
             let t1 = t0 + plan.stages[stage].duration;
-            let (x, y): (Vec<f64>, Vec<f64>) = time
-                .iter()
-                .zip(values)
-                .filter(|(t, _)| **t >= t0 - 1e-12 && **t <= t1 + 1e-12)
-                .map(|(t, v)| (*t, *v))
-                .unzip();
-            // the probe at the stage's start: the last row before the stage's first step
-            let first = time
-                .iter()
-                .position(|t| *t > t0 + 1e-12 * t1.abs().max(1.0));
-            let v0 = match first {
-                Some(i) if relative && i > 0 => values[i - 1],
-                _ => 0.0,
+            // a run's probe over the stage, and its value at the stage's start (the last row
+            // before the stage's first step)
+            let curve = |r: &Results| -> Option<(Vec<f64>, Vec<f64>, f64)> {
+                let time = r.history.column("time")?;
+                let values = r.history.column(&format!("probe:{name}"))?;
+                let (x, y): (Vec<f64>, Vec<f64>) = time
+                    .iter()
+                    .zip(values)
+                    .filter(|(t, _)| **t >= t0 - 1e-12 && **t <= t1 + 1e-12)
+                    .map(|(t, v)| (*t, *v))
+                    .unzip();
+                let first = time
+                    .iter()
+                    .position(|t| *t > t0 + 1e-12 * t1.abs().max(1.0));
+                let v0 = match first {
+                    Some(i) if relative && i > 0 => values[i - 1],
+                    _ => 0.0,
+                };
+                Some((x, y, v0))
+            };
+            let Some((x, y, v0)) = curve(&self.results) else {
+                continue;
             };
             let target: Vec<(f64, f64)> = match term {
                 Term::ProbeMisfit { target, .. } => {
@@ -607,21 +617,27 @@ impl OptimalControl {
                 Term::ProbeFinal { target, .. } => vec![(t1, v0 + target)],
                 _ => continue,
             };
+            let mut series = vec![Series {
+                label: format!("{name} (optimised drive)"),
+                x,
+                y,
+            }];
+            if let Some((x, y, _)) = curve(&self.start) {
+                series.push(Series {
+                    label: format!("{name} (starting drive)"),
+                    x,
+                    y,
+                });
+            }
+            series.push(Series {
+                label: "target".into(),
+                x: target.iter().map(|p| p.0).collect(),
+                y: target.iter().map(|p| p.1).collect(),
+            });
             panels.push((
                 format!("{name} in stage {}", plan.stages[stage].name),
                 spec.unit.clone(),
-                vec![
-                    Series {
-                        label: format!("{name} (optimised run)"),
-                        x,
-                        y,
-                    },
-                    Series {
-                        label: "target".into(),
-                        x: target.iter().map(|p| p.0).collect(),
-                        y: target.iter().map(|p| p.1).collect(),
-                    },
-                ],
+                series,
             ));
         }
         if panels.is_empty() {
