@@ -61,6 +61,43 @@ pub struct Drive {
     /// The supports: each constrained dof's value at load factor 0 and 1 (the stage's start
     /// state and the model's target); filled by [`Drive::support_from`].
     pub supports: Vec<(usize, Ramp)>,
+    /// Values set while the stage runs that replace some of `voltages`' waveforms (a feedback
+    /// controller's held outputs).
+    pub held: HeldVoltages,
+}
+
+/// Voltages set while a stage runs, per entry of [`Drive::voltages`]: the value that replaces
+/// its waveform's from now on, if any. Clones share the values, so whoever holds a clone of the
+/// drive (a time step, a projection) sees what the run sets between steps.
+#[derive(Debug, Clone, Default)]
+pub struct HeldVoltages(std::sync::Arc<std::sync::Mutex<Vec<Option<f64>>>>);
+
+impl HeldVoltages {
+    /// The values, `None` where the waveform applies.
+    fn values(&self) -> std::sync::MutexGuard<'_, Vec<Option<f64>>> {
+        // a panic elsewhere cannot leave the values half-written: take them as they are
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Holds entry `k` of the drive's voltages at `volts` (V) from now on.
+    pub fn set(&self, k: usize, volts: f64) {
+        let mut v = self.values();
+        if v.len() <= k {
+            v.resize(k + 1, None);
+        }
+        v[k] = Some(volts);
+    }
+
+    /// The held value of entry `k`, if any.
+    pub fn get(&self, k: usize) -> Option<f64> {
+        self.values().get(k).copied().flatten()
+    }
+}
+
+impl PartialEq for HeldVoltages {
+    fn eq(&self, other: &Self) -> bool {
+        *self.values() == *other.values()
+    }
 }
 
 impl Drive {
@@ -73,6 +110,7 @@ impl Drive {
             dead_loads: Ramp::HELD,
             pressures: vec![Ramp::HELD; model.pressures.len()],
             supports: Vec::new(),
+            held: HeldVoltages::default(),
         }
     }
 
@@ -113,11 +151,14 @@ impl Drive {
         }
     }
 
-    /// Each prescribed electrode's nodes and voltage (V) at stage time `t`.
+    /// Each prescribed electrode's nodes and voltage (V) at stage time `t`: its held value
+    /// ([`Drive::held`]) or its waveform's.
     pub fn voltages_at(&self, t: f64) -> impl Iterator<Item = (&[usize], f64)> + '_ {
-        self.voltages
-            .iter()
-            .map(move |(n, w)| (n.as_slice(), w.value(t)))
+        let held = self.held.values().clone();
+        self.voltages.iter().enumerate().map(move |(k, (n, w))| {
+            let v = held.get(k).copied().flatten().unwrap_or_else(|| w.value(t));
+            (n.as_slice(), v)
+        })
     }
 
     /// Sets the potential of every prescribed electrode's nodes in `state` (4 values per node) to
@@ -153,6 +194,7 @@ mod tests {
             dead_loads: Ramp::HELD,
             pressures: Vec::new(),
             supports: Vec::new(),
+            held: HeldVoltages::default(),
         };
         let mut state = vec![0.0; 3 * FIELDS];
         drive.apply_voltages(&mut state, 1.0);

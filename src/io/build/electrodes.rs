@@ -57,6 +57,7 @@ pub(super) fn build_electrodes(
             voltage,
             charge,
             resistance,
+            controller: None,
         });
     }
     for (i, a) in electrodes.iter().enumerate() {
@@ -133,7 +134,7 @@ pub(super) fn ground_without_electrodes(
 }
 
 /// The voltage of an electrode at `key`: a number (V) or a waveform table.
-fn build_waveform(
+pub(super) fn build_waveform(
     ctx: &Ctx,
     key: &str,
     v: &VoltageSpec,
