@@ -455,3 +455,114 @@ fn the_energy_balance_stays_closed_under_the_controller() {
     assert!(work > 0.0);
     assert!(ours.abs() < 1e-2 * work, "{ours:e} J against {work:e} J");
 }
+
+/// A quasi-static stage runs the loop too: without inertia the PI loop settles the deflection
+/// on a set-point step, with the integrator removing the error of the P part.
+#[test]
+fn a_quasi_static_stage_runs_the_loop() {
+    let (m, row, gain) = reduced();
+    let y_bias = m.output_offsets[row];
+    let step = 2e-8;
+    let sim = with(
+        with(
+            with(with(coarse(), "setpoint.offset", y_bias), "kp", 0.2 / gain),
+            "ki",
+            20.0 / gain,
+        ),
+        "setpoint.at",
+        0.0105,
+    )
+    .set("stages.2.kind", "\"quasi-static\"")
+    .set("stages.2.duration", "0.5");
+    let yi = probe(&sim, "center_deflection");
+    let records = run(&sim);
+    let rows = hold(&records);
+    assert!(rows.iter().skip(1).all(|r| r.stage == "hold"));
+    // before the step the loop holds the bias; after it the deflection goes to the set point
+    let volts: Vec<f64> = rows.iter().map(|r| top_voltage(&sim, r)).collect();
+    assert!((volts[5] - 2000.0).abs() < 1e-3, "{}", volts[5]);
+    let last = rows.last().unwrap().probes[yi];
+    assert!(
+        ((last - y_bias) / step - 1.0).abs() < 1e-3,
+        "{:e} of the step",
+        (last - y_bias) / step
+    );
+    assert!(volts.last().unwrap() > &2050.0);
+}
+
+/// A run resumed from a checkpoint inside the controlled stage ends with the same history,
+/// bit for bit, as the run that went on: the integral, the filtered derivative, the last
+/// measurement, the held output, the sample clock and the noise generator are in the run state.
+#[test]
+fn a_resumed_run_continues_the_loop_bitwise() {
+    let dir = common::tempdir("controller-resume");
+    let scenario = dir.join("pid.toml");
+    std::fs::write(
+        &scenario,
+        deasim::io::examples::example("diaphragm-pid").unwrap(),
+    )
+    .unwrap();
+    let sets = [
+        "mesh.radial=8",
+        "mesh.layers=1",
+        "output.fields_every=0",
+        "output.plots=false",
+        "stages.2.duration=0.1",
+        "electrodes.top.controller.kd=1e6",
+        "electrodes.top.controller.derivative_filter=2e-3",
+        "electrodes.top.controller.noise=1e-9",
+        "electrodes.top.controller.seed=11",
+        "electrodes.top.controller.sample_time=2.5e-3",
+    ];
+    let mut args = vec![
+        "run",
+        scenario.to_str().unwrap(),
+        "--out",
+        "full",
+        "--checkpoint-every",
+        "30",
+    ];
+    for s in &sets {
+        args.extend(["--set", s]);
+    }
+    let full = common::deasim(&args, &dir);
+    assert_eq!(full.status.code(), Some(0));
+    let mut ck: Vec<_> = std::fs::read_dir(dir.join("full/checkpoint"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "bin"))
+        .collect();
+    ck.sort();
+    assert_eq!(ck.len(), 2);
+    let cut = dir.join("cut");
+    std::fs::create_dir_all(cut.join("checkpoint")).unwrap();
+    std::fs::copy(
+        &ck[0],
+        cut.join("checkpoint").join(ck[0].file_name().unwrap()),
+    )
+    .unwrap();
+    let resumed = common::deasim(&["run", "--resume", "cut"], &dir);
+    assert_eq!(
+        resumed.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    let read = |d: &str, f: &str| std::fs::read_to_string(dir.join(d).join(f)).unwrap();
+    for f in ["history.csv", "electrodes.csv"] {
+        let (a, b) = (read("full", f), read("cut", f));
+        assert_eq!(a.lines().count(), b.lines().count(), "{f}");
+        for (i, (x, y)) in a.lines().zip(b.lines()).enumerate() {
+            assert_eq!(x, y, "{f} line {i}");
+        }
+    }
+    // the checkpoint was taken inside the controlled stage
+    let history = read("full", "history.csv");
+    let hold_rows = history.lines().filter(|l| l.contains(",hold,")).count();
+    let total = history.lines().count() - 1;
+    assert!(
+        total - hold_rows < 60 && hold_rows > 60,
+        "{total} {hold_rows}"
+    );
+}

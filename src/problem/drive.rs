@@ -96,7 +96,11 @@ impl HeldVoltages {
 
 impl PartialEq for HeldVoltages {
     fn eq(&self, other: &Self) -> bool {
-        *self.values() == *other.values()
+        // clones share one lock: compare their values once
+        std::sync::Arc::ptr_eq(&self.0, &other.0) || {
+            let mine = self.values().clone();
+            mine == *other.values()
+        }
     }
 }
 
@@ -203,5 +207,31 @@ mod tests {
         assert_eq!(state[FIELDS + PHI], 0.0);
         assert!(ramp.value(1.0) > 0.0 && ramp.value(1.0) < 1e3);
         assert_eq!(drive.circuit_sources_at(1.0), vec![5.0, ramp.value(1.0)]);
+    }
+
+    /// A held value replaces its entry's waveform for whoever holds a clone of the drive; the
+    /// other entries keep their waveforms.
+    #[test]
+    fn held_voltages_replace_the_waveform_in_every_clone() {
+        let drive = Drive {
+            voltages: vec![
+                (vec![0], Waveform::constant(1.0)),
+                (vec![1], Waveform::constant(2.0)),
+            ],
+            circuits: Vec::new(),
+            dead_loads: Ramp::HELD,
+            pressures: Vec::new(),
+            supports: Vec::new(),
+            held: HeldVoltages::default(),
+        };
+        let copy = drive.clone();
+        assert_eq!(copy.held.get(1), None);
+        drive.held.set(1, 7.5);
+        let values: Vec<f64> = copy.voltages_at(0.3).map(|(_, v)| v).collect();
+        assert_eq!(values, [1.0, 7.5]);
+        let mut state = vec![0.0; 2 * FIELDS];
+        copy.apply_voltages(&mut state, 0.0);
+        assert_eq!((state[PHI], state[FIELDS + PHI]), (1.0, 7.5));
+        assert_eq!(drive, copy);
     }
 }
