@@ -387,6 +387,14 @@ fn bad_controllers_are_refused_naming_the_key() {
         err.contains("electrodes.top.controller.sample_time"),
         "{err}"
     );
+    // a good one is listed by `check`
+    let ok = common::deasim(&["check", "diaphragm-pid", "--no-trial"], &dir);
+    assert_eq!(ok.status.code(), Some(0));
+    let said = String::from_utf8_lossy(&ok.stdout);
+    assert!(
+        said.contains("controller: PID on probe `center_deflection`"),
+        "{said}"
+    );
 }
 
 /// 6. The energy balance under the controller: the source's work on the electrode is
