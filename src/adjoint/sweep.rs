@@ -65,6 +65,14 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
     if !plan.model.circuits.is_empty() {
         return Err("the adjoint of electrodes driven through circuits is not built yet".into());
     }
+    if let Some(e) = plan.electrodes.iter().find(|e| e.controller.is_some()) {
+        return Err(format!(
+            "electrode `{}` has a controller: its feedback drive depends on the state, and the \
+             adjoint of a feedback loop is not built; remove `electrodes.{}.controller` (e.g. \
+             give the voltage the loop produced as a `table` waveform)",
+            e.name, e.name
+        ));
+    }
     if plan.prestretch.is_some_and(|p| p.timed()) {
         return Err(
             "the adjoint of a timed pre-stretch (`duration` or `hold`) is not built yet: \

@@ -545,6 +545,14 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                         e.nodes.len()
                     ),
                 }
+                if let Some(c) = &e.controller {
+                    println!(
+                        "  controller: PID on probe `{}` (kp {:e}, ki {:e}, kd {:e}), sampled every \
+                         {:e} s, output {} … {} V, in the dynamic and quasi-static stages with the \
+                         electrodes on",
+                        c.probe_name, c.kp, c.ki, c.kd, c.sample_time, c.lower, c.upper
+                    );
+                }
             }
             if let Some(p) = plan.prestretch {
                 println!(

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every checkpoint.
 pub const MAGIC: &[u8; 8] = b"DEASIMCK";
 /// Version of the layout; a file of another version is refused.
-pub const FORMAT_VERSION: u32 = 5;
+pub const FORMAT_VERSION: u32 = 6;
 /// The sub-directory of the output directory that holds the checkpoints.
 pub const SUBDIR: &str = "checkpoint";
 /// How many checkpoints are kept (older ones are deleted after a new one is written).
@@ -469,6 +469,15 @@ mod tests {
                     electrodes: vec![[2.0, 1e-9, 1e-6, 2e-6, 0.0, 0.0]],
                 }],
                 wall_s: 1.5,
+                controllers: vec![crate::job::controller::ControllerState {
+                    integral: 12.5,
+                    derivative: -0.25,
+                    last_measurement: Some(1e-4),
+                    output: 2050.0,
+                    next_sample: 0.003,
+                    rng: 0x1234_5678_9abc_def0,
+                    samples: 3,
+                }],
             },
         }
     }

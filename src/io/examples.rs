@@ -38,6 +38,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "diaphragm-visco",
         include_str!("../../scenarios/diaphragm-visco.toml"),
     ),
+    (
+        "diaphragm-pid",
+        include_str!("../../scenarios/diaphragm-pid.toml"),
+    ),
     ("balloon", include_str!("../../scenarios/balloon.toml")),
     (
         "balloon-volume",

@@ -533,6 +533,49 @@ pub struct ElectrodeSpec {
     /// through a series `resistance` (Ω, of the whole device). Excludes `voltage` and `charge`.
     #[serde(default)]
     pub circuit: Option<CircuitSpec>,
+    /// A feedback controller that sets the voltage in the dynamic and quasi-static stages.
+    #[serde(default)]
+    pub controller: Option<ControllerSpec>,
+}
+
+/// `electrodes.<e>.controller`: a sampled PID loop from a probe to the electrode's voltage.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerSpec {
+    /// `pid`.
+    pub kind: String,
+    /// The probe measured.
+    #[serde(default)]
+    pub probe: Option<String>,
+    /// The set point (probe unit): a number or a waveform table.
+    #[serde(default)]
+    pub setpoint: Option<VoltageSpec>,
+    /// Gains: V per probe unit, per probe unit per s, V·s per probe unit.
+    #[serde(default)]
+    pub kp: Option<f64>,
+    #[serde(default)]
+    pub ki: Option<f64>,
+    #[serde(default)]
+    pub kd: Option<f64>,
+    /// The sample period (s).
+    #[serde(default)]
+    pub sample_time: Option<f64>,
+    /// The output limits (V).
+    #[serde(default)]
+    pub lower: Option<f64>,
+    #[serde(default)]
+    pub upper: Option<f64>,
+    /// Drive added before the limits (V): a number or a waveform table.
+    #[serde(default)]
+    pub feedforward: Option<VoltageSpec>,
+    /// Standard deviation of the measurement noise (probe unit) and its seed.
+    #[serde(default)]
+    pub noise: Option<f64>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Time constant of the derivative's filter (s).
+    #[serde(default)]
+    pub derivative_filter: Option<f64>,
 }
 
 /// A source behind a series resistance.

@@ -1,6 +1,7 @@
 //! The job: the plan of a run executed stage by stage, the recorder of accepted states, probes
 //! and observers.
 
+pub mod controller;
 pub mod linear;
 pub mod observer;
 pub mod part;

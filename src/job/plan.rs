@@ -21,6 +21,10 @@ pub struct Electrode {
     /// and the electrode, whose potential is then one unknown shared by its nodes. `None`: the
     /// electrode is at `voltage` (or under charge control).
     pub resistance: Option<f64>,
+    /// A feedback controller that sets the voltage in the dynamic and quasi-static stages with
+    /// the electrodes on (`voltage` applies in the other stages).
+    #[serde(default)]
+    pub controller: Option<super::controller::Controller>,
 }
 
 impl Electrode {

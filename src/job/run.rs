@@ -18,7 +18,7 @@ use super::statics::{solve_static_from, StageTime};
 use crate::algebra::system::NonlinearSystem;
 use crate::problem::distributed::Held;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
-use crate::problem::drive::{Drive, Ramp};
+use crate::problem::drive::{Drive, HeldVoltages, Ramp};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
@@ -77,6 +77,10 @@ struct Job<'p, 'o> {
     record_error: Option<String>,
     /// Committed internal variables of the material points: their only live copy.
     points: PointStates,
+    /// The controllers acting in the current stage ([`Plan::controller_loops`]) and the
+    /// voltages they hold in its drive.
+    loops: Vec<ControllerLoop>,
+    held: HeldVoltages,
 }
 
 impl<'p, 'o> Job<'p, 'o> {
@@ -114,7 +118,16 @@ impl<'p, 'o> Job<'p, 'o> {
             warnings: Vec::new(),
             records: Vec::new(),
             wall_s: 0.0,
+            controllers: Vec::new(),
         });
+        let controllers: Vec<_> = plan
+            .electrodes
+            .iter()
+            .filter_map(|e| e.controller.as_ref())
+            .collect();
+        if state.controllers.len() != controllers.len() {
+            state.controllers = controllers.iter().map(|c| c.start()).collect();
+        }
         let pressures = plan.model.pressures.len();
         if state.pressure_start.len() != pressures {
             // an older checkpoint: the fractions the stage before left
@@ -146,6 +159,8 @@ impl<'p, 'o> Job<'p, 'o> {
             record_error: None,
             points,
             state,
+            loops: Vec::new(),
+            held: HeldVoltages::default(),
         };
         crate::solve::interrupt::clear_local();
         if !plan.solver.gives_inertia() {
@@ -288,6 +303,7 @@ impl<'p, 'o> Job<'p, 'o> {
             }
         }
         self.record_error = None;
+        let start_failure = self.start_controllers(si, &drive, position.is_some());
         let mut summary = StageSummary {
             name: stage.name.clone(),
             kind: String::new(),
@@ -300,6 +316,7 @@ impl<'p, 'o> Job<'p, 'o> {
             linear: Default::default(),
         };
         let failure = match stage.kind {
+            _ if start_failure.is_some() => start_failure,
             StageKind::Static { steps } | StageKind::QuasiStatic { steps } => {
                 self.static_stage(si, model, drive, steps, &prescribed, position, &mut summary)
             }
@@ -337,6 +354,59 @@ impl<'p, 'o> Job<'p, 'o> {
         }
         self.state.stage_time += stage.duration;
         true
+    }
+
+    /// Sets up the controllers acting in stage `si` on its `drive`: resumed inside the stage,
+    /// they hold the outputs of their state; else their clocks restart and they take their first
+    /// sample of the stage's start state. Returns the failure, if any.
+    fn start_controllers(&mut self, si: usize, drive: &Drive, resumed: bool) -> Option<String> {
+        let plan = self.plan;
+        self.loops = plan.controller_loops(&plan.stages[si]);
+        self.held = drive.held.clone();
+        if self.loops.is_empty() {
+            return None;
+        }
+        if resumed {
+            for l in &self.loops {
+                self.held
+                    .set(l.drive, self.state.controllers[l.state].output);
+            }
+            return None;
+        }
+        for l in &self.loops {
+            let c = plan.electrodes[l.electrode].controller.as_ref();
+            if let Some(c) = c {
+                c.restart_clock(&mut self.state.controllers[l.state]);
+            }
+        }
+        match self.rec.probes_at(&self.state.q) {
+            Ok(probes) => {
+                self.control(0.0, Some(&probes));
+                None
+            }
+            Err(e) => Some(format!(
+                "stage `{}`: the controllers' first sample: {e}",
+                plan.stages[si].name
+            )),
+        }
+    }
+
+    /// The controllers due at stage time `t` sample the probe values `probes` (`None`: the
+    /// record failed, the outputs stay held) and hold their outputs for the steps that follow.
+    fn control(&mut self, t: f64, probes: Option<&[f64]>) {
+        let plan = self.plan;
+        for l in &self.loops {
+            let Some(c) = plan.electrodes[l.electrode].controller.as_ref() else {
+                continue;
+            };
+            let state = &mut self.state.controllers[l.state];
+            if let Some(p) = probes {
+                if c.due(state, t) {
+                    c.sample(state, t, p[c.probe]);
+                }
+            }
+            self.held.set(l.drive, state.output);
+        }
     }
 
     /// A small-signal stage about the current state: modes or a frequency response, sent to
@@ -595,7 +665,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 self.rec.circuit_current = false;
                 self.rec.external_factor = p.load();
                 self.rec.pressure_now = p.pressure_fractions();
-                self.record(
+                let record = self.record(
                     &p.state,
                     prescribed,
                     t,
@@ -605,6 +675,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     dt,
                     0.0,
                 );
+                self.control(t - time, record.as_ref().map(|r| r.probes.as_slice()));
                 self.state.accepted += 1;
                 last_position = acc.position;
                 self.offer_state(false, |job| {
@@ -1088,7 +1159,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 self.rec.pressure_now = vec![0.0; plan.model.pressures.len()];
                 self.rec.sudden_loads = true;
                 self.rec.circuit_current = true;
-                self.record(
+                let record = self.record(
                     &level.q,
                     prescribed,
                     time + level.t,
@@ -1098,6 +1169,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     info.dt,
                     kinetic,
                 );
+                self.control(level.t, record.as_ref().map(|r| r.probes.as_slice()));
                 self.state.accepted += 1;
                 last = info.resume_point(0.0);
                 if self.observer.wants_state(self.state.accepted, false) {
@@ -1224,11 +1296,44 @@ impl Plan {
                 })
                 .collect(),
             supports: Vec::new(),
+            held: Default::default(),
         };
         if dynamic {
             drive.dead_loads = Ramp::HELD;
         }
         drive
+    }
+
+    /// The controllers acting in `stage` (a dynamic or quasi-static stage with its electrodes
+    /// on), in electrode order.
+    pub fn controller_loops(&self, stage: &Stage) -> Vec<ControllerLoop> {
+        let active = stage.electrodes_on
+            && matches!(
+                stage.kind,
+                StageKind::Dynamic { .. } | StageKind::QuasiStatic { .. }
+            );
+        if !active {
+            return Vec::new();
+        }
+        let dynamic = matches!(stage.kind, StageKind::Dynamic { .. });
+        let mut loops = Vec::new();
+        let mut state = 0;
+        for (electrode, e) in self.electrodes.iter().enumerate() {
+            if e.controller.is_none() {
+                continue;
+            }
+            let drive = self.electrodes[..electrode]
+                .iter()
+                .filter(|e| e.prescribed(dynamic))
+                .count();
+            loops.push(ControllerLoop {
+                state,
+                electrode,
+                drive,
+            });
+            state += 1;
+        }
+        loops
     }
 
     /// The prescribed electrodes' nodes and the waveforms they follow in `stage` (0 V when the
@@ -1263,6 +1368,15 @@ impl Plan {
         }
         flags
     }
+}
+
+/// A controller acting in a stage: its index in [`RunState::controllers`], its electrode (plan
+/// index) and the electrode's entry in the stage drive's voltages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ControllerLoop {
+    pub state: usize,
+    pub electrode: usize,
+    pub drive: usize,
 }
 
 /// A material point at this fraction of its locking limit (or beyond) in the last converged state

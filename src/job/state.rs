@@ -171,6 +171,10 @@ pub struct RunState {
     pub records: Vec<StepRecord>,
     /// Wall time spent before this state was taken (s).
     pub wall_s: f64,
+    /// The state of each electrode's controller, in the order of the plan's electrodes that
+    /// have one.
+    #[serde(default)]
+    pub controllers: Vec<super::controller::ControllerState>,
 }
 
 /// The outcome of a run.

@@ -61,6 +61,47 @@ pub struct Drive {
     /// The supports: each constrained dof's value at load factor 0 and 1 (the stage's start
     /// state and the model's target); filled by [`Drive::support_from`].
     pub supports: Vec<(usize, Ramp)>,
+    /// Values set while the stage runs that replace some of `voltages`' waveforms (a feedback
+    /// controller's held outputs).
+    pub held: HeldVoltages,
+}
+
+/// Voltages set while a stage runs, per entry of [`Drive::voltages`]: the value that replaces
+/// its waveform's from now on, if any. Clones share the values, so whoever holds a clone of the
+/// drive (a time step, a projection) sees what the run sets between steps.
+#[derive(Debug, Clone, Default)]
+pub struct HeldVoltages(std::sync::Arc<std::sync::Mutex<Vec<Option<f64>>>>);
+
+impl HeldVoltages {
+    /// The values, `None` where the waveform applies.
+    fn values(&self) -> std::sync::MutexGuard<'_, Vec<Option<f64>>> {
+        // a panic elsewhere cannot leave the values half-written: take them as they are
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Holds entry `k` of the drive's voltages at `volts` (V) from now on.
+    pub fn set(&self, k: usize, volts: f64) {
+        let mut v = self.values();
+        if v.len() <= k {
+            v.resize(k + 1, None);
+        }
+        v[k] = Some(volts);
+    }
+
+    /// The held value of entry `k`, if any.
+    pub fn get(&self, k: usize) -> Option<f64> {
+        self.values().get(k).copied().flatten()
+    }
+}
+
+impl PartialEq for HeldVoltages {
+    fn eq(&self, other: &Self) -> bool {
+        // clones share one lock: compare their values once
+        std::sync::Arc::ptr_eq(&self.0, &other.0) || {
+            let mine = self.values().clone();
+            mine == *other.values()
+        }
+    }
 }
 
 impl Drive {
@@ -73,6 +114,7 @@ impl Drive {
             dead_loads: Ramp::HELD,
             pressures: vec![Ramp::HELD; model.pressures.len()],
             supports: Vec::new(),
+            held: HeldVoltages::default(),
         }
     }
 
@@ -113,11 +155,14 @@ impl Drive {
         }
     }
 
-    /// Each prescribed electrode's nodes and voltage (V) at stage time `t`.
+    /// Each prescribed electrode's nodes and voltage (V) at stage time `t`: its held value
+    /// ([`Drive::held`]) or its waveform's.
     pub fn voltages_at(&self, t: f64) -> impl Iterator<Item = (&[usize], f64)> + '_ {
-        self.voltages
-            .iter()
-            .map(move |(n, w)| (n.as_slice(), w.value(t)))
+        let held = self.held.values().clone();
+        self.voltages.iter().enumerate().map(move |(k, (n, w))| {
+            let v = held.get(k).copied().flatten().unwrap_or_else(|| w.value(t));
+            (n.as_slice(), v)
+        })
     }
 
     /// Sets the potential of every prescribed electrode's nodes in `state` (4 values per node) to
@@ -156,6 +201,7 @@ mod tests {
             dead_loads: Ramp::HELD,
             pressures: Vec::new(),
             supports: Vec::new(),
+            held: HeldVoltages::default(),
         };
         let mut state = vec![0.0; 3 * FIELDS];
         drive.apply_voltages(&mut state, 1.0);
@@ -164,5 +210,31 @@ mod tests {
         assert_eq!(state[FIELDS + PHI], 0.0);
         assert!(ramp.value(1.0) > 0.0 && ramp.value(1.0) < 1e3);
         assert_eq!(drive.circuit_sources_at(1.0), vec![5.0, ramp.value(1.0)]);
+    }
+
+    /// A held value replaces its entry's waveform for whoever holds a clone of the drive; the
+    /// other entries keep their waveforms.
+    #[test]
+    fn held_voltages_replace_the_waveform_in_every_clone() {
+        let drive = Drive {
+            voltages: vec![
+                (vec![0], Waveform::constant(1.0)),
+                (vec![1], Waveform::constant(2.0)),
+            ],
+            circuits: Vec::new(),
+            dead_loads: Ramp::HELD,
+            pressures: Vec::new(),
+            supports: Vec::new(),
+            held: HeldVoltages::default(),
+        };
+        let copy = drive.clone();
+        assert_eq!(copy.held.get(1), None);
+        drive.held.set(1, 7.5);
+        let values: Vec<f64> = copy.voltages_at(0.3).map(|(_, v)| v).collect();
+        assert_eq!(values, [1.0, 7.5]);
+        let mut state = vec![0.0; 2 * FIELDS];
+        copy.apply_voltages(&mut state, 0.0);
+        assert_eq!((state[PHI], state[FIELDS + PHI]), (1.0, 7.5));
+        assert_eq!(drive, copy);
     }
 }

@@ -57,6 +57,7 @@ pub(super) fn build_electrodes(
             voltage,
             charge,
             resistance,
+            controller: None,
         });
     }
     for (i, a) in electrodes.iter().enumerate() {

@@ -9,6 +9,7 @@
 //! their waveforms), [`stages`], [`probes`] and [`solver`]. [`build`] calls them in a fixed order,
 //! so that a scenario with several errors always reports the same one first.
 
+mod controller;
 mod controls;
 mod electrodes;
 mod loads;
@@ -190,6 +191,8 @@ pub fn build_with(
         }
     }
     let probes = probes::build_probes(&ctx, s, &model, &electrodes)?;
+    let mut electrodes = electrodes;
+    controller::build_controllers(&ctx, s, &mut electrodes, &stages, &probes, base_dir)?;
     let output = build_output(&ctx, &s.output, model.is_axisymmetric())?;
     let (newton, step_control) = solver::build_newton(&ctx, s)?;
     warnings.extend(stages::aliasing_warnings(&stages, &electrodes));
