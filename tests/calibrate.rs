@@ -381,7 +381,7 @@ fn bad_specs_and_data_are_refused_with_the_file_key_or_line() {
             spec_with(MAT, PAR, EXP)
         ),
         GOOD_CSV,
-        &["device calibration is not available yet"],
+        &["belong to a device calibration"],
     );
     refused(
         "cal-unknown-key",
@@ -468,7 +468,7 @@ fn bad_specs_and_data_are_refused_with_the_file_key_or_line() {
     );
 }
 
-/// The library refuses device objectives with its own error kind.
+/// The library refuses device objectives in a material-point spec with its own error kind.
 #[test]
 fn device_objectives_are_unsupported_in_the_library() {
     let dir = tempdir("calibrate-objective-lib");
@@ -476,7 +476,7 @@ fn device_objectives_are_unsupported_in_the_library() {
     std::fs::write(&f, format!("{}[[objective]]\n", spec_with(MAT, PAR, EXP))).unwrap();
     match api::calibrate(&f, &CalibrateOptions::default()) {
         Err(CalibrationError::Unsupported(m)) => {
-            assert!(m.contains("device calibration is not available yet"))
+            assert!(m.contains("belong to a device calibration"))
         }
         other => panic!("{other:?}"),
     }

@@ -63,6 +63,14 @@ class Scenario:
         out: Optional[PathLike] = None,
         overwrite: bool = False,
     ) -> Dict[str, Any]: ...
+    def control(
+        self,
+        max_iterations: int = 200,
+        gradient_tolerance: float = 1e-6,
+        objective_tolerance: float = 1e-10,
+        out: Optional[PathLike] = None,
+        overwrite: bool = False,
+    ) -> Dict[str, Any]: ...
 
 class Results:
     @property

@@ -587,6 +587,52 @@ impl Scenario {
         Ok(d.into_any())
     }
 
+    /// The drive of the scenario's `[[controls]]` that minimises its `[[objective]]` (as
+    /// `deasim control`): the document of `control.json` (`objective` per iteration,
+    /// `gradient_norm`, `iterations`, `evaluations`, `converged`, `reason`, `final_objective`,
+    /// `wall_s`, `controls`), `drives` (per control: `electrode`, `stage`, `time` on the run's
+    /// clock and the optimised `voltage`, numpy arrays) and `controlled`, the text of
+    /// `controlled.toml`. `out` receives the optimised run's files and those of the command.
+    #[pyo3(signature = (max_iterations=200, gradient_tolerance=1e-6, objective_tolerance=1e-10, out=None, overwrite=false))]
+    fn control<'py>(
+        &self,
+        py: Python<'py>,
+        max_iterations: usize,
+        gradient_tolerance: f64,
+        objective_tolerance: f64,
+        out: Option<PathBuf>,
+        overwrite: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let sim = self.sim.clone();
+        let options = api::ControlOptions {
+            out: out.clone(),
+            overwrite,
+            max_iterations,
+            gradient_tolerance,
+            objective_tolerance,
+        };
+        let o = py
+            .detach(move || sim.control(&options, |_| {}))
+            .map_err(|e| to_py(py, e))?;
+        if let Some(dir) = &out {
+            o.write(dir, None).map_err(|e| to_py(py, e))?;
+        }
+        let d = json_to_py(py, &o.to_json())?.cast_into::<PyDict>()?;
+        let drives = PyList::empty(py);
+        for dr in &o.drives {
+            let x = PyDict::new(py);
+            x.set_item("electrode", &dr.electrode)?;
+            x.set_item("stage", &dr.stage)?;
+            let t: Vec<f64> = dr.times.iter().map(|t| dr.stage_start + t).collect();
+            x.set_item("time", column(py, &t))?;
+            x.set_item("voltage", column(py, &dr.values))?;
+            drives.append(x)?;
+        }
+        d.set_item("drives", drives)?;
+        d.set_item("controlled", &o.controlled)?;
+        Ok(d)
+    }
+
     /// The lumped diaphragm model of a `disc` scenario: its linearisation about the rest state
     /// at 0 V (`linearised`: equilibrium, mass, damping, stiffness, natural_frequency,
     /// damping_ratio, ...) and its simulation of the first dynamic stage (`history`: numpy
@@ -1261,7 +1307,7 @@ fn calibrate<'py>(
             if cspec::has_objectives(&text) {
                 return Err(to_py(
                     py,
-                    Error::Refused(format!("{name}: {}", cspec::DEVICE_NOT_AVAILABLE)),
+                    Error::Refused(format!("{name}: {}", cspec::DEVICE_OBJECTIVES)),
                 ));
             }
             let base = match base {

@@ -17,6 +17,9 @@ pub enum Term {
         target: f64,
         weight: f64,
         relative: bool,
+        /// The taped step read instead of the stage's last (a single residual of a misfit, as
+        /// a device calibration differentiates them one by one).
+        step: Option<usize>,
     },
     /// ½ · weight · Σₖ (probe(tₖ) − target(tₖ))² over the stage's accepted steps k (its start
     /// state excluded); `relative` as for [`Term::ProbeFinal`].
@@ -81,6 +84,23 @@ pub struct Evaluation {
     /// ∂J/∂(the knots of each control) that J reads directly (the drive effort), in the plan's
     /// order of the stages' controls.
     pub controls: Vec<Vec<f64>>,
+    /// Each probe value the probe terms compared with their targets, in the terms' order.
+    pub readings: Vec<Reading>,
+}
+
+/// A probe's value as a term of J read it: ½·weight·(value − target)² is its share of J.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading {
+    /// The term's index, its stage (in the plan) and the taped step.
+    pub term: usize,
+    pub stage: usize,
+    pub step: usize,
+    /// The run's clock (s).
+    pub time: f64,
+    /// The probe's value (less its value at the stage's start for a relative term).
+    pub value: f64,
+    pub target: f64,
+    pub weight: f64,
 }
 
 impl Objective {
@@ -154,7 +174,8 @@ impl Objective {
                     .for_each(|(s, v)| *s -= factor * v);
             }
         };
-        for t in &self.terms {
+        let mut readings = Vec::new();
+        for (ti, t) in self.terms.iter().enumerate() {
             let (probe, stage, relative) = match t {
                 Term::ProbeFinal {
                     probe,
@@ -237,10 +258,24 @@ impl Objective {
             // dJ/d(probe at the start) = −Σ dJ/d(probe at the steps)
             let mut start = 0.0;
             match t {
-                Term::ProbeFinal { target, weight, .. } => {
-                    let k = st.steps.len() - 1;
+                Term::ProbeFinal {
+                    target,
+                    weight,
+                    step,
+                    ..
+                } => {
+                    let k = step.unwrap_or(st.steps.len() - 1).min(st.steps.len() - 1);
                     let (v, g) = value_at(&st.steps[k].state)?;
                     let r = v - v0 - target;
+                    readings.push(Reading {
+                        term: ti,
+                        stage,
+                        step: k,
+                        time: st.steps[k].time,
+                        value: v - v0,
+                        target: *target,
+                        weight: *weight,
+                    });
                     value += 0.5 * weight * r * r;
                     add(si, k, &g, weight * r, p.reads_reference());
                     start -= weight * r;
@@ -249,6 +284,15 @@ impl Objective {
                     for (k, step) in st.steps.iter().enumerate() {
                         let (v, g) = value_at(&step.state)?;
                         let r = v - v0 - target.at(step.time);
+                        readings.push(Reading {
+                            term: ti,
+                            stage,
+                            step: k,
+                            time: step.time,
+                            value: v - v0,
+                            target: target.at(step.time),
+                            weight: *weight,
+                        });
                         value += 0.5 * weight * r * r;
                         add(si, k, &g, weight * r, p.reads_reference());
                         start -= weight * r;
@@ -282,6 +326,7 @@ impl Objective {
             reference,
             velocity,
             controls,
+            readings,
         })
     }
 }
@@ -439,6 +484,7 @@ fn term(
                 target,
                 weight,
                 relative: o.relative.unwrap_or(false),
+                step: None,
             })
         }
         "probe-misfit" => {

@@ -308,6 +308,28 @@ impl Simulation {
     /// The scenario with its overrides applied and each control's `values` set to `drives`,
     /// its relative file paths made absolute so that it runs from anywhere.
     fn controlled_toml(&self, drives: &[Drive]) -> Result<String, Error> {
+        let text = self.scenario_toml(|table| {
+            if let Some(controls) = table.get_mut("controls").and_then(|c| c.as_array_mut()) {
+                for d in drives {
+                    if let Some(c) = controls.get_mut(d.index).and_then(|c| c.as_table_mut()) {
+                        let values = d.values.iter().map(|v| toml::Value::Float(*v)).collect();
+                        c.insert("values".into(), toml::Value::Array(values));
+                    }
+                }
+            }
+        })?;
+        Ok(format!(
+            "# The scenario with the optimised drive: each control's `values` are the optimised \
+             knots (V).\n{text}"
+        ))
+    }
+
+    /// The scenario's TOML with its overrides applied and `edit` made, its relative file paths
+    /// made absolute so that it runs from anywhere.
+    pub(super) fn scenario_toml(
+        &self,
+        edit: impl FnOnce(&mut toml::Table),
+    ) -> Result<String, Error> {
         let mut table: toml::Table = self.text.parse().map_err(|e: toml::de::Error| {
             Error::Input(InputError::at_key(&self.name, "", e.to_string()))
         })?;
@@ -315,26 +337,11 @@ impl Simulation {
         for o in &self.overrides {
             apply_override(&mut table, o).map_err(refused)?;
         }
-        if let Some(controls) = table.get_mut("controls").and_then(|c| c.as_array_mut()) {
-            for d in drives {
-                if let Some(c) = controls.get_mut(d.index).and_then(|c| c.as_table_mut()) {
-                    c.insert(
-                        "values".into(),
-                        toml::Value::Array(
-                            d.values.iter().map(|v| toml::Value::Float(*v)).collect(),
-                        ),
-                    );
-                }
-            }
-        }
+        edit(&mut table);
         if let Some(base) = &self.base {
             absolute_paths(&mut table, base);
         }
-        Ok(format!(
-            "# The scenario with the optimised drive: each control's `values` are the optimised \
-             knots (V).\n{}",
-            toml::to_string(&table).map_err(|e| Error::Refused(e.to_string()))?
-        ))
+        toml::to_string(&table).map_err(|e| Error::Refused(e.to_string()))
     }
 
     /// The objective of a run: a [`Tape`] to observe it with, or `None` when the scenario has

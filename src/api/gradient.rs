@@ -383,7 +383,7 @@ impl Simulation {
     /// state (solved to round-off). They are central differences of the built supports with
     /// h = 10⁻⁶·|p|, exact for the linear targets and within about 10⁻¹⁰ for λₜ: rebuilding
     /// is cheap, and no derivative of the homogeneous solution is written twice.
-    fn support_sensitivities(
+    pub(super) fn support_sensitivities(
         &self,
         plan: &crate::job::plan::Plan,
         parameters: &[(String, crate::io::build::Parameter)],

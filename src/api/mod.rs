@@ -6,6 +6,7 @@
 //! command line and the Python package are front ends on it.
 
 mod control;
+mod device;
 mod error;
 mod gradient;
 mod linear;
@@ -18,6 +19,7 @@ pub use crate::calibrate::{
 };
 pub use crate::control::Iteration as ControlIteration;
 pub use control::{ControlOptions, Drive, ObjectiveTape, OptimalControl};
+pub use device::{DeviceCalibration, FittedParameter};
 pub use error::Error;
 pub use gradient::{ControlReport, GradientOptions, GradientReport, ParameterGradient, TaylorTest};
 pub use linear::{

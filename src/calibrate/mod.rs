@@ -21,7 +21,7 @@ use spec::{Experiment, Problem};
 use std::path::Path as FsPath;
 use std::sync::Arc;
 
-pub use spec::{read, DEVICE_NOT_AVAILABLE};
+pub use spec::{read, DEVICE_OBJECTIVES};
 
 /// Why a calibration could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -220,7 +220,7 @@ pub fn read_problem(spec_path: &FsPath) -> Result<Problem, CalibrationError> {
     if let Ok(text) = std::fs::read_to_string(spec_path) {
         if spec::has_objectives(&text) {
             return Err(CalibrationError::Unsupported(format!(
-                "{}: {DEVICE_NOT_AVAILABLE}",
+                "{}: {DEVICE_OBJECTIVES}",
                 spec_path.display()
             )));
         }

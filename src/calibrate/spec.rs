@@ -283,10 +283,11 @@ pub struct Problem {
     pub options: FitOptions,
 }
 
-/// The message of a spec that holds device-level objectives.
-pub const DEVICE_NOT_AVAILABLE: &str =
-    "device calibration is not available yet: `[[objective]]` needs a finite element run in the \
-     loop; this version fits homogeneous material-point experiments (`[[experiments]]`) only";
+/// The message of a material-point spec that holds device-level objectives.
+pub const DEVICE_OBJECTIVES: &str =
+    "`[[objective]]` terms belong to a device calibration, a scenario with `[[parameters]]` and \
+     `[[objective]]` (`deasim calibrate SCENARIO.toml`, `Simulation::calibrate_device`); a \
+     material-point spec with `[[experiments]]` cannot hold them";
 
 fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let before = &text[..offset.min(text.len())];
@@ -299,6 +300,13 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
 /// level refuses before anything else.
 pub fn has_objectives(text: &str) -> bool {
     toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("objective"))
+}
+
+/// Whether `text` (a TOML document) is a scenario to calibrate at device level: objectives and
+/// no material-point experiments.
+pub fn is_device(text: &str) -> bool {
+    toml::from_str::<toml::Table>(text)
+        .is_ok_and(|t| t.contains_key("objective") && !t.contains_key("experiments"))
 }
 
 /// Parses the spec at `path` and reads its data. `Err(None)`-free: every error is an
@@ -338,7 +346,7 @@ pub fn parse(text: &str, file: &str, base: &Path) -> Result<Problem, InputError>
         }
     })?;
     if spec.objective.is_some() {
-        return Err(err("objective", DEVICE_NOT_AVAILABLE.into()));
+        return Err(err("objective", DEVICE_OBJECTIVES.into()));
     }
     let (model, params) = material_params(&spec.material).map_err(|(k, m)| err(&k, m))?;
     let (material, _) = registry::build(&model, &params)

@@ -30,6 +30,10 @@ pub fn cmd_calibrate(args: &CalibrateArgs) -> i32 {
     let options = CalibrateOptions {
         starts: args.starts,
     };
+    // a scenario with objectives: its device's parameters, the finite element run in the loop
+    if std::fs::read_to_string(&args.spec).is_ok_and(|t| crate::calibrate::spec::is_device(&t)) {
+        return device(args, &dir);
+    }
     // the spec and its data are checked before the output directory is touched
     let problem = match crate::calibrate::read_problem(&args.spec) {
         Ok(p) => p,
@@ -67,4 +71,70 @@ pub fn cmd_calibrate(args: &CalibrateArgs) -> i32 {
             EXIT_SOLVE_FAILED
         }
     }
+}
+
+/// `deasim calibrate SCENARIO.toml` for a scenario with `[[parameters]]` and `[[objective]]`:
+/// `calibration.json`, `fitted.toml` and the table.
+fn device(args: &CalibrateArgs, dir: &Path) -> i32 {
+    use crate::api::{Error, Simulation};
+    let cal = match Simulation::from_file(&args.spec).and_then(|s| s.calibrate_device()) {
+        Ok(c) => c,
+        Err(e) => return crate::cli::app::fail(&e),
+    };
+    let what = args.spec.display().to_string();
+    let mut results = match ResultsDir::open(dir, "calibrate", &what, "", args.overwrite) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return EXIT_BAD_INPUT;
+        }
+    };
+    let write = || -> Result<(), Error> {
+        let io = |p: &Path, e: std::io::Error| Error::Io {
+            path: p.to_path_buf(),
+            message: e.to_string(),
+        };
+        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+        let json = serde_json::to_string_pretty(&cal.to_json()).unwrap_or_default() + "\n";
+        let path = dir.join("calibration.json");
+        crate::io::atomic::write_atomic(&path, json.as_bytes()).map_err(|e| io(&path, e))?;
+        let path = dir.join("fitted.toml");
+        crate::io::atomic::write_atomic(&path, cal.fitted.as_bytes()).map_err(|e| io(&path, e))?;
+        Ok(())
+    };
+    if let Err(e) = write() {
+        return crate::cli::app::fail(&e);
+    }
+    if let Err(e) = results.record() {
+        eprintln!("error: {e}");
+        return EXIT_SOLVE_FAILED;
+    }
+    println!(
+        "{:<40} {:>14} {:>14} {:>12} {:>27}",
+        "parameter", "initial", "fitted", "std. error", "95 % interval"
+    );
+    for p in &cal.parameters {
+        println!(
+            "{:<40} {:>14.6e} {:>14.6e} {:>12.3e} [{:>12.5e}, {:>12.5e}]",
+            p.path, p.initial, p.fitted, p.std_error, p.ci95[0], p.ci95[1]
+        );
+    }
+    for (name, r) in &cal.rms_by_term {
+        println!("RMS of {name}: {r:.6e}");
+    }
+    println!(
+        "{} after {} iterations: {}",
+        if cal.converged {
+            "converged"
+        } else {
+            "NOT converged"
+        },
+        cal.iterations,
+        cal.reason
+    );
+    for w in &cal.warnings {
+        println!("warning: {w}");
+    }
+    println!("results in {}", dir.display());
+    EXIT_OK
 }

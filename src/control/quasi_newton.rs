@@ -17,8 +17,9 @@
 //! 0.11 has L-BFGS without bounds; L-BFGS-B bindings need Fortran) and none over rate limits.
 //!
 //! # Stop criteria
-//! - `converged, "projected gradient"`: ‖x − P(x − ∇J)‖∞ ≤ `gradient_tolerance` ·
-//!   ‖x₀ − P(x₀ − ∇J₀)‖∞ (the first-order condition, relative to the start);
+//! - `converged, "projected gradient"`: g(x) ≤ `gradient_tolerance` · g(x₀), where
+//!   g(x) = ‖x − P(x − α∇J)‖∞/α with α = 10⁻⁴/‖∇J‖∞ is the largest entry of ∇J among the
+//!   variables free to move against it (the first-order condition, relative to the start);
 //! - `converged, "objective change"`: (Jₖ − Jₖ₊₁) ≤ `objective_tolerance` · max(|Jₖ|, |Jₖ₊₁|)
 //!   over an accepted iteration;
 //! - not converged: `"iteration limit"`, `"line search"` (no decrease along the projected
@@ -55,7 +56,7 @@ impl Default for Options {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Iteration {
     pub objective: f64,
-    /// ‖x − P(x − ∇J)‖∞ at the iterate.
+    /// The projected gradient's largest entry at the iterate (see the stop criteria).
     pub projected_gradient: f64,
     /// Function evaluations so far.
     pub evaluations: usize,
@@ -72,6 +73,9 @@ pub struct Minimum {
     pub reason: String,
     pub evaluations: usize,
 }
+
+/// The step (in the scaled variables) of the projected gradient's measure.
+const PG_STEP: f64 = 1e-4;
 
 /// Armijo's constant and the halvings of a line search.
 const ARMIJO: f64 = 1e-4;
@@ -101,12 +105,20 @@ where
     let mut x = x0.to_vec();
     let (mut fx, mut g) = f(&x)?;
     let mut evaluations = 1;
+    // the projected gradient ‖x − P(x − α∇J)‖∞/α for a small α: ∇J's largest entry among the
+    // variables free to move against it (a unit α would saturate at the box's size)
     let projected = |x: &[f64], g: &[f64]| -> f64 {
-        let t: Vec<f64> = x.iter().zip(g).map(|(a, b)| a - b).collect();
+        let largest = max_abs(g);
+        if largest == 0.0 {
+            return 0.0;
+        }
+        let alpha = PG_STEP / largest;
+        let t: Vec<f64> = x.iter().zip(g).map(|(a, b)| a - alpha * b).collect();
         let p = set.project(&t);
         x.iter()
             .zip(&p)
             .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+            / alpha
     };
     let pg0 = projected(&x, &g);
     let mut history = vec![Iteration {

@@ -39,6 +39,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../../scenarios/diaphragm-visco.toml"),
     ),
     (
+        "diaphragm-track",
+        include_str!("../../scenarios/diaphragm-track.toml"),
+    ),
+    (
         "diaphragm-pid",
         include_str!("../../scenarios/diaphragm-pid.toml"),
     ),

@@ -1,0 +1,36 @@
+"""Scenario.control against the command line (`deasim control`): the same optimised drive and
+history of the objective, bounds respected, and the controlled scenario repeating J."""
+
+import json
+
+import numpy as np
+
+import deasim
+
+# a short stage and a few iterations keep the test to seconds
+SETS = {"stages.1.duration": 0.05, "output.plots": False, "output.fields_every": 0}
+
+
+def test_control_equals_the_command_line(cli, tmp_path):
+    s = deasim.Scenario.from_example("diaphragm-control")
+    for key, value in SETS.items():
+        s = s.set(key, value)
+    r = s.control(max_iterations=4, out=tmp_path / "py")
+    args = ["control", "diaphragm-control", "--out", str(tmp_path / "cli"), "--max-iterations", "4"]
+    for key, value in SETS.items():
+        args += ["--set", f"{key}={str(value).lower()}"]
+    cli(args, tmp_path)
+    doc = json.loads((tmp_path / "cli" / "control.json").read_text())
+    assert r["objective"] == doc["objective"]
+    assert r["final_objective"] == doc["final_objective"]
+    assert r["iterations"] == 4 and r["objective"][-1] < r["objective"][0]
+    (drive,) = r["drives"]
+    assert drive["electrode"] == "top" and drive["stage"] == "actuate"
+    assert isinstance(drive["voltage"], np.ndarray) and len(drive["voltage"]) == 51
+    assert np.all((drive["voltage"] >= 0.0) & (drive["voltage"] <= 5000.0))
+    table = np.loadtxt(tmp_path / "cli" / "control.csv", delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(table[:, 1], drive["voltage"])
+    np.testing.assert_array_equal(table[:, 0], drive["time"])
+    # the controlled scenario runs the optimised drive
+    again = deasim.Scenario.from_toml(r["controlled"]).run()
+    assert again.summary["converged"]

@@ -1,0 +1,121 @@
+//! `deasim calibrate` on a scenario: its `[[parameters]]` fitted to probe terms with the finite
+//! element run in the loop and adjoint Jacobians.
+
+use deasim::api::{RunOptions, Simulation};
+
+/// The diaphragm with its dynamic stage cut to `duration` s and `extra` appended.
+fn diaphragm(duration: f64, extra: &str) -> String {
+    let base = deasim::io::examples::example("diaphragm").unwrap();
+    let base = base.replace(
+        "duration = 1.0                # s",
+        &format!("duration = {duration}                # s"),
+    );
+    assert!(base.contains(&format!("duration = {duration} ")));
+    format!("{base}\n{extra}")
+}
+
+/// The study's 2 mm static sag determines C₁₀ of the Yeoh model: the calibrated preset's
+/// 17.85 kPa within 0.5 %, from the literature's 201.9 kPa.
+#[test]
+fn the_yeoh_c10_of_the_diaphragm_fitted_to_a_2_mm_sag() {
+    let text = diaphragm(
+        0.002,
+        r#"
+[[parameters]]
+path = "materials.vhb.c10"
+lower = 1e3
+upper = 1e6
+scale = "log"
+
+[[objective]]
+kind = "probe-final"
+probe = "center_deflection"
+stage = "load"
+target = 2e-3
+weight = 1e6
+"#,
+    );
+    let cal = Simulation::from_toml(&text, None)
+        .calibrate_device()
+        .unwrap();
+    assert!(cal.converged, "{}", cal.reason);
+    let c10 = cal.parameters[0].fitted;
+    assert!((c10 / 17.85e3 - 1.0).abs() < 5e-3, "{c10}");
+    assert_eq!(cal.parameters[0].initial, 201.9e3);
+    assert!(cal.rms < 1e-12, "{}", cal.rms);
+    // one residual for one parameter: no intervals, said so
+    assert!(cal.parameters[0].std_error.is_nan());
+    assert!(cal
+        .warnings
+        .iter()
+        .any(|w| w.contains("no residual variance")));
+    // fitted.toml runs and sags by 2 mm
+    let r = Simulation::from_toml(&cal.fitted, None)
+        .run(RunOptions::default())
+        .unwrap();
+    let stage = &r.history.stage;
+    let d = r.history.column("probe:center_deflection").unwrap();
+    let last_load = stage.iter().rposition(|s| s == "load").unwrap();
+    assert!((d[last_load] - 2e-3).abs() < 1e-9, "{}", d[last_load]);
+}
+
+/// C₁₀ and the pad's mass recovered from the pad's deflection history alone (20 ms of the
+/// square wave, generated with known values): each residual's Jacobian row by its own adjoint.
+#[test]
+fn two_parameters_are_recovered_from_a_deflection_history() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = diaphragm(0.02, "");
+    let r = Simulation::from_toml(&truth, None)
+        .with_overrides(&[
+            "materials.vhb.preset=\"vhb4910-yeoh-calibrated\"".into(),
+            "solver.newton_rtol=1e-13".into(),
+        ])
+        .run(RunOptions::default())
+        .unwrap();
+    let (t, d) = (
+        r.history.column("time").unwrap(),
+        r.history.column("probe:center_deflection").unwrap(),
+    );
+    let mut csv = String::from("time,value\n");
+    for (t, d) in t.iter().zip(d).filter(|(t, _)| **t >= 1.0 - 1e-12) {
+        csv += &format!("{t:e},{d:e}\n");
+    }
+    std::fs::write(dir.path().join("pad.csv"), csv).unwrap();
+    let text = diaphragm(
+        0.02,
+        r#"
+[[parameters]]
+path = "materials.vhb.c10"
+lower = 1e3
+upper = 1e6
+scale = "log"
+
+[[parameters]]
+path = "loads.rigid.0.mass"
+lower = 0.01
+upper = 0.2
+
+[[objective]]
+kind = "probe-misfit"
+probe = "center_deflection"
+stage = "actuate"
+data = "pad.csv"
+weight = 1e6
+"#,
+    );
+    let cal = Simulation::from_toml(&text, Some(dir.path()))
+        .with_overrides(&[
+            "materials.vhb.preset=\"vhb4910-yeoh-calibrated\"".into(),
+            "materials.vhb.c10=20e3".into(),
+            "loads.rigid.0.mass=0.05".into(),
+            "solver.newton_rtol=1e-13".into(),
+        ])
+        .calibrate_device()
+        .unwrap();
+    assert!(cal.converged, "{}", cal.reason);
+    let (c10, mass) = (cal.parameters[0].fitted, cal.parameters[1].fitted);
+    assert!((c10 / 17.85e3 - 1.0).abs() < 1e-6, "{c10}");
+    assert!((mass / 0.04622 - 1.0).abs() < 1e-6, "{mass}");
+    assert_eq!(cal.parameters[1].initial, 0.05);
+    assert_eq!(cal.rms_by_term.len(), 1);
+}
