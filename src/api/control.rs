@@ -3,6 +3,7 @@
 //! evaluation one forward run and its adjoint); and the objective of a plain run.
 
 use super::error::Error;
+use super::gradient::json_number;
 use super::gradient::knots_csv;
 use super::results::Results;
 use super::simulation::{run_plan, RunOptions, Simulation};
@@ -465,10 +466,7 @@ fn check_start(
 impl OptimalControl {
     /// The document of `control.json`.
     pub fn to_json(&self) -> serde_json::Value {
-        let num = |x: f64| {
-            serde_json::Number::from_f64(x)
-                .map_or(serde_json::Value::Null, serde_json::Value::Number)
-        };
+        let num = json_number;
         serde_json::json!({
             "objective": self.history.iter().map(|i| num(i.objective)).collect::<Vec<_>>(),
             "final_objective": num(self.objective),

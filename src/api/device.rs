@@ -4,6 +4,7 @@
 //! over the run's tape.
 
 use super::error::Error;
+use super::gradient::json_number;
 use super::simulation::{run_plan, RunOptions, Simulation};
 use crate::adjoint::objective::{Objective, Term};
 use crate::adjoint::sweep::{check_supported, gradient};
@@ -43,10 +44,7 @@ pub struct DeviceCalibration {
 impl DeviceCalibration {
     /// The document of `calibration.json`.
     pub fn to_json(&self) -> serde_json::Value {
-        let num = |x: f64| {
-            serde_json::Number::from_f64(x)
-                .map_or(serde_json::Value::Null, serde_json::Value::Number)
-        };
+        let num = json_number;
         let mut parameters = serde_json::Map::new();
         for p in &self.parameters {
             parameters.insert(

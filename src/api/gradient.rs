@@ -89,10 +89,7 @@ impl GradientReport {
     /// the finite differences (`check`) and the Taylor test (`taylor`); a non-finite number is
     /// null.
     pub fn to_json(&self) -> serde_json::Value {
-        let num = |x: f64| {
-            serde_json::Number::from_f64(x)
-                .map_or(serde_json::Value::Null, serde_json::Value::Number)
-        };
+        let num = json_number;
         let mut gradient = serde_json::Map::new();
         let mut check = serde_json::Map::new();
         for p in &self.parameters {
@@ -208,6 +205,11 @@ impl GradientReport {
         }
         Ok(written)
     }
+}
+
+/// A JSON number, or null for a non-finite one.
+pub(super) fn json_number(x: f64) -> serde_json::Value {
+    serde_json::Number::from_f64(x).map_or(serde_json::Value::Null, serde_json::Value::Number)
 }
 
 /// A CSV of values at the knots of several controls: `time` (the run's clock, s) then one

@@ -2,9 +2,9 @@
 //! `[[objective]]`, with the optimised run's files, `control.json`, `control.csv` and
 //! `controlled.toml`.
 
-use crate::api::{ControlOptions, OptimalControl, Simulation};
+use crate::api::{ControlOptions, OptimalControl};
 use crate::cli::app::{fail, EXIT_OK};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Runs the command; returns the exit status.
 pub fn cmd_control(
@@ -14,16 +14,9 @@ pub fn cmd_control(
     overwrite: bool,
     limits: ControlOptions,
 ) -> i32 {
-    let sim = match Simulation::read(scenario) {
-        Ok(s) => s.with_overrides(overrides),
+    let (sim, dir) = match crate::cli::gradient::scenario_and_dir(scenario, overrides, out) {
+        Ok(x) => x,
         Err(e) => return fail(&e),
-    };
-    let dir = match out {
-        Some(d) => d.to_path_buf(),
-        None => match sim.scenario() {
-            Ok(s) => PathBuf::from("deasim-out").join(&s.name),
-            Err(e) => return fail(&e),
-        },
     };
     let options = ControlOptions {
         out: Some(dir.clone()),

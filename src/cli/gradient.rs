@@ -14,16 +14,9 @@ pub fn cmd_gradient(
     // `Some(step)`: check against finite differences of that relative step (default 1e-4)
     check: Option<Option<f64>>,
 ) -> i32 {
-    let sim = match Simulation::read(scenario) {
-        Ok(s) => s.with_overrides(overrides),
+    let (sim, dir) = match scenario_and_dir(scenario, overrides, out) {
+        Ok(x) => x,
         Err(e) => return fail(&e),
-    };
-    let dir = match out {
-        Some(d) => d.to_path_buf(),
-        None => match sim.scenario() {
-            Ok(s) => PathBuf::from("deasim-out").join(&s.name),
-            Err(e) => return fail(&e),
-        },
     };
     let options = GradientOptions {
         out: Some(dir.clone()),
@@ -48,6 +41,21 @@ pub fn cmd_gradient(
         println!("wrote {}", path.display());
     }
     EXIT_OK
+}
+
+/// The scenario with its overrides and the output directory (`out`, default
+/// `deasim-out/<scenario name>`) of a command that runs it.
+pub(crate) fn scenario_and_dir(
+    scenario: Option<&Path>,
+    overrides: &[String],
+    out: Option<&Path>,
+) -> Result<(Simulation, PathBuf), crate::api::Error> {
+    let sim = Simulation::read(scenario)?.with_overrides(overrides);
+    let dir = match out {
+        Some(d) => d.to_path_buf(),
+        None => PathBuf::from("deasim-out").join(sim.scenario()?.name),
+    };
+    Ok((sim, dir))
 }
 
 /// The terminal table: each parameter's value and derivative (and its check).
