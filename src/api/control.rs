@@ -76,6 +76,8 @@ pub struct OptimalControl {
     pub history: Vec<Iteration>,
     pub converged: bool,
     pub reason: String,
+    /// Runs with their adjoints (the plain runs of the starting and the optimised drive
+    /// besides).
     pub evaluations: usize,
     pub wall_s: f64,
     pub drives: Vec<Drive>,
@@ -297,7 +299,7 @@ impl Simulation {
             history: minimum.history,
             converged: minimum.converged,
             reason: minimum.reason,
-            evaluations: minimum.evaluations + 1,
+            evaluations: minimum.evaluations,
             wall_s: start.elapsed().as_secs_f64(),
             drives,
             results,
