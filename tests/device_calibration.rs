@@ -119,3 +119,40 @@ weight = 1e6
     assert_eq!(cal.parameters[1].initial, 0.05);
     assert_eq!(cal.rms_by_term.len(), 1);
 }
+
+/// Bad input names its key: no parameters, a term that is no probe term, an unknown scale, a
+/// start outside its bounds.
+#[test]
+fn bad_device_input_names_its_key() {
+    let term = "[[objective]]\nkind = \"probe-final\"\nprobe = \"center_deflection\"\n\
+                stage = \"load\"\ntarget = 2e-3\n";
+    let c10 = "[[parameters]]\npath = \"materials.vhb.c10\"\n";
+    let cases = [
+        (term.to_string(), "parameters"),
+        (
+            format!("{c10}[[objective]]\nkind = \"rest\"\nstage = \"actuate\"\n"),
+            "objective.0.kind",
+        ),
+        (
+            format!("{c10}scale = \"cubic\"\n{term}"),
+            "parameters.0.scale",
+        ),
+        (format!("{c10}lower = 1e6\n{term}"), "parameters.0"),
+        (
+            format!("[[parameters]]\npath = \"mesh.radius\"\n{term}"),
+            "parameters.0.path",
+        ),
+    ];
+    for (extra, key) in cases {
+        let text = diaphragm(0.002, &extra);
+        match Simulation::from_toml(&text, None).calibrate_device() {
+            Err(deasim::api::Error::Input(e)) => {
+                assert!(
+                    e.key.as_deref().is_some_and(|k| k.starts_with(key)),
+                    "{key}: {e:?}"
+                )
+            }
+            other => panic!("{key}: {:?}", other.map(|c| c.parameters)),
+        }
+    }
+}
