@@ -63,6 +63,7 @@ class Scenario:
         out: Optional[PathLike] = None,
         overwrite: bool = False,
     ) -> Dict[str, Any]: ...
+    def calibrate(self) -> Dict[str, Any]: ...
     def control(
         self,
         max_iterations: int = 200,

@@ -633,6 +633,21 @@ impl Scenario {
         Ok(d)
     }
 
+    /// Fits the scenario's `[[parameters]]` to its `[[objective]]` probe terms with the finite
+    /// element run in the loop (as `deasim calibrate SCENARIO.toml`): the document of
+    /// `calibration.json` (`parameters` with `initial`, `fitted`, `std_error`, `ci95`; `rms`,
+    /// `rms_by_experiment`, `correlation`, `iterations`, `converged`, `reason`, `warnings`) and
+    /// `fitted`, the text of `fitted.toml`.
+    fn calibrate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let sim = self.sim.clone();
+        let c = py
+            .detach(move || sim.calibrate_device())
+            .map_err(|e| to_py(py, e))?;
+        let d = json_to_py(py, &c.to_json())?.cast_into::<PyDict>()?;
+        d.set_item("fitted", &c.fitted)?;
+        Ok(d)
+    }
+
     /// The lumped diaphragm model of a `disc` scenario: its linearisation about the rest state
     /// at 0 V (`linearised`: equilibrium, mass, damping, stiffness, natural_frequency,
     /// damping_ratio, ...) and its simulation of the first dynamic stage (`history`: numpy

@@ -1,5 +1,6 @@
-"""Scenario.control against the command line (`deasim control`): the same optimised drive and
-history of the objective, bounds respected, and the controlled scenario repeating J."""
+"""Scenario.control and Scenario.calibrate against the command line (`deasim control`,
+`deasim calibrate` on a scenario): the same optimised drive and history of the objective, bounds
+respected, the controlled scenario repeating J; the same fitted parameters."""
 
 import json
 
@@ -34,3 +35,33 @@ def test_control_equals_the_command_line(cli, tmp_path):
     # the controlled scenario runs the optimised drive
     again = deasim.Scenario.from_toml(r["controlled"]).run()
     assert again.summary["converged"]
+
+
+DEVICE = """
+[[parameters]]
+path = "materials.vhb.c10"
+lower = 1e3
+upper = 1e6
+scale = "log"
+
+[[objective]]
+kind = "probe-final"
+probe = "center_deflection"
+stage = "load"
+target = 2e-3
+weight = 1e6
+"""
+
+
+def test_device_calibration_equals_the_command_line(cli, tmp_path):
+    text = deasim.Scenario.from_example("diaphragm").text.replace(
+        "duration = 1.0 ", "duration = 0.002 "
+    ) + DEVICE
+    (tmp_path / "dev.toml").write_text(text)
+    r = deasim.Scenario.from_toml(text).calibrate()
+    cli(["calibrate", "dev.toml", "--out", "cal"], tmp_path)
+    doc = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    fitted = r["parameters"]["materials.vhb.c10"]["fitted"]
+    assert fitted == doc["parameters"]["materials.vhb.c10"]["fitted"]
+    assert abs(fitted / 17.85e3 - 1.0) < 5e-3
+    assert r["converged"] and "c10 = " in r["fitted"]
