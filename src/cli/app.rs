@@ -193,6 +193,44 @@ impl Observer for Progress {
         ));
     }
 
+    fn instability(
+        &mut self,
+        plan: &Plan,
+        i: &crate::job::run::InstabilityRecord,
+        _state: &[f64],
+        _mode: &Mode,
+    ) {
+        self.size(plan);
+        let voltages: Vec<String> = i
+            .voltages
+            .iter()
+            .map(|(n, v)| format!("`{n}` at {v:.1} V"))
+            .collect();
+        let kind = match (i.harmonic, i.axial_share > 0.5) {
+            (0, _) => "axisymmetric loss of stability",
+            (_, true) => "wrinkling (out of plane)",
+            (_, false) => "loss of stability in plane",
+        };
+        self.say(&format!(
+            "  {}: {kind}, n = {}, at {} (load factor {:.6}, t = {:.6} s; critical mode in \
+             instability.pvd){}",
+            i.stage,
+            i.harmonic,
+            if voltages.is_empty() {
+                "the stage's loads".to_string()
+            } else {
+                voltages.join(", ")
+            },
+            i.load_factor,
+            i.time,
+            if i.stopped {
+                "; the run stops at the last stable state"
+            } else {
+                "; the run goes on along the axisymmetric (unstable) path"
+            }
+        ));
+    }
+
     fn stage_started(&mut self, index: usize, name: &str) {
         match &self.bar {
             Some(b) => b.set_message(format!("stage {name}")),

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every checkpoint.
 pub const MAGIC: &[u8; 8] = b"DEASIMCK";
 /// Version of the layout; a file of another version is refused.
-pub const FORMAT_VERSION: u32 = 6;
+pub const FORMAT_VERSION: u32 = 7;
 /// The sub-directory of the output directory that holds the checkpoints.
 pub const SUBDIR: &str = "checkpoint";
 /// How many checkpoints are kept (older ones are deleted after a new one is written).
@@ -453,6 +453,7 @@ mod tests {
                     converged: true,
                     modes_hz: vec![30.5],
                     modes_harmonic: vec![0],
+                    instability: None,
                     linear: Default::default(),
                 }],
                 warnings: vec![],

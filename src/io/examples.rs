@@ -46,6 +46,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         "diaphragm-pid",
         include_str!("../../scenarios/diaphragm-pid.toml"),
     ),
+    (
+        "membrane-wrinkling",
+        include_str!("../../scenarios/membrane-wrinkling.toml"),
+    ),
     ("balloon", include_str!("../../scenarios/balloon.toml")),
     (
         "balloon-volume",

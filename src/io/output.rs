@@ -15,7 +15,7 @@ use super::vtu::{
 };
 use crate::element::CellFields;
 use crate::job::observer::Observer;
-use crate::job::run::{LimitRecord, PathRecord, StepRecord};
+use crate::job::run::{InstabilityRecord, LimitRecord, PathRecord, StepRecord};
 use crate::job::state::FrequencyResponse;
 use crate::job::state::RunSummary;
 use crate::time::modal::Mode;
@@ -322,14 +322,18 @@ impl OutputWriter {
             "modes.pvd",
             "path.csv",
             "frequency_response.csv",
+            "instability.csv",
+            "instability.pvd",
         ] {
             remove_if_present(&dir.join(f))?;
         }
-        if let Ok(entries) = std::fs::read_dir(dir.join("modes")) {
-            for e in entries.flatten() {
-                let n = e.file_name().to_string_lossy().into_owned();
-                if n.starts_with("mode_") && n.ends_with(".vtu") {
-                    remove_if_present(&e.path())?;
+        for sub in ["modes", "instability"] {
+            if let Ok(entries) = std::fs::read_dir(dir.join(sub)) {
+                for e in entries.flatten() {
+                    let n = e.file_name().to_string_lossy().into_owned();
+                    if n.starts_with("mode_") && n.ends_with(".vtu") {
+                        remove_if_present(&e.path())?;
+                    }
                 }
             }
         }
@@ -753,6 +757,25 @@ impl OutputWriter {
                     })
                 })
                 .collect::<Vec<_>>());
+        }
+        if let Some(i) = summary.stages.iter().find_map(|s| s.instability.as_ref()) {
+            let voltages: serde_json::Map<String, Value> = i
+                .voltages
+                .iter()
+                .map(|(n, v)| (n.clone(), json_number(*v)))
+                .collect();
+            v["instability"] = json!({
+                "stage": i.stage,
+                "harmonic": i.harmonic,
+                "load_factor": json_number(i.load_factor),
+                "stable_load_factor": json_number(i.stable_load_factor),
+                "time": json_number(i.time),
+                "voltages": voltages,
+                "unstable_harmonics": i.unstable,
+                "axial_share": json_number(i.axial_share),
+                "stopped": i.stopped,
+                "mode": "instability.pvd",
+            });
         }
         if let Some(err) = &summary.error {
             v["error"] = json!(err);
@@ -1230,6 +1253,27 @@ impl Observer for OutputWriter {
 
     fn limit_point(&mut self, _plan: &Plan, limit: &LimitRecord) {
         self.limits.push(limit.clone());
+    }
+
+    fn instability(
+        &mut self,
+        plan: &Plan,
+        _record: &InstabilityRecord,
+        state: &[f64],
+        mode: &Mode,
+    ) {
+        if self.piece_only {
+            return;
+        }
+        if let Err(e) = write_modes(
+            plan,
+            &self.dir,
+            "instability",
+            state,
+            std::slice::from_ref(mode),
+        ) {
+            self.failed(e);
+        }
     }
 
     fn step(&mut self, plan: &Plan, record: &StepRecord, state: &[f64], fields: &[CellFields]) {

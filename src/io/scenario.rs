@@ -715,6 +715,14 @@ pub struct StageSpec {
     /// `modes` of an axisymmetric model: the circumferential harmonic n (default 0), or a list.
     #[serde(default)]
     pub harmonic: Option<Numbers>,
+    /// `static` and `quasi-static` stages of an axisymmetric model: test every converged state
+    /// against the circumferential harmonics 1…N (wrinkling, buckling out of the meridian plane).
+    #[serde(default)]
+    pub stability_harmonics: Option<u64>,
+    /// With `stability_harmonics`: `stop` (default) ends the run at the last stable state,
+    /// `continue` reports the first loss and goes on along the axisymmetric path.
+    #[serde(default)]
+    pub after_instability: Option<String>,
     /// `frequency-response`: the electrode that carries the small voltage (default: the first
     /// with a non-zero voltage).
     #[serde(default)]

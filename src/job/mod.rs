@@ -11,5 +11,6 @@ pub mod probes;
 pub mod rank;
 mod recorder;
 pub mod run;
+pub mod stability;
 pub mod state;
 pub mod statics;

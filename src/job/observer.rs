@@ -1,7 +1,9 @@
 //! What observers of a run (writers, progress display, checkpoints) receive of it.
 
 use super::plan::Plan;
-use super::state::{FrequencyResponse, LimitRecord, PathRecord, RunState, RunSummary, StepRecord};
+use super::state::{
+    FrequencyResponse, InstabilityRecord, LimitRecord, PathRecord, RunState, RunSummary, StepRecord,
+};
 use crate::element::CellFields;
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
@@ -49,6 +51,16 @@ pub trait Observer {
     fn path_point(&mut self, _plan: &Plan, _point: &PathRecord) {}
     /// A continuation stage located a limit point of its parameter.
     fn limit_point(&mut self, _plan: &Plan, _limit: &LimitRecord) {}
+    /// A static or quasi-static stage found its first state unstable against a circumferential
+    /// harmonic (`stability_harmonics`): `state` is that state, `mode` the critical mode.
+    fn instability(
+        &mut self,
+        _plan: &Plan,
+        _record: &InstabilityRecord,
+        _state: &[f64],
+        _mode: &Mode,
+    ) {
+    }
     /// A static or quasi-static load step of stage `stage` was accepted at load factor `load`
     /// (before its [`Observer::step`]): the problem holds the converged state, the committed
     /// point states and the stage's drive, what the adjoint of the run replays.
@@ -141,6 +153,11 @@ impl Observer for Observers<'_, '_> {
     }
     fn limit_point(&mut self, plan: &Plan, limit: &LimitRecord) {
         self.0.iter_mut().for_each(|o| o.limit_point(plan, limit));
+    }
+    fn instability(&mut self, plan: &Plan, record: &InstabilityRecord, state: &[f64], mode: &Mode) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.instability(plan, record, state, mode));
     }
     fn takes_states(&self) -> bool {
         self.0.iter().any(|o| o.takes_states())

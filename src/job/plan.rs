@@ -150,6 +150,20 @@ pub struct Stage {
     /// of their waveform: the electrode's name and the table's knots (stage time in s, V).
     #[serde(default)]
     pub controls: Vec<(String, Vec<(f64, f64)>)>,
+    /// A static or quasi-static stage of an axisymmetric model: the test of its states against
+    /// circumferential harmonics (`None`: harmonic 0 only, the stage's own).
+    #[serde(default)]
+    pub stability: Option<HarmonicStability>,
+}
+
+/// The test of a stage's converged states against the circumferential harmonics 1…`harmonics`
+/// with the electrodes held ([`crate::time::harmonic::harmonic_inertia`]); harmonic 0 is the
+/// stage's own test of its tangent's inertia.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HarmonicStability {
+    pub harmonics: u32,
+    /// End the run at the last stable state (else report the loss and go on).
+    pub stop: bool,
 }
 
 impl Stage {

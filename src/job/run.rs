@@ -10,11 +10,12 @@ use super::observer::{DynamicStart, Observer, Observers};
 use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
 use super::recorder::Recorder;
+use super::stability::{HarmonicCheck, HARMONIC_REASON};
 pub use super::state::{
-    Energies, LimitRecord, PathRecord, RecorderState, RunState, RunSummary, StagePosition,
-    StageSummary, StepRecord,
+    Energies, InstabilityRecord, LimitRecord, PathRecord, RecorderState, RunState, RunSummary,
+    StagePosition, StageSummary, StepRecord,
 };
-use super::statics::{solve_static_from, StageTime};
+use super::statics::{solve_static_checked, StageTime};
 use crate::algebra::system::NonlinearSystem;
 use crate::problem::distributed::Held;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
@@ -313,6 +314,7 @@ impl<'p, 'o> Job<'p, 'o> {
             converged: true,
             modes_hz: Vec::new(),
             modes_harmonic: Vec::new(),
+            instability: None,
             linear: Default::default(),
         };
         let failure = match stage.kind {
@@ -530,6 +532,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     converged: false,
                     modes_hz: Vec::new(),
                     modes_harmonic: Vec::new(),
+                    instability: None,
                     linear: Default::default(),
                 });
                 false
@@ -639,7 +642,16 @@ impl<'p, 'o> Job<'p, 'o> {
         );
         let time = self.state.stage_time;
         let model_ref: &Model = model;
-        let outcome = solve_static_from(
+        if stage.stability.is_some() && plan.part.is_some() {
+            return Some(format!(
+                "stage `{}`: `stability_harmonics` needs the whole model in one process",
+                stage.name
+            ));
+        }
+        let mut check = stage
+            .stability
+            .map(|s| HarmonicCheck::new(s, nominal * control.min_fraction, &plan.densities));
+        let outcome = solve_static_checked(
             model_ref,
             &plan.solver,
             stage_start.clone(),
@@ -652,6 +664,10 @@ impl<'p, 'o> Job<'p, 'o> {
             &control,
             self.newton,
             plan.part.as_ref().map(|p| &p.stages),
+            |p, from, to| match check.as_mut() {
+                Some(c) => c.check(model_ref, &p.state, from, to),
+                None => Ok(()),
+            },
             |p, acc| {
                 step_no += 1;
                 self.observer.load_step(si, acc.load, p);
@@ -712,6 +728,49 @@ impl<'p, 'o> Job<'p, 'o> {
         self.points = outcome.points;
         summary.steps = step_no;
         summary.linear = outcome.linear;
+        // a stage that tests harmonics reports a loss in harmonic 0 (its ramp's own test) alike
+        let axisymmetric = match (&check, &outcome.result) {
+            (Some(c), Err(f))
+                if f.limit_point && f.cause == crate::solve::stepping::FailureCause::Unstable =>
+            {
+                c.axisymmetric_onset(model_ref, &self.state.q, f.last_converged, f.attempted)
+                    .unwrap_or_else(|e| {
+                        self.summary.warnings.push(format!(
+                            "stage `{}`: the loss of stability in harmonic 0: {e}",
+                            stage.name
+                        ));
+                        None
+                    })
+            }
+            _ => None,
+        };
+        let onset = check.and_then(|c| c.onset).or(axisymmetric).map(|o| {
+            let voltages = plan
+                .electrode_voltages(&o.state)
+                .map(|v| {
+                    plan.electrodes
+                        .iter()
+                        .zip(v)
+                        .filter(|(e, _)| e.prescribed(false))
+                        .map(|(e, v)| (e.name.clone(), v))
+                        .collect()
+                })
+                .unwrap_or_default();
+            let record = InstabilityRecord {
+                stage: stage.name.clone(),
+                harmonic: o.harmonic,
+                stable_load_factor: o.stable_load,
+                load_factor: o.load,
+                time: time + o.load * stage.duration,
+                voltages,
+                unstable: o.unstable.clone(),
+                axial_share: axial_share(&o.mode.shape),
+                stopped: o.harmonic == 0 || stage.stability.is_some_and(|s| s.stop),
+            };
+            self.observer.instability(plan, &record, &o.state, &o.mode);
+            summary.instability = Some(record.clone());
+            record
+        });
         match outcome.result {
             Ok(r) => {
                 summary.newton_iterations = r.newton_iterations + self.state.prestretch_iterations;
@@ -742,7 +801,20 @@ impl<'p, 'o> Job<'p, 'o> {
                 let implausible = (!interrupted)
                     .then(|| implausible_scales(plan, voltage_at(f.attempted)))
                     .flatten();
+                let harmonic = onset.as_ref().filter(|o| {
+                    o.stopped && (o.harmonic == 0 || f.reason.starts_with(HARMONIC_REASON))
+                });
                 let what = match &f.cause {
+                    _ if harmonic.is_some_and(|o| o.harmonic == 0) => {
+                        "loss of stability against circumferential harmonic n = 0 (axisymmetric: \
+                         pull-in, or buckling in the meridian plane)"
+                            .to_string()
+                    }
+                    _ if harmonic.is_some() => format!(
+                        "loss of stability against circumferential harmonic n = {} (wrinkling \
+                         or buckling out of the meridian plane)",
+                        harmonic.map_or(0, |o| o.harmonic)
+                    ),
                     _ if locked.is_some() => {
                         let (x, m, key) = locked.unwrap_or_default();
                         let name = &plan.material_names[m];
@@ -1388,6 +1460,20 @@ const LOCKED_FRACTION: f64 = 0.8;
 const FIELD_STRESS_RATIO: f64 = 1e3;
 
 /// `x` rounded to three significant digits, shortly: `2.4e24`, `0.49`.
+/// Σ u_z² / Σ |u|² of a shape (`FIELDS` values per node; slot 2 is u_θ of a harmonic mode).
+fn axial_share(shape: &[f64]) -> f64 {
+    let (mut z, mut all) = (0.0, 0.0);
+    for node in shape.chunks(FIELDS) {
+        z += node[1] * node[1];
+        all += node[0] * node[0] + node[1] * node[1] + node[2] * node[2];
+    }
+    if all > 0.0 {
+        z / all
+    } else {
+        0.0
+    }
+}
+
 fn few(x: f64) -> String {
     let rounded: f64 = format!("{x:.2e}").parse().unwrap_or(x);
     crate::units::Short(rounded).to_string()

@@ -76,6 +76,31 @@ pub struct LimitRecord {
     pub probes: Vec<f64>,
 }
 
+/// The first loss of stability against a circumferential harmonic n ≥ 1 found in a static or
+/// quasi-static stage (`stability_harmonics`), located between two load factors that differ by
+/// at most twice the ramp's smallest increment.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InstabilityRecord {
+    pub stage: String,
+    /// The harmonic whose tangent first has more negative pivots than potential unknowns (the
+    /// one with the most negative eigenvalue when several do at once).
+    pub harmonic: u32,
+    /// The last stable and the first unstable load factor.
+    pub stable_load_factor: f64,
+    pub load_factor: f64,
+    /// The run's time (s) at the first unstable state.
+    pub time: f64,
+    /// Each prescribed electrode's voltage (V) there, by name.
+    pub voltages: Vec<(String, f64)>,
+    /// The harmonics 1…N that were unstable there.
+    pub unstable: Vec<u32>,
+    /// The axial (z) share of the critical mode's displacement, Σ u_z² / Σ |u|² over the nodes:
+    /// near 1 for a flat membrane's out-of-plane wrinkles, near 0 for an in-plane mode.
+    pub axial_share: f64,
+    /// Whether the run stopped at the last stable state (else it went on).
+    pub stopped: bool,
+}
+
 /// What a finished stage reports.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StageSummary {
@@ -92,6 +117,9 @@ pub struct StageSummary {
     /// `harmonic`).
     #[serde(default)]
     pub modes_harmonic: Vec<u32>,
+    /// The first loss of stability against a harmonic n ≥ 1 (`stability_harmonics`).
+    #[serde(default)]
+    pub instability: Option<InstabilityRecord>,
     /// The linear solvers' work (static and dynamic stages; a resumed static stage's from its
     /// checkpoint on; zero for modes and frequency-response stages).
     #[serde(default)]

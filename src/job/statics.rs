@@ -99,6 +99,36 @@ pub fn solve_static_from(
     control: &StepControl,
     newton: &NewtonSettings,
     part: Option<&Division>,
+    on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
+) -> StaticOutcome {
+    solve_static_checked(
+        model,
+        solver,
+        stage_start,
+        history,
+        resume,
+        control,
+        newton,
+        part,
+        |_, _, _| Ok(()),
+        on_step,
+    )
+}
+
+/// [`solve_static_from`] with a stability test of the caller's: `check(problem, from, to)`
+/// judges each converged state that Newton found stable before it is accepted (an error rejects
+/// it and the step is cut back as at a limit point; [`crate::solve::stepping::ramp_from`]).
+#[allow(clippy::too_many_arguments)]
+pub fn solve_static_checked(
+    model: &Model,
+    solver: &SolverSettings,
+    stage_start: Vec<f64>,
+    history: StageTime,
+    resume: Option<(Vec<f64>, crate::solve::stepping::RampPosition)>,
+    control: &StepControl,
+    newton: &NewtonSettings,
+    part: Option<&Division>,
+    mut check: impl FnMut(&StaticProblem<'_>, f64, f64) -> Result<(), String>,
     mut on_step: impl FnMut(&StaticProblem<'_>, &AcceptedStep),
 ) -> StaticOutcome {
     let stage_state = stage_start.clone();
@@ -139,6 +169,7 @@ pub fn solve_static_from(
         newton,
         control,
         position,
+        |s, from, to| check(s.inner(), from, to),
         |s, acc| {
             on_step(s.inner(), acc);
             false

@@ -165,22 +165,36 @@ pub fn ramp<S: LoadedSystem + ?Sized>(
     control: &StepControl,
     mut on_step: impl FnMut(&mut S, &AcceptedStep),
 ) -> Result<RampReport, RampFailure> {
-    ramp_from(system, solver, settings, control, None, |s, a| {
-        on_step(s, a);
-        false
-    })
+    ramp_from(
+        system,
+        solver,
+        settings,
+        control,
+        None,
+        |_, _, _| Ok(()),
+        |s, a| {
+            on_step(s, a);
+            false
+        },
+    )
 }
 
 /// [`ramp`] from a position (`None`: the start, s = 0; else the system must hold the converged
 /// state at `start.load` with the prescribed values set). When `on_step` returns true the tangent
 /// is re-evaluated and re-factorised at the accepted state, exactly as at the start of a ramp: a
 /// ramp resumed from that step then makes the same decisions, bit for bit, as one that goes on.
+/// `check(system, from, to)` judges a converged state of the step from load factor `from` to
+/// `to` that Newton found stable before it is accepted: an error rejects it as unstable (a
+/// stability test of the caller's, e.g. against non-axisymmetric perturbations), and the step is
+/// cut back as at a limit point.
+#[allow(clippy::too_many_arguments)]
 pub fn ramp_from<S: LoadedSystem + ?Sized>(
     system: &mut S,
     solver: &mut dyn LinearSolver,
     settings: &NewtonSettings,
     control: &StepControl,
     start: Option<RampPosition>,
+    mut check: impl FnMut(&S, f64, f64) -> Result<(), String>,
     mut on_step: impl FnMut(&mut S, &AcceptedStep) -> bool,
 ) -> Result<RampReport, RampFailure> {
     let nominal = 1.0 / control.steps.max(1) as f64;
@@ -249,8 +263,15 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
             &mut k,
             if retrying { &exact } else { settings },
         );
+        let mut rejected = None;
         let accepted = match &outcome {
-            Ok(rep) if rep.stable => Some(system.accept()),
+            Ok(rep) if rep.stable => match check(system, s, target) {
+                Ok(()) => Some(system.accept()),
+                Err(reason) => {
+                    rejected = Some(reason);
+                    None
+                }
+            },
             _ => None,
         };
         let failure = match (outcome, accepted) {
@@ -297,11 +318,15 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
             (Ok(rep), None) => {
                 report.newton_iterations += rep.iterations;
                 last_cause = FailureCause::Unstable;
-                format!(
-                    "converged state is unstable (tangent has {} negative pivots, {} expected)",
-                    rep.inertia.map(|i| i.negative).unwrap_or(0),
-                    system.expected_negative_pivots()
-                )
+                if let Some(reason) = rejected {
+                    reason
+                } else {
+                    format!(
+                        "converged state is unstable (tangent has {} negative pivots, {} expected)",
+                        rep.inertia.map(|i| i.negative).unwrap_or(0),
+                        system.expected_negative_pivots()
+                    )
+                }
             }
             (Err(e), _) => {
                 report.newton_iterations += match &e {

@@ -28,7 +28,7 @@ use crate::element::harmonic::{harmonic_factor, harmonic_tangent};
 use crate::element::CellHistory;
 use crate::problem::dofs::{DofMap, Field, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
-use crate::solve::linear::{SolverKind, SolverSettings};
+use crate::solve::linear::{Inertia, SolverKind, SolverSettings};
 use crate::time::mass::NodalMass;
 use crate::time::modal::{modes_of, Mode, ModeSettings};
 use std::collections::BTreeMap;
@@ -174,19 +174,19 @@ fn harmonic_dofs(model: &Model, state: &[f64], n: u32, tilts: &[Tilt]) -> Harmon
     }
 }
 
-/// The natural modes of harmonic `n` ≥ 1 of the axisymmetric `model` (its Dirichlet conditions
-/// hold the supports and the electrode voltages) about the axisymmetric equilibrium `state`,
-/// with the model's mass `mass` (module docs). The shapes hold (u_r, u_z, u_θ, Φ) per node, the
-/// amplitudes of cos nΘ, cos nΘ, sin nΘ and cos nΘ; unit modal mass in the 3-D body. The rigid
-/// regions of `tilts` tilt in harmonic 1.
-pub fn harmonic_modes(
-    model: &Model,
-    state: &[f64],
-    mass: &NodalMass,
-    settings: &ModeSettings,
-    n: u32,
-    tilts: &[Tilt],
-) -> Result<Vec<Mode>, String> {
+/// The harmonic problem of `n` ≥ 1: its tangent K_n and mass M_n over the harmonic unknowns, the
+/// equation map that [`modes_of`] reads, each dof's combination of unknowns and the field of each
+/// unknown.
+struct HarmonicSystem {
+    k: CsrMatrix,
+    m: CsrMatrix,
+    dofs: DofMap,
+    eq: Vec<Vec<(usize, f64)>>,
+    field: Vec<usize>,
+}
+
+/// Why harmonic `n` of `model` cannot be formed, if it cannot.
+fn check_harmonic(model: &Model, n: u32) -> Result<(), String> {
     if !model.is_axisymmetric() {
         return Err(format!(
             "harmonic {n}: circumferential harmonics are modes of an axisymmetric model (`mesh.geometry = \"axisymmetric\"`); a 3-D model finds every mode with harmonic 0"
@@ -205,6 +205,19 @@ pub fn harmonic_modes(
             "harmonic {n}: a material with internal variables: linearise about its relaxed state"
         ));
     }
+    Ok(())
+}
+
+/// Assembles harmonic `n` of `model` about `state` (module docs); the mass when `mass` is given
+/// (else M_n is zero on K_n's pattern).
+fn harmonic_system(
+    model: &Model,
+    state: &[f64],
+    mass: Option<&NodalMass>,
+    n: u32,
+    tilts: &[Tilt],
+) -> Result<HarmonicSystem, String> {
+    check_harmonic(model, n)?;
     let HarmonicDofs {
         dof: eq,
         count: n_eq,
@@ -240,22 +253,24 @@ pub fn harmonic_modes(
         Ok::<(), String>(())
     })?;
     let factor = harmonic_factor(n);
-    for a in 0..mass.row_ptr.len() - 1 {
-        for p in mass.row_ptr[a]..mass.row_ptr[a + 1] {
-            let b = mass.col_idx[p];
-            for s in 0..3 {
-                for &(ei, ci) in &eq[a * FIELDS + s] {
-                    for &(ej, cj) in &eq[b * FIELDS + s] {
-                        rows[ei].entry(ej).or_insert((0.0, 0.0)).1 +=
-                            factor * ci * cj * mass.values[p];
+    if let Some(mass) = mass {
+        for a in 0..mass.row_ptr.len() - 1 {
+            for p in mass.row_ptr[a]..mass.row_ptr[a + 1] {
+                let b = mass.col_idx[p];
+                for s in 0..3 {
+                    for &(ei, ci) in &eq[a * FIELDS + s] {
+                        for &(ej, cj) in &eq[b * FIELDS + s] {
+                            rows[ei].entry(ej).or_insert((0.0, 0.0)).1 +=
+                                factor * ci * cj * mass.values[p];
+                        }
                     }
                 }
             }
         }
-    }
-    // a tilt's kinetic mass is its rotary inertia (a rigid body's ½Iα̇², not a ring's)
-    for &(e, inertia) in &inertias {
-        rows[e].entry(e).or_insert((0.0, 0.0)).1 += inertia;
+        // a tilt's kinetic mass is its rotary inertia (a rigid body's ½Iα̇², not a ring's)
+        for &(e, inertia) in &inertias {
+            rows[e].entry(e).or_insert((0.0, 0.0)).1 += inertia;
+        }
     }
     let mut row_ptr = vec![0];
     let (mut cols, mut kv, mut mv) = (Vec::new(), Vec::new(), Vec::new());
@@ -291,16 +306,64 @@ pub fn harmonic_modes(
         n_free_phi: field.iter().filter(|&&f| f == PHI).count(),
         scale: [1.0; FIELDS],
     };
-    let lin = SolverSettings {
+    Ok(HarmonicSystem {
+        k: kmat,
+        m: mmat,
+        dofs,
+        eq,
+        field,
+    })
+}
+
+/// The direct LDLᵀ solver of the harmonic problems (it gives the inertia).
+fn direct_solver() -> Box<dyn crate::solve::linear::LinearSolver> {
+    SolverSettings {
         kind: SolverKind::Direct,
         ..Default::default()
     }
-    .build();
+    .build()
+}
+
+/// The stability of the axisymmetric equilibrium `state` of `model` against perturbations of
+/// harmonic `n` ≥ 1 with the electrodes held (module docs): the inertia of K_n and the number of
+/// negative pivots of a stable state, its free potential unknowns (K_n is negative definite in
+/// the potential and, at a stable state, positive definite in the displacements once the
+/// potential is condensed; Sylvester's law of inertia). Rigid regions translate but do not tilt.
+pub fn harmonic_inertia(model: &Model, state: &[f64], n: u32) -> Result<(Inertia, usize), String> {
+    let sys = harmonic_system(model, state, None, n, &[])?;
+    let mut lin = direct_solver();
+    let inertia = lin
+        .factor(&sys.k)
+        .map_err(|e| format!("harmonic {n}: {e}"))?
+        .ok_or_else(|| format!("harmonic {n}: the direct solver gave no inertia"))?;
+    Ok((inertia, sys.dofs.n_free_phi))
+}
+
+/// The natural modes of harmonic `n` ≥ 1 of the axisymmetric `model` (its Dirichlet conditions
+/// hold the supports and the electrode voltages) about the axisymmetric equilibrium `state`,
+/// with the model's mass `mass` (module docs). The shapes hold (u_r, u_z, u_θ, Φ) per node, the
+/// amplitudes of cos nΘ, cos nΘ, sin nΘ and cos nΘ; unit modal mass in the 3-D body. The rigid
+/// regions of `tilts` tilt in harmonic 1.
+pub fn harmonic_modes(
+    model: &Model,
+    state: &[f64],
+    mass: &NodalMass,
+    settings: &ModeSettings,
+    n: u32,
+    tilts: &[Tilt],
+) -> Result<Vec<Mode>, String> {
+    let HarmonicSystem {
+        k: kmat,
+        m: mmat,
+        dofs,
+        eq,
+        field,
+    } = harmonic_system(model, state, Some(mass), n, tilts)?;
     let found = modes_of(
         &kmat,
         &mmat,
         &dofs,
-        lin,
+        direct_solver(),
         &mut |x, y| mmat.mul_vec(x, y),
         settings,
     )

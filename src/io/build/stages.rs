@@ -3,7 +3,7 @@
 
 use super::{Ctx, Electrode, Stage, StageKind, MIN_STEPS_PER_PERIOD};
 use crate::io::scenario::{closest, InputError, Scenario, StageSpec};
-use crate::job::plan::ResponseMethod;
+use crate::job::plan::{HarmonicStability, ResponseMethod};
 use crate::job::plan::{PathParameter, PathTarget};
 use crate::time::integrator::Scheme;
 use crate::time::mass::MassKind;
@@ -126,6 +126,7 @@ fn build_stage(
             duration: 0.0,
             electrodes_on: true,
             controls: Vec::new(),
+            stability: None,
         });
     }
     for (k, v) in linear_keys {
@@ -182,13 +183,84 @@ fn build_stage(
             ));
         }
     };
+    let stability = stability(ctx, s, &key, st)?;
     Ok(Stage {
         name,
         kind,
         duration,
         electrodes_on: st.electrodes_on.unwrap_or(true),
         controls: Vec::new(),
+        stability,
     })
+}
+
+/// `stability_harmonics = N` and `after_instability` of a static or quasi-static stage of an
+/// axisymmetric model without follower pressures and internal variables (what the harmonic
+/// tangent covers).
+fn stability(
+    ctx: &Ctx,
+    s: &Scenario,
+    key: &str,
+    st: &StageSpec,
+) -> Result<Option<HarmonicStability>, InputError> {
+    let Some(n) = st.stability_harmonics else {
+        if st.after_instability.is_some() {
+            return Err(ctx.err(
+                format!("{key}.after_instability"),
+                "applies with `stability_harmonics` only",
+            ));
+        }
+        return Ok(None);
+    };
+    let at = format!("{key}.stability_harmonics");
+    if !matches!(st.kind.as_str(), "static" | "quasi-static") {
+        return Err(ctx.err(
+            at,
+            format!(
+                "applies to `static` and `quasi-static` stages; a `{}` stage has no test \
+                 against harmonics",
+                st.kind
+            ),
+        ));
+    }
+    if !(1..=MAX_HARMONIC as u64).contains(&n) {
+        return Err(ctx.err(
+            at,
+            format!(
+                "expected the largest circumferential harmonic tested, an integer from 1 to \
+                 {MAX_HARMONIC}; got {n}"
+            ),
+        ));
+    }
+    if s.mesh.geometry.as_deref() != Some("axisymmetric") {
+        return Err(ctx.err(
+            at,
+            "circumferential harmonics are those of an axisymmetric model \
+             (`mesh.geometry = \"axisymmetric\"`); a 3-D model's stage tests every \
+             perturbation its mesh admits",
+        ));
+    }
+    if s.loads.as_ref().is_some_and(|l| !l.pressure.is_empty()) {
+        return Err(ctx.err(
+            at,
+            "the load stiffness of follower pressures has no harmonic form yet: remove \
+             `loads.pressure` or the test",
+        ));
+    }
+    let stop = match st.after_instability.as_deref() {
+        None | Some("stop") => true,
+        Some("continue") => false,
+        Some(o) => {
+            return Err(ctx.err(
+                format!("{key}.after_instability"),
+                format!("expected `stop` or `continue`; got `{o}`"),
+            ))
+        }
+    };
+    Ok(Some(HarmonicStability {
+        harmonics: n as u32,
+        stop,
+    }))
 }
 
 /// The largest circumferential harmonic a `modes` stage takes.
@@ -716,6 +788,13 @@ pub(super) fn check_internal_variables(
         return Ok(());
     }
     for (i, st) in stages.iter().enumerate() {
+        if st.stability.is_some() {
+            return Err(ctx.err(
+                format!("stages.{i}.stability_harmonics"),
+                "the harmonic tangent is that of materials without internal variables; a \
+                 material with `branches` has none yet",
+            ));
+        }
         if let StageKind::Continuation { .. } = st.kind {
             return Err(ctx.err(
                 format!("stages.{i}.kind"),
