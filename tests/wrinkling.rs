@@ -224,6 +224,30 @@ steps = 25
     )
 }
 
+/// A continuation stage tests every point of its path: on the clamped membrane the first point
+/// unstable against a harmonic n ≥ 1 follows the voltage at which the tension vanishes, and the
+/// run stops there.
+#[test]
+fn a_continuation_stops_at_the_first_point_unstable_against_a_harmonic() {
+    let v0 = zero_stress_voltage();
+    let text = full_membrane(1.3 * v0, 26, 0, "").replace(
+        "kind = \"static\"\nsteps = 26\n",
+        "kind = \"continuation\"\nparameter = \"voltage\"\nsteps = 26\n\
+         target = { load = 1.0 }\nstability_harmonics = 8\n",
+    );
+    assert!(text.contains("continuation"));
+    let (onset, reason) = stopped_at(&text);
+    let below = onset.stable_load_factor * 1.3 * v0;
+    let above = onset.load_factor * 1.3 * v0;
+    println!(
+        "continuation: harmonic {} between {below:.2} and {above:.2} V (V0 {v0:.2} V); {reason}",
+        onset.harmonic
+    );
+    assert!(onset.harmonic >= 1 && onset.stopped);
+    assert!(below < v0 * 1.01 && above > v0 * 0.99, "{below} {above}");
+    assert!(reason.contains("circumferential harmonic n = "), "{reason}");
+}
+
 /// The axisymmetric mesh keys of the central electrode's membrane, and those of the same cells as
 /// a full 3-D disc.
 const AXI_Q4: &str =
@@ -304,6 +328,9 @@ fn the_run_reports_the_onset_and_goes_on_when_asked() {
         "the critical eigenvalue: {csv}"
     );
     assert!(dir.join("out/instability/mode_01.vtu").exists());
+    // the revolved view shows the mode with its n waves around the axis
+    assert!(dir.join("out/instability/mode_01_revolved.vtu").exists());
+    assert!(dir.join("out/instability_revolved.pvd").exists());
     // the stage went on to its end
     let history = std::fs::read_to_string(dir.join("out/history.csv")).unwrap();
     let last = history.lines().last().unwrap();

@@ -4,6 +4,7 @@
 
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{stacked_plot_scaled, PlotSpec, Scale, Series};
+use crate::io::revolve::{Components, RevolvedMesh};
 use crate::io::vtu::{write_pvd, write_vtu_as, CellType, Encoding, VtuPiece};
 use crate::job::plan::Plan;
 use crate::job::state::FrequencyResponse;
@@ -45,7 +46,12 @@ pub fn write_modes(
         .collect();
     let cell_type = CellType::from(mesh.kind);
     let encoding = Encoding::from(plan.output.fields_format);
+    let revolved = plan.output.revolve.and_then(|r| RevolvedMesh::new(mesh, r));
+    let revolved_disp = revolved
+        .as_ref()
+        .map(|r| r.point_array(Components::Vector, &disp));
     let mut entries = Vec::new();
+    let mut revolved_entries = Vec::new();
     for (i, m) in found.iter().enumerate() {
         let largest = (0..n)
             .map(|a| {
@@ -77,6 +83,29 @@ pub fn write_modes(
         );
         write_vtu_as(&shapes_dir.join(&name), &piece, encoding).map_err(|e| e.to_string())?;
         entries.push((m.frequency, format!("{stem}/{name}")));
+        // the revolved view: the shape with its pattern cos nΘ (sin nΘ for u_θ) around the axis
+        if let (Some(r), Some(rdisp)) = (&revolved, &revolved_disp) {
+            let shape = r.harmonic_point_array(Components::Vector, &shape, m.harmonic);
+            let phi = r.harmonic_point_array(Components::Scalar, &phi, m.harmonic);
+            let name = format!("mode_{:02}_revolved.vtu", i + 1);
+            let piece = VtuPiece::fields(
+                &r.points,
+                r.cell_type,
+                &r.connectivity,
+                &[
+                    ("displacement", 3, rdisp),
+                    ("mode_shape", 3, &shape),
+                    ("mode_potential", 1, &phi),
+                ],
+                &[],
+            );
+            write_vtu_as(&shapes_dir.join(&name), &piece, encoding).map_err(|e| e.to_string())?;
+            revolved_entries.push((m.frequency, format!("{stem}/{name}")));
+        }
+    }
+    if !revolved_entries.is_empty() {
+        write_pvd(&dir.join(format!("{stem}_revolved.pvd")), &revolved_entries)
+            .map_err(|e| e.to_string())?;
     }
     write_pvd(&dir.join(format!("{stem}.pvd")), &entries).map_err(|e| e.to_string())
 }

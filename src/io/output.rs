@@ -324,6 +324,8 @@ impl OutputWriter {
             "frequency_response.csv",
             "instability.csv",
             "instability.pvd",
+            "modes_revolved.pvd",
+            "instability_revolved.pvd",
         ] {
             remove_if_present(&dir.join(f))?;
         }

@@ -208,10 +208,9 @@ impl RevolvedMesh {
         &self.angles
     }
 
-    /// A point array of the section (`kind.size()` values per section node) on the revolved
-    /// points.
-    pub fn point_array(&self, kind: Components, values: &[f64]) -> Vec<f64> {
-        let n = kind.size();
+    /// The values of the section points (`n` per node, then the quad8 cells' centres,
+    /// interpolated).
+    fn section_values(&self, n: usize, values: &[f64]) -> Vec<f64> {
         let mut section = values[..self.nodes * n].to_vec();
         for nodes in &self.centres {
             for i in 0..n {
@@ -224,6 +223,14 @@ impl RevolvedMesh {
                 );
             }
         }
+        section
+    }
+
+    /// A point array of the section (`kind.size()` values per section node) on the revolved
+    /// points.
+    pub fn point_array(&self, kind: Components, values: &[f64]) -> Vec<f64> {
+        let n = kind.size();
+        let section = self.section_values(n, values);
         let mut out = vec![0.0; self.angles.len() * self.section_points * n];
         for (j, &theta) in self.angles.iter().enumerate() {
             for p in 0..self.section_points {
@@ -234,6 +241,29 @@ impl RevolvedMesh {
                     &section[p * n..(p + 1) * n],
                     &mut out[at..at + n],
                 );
+            }
+        }
+        out
+    }
+
+    /// A point array of a shape of circumferential harmonic `n` (the amplitudes, `kind.size()`
+    /// values per section node; a scalar or a vector) on the revolved points: a scalar and the
+    /// (R, Z) components vary as cos nθ, the Θ component as sin nθ
+    /// ([`crate::time::harmonic`]).
+    pub fn harmonic_point_array(&self, kind: Components, values: &[f64], n: u32) -> Vec<f64> {
+        debug_assert!(kind != Components::Tensor);
+        let size = kind.size();
+        let section = self.section_values(size, values);
+        let mut out = vec![0.0; self.angles.len() * self.section_points * size];
+        let mut v = [0.0; 3];
+        for (j, &theta) in self.angles.iter().enumerate() {
+            let (s, c) = (f64::from(n) * theta).sin_cos();
+            for p in 0..self.section_points {
+                let at = (j * self.section_points + p) * size;
+                for (k, x) in v.iter_mut().enumerate().take(size) {
+                    *x = section[p * size + k] * if k == 2 { s } else { c };
+                }
+                rotate(kind, theta, &v[..size], &mut out[at..at + size]);
             }
         }
         out
@@ -327,6 +357,36 @@ mod tests {
 
     fn sweep(mesh: &Mesh, sector_deg: f64, wedges: usize) -> RevolvedMesh {
         RevolvedMesh::new(mesh, Revolve { sector_deg, wedges }).unwrap()
+    }
+
+    /// A shape of harmonic n shows its pattern around the axis: at every ring the Cartesian
+    /// vector is the section's (a cos nθ, b cos nθ, c sin nθ) in (e_R, e_Z, e_Θ), a scalar p cos nθ.
+    #[test]
+    fn harmonic_shapes_vary_around_the_axis() {
+        let mesh = ring(1.0, 2.0, 0.5);
+        let r = sweep(&mesh, 360.0, 12);
+        let amplitudes: Vec<f64> = (0..4)
+            .flat_map(|a| [0.3 + a as f64, -0.7, 1.1 * a as f64 - 0.4])
+            .collect();
+        let potentials = [0.5, -1.0, 2.0, 0.25];
+        for n in [0, 1, 2, 5] {
+            let v = r.harmonic_point_array(Components::Vector, &amplitudes, n);
+            let p = r.harmonic_point_array(Components::Scalar, &potentials, n);
+            for (j, &theta) in r.angles().iter().enumerate() {
+                let (sn, cn) = (f64::from(n) * theta).sin_cos();
+                let (st, ct) = theta.sin_cos();
+                for a in 0..4 {
+                    let at = j * 4 + a;
+                    let [ar, az, at_] = [0, 1, 2].map(|k| amplitudes[a * 3 + k]);
+                    let (ur, ut) = (ar * cn, at_ * sn);
+                    let want = [ur * ct - ut * st, ur * st + ut * ct, az * cn];
+                    for k in 0..3 {
+                        assert!((v[at * 3 + k] - want[k]).abs() < 1e-14, "n {n}, θ {theta}");
+                    }
+                    assert!((p[at] - potentials[a] * cn).abs() < 1e-14);
+                }
+            }
+        }
     }
 
     fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

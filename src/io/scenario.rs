@@ -715,8 +715,9 @@ pub struct StageSpec {
     /// `modes` of an axisymmetric model: the circumferential harmonic n (default 0), or a list.
     #[serde(default)]
     pub harmonic: Option<Numbers>,
-    /// `static` and `quasi-static` stages of an axisymmetric model: test every converged state
-    /// against the circumferential harmonics 1…N (wrinkling, buckling out of the meridian plane).
+    /// `static`, `quasi-static` and `continuation` stages of an axisymmetric model: test every
+    /// converged state against the circumferential harmonics 1…N (wrinkling, buckling out of
+    /// the meridian plane).
     #[serde(default)]
     pub stability_harmonics: Option<u64>,
     /// With `stability_harmonics`: `stop` (default) ends the run at the last stable state,

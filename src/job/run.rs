@@ -10,7 +10,7 @@ use super::observer::{DynamicStart, Observer, Observers};
 use super::plan::{Plan, Stage, StageKind};
 use super::prestretch::prestretch;
 use super::recorder::Recorder;
-use super::stability::{HarmonicCheck, HARMONIC_REASON};
+use super::stability::{HarmonicCheck, Onset, HARMONIC_REASON};
 pub use super::state::{
     Energies, InstabilityRecord, LimitRecord, PathRecord, RecorderState, RunState, RunSummary,
     StagePosition, StageSummary, StepRecord,
@@ -744,33 +744,10 @@ impl<'p, 'o> Job<'p, 'o> {
             }
             _ => None,
         };
-        let onset = check.and_then(|c| c.onset).or(axisymmetric).map(|o| {
-            let voltages = plan
-                .electrode_voltages(&o.state)
-                .map(|v| {
-                    plan.electrodes
-                        .iter()
-                        .zip(v)
-                        .filter(|(e, _)| e.prescribed(false))
-                        .map(|(e, v)| (e.name.clone(), v))
-                        .collect()
-                })
-                .unwrap_or_default();
-            let record = InstabilityRecord {
-                stage: stage.name.clone(),
-                harmonic: o.harmonic,
-                stable_load_factor: o.stable_load,
-                load_factor: o.load,
-                time: time + o.load * stage.duration,
-                voltages,
-                unstable: o.unstable.clone(),
-                axial_share: axial_share(&o.mode.shape),
-                stopped: o.harmonic == 0 || stage.stability.is_some_and(|s| s.stop),
-            };
-            self.observer.instability(plan, &record, &o.state, &o.mode);
-            summary.instability = Some(record.clone());
-            record
-        });
+        let onset = check
+            .and_then(|c| c.onset)
+            .or(axisymmetric)
+            .map(|o| self.report_onset(stage, time, &o, summary));
         match outcome.result {
             Ok(r) => {
                 summary.newton_iterations = r.newton_iterations + self.state.prestretch_iterations;
@@ -892,6 +869,43 @@ impl<'p, 'o> Job<'p, 'o> {
         }
     }
 
+    /// Sends the first loss of stability against a harmonic of stage `stage` (which started at
+    /// run time `time`) to the observers and the stage's summary.
+    fn report_onset(
+        &mut self,
+        stage: &Stage,
+        time: f64,
+        o: &Onset,
+        summary: &mut StageSummary,
+    ) -> InstabilityRecord {
+        let plan = self.plan;
+        let voltages = plan
+            .electrode_voltages(&o.state)
+            .map(|v| {
+                plan.electrodes
+                    .iter()
+                    .zip(v)
+                    .filter(|(e, _)| e.prescribed(false))
+                    .map(|(e, v)| (e.name.clone(), v))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let record = InstabilityRecord {
+            stage: stage.name.clone(),
+            harmonic: o.harmonic,
+            stable_load_factor: o.stable_load,
+            load_factor: o.load,
+            time: time + o.load * stage.duration,
+            voltages,
+            unstable: o.unstable.clone(),
+            axial_share: axial_share(&o.mode.shape),
+            stopped: o.harmonic == 0 || stage.stability.is_some_and(|s| s.stop),
+        };
+        self.observer.instability(plan, &record, &o.state, &o.mode);
+        summary.instability = Some(record.clone());
+        record
+    }
+
     /// A continuation stage: the equilibrium path of the stage's loads by arc length, through
     /// limit points, to its target. Every point is recorded as a step (its pseudo-time is
     /// load factor × duration, so it runs back where the load does) and sent as a path point
@@ -989,6 +1003,19 @@ impl<'p, 'o> Job<'p, 'o> {
         let mut previous_probe: Option<f64> = None;
         let mut reached = false;
         let mut limit_error = None;
+        if stage.stability.is_some() && plan.part.is_some() {
+            return Some(format!(
+                "stage `{}`: `stability_harmonics` needs the whole model in one process",
+                stage.name
+            ));
+        }
+        // each point of the path is tested as it comes (no bisection: the onset lies between
+        // two points)
+        let mut check = stage
+            .stability
+            .map(|s| HarmonicCheck::new(s, f64::INFINITY, &plan.densities));
+        let mut check_error = None;
+        let mut stopped_unstable = false;
         let result = continuation(
             &mut held,
             solver.as_mut(),
@@ -1007,6 +1034,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     self.rec.pressure_now =
                         p.drive().pressures.iter().map(|r| r.at(pt.load)).collect();
                     let dt = (pt.load - last_load) * stage.duration;
+                    let previous_load = last_load;
                     last_load = pt.load;
                     let record = self.record(
                         &p.state,
@@ -1033,6 +1061,17 @@ impl<'p, 'o> Job<'p, 'o> {
                             probes: probes.clone(),
                         },
                     );
+                    if let Some(c) = check.as_mut().filter(|c| c.onset.is_none()) {
+                        let verdict = c.check(model_ref, &p.state, previous_load, pt.load);
+                        if c.onset.is_some() {
+                            if c.stops() {
+                                stopped_unstable = true;
+                                return Next::Stop;
+                            }
+                        } else if let Err(e) = verdict {
+                            check_error = Some(e);
+                        }
+                    }
                     if let (Some((i, target)), Some(&x)) =
                         (probe_target, probe_target.and_then(|(i, _)| probes.get(i)))
                     {
@@ -1070,6 +1109,31 @@ impl<'p, 'o> Job<'p, 'o> {
                 "stage `{}`: the probes at a limit point could not be evaluated: {e}",
                 stage.name
             ));
+        }
+        if let Some(e) = check_error {
+            self.summary.warnings.push(format!(
+                "stage `{}`: the test against harmonics failed: {e}",
+                stage.name
+            ));
+        }
+        if let Some(o) = check.and_then(|c| c.onset) {
+            let record = self.report_onset(stage, time, &o, summary);
+            if stopped_unstable {
+                let problem = held.into_inner();
+                self.state.q = problem.state;
+                self.points = problem.points;
+                summary.steps = step_no;
+                return Some(format!(
+                    "loss of stability against circumferential harmonic n = {} in stage `{}` \
+                     between load factors {:.6} and {:.6} ({column} = {} {unit}); the run stops \
+                     at the first unstable point of the path",
+                    record.harmonic,
+                    stage.name,
+                    record.stable_load_factor,
+                    record.load_factor,
+                    crate::units::Short(parameter_at(record.load_factor))
+                ));
+            }
         }
         let problem = held.into_inner();
         self.state.q = problem.state;

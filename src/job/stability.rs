@@ -6,7 +6,8 @@
 //! the onset is located between two load factors that differ by at most twice that increment.
 //! There the critical harmonic (the one with the most negative eigenvalue when several lose
 //! stability together) and its mode are found, and the stage either stops at the last stable
-//! state or accepts the state and goes on without testing again.
+//! state or accepts the state and goes on without testing again. A continuation stage tests the
+//! points of its path as they come (an infinite resolution: every unstable point is the onset).
 //!
 //! A pre-stretched membrane that loses its in-plane tension under voltage wrinkles this way: the
 //! out-of-plane harmonics of many waves lose stability where the total (mechanical plus Maxwell)
@@ -60,6 +61,11 @@ impl HarmonicCheck {
                 .collect(),
             onset: None,
         }
+    }
+
+    /// Whether the stage ends at the onset.
+    pub fn stops(&self) -> bool {
+        self.settings.stop
     }
 
     /// The onset of a loss of stability in harmonic 0 that stopped the ramp (its own test, of

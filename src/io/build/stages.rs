@@ -213,12 +213,12 @@ fn stability(
         return Ok(None);
     };
     let at = format!("{key}.stability_harmonics");
-    if !matches!(st.kind.as_str(), "static" | "quasi-static") {
+    if !matches!(st.kind.as_str(), "static" | "quasi-static" | "continuation") {
         return Err(ctx.err(
             at,
             format!(
-                "applies to `static` and `quasi-static` stages; a `{}` stage has no test \
-                 against harmonics",
+                "applies to `static`, `quasi-static` and `continuation` stages; a `{}` stage \
+                 has no test against harmonics",
                 st.kind
             ),
         ));
