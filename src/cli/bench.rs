@@ -437,6 +437,19 @@ pub fn cmd_bench(large: bool) -> i32 {
         }
     }
     println!();
+    println!(
+        "modes of the default diaphragm: harmonics 0-3 of the axisymmetric model (3 of each) \
+         against the full 3-D disc; times in s, memory from the row's start"
+    );
+    println!("{HARMONICS_HEADER}");
+    match bench_harmonics(3, 28, &[]) {
+        Ok(rows) => rows.iter().for_each(|r| println!("{r}")),
+        Err(e) => {
+            eprintln!("error: harmonics benchmark: {e}");
+            return 1;
+        }
+    }
+    println!();
     match bench_calibration() {
         Ok((wall, rms, iterations)) => println!(
             "calibration: VHB 4910, 3 rates (Hossain et al. 2012), 7 parameters: {wall:.3} s, \
@@ -713,10 +726,14 @@ type StageWall = (String, f64, usize);
 /// Runs an example with overrides through the library (no output files): the model's unknowns
 /// and, per stage, its name, wall time (s) and steps.
 fn run_example(name: &str, sets: &[String]) -> Result<(usize, Vec<StageWall>), String> {
+    let text = crate::io::examples::example(name).ok_or_else(|| format!("no example {name}"))?;
+    run_text(text, name, sets)
+}
+
+/// [`run_example`] of a scenario's text.
+fn run_text(text: &str, name: &str, sets: &[String]) -> Result<(usize, Vec<StageWall>), String> {
     use crate::io::build::build;
-    use crate::io::examples::example;
     use crate::io::scenario::parse;
-    let text = example(name).ok_or_else(|| format!("no example {name}"))?;
     let s = parse(text, name, sets).map_err(|e| e.to_string())?;
     let plan = build(&s, name, None).map_err(|e| e.to_string())?;
     let summary = crate::job::run::run(&plan, &mut Quiet);
@@ -760,6 +777,74 @@ pub fn bench_axisymmetric() -> Result<Vec<String>, String> {
             wall(&stages, "load").0,
             peak_memory_mib()
         ));
+    }
+    Ok(rows)
+}
+
+/// Column titles of [`bench_harmonics`]'s rows.
+pub const HARMONICS_HEADER: &str =
+    "                              model   dofs modes  load_s modes_s start_MiB peak_MiB";
+
+/// Modes of harmonics 0–3 of the axisymmetric diaphragm (`diaphragm-modes`, `count` of each)
+/// against the same actuator meshed in 3-D as a full disc (no symmetry planes: every harmonic),
+/// with the same number of modes and with `to_n3` modes (enough to reach the lowest pair of
+/// n = 3), each after its `load` stage, with `sets` (e.g. the mesh), solved through the library
+/// without output files: the wall times of the `load` and `modes` stages, and the resident
+/// memory at the row's start and its peak during the row (the peak is reset before each row
+/// where the kernel allows it; otherwise it is the process's so far).
+pub fn bench_harmonics(count: usize, to_n3: usize, sets: &[String]) -> Result<Vec<String>, String> {
+    use crate::io::examples::example;
+    use crate::io::memory::{reset_peak_memory, resident_memory_mib};
+    let mut rows = Vec::new();
+    let mut row = |what: &str, text: &str, extra: &[String], modes: usize| -> Result<(), String> {
+        reset_peak_memory();
+        let start = resident_memory_mib();
+        let mut all = sets.to_vec();
+        all.extend_from_slice(extra);
+        let (dofs, stages) = run_text(text, what, &all)?;
+        rows.push(format!(
+            "{what:>35} {dofs:>6} {modes:>5} {:>7.3} {:>7.3} {start:>9.0} {:>8.0}",
+            wall(&stages, "load").0,
+            wall(&stages, "modes").0,
+            peak_memory_mib()
+        ));
+        Ok(())
+    };
+    let axisymmetric = example("diaphragm-modes").ok_or("no example diaphragm-modes")?;
+    row(
+        "axisymmetric, harmonics 0-3",
+        axisymmetric,
+        &[
+            "stages.1.harmonic=[0, 1, 2, 3]".into(),
+            format!("stages.1.count={count}"),
+        ],
+        4 * count,
+    )?;
+    let quarter = example("diaphragm-3d").ok_or("no example diaphragm-3d")?;
+    let start = quarter
+        .find("[[constraints]]")
+        .ok_or("diaphragm-3d: no constraints")?;
+    let end = quarter
+        .find("[prestretch]")
+        .ok_or("diaphragm-3d: no prestretch")?;
+    let stage = quarter
+        .find("[[stages]]\nname = \"actuate\"")
+        .ok_or("diaphragm-3d: no stage `actuate`")?;
+    let probes = quarter.find("[probes.").ok_or("diaphragm-3d: no probes")?;
+    let full = format!(
+        "{}{}[[stages]]\nname = \"modes\"\nkind = \"modes\"\n\n{}",
+        &quarter[..start],
+        &quarter[end..stage],
+        &quarter[probes..]
+    )
+    .replace("quarter = true", "quarter = false");
+    for modes in [4 * count, to_n3] {
+        row(
+            &format!("3-D full disc, {modes} modes"),
+            &full,
+            &[format!("stages.1.count={modes}")],
+            modes,
+        )?;
     }
     Ok(rows)
 }
@@ -942,6 +1027,32 @@ mod tests {
             assert!(total.is_finite() && total > 0.0, "{r}");
         }
         assert!(rows[3].contains(" 400 "), "{}", rows[3]);
+    }
+
+    /// The harmonics rows: the axisymmetric model's 4 × count modes in far fewer unknowns than
+    /// the full 3-D disc's, with times and memory.
+    #[test]
+    fn harmonic_rows() {
+        let rows = bench_harmonics(2, 10, &["mesh.radial=6".into()]).unwrap();
+        rows.iter().for_each(|r| println!("{r}"));
+        assert_eq!(rows.len(), 3, "{rows:?}");
+        let cells: Vec<Vec<f64>> = rows
+            .iter()
+            .map(|r| {
+                r.split_whitespace()
+                    .rev()
+                    .take(6)
+                    .map(|v| v.parse().unwrap())
+                    .collect()
+            })
+            .collect();
+        // reversed: peak, start, modes_s, load_s, modes, dofs
+        assert_eq!((cells[0][4], cells[1][4], cells[2][4]), (8.0, 8.0, 10.0));
+        assert!(cells[1][5] > 10.0 * cells[0][5], "{rows:?}");
+        assert_eq!(cells[1][5], cells[2][5]);
+        for c in &cells {
+            assert!(c[0] > 0.0 && c[2] > 0.0 && c[3] > 0.0, "{rows:?}");
+        }
     }
 
     /// The material benchmark runs for both presets and reports their point-state sizes.
