@@ -127,30 +127,13 @@ pub fn peak_memory_mib() -> f64 {
     peak_memory_in("/proc/self/status")
 }
 
-/// Resident memory of this process now (MiB), from /proc (NaN where unavailable).
-pub fn resident_memory_mib() -> f64 {
-    status_mib("/proc/self/status", "VmRSS:")
-}
-
-/// Lowers this process's peak resident memory to its present resident memory (Linux: `5`
-/// written to /proc/self/clear_refs), so that a later [`peak_memory_mib`] is the peak since;
-/// false where the kernel does not allow it (the peak then stays the whole process's).
-pub fn reset_peak_memory() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
-}
-
 /// The peak resident memory (MiB) in a /proc status file (NaN where unavailable).
 pub fn peak_memory_in(status: &str) -> f64 {
-    status_mib(status, "VmHWM:")
-}
-
-/// The value (kiB there) of the line `key` of a /proc status file, in MiB (NaN where absent).
-fn status_mib(status: &str, key: &str) -> f64 {
     std::fs::read_to_string(status)
         .ok()
         .and_then(|s| {
             s.lines()
-                .find(|l| l.starts_with(key))
+                .find(|l| l.starts_with("VmHWM:"))
                 .and_then(|l| l.split_whitespace().nth(1))
                 .and_then(|v| v.parse::<f64>().ok())
         })
@@ -196,26 +179,5 @@ mod tests {
         // 128 × 128 × 5: ~400k dofs, peak 3.85 GB
         let e = estimate(129 * 129 * 6, 128 * 128 * 5, ElementKind::Hex8).bytes as f64;
         assert!((3.85e9..3.0 * 3.85e9).contains(&e), "{e:e}");
-    }
-
-    /// After 256 MiB touched and freed, the reset lowers the peak below what it was (where the
-    /// kernel allows the reset).
-    #[test]
-    fn the_peak_resets() {
-        let big = vec![1u8; 256 << 20];
-        assert_eq!(
-            big.iter().step_by(4096).map(|&b| b as usize).sum::<usize>(),
-            65536
-        );
-        let peak = peak_memory_mib();
-        assert!(peak >= 256.0 && resident_memory_mib() > 0.0, "{peak}");
-        drop(big);
-        if reset_peak_memory() {
-            assert!(
-                peak_memory_mib() < peak - 128.0,
-                "{} {peak}",
-                peak_memory_mib()
-            );
-        }
     }
 }
