@@ -351,6 +351,9 @@ drive, a term or stage whose adjoint is not built)."
         /// One row of the scaling table (NXxNYxNZ), in this process.
         #[arg(long, hide = true)]
         scaling_row: Option<String>,
+        /// One row (0, 1, 2) of the harmonics table, in this process.
+        #[arg(long, hide = true)]
+        harmonics_row: Option<usize>,
     },
 }
 
@@ -582,9 +585,28 @@ fn main() {
             memory_limit,
             timeout,
             scaling_row,
+            harmonics_row,
         } => {
             use deasim::cli::bench;
             use deasim::solve::linear::SolverKind;
+            if let Some(row) = harmonics_row {
+                let row = bench::bench_harmonics_row(
+                    row,
+                    bench::HARMONICS_COUNT,
+                    bench::HARMONICS_TO_N3,
+                    &[],
+                );
+                std::process::exit(match row {
+                    Ok(row) => {
+                        println!("{row}");
+                        0
+                    }
+                    Err(e) => {
+                        eprintln!("error: --harmonics-row: {e}");
+                        1
+                    }
+                });
+            }
             match (SolverKind::from_name(&solver), scaling_row) {
                 (None, _) => {
                     eprintln!(

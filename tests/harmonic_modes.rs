@@ -10,7 +10,7 @@
 
 mod common;
 
-use deasim::api::{loaded_modes_of_harmonics, modes_plan, RunOptions};
+use deasim::api::{loaded_modes_of_harmonics, modes_plan, FieldsKept, RunOptions, Simulation};
 use deasim::element::harmonic::harmonic_factor;
 use deasim::io::build::build;
 use deasim::io::examples::example;
@@ -21,11 +21,13 @@ use deasim::mesh::meridian::rectangle_mesh;
 use deasim::mesh::MeridianKind;
 use deasim::problem::dofs::{Dirichlet, Field};
 use deasim::problem::model::Model;
+use deasim::problem::statics::nodal_reactions;
 use deasim::solve::newton::NewtonSettings;
 use deasim::solve::stepping::StepControl;
 use deasim::time::harmonic::harmonic_modes;
 use deasim::time::mass::{MassKind, NodalMass};
 use deasim::time::modal::{modes, Mode, ModeSettings};
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 const RADIUS: f64 = 10e-3;
@@ -34,9 +36,22 @@ const STRETCH: f64 = 1.5;
 const MU: f64 = 1e5;
 const RHO0: f64 = 1000.0;
 
-/// The stretched membrane on `nr` quad8 cells across the radius: its model, state, mass and
-/// √(σ/ρ) (m/s).
-fn membrane(nr: usize) -> (Model, Vec<f64>, NodalMass, f64) {
+/// The stretched membrane on `nr` quad8 cells across the radius, its bottom face grounded and
+/// its top face at `volts`, solved.
+struct Membrane {
+    model: Model,
+    state: Vec<f64>,
+    mass: NodalMass,
+    /// In-plane Cauchy stress (Pa) from the material's total stress at the solved state.
+    sigma: f64,
+    /// In-plane Cauchy stress (Pa) from the radial reaction of the held rim.
+    sigma_rim: f64,
+    /// Current density (kg/m³).
+    rho: f64,
+}
+
+/// [`Membrane`] on `nr` cells with its top face at `volts`.
+fn membrane(nr: usize, volts: f64) -> Membrane {
     let mesh = rectangle_mesh(0.0, RADIUS, THICKNESS, nr, 1, MeridianKind::Quad8).unwrap();
     let material = Arc::new(ElectroNeoHooke::new(MU, 100.0 * MU, 4.7));
     let mut model = Model::new(mesh, material.clone()).unwrap();
@@ -54,7 +69,7 @@ fn membrane(nr: usize) -> (Model, Vec<f64>, NodalMass, f64) {
         value: 0.0,
     });
     model.fix("bottom", Field::Phi, 0.0).unwrap();
-    model.fix("top", Field::Phi, 0.0).unwrap();
+    model.fix("top", Field::Phi, volts).unwrap();
     let out = solve_static(
         &model,
         None,
@@ -69,13 +84,29 @@ fn membrane(nr: usize) -> (Model, Vec<f64>, NodalMass, f64) {
     let state = out.state;
     let top = model.mesh.node_sets["top"][0];
     let lz = 1.0 + state[top * 4 + 1] / THICKNESS;
+    // the homogeneous state: F = diag(λ, λ_z, λ) and E₀ = −∂Φ/∂Z in (R, Z, Θ)
     let f = Mat3::from_diagonal(&Vec3::new(STRETCH, lz, STRETCH));
+    let e0 = Vec3::new(0.0, -volts / THICKNESS, 0.0);
     let j = f.determinant();
-    let p = material.stress(&f, &Vec3::zeros()).unwrap().p;
+    let p = material.stress(&f, &e0).unwrap().p;
     let sigma = p[(0, 0)] * STRETCH / j;
-    let rho = RHO0 / j;
+    // the rim's radial reactions sum to σ times the current rim area 2π λa λ_z H (the ring
+    // weights carry 2π)
+    let reactions = nodal_reactions(&model, &state).unwrap();
+    let force: f64 = model.mesh.node_sets["outer"]
+        .iter()
+        .map(|&a| reactions[a * 4])
+        .sum();
+    let sigma_rim = force / (2.0 * std::f64::consts::PI * STRETCH * RADIUS * lz * THICKNESS);
     let mass = NodalMass::new(&model, &[RHO0], MassKind::Consistent);
-    (model, state, mass, (sigma / rho).sqrt())
+    Membrane {
+        model,
+        state,
+        mass,
+        sigma,
+        sigma_rim,
+        rho: RHO0 / j,
+    }
 }
 
 /// Whether a mode moves mostly out of plane (u_z) rather than in plane.
@@ -113,10 +144,11 @@ fn stretched_membrane_harmonics_follow_the_bessel_zeros() {
     let zeros = [2.4048, 3.8317, 5.1356];
     let mut errors = vec![Vec::new(); 3];
     for nr in [8, 16, 32] {
-        let (model, state, mass, c) = membrane(nr);
+        let m = membrane(nr, 0.0);
+        let c = (m.sigma / m.rho).sqrt();
         for (n, j) in zeros.iter().enumerate() {
             let exact = j / (2.0 * std::f64::consts::PI * STRETCH * RADIUS) * c;
-            let f = lowest_transverse(&model, &state, &mass, n as u32).frequency;
+            let f = lowest_transverse(&m.model, &m.state, &m.mass, n as u32).frequency;
             let e = f / exact - 1.0;
             println!("nr = {nr}, n = {n}: {f:.4} Hz against {exact:.4} Hz ({e:+.3e})");
             errors[n].push(e.abs());
@@ -131,11 +163,71 @@ fn stretched_membrane_harmonics_follow_the_bessel_zeros() {
     }
 }
 
+/// The top face's bias (V): the Maxwell stress εE² takes about 30 % off the in-plane stress.
+const BIAS: f64 = 1700.0;
+
+/// At a voltage bias (top face at [`BIAS`], bottom grounded, both held at their voltages in the
+/// perturbation) the membrane's tension is its total in-plane Cauchy stress σ (mechanical plus
+/// Maxwell), taken from the solved state: the rim's radial reaction over the current rim area,
+/// which equals the material's total stress at a point. The lowest out-of-plane frequencies of
+/// harmonics 0, 1 and 2 approach j_n1/(2πa)√(σ/ρ) under refinement (8, 16, 32 cells), and lie
+/// well below those of the grounded membrane's stress.
+#[test]
+fn membrane_harmonics_at_a_voltage_bias_follow_the_total_stress() {
+    let zeros = [2.4048, 3.8317, 5.1356];
+    let grounded = membrane(8, 0.0);
+    assert!((grounded.sigma_rim / grounded.sigma - 1.0).abs() < 1e-8);
+    let mut errors = vec![Vec::new(); 3];
+    for nr in [8, 16, 32] {
+        let m = membrane(nr, BIAS);
+        assert!(
+            (m.sigma_rim / m.sigma - 1.0).abs() < 1e-8,
+            "rim {} Pa against the material {} Pa",
+            m.sigma_rim,
+            m.sigma
+        );
+        let drop = 1.0 - m.sigma_rim / grounded.sigma_rim;
+        println!(
+            "nr = {nr}: σ = {:.2} Pa at {BIAS} V against {:.2} Pa grounded ({:.1} % less), \
+             ρ = {:.3} kg/m³",
+            m.sigma_rim,
+            grounded.sigma_rim,
+            100.0 * drop,
+            m.rho
+        );
+        assert!((0.25..0.35).contains(&drop), "{drop}");
+        let c = (m.sigma_rim / m.rho).sqrt();
+        for (n, j) in zeros.iter().enumerate() {
+            let exact = j / (2.0 * std::f64::consts::PI * STRETCH * RADIUS) * c;
+            let f = lowest_transverse(&m.model, &m.state, &m.mass, n as u32).frequency;
+            let e = f / exact - 1.0;
+            let unbiased = exact * (grounded.sigma_rim / m.sigma_rim).sqrt();
+            println!(
+                "nr = {nr}, n = {n}: {f:.4} Hz against {exact:.4} Hz ({e:+.3e}); \
+                 with the grounded stress {unbiased:.4} Hz"
+            );
+            assert!(f < 0.9 * unbiased);
+            errors[n].push(e.abs());
+        }
+    }
+    // from above, falling by about 0.55–0.6 per halving (a little slower than grounded: the
+    // biased membrane's differences are about 3e-4 larger at every nr)
+    for (n, e) in errors.iter().enumerate() {
+        assert!(e[2] < 1e-3, "n = {n}: {e:?}");
+        assert!(
+            e[1] < 0.65 * e[0] && e[2] < 0.65 * e[1],
+            "n = {n} does not converge: {e:?}"
+        );
+    }
+}
+
 /// Axis conditions: the modes of harmonic 2 do not move the axis; those of harmonic 1 translate
 /// it laterally only (u_z = Φ = 0, u_θ = −u_r), and some do.
 #[test]
 fn axis_nodes_follow_the_regularity_conditions() {
-    let (model, state, mass, _) = membrane(8);
+    let Membrane {
+        model, state, mass, ..
+    } = membrane(8, 0.0);
     let axis: Vec<usize> = (0..model.mesh.n_nodes())
         .filter(|&a| model.mesh.nodes[a][0] == 0.0)
         .collect();
@@ -484,4 +576,288 @@ fn a_pad_with_rotary_inertia_rocks_in_harmonic_one() {
     );
     assert_eq!(o.status.code(), Some(2), "{said}");
     assert!(said.contains("loads.rigid.0.rotary_inertia"), "{said}");
+}
+
+/// The harmonic (0…`max`) whose cos nθ/sin nθ components hold most of a 3-D mode's displacement
+/// on the annulus (nodes at R ≥ `inner`, grouped in rings of equal (R, Z), each with its nodes
+/// equally spaced in θ), and the fraction of the displacement it holds.
+fn angular_harmonic(nodes: &[[f64; 3]], shape: &[f64], inner: f64, max: u32) -> (u32, f64) {
+    let mut rings: BTreeMap<(i64, i64), Vec<usize>> = BTreeMap::new();
+    for (a, x) in nodes.iter().enumerate() {
+        let r = x[0].hypot(x[1]);
+        if r >= inner {
+            rings
+                .entry(((r * 1e8).round() as i64, (x[2] * 1e8).round() as i64))
+                .or_default()
+                .push(a);
+        }
+    }
+    let mut energy = vec![0.0; max as usize + 1];
+    let mut total = 0.0;
+    for ring in rings.values() {
+        let mut cyl = Vec::new();
+        for &a in ring {
+            let th = nodes[a][1].atan2(nodes[a][0]);
+            let (c, s) = (th.cos(), th.sin());
+            let (ux, uy, uz) = (shape[a * 4], shape[a * 4 + 1], shape[a * 4 + 2]);
+            let u = [c * ux + s * uy, -s * ux + c * uy, uz];
+            total += u.iter().map(|v| v * v).sum::<f64>();
+            cyl.push((th, u));
+        }
+        let k = ring.len() as f64;
+        for (n, e) in energy.iter_mut().enumerate() {
+            let nf = n as f64;
+            for comp in 0..3 {
+                let (mut pc, mut ps) = (0.0, 0.0);
+                for (th, u) in &cyl {
+                    pc += u[comp] * (nf * th).cos();
+                    ps += u[comp] * (nf * th).sin();
+                }
+                // Parseval on k equally spaced angles: Σu² = (a₀² k) + Σ_n (a_n² + b_n²) k/2
+                *e += if n == 0 {
+                    pc * pc / k
+                } else {
+                    2.0 * (pc * pc + ps * ps) / k
+                };
+            }
+        }
+    }
+    let (n, e) = energy
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .unwrap();
+    (n as u32, e / total)
+}
+
+/// The modes of `diaphragm-3d` as a full disc (`quarter = false`, no symmetry planes) after its
+/// `load` stage, with `sets`: the `count` lowest, grouped by their harmonic
+/// ([`angular_harmonic`], 0…6) as (frequency, fraction) lowest first, and the cells around.
+struct FullDisc {
+    family: Vec<Vec<(f64, f64)>>,
+    around: usize,
+}
+
+fn full_disc_modes(sets: &[String], count: usize) -> FullDisc {
+    let full = example("diaphragm-3d")
+        .unwrap()
+        .replace("quarter = true", "quarter = false")
+        .replace(
+            "[[constraints]]\nset = \"symmetry_x\"\nfix = [\"x\"]\n\n[[constraints]]\nset = \"symmetry_y\"\nfix = [\"y\"]\n",
+            "",
+        );
+    assert!(!full.contains("symmetry_"));
+    let settings = ModeSettings {
+        count,
+        ..Default::default()
+    };
+    let mut scenario = parse(&full, "t.toml", sets).unwrap();
+    scenario.stages.truncate(1);
+    let plan = modes_plan(build(&scenario, "t.toml", None).unwrap(), &settings).unwrap();
+    let loaded = loaded_modes_of_harmonics(&plan, &settings, &[0], RunOptions::default()).unwrap();
+    let nodes = &plan.model.mesh.nodes;
+    // the annulus, outside the pad's radius
+    let inner = 1.001 * 3.75e-3;
+    let mut family: Vec<Vec<(f64, f64)>> = vec![Vec::new(); 7];
+    let mut described = Vec::new();
+    for m in &loaded.modes {
+        let (n, fraction) = angular_harmonic(nodes, &m.shape, inner, 6);
+        described.push(format!("{:.3} Hz n = {n} ({fraction:.3})", m.frequency));
+        family[n as usize].push((m.frequency, fraction));
+    }
+    println!("3-D {sets:?}: {}", described.join(", "));
+    // the rim's nodes over its node layers
+    let rim = &plan.model.mesh.node_sets["rim"];
+    let mut heights: Vec<i64> = rim
+        .iter()
+        .map(|&a| (nodes[a][2] * 1e8).round() as i64)
+        .collect();
+    heights.sort_unstable();
+    heights.dedup();
+    FullDisc {
+        family,
+        around: rim.len() / heights.len(),
+    }
+}
+
+/// The diaphragm (η = 0) after `load`, harmonics 0…3 of the axisymmetric model against the same
+/// device meshed in 3-D as a full disc (`quarter = false`, no symmetry planes): each harmonic's
+/// lowest frequency against the lowest 3-D mode whose displacement on the annulus varies as
+/// cos nθ, sin nθ (a degenerate pair for n ≥ 1). Both meshes refined alike (radial 8, 12, 16
+/// cells; 32, 48, 56 cells around the 3-D disc): the difference falls, for n = 2, 3 as 1/N² of
+/// the N cells around (the 3-D disc's polygon). Harmonic 0 of a `modes` stage with
+/// `harmonic = [0, 1, 2, 3]` is the stage without the key, to 1e-12.
+#[test]
+fn diaphragm_harmonics_zero_to_three_match_the_full_3d_disc() {
+    const COUNT: usize = 3;
+    let start = std::time::Instant::now();
+    let mut differences = vec![Vec::new(); 4];
+    let mut circumferential = Vec::new();
+    for radial in [8, 12, 16] {
+        let sets: Vec<String> = [
+            format!("mesh.radial={radial}"),
+            "mesh.layers=2".into(),
+            "materials.vhb.viscosity=0".into(),
+        ]
+        .to_vec();
+        // the axisymmetric model: two modes stages about the loaded state
+        let text = with_stage(
+            example("diaphragm").unwrap(),
+            &format!(
+                "kind = \"modes\"\ncount = {COUNT}\nharmonic = [0, 1, 2, 3]\n\n[[stages]]\n\
+                 name = \"plain\"\nkind = \"modes\"\ncount = {COUNT}"
+            ),
+        );
+        let results = Simulation::from_toml(&text, None)
+            .with_overrides(&sets)
+            .run(RunOptions {
+                fields: FieldsKept::None,
+                ..Default::default()
+            })
+            .unwrap();
+        let stages = &results.summary.stages;
+        let (all, plain) = (&stages[1], &stages[2]);
+        assert_eq!(
+            all.modes_harmonic,
+            (0..4u32).flat_map(|n| [n; COUNT]).collect::<Vec<_>>()
+        );
+        assert_eq!(plain.modes_hz.len(), COUNT);
+        for (a, b) in all.modes_hz.iter().zip(&plain.modes_hz) {
+            assert!((a / b - 1.0).abs() <= 1e-12, "harmonic 0: {a} against {b}");
+        }
+        let axisymmetric: Vec<f64> = (0..4).map(|n| all.modes_hz[n * COUNT]).collect();
+        // the full 3-D disc
+        let disc = full_disc_modes(&sets, 28);
+        circumferential.push(disc.around as f64);
+        let family = disc.family;
+        for n in 0..4 {
+            let found = &family[n];
+            assert!(found.len() > usize::from(n > 0), "n = {n}: {found:?}");
+            let (f3, fraction) = found[0];
+            assert!(fraction > 0.9, "n = {n}: {found:?}");
+            if n > 0 {
+                // its degenerate partner
+                let (g3, other) = found[1];
+                assert!(
+                    (g3 / f3 - 1.0).abs() < 1e-3 && other > 0.9,
+                    "n = {n}: {found:?}"
+                );
+            }
+            let d = axisymmetric[n] / f3 - 1.0;
+            println!(
+                "radial {radial}, n = {n}: axisymmetric {:.4} Hz, 3-D {f3:.4} Hz ({d:+.3e})",
+                axisymmetric[n]
+            );
+            differences[n].push(d.abs());
+        }
+    }
+    println!("{:.1} s in all", start.elapsed().as_secs_f64());
+    for (n, d) in differences.iter().enumerate() {
+        assert!(d[2] < d[1] && d[1] < d[0], "n = {n}: {d:?}");
+        assert!(d[2] < 5e-3, "n = {n}: {d:?}");
+    }
+    // what is left of n = 2, 3 is mostly the 3-D disc's polygon of N cells around: ∝ 1/N²
+    for n in [2, 3] {
+        let scaled: Vec<f64> = differences[n]
+            .iter()
+            .zip(&circumferential)
+            .map(|(d, c)| d * c * c)
+            .collect();
+        println!("n = {n}: |difference| N² = {scaled:.3?} (N = {circumferential:?})");
+        assert!(
+            scaled.iter().all(|v| (v / scaled[2] - 1.0).abs() < 0.1),
+            "n = {n}: {scaled:?}"
+        );
+    }
+}
+
+/// The example `diaphragm-modes` run through the library: `modes.csv` has three modes of each of
+/// harmonics 0, 1 and 2 in its `harmonic` column. Every mode but the pad's rocking is within
+/// 0.6 % of the nearest mode of its harmonic of the same actuator meshed in 3-D as a full disc
+/// (the lowest of n = 0, 1, 2 within 0.1, 0.2 and 0.4 %: the differences of radial 12 above).
+/// The pad's inertia is m a²/4 of a thin disc (a = 7.5 mm), and the rocking mode is the one mode
+/// of harmonic 1 that the pad without it lacks, between that pad's first two (interlacing).
+#[test]
+fn the_diaphragm_modes_example() {
+    let dir = common::tempdir("diaphragm-modes");
+    let sim = Simulation::from_example("diaphragm-modes").unwrap();
+    let plan = sim.plan().unwrap();
+    let disc = 0.04622 * 7.5e-3f64.powi(2) / 4.0;
+    let inertia = plan.rigid[0].rotary_inertia.unwrap();
+    assert!(
+        (inertia / disc - 1.0).abs() < 1e-4,
+        "{inertia} against {disc}"
+    );
+    sim.run(RunOptions {
+        out: Some(dir.join("run")),
+        ..Default::default()
+    })
+    .unwrap();
+    let text = std::fs::read_to_string(dir.join("run/modes.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "mode,frequency_hz,eigenvalue_rad2_per_s2,residual,harmonic"
+    );
+    let modes: Vec<(f64, u32)> = lines
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            (c[1].parse().unwrap(), c[4].parse().unwrap())
+        })
+        .collect();
+    assert_eq!(
+        modes.iter().map(|m| m.1).collect::<Vec<_>>(),
+        [0, 0, 0, 1, 1, 1, 2, 2, 2]
+    );
+    let of = |n: u32| -> Vec<f64> { modes.iter().filter(|m| m.1 == n).map(|m| m.0).collect() };
+    // the pad without rotary inertia: its harmonic-1 modes
+    let stiff = sim
+        .text()
+        .lines()
+        .filter(|l| !l.starts_with("rotary_inertia"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert_ne!(stiff.len(), sim.text().len());
+    let plain = Simulation::from_toml(&stiff, None)
+        .run(RunOptions::default())
+        .unwrap();
+    let plain = &plain.summary.stages[1];
+    let plain1: Vec<f64> = plain
+        .modes_hz
+        .iter()
+        .zip(&plain.modes_harmonic)
+        .filter(|m| *m.1 == 1)
+        .map(|m| *m.0)
+        .collect();
+    let rocking: Vec<f64> = of(1)
+        .into_iter()
+        .filter(|f| plain1.iter().all(|p| (f / p - 1.0).abs() > 0.01))
+        .collect();
+    println!(
+        "harmonic 1: {:.4?} Hz; without rotary inertia {plain1:.4?} Hz",
+        of(1)
+    );
+    assert_eq!(rocking.len(), 1, "{rocking:?}");
+    assert!(plain1[0] < rocking[0] && rocking[0] < plain1[1]);
+    // against the full 3-D disc of the same mesh
+    let full = full_disc_modes(&[], 28);
+    for (n, lowest) in [(0u32, 1e-3), (1, 2e-3), (2, 4e-3)] {
+        let three_d: Vec<f64> = full.family[n as usize].iter().map(|m| m.0).collect();
+        for (i, f) in of(n).into_iter().enumerate() {
+            if n == 1 && f == rocking[0] {
+                continue;
+            }
+            let near = three_d
+                .iter()
+                .copied()
+                .min_by(|a, b| (a - f).abs().total_cmp(&(b - f).abs()))
+                .unwrap();
+            let d = f / near - 1.0;
+            println!("n = {n}: {f:.4} Hz against 3-D {near:.4} Hz ({d:+.3e})");
+            assert!(
+                d.abs() < if i == 0 { lowest } else { 6e-3 },
+                "n = {n}: {f} {near}"
+            );
+        }
+    }
 }

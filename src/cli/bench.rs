@@ -437,6 +437,19 @@ pub fn cmd_bench(large: bool) -> i32 {
         }
     }
     println!();
+    println!(
+        "modes of the default diaphragm: harmonics 0-3 of the axisymmetric model ({HARMONICS_COUNT} \
+         of each) against the full 3-D disc; each row in its own process; times in s"
+    );
+    println!("{HARMONICS_HEADER}");
+    match bench_harmonics() {
+        Ok(rows) => rows.iter().for_each(|r| println!("{r}")),
+        Err(e) => {
+            eprintln!("error: harmonics benchmark: {e}");
+            return 1;
+        }
+    }
+    println!();
     match bench_calibration() {
         Ok((wall, rms, iterations)) => println!(
             "calibration: VHB 4910, 3 rates (Hossain et al. 2012), 7 parameters: {wall:.3} s, \
@@ -713,10 +726,14 @@ type StageWall = (String, f64, usize);
 /// Runs an example with overrides through the library (no output files): the model's unknowns
 /// and, per stage, its name, wall time (s) and steps.
 fn run_example(name: &str, sets: &[String]) -> Result<(usize, Vec<StageWall>), String> {
+    let text = crate::io::examples::example(name).ok_or_else(|| format!("no example {name}"))?;
+    run_text(text, name, sets)
+}
+
+/// [`run_example`] of a scenario's text.
+fn run_text(text: &str, name: &str, sets: &[String]) -> Result<(usize, Vec<StageWall>), String> {
     use crate::io::build::build;
-    use crate::io::examples::example;
     use crate::io::scenario::parse;
-    let text = example(name).ok_or_else(|| format!("no example {name}"))?;
     let s = parse(text, name, sets).map_err(|e| e.to_string())?;
     let plan = build(&s, name, None).map_err(|e| e.to_string())?;
     let summary = crate::job::run::run(&plan, &mut Quiet);
@@ -760,6 +777,96 @@ pub fn bench_axisymmetric() -> Result<Vec<String>, String> {
             wall(&stages, "load").0,
             peak_memory_mib()
         ));
+    }
+    Ok(rows)
+}
+
+/// Column titles of [`bench_harmonics_row`]'s rows.
+pub const HARMONICS_HEADER: &str =
+    "                              model   dofs modes  load_s modes_s peak_MiB";
+
+/// Modes per harmonic of the axisymmetric row of `deasim bench`'s harmonics table.
+pub const HARMONICS_COUNT: usize = 3;
+/// Modes of the 3-D disc that reach its lowest pair of harmonic 3.
+pub const HARMONICS_TO_N3: usize = 28;
+
+/// One row of the harmonics table: `row` 0, modes of harmonics 0–3 of the axisymmetric
+/// diaphragm (`diaphragm-modes`, `count` of each); 1 and 2, the same actuator meshed in 3-D as a
+/// full disc (no symmetry planes: every harmonic) with as many modes, and with `to_n3` modes
+/// (enough to reach its lowest pair of n = 3); each after its `load` stage, with `sets` (e.g. the
+/// mesh), solved through the library without output files: unknowns, modes, the wall times of
+/// the `load` and `modes` stages and the process's peak memory (a row of its own process is
+/// that row's: [`cmd_bench`] runs each so).
+pub fn bench_harmonics_row(
+    row: usize,
+    count: usize,
+    to_n3: usize,
+    sets: &[String],
+) -> Result<String, String> {
+    use crate::io::examples::example;
+    if row > 2 {
+        return Err(format!("row {row}: expected 0, 1 or 2"));
+    }
+    let (what, text, extra, modes) = if row == 0 {
+        let text = example("diaphragm-modes").ok_or("no example diaphragm-modes")?;
+        (
+            "axisymmetric, harmonics 0-3".to_string(),
+            text.to_string(),
+            vec![
+                "stages.1.harmonic=[0, 1, 2, 3]".to_string(),
+                format!("stages.1.count={count}"),
+            ],
+            4 * count,
+        )
+    } else {
+        let modes = if row == 1 { 4 * count } else { to_n3 };
+        let quarter = example("diaphragm-3d").ok_or("no example diaphragm-3d")?;
+        let find = |what: &str| {
+            quarter
+                .find(what)
+                .ok_or_else(|| format!("diaphragm-3d: no `{what}`"))
+        };
+        let (start, end) = (find("[[constraints]]")?, find("[prestretch]")?);
+        let (stage, probes) = (find("[[stages]]\nname = \"actuate\"")?, find("[probes.")?);
+        let full = format!(
+            "{}{}[[stages]]\nname = \"modes\"\nkind = \"modes\"\n\n{}",
+            &quarter[..start],
+            &quarter[end..stage],
+            &quarter[probes..]
+        )
+        .replace("quarter = true", "quarter = false");
+        (
+            format!("3-D full disc, {modes} modes"),
+            full,
+            vec![format!("stages.1.count={modes}")],
+            modes,
+        )
+    };
+    let mut all = sets.to_vec();
+    all.extend(extra);
+    let (dofs, stages) = run_text(&text, &what, &all)?;
+    let (load, modes_s) = (wall(&stages, "load").0, wall(&stages, "modes").0);
+    Ok(format!(
+        "{what:>35} {dofs:>6} {modes:>5} {load:>7.3} {modes_s:>7.3} {:>8.0}",
+        peak_memory_mib()
+    ))
+}
+
+/// The harmonics table of [`cmd_bench`]: each row of [`bench_harmonics_row`] in its own process
+/// (`deasim bench --harmonics-row N`), so that its peak memory is its own.
+fn bench_harmonics() -> Result<Vec<String>, String> {
+    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
+    let mut rows = Vec::new();
+    for row in 0..3 {
+        let out = std::process::Command::new(&exe)
+            .args(["bench", "--harmonics-row", &row.to_string()])
+            .stderr(std::process::Stdio::inherit())
+            .output()
+            .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
+        if !out.status.success() {
+            return Err(format!("row {row} failed (the message is above)"));
+        }
+        rows.push(String::from_utf8_lossy(&out.stdout).trim_end().to_string());
     }
     Ok(rows)
 }
@@ -942,6 +1049,31 @@ mod tests {
             assert!(total.is_finite() && total > 0.0, "{r}");
         }
         assert!(rows[3].contains(" 400 "), "{}", rows[3]);
+    }
+
+    /// The harmonics rows: the axisymmetric model's 4 × count modes in far fewer unknowns than
+    /// the full 3-D disc's, with times and memory.
+    #[test]
+    fn harmonic_rows() {
+        let sets = ["mesh.radial=6".to_string()];
+        let cells: Vec<Vec<f64>> = (0..3)
+            .map(|row| {
+                let r = bench_harmonics_row(row, 2, 10, &sets).unwrap();
+                println!("{r}");
+                // from the right: peak, modes_s, load_s, modes, dofs
+                r.split_whitespace()
+                    .rev()
+                    .take(5)
+                    .map(|v| v.parse().unwrap())
+                    .collect()
+            })
+            .collect();
+        assert_eq!((cells[0][3], cells[1][3], cells[2][3]), (8.0, 8.0, 10.0));
+        assert!(cells[1][4] > 10.0 * cells[0][4], "{cells:?}");
+        assert_eq!(cells[1][4], cells[2][4]);
+        for c in &cells {
+            assert!(c[0] > 0.0 && c[1] > 0.0 && c[2] > 0.0, "{cells:?}");
+        }
     }
 
     /// The material benchmark runs for both presets and reports their point-state sizes.

@@ -27,6 +27,10 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../../scenarios/diaphragm-3d.toml"),
     ),
     (
+        "diaphragm-modes",
+        include_str!("../../scenarios/diaphragm-modes.toml"),
+    ),
+    (
         "diaphragm-response",
         include_str!("../../scenarios/diaphragm-response.toml"),
     ),
