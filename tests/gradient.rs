@@ -89,6 +89,38 @@ data = "data.csv"
     assert_checked(&r, 1e-6);
 }
 
+/// The field penalty (the breakdown margin) of the static film above 15 MV/m, alone: its
+/// derivatives in μ, εᵣ and the voltage amplitude through every step's state.
+#[test]
+fn static_field_penalty_gradient_matches_finite_differences() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = film(
+        r#"
+[[parameters]]
+path = "materials.elastomer.mu"
+[[parameters]]
+path = "materials.elastomer.permittivity"
+[[parameters]]
+path = "electrodes.top.voltage.amplitude"
+
+[[objective]]
+kind = "field-penalty"
+limit = 1.5e7
+weight = 1e-6
+"#,
+        dir.path(),
+    );
+    let r = sim
+        .gradient(&GradientOptions {
+            check: true,
+            ..Default::default()
+        })
+        .unwrap();
+    println!("field penalty J = {:e}", r.objective);
+    assert!(r.objective > 0.0);
+    assert_checked(&r, 1e-6);
+}
+
 /// Two stages: the film charged, then released by a second static stage with its electrodes
 /// off; the objective reads the release, which starts from the charged state, so the voltage
 /// reaches it through the supports' start values.
@@ -144,7 +176,11 @@ fn unsupported_and_bad_input_is_refused() {
     let e = bad("[[parameters]]\npath = \"materials.elastomer.mu\"\n[[objective]]\nkind = \"probe-misfit\"\nprobe = \"thickness_stretch\"\ndata = \"missing.csv\"\n").unwrap_err();
     assert!(e.to_string().contains("missing.csv"), "{e}");
     let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"field-penalty\"\n")).unwrap_err();
-    assert!(e.to_string().contains("objective.1.kind"), "{e}");
+    assert!(e.to_string().contains("objective.1.limit"), "{e}");
+    let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"field-penalty\"\nlimit = -1.0\n")).unwrap_err();
+    assert!(e.to_string().contains("objective.1.limit"), "{e}");
+    let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"field-penalty\"\nlimit = 1e7\nprobe = \"charge\"\n")).unwrap_err();
+    assert!(e.to_string().contains("objective.1.probe"), "{e}");
     let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"rest\"\n")).unwrap_err();
     assert!(e.to_string().contains("objective.1.stage"), "{e}");
     let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"drive-effort\"\nelectrode = \"top\"\n")).unwrap_err();
@@ -247,6 +283,45 @@ weight = 100.0
             ..Default::default()
         })
         .unwrap()
+}
+
+/// The field penalty over a dynamic stage (midpoint) beside the probe terms.
+#[test]
+fn dynamic_field_penalty_gradient_matches_finite_differences() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = deasim::io::examples::example("film-vibration").unwrap();
+    let text = format!(
+        "{base}\n{}",
+        r#"
+[[parameters]]
+path = "materials.elastomer.mu"
+[[parameters]]
+path = "materials.elastomer.viscosity"
+[[parameters]]
+path = "electrodes.top.voltage.amplitude"
+
+[[objective]]
+kind = "field-penalty"
+limit = 1.0e7
+weight = 1e-6
+"#
+    );
+    let r = Simulation::from_toml(&text, Some(dir.path()))
+        .with_overrides(&[
+            "mesh.divisions=[2, 2, 1]".into(),
+            "stages.0.duration=4e-3".into(),
+            "stages.0.dt=2e-4".into(),
+            "materials.elastomer.viscosity=50.0".into(),
+            "solver.newton_rtol=1e-13".into(),
+        ])
+        .gradient(&GradientOptions {
+            check: true,
+            ..Default::default()
+        })
+        .unwrap();
+    println!("field penalty J = {:e}", r.objective);
+    assert!(r.objective > 0.0);
+    assert_checked(&r, 1e-6);
 }
 
 /// The midpoint step, its projection of the potential and the velocity update.

@@ -4,6 +4,7 @@
 use super::tape::Tape;
 use crate::io::scenario::{InputError, ObjectiveSpec, Scenario, VoltageSpec};
 use crate::job::plan::Plan;
+use crate::problem::field_penalty::field_penalty;
 use std::path::Path;
 
 /// One term of J.
@@ -41,6 +42,14 @@ pub enum Term {
     },
     /// weight · ½ vᵀMv: the kinetic energy at the end of a dynamic stage.
     Rest { stage: usize, weight: f64 },
+    /// weight · Σₖ ½ ∫ max(0, |E| − limit)² dV over the stage's accepted steps k (its start state
+    /// excluded), the true field at every quadrature point, the whole device's volume
+    /// ([`crate::problem::field_penalty`]).
+    FieldPenalty {
+        stage: usize,
+        limit: f64,
+        weight: f64,
+    },
 }
 
 /// The target history of a misfit term.
@@ -207,6 +216,26 @@ impl Objective {
                         .for_each(|(a, b)| *a += 0.5 * weight * b);
                     continue;
                 }
+                Term::FieldPenalty {
+                    stage,
+                    limit,
+                    weight,
+                } => {
+                    let Some(si) = tape.stages.iter().position(|st| st.index == *stage) else {
+                        return Err(format!(
+                            "the objective reads stage `{}`, which the run did not reach",
+                            plan.stages[*stage].name
+                        ));
+                    };
+                    let factor = weight * plan.symmetry_factor;
+                    for (k, step) in tape.stages[si].steps.iter().enumerate() {
+                        let mut g = vec![0.0; step.state.len()];
+                        value +=
+                            factor * field_penalty(&plan.model, &step.state, *limit, Some(&mut g))?;
+                        add(si, k, &g, factor, false);
+                    }
+                    continue;
+                }
                 Term::Rest { stage, weight } => {
                     let Some(si) = tape.stages.iter().position(|st| st.index == *stage) else {
                         return Err(format!(
@@ -298,7 +327,7 @@ impl Objective {
                         start -= weight * r;
                     }
                 }
-                Term::DriveEffort { .. } | Term::Rest { .. } => {}
+                Term::DriveEffort { .. } | Term::Rest { .. } | Term::FieldPenalty { .. } => {}
             }
             if relative && start != 0.0 {
                 if si > 0 {
@@ -622,12 +651,39 @@ fn term(
             }
             Ok(Term::Rest { stage: si, weight })
         }
-        "field-penalty" => Err(err(
-            "kind",
-            "the term `field-penalty` is not differentiated yet; available: probe-final, \
-             probe-misfit, drive-effort, rest"
-                .into(),
-        )),
+        "field-penalty" => {
+            unused(&[
+                ("probe", o.probe.is_some()),
+                ("data", o.data.is_some()),
+                ("target", o.target.is_some()),
+                ("electrode", o.electrode.is_some()),
+                ("of", o.of.is_some()),
+                ("relative", o.relative.is_some()),
+            ])?;
+            let si = stage(o)?;
+            let limit = match o.limit {
+                Some(l) if l.is_finite() && l >= 0.0 => l,
+                Some(l) => {
+                    return Err(err(
+                        "limit",
+                        format!("expected a field ≥ 0 in V/m; got {l}"),
+                    ))
+                }
+                None => {
+                    return Err(err(
+                        "limit",
+                        "a `field-penalty` term needs `limit`, the true field (V/m) above \
+                         which it grows"
+                            .into(),
+                    ))
+                }
+            };
+            Ok(Term::FieldPenalty {
+                stage: si,
+                limit,
+                weight,
+            })
+        }
         other => Err(err(
             "kind",
             format!(

@@ -8,6 +8,7 @@ pub mod dofs;
 pub mod drive;
 pub mod examples;
 pub mod faces;
+pub mod field_penalty;
 pub mod loads;
 pub mod model;
 pub mod points;
