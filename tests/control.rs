@@ -383,3 +383,50 @@ fn bad_control_input_exits_2_with_the_reason() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("[[controls]]"));
 }
+
+/// A field-penalty term keeps the optimised drive's field near its limit: the biased diaphragm
+/// asked to move its pad by 8 µm in 30 ms reaches a largest true field E₀ without the term; with
+/// `limit` = 0.9 E₀ (weight 10³) the optimum trades the misfit against the excess, and its
+/// largest field comes within a fifth of the excess of the limit.
+#[test]
+fn a_field_penalty_keeps_the_drive_near_its_limit() {
+    let text = biased_diaphragm(8e-6);
+    let options = ControlOptions {
+        max_iterations: 60,
+        ..Default::default()
+    };
+    let largest = |o: &deasim::api::OptimalControl| -> f64 {
+        let h = &o.results.history;
+        let field = h.column("max_electric_field").unwrap();
+        h.stage
+            .iter()
+            .zip(field)
+            .filter(|(s, _)| *s == "move")
+            .map(|(_, &e)| e)
+            .fold(0.0, f64::max)
+    };
+    let free = Simulation::from_toml(&text, None)
+        .control(&options, |_| {})
+        .unwrap();
+    let e0 = largest(&free);
+    let limit = 0.9 * e0;
+    let penalised = format!(
+        "{text}\n[[objective]]\nkind = \"field-penalty\"\nstage = \"move\"\nlimit = {limit:e}\nweight = 1e3\n"
+    );
+    let held = Simulation::from_toml(&penalised, None)
+        .control(&options, |_| {})
+        .unwrap();
+    let e1 = largest(&held);
+    println!(
+        "largest field {e0:.4e} V/m without the penalty ({} its, J {:.3e}); {e1:.4e} V/m with \
+         limit {limit:.4e} ({} its, J {:.3e})",
+        free.history.len() - 1,
+        free.objective,
+        held.history.len() - 1,
+        held.objective
+    );
+    assert!(
+        e1 < limit + 0.2 * (e0 - limit),
+        "{e1:e} against {e0:e}, limit {limit:e}"
+    );
+}
