@@ -456,6 +456,26 @@ fn stage_key_and_command_option() {
         assert_eq!(o.status.code(), Some(2), "{name}: {said}");
         assert!(said.contains(key), "{name}: {said}");
     }
+    // a frequency response takes harmonic 0, the only one an electrode's voltage drives
+    std::fs::write(
+        dir.join("resp0.toml"),
+        diaphragm_with("kind = \"frequency-response\"\nharmonic = 0\nfrom = 1.0\nto = 10.0"),
+    )
+    .unwrap();
+    let o = common::deasim(&["check", "resp0.toml", "--no-trial"], &dir);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let o = common::deasim(&["check", "resp.toml", "--no-trial"], &dir);
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(said.contains("every angle"), "{said}");
     let o = common::deasim(
         &["modes", "diaphragm-3d", "--harmonic", "1", "--out", "x"],
         &dir,

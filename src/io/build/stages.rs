@@ -115,8 +115,15 @@ fn build_stage(
         }
         let kind = if st.kind == "modes" {
             modes_kind(ctx, &key, st)?
-        } else if st.harmonic.is_some() {
-            return Err(ctx.err(format!("{key}.harmonic"), "applies to `modes` stages only"));
+        } else if st.harmonic.as_ref().is_some_and(|h| h.to_vec() != [0.0]) {
+            // an electrode's voltage is the same at every angle: it drives harmonic 0 alone
+            return Err(ctx.err(
+                format!("{key}.harmonic"),
+                "a `frequency-response` stage takes `harmonic = 0` only: a small voltage on an \
+                 electrode is the same at every angle, so it drives the axisymmetric response \
+                 alone and every harmonic n ≥ 1 answers it with zero (their modes: a `modes` \
+                 stage with `harmonic`)",
+            ));
         } else {
             response_kind(ctx, &key, st, electrodes)?
         };
