@@ -9,7 +9,7 @@ import deasim
 # runs in well under a second each (the others take seconds: 3-D meshes, long dynamic stages)
 CHEAP = ["film", "film-arc", "film-charge", "film-vibration", "film-modes", "diaphragm", "balloon"]
 # examples that stop on purpose
-FAILS = {"film-pull-in": "pull-in"}
+FAILS = {"film-pull-in": "pull-in", "membrane-wrinkling": "circumferential harmonic n = 19"}
 
 
 def test_every_example_is_valid_and_the_command_lines(cli, tmp_path):
@@ -38,3 +38,13 @@ def test_the_pull_in_example_stops_at_pull_in():
         deasim.Scenario.from_example("film-pull-in").run(fields="none")
     assert FAILS["film-pull-in"] in e.value.reason
     assert len(e.value.results) > 1
+
+
+def test_the_wrinkling_example_stops_at_its_onset():
+    with pytest.raises(deasim.SolveError) as e:
+        deasim.Scenario.from_example("membrane-wrinkling").run(fields="none")
+    assert FAILS["membrane-wrinkling"] in e.value.reason
+    onset = e.value.results.summary["stages"][0]["instability"]
+    assert onset["harmonic"] == 19 and onset["stopped"]
+    assert onset["stable_load_factor"] < onset["load_factor"]
+    assert 2600.0 < dict(onset["voltages"])["top"] < 2630.0

@@ -4,7 +4,7 @@
 
 use super::error::Error;
 use super::gradient::json_number;
-use super::gradient::knots_csv;
+use super::gradient::{knots_csv, taped_run};
 use super::results::Results;
 use super::simulation::{run_plan, RunOptions, Simulation};
 use crate::adjoint::objective::{Objective, Term};
@@ -213,14 +213,7 @@ impl Simulation {
         let evaluate = |z: &[f64]| -> Result<(f64, Vec<f64>), Error> {
             let mut p = plan.clone();
             layout.apply(&mut p, z);
-            let mut tape = Tape::new(&p);
-            run_plan(
-                &p,
-                RunOptions {
-                    observers: vec![&mut tape],
-                    ..Default::default()
-                },
-            )?;
+            let tape = taped_run(&p)?;
             let g = gradient(&p, &tape, &objective, &[], &[]).map_err(Error::Refused)?;
             let mut dz = Vec::with_capacity(z.len());
             for &(si, ci, _, s) in &layout.slots {

@@ -4,11 +4,10 @@
 //! over the run's tape.
 
 use super::error::Error;
-use super::gradient::json_number;
-use super::simulation::{run_plan, RunOptions, Simulation};
+use super::gradient::{json_number, taped_run};
+use super::simulation::Simulation;
 use crate::adjoint::objective::{Objective, Term};
 use crate::adjoint::sweep::{check_supported, gradient};
-use crate::adjoint::tape::Tape;
 use crate::calibrate::lsq::{fit, statistics, Block};
 use crate::calibrate::spec::{FitOptions, FitParameter, Scale};
 use crate::io::build::parameter;
@@ -241,14 +240,7 @@ impl Simulation {
         }
         check_supported(&plan, &parameters).map_err(Error::Refused)?;
         let supports = sim.support_sensitivities(&plan, &parameters)?;
-        let mut tape = Tape::new(&plan);
-        run_plan(
-            &plan,
-            RunOptions {
-                observers: vec![&mut tape],
-                ..Default::default()
-            },
-        )?;
+        let tape = taped_run(&plan)?;
         let eval = objective.evaluate(&plan, &tape).map_err(Error::Refused)?;
         let n = params.len();
         let mut blocks: Vec<Block> = names

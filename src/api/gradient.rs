@@ -475,14 +475,7 @@ impl Simulation {
         let plan = sim.plan()?;
         let objective = Objective::build(&scenario, &plan, &sim.name, sim.base.as_deref())
             .map_err(Error::Input)?;
-        let mut tape = Tape::new(&plan);
-        run_plan(
-            &plan,
-            RunOptions {
-                observers: vec![&mut tape],
-                ..Default::default()
-            },
-        )?;
+        let tape = taped_run(&plan)?;
         objective
             .evaluate(&plan, &tape)
             .map(|e| e.value)
@@ -577,4 +570,17 @@ impl Simulation {
         report.taylor = Some(TaylorTest { remainders, orders });
         Ok(())
     }
+}
+
+/// Runs `plan` without files, with a tape of its accepted steps for an adjoint or an objective.
+pub(crate) fn taped_run(plan: &crate::job::plan::Plan) -> Result<Tape, Error> {
+    let mut tape = Tape::new(plan);
+    run_plan(
+        plan,
+        RunOptions {
+            observers: vec![&mut tape],
+            ..Default::default()
+        },
+    )?;
+    Ok(tape)
 }
