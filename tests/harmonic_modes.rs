@@ -499,7 +499,7 @@ fn tilting_diaphragm(inertia: f64) -> String {
 /// pad) and, the tilt being one more freedom, no frequency rises (interlacing); with a rotary
 /// inertia far above the membrane's the rocking is the lowest mode and its frequency falls as
 /// 1/√I (the inertia enters the mass as I α̇²). The pad has the thin-disc inertia m a²/4 (a
-/// the pad's 7.5 mm radius). A 3-D model refuses the key.
+/// the pad's 7.5 mm radius). A quarter 3-D model refuses the key.
 #[test]
 fn a_pad_with_rotary_inertia_rocks_in_harmonic_one() {
     let sets: Vec<String> = [
@@ -581,7 +581,7 @@ fn a_pad_with_rotary_inertia_rocks_in_harmonic_one() {
         heavier / heavy
     );
     assert!((heavier / heavy - 0.5).abs() < 5e-3);
-    // a 3-D model's rigid regions do not rotate
+    // a quarter 3-D disc's symmetry planes hold the tilt
     let dir = common::tempdir("harmonic-tilt");
     let text = example("diaphragm-3d").unwrap().replace(
         "mass = 0.04622                # kg, the whole attached mass",
@@ -879,5 +879,114 @@ fn the_diaphragm_modes_example() {
                 "n = {n}: {f} {near}"
             );
         }
+    }
+}
+
+/// The pad's rocking against the full 3-D disc: the 3-D modes with the pad's region rotating
+/// (`time::rigid_tilt`, the same rotary inertia m a²/4) give a degenerate pair at the
+/// axisymmetric model's harmonic-1 rocking frequency, and their pads tilt (u_z linear across
+/// the pad).
+#[test]
+fn the_rocking_pad_matches_the_full_3d_disc() {
+    let sets: Vec<String> = [
+        "mesh.radial=12",
+        "mesh.layers=2",
+        "materials.vhb.viscosity=0",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let disc = 0.04622 * 7.5e-3f64.powi(2) / 4.0;
+    let settings = ModeSettings {
+        count: 3,
+        ..Default::default()
+    };
+    // the axisymmetric rocking: harmonic 1 with the tilt
+    let mut scenario = parse(&tilting_diaphragm(disc), "t.toml", &sets).unwrap();
+    scenario.stages.truncate(1);
+    let plan = modes_plan(build(&scenario, "t.toml", None).unwrap(), &settings).unwrap();
+    let loaded = loaded_modes_of_harmonics(&plan, &settings, &[1], RunOptions::default()).unwrap();
+    let plain = {
+        let mut s = parse(example("diaphragm").unwrap(), "t.toml", &sets).unwrap();
+        s.stages.truncate(1);
+        let p = modes_plan(build(&s, "t.toml", None).unwrap(), &settings).unwrap();
+        loaded_modes_of_harmonics(&p, &settings, &[1], RunOptions::default())
+            .unwrap()
+            .modes
+    };
+    // the mode without a counterpart in the pad that cannot tilt
+    let rock_axi = loaded
+        .modes
+        .iter()
+        .map(|m| m.frequency)
+        .max_by(|a, b| {
+            let gap = |f: &f64| {
+                plain
+                    .iter()
+                    .map(|p| (p.frequency / f - 1.0).abs())
+                    .fold(f64::MAX, f64::min)
+            };
+            gap(a).total_cmp(&gap(b))
+        })
+        .unwrap();
+    // the full 3-D disc after its load stage, its pad rotating (`rotary_inertia` in 3-D)
+    let full = example("diaphragm-3d")
+        .unwrap()
+        .replace("quarter = true", "quarter = false")
+        .replace(
+            "[[constraints]]\nset = \"symmetry_x\"\nfix = [\"x\"]\n\n[[constraints]]\nset = \"symmetry_y\"\nfix = [\"y\"]\n",
+            "",
+        )
+        .replace(
+            "mass = 0.04622                # kg, the whole attached mass",
+            &format!("mass = 0.04622\nrotary_inertia = {disc:e}"),
+        );
+    assert!(full.contains("rotary_inertia"));
+    let mut s3 = parse(&full, "t.toml", &sets).unwrap();
+    s3.stages.truncate(1);
+    let eight = ModeSettings {
+        count: 8,
+        ..Default::default()
+    };
+    let plan3 = modes_plan(build(&s3, "t.toml", None).unwrap(), &eight).unwrap();
+    let loaded3 = loaded_modes_of_harmonics(&plan3, &eight, &[0], RunOptions::default()).unwrap();
+    let found = &loaded3.modes;
+    let pad = plan3.rigid[0].nodes.clone();
+    // a mode's tilt of the pad: the slope of u_z across the pad (least squares in x and y)
+    let x = |a: usize| {
+        let p = plan3.model.mesh.nodes[a];
+        [0, 1].map(|i| p[i] + loaded3.state[a * 4 + i])
+    };
+    let tilt = |m: &Mode| -> f64 {
+        let k = pad.len() as f64;
+        let c = [0, 1].map(|i| pad.iter().map(|&a| x(a)[i]).sum::<f64>() / k);
+        let uz0 = pad.iter().map(|&a| m.shape[a * 4 + 2]).sum::<f64>() / k;
+        let (mut sxx, mut sxz, mut syy, mut syz) = (0.0, 0.0, 0.0, 0.0);
+        for &a in &pad {
+            let p = x(a);
+            let (dx, dy, uz) = (p[0] - c[0], p[1] - c[1], m.shape[a * 4 + 2] - uz0);
+            sxx += dx * dx;
+            sxz += dx * uz;
+            syy += dy * dy;
+            syz += dy * uz;
+        }
+        (sxz / sxx).hypot(syz / syy)
+    };
+    let rocking: Vec<&Mode> = found
+        .iter()
+        .filter(|m| tilt(m) > 0.2 * found.iter().map(tilt).fold(0.0, f64::max))
+        .collect();
+    println!(
+        "axisymmetric rocking {rock_axi:.4} Hz; 3-D with the pad rotating: {:?} Hz, rocking {:?}",
+        found.iter().map(|m| m.frequency).collect::<Vec<_>>(),
+        rocking.iter().map(|m| m.frequency).collect::<Vec<_>>()
+    );
+    assert_eq!(rocking.len(), 2, "a degenerate pair of rocking modes");
+    for m in rocking {
+        assert!(
+            (rock_axi / m.frequency - 1.0).abs() < 5e-3,
+            "{rock_axi} against {}",
+            m.frequency
+        );
     }
 }

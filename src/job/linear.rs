@@ -20,6 +20,7 @@ use crate::time::harmonic::{harmonic_modes, Tilt};
 use crate::time::mass::{MassKind, NodalMass};
 use crate::time::modal::{modes, Mode, ModeSettings};
 use crate::time::reduced::{Outputs, ReducedModel};
+use crate::time::rigid_tilt::{modes_with_tilts, RigidBody};
 
 /// The model with the plan's supports and every electrode held at its voltage in `state`, the
 /// electrode `drive.0` at `drive.1` V instead when given; the dead loads at full value.
@@ -111,18 +112,37 @@ pub fn modes_at(plan: &Plan, state: &[f64], settings: &ModeSettings) -> Result<V
     let (model, base) = base_state(plan, state)?;
     let relaxed = relaxed_model(&model);
     let mass = device_mass(plan, &relaxed);
+    let tilts: Vec<Tilt> = plan
+        .rigid
+        .iter()
+        .filter_map(|r| {
+            r.rotary_inertia.map(|inertia| Tilt {
+                node: r.nodes[0],
+                inertia,
+            })
+        })
+        .collect();
     if settings.harmonic > 0 {
-        let tilts: Vec<Tilt> = plan
+        return harmonic_modes(&relaxed, &base, &mass, settings, settings.harmonic, &tilts);
+    }
+    if !tilts.is_empty() && !relaxed.is_axisymmetric() {
+        // the rotating regions carry their masses themselves, at their centres
+        let bodies: Vec<RigidBody> = plan
             .rigid
             .iter()
             .filter_map(|r| {
-                r.rotary_inertia.map(|inertia| Tilt {
+                r.rotary_inertia.map(|inertia| RigidBody {
                     node: r.nodes[0],
+                    mass: r.mass,
                     inertia,
                 })
             })
             .collect();
-        return harmonic_modes(&relaxed, &base, &mass, settings, settings.harmonic, &tilts);
+        let mut mass = mass;
+        for b in &bodies {
+            mass.add_point_mass(b.node, -b.mass);
+        }
+        return modes_with_tilts(&relaxed, &base, &mass, settings, &bodies);
     }
     modes(&relaxed, &base, &mass, &plan.solver, settings)
 }

@@ -642,15 +642,10 @@ impl<'p, 'o> Job<'p, 'o> {
         );
         let time = self.state.stage_time;
         let model_ref: &Model = model;
-        if stage.stability.is_some() && plan.part.is_some() {
-            return Some(format!(
-                "stage `{}`: `stability_harmonics` needs the whole model in one process",
-                stage.name
-            ));
-        }
-        let mut check = stage
-            .stability
-            .map(|s| HarmonicCheck::new(s, nominal * control.min_fraction, &plan.densities));
+        let mut check = match harmonic_check(plan, stage, nominal * control.min_fraction) {
+            Ok(c) => c,
+            Err(e) => return Some(e),
+        };
         let outcome = solve_static_checked(
             model_ref,
             &plan.solver,
@@ -1003,17 +998,12 @@ impl<'p, 'o> Job<'p, 'o> {
         let mut previous_probe: Option<f64> = None;
         let mut reached = false;
         let mut limit_error = None;
-        if stage.stability.is_some() && plan.part.is_some() {
-            return Some(format!(
-                "stage `{}`: `stability_harmonics` needs the whole model in one process",
-                stage.name
-            ));
-        }
         // each point of the path is tested as it comes (no bisection: the onset lies between
         // two points)
-        let mut check = stage
-            .stability
-            .map(|s| HarmonicCheck::new(s, f64::INFINITY, &plan.densities));
+        let mut check = match harmonic_check(plan, stage, f64::INFINITY) {
+            Ok(c) => c,
+            Err(e) => return Some(e),
+        };
         let mut check_error = None;
         let mut stopped_unstable = false;
         let result = continuation(
@@ -1524,6 +1514,30 @@ const LOCKED_FRACTION: f64 = 0.8;
 const FIELD_STRESS_RATIO: f64 = 1e3;
 
 /// `x` rounded to three significant digits, shortly: `2.4e24`, `0.49`.
+/// The test of `stage`'s states against harmonics, if it asks for one, for a ramp whose
+/// smallest step is `min_increment` (infinite: every state tested as it comes); it needs the
+/// whole model in this process.
+fn harmonic_check(
+    plan: &Plan,
+    stage: &Stage,
+    min_increment: f64,
+) -> Result<Option<HarmonicCheck>, String> {
+    let Some(settings) = stage.stability else {
+        return Ok(None);
+    };
+    if plan.part.is_some() {
+        return Err(format!(
+            "stage `{}`: `stability_harmonics` needs the whole model in one process",
+            stage.name
+        ));
+    }
+    Ok(Some(HarmonicCheck::new(
+        settings,
+        min_increment,
+        &plan.densities,
+    )))
+}
+
 /// Σ u_z² / Σ |u|² of a shape (`FIELDS` values per node; slot 2 is u_θ of a harmonic mode).
 fn axial_share(shape: &[f64]) -> f64 {
     let (mut z, mut all) = (0.0, 0.0);

@@ -8,5 +8,6 @@ pub mod integrator;
 pub mod mass;
 pub mod modal;
 pub mod reduced;
+pub mod rigid_tilt;
 pub mod stage;
 pub mod trapezoidal;

@@ -388,12 +388,13 @@ fn build_rigid(
         }
         let rotary_inertia = match r.rotary_inertia {
             None => None,
-            Some(i) if !model.is_axisymmetric() => {
+            Some(i) if !model.is_axisymmetric() && symmetry_factor != 1.0 => {
                 return Err(ctx.err(
                     format!("{key}.rotary_inertia"),
                     format!(
-                        "a rigid region of a 3-D model does not rotate (its translations are \
-                         tied); the tilt of a pad is an axisymmetric model's harmonic 1; got {i}"
+                        "a rigid region rotates in the modes of a whole 3-D model only: the \
+                         symmetry planes of a part hold its tilt (mesh the whole device, \
+                         `quarter = false`, or use an axisymmetric model's harmonic 1); got {i}"
                     ),
                 ))
             }
