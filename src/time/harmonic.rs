@@ -23,14 +23,17 @@
 //!
 //! Harmonic 0 is the model's own axisymmetric analysis ([`crate::time::modal::modes`]).
 
-use crate::algebra::csr::{to_cols, CsrMatrix};
+use crate::algebra::csr::CsrMatrix;
 use crate::element::harmonic::{harmonic_factor, harmonic_tangent};
 use crate::element::CellHistory;
-use crate::problem::dofs::{DofMap, Field, CONSTRAINED, FIELDS, PHI};
+use crate::problem::dofs::{DofMap, Field, FIELDS, PHI};
 use crate::problem::model::Model;
-use crate::solve::linear::{Inertia, SolverKind, SolverSettings};
+use crate::solve::linear::Inertia;
 use crate::time::mass::NodalMass;
 use crate::time::modal::{modes_of, Mode, ModeSettings};
+use crate::time::reduction::{
+    add_projected_mass, direct_solver, equation_map, paired_csr, PairedRows,
+};
 use std::collections::BTreeMap;
 
 /// A rigid region that tilts in harmonic 1: its attachment node (its first) and its rotary
@@ -224,7 +227,7 @@ fn harmonic_system(
         inertias,
     } = harmonic_dofs(model, state, n, tilts);
     // rows of (K, M) entries
-    let mut rows: Vec<BTreeMap<usize, (f64, f64)>> = vec![BTreeMap::new(); n_eq];
+    let mut rows: PairedRows = vec![BTreeMap::new(); n_eq];
     let mut k = vec![0.0; crate::element::MAX_LOCAL * crate::element::MAX_LOCAL];
     let formulation = model.formulation;
     model.for_each_cell(state, |c, g, mat, local| {
@@ -254,39 +257,13 @@ fn harmonic_system(
     })?;
     let factor = harmonic_factor(n);
     if let Some(mass) = mass {
-        for a in 0..mass.row_ptr.len() - 1 {
-            for p in mass.row_ptr[a]..mass.row_ptr[a + 1] {
-                let b = mass.col_idx[p];
-                for s in 0..3 {
-                    for &(ei, ci) in &eq[a * FIELDS + s] {
-                        for &(ej, cj) in &eq[b * FIELDS + s] {
-                            rows[ei].entry(ej).or_insert((0.0, 0.0)).1 +=
-                                factor * ci * cj * mass.values[p];
-                        }
-                    }
-                }
-            }
-        }
+        add_projected_mass(&mut rows, mass, &eq, factor);
         // a tilt's kinetic mass is its rotary inertia (a rigid body's ½Iα̇², not a ring's)
         for &(e, inertia) in &inertias {
             rows[e].entry(e).or_insert((0.0, 0.0)).1 += inertia;
         }
     }
-    let mut row_ptr = vec![0];
-    let (mut cols, mut kv, mut mv) = (Vec::new(), Vec::new(), Vec::new());
-    for row in &rows {
-        for (&j, &(a, b)) in row {
-            cols.push(j);
-            kv.push(a);
-            mv.push(b);
-        }
-        row_ptr.push(cols.len());
-    }
-    let kmat = CsrMatrix::new(n_eq, row_ptr, to_cols(cols), kv);
-    let mmat = CsrMatrix {
-        values: mv,
-        ..kmat.clone()
-    };
+    let (kmat, mmat) = paired_csr(&rows);
     // the equations as the nodes of a map of their own: equation e is dof (e, its field)
     // a tilt is a displacement unknown
     let mut field = vec![0; n_eq];
@@ -295,17 +272,7 @@ fn harmonic_system(
             field[*e] = d % FIELDS;
         }
     }
-    let mut map_eq = vec![CONSTRAINED; n_eq * FIELDS];
-    for (e, &f) in field.iter().enumerate() {
-        map_eq[e * FIELDS + f] = e;
-    }
-    let dofs = DofMap {
-        n_nodes: n_eq,
-        eq: map_eq,
-        n_free: n_eq,
-        n_free_phi: field.iter().filter(|&&f| f == PHI).count(),
-        scale: [1.0; FIELDS],
-    };
+    let dofs = equation_map(&field);
     Ok(HarmonicSystem {
         k: kmat,
         m: mmat,
@@ -313,15 +280,6 @@ fn harmonic_system(
         eq,
         field,
     })
-}
-
-/// The direct LDLᵀ solver of the harmonic problems (it gives the inertia).
-fn direct_solver() -> Box<dyn crate::solve::linear::LinearSolver> {
-    SolverSettings {
-        kind: SolverKind::Direct,
-        ..Default::default()
-    }
-    .build()
 }
 
 /// The stability of the axisymmetric equilibrium `state` of `model` against perturbations of

@@ -8,6 +8,7 @@ pub mod integrator;
 pub mod mass;
 pub mod modal;
 pub mod reduced;
+pub mod reduction;
 pub mod rigid_tilt;
 pub mod stage;
 pub mod trapezoidal;

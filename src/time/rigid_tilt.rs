@@ -9,14 +9,15 @@
 //! θ_x and θ_y (2I, a thin disc's polar moment, of θ_z). The axisymmetric model's harmonic 1
 //! with the same m and I ([`crate::time::harmonic`]) finds the same rocking mode.
 
-use crate::algebra::csr::{to_cols, CsrMatrix};
 use crate::algebra::system::NonlinearSystem;
-use crate::problem::dofs::{DofMap, Field, CONSTRAINED, FIELDS, PHI};
+use crate::problem::dofs::{Field, CONSTRAINED, FIELDS, PHI};
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
-use crate::solve::linear::{SolverKind, SolverSettings};
 use crate::time::mass::NodalMass;
 use crate::time::modal::{modes_of, Mode, ModeSettings};
+use crate::time::reduction::{
+    add_projected_mass, direct_solver, equation_map, paired_csr, PairedRows,
+};
 use std::collections::BTreeMap;
 
 /// A rigid region that rotates: its attachment node, attached mass (kg) and rotary inertia
@@ -140,7 +141,7 @@ pub fn modes_with_tilts(
         }
     }
     let n_red = field.len();
-    let mut rows: Vec<BTreeMap<usize, (f64, f64)>> = vec![BTreeMap::new(); n_red];
+    let mut rows: PairedRows = vec![BTreeMap::new(); n_red];
     for (e1, row) in of_eq.iter().enumerate() {
         for p in k.row_ptr[e1]..k.row_ptr[e1 + 1] {
             let (e2, v) = (k.col_idx[p] as usize, k.values[p]);
@@ -151,18 +152,7 @@ pub fn modes_with_tilts(
             }
         }
     }
-    for a in 0..mass.row_ptr.len() - 1 {
-        for p in mass.row_ptr[a]..mass.row_ptr[a + 1] {
-            let b = mass.col_idx[p];
-            for s in 0..3 {
-                for &(r1, c1) in &combination[a * FIELDS + s] {
-                    for &(r2, c2) in &combination[b * FIELDS + s] {
-                        rows[r1].entry(r2).or_insert((0.0, 0.0)).1 += c1 * c2 * mass.values[p];
-                    }
-                }
-            }
-        }
-    }
+    add_projected_mass(&mut rows, mass, &combination, 1.0);
     for (i, (_, tilt)) in regions.iter().enumerate() {
         let base = first_region + 6 * i;
         for (j, inertia) in [
@@ -176,42 +166,13 @@ pub fn modes_with_tilts(
             rows[base + j].entry(base + j).or_insert((0.0, 0.0)).1 += inertia;
         }
     }
-    let mut row_ptr = vec![0];
-    let (mut cols, mut kv, mut mv) = (Vec::new(), Vec::new(), Vec::new());
-    for row in &rows {
-        for (&j, &(a, b)) in row {
-            cols.push(j);
-            kv.push(a);
-            mv.push(b);
-        }
-        row_ptr.push(cols.len());
-    }
-    let kmat = CsrMatrix::new(n_red, row_ptr, to_cols(cols), kv);
-    let mmat = CsrMatrix {
-        values: mv,
-        ..kmat.clone()
-    };
-    let mut map_eq = vec![CONSTRAINED; n_red * FIELDS];
-    for (e, &f) in field.iter().enumerate() {
-        map_eq[e * FIELDS + f] = e;
-    }
-    let reduced = DofMap {
-        n_nodes: n_red,
-        eq: map_eq,
-        n_free: n_red,
-        n_free_phi: field.iter().filter(|&&f| f == PHI).count(),
-        scale: [1.0; FIELDS],
-    };
-    let lin = SolverSettings {
-        kind: SolverKind::Direct,
-        ..Default::default()
-    }
-    .build();
+    let (kmat, mmat) = paired_csr(&rows);
+    let reduced = equation_map(&field);
     let found = modes_of(
         &kmat,
         &mmat,
         &reduced,
-        lin,
+        direct_solver(),
         &mut |x, y| mmat.mul_vec(x, y),
         settings,
     )?;
