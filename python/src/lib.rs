@@ -430,19 +430,51 @@ impl Scenario {
     }
 
     /// The natural modes about the loaded state (the end of the static stages before the first
-    /// dynamic one), `count` of them nearest `shift_hz`.
-    #[pyo3(signature = (count=6, shift_hz=0.0, out=None, progress=None, overwrite=false))]
+    /// dynamic one), `count` of them nearest `shift_hz` of each circumferential harmonic of
+    /// `harmonic` (a whole number or a list; axisymmetric models, 0 the axisymmetric modes).
+    #[pyo3(signature = (count=6, shift_hz=0.0, harmonic=None, out=None, progress=None, overwrite=false))]
+    #[allow(clippy::too_many_arguments)]
     fn modes(
         &self,
         py: Python<'_>,
         count: i64,
         shift_hz: f64,
+        harmonic: Option<Bound<'_, PyAny>>,
         out: Option<PathBuf>,
         progress: Option<Py<PyAny>>,
         overwrite: bool,
     ) -> PyResult<Modes> {
         let count = self::count(py, "Scenario.modes", "count", count, 1)?;
         let shift_hz = finite(py, "Scenario.modes", "shift_hz", shift_hz)?;
+        let harmonics: Vec<u32> = match harmonic {
+            None => vec![0],
+            Some(h) => {
+                let list: Vec<i64> = match h.extract::<i64>() {
+                    Ok(n) => vec![n],
+                    Err(_) => h.extract::<Vec<i64>>().map_err(|_| {
+                        input_error(
+                            py,
+                            "Scenario.modes",
+                            "harmonic",
+                            "expected a whole number ≥ 0 or a list of them".to_string(),
+                        )
+                    })?,
+                };
+                let mut out = Vec::with_capacity(list.len());
+                for n in list {
+                    out.push(self::count(py, "Scenario.modes", "harmonic", n, 0)? as u32);
+                }
+                if out.is_empty() {
+                    return Err(input_error(
+                        py,
+                        "Scenario.modes",
+                        "harmonic",
+                        "expected at least one harmonic".to_string(),
+                    ));
+                }
+                out
+            }
+        };
         let sim = self.sim.clone();
         let mut p = Progress::new(progress);
         let settings = ModeSettings {
@@ -456,7 +488,7 @@ impl Scenario {
                 Some(d) => Some(open_dir(d, "modes", &plan, overwrite)?),
                 None => None,
             };
-            let m = api::loaded_modes(&plan, &settings, p.options())?;
+            let m = api::loaded_modes_of_harmonics(&plan, &settings, &harmonics, p.options())?;
             if let (Some(results), Some(d)) = (dir.as_mut(), &out) {
                 deasim::io::linear::write_modes(&plan, d, "modes", &m.state, &m.modes)
                     .and(results.record())
@@ -984,6 +1016,16 @@ impl Modes {
     #[getter]
     fn residuals<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
         PyArray1::from_vec(py, self.m.modes.iter().map(|m| m.residual).collect())
+    }
+
+    /// The circumferential harmonic n of each mode (0 for a 3-D model); its shape holds the
+    /// amplitudes of cos nθ (u_r, u_z, Φ) and sin nθ (u_θ, the third slot).
+    #[getter]
+    fn harmonics<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        PyArray1::from_vec(
+            py,
+            self.m.modes.iter().map(|m| i64::from(m.harmonic)).collect(),
+        )
     }
 
     /// Mode shapes: modes × nodes × 4 (u in m, Φ in V), unit modal mass.

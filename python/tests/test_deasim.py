@@ -124,6 +124,21 @@ def test_modes_match_the_command_line(cli, tmp_path):
     assert (tmp_path / "py" / "modes.csv").is_file()
 
 
+def test_harmonic_modes_match_the_command_line(cli, tmp_path):
+    args = ["modes", "--count", "2", "--harmonic", "0,1,2", "--out", "m"]
+    for k, v in COARSE.items():
+        args += ["--set", f"{k}={v}"]
+    cli(args, tmp_path)
+    rows = [line.split(",") for line in (tmp_path / "m" / "modes.csv").read_text().splitlines()[1:]]
+    m = coarse().modes(count=2, harmonic=[0, 1, 2])
+    np.testing.assert_allclose(m.frequencies, [float(r[1]) for r in rows], rtol=1e-6)
+    assert list(m.harmonics) == [int(r[4]) for r in rows] == [0, 0, 1, 1, 2, 2]
+    one = coarse().modes(count=2, harmonic=1)
+    np.testing.assert_allclose(one.frequencies, m.frequencies[2:4], rtol=1e-12)
+    with pytest.raises(deasim.ScenarioError, match="harmonic"):
+        coarse().modes(harmonic=-1)
+
+
 def test_modes_refuse_a_dynamic_start():
     with pytest.raises(deasim.ScenarioError, match="starts with a dynamic stage"):
         deasim.Scenario.from_example("film-vibration").modes()
