@@ -1513,7 +1513,6 @@ const LOCKED_FRACTION: f64 = 0.8;
 /// under a field: a film pulls in near εE² ≈ μ/2 (Zhao & Suo, APL 91 (2007) 061921).
 const FIELD_STRESS_RATIO: f64 = 1e3;
 
-/// `x` rounded to three significant digits, shortly: `2.4e24`, `0.49`.
 /// The test of `stage`'s states against harmonics, if it asks for one, for a ramp whose
 /// smallest step is `min_increment` (infinite: every state tested as it comes); it needs the
 /// whole model in this process.
@@ -1552,6 +1551,7 @@ fn axial_share(shape: &[f64]) -> f64 {
     }
 }
 
+/// `x` rounded to three significant digits, shortly: `2.4e24`, `0.49`.
 fn few(x: f64) -> String {
     let rounded: f64 = format!("{x:.2e}").parse().unwrap_or(x);
     crate::units::Short(rounded).to_string()

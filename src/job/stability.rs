@@ -1,5 +1,5 @@
-//! The test of a static or quasi-static stage's states against circumferential harmonics
-//! (`stability_harmonics = N` on an axisymmetric model): every state Newton converged to, and
+//! The test of a static, quasi-static or continuation stage's states against circumferential
+//! harmonics (`stability_harmonics = N` on an axisymmetric model): every state Newton converged to, and
 //! found stable in its own (axisymmetric, harmonic 0) tangent, is tested against the harmonics
 //! n = 1…N before the ramp accepts it. A state unstable against one of them is rejected like a
 //! state past a limit point, so the ramp bisects its load step down to its smallest increment:
@@ -9,9 +9,10 @@
 //! state or accepts the state and goes on without testing again. A continuation stage tests the
 //! points of its path as they come (an infinite resolution: every unstable point is the onset).
 //!
-//! A pre-stretched membrane that loses its in-plane tension under voltage wrinkles this way: the
-//! out-of-plane harmonics of many waves lose stability where the total (mechanical plus Maxwell)
-//! stress vanishes, while the axisymmetric path itself stays stable.
+//! A clamped pre-stretched membrane that loses its in-plane tension under voltage loses stability
+//! against every out-of-plane harmonic at once where its total (mechanical plus Maxwell) stress
+//! vanishes; a central electrode inside a passive ring can make one harmonic n ≥ 1 go first, which
+//! the axisymmetric solution alone does not show.
 
 use super::plan::HarmonicStability;
 use crate::problem::model::Model;
