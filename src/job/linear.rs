@@ -111,38 +111,38 @@ pub fn modes_at(plan: &Plan, state: &[f64], settings: &ModeSettings) -> Result<V
     check_linearisable(plan)?;
     let (model, base) = base_state(plan, state)?;
     let relaxed = relaxed_model(&model);
-    let mass = device_mass(plan, &relaxed);
-    let tilts: Vec<Tilt> = plan
+    // the rigid regions given a rotary inertia tilt (harmonic 1) or rotate (a 3-D model)
+    let bodies: Vec<RigidBody> = plan
         .rigid
         .iter()
         .filter_map(|r| {
-            r.rotary_inertia.map(|inertia| Tilt {
+            r.rotary_inertia.map(|inertia| RigidBody {
                 node: r.nodes[0],
+                mass: r.mass,
                 inertia,
             })
         })
         .collect();
-    if settings.harmonic > 0 {
-        return harmonic_modes(&relaxed, &base, &mass, settings, settings.harmonic, &tilts);
-    }
-    if !tilts.is_empty() && !relaxed.is_axisymmetric() {
+    if !bodies.is_empty() && !relaxed.is_axisymmetric() && settings.harmonic == 0 {
         // the rotating regions carry their masses themselves, at their centres
-        let bodies: Vec<RigidBody> = plan
-            .rigid
-            .iter()
-            .filter_map(|r| {
-                r.rotary_inertia.map(|inertia| RigidBody {
-                    node: r.nodes[0],
-                    mass: r.mass,
-                    inertia,
-                })
-            })
-            .collect();
-        let mut mass = mass;
-        for b in &bodies {
-            mass.add_point_mass(b.node, -b.mass);
+        let mut mass = NodalMass::new(&relaxed, &plan.densities, MassKind::Consistent);
+        for r in plan.rigid.iter().filter(|r| r.rotary_inertia.is_none()) {
+            if r.mass > 0.0 {
+                mass.add_point_mass(r.nodes[0], r.mass);
+            }
         }
         return modes_with_tilts(&relaxed, &base, &mass, settings, &bodies);
+    }
+    let mass = device_mass(plan, &relaxed);
+    if settings.harmonic > 0 {
+        let tilts: Vec<Tilt> = bodies
+            .iter()
+            .map(|b| Tilt {
+                node: b.node,
+                inertia: b.inertia,
+            })
+            .collect();
+        return harmonic_modes(&relaxed, &base, &mass, settings, settings.harmonic, &tilts);
     }
     modes(&relaxed, &base, &mass, &plan.solver, settings)
 }
