@@ -36,12 +36,14 @@ use crate::time::integrator::{Scheme, TimeLevel, TimeStep};
 use crate::time::stage::{projection_model, step_model, Method};
 
 /// The cotangents ∂J/∂· of a time level's positions, velocities and accelerations (4 values
-/// per node each).
+/// per node each), and of the internal variables of the material points committed with it
+/// (laid out as [`PointStates::data`]; empty: zero).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cotangent {
     pub q: Vec<f64>,
     pub v: Vec<f64>,
     pub a: Vec<f64>,
+    pub points: Vec<f64>,
 }
 
 impl Cotangent {
@@ -50,8 +52,43 @@ impl Cotangent {
             q: vec![0.0; n],
             v: vec![0.0; n],
             a: vec![0.0; n],
+            points: Vec::new(),
         }
     }
+}
+
+/// The points' values `data` as a store of `model`'s (empty: none).
+pub(super) fn points_of(model: &Model, data: &[f64]) -> PointStates {
+    if data.is_empty() {
+        return PointStates::default();
+    }
+    let mut p = PointStates::new(model);
+    p.data.copy_from_slice(data);
+    p
+}
+
+/// The adjoint of a commit of the points `before` to the configuration `x` over `dt`, for the
+/// cotangent `w` of the values it committed (empty: zero): the parameters' derivatives go to
+/// `sink`; returns x̄ (every dof) and the cotangent of `before`'s values (empty without
+/// points).
+pub(super) fn commit_adjoint(
+    model: &Model,
+    before: &PointStates,
+    x: &[f64],
+    dt: f64,
+    w: &[f64],
+    sink: &mut Sink,
+) -> Result<(Vec<f64>, Vec<f64>), String> {
+    if before.is_empty() || w.iter().all(|&v| v == 0.0) {
+        return Ok((vec![0.0; x.len()], vec![0.0; before.data.len()]));
+    }
+    let c = before.commit_vjp(model, x, dt, w)?;
+    for (m, theta) in c.theta.iter().enumerate() {
+        if !theta.is_empty() {
+            sink.materials_product(m, theta, 1.0);
+        }
+    }
+    Ok((c.state, c.points))
 }
 
 /// What the stage's steps share: the step's and the projection's systems, set up once and moved
@@ -150,8 +187,14 @@ pub fn sweep(
         } else {
             &taped.iterate
         };
+        let before = match k {
+            0 => &st.start_points,
+            _ => &st.steps[k - 1].points,
+        };
+        s.step.points = points_of(&step_model, before);
         c = step_adjoint(&mut s, prev, &levels[k], iterate, taped.dt, c, sink)?;
     }
+    s.step.points = points_of(&step_model, &st.start_points);
     match scheme {
         Scheme::Midpoint => Ok(c),
         Scheme::Newmark { .. } => newmark_start_adjoint(&mut s, initial, c, sink),
@@ -208,6 +251,27 @@ fn step_adjoint(
     step.prev.clone_from(prev);
     step.dt = dt;
     step.q.copy_from_slice(iterate);
+    // the points the step committed, updated at its evaluation point: the midpoint
+    // configuration ½(qₙ + y), or y (Newmark)
+    let half = s.scheme == Scheme::Midpoint;
+    let at: Vec<f64> = if half {
+        prev.q
+            .iter()
+            .zip(iterate)
+            .map(|(a, b)| 0.5 * (a + b))
+            .collect()
+    } else {
+        iterate.to_vec()
+    };
+    let (x_bar, mut points_bar) =
+        commit_adjoint(s.step_model, &step.points, &at, dt, &c.points, sink)?;
+    let share = if half { 0.5 } else { 1.0 };
+    for d in 0..n {
+        cy[d] += share * x_bar[d];
+        if half {
+            out.q[d] += 0.5 * x_bar[d];
+        }
+    }
     let lambda = solve_adjoint(step, &cy)?;
     sink.step_materials(step, &lambda)?;
     for (i, node) in sink_rigid(sink) {
@@ -225,6 +289,11 @@ fn step_adjoint(
         out.v[d] -= lv.v[d];
         out.a[d] -= lv.a[d];
     }
+    points_bar
+        .iter_mut()
+        .zip(&lv.points)
+        .for_each(|(a, b)| *a -= b);
+    out.points = points_bar;
     let t_mid = prev.t + 0.5 * dt;
     for (d, &e) in step.dofs.eq.iter().enumerate() {
         let a = cy[d] - lv.q_new[d];
@@ -338,13 +407,13 @@ fn newmark_start_adjoint(
         initial.clone(),
     );
     let z = s.dynamics.mass.solve_on(&c.a, &probe.dofs, 1e-14, None)?;
-    let points = PointStates::default();
+    let points = &s.step.points;
     let p = cell_products(
         model,
         &initial.q,
         Some(&initial.v),
         &s.dynamics.viscosity,
-        &points,
+        points,
         0.0,
         &z,
     )?;
@@ -360,7 +429,7 @@ fn newmark_start_adjoint(
         }
     }
     for m in sink.materials().to_vec() {
-        let vjp = crate::problem::statics::parameter_vjp(model, &initial.q, &points, 0.0, m, &z)?;
+        let vjp = crate::problem::statics::parameter_vjp(model, &initial.q, points, 0.0, m, &z)?;
         sink.materials_product(m, &vjp, -1.0);
     }
     for m in sink_viscous(sink) {
@@ -377,9 +446,17 @@ fn newmark_start_adjoint(
     // the start's potential, projected at its time
     let mut out = vec![0.0; n];
     projection_adjoint(s, &initial.q, &cq, initial.t, &mut out, sink)?;
+    let mut points_bar = c.points;
+    if !points_bar.is_empty() {
+        points_bar
+            .iter_mut()
+            .zip(&p.points)
+            .for_each(|(a, b)| *a -= b);
+    }
     Ok(Cotangent {
         q: out,
         v: cv,
         a: vec![0.0; n],
+        points: points_bar,
     })
 }

@@ -9,12 +9,13 @@
 //! Farrell et al., SIAM J. Sci. Comput. 35 (2013) C369).
 //!
 //! What is differentiated today: static, quasi-static and dynamic (midpoint, Newmark) stages of
-//! elastic materials with Kelvin–Voigt viscosity, rigid pads and an instantaneous pre-stretch
-//! ([`dynamic`] for the time steps), in the materials' parameters and viscosities, the
-//! electrodes' voltage amplitudes and offsets, the pads' masses, the pre-stretch, and the knots
-//! of controlled voltages ([`sink::ControlGradient`]); the objective terms `probe-final` and
-//! `probe-misfit` on probes of nodal values ([`objective::Objective`]). Anything else is refused
-//! with a message that names it.
+//! elastic and viscoelastic materials (Maxwell branches, whose internal variables each step
+//! commits and the sweep carries back) with Kelvin–Voigt viscosity, rigid pads and a
+//! pre-stretch, instantaneous or timed ([`dynamic`] for the time steps), in the materials'
+//! parameters and viscosities, the electrodes' voltage amplitudes and offsets, the pads'
+//! masses, the pre-stretch, and the knots of controlled voltages ([`sink::ControlGradient`]);
+//! the objective terms of [`objective::Objective`]. Anything else is refused with a message
+//! that names it.
 
 pub mod dynamic;
 pub mod lambda;

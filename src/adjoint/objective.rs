@@ -147,10 +147,7 @@ impl Objective {
             .map(|st| vec![Vec::new(); st.steps.len()])
             .collect();
         let n = plan.model.mesh.n_nodes() * crate::problem::dofs::FIELDS;
-        let reference_state = tape
-            .prestretch
-            .as_ref()
-            .map_or_else(|| vec![0.0; n], |(_, s)| s.clone());
+        let reference_state = tape.reference_state(n);
         let mut reference = vec![0.0; n];
         let mut velocity: Vec<Vec<Vec<f64>>> = tape
             .stages
@@ -523,7 +520,7 @@ fn term(
                 ("limit", o.limit.is_some()),
             ])?;
             let si = stage(o)?;
-            let t0: f64 = plan.stages[..si].iter().map(|s| s.duration).sum();
+            let t0 = plan.stage_start(si);
             let relative = o.relative.unwrap_or(false);
             let path = match (&o.data, &o.target) {
                 (Some(_), Some(_)) => {

@@ -73,20 +73,6 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
             e.name, e.name
         ));
     }
-    if plan.prestretch.is_some_and(|p| p.timed()) {
-        return Err(
-            "the adjoint of a timed pre-stretch (`duration` or `hold`) is not built yet: \
-             gradients cover an instantaneous `[prestretch]`"
-                .into(),
-        );
-    }
-    if let Some(m) = plan.model.materials.iter().find(|m| m.state_size() > 0) {
-        return Err(format!(
-            "the adjoint of materials with internal variables (Maxwell branches) is not built \
-             yet ({} internal variables per point)",
-            m.state_size()
-        ));
-    }
     if plan.model.pressures.iter().any(|p| p.volume.is_some())
         || !plan.pressure_volumes.iter().all(Option::is_none)
     {
@@ -152,19 +138,50 @@ pub fn gradient(
                 &mut sink,
             )?
         } else {
-            let (from, to) = static_stage(plan, st, &eval.state[ti], &carry.q, &mut sink)?;
+            let start = static_stage(plan, st, &eval.state[ti], &carry, &mut sink)?;
             for (d, &j) in support_of.iter().enumerate() {
                 if j != usize::MAX {
-                    support_cotangent[j] += to[d];
+                    support_cotangent[j] += start.to[d];
                 }
             }
             Cotangent {
-                q: from,
+                q: start.from,
+                points: start.points,
                 ..Cotangent::zeros(n_dofs)
             }
         };
     }
-    if let Some((model, state)) = &tape.prestretch {
+    if !tape.prestretch_phases.is_empty() {
+        // a timed pre-stretch: its phases' load steps in real time, the last state the
+        // deflections' reference; each phase ramps the supports from where the one before
+        // ended (the undeformed state and virgin points before the first: constants)
+        let mut c = carry;
+        c.q.iter_mut()
+            .zip(&eval.reference)
+            .for_each(|(a, b)| *a += b);
+        let on = plan.stages.first().is_some_and(|s| s.electrodes_on);
+        for phase in tape.prestretch_phases.iter().rev() {
+            let start = load_steps(phase, true, false, &[], &c, &mut sink)?;
+            for (d, &a) in start.to.iter().enumerate() {
+                if a != 0.0 {
+                    prestretch_target(
+                        plan,
+                        on,
+                        d,
+                        a,
+                        &support_of,
+                        &mut support_cotangent,
+                        &mut sink,
+                    );
+                }
+            }
+            c = Cotangent {
+                q: start.from,
+                points: start.points,
+                ..Cotangent::zeros(n_dofs)
+            };
+        }
+    } else if let Some((model, state)) = &tape.prestretch {
         // the first stage starts from the pre-stretched state, the deflections' reference
         let mut c = carry.q;
         c.iter_mut().zip(&eval.reference).for_each(|(a, b)| *a += b);
@@ -217,94 +234,66 @@ fn prestretch(
     let lv = problem.level_vjp(&lambda)?;
     let on = plan.stages.first().is_some_and(|s| s.electrodes_on);
     for (d, &e) in problem.dofs.eq.iter().enumerate() {
-        if e != CONSTRAINED {
-            continue;
-        }
-        let a = c[d] - lv.q_new[d];
-        if support_of[d] != usize::MAX {
-            support_cotangent[support_of[d]] += a;
-        } else if on && d % FIELDS == PHI {
-            let node = d / FIELDS;
-            for (i, (_, p)) in sink.parameters().iter().enumerate() {
-                if let Parameter::Voltage {
-                    electrode, offset, ..
-                } = p
-                {
-                    let held = plan
-                        .electrodes
-                        .iter()
-                        .find(|el| &el.name == electrode && el.nodes.contains(&node));
-                    if let Some(el) = held {
-                        sink.grad[i] += a * el.voltage.derivatives(0.0)[usize::from(*offset)];
-                    }
-                }
-            }
+        if e == CONSTRAINED {
+            let a = c[d] - lv.q_new[d];
+            prestretch_target(plan, on, d, a, support_of, support_cotangent, sink);
         }
     }
     Ok(())
 }
 
+/// Hands the cotangent `a` of the pre-stretch's prescribed value of dof `d` to what prescribes
+/// it: a support of the plan (`support_of`: each dof's), or an electrode held at its first
+/// voltage (when the first stage has its electrodes on, `on`).
+fn prestretch_target(
+    plan: &Plan,
+    on: bool,
+    d: usize,
+    a: f64,
+    support_of: &[usize],
+    support_cotangent: &mut [f64],
+    sink: &mut Sink,
+) {
+    if support_of[d] != usize::MAX {
+        support_cotangent[support_of[d]] += a;
+    } else if on && d % FIELDS == PHI {
+        let node = d / FIELDS;
+        for (i, (_, p)) in sink.parameters().iter().enumerate() {
+            if let Parameter::Voltage {
+                electrode, offset, ..
+            } = p
+            {
+                let held = plan
+                    .electrodes
+                    .iter()
+                    .find(|el| &el.name == electrode && el.nodes.contains(&node));
+                if let Some(el) = held {
+                    sink.grad[i] += a * el.voltage.derivatives(0.0)[usize::from(*offset)];
+                }
+            }
+        }
+    }
+}
+
 /// The adjoint of the static or quasi-static stage `st`, its k-th load step's state having the
-/// cotangent `state_grads[k]` (empty: none) and its last one `end` besides. Returns the
-/// cotangents of the state the stage started from and of its prescribed targets.
+/// cotangent `state_grads[k]` (empty: none) and its last one (state and committed points) `end`
+/// besides. Returns the cotangents of the state the stage started from, of its prescribed
+/// targets, and of the points it started from.
+///
+/// With internal variables, load step n also commits ξₙ = U(xₙ, ξₙ₋₁, θ, Δtₙ) (Δtₙ from the
+/// load factors and the stage's duration); ξₙ enters the next step's residual and its commit.
+/// With ξ̄ₙ the cotangent of ξₙ, the step's adjoint adds (∂U/∂xₙ)ᵀξ̄ₙ to xₙ's cotangent before
+/// it solves for λₙ, and carries ξ̄ₙ₋₁ = (∂U/∂ξₙ₋₁)ᵀξ̄ₙ − (∂Rₙ/∂ξₙ₋₁)ᵀλₙ back;
+/// dJ/dθ += (∂U/∂θ)ᵀξ̄ₙ.
 fn static_stage(
     plan: &Plan,
     st: &TapedStage,
     state_grads: &[Vec<f64>],
-    end: &[f64],
+    end: &Cotangent,
     sink: &mut Sink,
-) -> Result<(Vec<f64>, Vec<f64>), String> {
+) -> Result<StageStart, String> {
     let stage = &plan.stages[st.index];
-    let n_dofs = end.len();
-    let mut problem = StaticProblem::new(&st.model, Some(st.start.clone()));
-    problem.set_drive(st.drive.clone());
-    problem.duration = st.duration;
-    // the electrodes that follow their waveforms in stage time (quasi-static)
-    let waveform_dof = waveform_dofs(&st.drive, n_dofs);
-    let mut from = vec![0.0; n_dofs];
-    let mut to = vec![0.0; n_dofs];
-    // the prescribed dofs that the drive's supports move (the others keep their start value:
-    // a tie held as a whole, a rigid pad's radial slot on the axis)
-    let mut ramped = vec![false; n_dofs];
-    for &(d, _) in &st.drive.supports {
-        ramped[d] = true;
-    }
-    for (k, step) in st.steps.iter().enumerate().rev() {
-        let mut g = state_grads[k].clone();
-        if g.is_empty() {
-            g = vec![0.0; n_dofs];
-        }
-        if k + 1 == st.steps.len() {
-            g.iter_mut().zip(end).for_each(|(a, b)| *a += b);
-        }
-        problem.set_load(step.load);
-        problem.state.copy_from_slice(&step.state);
-        let lambda = solve_adjoint(&mut problem, &g)?;
-        sink.step_materials(&mut problem, &lambda)?;
-        let dead = problem.drive().dead_loads.at(step.load);
-        sink.rigid_weight(&free_weights(&problem.dofs, &lambda), dead);
-        let lv = problem.level_vjp(&lambda)?;
-        let eq = problem.dofs.eq.clone();
-        for d in 0..n_dofs {
-            let a = g[d] - lv.q_new[d];
-            if eq[d] != CONSTRAINED {
-                // a tied dof moves with its tie from its start value: the offsets within a
-                // tie are the start's (the sum of `a` over a tie vanishes)
-                from[d] += a;
-                continue;
-            }
-            if waveform_dof[d] != usize::MAX {
-                if stage.electrodes_on {
-                    sink.voltage(&st.drive, waveform_dof[d], step.load * st.duration, a);
-                }
-            } else if ramped[d] {
-                to[d] += step.load * a;
-                from[d] += (1.0 - step.load) * a;
-            } else {
-                from[d] += a;
-            }
-        }
-    }
+    let out = load_steps(st, false, stage.electrodes_on, state_grads, end, sink)?;
     // the targets of the electrodes a static stage holds among its supports: their waveforms
     // at the stage's end
     for (i, (_, p)) in sink.parameters().iter().enumerate() {
@@ -323,9 +312,113 @@ fn static_stage(
             continue;
         }
         let dv = stage.waveform(&e.voltage).derivatives(st.duration)[usize::from(*offset)];
-        let held: f64 = e.nodes.iter().map(|&n| to[n * FIELDS + PHI]).sum();
+        let held: f64 = e.nodes.iter().map(|&n| out.to[n * FIELDS + PHI]).sum();
         sink.grad[i] += dv * held;
     }
+    Ok(out)
+}
+
+/// The cotangents a run of load steps hands back to what it started from: the start state
+/// (`from`), the targets its drive ramps the supports to (`to`), and the points' values at its
+/// start (empty without internal variables).
+struct StageStart {
+    from: Vec<f64>,
+    to: Vec<f64>,
+    points: Vec<f64>,
+}
+
+/// The adjoint of the taped load steps of `st` (a stage, or a phase of a timed pre-stretch
+/// when `prestretch`), as [`static_stage`] describes; the voltages of electrodes that follow
+/// waveforms go to the sink when `electrodes_on`.
+fn load_steps(
+    st: &TapedStage,
+    prestretch: bool,
+    electrodes_on: bool,
+    state_grads: &[Vec<f64>],
+    end: &Cotangent,
+    sink: &mut Sink,
+) -> Result<StageStart, String> {
+    let n_dofs = end.q.len();
+    let mut problem = StaticProblem::new(&st.model, Some(st.start.clone()));
+    problem.set_drive(st.drive.clone());
+    problem.duration = st.duration;
+    // ∂J/∂ξ of the points the step being swept committed
+    let mut points_bar = end.points.clone();
+    // the electrodes that follow their waveforms in stage time (quasi-static)
+    let waveform_dof = waveform_dofs(&st.drive, n_dofs);
+    let mut from = vec![0.0; n_dofs];
+    let mut to = vec![0.0; n_dofs];
+    // the prescribed dofs that the drive's supports move (the others keep their start value:
+    // a tie held as a whole, a rigid pad's radial slot on the axis)
+    let mut ramped = vec![false; n_dofs];
+    for &(d, _) in &st.drive.supports {
+        ramped[d] = true;
+    }
+    for (k, step) in st.steps.iter().enumerate().rev() {
+        let mut g = state_grads.get(k).cloned().unwrap_or_default();
+        if g.is_empty() {
+            g = vec![0.0; n_dofs];
+        }
+        if k + 1 == st.steps.len() {
+            g.iter_mut().zip(&end.q).for_each(|(a, b)| *a += b);
+        }
+        // the step from the previous one's load factor and committed points
+        let (before, prev_load) = match k {
+            0 => (&st.start_points, 0.0),
+            _ => (&st.steps[k - 1].points, st.steps[k - 1].load),
+        };
+        problem.points = super::dynamic::points_of(&st.model, before);
+        problem.accept_resumed(prev_load);
+        problem.set_load(step.load);
+        problem.state.copy_from_slice(&step.state);
+        let dt = (step.load - prev_load) * st.duration;
+        let (x_bar, mut before_bar) = super::dynamic::commit_adjoint(
+            &st.model,
+            &problem.points,
+            &step.state,
+            dt,
+            &points_bar,
+            sink,
+        )?;
+        g.iter_mut().zip(&x_bar).for_each(|(a, b)| *a += b);
+        let lambda = solve_adjoint(&mut problem, &g)?;
+        sink.step_materials(&mut problem, &lambda)?;
+        if !prestretch {
+            // (the pre-stretch hangs no weight: its model has no dead loads)
+            let dead = problem.drive().dead_loads.at(step.load);
+            sink.rigid_weight(&free_weights(&problem.dofs, &lambda), dead);
+        }
+        let lv = problem.level_vjp(&lambda)?;
+        before_bar
+            .iter_mut()
+            .zip(&lv.points)
+            .for_each(|(a, b)| *a -= b);
+        points_bar = before_bar;
+        let eq = problem.dofs.eq.clone();
+        for d in 0..n_dofs {
+            let a = g[d] - lv.q_new[d];
+            if eq[d] != CONSTRAINED {
+                // a tied dof moves with its tie from its start value: the offsets within a
+                // tie are the start's (the sum of `a` over a tie vanishes)
+                from[d] += a;
+                continue;
+            }
+            if waveform_dof[d] != usize::MAX {
+                if electrodes_on {
+                    sink.voltage(&st.drive, waveform_dof[d], step.load * st.duration, a);
+                }
+            } else if ramped[d] {
+                to[d] += step.load * a;
+                from[d] += (1.0 - step.load) * a;
+            } else {
+                from[d] += a;
+            }
+        }
+    }
     // the supports' start values are the state the stage before ended in
-    Ok((from, to))
+    Ok(StageStart {
+        from,
+        to,
+        points: points_bar,
+    })
 }

@@ -272,7 +272,7 @@ impl Simulation {
                 let d = Drive {
                     index,
                     stage: best.stages[si].name.clone(),
-                    stage_start: best.stages[..si].iter().map(|s| s.duration).sum(),
+                    stage_start: best.stage_start(si),
                     electrode: electrode.clone(),
                     times: knots.iter().map(|k| k.0).collect(),
                     initial: plan.stages[si].controls[ci].1.iter().map(|k| k.1).collect(),
@@ -585,7 +585,7 @@ impl OptimalControl {
                 _ => continue,
             };
             let (name, spec) = &plan.probes[probe];
-            let t0: f64 = plan.stages[..stage].iter().map(|s| s.duration).sum();
+            let t0 = plan.stage_start(stage);
             let t1 = t0 + plan.stages[stage].duration;
             // a run's probe over the stage, and its value at the stage's start (the last row
             // before the stage's first step)

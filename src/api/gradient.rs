@@ -306,7 +306,7 @@ impl Simulation {
                 ControlReport {
                     index,
                     stage,
-                    stage_start: plan.stages[..c.stage].iter().map(|s| s.duration).sum(),
+                    stage_start: plan.stage_start(c.stage),
                     electrode: c.electrode.clone(),
                     times: c.knots.iter().map(|k| k.0).collect(),
                     values: c.knots.iter().map(|k| k.1).collect(),

@@ -2,6 +2,7 @@
 //! and output fields of the cell.
 
 pub mod axisymmetric;
+pub mod deformation_vjp;
 pub mod harmonic;
 pub mod mean_dilatation;
 pub mod standard;

@@ -1111,7 +1111,49 @@ pub fn apply_override(table: &mut toml::Table, spec: &str) -> Result<(), (String
             ),
         ));
     }
+    materialise_preset_branches(table, &parts);
     set_in_table(table, &parts, 0, value)
+}
+
+/// Before a path `materials.<m>.branches.<i>…` is set on a material that takes its branches
+/// from its `preset`: the preset's branches written out as the table's `branches`, so that the
+/// path sets one entry of them (a gradient check, a fit or a control moves one branch's value
+/// of a preset).
+fn materialise_preset_branches(table: &mut toml::Table, parts: &[&str]) {
+    let ["materials", name, "branches", _, ..] = parts else {
+        return;
+    };
+    let Some(toml::Value::Table(m)) = table
+        .get_mut("materials")
+        .and_then(|v| v.as_table_mut())
+        .and_then(|t| t.get_mut(*name))
+    else {
+        return;
+    };
+    if m.contains_key("branches") {
+        return;
+    }
+    let Some((_, params)) = m
+        .get("preset")
+        .and_then(|p| p.as_str())
+        .and_then(crate::material::registry::preset)
+    else {
+        return;
+    };
+    if params.branches.is_empty() {
+        return;
+    }
+    let branches = params
+        .branches
+        .iter()
+        .map(|&(mu, tau)| {
+            let mut b = toml::Table::new();
+            b.insert("mu".into(), toml::Value::Float(mu));
+            b.insert("tau".into(), toml::Value::Float(tau));
+            toml::Value::Table(b)
+        })
+        .collect();
+    m.insert("branches".into(), toml::Value::Array(branches));
 }
 
 fn set_in_table(
@@ -1190,6 +1232,23 @@ mu = 1.0
 kind = "static"
 steps = 2
 "#;
+
+    /// A branch of a preset's set on its own: the preset's other branches are kept.
+    #[test]
+    fn a_presets_branch_is_set_on_its_own() {
+        let text = MINIMAL.replace(
+            "model = \"neo-hooke\"\nmu = 1.0",
+            "preset = \"vhb4910-wang2016\"",
+        );
+        let s = parse(&text, "t.toml", &["materials.m.branches.1.tau=7.5".into()]).unwrap();
+        let (_, preset) = crate::material::registry::preset("vhb4910-wang2016").unwrap();
+        let branches = s.materials["m"].branches.clone().expect("written out");
+        assert_eq!(branches.len(), preset.branches.len());
+        for (i, (b, p)) in branches.iter().zip(&preset.branches).enumerate() {
+            assert_eq!(b.mu, p.0, "branch {i}");
+            assert_eq!(b.tau, if i == 1 { 7.5 } else { p.1 }, "branch {i}");
+        }
+    }
 
     #[test]
     fn minimal_parses() {

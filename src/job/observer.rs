@@ -68,6 +68,9 @@ pub trait Observer {
     /// The pre-stretch phase converged: `model` is the problem it solved (the supports at their
     /// targets, the electrodes at their first voltages), `state` its solution.
     fn prestretched(&mut self, _model: &Model, _state: &[f64]) {}
+    /// A load step of phase `phase` of a timed pre-stretch (0: the stretch, 1: the hold) was
+    /// accepted at load factor `load`, as [`Observer::load_step`] for a stage.
+    fn prestretch_step(&mut self, _phase: usize, _load: f64, _problem: &StaticProblem<'_>) {}
     /// Dynamic stage `stage` starts (before its first [`Observer::time_step`]).
     fn dynamic_started(&mut self, _stage: usize, _start: &DynamicStart<'_>) {}
     /// A time step of dynamic stage `stage` was accepted (before its [`Observer::step`]):
@@ -103,6 +106,11 @@ impl Observer for Observers<'_, '_> {
     }
     fn prestretched(&mut self, model: &Model, state: &[f64]) {
         self.0.iter_mut().for_each(|o| o.prestretched(model, state));
+    }
+    fn prestretch_step(&mut self, phase: usize, load: f64, problem: &StaticProblem<'_>) {
+        self.0
+            .iter_mut()
+            .for_each(|o| o.prestretch_step(phase, load, problem));
     }
     fn dynamic_started(&mut self, stage: usize, start: &DynamicStart<'_>) {
         self.0

@@ -462,6 +462,18 @@ impl Prestretch {
     }
 }
 
+impl Plan {
+    /// The time (s) of the run's clock at which stage `index` starts: a timed pre-stretch's
+    /// `duration + hold`, then the durations of the stages before it.
+    pub fn stage_start(&self, index: usize) -> f64 {
+        let pre = self
+            .prestretch
+            .filter(Prestretch::timed)
+            .map_or(0.0, |p| p.duration + p.hold);
+        pre + self.stages[..index].iter().map(|s| s.duration).sum::<f64>()
+    }
+}
+
 /// A rigid region of the plan.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Rigid {

@@ -41,19 +41,30 @@ pub(super) fn prestretch(
     let mut step_no = 0;
     let mut record_error = None;
     // (state, Newton iterations, time, step, energy dissipated so far)
-    let mut record = |rec: &mut Recorder, s: &[f64], iterations: usize, t: f64, dt: f64, d: f64| {
-        step_no += 1;
-        // the balance starts from the pre-stretched state (the last of these records)
-        rec.restart_balance();
-        rec.external_factor = 0.0;
-        rec.reference = s.to_vec();
-        match rec.record(s, &prescribed, t, stage, step_no, iterations, dt, 0.0, d) {
-            Ok((r, f)) => observer.step(plan, &r, s, &f),
-            Err(e) => {
-                record_error.get_or_insert(e);
+    // (the taped problem of a timed phase's step: its phase, load factor and problem)
+    let mut record =
+        |rec: &mut Recorder,
+         s: &[f64],
+         iterations: usize,
+         t: f64,
+         dt: f64,
+         d: f64,
+         taped: Option<(usize, f64, &crate::problem::statics::StaticProblem<'_>)>| {
+            if let Some((phase, load, problem)) = taped {
+                observer.prestretch_step(phase, load, problem);
             }
-        }
-    };
+            step_no += 1;
+            // the balance starts from the pre-stretched state (the last of these records)
+            rec.restart_balance();
+            rec.external_factor = 0.0;
+            rec.reference = s.to_vec();
+            match rec.record(s, &prescribed, t, stage, step_no, iterations, dt, 0.0, d) {
+                Ok((r, f)) => observer.step(plan, &r, s, &f),
+                Err(e) => {
+                    record_error.get_or_insert(e);
+                }
+            }
+        };
     if p.timed() {
         let mut outcome = PrestretchOutcome {
             state: state.to_vec(),
@@ -63,10 +74,13 @@ pub(super) fn prestretch(
             time: 0.0,
             dissipated: 0.0,
         };
-        for (phase, duration, steps) in [
+        for (index, (phase, duration, steps)) in [
             ("stretch", p.duration, p.steps),
             ("hold", p.hold, p.hold_steps),
-        ] {
+        ]
+        .into_iter()
+        .enumerate()
+        {
             if phase == "hold" && duration == 0.0 {
                 continue;
             }
@@ -101,6 +115,7 @@ pub(super) fn prestretch(
                         t0 + acc.load * duration,
                         dt,
                         dissipated,
+                        Some((index, acc.load, q)),
                     );
                 },
             );
@@ -184,7 +199,7 @@ pub(super) fn prestretch(
     let direct = static_solve(guess, &one, &mut |_, _| {});
     let (final_state, iterations) = match direct.result {
         Ok(r) => {
-            record(rec, &direct.state, r.newton_iterations, 0.0, 0.0, 0.0);
+            record(rec, &direct.state, r.newton_iterations, 0.0, 0.0, 0.0, None);
             (direct.state, r.newton_iterations)
         }
         Err(_) => {
@@ -193,7 +208,7 @@ pub(super) fn prestretch(
                 ..plan.step_control.clone()
             };
             let ramped = static_solve(state.to_vec(), &control, &mut |q, acc| {
-                record(rec, &q.state, acc.newton.iterations, 0.0, 0.0, 0.0)
+                record(rec, &q.state, acc.newton.iterations, 0.0, 0.0, 0.0, None)
             });
             match ramped.result {
                 Ok(r) => (ramped.state, r.newton_iterations),

@@ -250,6 +250,117 @@ impl PointStates {
     }
 }
 
+/// The transposed derivatives of a commit ξ_{n+1} = U(x, ξ_n, θ, Δt) ([`PointStates::commit`])
+/// with a cotangent w of ξ_{n+1}: what the adjoint of a run with internal variables carries
+/// back from each accepted step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommitVjp {
+    /// wᵀ∂U/∂x over every dof (4 per node), summed over the processes that share the cells.
+    pub state: Vec<f64>,
+    /// wᵀ∂U/∂ξ_n, laid out as [`PointStates::data`] (this process's cells).
+    pub points: Vec<f64>,
+    /// wᵀ∂U/∂θ of each material (in the order of its parameter vector; empty for a material
+    /// without internal variables), summed over the processes.
+    pub theta: Vec<Vec<f64>>,
+}
+
+impl PointStates {
+    /// [`CommitVjp`] of the commit from these (committed) values to `state` over `dt`, for the
+    /// cotangent `w` of the values it gives (laid out as `data`).
+    pub fn commit_vjp(
+        &self,
+        model: &Model,
+        state: &[f64],
+        dt: f64,
+        w: &[f64],
+    ) -> Result<CommitVjp, String> {
+        let n_mat = model.materials.len();
+        let mut out = CommitVjp {
+            state: vec![0.0; state.len()],
+            points: vec![0.0; self.data.len()],
+            theta: vec![Vec::new(); n_mat],
+        };
+        if self.is_empty() {
+            return Ok(out);
+        }
+        for (m, t) in model.materials.iter().zip(&mut out.theta) {
+            if m.state_size() > 0 {
+                *t = vec![0.0; m.parameters().map_or(0, |p| p.values.len())];
+            }
+        }
+        let kernel = model.kernel();
+        let nl = model.mesh.kind.nodes_per_cell() * crate::fem::FIELDS;
+        let mut local_bar = vec![0.0; nl];
+        let mut points = [(Mat3::identity(), Vec3::zeros()); MAX_QP];
+        let (mut f_bar, mut e_bar) = ([Mat3::zeros(); MAX_QP], [Vec3::zeros(); MAX_QP]);
+        let keep = |c: usize| model.owns(c) && self.sizes[model.cell_material[c]] != 0;
+        let outcome = model.for_each_cell_where(state, keep, |c, g: &CellGeometry, mat, local| {
+            let m = model.cell_material[c];
+            let s = self.sizes[m];
+            let input = CellInput {
+                geom: g,
+                mat,
+                hist: CellHistory::NONE,
+                local,
+            };
+            kernel
+                .point_deformations(&input, &mut points)
+                .map_err(|e| (c, format!("cell {c}: {}", e.error)))?;
+            for (q, (f, e0)) in points[..g.n_qp].iter().enumerate() {
+                let at = self.offsets[c] + q * s;
+                let h = PointHistory {
+                    state: &self.data[at..at + s],
+                    dt,
+                };
+                let d = mat
+                    .update_state_vjp(f, e0, h, &w[at..at + s])
+                    .map_err(|e| (c, format!("cell {c}, quadrature point {q}: {e}")))?;
+                out.points[at..at + s].copy_from_slice(&d.state);
+                out.theta[m]
+                    .iter_mut()
+                    .zip(&d.theta)
+                    .for_each(|(a, b)| *a += b);
+                f_bar[q] = d.f;
+                e_bar[q] = d.e0;
+            }
+            crate::element::deformation_vjp::deformation_vjp(
+                kernel,
+                &input,
+                &f_bar[..g.n_qp],
+                &e_bar[..g.n_qp],
+                &mut local_bar,
+            )
+            .map_err(|e| {
+                (
+                    c,
+                    format!("cell {c}: {} at quadrature point {}", e.error, e.qp),
+                )
+            })?;
+            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+                for k in 0..crate::fem::FIELDS {
+                    out.state[node * crate::fem::FIELDS + k] +=
+                        local_bar[a * crate::fem::FIELDS + k];
+                }
+            }
+            Ok::<(), (usize, String)>(())
+        });
+        let n = out.state.len();
+        let mut sums: Vec<f64> = out.state.clone();
+        for t in &out.theta {
+            sums.extend_from_slice(t);
+        }
+        model.sum_over_processes(&mut sums, outcome.err())?;
+        out.state.copy_from_slice(&sums[..n]);
+        let mut at = n;
+        for t in &mut out.theta {
+            let len = t.len();
+            t.copy_from_slice(&sums[at..at + len]);
+            at += len;
+        }
+        Ok(out)
+    }
+}
+
 /// The start of each cell's values (length `n_cells + 1`) when the cells `holds` accepts have
 /// `n_qp × size` values of their material and the others none.
 fn cell_offsets(model: &Model, sizes: &[usize], holds: impl Fn(usize) -> bool) -> Vec<usize> {
@@ -285,6 +396,88 @@ mod tests {
         model.materials = vec![material];
         model.cell_material = vec![0; model.mesh.n_cells()];
         model
+    }
+
+    /// The transposed derivatives of a commit against central differences of wᵀ U(x, ξ, θ) in
+    /// the state, the committed values and every parameter of the material, for the standard
+    /// and the mean-dilatation hex8 (the update reads the kernel's point deformations).
+    #[test]
+    fn the_commit_vjp_matches_central_differences() {
+        for md in [false, true] {
+            let mut model = viscous_film();
+            if md {
+                model.formulation = crate::element::Formulation::MeanDilatation;
+            }
+            let x = crate::problem::examples::wavy_state(&model, 3e-2, 2e-6, 500.0);
+            let dt = 0.07;
+            // committed values away from the identity: one commit from the virgin state
+            let mut start = PointStates::new(&model);
+            let half: Vec<f64> = x.iter().map(|v| 0.6 * v).collect();
+            start.commit(&model, &half, 0.3).unwrap();
+            let w: Vec<f64> = (0..start.data.len())
+                .map(|i| ((i * 7919 % 101) as f64 / 101.0) - 0.5)
+                .collect();
+            let value = |model: &Model, x: &[f64], points: &PointStates| {
+                let mut p = points.clone();
+                p.commit(model, x, dt).unwrap();
+                p.data.iter().zip(&w).map(|(a, b)| a * b).sum::<f64>()
+            };
+            let vjp = start.commit_vjp(&model, &x, dt, &w).unwrap();
+            let scale = vjp.state.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale > 0.0);
+            for d in (0..x.len()).step_by(7) {
+                let h = 1e-9;
+                let (mut p, mut m) = (x.clone(), x.clone());
+                p[d] += h;
+                m[d] -= h;
+                let fd = (value(&model, &p, &start) - value(&model, &m, &start)) / (2.0 * h);
+                assert!(
+                    (vjp.state[d] - fd).abs() <= 1e-6 * scale,
+                    "md {md}, dof {d}: {} against {fd}",
+                    vjp.state[d]
+                );
+            }
+            for i in (0..start.data.len()).step_by(13) {
+                let h = 1e-6;
+                let (mut p, mut m) = (start.clone(), start.clone());
+                p.data[i] += h;
+                m.data[i] -= h;
+                let fd = (value(&model, &x, &p) - value(&model, &x, &m)) / (2.0 * h);
+                assert!(
+                    (vjp.points[i] - fd).abs() <= 1e-8 * (1.0 + fd.abs()),
+                    "md {md}, value {i}: {} against {fd}",
+                    vjp.points[i]
+                );
+            }
+            let theta = model.materials[0].parameters().unwrap();
+            assert_eq!(vjp.theta[0].len(), theta.values.len());
+            // (a coefficient that is 0, c₁ or c₂ of the dielectric, has no relative step)
+            for (k, name) in theta.names.iter().enumerate() {
+                if theta.values[k] == 0.0 {
+                    continue;
+                }
+                // a relative step of 10⁻⁴: the sum's round-off (10⁻¹⁴ of values of order 10)
+                // over a smaller step would exceed the tolerance
+                let h = 1e-4 * theta.values[k].abs();
+                let at = |v: f64| {
+                    let mut t = theta.values.clone();
+                    t[k] = v;
+                    let mut m = model.clone();
+                    m.materials = vec![model.materials[0].with_parameters(&t).unwrap()];
+                    value(&m, &x, &start)
+                };
+                let fd = (at(theta.values[k] + h) - at(theta.values[k] - h)) / (2.0 * h);
+                let size = vjp.theta[0]
+                    .iter()
+                    .zip(&theta.values)
+                    .fold(0.0f64, |m, (g, v)| m.max((g * v).abs()));
+                assert!(
+                    ((vjp.theta[0][k] - fd) * theta.values[k]).abs() <= 1e-6 * size,
+                    "md {md}, {name}: {} against {fd}",
+                    vjp.theta[0][k]
+                );
+            }
+        }
     }
 
     /// Processes that share the cells each update their own cells' points: the energy they
