@@ -51,6 +51,14 @@ pub const EXAMPLES: &[(&str, &str)] = &[
         include_str!("../../scenarios/diaphragm-pid.toml"),
     ),
     (
+        "diaphragm-creep-hold",
+        include_str!("../../scenarios/diaphragm-creep-hold.toml"),
+    ),
+    (
+        "diaphragm-creep-pi",
+        include_str!("../../scenarios/diaphragm-creep-pi.toml"),
+    ),
+    (
         "membrane-wrinkling",
         include_str!("../../scenarios/membrane-wrinkling.toml"),
     ),
