@@ -9,6 +9,7 @@ use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};
 use crate::io::examples::{example, EXAMPLES};
 use crate::io::scenario::{parse, InputError};
+use crate::job::controller::Controller;
 use crate::job::observer::Observer;
 use crate::job::plan::ResponseMethod;
 use crate::job::run::StepRecord;
@@ -583,13 +584,32 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                         e.nodes.len()
                     ),
                 }
-                if let Some(c) = &e.controller {
-                    println!(
+                match &e.controller {
+                    Some(Controller::Pid(c)) => println!(
                         "  controller: PID on probe `{}` (kp {:e}, ki {:e}, kd {:e}), sampled every \
                          {:e} s, output {} … {} V, in the dynamic and quasi-static stages with the \
                          electrodes on",
                         c.probe_name, c.kp, c.ki, c.kd, c.sample_time, c.lower, c.upper
-                    );
+                    ),
+                    Some(Controller::StateFeedback(c)) => println!(
+                        "  controller: state feedback from `{}` ({} states, about {} V) tracking \
+                         `{}`, observer on {}, sampled every {:e} s, output {} … {} V, in the \
+                         dynamic stages with the electrodes on",
+                        c.model_path,
+                        c.design.ad.len(),
+                        c.design.bias_v,
+                        c.design.tracked,
+                        c.design
+                            .measured
+                            .iter()
+                            .map(|m| format!("`{m}`"))
+                            .collect::<Vec<_>>()
+                            .join(", "),
+                        c.design.sample_time,
+                        c.lower,
+                        c.upper
+                    ),
+                    None => {}
                 }
             }
             if let Some(p) = plan.prestretch {
