@@ -317,6 +317,10 @@ drive, a term or stage whose adjoint is not built)."
         /// output's noise in volts of static drive (V²); default 1,1e-2.
         #[arg(long, value_name = "W,V")]
         kalman: Option<String>,
+        /// Integral action: the weight q_I of the integrated tracking error (1/s², 0: none);
+        /// q_I/Q is the square of the integrator's corner frequency in rad/s.
+        #[arg(long, value_name = "Q_I")]
+        integral: Option<f64>,
         /// The design's sample period, s (default: the first dynamic stage's time step).
         #[arg(long)]
         sample_time: Option<f64>,
@@ -583,6 +587,7 @@ fn main() {
             compare,
             lqr,
             kalman,
+            integral,
             sample_time,
             track,
             measure,
@@ -600,6 +605,7 @@ fn main() {
             overwrite,
             lqr,
             kalman,
+            integral,
             sample_time,
             track,
             measure,

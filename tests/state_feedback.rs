@@ -28,6 +28,7 @@ const WEIGHTS: Weights = Weights {
     r: 1.0,
     w: 1.0,
     v: 1e-2,
+    qi: 0.0,
 };
 
 /// The design of the coarse example about its 2 kV bias, 4 modes, sampled at 1 ms, tracking and
@@ -187,6 +188,11 @@ fn state_feedback(model: &str, offset: f64, step: f64) -> String {
 
 /// Writes the design of `deasim reduce --lqr` (the tests' weights) into `dir/red/lqr.json`.
 fn reduce_into(dir: &Path) -> StateFeedbackDesign {
+    reduce_with(dir, "red", &[])
+}
+
+/// [`reduce_into`] into `dir/out` with more arguments `extra`.
+fn reduce_with(dir: &Path, out: &str, extra: &[&str]) -> StateFeedbackDesign {
     let mut args = vec![
         "reduce",
         "diaphragm-pid",
@@ -197,21 +203,22 @@ fn reduce_into(dir: &Path) -> StateFeedbackDesign {
         "--track",
         "center_deflection",
         "--out",
-        "red",
+        out,
     ];
     for s in &COARSE[..2] {
         args.extend(["--set", s]);
     }
-    let out = common::deasim(&args, dir);
+    args.extend(extra);
+    let done = common::deasim(&args, dir);
     assert_eq!(
-        out.status.code(),
+        done.status.code(),
         Some(0),
         "{}",
-        String::from_utf8_lossy(&out.stderr)
+        String::from_utf8_lossy(&done.stderr)
     );
-    let said = String::from_utf8_lossy(&out.stdout);
+    let said = String::from_utf8_lossy(&done.stdout);
     assert!(said.contains("state feedback (lqr.json)"), "{said}");
-    serde_json::from_str(&std::fs::read_to_string(dir.join("red/lqr.json")).unwrap()).unwrap()
+    serde_json::from_str(&std::fs::read_to_string(dir.join(out).join("lqr.json")).unwrap()).unwrap()
 }
 
 fn coarse(sim: Simulation) -> Simulation {
@@ -308,6 +315,44 @@ fn a_set_point_step_settles_and_the_pad_mode_rings_less_than_open_loop() {
     assert!(vc.iter().all(|v| (0.0..=4000.0).contains(v)));
 }
 
+/// 4. A constant disturbance (the feed-forward 200 V above the bias, the set point at the biased
+///    deflection): the state feedback without an integrator keeps a finite part of the
+///    disturbance's open-loop deflection; with integral action (`--integral 25000`) the
+///    deflection returns to the set point (below 1e-6 of it after 1 s).
+#[test]
+fn integral_action_rejects_a_constant_disturbance() {
+    let dir = common::tempdir("state-feedback-integral");
+    let plain = reduce_with(&dir, "plain", &[]);
+    let integral = reduce_with(&dir, "integral", &["--integral", "25000"]);
+    assert_eq!(plain.k_i, 0.0);
+    assert!(integral.k_i != 0.0 && integral.closed_loop_radius < 1.0);
+    let offset = plain.output_offsets[0];
+    let open_loop = 200.0 * plain.static_gains[0];
+    let error = |model: &str| {
+        let sim = coarse(Simulation::from_toml(
+            &with_controller(
+                &(state_feedback(model, offset, 0.0) + "\nfeedforward = 200.0"),
+                "",
+            ),
+            Some(&dir),
+        ))
+        .set("stages.2.duration", "1.0");
+        let yi = sim
+            .plan()
+            .unwrap()
+            .probes
+            .iter()
+            .position(|(n, _)| n == "center_deflection")
+            .unwrap();
+        let records = sim.run(RunOptions::default()).unwrap().records;
+        (records.last().unwrap().probes[yi] - offset) / open_loop
+    };
+    let (without, with) = (error("plain/lqr.json"), error("integral/lqr.json"));
+    eprintln!("steady error of the disturbance's deflection: {without:e} without, {with:e} with integral action");
+    assert!(without > 0.1 && without < 0.9, "{without}");
+    assert!(with.abs() < 1e-6, "{with:e}");
+}
+
 /// The key and message of a refused scenario.
 fn refused(sim: &Simulation) -> (String, String) {
     match sim.plan() {
@@ -317,10 +362,11 @@ fn refused(sim: &Simulation) -> (String, String) {
     }
 }
 
-/// 4. A design that does not fit the scenario is refused naming the key `model` and the reason:
+/// 5. A design that does not fit the scenario is refused naming the key `model` and the reason:
 ///    another electrode, a measured probe the scenario lacks, another bias, a sample period
 ///    below the step, a file that is no design; so are a PID's keys, a quasi-static stage, and
-///    `reduce --lqr` without a tracked output or with an unknown one. The CLI exits with 2.
+///    `reduce --lqr` without a tracked output, with an unknown one, with malformed weights or
+///    with integral action on an output it does not measure. The CLI exits with 2.
 #[test]
 fn a_design_that_does_not_fit_is_refused_naming_the_key() {
     let dir = common::tempdir("state-feedback-refused");
@@ -453,6 +499,17 @@ fn a_design_that_does_not_fit_is_refused_naming_the_key() {
             vec!["--track", "center_deflection", "--kalman", "1"],
             "--kalman: expected",
         ),
+        (
+            vec![
+                "--track",
+                "center_deflection",
+                "--measure",
+                "charge",
+                "--integral",
+                "1",
+            ],
+            "integral action integrates the measured error of `center_deflection`: measure it too",
+        ),
     ] {
         let mut args = vec!["reduce", "diaphragm-pid", "--lqr", "1,1", "--out", "bad"];
         args.extend(extra);
@@ -463,7 +520,7 @@ fn a_design_that_does_not_fit_is_refused_naming_the_key() {
     }
 }
 
-/// 5. A run resumed from a checkpoint inside the controlled stage ends with the same history,
+/// 6. A run resumed from a checkpoint inside the controlled stage ends with the same history,
 ///    bit for bit, as the run that went on: the estimate, the held output, the sample clock and
 ///    the noise generator are in the run state.
 #[test]

@@ -172,6 +172,8 @@ pub struct ReduceArgs {
     pub lqr: Option<String>,
     /// `W,V`: the observer's noise variances (default 1,1e-2).
     pub kalman: Option<String>,
+    /// The weight of the integrated tracking error (0: no integral action).
+    pub integral: Option<f64>,
     /// The design's sample period (s; default: the first dynamic stage's time step).
     pub sample_time: Option<f64>,
     /// The tracked output (needed with `lqr`).
@@ -203,6 +205,7 @@ fn lqr_settings(
     let Some(lqr) = &args.lqr else {
         for (given, name) in [
             (args.kalman.is_some(), "--kalman"),
+            (args.integral.is_some(), "--integral"),
             (args.sample_time.is_some(), "--sample-time"),
             (args.track.is_some(), "--track"),
             (!args.measure.is_empty(), "--measure"),
@@ -227,6 +230,11 @@ fn lqr_settings(
         )?,
         None => (1.0, 1e-2),
     };
+    let qi = match args.integral {
+        None => 0.0,
+        Some(x) if x.is_finite() && x >= 0.0 => x,
+        Some(x) => return Err(format!("--integral: expected a weight ≥ 0 (1/s²); got {x}")),
+    };
     let sample_time = match args.sample_time {
         Some(t) if t.is_finite() && t > 0.0 => t,
         Some(t) => {
@@ -247,7 +255,7 @@ fn lqr_settings(
             )?,
     };
     Ok(Some(crate::time::lqr::LqrSettings {
-        weights: crate::time::lqr::Weights { q, r, w, v },
+        weights: crate::time::lqr::Weights { q, r, w, v, qi },
         sample_time,
         tracked,
         measured: args.measure.clone(),
@@ -495,7 +503,7 @@ fn lqr_line(d: &crate::time::lqr::StateFeedbackDesign) -> String {
     // a pole's time constant in samples: −T / ln ρ
     let tau = |rho: f64| -t / rho.ln();
     format!(
-        "state feedback (lqr.json) at {} s: tracks `{}`, observer on {}; N̄ {:e} V per unit, \
+        "state feedback (lqr.json) at {} s: tracks `{}`, observer on {}; N̄ {:e} V per unit{}, \
          spectral radius {:.4} open loop (time constant {:.3e} s), {:.4} closed loop ({:.3e} s), \
          {:.4} observer ({:.3e} s); Riccati residuals {:.1e}, {:.1e}",
         t,
@@ -506,6 +514,11 @@ fn lqr_line(d: &crate::time::lqr::StateFeedbackDesign) -> String {
             .collect::<Vec<_>>()
             .join(", "),
         d.n_bar,
+        if d.k_i != 0.0 {
+            format!(", integral gain k_I {:e} V per unit·s", d.k_i)
+        } else {
+            String::new()
+        },
         d.open_loop_radius,
         tau(d.open_loop_radius),
         d.closed_loop_radius,

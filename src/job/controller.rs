@@ -64,7 +64,8 @@ pub struct Pid {
 /// The state of a controller between samples: what a checkpoint keeps.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ControllerState {
-    /// The integral term I_k (V) the next sample uses.
+    /// The integral term I_k (V) the next sample uses; a state feedback's integrated tracking
+    /// error ξ_k (output unit·s).
     pub integral: f64,
     /// The (filtered) derivative term D of the last sample (V).
     pub derivative: f64,
@@ -128,9 +129,14 @@ impl Controller {
     pub fn sample(&self, state: &mut ControllerState, t: f64, probes: &[f64]) -> f64 {
         let u = match self {
             Controller::Pid(c) => c.law(state, t, probes[c.probe]),
-            Controller::StateFeedback(c) => {
-                c.law(&mut state.estimate, &mut state.rng, state.output, t, probes)
-            }
+            Controller::StateFeedback(c) => c.law(
+                &mut state.estimate,
+                &mut state.integral,
+                &mut state.rng,
+                state.output,
+                t,
+                probes,
+            ),
         };
         state.output = u;
         state.samples += 1;

@@ -10,7 +10,8 @@
 //! z̄_k = A_d ẑ_{k−1} + B_d ũ_{k−1}                 (prediction; z̄_0 = 0, the biased state)
 //! ỹ_k = y_k − y_bias − D ũ_{k−1}                  (the measured outputs' change, noise added)
 //! ẑ_k = z̄_k + L (ỹ_k − C z̄_k)                     (correction: the current estimator)
-//! v_k = V_bias + u_ff(t_k) + N̄ (r(t_k) − y₁_bias) − K ẑ_k,   u_k = min(max(v_k, lower), upper)
+//! v_k = V_bias + u_ff(t_k) + N̄ r̃_k − K ẑ_k − k_I ξ_k,   r̃_k = r(t_k) − y₁_bias,
+//! u_k = min(max(v_k, lower), upper),   ξ_{k+1} = ξ_k + T (ỹ₁_k − r̃_k)
 //! ```
 //!
 //! and holds u_k until the next sample. The measurement at t_k was taken under u_{k−1}, so its
@@ -18,7 +19,9 @@
 //! after the limits: an estimate fed with the saturated input stays right while the output is
 //! limited, the anti-windup of an observer-based controller (Åström & Wittenmark,
 //! "Computer-Controlled Systems", 3rd ed., 1997, §9.4). N̄ makes a constant set point the steady
-//! state of the model (no integrator: a disturbance or a model error leaves a steady error).
+//! state of the model; a disturbance or a model error leaves a steady error unless the design
+//! has integral action (k_I ≠ 0), whose integrator ξ of the measured tracking error is held while
+//! the output is limited and the error would drive it further.
 
 use super::noise::gaussian;
 use crate::time::lqr::StateFeedbackDesign;
@@ -53,10 +56,12 @@ pub struct StateFeedback {
 impl StateFeedback {
     /// The law on the plan's probe values `probes` at stage time `t` with the output `held`
     /// since the last sample: the new output, with the `estimate` (empty before the first
-    /// sample) and the noise generator's state `rng` advanced.
+    /// sample), the `integral` of the tracking error and the noise generator's state `rng`
+    /// advanced.
     pub fn law(
         &self,
         estimate: &mut Vec<f64>,
+        integral: &mut f64,
         rng: &mut u64,
         held: f64,
         t: f64,
@@ -71,7 +76,8 @@ impl StateFeedback {
                 z[i] = d.bd[i][0] * held + (0..n).map(|j| d.ad[i][j] * estimate[j]).sum::<f64>();
             }
         }
-        let innovation: Vec<f64> = self
+        // the measured outputs' change about the bias, less the feed-through of the held volts
+        let measured: Vec<f64> = self
             .probes
             .iter()
             .zip(&self.rows)
@@ -82,10 +88,13 @@ impl StateFeedback {
                 } else {
                     0.0
                 };
-                let y = probes[p] + noise - d.output_offsets[r] - d.d[r][0] * held;
-                let predicted: f64 = (0..n).map(|j| d.c[r][j] * z[j]).sum();
-                y - predicted
+                probes[p] + noise - d.output_offsets[r] - d.d[r][0] * held
             })
+            .collect();
+        let innovation: Vec<f64> = measured
+            .iter()
+            .zip(&self.rows)
+            .map(|(y, &r)| y - (0..n).map(|j| d.c[r][j] * z[j]).sum::<f64>())
             .collect();
         for i in 0..n {
             z[i] += d.l[i]
@@ -96,8 +105,22 @@ impl StateFeedback {
         }
         let reference = self.setpoint.value(t) - d.output_offsets[0];
         let feedback: f64 = (0..n).map(|j| d.k[0][j] * z[j]).sum();
-        let v = d.bias_v + self.feedforward.value(t) + d.n_bar * reference - feedback;
+        let v = d.bias_v + self.feedforward.value(t) + d.n_bar * reference
+            - feedback
+            - d.k_i * *integral;
         *estimate = z;
+        // the integrator (ξ_{k+1} = ξ_k + T e_k on the measured error), held while the output is
+        // limited and the error would drive it further (the PID's conditional integration)
+        if d.k_i != 0.0 {
+            if let Some(m) = self.rows.iter().position(|&r| r == 0) {
+                let e = measured[m] - reference;
+                let push = -d.k_i * e;
+                let winding_up = (v >= self.upper && push > 0.0) || (v <= self.lower && push < 0.0);
+                if !winding_up {
+                    *integral += d.sample_time * e;
+                }
+            }
+        }
         v.clamp(self.lower, self.upper)
     }
 }
@@ -111,6 +134,11 @@ mod tests {
     /// A one-state design: A_d 0.5, B_d 2, C 3, D 0.1, K 0.25, L 0.2, N̄ 4 about 100 V, the
     /// output's offset 10.
     fn scalar(upper: f64) -> Controller {
+        scalar_with(upper, 0.0)
+    }
+
+    /// [`scalar`] with the integral gain `k_i`.
+    fn scalar_with(upper: f64, k_i: f64) -> Controller {
         let one = |x: f64| vec![vec![x]];
         Controller::StateFeedback(Box::new(StateFeedback {
             model_path: "lqr.json".into(),
@@ -130,12 +158,14 @@ mod tests {
                     r: 1.0,
                     w: 1.0,
                     v: 1.0,
+                    qi: 0.0,
                 },
                 ad: one(0.5),
                 bd: one(2.0),
                 c: one(3.0),
                 d: one(0.1),
                 k: one(0.25),
+                k_i,
                 l: one(0.2),
                 nx: vec![0.0],
                 nu: 0.0,
@@ -184,5 +214,41 @@ mod tests {
         let y1 = 10.0 + 3.0 * (0.06 + 2.0) + 0.1;
         limited.sample(&mut s, 0.1, &[0.0, y1]);
         assert!((s.estimate[0] - 2.06).abs() < 1e-12, "{}", s.estimate[0]);
+    }
+    /// The integrator adds T times the measured error each sample and enters the output with
+    /// −k_I; it holds while the output is limited and the error would push it further.
+    #[test]
+    fn the_integrator_integrates_the_measured_error_and_holds_at_a_limit() {
+        let c = scalar_with(1000.0, -2.0);
+        let mut s = c.start();
+        // ỹ = 0.6 against r̃ = 1: e = −0.4, ξ = 0 for this output, then −0.04
+        let u0 = c.sample(&mut s, 0.0, &[0.0, 10.6]);
+        assert!((u0 - 103.97).abs() < 1e-12, "{u0}");
+        assert!((s.integral + 0.04).abs() < 1e-15, "{}", s.integral);
+        let y1 = 10.0 + 24.0 + 0.397 + 0.3;
+        let u1 = c.sample(&mut s, 0.1, &[0.0, y1]);
+        assert!(
+            (u1 - (104.0 - 0.25 * 8.06 + 2.0 * -0.04)).abs() < 1e-12,
+            "{u1}"
+        );
+        // e = 24.3 − 1: ξ grows by 0.1·23.3
+        assert!(
+            (s.integral - (-0.04 + 2.33)).abs() < 1e-12,
+            "{}",
+            s.integral
+        );
+        // at the upper limit with the error pushing up (−k_I e > 0 for e > 0): ξ holds
+        let limited = scalar_with(101.0, -2.0);
+        let mut s = limited.start();
+        limited.sample(&mut s, 0.0, &[0.0, 10.6]);
+        assert_eq!(s.output, 101.0);
+        assert!(
+            (s.integral + 0.04).abs() < 1e-15,
+            "the error −0.4 pulls down: integrated"
+        );
+        let xi = s.integral;
+        limited.sample(&mut s, 0.1, &[0.0, 40.0]);
+        assert_eq!(s.output, 101.0);
+        assert_eq!(s.integral, xi);
     }
 }

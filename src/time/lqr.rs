@@ -13,7 +13,9 @@
 //!
 //! over the sampled model z_{k+1} = A_d z_k + B_d ṽ_k: the output's change is counted in the volts
 //! that would hold it statically, so q/r is a dimensionless ratio (q/r = 1: an output error worth
-//! one volt costs as much as one volt of drive). The observer takes a white voltage disturbance of
+//! one volt costs as much as one volt of drive). With integral action (q_I > 0) the state grows by
+//! the integrated tracking error ξ_{k+1} = ξ_k + T C₁ z_k (the feed-through D₁ left out) and J by
+//! q_I (ξ_k / g₁)²: q_I/q is the square of the integrator's corner frequency (rad/s). The observer takes a white voltage disturbance of
 //! variance w (V²) on the drive (process noise W = w B_d B_dᵀ) and, on each measured output i,
 //! white noise of variance v g_i² (v in V²: noise equal to the response of a voltage of variance
 //! v). Both gains come from the discrete algebraic Riccati equation ([`super::riccati`]); the
@@ -36,6 +38,10 @@ pub struct Weights {
     pub w: f64,
     /// Variance of each measured output's noise, in V² of static drive (> 0).
     pub v: f64,
+    /// Weight of the tracking error's time integral, counted in V·s of static drive, per s²
+    /// (≥ 0; 0: no integral action).
+    #[serde(default)]
+    pub qi: f64,
 }
 
 /// What to design: the weights, the sample period, the tracked output and the measured ones
@@ -80,8 +86,12 @@ pub struct StateFeedbackDesign {
     /// y = C z + D ṽ for the rows of `outputs` (p × n, p × 1).
     pub c: Vec<Vec<f64>>,
     pub d: Vec<Vec<f64>>,
-    /// The state-feedback gain (1 × n, V per state unit): ṽ = −K ẑ + N̄ r̃.
+    /// The state-feedback gain (1 × n, V per state unit): ṽ = −K ẑ − k_I ξ + N̄ r̃.
     pub k: Vec<Vec<f64>>,
+    /// The gain on the integrated tracking error ξ (V per output unit·s; 0 without integral
+    /// action).
+    #[serde(default)]
+    pub k_i: f64,
     /// The observer gain (n × m for the m measured outputs): ẑ = z̄ + L (ỹ − C z̄).
     pub l: Vec<Vec<f64>>,
     /// The steady state and drive per unit of the tracked output's set point about its offset:
@@ -89,8 +99,8 @@ pub struct StateFeedbackDesign {
     pub nx: Vec<f64>,
     pub nu: f64,
     pub n_bar: f64,
-    /// Spectral radii of A_d (open loop), A_d − B_d K (the state feedback) and (I − L C) A_d
-    /// (the observer's error).
+    /// Spectral radii of A_d (open loop), A_d − B_d K (the state feedback, with the integrator
+    /// when there is one) and (I − L C) A_d (the observer's error).
     pub open_loop_radius: f64,
     pub closed_loop_radius: f64,
     pub observer_radius: f64,
@@ -105,13 +115,16 @@ pub fn design(
     scenario: &str,
     settings: &LqrSettings,
 ) -> Result<StateFeedbackDesign, String> {
-    let Weights { q, r, w, v } = settings.weights;
+    let Weights { q, r, w, v, qi } = settings.weights;
     for (name, x) in [("q", q), ("r", r), ("w", w), ("v", v)] {
         if !(x.is_finite() && x > 0.0) {
             return Err(format!(
                 "weight {name}: expected a positive number; got {x}"
             ));
         }
+    }
+    if !(qi.is_finite() && qi >= 0.0) {
+        return Err(format!("integral weight: expected a number ≥ 0; got {qi}"));
     }
     let t = settings.sample_time;
     if !(t.is_finite() && t > 0.0) {
@@ -191,13 +204,35 @@ pub fn design(
     if !(ad.iter().chain(bd.iter()).all(|x| x.is_finite())) {
         return Err("the sampled model is not finite (the matrix exponential overflowed)".into());
     }
-    // the controller: Q = q/g₁² C₁ᵀC₁, R = r
+    // the controller: Q = q/g₁² C₁ᵀC₁, R = r; with integral action on [z; ξ],
+    // ξ_{k+1} = ξ_k + T C₁ z_k, Q adds q_I/g₁² on ξ
     let c1 = c.rows(0, 1).into_owned();
-    let qm = c1.transpose() * &c1 * (q / (gains[0] * gains[0]));
+    let integral = qi > 0.0;
+    if integral && !measured.contains(&tracked) {
+        return Err(format!(
+            "integral action integrates the measured error of `{}`: measure it too",
+            model.outputs[tracked]
+        ));
+    }
+    let na = n + usize::from(integral);
+    let mut aa = DMatrix::<f64>::zeros(na, na);
+    aa.view_mut((0, 0), (n, n)).copy_from(&ad);
+    let mut ba = DMatrix::<f64>::zeros(na, 1);
+    ba.view_mut((0, 0), (n, 1)).copy_from(&bd);
+    let mut qm = DMatrix::<f64>::zeros(na, na);
+    qm.view_mut((0, 0), (n, n))
+        .copy_from(&(c1.transpose() * &c1 * (q / (gains[0] * gains[0]))));
+    if integral {
+        aa.view_mut((n, 0), (1, n)).copy_from(&(&c1 * t));
+        aa[(n, n)] = 1.0;
+        qm[(n, n)] = qi / (gains[0] * gains[0]);
+    }
     let rm = DMatrix::from_element(1, 1, r);
-    let x = solve_dare(&ad, &bd, &qm, &rm).map_err(|e| format!("the control {e}"))?;
-    let control_residual = relative(&dare_residual(&ad, &bd, &qm, &rm, &x), &x);
-    let k = feedback_gain(&ad, &bd, &rm, &x)?;
+    let x = solve_dare(&aa, &ba, &qm, &rm).map_err(|e| format!("the control {e}"))?;
+    let control_residual = relative(&dare_residual(&aa, &ba, &qm, &rm, &x), &x);
+    let k_aug = feedback_gain(&aa, &ba, &rm, &x)?;
+    let k = k_aug.columns(0, n).into_owned();
+    let k_i = if integral { k_aug[(0, n)] } else { 0.0 };
     // the observer: the dual equation with W = w B_d B_dᵀ, V = v diag(g_i²)
     let m = measured.len();
     let cm = DMatrix::from_fn(m, n, |i, j| model.c[measured[i]][j]);
@@ -255,13 +290,14 @@ pub fn design(
         static_gains: gains,
         weights: settings.weights,
         open_loop_radius: spectral_radius(&ad),
-        closed_loop_radius: spectral_radius(&(&ad - &bd * &k)),
+        closed_loop_radius: spectral_radius(&(&aa - &ba * &k_aug)),
         observer_radius: spectral_radius(&observer),
         ad: rows_of(&ad),
         bd: rows_of(&bd),
         c: rows_of(&c),
         d: rows_of(&DMatrix::from_column_slice(p, 1, d.as_slice())),
         k: rows_of(&k),
+        k_i,
         l: rows_of(&l),
         nx,
         nu,
