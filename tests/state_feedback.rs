@@ -366,7 +366,8 @@ fn refused(sim: &Simulation) -> (String, String) {
 ///    another electrode, a measured probe the scenario lacks, another bias, a sample period
 ///    below the step, a file that is no design; so are a PID's keys, a quasi-static stage, and
 ///    `reduce --lqr` without a tracked output, with an unknown one, with malformed weights or
-///    with integral action on an output it does not measure. The CLI exits with 2.
+///    with integral action on an output it does not measure. The CLI exits with 2. A scenario
+///    whose design file does not exist yet is reduced (open loop) and then accepted.
 #[test]
 fn a_design_that_does_not_fit_is_refused_naming_the_key() {
     let dir = common::tempdir("state-feedback-refused");
@@ -488,6 +489,30 @@ fn a_design_that_does_not_fit_is_refused_naming_the_key() {
         said.contains("controller: state feedback from `red/lqr.json`"),
         "{said}"
     );
+    // a scenario whose design is not written yet is reduced open loop, which writes it
+    let pending = scenario("later/lqr.json");
+    let mut args = vec![
+        "reduce",
+        pending.to_str().unwrap(),
+        "--lqr",
+        "10,1",
+        "--track",
+        "center_deflection",
+        "--out",
+        "later",
+    ];
+    for s in &COARSE[..2] {
+        args.extend(["--set", s]);
+    }
+    assert_eq!(check(&pending).status.code(), Some(2));
+    let reduced = common::deasim(&args, &dir);
+    assert_eq!(
+        reduced.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&reduced.stderr)
+    );
+    assert_eq!(check(&pending).status.code(), Some(0));
     // `reduce --lqr` needs a tracked output among the probes
     for (extra, message) in [
         (vec![], "--lqr needs --track PROBE"),

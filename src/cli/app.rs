@@ -47,6 +47,28 @@ pub fn load_scenario(
     Ok((scenario, plan))
 }
 
+/// [`load_scenario`] without the electrodes' state-feedback controllers, for the small-signal
+/// commands, which run open loop: the design file such a controller reads may not exist yet, as
+/// it is what `deasim reduce --lqr` on this scenario writes.
+pub fn load_scenario_open_loop(
+    path: Option<&Path>,
+    overrides: &[String],
+) -> Result<(crate::io::scenario::Scenario, Plan), InputError> {
+    let (text, name, base) = read_scenario(path)?;
+    let blame = |e| crate::io::scenario::blame_override(e, overrides);
+    let mut scenario = parse(&text, &name, overrides).map_err(blame)?;
+    for e in scenario.electrodes.values_mut() {
+        if e.controller
+            .as_ref()
+            .is_some_and(|c| c.kind == "state-feedback")
+        {
+            e.controller = None;
+        }
+    }
+    let plan = build(&scenario, &name, base.as_deref()).map_err(blame)?;
+    Ok((scenario, plan))
+}
+
 /// Shows progress: a bar on a terminal, plain lines otherwise.
 struct Progress {
     bar: Option<ProgressBar>,

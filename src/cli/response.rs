@@ -5,7 +5,7 @@
 use crate::api::Error;
 pub use crate::api::Prepared;
 use crate::cli::app::{
-    load_scenario, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_SOLVE_FAILED,
+    load_scenario_open_loop, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_SOLVE_FAILED,
 };
 use crate::io::atomic::write_atomic;
 use crate::io::build::log_range;
@@ -69,8 +69,8 @@ pub fn prepare(
     electrode: Option<&str>,
     bias: Option<f64>,
 ) -> Result<Prepared, (i32, String)> {
-    let (_, plan) =
-        load_scenario(scenario, overrides).map_err(|e| (EXIT_BAD_INPUT, e.to_string()))?;
+    let (_, plan) = load_scenario_open_loop(scenario, overrides)
+        .map_err(|e| (EXIT_BAD_INPUT, e.to_string()))?;
     let p = crate::api::prepare(plan, electrode, bias, crate::api::RunOptions::default()).map_err(
         |e| {
             let code = match e {
