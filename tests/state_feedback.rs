@@ -315,6 +315,74 @@ fn a_set_point_step_settles_and_the_pad_mode_rings_less_than_open_loop() {
     assert!(vc.iter().all(|v| (0.0..=4000.0).contains(v)));
 }
 
+/// The state-feedback loop of design `d` on its own sampled reduced model (the plant z and the
+/// controller's estimate, both from the bias), for the set point `r̃(k)` about the biased output:
+/// the tracked output at each of `samples` samples, the measurement taken under the voltage held
+/// since the sample before (as the finite element run's record at the sample instant is).
+fn reduced_loop(d: &StateFeedbackDesign, r: impl Fn(usize) -> f64, samples: usize) -> Vec<f64> {
+    let (ad, bd, c, k, l) = (
+        matrix(&d.ad),
+        matrix(&d.bd),
+        matrix(&d.c),
+        matrix(&d.k),
+        matrix(&d.l),
+    );
+    let n = ad.nrows();
+    let (mut z, mut est) = (DVector::<f64>::zeros(n), DVector::<f64>::zeros(n));
+    let mut held = 0.0;
+    let mut out = Vec::new();
+    for i in 0..samples {
+        let y = (c.row(0) * &z)[(0, 0)] + d.d[0][0] * held;
+        out.push(y);
+        let predicted = if i == 0 {
+            DVector::zeros(n)
+        } else {
+            &ad * &est + &bd * held
+        };
+        est = &predicted + l.column(0) * (y - d.d[0][0] * held - (c.row(0) * &predicted)[(0, 0)]);
+        let u = d.n_bar * r(i) - (&k * &est)[(0, 0)];
+        z = &ad * &z + &bd * u;
+        held = u;
+    }
+    out
+}
+
+/// 3b. The state-feedback loop on the finite element model follows the same loop on the sampled
+///     reduced model it was designed on: within 2 % of a 5 nm set-point step at every sample.
+#[test]
+fn the_loop_on_the_fe_model_follows_the_loop_on_the_reduced_model() {
+    let dir = common::tempdir("state-feedback-follows");
+    let d = reduce_into(&dir);
+    let (offset, step) = (d.output_offsets[0], 5e-9);
+    let sim = coarse(Simulation::from_toml(
+        &with_controller(&state_feedback("red/lqr.json", offset, step), ""),
+        Some(&dir),
+    ))
+    .set("stages.2.duration", "0.15");
+    let yi = sim
+        .plan()
+        .unwrap()
+        .probes
+        .iter()
+        .position(|(n, _)| n == "center_deflection")
+        .unwrap();
+    let records = sim.run(RunOptions::default()).unwrap().records;
+    let fe: Vec<f64> = hold(&records)
+        .iter()
+        .map(|r| r.probes[yi] - offset)
+        .collect();
+    // the step at 10.5 ms is first sampled at 11 ms
+    let rom = reduced_loop(&d, |k| if k >= 11 { step } else { 0.0 }, fe.len());
+    let worst = fe
+        .iter()
+        .zip(&rom)
+        .map(|(a, b)| (a - b).abs() / step)
+        .fold(0.0, f64::max);
+    eprintln!("largest difference {:.3} % of the step", 100.0 * worst);
+    assert!(worst < 0.02, "{:.3} % of the step", 100.0 * worst);
+    assert!((rom[rom.len() - 1] / step - 1.0).abs() < 1e-3);
+}
+
 /// 4. A constant disturbance (the feed-forward 200 V above the bias, the set point at the biased
 ///    deflection): the state feedback without an integrator keeps a finite part of the
 ///    disturbance's open-loop deflection; with integral action (`--integral 25000`) the
