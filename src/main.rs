@@ -308,6 +308,28 @@ drive, a term or stage whose adjoint is not built)."
         /// Output directory of a finite element run of the scenario to overlay.
         #[arg(long, value_name = "DIR")]
         compare: Option<PathBuf>,
+        /// Design a sampled LQR state feedback with a Kalman observer (lqr.json, for
+        /// `kind = "state-feedback"`): Q weighs the tracked output's change in volts of static
+        /// drive, R the drive's volts (docs/control.md).
+        #[arg(long, value_name = "Q,R")]
+        lqr: Option<String>,
+        /// The observer's variances: W of a voltage disturbance on the drive, V of each measured
+        /// output's noise in volts of static drive (V²); default 1,1e-2.
+        #[arg(long, value_name = "W,V")]
+        kalman: Option<String>,
+        /// Integral action: the weight q_I of the integrated tracking error (1/s², 0: none);
+        /// q_I/Q is the square of the integrator's corner frequency in rad/s.
+        #[arg(long, value_name = "Q_I")]
+        integral: Option<f64>,
+        /// The design's sample period, s (default: the first dynamic stage's time step).
+        #[arg(long)]
+        sample_time: Option<f64>,
+        /// The output the state feedback tracks (a probe; needed with --lqr).
+        #[arg(long, value_name = "PROBE")]
+        track: Option<String>,
+        /// The outputs the observer measures (default: the tracked one).
+        #[arg(long, value_name = "PROBE", value_delimiter = ',')]
+        measure: Vec<String>,
         /// Output directory (default ./deasim-out/<scenario name>-reduced/).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -563,6 +585,12 @@ fn main() {
             electrode,
             bias,
             compare,
+            lqr,
+            kalman,
+            integral,
+            sample_time,
+            track,
+            measure,
             out,
             overwrite,
             set,
@@ -575,6 +603,12 @@ fn main() {
             compare,
             out,
             overwrite,
+            lqr,
+            kalman,
+            integral,
+            sample_time,
+            track,
+            measure,
         }),
         Command::Validate { family } => deasim::cli::validate::cmd_validate(family.as_deref()),
         Command::Bench {

@@ -313,7 +313,7 @@ fn bad_controllers_are_refused_naming_the_key() {
         (
             with(coarse(), "kind", "\"pdi\""),
             format!("{key}.kind"),
-            "unknown controller kind `pdi` (known: pid); did you mean `pid`?",
+            "unknown controller kind `pdi` (known: pid, state-feedback); did you mean `pid`?",
         ),
         (
             with(coarse(), "ki", -1.0),

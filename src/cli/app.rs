@@ -9,6 +9,7 @@ use crate::element::CellFields;
 use crate::io::build::{build, Plan, StageKind};
 use crate::io::examples::{example, EXAMPLES};
 use crate::io::scenario::{parse, InputError};
+use crate::job::controller::Controller;
 use crate::job::observer::Observer;
 use crate::job::plan::ResponseMethod;
 use crate::job::run::StepRecord;
@@ -42,6 +43,28 @@ pub fn load_scenario(
     let (text, name, base) = read_scenario(path)?;
     let blame = |e| crate::io::scenario::blame_override(e, overrides);
     let scenario = parse(&text, &name, overrides).map_err(blame)?;
+    let plan = build(&scenario, &name, base.as_deref()).map_err(blame)?;
+    Ok((scenario, plan))
+}
+
+/// [`load_scenario`] without the electrodes' state-feedback controllers, for the small-signal
+/// commands, which run open loop: the design file such a controller reads may not exist yet, as
+/// it is what `deasim reduce --lqr` on this scenario writes.
+pub fn load_scenario_open_loop(
+    path: Option<&Path>,
+    overrides: &[String],
+) -> Result<(crate::io::scenario::Scenario, Plan), InputError> {
+    let (text, name, base) = read_scenario(path)?;
+    let blame = |e| crate::io::scenario::blame_override(e, overrides);
+    let mut scenario = parse(&text, &name, overrides).map_err(blame)?;
+    for e in scenario.electrodes.values_mut() {
+        if e.controller
+            .as_ref()
+            .is_some_and(|c| c.kind == "state-feedback")
+        {
+            e.controller = None;
+        }
+    }
     let plan = build(&scenario, &name, base.as_deref()).map_err(blame)?;
     Ok((scenario, plan))
 }
@@ -583,13 +606,32 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                         e.nodes.len()
                     ),
                 }
-                if let Some(c) = &e.controller {
-                    println!(
+                match &e.controller {
+                    Some(Controller::Pid(c)) => println!(
                         "  controller: PID on probe `{}` (kp {:e}, ki {:e}, kd {:e}), sampled every \
                          {:e} s, output {} … {} V, in the dynamic and quasi-static stages with the \
                          electrodes on",
                         c.probe_name, c.kp, c.ki, c.kd, c.sample_time, c.lower, c.upper
-                    );
+                    ),
+                    Some(Controller::StateFeedback(c)) => println!(
+                        "  controller: state feedback from `{}` ({} states, about {} V) tracking \
+                         `{}`, observer on {}, sampled every {:e} s, output {} … {} V, in the \
+                         dynamic stages with the electrodes on",
+                        c.model_path,
+                        c.design.ad.len(),
+                        c.design.bias_v,
+                        c.design.tracked,
+                        c.design
+                            .measured
+                            .iter()
+                            .map(|m| format!("`{m}`"))
+                            .collect::<Vec<_>>()
+                            .join(", "),
+                        c.design.sample_time,
+                        c.lower,
+                        c.upper
+                    ),
+                    None => {}
                 }
             }
             if let Some(p) = plan.prestretch {

@@ -5,7 +5,7 @@
 use crate::api::Error;
 pub use crate::api::Prepared;
 use crate::cli::app::{
-    load_scenario, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_SOLVE_FAILED,
+    load_scenario_open_loop, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK, EXIT_SOLVE_FAILED,
 };
 use crate::io::atomic::write_atomic;
 use crate::io::build::log_range;
@@ -69,8 +69,8 @@ pub fn prepare(
     electrode: Option<&str>,
     bias: Option<f64>,
 ) -> Result<Prepared, (i32, String)> {
-    let (_, plan) =
-        load_scenario(scenario, overrides).map_err(|e| (EXIT_BAD_INPUT, e.to_string()))?;
+    let (_, plan) = load_scenario_open_loop(scenario, overrides)
+        .map_err(|e| (EXIT_BAD_INPUT, e.to_string()))?;
     let p = crate::api::prepare(plan, electrode, bias, crate::api::RunOptions::default()).map_err(
         |e| {
             let code = match e {
@@ -168,6 +168,98 @@ pub struct ReduceArgs {
     pub out: Option<PathBuf>,
     /// Replace another command's or scenario's results in the output directory.
     pub overwrite: bool,
+    /// `Q,R`: design a sampled LQR state feedback with these weights ([`crate::time::lqr`]).
+    pub lqr: Option<String>,
+    /// `W,V`: the observer's noise variances (default 1,1e-2).
+    pub kalman: Option<String>,
+    /// The weight of the integrated tracking error (0: no integral action).
+    pub integral: Option<f64>,
+    /// The design's sample period (s; default: the first dynamic stage's time step).
+    pub sample_time: Option<f64>,
+    /// The tracked output (needed with `lqr`).
+    pub track: Option<String>,
+    /// The measured outputs (default: the tracked one).
+    pub measure: Vec<String>,
+}
+
+/// Two positive numbers `a,b` given to option `option` (named `what`).
+fn weight_pair(option: &str, text: &str, what: &str) -> Result<(f64, f64), String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let parsed: Vec<f64> = parts.iter().filter_map(|p| p.parse().ok()).collect();
+    match parsed[..] {
+        [a, b] if parts.len() == 2 && a.is_finite() && a > 0.0 && b.is_finite() && b > 0.0 => {
+            Ok((a, b))
+        }
+        _ => Err(format!(
+            "{option}: expected {what} as two positive numbers `a,b`; got `{text}`"
+        )),
+    }
+}
+
+/// The design settings of `args` (`None` without `--lqr`), the sample period defaulting to the
+/// first dynamic stage's step of `plan`.
+fn lqr_settings(
+    args: &ReduceArgs,
+    plan: &Plan,
+) -> Result<Option<crate::time::lqr::LqrSettings>, String> {
+    let Some(lqr) = &args.lqr else {
+        for (given, name) in [
+            (args.kalman.is_some(), "--kalman"),
+            (args.integral.is_some(), "--integral"),
+            (args.sample_time.is_some(), "--sample-time"),
+            (args.track.is_some(), "--track"),
+            (!args.measure.is_empty(), "--measure"),
+        ] {
+            if given {
+                return Err(format!(
+                    "{name}: an option of the design, which needs --lqr Q,R"
+                ));
+            }
+        }
+        return Ok(None);
+    };
+    let (q, r) = weight_pair("--lqr", lqr, "the weights Q (tracked output) and R (volt)")?;
+    let tracked = args.track.clone().ok_or(
+        "--lqr needs --track PROBE: the output whose set point the state feedback follows",
+    )?;
+    let (w, v) = match &args.kalman {
+        Some(k) => weight_pair(
+            "--kalman",
+            k,
+            "the variances W (drive disturbance) and V (measurement noise)",
+        )?,
+        None => (1.0, 1e-2),
+    };
+    let qi = match args.integral {
+        None => 0.0,
+        Some(x) if x.is_finite() && x >= 0.0 => x,
+        Some(x) => return Err(format!("--integral: expected a weight ≥ 0 (1/s²); got {x}")),
+    };
+    let sample_time = match args.sample_time {
+        Some(t) if t.is_finite() && t > 0.0 => t,
+        Some(t) => {
+            return Err(format!(
+                "--sample-time: expected a positive number of s; got {t}"
+            ))
+        }
+        None => plan
+            .stages
+            .iter()
+            .find_map(|s| match s.kind {
+                StageKind::Dynamic { dt, .. } => Some(dt),
+                _ => None,
+            })
+            .ok_or(
+                "--lqr: the scenario has no dynamic stage whose time step could be the sample \
+                 period: give --sample-time",
+            )?,
+    };
+    Ok(Some(crate::time::lqr::LqrSettings {
+        weights: crate::time::lqr::Weights { q, r, w, v, qi },
+        sample_time,
+        tracked,
+        measured: args.measure.clone(),
+    }))
 }
 
 /// `deasim reduce`: the reduced state-space model, its matrices, its simulation of the first
@@ -208,6 +300,23 @@ pub fn reduce(args: &ReduceArgs) -> Result<Vec<String>, (i32, String)> {
         args.electrode.as_deref(),
         args.bias,
     )?;
+    let lqr = lqr_settings(args, &p.plan).map_err(bad)?;
+    if let Some(s) = &lqr {
+        let outputs = p.names();
+        for name in std::iter::once(&s.tracked).chain(&s.measured) {
+            if !outputs.contains(name) {
+                return Err(bad(format!(
+                    "--{}: `{name}` is not a probe of the scenario ({})",
+                    if s.tracked == *name {
+                        "track"
+                    } else {
+                        "measure"
+                    },
+                    outputs.join(", ")
+                )));
+            }
+        }
+    }
     let dir: PathBuf = args
         .out
         .clone()
@@ -215,7 +324,7 @@ pub fn reduce(args: &ReduceArgs) -> Result<Vec<String>, (i32, String)> {
     let hash = format!("{:016x}", p.plan.fingerprint());
     let mut results =
         ResultsDir::open(&dir, "reduce", &p.plan.name, &hash, args.overwrite).map_err(bad)?;
-    let written = write_reduced(args, &p, &dir);
+    let written = write_reduced(args, &p, &dir, lqr.as_ref());
     // the files written, also when one failed
     let listed = results.record().map_err(failed);
     let lines = written?;
@@ -229,6 +338,7 @@ fn write_reduced(
     args: &ReduceArgs,
     p: &Prepared,
     dir: &Path,
+    lqr: Option<&crate::time::lqr::LqrSettings>,
 ) -> Result<Vec<String>, (i32, String)> {
     let bad = |e: String| (EXIT_BAD_INPUT, e);
     let failed = |e: String| (EXIT_SOLVE_FAILED, e);
@@ -273,6 +383,19 @@ fn write_reduced(
         names.join(", "),
         model.frequencies_hz
     )];
+    if let Some(settings) = lqr {
+        let design = crate::time::lqr::design(&model, &p.plan.name, settings).map_err(|e| {
+            let code = if e.contains("Riccati") {
+                EXIT_SOLVE_FAILED
+            } else {
+                EXIT_BAD_INPUT
+            };
+            (code, format!("--lqr: {e}"))
+        })?;
+        let json = serde_json::to_string_pretty(&design).map_err(|e| failed(e.to_string()))?;
+        put("lqr.json", &json)?;
+        lines.push(lqr_line(&design));
+    }
     // the first dynamic stage's drive, simulated
     let Some(si) = p
         .plan
@@ -372,6 +495,39 @@ fn write_reduced(
     }
     lines.push(format!("results in {}", dir.display()));
     Ok(lines)
+}
+
+/// The line `reduce --lqr` prints: the gains' size and the loop's and observer's poles.
+fn lqr_line(d: &crate::time::lqr::StateFeedbackDesign) -> String {
+    let t = d.sample_time;
+    // a pole's time constant in samples: −T / ln ρ
+    let tau = |rho: f64| -t / rho.ln();
+    format!(
+        "state feedback (lqr.json) at {} s: tracks `{}`, observer on {}; N̄ {:e} V per unit{}, \
+         spectral radius {:.4} open loop (time constant {:.3e} s), {:.4} closed loop ({:.3e} s), \
+         {:.4} observer ({:.3e} s); Riccati residuals {:.1e}, {:.1e}",
+        t,
+        d.tracked,
+        d.measured
+            .iter()
+            .map(|m| format!("`{m}`"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        d.n_bar,
+        if d.k_i != 0.0 {
+            format!(", integral gain k_I {:e} V per unit·s", d.k_i)
+        } else {
+            String::new()
+        },
+        d.open_loop_radius,
+        tau(d.open_loop_radius),
+        d.closed_loop_radius,
+        tau(d.closed_loop_radius),
+        d.observer_radius,
+        tau(d.observer_radius),
+        d.control_residual,
+        d.filter_residual
+    )
 }
 
 /// The line `reduce --compare` prints for output `name`: the largest of the differences `pairs`

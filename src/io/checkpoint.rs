@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 /// The first bytes of every checkpoint.
 pub const MAGIC: &[u8; 8] = b"DEASIMCK";
 /// Version of the layout; a file of another version is refused.
-pub const FORMAT_VERSION: u32 = 7;
+pub const FORMAT_VERSION: u32 = 8;
 /// The sub-directory of the output directory that holds the checkpoints.
 pub const SUBDIR: &str = "checkpoint";
 /// How many checkpoints are kept (older ones are deleted after a new one is written).
@@ -478,6 +478,7 @@ mod tests {
                     next_sample: 0.003,
                     rng: 0x1234_5678_9abc_def0,
                     samples: 3,
+                    estimate: vec![1e-9, -2e-7],
                 }],
             },
         }

@@ -538,13 +538,18 @@ pub struct ElectrodeSpec {
     pub controller: Option<ControllerSpec>,
 }
 
-/// `electrodes.<e>.controller`: a sampled PID loop from a probe to the electrode's voltage.
+/// `electrodes.<e>.controller`: a sampled PID loop from a probe to the electrode's voltage, or a
+/// state feedback from the probes a design file names.
 #[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ControllerSpec {
-    /// `pid`.
+    /// `pid` or `state-feedback`.
     pub kind: String,
-    /// The probe measured.
+    /// The state feedback's design (the `lqr.json` of `deasim reduce --lqr`), relative to the
+    /// scenario.
+    #[serde(default)]
+    pub model: Option<String>,
+    /// The probe measured (PID).
     #[serde(default)]
     pub probe: Option<String>,
     /// The set point (probe unit): a number or a waveform table.

@@ -1,6 +1,8 @@
-//! A sampled PID controller that sets an electrode's voltage from a probe (the measured output):
-//! the control law, its state and the measurement noise.
+//! The sampled controllers that set an electrode's voltage from probes (the measured outputs):
+//! a PID on one probe, or an observer-based state feedback designed on a reduced model
+//! ([`super::state_feedback`]); their common state, sample clock and measurement noise.
 //!
+//! The PID:
 //! At each sample instant t_k (stage time, every `sample_time` T from the stage's start; the
 //! first accepted step at or after the instant takes the sample) the controller reads the probe
 //! y_k (plus Gaussian noise), forms the error e_k = r(t_k) − y_k against the set point r and
@@ -19,12 +21,21 @@
 //! conditional integration, the anti-windup of Åström & Hägglund, "Advanced PID Control" (ISA,
 //! 2006), chapter 3 (integrator windup).
 
+use super::noise::gaussian;
+use super::state_feedback::StateFeedback;
 use crate::waveform::Waveform;
 use serde::{Deserialize, Serialize};
 
+/// A controller on an electrode, sampled at its period with a zero-order hold.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Controller {
+    Pid(Box<Pid>),
+    StateFeedback(Box<StateFeedback>),
+}
+
 /// The settings of a PID controller on an electrode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Controller {
+pub struct Pid {
     /// The probe it measures (plan index) and its name.
     pub probe: usize,
     pub probe_name: String,
@@ -53,7 +64,8 @@ pub struct Controller {
 /// The state of a controller between samples: what a checkpoint keeps.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ControllerState {
-    /// The integral term I_k (V) the next sample uses.
+    /// The integral term I_k (V) the next sample uses; a state feedback's integrated tracking
+    /// error ξ_k (output unit·s).
     pub integral: f64,
     /// The (filtered) derivative term D of the last sample (V).
     pub derivative: f64,
@@ -67,26 +79,43 @@ pub struct ControllerState {
     pub rng: u64,
     /// Samples taken so far.
     pub samples: u64,
+    /// The state feedback's estimate ẑ of the reduced state after the last sample (empty before
+    /// the first; always empty for a PID).
+    pub estimate: Vec<f64>,
 }
 
 impl Controller {
-    /// The state before the first sample: no integral, no measurement.
+    /// The state before the first sample: no integral, no measurement, no estimate; the held
+    /// output at the state feedback's bias (the voltage before its first sample).
     pub fn start(&self) -> ControllerState {
+        let (seed, output) = match self {
+            Controller::Pid(c) => (c.seed, 0.0),
+            Controller::StateFeedback(c) => (c.seed, c.design.bias_v),
+        };
         ControllerState {
             integral: 0.0,
             derivative: 0.0,
             last_measurement: None,
-            output: 0.0,
+            output,
             next_sample: 0.0,
-            rng: self.seed,
+            rng: seed,
             samples: 0,
+            estimate: Vec::new(),
+        }
+    }
+
+    /// The sample period (s).
+    pub fn sample_time(&self) -> f64 {
+        match self {
+            Controller::Pid(c) => c.sample_time,
+            Controller::StateFeedback(c) => c.design.sample_time,
         }
     }
 
     /// Whether a state at stage time `t` takes a sample: at or after the next sample instant
     /// (up to a millionth of the period, the rounding of the step times).
     pub fn due(&self, state: &ControllerState, t: f64) -> bool {
-        t >= state.next_sample - 1e-6 * self.sample_time
+        t >= state.next_sample - 1e-6 * self.sample_time()
     }
 
     /// Restarts the sample clock at a stage's start: the next sample is at stage time 0.
@@ -94,10 +123,34 @@ impl Controller {
         state.next_sample = 0.0;
     }
 
-    /// Takes the sample of the probe value `measured` at stage time `t` and returns the output
-    /// held until the next sample; the next sample instant is the first multiple of the sample
-    /// time after `t`.
-    pub fn sample(&self, state: &mut ControllerState, t: f64, measured: f64) -> f64 {
+    /// Takes the sample of the probe values `probes` (all of the plan's, by plan index) at stage
+    /// time `t` and returns the output held until the next sample; the next sample instant is
+    /// the first multiple of the sample time after `t`.
+    pub fn sample(&self, state: &mut ControllerState, t: f64, probes: &[f64]) -> f64 {
+        let u = match self {
+            Controller::Pid(c) => c.law(state, t, probes[c.probe]),
+            Controller::StateFeedback(c) => c.law(
+                &mut state.estimate,
+                &mut state.integral,
+                &mut state.rng,
+                state.output,
+                t,
+                probes,
+            ),
+        };
+        state.output = u;
+        state.samples += 1;
+        let period = self.sample_time();
+        let k = ((t + 1e-6 * period) / period).floor() + 1.0;
+        state.next_sample = k * period;
+        u
+    }
+}
+
+impl Pid {
+    /// The PID law on the probe value `measured` at stage time `t`: the output, with the
+    /// integral, derivative and last measurement of `state` advanced.
+    fn law(&self, state: &mut ControllerState, t: f64, measured: f64) -> f64 {
         let y = if self.noise > 0.0 {
             measured + self.noise * gaussian(&mut state.rng)
         } else {
@@ -119,36 +172,16 @@ impl Controller {
             state.integral += self.ki * period * e;
         }
         state.last_measurement = Some(y);
-        state.output = u;
-        state.samples += 1;
-        let k = ((t + 1e-6 * period) / period).floor() + 1.0;
-        state.next_sample = k * period;
         u
     }
-}
-
-/// One standard normal number (Box–Muller on two SplitMix64 draws; Steele, Lea & Flood,
-/// OOPSLA 2014).
-fn gaussian(rng: &mut u64) -> f64 {
-    let mut uniform = || {
-        *rng = rng.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = *rng;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        // 53 random bits in (0, 1]
-        ((z >> 11) as f64 + 1.0) / (1u64 << 53) as f64
-    };
-    let (u1, u2) = (uniform(), uniform());
-    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn pid(kp: f64, ki: f64, kd: f64) -> Controller {
-        Controller {
+    fn pid(kp: f64, ki: f64, kd: f64) -> Pid {
+        Pid {
             probe: 0,
             probe_name: "y".into(),
             setpoint: Waveform::constant(1.0),
@@ -169,50 +202,51 @@ mod tests {
     /// the derivative of the measurement; the next sample lands on the sample grid.
     #[test]
     fn the_law_adds_its_terms() {
-        let c = Controller {
+        let c = Controller::Pid(Box::new(Pid {
             feedforward: Waveform::constant(0.5),
             ..pid(2.0, 3.0, 0.4)
-        };
+        }));
         let mut s = c.start();
         assert!(c.due(&s, 0.0));
         // first sample: e = 0.75, no integral yet, no derivative
-        let u0 = c.sample(&mut s, 0.0, 0.25);
+        let u0 = c.sample(&mut s, 0.0, &[0.25]);
         assert_eq!(u0, 0.5 + 2.0 * 0.75);
         assert!((s.next_sample - 0.1).abs() < 1e-15);
         assert!(!c.due(&s, 0.05));
         assert!(c.due(&s, 0.1 - 1e-12));
         // second sample: e = 0.5, I = 3·0.1·0.75, D = −0.4·(0.5 − 0.25)/0.1
-        let u1 = c.sample(&mut s, 0.1, 0.5);
+        let u1 = c.sample(&mut s, 0.1, &[0.5]);
         let expected = 0.5 + 2.0 * 0.5 + 0.3 * 0.75 - 0.4 * 0.25 / 0.1;
         assert!((u1 - expected).abs() < 1e-14, "{u1} {expected}");
         assert!((s.integral - 0.3 * 1.25).abs() < 1e-15);
         // a sample taken late (at 0.27, the first step after 0.2) keeps the grid: next at 0.3
-        c.sample(&mut s, 0.27, 0.5);
+        c.sample(&mut s, 0.27, &[0.5]);
         assert!((s.next_sample - 0.3).abs() < 1e-15);
     }
 
     /// A set-point step gives no derivative kick: the derivative acts on the measurement.
     #[test]
     fn a_set_point_step_gives_no_derivative_kick() {
-        let c = Controller {
+        let base = Pid {
             setpoint: Waveform::table(&[(0.0, 0.0), (0.15, 0.0), (0.1500001, 1.0)]),
             ..pid(0.0, 0.0, 5.0)
         };
+        let c = Controller::Pid(Box::new(base.clone()));
         let mut s = c.start();
         for k in 0..4 {
-            let u = c.sample(&mut s, k as f64 * 0.1, 0.0);
+            let u = c.sample(&mut s, k as f64 * 0.1, &[0.0]);
             assert_eq!(u, 0.0, "sample {k}");
         }
         // a measurement step does move it, through the filter when there is one
-        let u = c.sample(&mut s, 0.4, 0.1);
+        let u = c.sample(&mut s, 0.4, &[0.1]);
         assert!((u + 5.0 * 0.1 / 0.1).abs() < 1e-12, "{u}");
-        let f = Controller {
+        let f = Controller::Pid(Box::new(Pid {
             derivative_filter: 0.1,
-            ..c.clone()
-        };
+            ..base
+        }));
         let mut s = f.start();
-        f.sample(&mut s, 0.0, 0.0);
-        let u = f.sample(&mut s, 0.1, 0.1);
+        f.sample(&mut s, 0.0, &[0.0]);
+        let u = f.sample(&mut s, 0.1, &[0.1]);
         assert!((u + 5.0 * 0.1 / 0.2).abs() < 1e-12, "{u}");
     }
 
@@ -220,22 +254,23 @@ mod tests {
     /// saturated in the direction of the error; it integrates again once the error turns.
     #[test]
     fn the_integrator_does_not_wind_up_at_a_limit() {
-        let c = pid(1.0, 50.0, 0.0);
+        let p = pid(1.0, 50.0, 0.0);
+        let c = Controller::Pid(Box::new(p.clone()));
         let mut s = c.start();
         let mut frozen = None;
         for k in 0..50 {
             // the measurement stays at 0: the error 1 keeps pushing up
-            let u = c.sample(&mut s, k as f64 * 0.1, 0.0);
-            assert!((c.lower..=c.upper).contains(&u));
-            if u == c.upper {
+            let u = c.sample(&mut s, k as f64 * 0.1, &[0.0]);
+            assert!((p.lower..=p.upper).contains(&u));
+            if u == p.upper {
                 let i = *frozen.get_or_insert(s.integral);
                 assert_eq!(s.integral, i, "sample {k}");
             }
         }
         let i = frozen.expect("saturated");
-        assert!(i < c.upper + 50.0 * 0.1, "{i}");
+        assert!(i < p.upper + 50.0 * 0.1, "{i}");
         // the error reverses: the integral comes down at once
-        c.sample(&mut s, 5.0, 2.0);
+        c.sample(&mut s, 5.0, &[2.0]);
         assert!(s.integral < i);
     }
 
@@ -256,15 +291,15 @@ mod tests {
             mean.abs() < 0.03 && (var - 1.0).abs() < 0.05,
             "{mean} {var}"
         );
-        let noisy = Controller {
+        let noisy = Controller::Pid(Box::new(Pid {
             noise: 0.01,
             ..pid(1.0, 0.0, 0.0)
-        };
+        }));
         let (mut s1, mut s2) = (noisy.start(), noisy.start());
         assert_eq!(
-            noisy.sample(&mut s1, 0.0, 0.5),
-            noisy.sample(&mut s2, 0.0, 0.5)
+            noisy.sample(&mut s1, 0.0, &[0.5]),
+            noisy.sample(&mut s2, 0.0, &[0.5])
         );
-        assert_ne!(noisy.sample(&mut s1, 0.1, 0.5), 0.5);
+        assert_ne!(noisy.sample(&mut s1, 0.1, &[0.5]), 0.5);
     }
 }

@@ -3,6 +3,7 @@
 
 pub mod controller;
 pub mod linear;
+pub mod noise;
 pub mod observer;
 pub mod part;
 pub mod plan;
@@ -13,4 +14,5 @@ mod recorder;
 pub mod run;
 pub mod stability;
 pub mod state;
+pub mod state_feedback;
 pub mod statics;

@@ -404,7 +404,7 @@ impl<'p, 'o> Job<'p, 'o> {
             let state = &mut self.state.controllers[l.state];
             if let Some(p) = probes {
                 if c.due(state, t) {
-                    c.sample(state, t, p[c.probe]);
+                    c.sample(state, t, p);
                 }
             }
             self.held.set(l.drive, state.output);
