@@ -112,7 +112,8 @@ weight = 100.0
 }
 
 /// The vibrating film with two Maxwell branches beside its Kelvin–Voigt viscosity, integrated
-/// by `integrator`: the branches evolve at every time step.
+/// by `integrator`: the branches evolve at every time step; its density reaches J through the
+/// mass.
 fn vibrating_viscoelastic_film(integrator: &str) -> GradientReport {
     let dir = tempfile::tempdir().unwrap();
     let base = deasim::io::examples::example("film-vibration").unwrap();
@@ -126,6 +127,8 @@ fn vibrating_viscoelastic_film(integrator: &str) -> GradientReport {
         r#"
 [[parameters]]
 path = "materials.elastomer.viscosity"
+[[parameters]]
+path = "materials.elastomer.density"
 [[parameters]]
 path = "electrodes.top.voltage.amplitude"
 
@@ -178,7 +181,8 @@ fn a_viscoelastic_film_vibrating_newmark() {
 /// branches): stretched in real time and held while the branches relax (a timed pre-stretch),
 /// the mass hung in a static stage of real time, then 20 ms of the square wave (midpoint). The
 /// objective reads the pad's deflection through the dynamic stage; the parameters reach it
-/// through every phase.
+/// through every phase (the density through the membrane's weight in the static stage and its
+/// mass and weight in the dynamic one).
 #[test]
 fn the_viscoelastic_diaphragm_through_its_timed_prestretch() {
     let dir = tempfile::tempdir().unwrap();
@@ -197,6 +201,8 @@ path = "materials.vhb.branches.0.mu"
 path = "materials.vhb.branches.2.tau"
 [[parameters]]
 path = "materials.vhb.viscosity"
+[[parameters]]
+path = "materials.vhb.density"
 [[parameters]]
 path = "loads.rigid.0.mass"
 [[parameters]]

@@ -33,6 +33,7 @@ use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
 use crate::problem::step::{cell_products, viscosity_vjp, StepOperator};
 use crate::time::integrator::{Scheme, TimeLevel, TimeStep};
+use crate::time::mass::NodalMass;
 use crate::time::stage::{projection_model, step_model, Method};
 
 /// The cotangents ∂J/∂· of a time level's positions, velocities and accelerations (4 values
@@ -95,6 +96,9 @@ pub(super) fn commit_adjoint(
 /// to each step's point.
 struct Stage<'a, 'm> {
     dynamics: &'a TapedDynamics,
+    /// ∂M/∂ρ of each material whose density is asked for (its index, the mass of its cells at
+    /// unit density).
+    unit_masses: Vec<(usize, NodalMass)>,
     drive: &'a Drive,
     scheme: Scheme,
     step_model: &'m Model,
@@ -150,8 +154,22 @@ pub fn sweep(
     let mut projection = StaticProblem::new(&projection_model, Some(st.start.clone()));
     projection.set_drive(Drive::held(&projection_model));
     projection.set_load(1.0);
+    let kind = match stage.kind {
+        crate::job::plan::StageKind::Dynamic { mass, .. } => mass,
+        _ => return Err(format!("stage `{}` is not dynamic", stage.name)),
+    };
+    let unit_masses = sink
+        .densities()
+        .into_iter()
+        .map(|m| {
+            let mut unit = vec![0.0; step_model.materials.len()];
+            unit[m] = 1.0;
+            (m, NodalMass::new(&step_model, &unit, kind))
+        })
+        .collect();
     let mut s = Stage {
         dynamics,
+        unit_masses,
         drive: &st.drive,
         scheme,
         waveform: waveform_dofs(&st.drive, n),
@@ -277,8 +295,11 @@ fn step_adjoint(
     for (i, node) in sink_rigid(sink) {
         sink.rigid_mass(i, -step.point_mass_vjp(&lambda, node));
     }
+    for (m, unit) in &s.unit_masses {
+        sink.density(*m, -step.mass_vjp(&lambda, unit));
+    }
     let factor = step.residual_factor();
-    sink.rigid_weight(&free_weights(&step.dofs, &lambda), factor);
+    sink.weights(&free_weights(&step.dofs, &lambda), factor);
     for m in sink_viscous(sink) {
         let p = step.viscosity_vjp(&lambda, m)?;
         sink.viscosity(m, -p);
@@ -442,7 +463,12 @@ fn newmark_start_adjoint(
             .sum();
         sink.rigid_mass(i, -p);
     }
-    sink.rigid_weight(&z, 1.0);
+    for (m, unit) in &s.unit_masses {
+        let mut ma = vec![0.0; n];
+        unit.mul(&initial.a, &mut ma);
+        sink.density(*m, -z.iter().zip(&ma).map(|(a, b)| a * b).sum::<f64>());
+    }
+    sink.weights(&z, 1.0);
     // the start's potential, projected at its time
     let mut out = vec![0.0; n];
     projection_adjoint(s, &initial.q, &cq, initial.t, &mut out, sink)?;

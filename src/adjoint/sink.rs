@@ -34,6 +34,9 @@ pub struct Sink<'a> {
     materials: Vec<usize>,
     /// dJ/dp, in the order of `parameters`.
     pub grad: Vec<f64>,
+    /// For each material whose density is asked for, the nodal weight per unit density
+    /// ∂f_w/∂ρ (N per kg/m³, 4 values per node; empty for the others).
+    unit_weights: Vec<Vec<f64>>,
 }
 
 impl<'a> Sink<'a> {
@@ -68,6 +71,20 @@ impl<'a> Sink<'a> {
                     })
             })
             .collect();
+        let mut unit_weights = vec![Vec::new(); plan.model.materials.len()];
+        for (_, p) in parameters {
+            if let Parameter::Density {
+                material_index: m,
+                value,
+                ..
+            } = p
+            {
+                // the body force ρg of the material, per unit density
+                let mut w = plan.model.body_forces_of(|k| k == *m);
+                w.iter_mut().for_each(|x| *x /= value);
+                unit_weights[*m] = w;
+            }
+        }
         Sink {
             plan,
             stage: 0,
@@ -75,6 +92,7 @@ impl<'a> Sink<'a> {
             parameters,
             materials,
             grad: vec![0.0; parameters.len()],
+            unit_weights,
         }
     }
 
@@ -166,18 +184,51 @@ impl<'a> Sink<'a> {
         }
     }
 
-    /// dJ/dm −= λᵀ∂R/∂m for the masses of the rigid pads through their weights, a dead load
-    /// −`factor` · m·g in R at each pad's first node; `w` is λ over every dof (unscaled).
-    pub fn rigid_weight(&mut self, w: &[f64], factor: f64) {
+    /// dJ/dp −= λᵀ∂R/∂p through the weights, dead loads −`factor`·f_w in R: for the masses m
+    /// of the rigid pads (f_w = m·g at each pad's first node) and the densities ρ of the
+    /// materials (f_w the consistent nodal forces of ρg over the material's cells); `w` is λ
+    /// over every dof (unscaled).
+    pub fn weights(&mut self, w: &[f64], factor: f64) {
         for i in 0..self.parameters.len() {
-            let Parameter::RigidMass { index, .. } = self.parameters[i].1 else {
-                continue;
-            };
-            let r = &self.plan.rigid[index];
-            let node = r.nodes[0];
-            let p: f64 = (0..3).map(|k| w[node * FIELDS + k] * r.gravity[k]).sum();
-            self.grad[i] += factor * p / self.plan.symmetry_factor;
+            match self.parameters[i].1 {
+                Parameter::RigidMass { index, .. } => {
+                    let r = &self.plan.rigid[index];
+                    let node = r.nodes[0];
+                    let p: f64 = (0..3).map(|k| w[node * FIELDS + k] * r.gravity[k]).sum();
+                    self.grad[i] += factor * p / self.plan.symmetry_factor;
+                }
+                Parameter::Density { material_index, .. } => {
+                    let unit = &self.unit_weights[material_index];
+                    let p: f64 = unit.iter().zip(w).map(|(a, b)| a * b).sum();
+                    self.grad[i] += factor * p;
+                }
+                _ => {}
+            }
         }
+    }
+
+    /// dJ/dρ += `product` for the density of material `m`.
+    pub fn density(&mut self, m: usize, product: f64) {
+        for (i, (_, p)) in self.parameters.iter().enumerate() {
+            if matches!(p, Parameter::Density { material_index, .. } if *material_index == m) {
+                self.grad[i] += product;
+            }
+        }
+    }
+
+    /// The materials whose density is asked for.
+    pub fn densities(&self) -> Vec<usize> {
+        let mut m: Vec<usize> = self
+            .parameters
+            .iter()
+            .filter_map(|(_, p)| match p {
+                Parameter::Density { material_index, .. } => Some(*material_index),
+                _ => None,
+            })
+            .collect();
+        m.sort_unstable();
+        m.dedup();
+        m
     }
 
     /// The node that carries the mass of rigid pad `index`.

@@ -50,13 +50,15 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
             } => {}
             StageKind::Dynamic { .. } => {
                 return Err(format!(
-                    "stage `{}`: the adjoint of the explicit trapezoidal scheme is not built;                      gradients cover the midpoint and Newmark schemes",
+                    "stage `{}`: the adjoint of the explicit trapezoidal scheme is not built; \
+                     gradients cover the midpoint and Newmark schemes",
                     s.name
                 ))
             }
             StageKind::Continuation { .. } => {
                 return Err(format!(
-                    "stage `{}`: the adjoint of continuation stages is not built; gradients                      cover static, quasi-static and dynamic stages",
+                    "stage `{}`: the adjoint of continuation stages is not built; gradients \
+                     cover static, quasi-static and dynamic stages",
                     s.name
                 ))
             }
@@ -87,12 +89,13 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
             | Parameter::Voltage { source: false, .. }
             | Parameter::RigidMass { .. }
             | Parameter::Viscosity { .. }
+            | Parameter::Density { .. }
             | Parameter::Prestretch { .. } => {}
             _ => {
                 return Err(format!(
                     "parameter `{path}`: its derivative is not built yet; gradients cover the \
-                     materials' parameters and viscosities, the electrodes' voltage amplitudes \
-                     and offsets, the rigid pads' masses and the pre-stretch"
+                     materials' parameters, viscosities and densities, the electrodes' voltage \
+                     amplitudes and offsets, the rigid pads' masses and the pre-stretch"
                 ))
             }
         }
@@ -386,7 +389,7 @@ fn load_steps(
         if !prestretch {
             // (the pre-stretch hangs no weight: its model has no dead loads)
             let dead = problem.drive().dead_loads.at(step.load);
-            sink.rigid_weight(&free_weights(&problem.dofs, &lambda), dead);
+            sink.weights(&free_weights(&problem.dofs, &lambda), dead);
         }
         let lv = problem.level_vjp(&lambda)?;
         before_bar

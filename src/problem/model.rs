@@ -663,6 +663,18 @@ impl Model {
     /// Consistent nodal forces (N, `FIELDS` per node) of the body and point forces of a model at
     /// full value: the loads with a potential energy −f·u (gravity on the body and attached masses).
     pub fn weight_forces(&self) -> Vec<f64> {
+        let mut out = self.body_forces_of(|_| true);
+        for &(node, f) in &self.point_forces {
+            for i in 0..3 {
+                out[node * FIELDS + i] += f[i];
+            }
+        }
+        out
+    }
+
+    /// Consistent nodal forces (N, `FIELDS` per node) of the body force of the cells whose
+    /// material `of` accepts, at full value.
+    pub fn body_forces_of(&self, of: impl Fn(usize) -> bool) -> Vec<f64> {
         let model = self;
         let mesh = &model.mesh;
         let mut out = vec![0.0; mesh.n_nodes() * FIELDS];
@@ -670,7 +682,8 @@ impl Model {
             let npc = mesh.kind.nodes_per_cell();
             let mut x = vec![[0.0; 3]; npc];
             for c in 0..mesh.n_cells() {
-                let Some(b) = model.body_force.get(model.cell_material[c]) else {
+                let m = model.cell_material[c];
+                let Some(b) = model.body_force.get(m).filter(|_| of(m)) else {
                     continue;
                 };
                 mesh.cell_coords_into(c, &mut x);
@@ -686,11 +699,6 @@ impl Model {
                         out[node * FIELDS + i] += w * b[i];
                     }
                 }
-            }
-        }
-        for &(node, f) in &model.point_forces {
-            for i in 0..3 {
-                out[node * FIELDS + i] += f[i];
             }
         }
         out

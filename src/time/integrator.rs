@@ -191,6 +191,16 @@ impl<'m> TimeStep<'m> {
             .sum()
     }
 
+    /// wᵀ(∂R/∂M)·`mass` of the step residual along a mass matrix (the derivative of the mass
+    /// in a density, kg per kg/m³): the inertia term's M·m with `mass` for M.
+    pub fn mass_vjp(&self, w: &[f64], mass: &NodalMass) -> f64 {
+        let weights = free_weights(&self.dofs, w);
+        let m: Vec<f64> = (0..self.q.len()).map(|d| self.inertia_term(d)).collect();
+        let mut y = vec![0.0; m.len()];
+        mass.mul(&m, &mut y);
+        weights.iter().zip(&y).map(|(a, b)| a * b).sum()
+    }
+
     /// wᵀ∂R/∂η of the step residual in the Kelvin–Voigt viscosity of material `material`
     /// (Pa·s): the viscous forces enter with the factor of the internal forces at the
     /// evaluation point and velocity.

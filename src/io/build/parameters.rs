@@ -182,6 +182,13 @@ pub enum Parameter {
         material_index: usize,
         value: f64,
     },
+    /// The density ρ₀ of a material (kg/m³, per reference volume), by its index in the plan:
+    /// its mass and its weight.
+    Density {
+        material: String,
+        material_index: usize,
+        value: f64,
+    },
     /// The pre-stretch λ.
     Prestretch { value: f64 },
 }
@@ -196,6 +203,7 @@ impl Parameter {
             | Parameter::Resistance { value, .. }
             | Parameter::RigidMass { value, .. }
             | Parameter::Viscosity { value, .. }
+            | Parameter::Density { value, .. }
             | Parameter::Prestretch { value } => *value,
         }
     }
@@ -224,6 +232,24 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
                 format!(
                     "material `{name}` has no Kelvin–Voigt viscosity to differentiate: give \
                      `materials.{name}.viscosity` a value > 0"
+                ),
+            ));
+        }
+    }
+    if let ["materials", name, "density"] = parts.as_slice() {
+        if let Some(material_index) = s.materials.keys().position(|n| n == name) {
+            let value = s.materials[*name].density.unwrap_or(0.0);
+            if value > 0.0 {
+                return Ok(Parameter::Density {
+                    material: name.to_string(),
+                    material_index,
+                    value,
+                });
+            }
+            return Err(ctx.err(
+                key,
+                format!(
+                    "material `{name}` has no density to differentiate: give                      `materials.{name}.density` a value > 0"
                 ),
             ));
         }
@@ -396,6 +422,18 @@ mod tests {
         // Ogden's lists by index
         let k = at(TWO, "materials.gel.alpha.1").unwrap();
         assert_eq!((k.material_index, k.entry, k.value), (0, 3, 4.0));
+        // a density is a parameter of its own (the mass and the weight, not the energy)
+        let s = scenario(&[("materials", TWO)]);
+        assert_eq!(
+            parameter(&s, FILE, "materials.gel.density").unwrap(),
+            Parameter::Density {
+                material: "gel".into(),
+                material_index: 0,
+                value: 1000.0
+            }
+        );
+        let e = parameter(&s, FILE, "materials.vhb.density").unwrap_err();
+        assert!(e.to_string().contains("no density to differentiate"), "{e}");
         // the entry is the material's θ entry
         let mats = super::super::materials(&scenario(&[("materials", TWO)]), FILE).unwrap();
         let theta = mats[1].parameters().unwrap();
