@@ -641,3 +641,88 @@ weight = 1e10
     assert_checked(&r, 1e-6);
     assert_controls_checked(&r, 1e-6);
 }
+
+/// The film under charge control (`film-charge`, its charge ramped by a static stage, on a
+/// 2 × 2 × 1 mesh to 60 % of its charge, before the voltage maximum): the derivatives in the
+/// charge, μ and εᵣ through the tied potential of the electrode.
+#[test]
+fn a_charge_controlled_film() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = deasim::io::examples::example("film-charge").unwrap();
+    let text = format!(
+        "{base}\n{}",
+        r#"
+[[parameters]]
+path = "electrodes.top.charge"
+[[parameters]]
+path = "materials.elastomer.mu"
+[[parameters]]
+path = "materials.elastomer.permittivity"
+
+[[objective]]
+kind = "probe-final"
+probe = "thickness_stretch"
+target = 0.8
+weight = 100.0
+"#
+    );
+    let r = Simulation::from_toml(&text, Some(dir.path()))
+        .with_overrides(&[
+            "mesh.divisions=[2, 2, 1]".into(),
+            "electrodes.top.charge=1.0e-6".into(),
+            "stages.0.steps=10".into(),
+            "solver.newton_rtol=1e-13".into(),
+        ])
+        .gradient(&GradientOptions {
+            check: true,
+            ..Default::default()
+        })
+        .unwrap();
+    assert!(r.objective > 0.0);
+    assert_checked(&r, 1e-6);
+}
+
+/// The vibrating film under charge control: its top electrode holds a charge (the midpoint
+/// scheme's projection holds it too) while the film vibrates.
+#[test]
+fn a_charge_controlled_film_vibrating() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = deasim::io::examples::example("film-vibration").unwrap();
+    let text = format!(
+        "{base}\n{}",
+        r#"
+[[parameters]]
+path = "electrodes.top.charge"
+[[parameters]]
+path = "materials.elastomer.mu"
+[[parameters]]
+path = "materials.elastomer.viscosity"
+
+[[objective]]
+kind = "probe-final"
+probe = "thickness_stretch"
+target = 0.9
+weight = 100.0
+"#
+    );
+    for integrator in ["midpoint", "newmark"] {
+        let r = Simulation::from_toml(&text, Some(dir.path()))
+            .with_overrides(&[
+                "mesh.divisions=[2, 2, 1]".into(),
+                "electrodes.top.voltage=0.0".into(),
+                "electrodes.top.charge=1.4e-7".into(),
+                "stages.0.duration=4e-3".into(),
+                "stages.0.dt=2e-4".into(),
+                format!("stages.0.integrator=\"{integrator}\""),
+                "materials.elastomer.viscosity=50.0".into(),
+                "solver.newton_rtol=1e-13".into(),
+            ])
+            .gradient(&GradientOptions {
+                check: true,
+                ..Default::default()
+            })
+            .unwrap();
+        assert!(r.objective > 0.0, "{integrator}");
+        assert_checked(&r, 1e-6);
+    }
+}

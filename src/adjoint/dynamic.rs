@@ -389,6 +389,10 @@ fn projection_adjoint(
     problem.state.copy_from_slice(q);
     let mu = solve_adjoint(problem, g)?;
     sink.step_materials(problem, &mu)?;
+    // the charges held on charge-controlled electrodes (the weights act on the held
+    // displacements, whose entries of μ are zero)
+    let dead = problem.drive().dead_loads.at(1.0);
+    sink.weights(&free_weights(&problem.dofs, &mu), dead);
     let lv = problem.level_vjp(&mu)?;
     for (d, &e) in problem.dofs.eq.iter().enumerate() {
         let a = g[d] - lv.q_new[d];

@@ -184,10 +184,11 @@ impl<'a> Sink<'a> {
         }
     }
 
-    /// dJ/dp −= λᵀ∂R/∂p through the weights, dead loads −`factor`·f_w in R: for the masses m
-    /// of the rigid pads (f_w = m·g at each pad's first node) and the densities ρ of the
-    /// materials (f_w the consistent nodal forces of ρg over the material's cells); `w` is λ
-    /// over every dof (unscaled).
+    /// dJ/dp −= λᵀ∂R/∂p through the dead loads −`factor`·f_w in R: for the masses m of the
+    /// rigid pads (f_w = m·g at each pad's first node), the densities ρ of the materials (f_w
+    /// the consistent nodal forces of ρg over the material's cells) and the charges of
+    /// charge-controlled electrodes (f_w = −Q on the electrode's potential); `w` is λ over
+    /// every dof (unscaled).
     pub fn weights(&mut self, w: &[f64], factor: f64) {
         for i in 0..self.parameters.len() {
             match self.parameters[i].1 {
@@ -201,6 +202,14 @@ impl<'a> Sink<'a> {
                     let unit = &self.unit_weights[material_index];
                     let p: f64 = unit.iter().zip(w).map(|(a, b)| a * b).sum();
                     self.grad[i] += factor * p;
+                }
+                Parameter::Charge { ref electrode, .. } => {
+                    // the free charge Q/(symmetry) on the electrode's potential unknown (its
+                    // first node), a dead load −Q on the Φ equation
+                    if let Some(e) = self.plan.electrodes.iter().find(|e| &e.name == electrode) {
+                        let d = e.nodes[0] * FIELDS + crate::problem::dofs::PHI;
+                        self.grad[i] -= factor * w[d] / self.plan.symmetry_factor;
+                    }
                 }
                 _ => {}
             }

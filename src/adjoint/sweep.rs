@@ -80,9 +80,6 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
     {
         return Err("the adjoint of volume-controlled pressures is not built yet".into());
     }
-    if plan.electrodes.iter().any(|e| e.charge.is_some()) {
-        return Err("the adjoint of charge-controlled electrodes is not built yet".into());
-    }
     for (path, p) in parameters {
         match p {
             Parameter::Material(_)
@@ -90,6 +87,7 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
             | Parameter::RigidMass { .. }
             | Parameter::Viscosity { .. }
             | Parameter::Density { .. }
+            | Parameter::Charge { .. }
             | Parameter::Prestretch { .. } => {}
             _ => {
                 return Err(format!(
