@@ -3,6 +3,8 @@
 
 use deasim::api::{RunOptions, Simulation};
 
+mod common;
+
 /// The diaphragm with its dynamic stage cut to `duration` s and `extra` appended.
 fn diaphragm(duration: f64, extra: &str) -> String {
     let base = deasim::io::examples::example("diaphragm").unwrap();
@@ -118,6 +120,58 @@ weight = 1e6
     assert!((mass / 0.04622 - 1.0).abs() < 1e-6, "{mass}");
     assert_eq!(cal.parameters[1].initial, 0.05);
     assert_eq!(cal.rms_by_term.len(), 1);
+    // the curve of the plots: the fitted run's deflection on the data at every step it reads
+    let c = &cal.curves[0];
+    assert_eq!(
+        (c.term.as_str(), c.probe.as_str()),
+        ("objective.0", "center_deflection")
+    );
+    assert_eq!(c.time.len(), 20);
+    assert!(c.time.windows(2).all(|w| w[1] > w[0]), "{:?}", c.time);
+    for (f, m) in c.fitted.iter().zip(&c.measured) {
+        assert!((f - m).abs() < 1e-9 * m.abs().max(1e-6), "{f} against {m}");
+    }
+}
+
+/// `deasim calibrate` on a scenario writes calibration.json, fitted.toml and the plots of the
+/// fit: the measured (here the target) against the fitted, the residuals, the correlations.
+#[test]
+fn the_command_writes_the_fit_and_its_plots() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = diaphragm(
+        0.002,
+        r#"
+[[parameters]]
+path = "materials.vhb.c10"
+lower = 1e3
+upper = 1e6
+scale = "log"
+
+[[objective]]
+kind = "probe-final"
+probe = "center_deflection"
+stage = "load"
+target = 2e-3
+weight = 1e6
+"#,
+    );
+    std::fs::write(dir.path().join("sag.toml"), text).unwrap();
+    let o = common::deasim(&["calibrate", "sag.toml", "--out", "out"], dir.path());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "calibration.json",
+        "fitted.toml",
+        "fit_objective_0.png",
+        "residuals.png",
+        "correlation.png",
+    ] {
+        let p = dir.path().join("out").join(f);
+        assert!(
+            p.metadata().is_ok_and(|m| m.len() > 100),
+            "{} missing or empty",
+            p.display()
+        );
+    }
 }
 
 /// Bad input names its key: no parameters, a term that is no probe term, an unknown scale, a

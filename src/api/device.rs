@@ -23,6 +23,21 @@ pub struct FittedParameter {
     pub ci95: [f64; 2],
 }
 
+/// A probe term's measured and fitted values at the steps it reads, at the fitted parameters:
+/// what the plots of a device fit draw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitCurve {
+    /// The term (`objective.<i>`) and its probe.
+    pub term: String,
+    pub probe: String,
+    /// The run's clock (s) at each reading, the target there (the data interpolated, or the
+    /// target value) and the fitted model's probe value (less its value at the stage's start
+    /// for a relative term).
+    pub time: Vec<f64>,
+    pub measured: Vec<f64>,
+    pub fitted: Vec<f64>,
+}
+
 /// The outcome of [`Simulation::calibrate_device`].
 #[derive(Debug, Clone)]
 pub struct DeviceCalibration {
@@ -38,6 +53,8 @@ pub struct DeviceCalibration {
     pub warnings: Vec<String>,
     /// `fitted.toml`: the scenario with the fitted values.
     pub fitted: String,
+    /// Each probe term's measured and fitted values.
+    pub curves: Vec<FitCurve>,
 }
 
 impl DeviceCalibration {
@@ -191,7 +208,9 @@ impl Simulation {
                 format!("the fit did not converge: {}", fitted.stop.describe()),
             );
         }
+        let curves = self.fit_curves(&fitted.theta, &params, &names)?;
         Ok(DeviceCalibration {
+            curves,
             parameters: params
                 .iter()
                 .enumerate()
@@ -212,6 +231,48 @@ impl Simulation {
             warnings,
             fitted: fitted_text.scenario_toml(|_| {})?,
         })
+    }
+
+    /// The readings of each probe term of the objective at θ (one run): its [`FitCurve`].
+    fn fit_curves(
+        &self,
+        theta: &[f64],
+        params: &[FitParameter],
+        names: &[String],
+    ) -> Result<Vec<FitCurve>, Error> {
+        let mut sim = self.clone();
+        for (p, v) in params.iter().zip(theta) {
+            sim = sim.set(&p.path, &format!("{v:e}"));
+        }
+        let scenario = sim.scenario()?;
+        let plan = sim.plan()?;
+        let objective = Objective::build(&scenario, &plan, &sim.name, sim.base.as_deref())
+            .map_err(Error::Input)?;
+        let tape = taped_run(&plan)?;
+        let eval = objective.evaluate(&plan, &tape).map_err(Error::Refused)?;
+        let mut curves: Vec<FitCurve> = names
+            .iter()
+            .zip(&objective.terms)
+            .map(|(name, t)| FitCurve {
+                term: name.clone(),
+                probe: match t {
+                    Term::ProbeFinal { probe, .. } | Term::ProbeMisfit { probe, .. } => {
+                        plan.probes[*probe].0.clone()
+                    }
+                    _ => String::new(),
+                },
+                time: Vec::new(),
+                measured: Vec::new(),
+                fitted: Vec::new(),
+            })
+            .collect();
+        for r in &eval.readings {
+            let c = &mut curves[r.term];
+            c.time.push(r.time);
+            c.measured.push(r.target);
+            c.fitted.push(r.value);
+        }
+        Ok(curves)
     }
 
     /// The residual blocks (one per objective term) and their Jacobians at θ: one run, then one

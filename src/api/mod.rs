@@ -19,7 +19,7 @@ pub use crate::calibrate::{
 };
 pub use crate::control::Iteration as ControlIteration;
 pub use control::{ControlOptions, Drive, ObjectiveTape, OptimalControl};
-pub use device::{DeviceCalibration, FittedParameter};
+pub use device::{DeviceCalibration, FitCurve, FittedParameter};
 pub use error::Error;
 pub use gradient::{ControlReport, GradientOptions, GradientReport, ParameterGradient, TaylorTest};
 pub use linear::{

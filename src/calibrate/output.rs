@@ -200,15 +200,24 @@ pub fn write(c: &Calibration, dir: &Path) -> Result<(), String> {
         },
     )
     .map_err(|e| e.to_string())?;
-    let n = c.parameters.len();
-    let corr_series: Vec<Series> = c
-        .parameters
+    let names: Vec<&str> = c.parameters.iter().map(|p| p.path.as_str()).collect();
+    correlation_plot(dir, &names, &c.correlation)
+}
+
+/// `correlation.png`: the correlation matrix of the fitted parameters `names`, a curve per row.
+pub fn correlation_plot(
+    dir: &Path,
+    names: &[&str],
+    correlation: &[Vec<f64>],
+) -> Result<(), String> {
+    let n = names.len();
+    let series: Vec<Series> = names
         .iter()
-        .enumerate()
-        .map(|(a, p)| Series {
-            label: p.path.clone(),
+        .zip(correlation)
+        .map(|(name, row)| Series {
+            label: name.to_string(),
             x: (1..=n).map(|i| i as f64).collect(),
-            y: c.correlation[a].clone(),
+            y: row.clone(),
         })
         .collect();
     line_plot(
@@ -217,11 +226,10 @@ pub fn write(c: &Calibration, dir: &Path) -> Result<(), String> {
             title: "correlation of the fitted parameters (row per parameter)",
             x_label: "parameter number [-]",
             y_label: "correlation [-]",
-            series: &corr_series,
+            series: &series,
         },
     )
-    .map_err(|e| e.to_string())?;
-    Ok(())
+    .map_err(|e| e.to_string())
 }
 
 /// The table on the terminal.

@@ -100,6 +100,7 @@ fn device(args: &CalibrateArgs, dir: &Path) -> i32 {
         crate::io::atomic::write_atomic(&path, json.as_bytes()).map_err(|e| io(&path, e))?;
         let path = dir.join("fitted.toml");
         crate::io::atomic::write_atomic(&path, cal.fitted.as_bytes()).map_err(|e| io(&path, e))?;
+        device_plots(&cal, dir).map_err(|e| io(dir, std::io::Error::other(e)))?;
         Ok(())
     };
     if let Err(e) = write() {
@@ -137,4 +138,67 @@ fn device(args: &CalibrateArgs, dir: &Path) -> i32 {
     }
     println!("results in {}", dir.display());
     EXIT_OK
+}
+
+/// The plots of a device fit: for each probe term the measured values against the fitted run's
+/// (`fit_objective_<i>.png`, over the run's clock), the residuals of every term, and the
+/// parameters' correlations.
+fn device_plots(cal: &crate::api::DeviceCalibration, dir: &Path) -> Result<(), String> {
+    use crate::io::plot::{line_plot, PlotSpec, Series};
+    let mut residuals = Vec::new();
+    for c in cal.curves.iter().filter(|c| !c.time.is_empty()) {
+        let rms = cal
+            .rms_by_term
+            .iter()
+            .find(|(n, _)| *n == c.term)
+            .map_or(f64::NAN, |r| r.1);
+        let title = format!("{} ({}): RMS {rms:.4e}", c.term, c.probe);
+        let y_label = format!("{} [probe unit]", c.probe);
+        let single = c.time.len() == 1;
+        let series = [
+            Series {
+                label: if single { "target" } else { "measured" }.into(),
+                x: c.time.clone(),
+                y: c.measured.clone(),
+            },
+            Series {
+                label: "fitted model".into(),
+                x: c.time.clone(),
+                y: c.fitted.clone(),
+            },
+        ];
+        line_plot(
+            &dir.join(format!("fit_{}.png", c.term.replace('.', "_"))),
+            &PlotSpec {
+                title: &title,
+                x_label: "time [s]",
+                y_label: &y_label,
+                series: &series,
+            },
+        )
+        .map_err(|e| e.to_string())?;
+        residuals.push(Series {
+            label: c.term.clone(),
+            x: c.time.clone(),
+            y: c.fitted
+                .iter()
+                .zip(&c.measured)
+                .map(|(f, m)| f - m)
+                .collect(),
+        });
+    }
+    if !residuals.is_empty() {
+        line_plot(
+            &dir.join("residuals.png"),
+            &PlotSpec {
+                title: "residuals (model − measured)",
+                x_label: "time [s]",
+                y_label: "residual [probe unit]",
+                series: &residuals,
+            },
+        )
+        .map_err(|e| e.to_string())?;
+    }
+    let names: Vec<&str> = cal.parameters.iter().map(|p| p.path.as_str()).collect();
+    crate::calibrate::output::correlation_plot(dir, &names, &cal.correlation)
 }
