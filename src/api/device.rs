@@ -233,13 +233,20 @@ impl Simulation {
         })
     }
 
-    /// The readings of each probe term of the objective at θ (one run): its [`FitCurve`].
-    fn fit_curves(
+    /// The simulation with the parameters at θ, its scenario, plan and objective.
+    fn at(
         &self,
         theta: &[f64],
         params: &[FitParameter],
-        names: &[String],
-    ) -> Result<Vec<FitCurve>, Error> {
+    ) -> Result<
+        (
+            Simulation,
+            crate::io::scenario::Scenario,
+            crate::job::plan::Plan,
+            Objective,
+        ),
+        Error,
+    > {
         let mut sim = self.clone();
         for (p, v) in params.iter().zip(theta) {
             sim = sim.set(&p.path, &format!("{v:e}"));
@@ -248,6 +255,17 @@ impl Simulation {
         let plan = sim.plan()?;
         let objective = Objective::build(&scenario, &plan, &sim.name, sim.base.as_deref())
             .map_err(Error::Input)?;
+        Ok((sim, scenario, plan, objective))
+    }
+
+    /// The readings of each probe term of the objective at θ (one run): its [`FitCurve`].
+    fn fit_curves(
+        &self,
+        theta: &[f64],
+        params: &[FitParameter],
+        names: &[String],
+    ) -> Result<Vec<FitCurve>, Error> {
+        let (_, _, plan, objective) = self.at(theta, params)?;
         let tape = taped_run(&plan)?;
         let eval = objective.evaluate(&plan, &tape).map_err(Error::Refused)?;
         let mut curves: Vec<FitCurve> = names
@@ -284,14 +302,7 @@ impl Simulation {
         params: &[FitParameter],
         names: &[String],
     ) -> Result<Vec<Block>, Error> {
-        let mut sim = self.clone();
-        for (p, v) in params.iter().zip(theta) {
-            sim = sim.set(&p.path, &format!("{v:e}"));
-        }
-        let scenario = sim.scenario()?;
-        let plan = sim.plan()?;
-        let objective = Objective::build(&scenario, &plan, &sim.name, sim.base.as_deref())
-            .map_err(Error::Input)?;
+        let (sim, scenario, plan, objective) = self.at(theta, params)?;
         let mut parameters = Vec::new();
         for p in params {
             parameters.push((

@@ -217,39 +217,35 @@ impl Parameter {
 pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, InputError> {
     let ctx = Ctx::plain(file);
     let parts: Vec<&str> = key.split('.').collect();
-    if let ["materials", name, "viscosity"] = parts.as_slice() {
+    // a material's viscosity and density: scalars of the plan beside its energy, each
+    // differentiable where it is positive
+    if let ["materials", name, which @ ("viscosity" | "density")] = parts.as_slice() {
         if let Some(material_index) = s.materials.keys().position(|n| n == name) {
-            let value = s.materials[*name].viscosity.unwrap_or(0.0);
+            let m = &s.materials[*name];
+            let (value, what) = match *which {
+                "viscosity" => (m.viscosity.unwrap_or(0.0), "Kelvin–Voigt viscosity"),
+                _ => (m.density.unwrap_or(0.0), "density"),
+            };
             if value > 0.0 {
-                return Ok(Parameter::Viscosity {
-                    material: name.to_string(),
-                    material_index,
-                    value,
+                let material = name.to_string();
+                return Ok(match *which {
+                    "viscosity" => Parameter::Viscosity {
+                        material,
+                        material_index,
+                        value,
+                    },
+                    _ => Parameter::Density {
+                        material,
+                        material_index,
+                        value,
+                    },
                 });
             }
             return Err(ctx.err(
                 key,
                 format!(
-                    "material `{name}` has no Kelvin–Voigt viscosity to differentiate: give \
-                     `materials.{name}.viscosity` a value > 0"
-                ),
-            ));
-        }
-    }
-    if let ["materials", name, "density"] = parts.as_slice() {
-        if let Some(material_index) = s.materials.keys().position(|n| n == name) {
-            let value = s.materials[*name].density.unwrap_or(0.0);
-            if value > 0.0 {
-                return Ok(Parameter::Density {
-                    material: name.to_string(),
-                    material_index,
-                    value,
-                });
-            }
-            return Err(ctx.err(
-                key,
-                format!(
-                    "material `{name}` has no density to differentiate: give                      `materials.{name}.density` a value > 0"
+                    "material `{name}` has no {what} to differentiate: give \
+                     `materials.{name}.{which}` a value > 0"
                 ),
             ));
         }
