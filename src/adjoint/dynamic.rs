@@ -20,7 +20,7 @@
 //! start q₀' projected onto electrostatic equilibrium: its adjoint z = M⁻¹ā₀ gives
 //! q̄₀' −= (∂f/∂q)ᵀz, v̄₀ −= (∂f/∂v)ᵀz and dJ/dp −= zᵀ∂f/∂p (−zᵀ(∂M/∂m)a₀ for a pad's mass).
 
-use super::lambda::solve_adjoint;
+use super::lambda::AdjointSolver;
 use super::sink::{waveform_dofs, Sink};
 use super::tape::{TapedDynamics, TapedStage};
 use crate::algebra::system::{LoadedSystem, NonlinearSystem};
@@ -107,6 +107,9 @@ struct Stage<'a, 'm> {
     waveform: Vec<usize>,
     /// Whether the stage's electrodes follow their waveforms (off: grounded).
     electrodes_on: bool,
+    /// The adjoint solves of the steps and of the projections, each reusing its factors.
+    step_solver: AdjointSolver,
+    projection_solver: AdjointSolver,
 }
 
 /// The adjoint of the dynamic stage `st` of a taped run: `state_grads[k]` and `velocity_grads[k]`
@@ -177,6 +180,8 @@ pub fn sweep(
         step,
         projection,
         electrodes_on: stage.electrodes_on,
+        step_solver: AdjointSolver::default(),
+        projection_solver: AdjointSolver::default(),
     };
     // the levels in stage time, as the integrator reached them
     let mut levels: Vec<TimeLevel> = Vec::with_capacity(st.steps.len());
@@ -290,7 +295,7 @@ fn step_adjoint(
             out.q[d] += 0.5 * x_bar[d];
         }
     }
-    let lambda = solve_adjoint(step, &cy)?;
+    let lambda = s.step_solver.solve(step, &cy)?;
     sink.step_materials(step, &lambda)?;
     for (i, node) in sink_rigid(sink) {
         sink.rigid_mass(i, -step.point_mass_vjp(&lambda, node));
@@ -387,7 +392,7 @@ fn projection_adjoint(
 ) -> Result<(), String> {
     let problem = &mut s.projection;
     problem.state.copy_from_slice(q);
-    let mu = solve_adjoint(problem, g)?;
+    let mu = s.projection_solver.solve(problem, g)?;
     sink.step_materials(problem, &mu)?;
     // the charges held on charge-controlled electrodes (the weights act on the held
     // displacements, whose entries of μ are zero)

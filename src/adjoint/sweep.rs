@@ -13,7 +13,7 @@
 //!   (·sₙ), to the stage's start state (·(1 − sₙ)), or to its waveform's parameters.
 
 use super::dynamic::{self, Cotangent};
-use super::lambda::solve_adjoint;
+use super::lambda::{solve_adjoint, AdjointSolver};
 use super::objective::Objective;
 use super::sink::{waveform_dofs, ControlGradient, Sink};
 use super::tape::{Tape, TapedStage};
@@ -345,6 +345,7 @@ fn load_steps(
     problem.duration = st.duration;
     // ∂J/∂ξ of the points the step being swept committed
     let mut points_bar = end.points.clone();
+    let mut solver = AdjointSolver::default();
     // the electrodes that follow their waveforms in stage time (quasi-static)
     let waveform_dof = waveform_dofs(&st.drive, n_dofs);
     let mut from = vec![0.0; n_dofs];
@@ -382,7 +383,7 @@ fn load_steps(
             sink,
         )?;
         g.iter_mut().zip(&x_bar).for_each(|(a, b)| *a += b);
-        let lambda = solve_adjoint(&mut problem, &g)?;
+        let lambda = solver.solve(&mut problem, &g)?;
         sink.step_materials(&mut problem, &lambda)?;
         if !prestretch {
             // (the pre-stretch hangs no weight: its model has no dead loads)

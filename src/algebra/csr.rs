@@ -113,6 +113,16 @@ impl CsrMatrix {
         }
     }
 
+    /// y = Aᵀ x.
+    pub fn mul_transposed(&self, x: &[f64], y: &mut [f64]) {
+        y[..self.n].fill(0.0);
+        for (i, &xi) in x.iter().enumerate().take(self.n) {
+            for p in self.row_ptr[i]..self.row_ptr[i + 1] {
+                y[self.col_idx[p] as usize] += self.values[p] * xi;
+            }
+        }
+    }
+
     /// y = A x, rows in parallel on the rayon pool when the matrix is large (each row is summed
     /// in the same order as by [`CsrMatrix::mul_vec`], so the result does not depend on threads).
     pub fn par_mul_vec(&self, x: &[f64], y: &mut [f64]) {
@@ -139,5 +149,25 @@ impl CsrMatrix {
     /// Number of stored entries.
     pub fn nnz(&self) -> usize {
         self.col_idx.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Aᵀx by the rows of A equals the product with the transposed dense matrix.
+    #[test]
+    fn the_transposed_product() {
+        // A = [[4, 1, 0], [2, 5, 1], [0, 3, 6]]
+        let a = CsrMatrix::from_usize(
+            3,
+            vec![0, 2, 5, 7],
+            vec![0, 1, 0, 1, 2, 1, 2],
+            vec![4.0, 1.0, 2.0, 5.0, 1.0, 3.0, 6.0],
+        );
+        let mut y = [9.0; 3];
+        a.mul_transposed(&[1.0, -2.0, 0.5], &mut y);
+        assert_eq!(y, [4.0 - 4.0, 1.0 - 10.0 + 1.5, -2.0 + 3.0]);
     }
 }

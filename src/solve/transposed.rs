@@ -28,6 +28,11 @@ impl TransposedLu {
         Ok(TransposedLu { lu, n: a.n })
     }
 
+    /// The order of the matrix.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
     /// Overwrites `b` with x, Aᵀx = b.
     pub fn solve_in_place(&self, b: &mut [f64]) {
         assert_eq!(b.len(), self.n, "right-hand side of the wrong length");
