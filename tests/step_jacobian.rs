@@ -337,7 +337,7 @@ fn parameter_error(plan: &Plan, scheme: Scheme) -> f64 {
     let mut worst = 0.0f64;
     for (mi, base) in model.materials.iter().enumerate() {
         let theta = base.parameters().unwrap().values;
-        let vjp = step.parameter_vjp(&w, mi).unwrap();
+        let vjp = step.parameter_vjp(&w, mi, None).unwrap();
         for k in 0..theta.len() {
             let h = 1e-5 * theta[k].abs().max(1e-12);
             let at = |sign: f64| {

@@ -459,7 +459,16 @@ fn newmark_start_adjoint(
         }
     }
     for m in sink.materials().to_vec() {
-        let vjp = crate::problem::statics::parameter_vjp(model, &initial.q, points, 0.0, m, &z)?;
+        let entries = sink.entries(m);
+        let vjp = crate::problem::statics::parameter_vjp(
+            model,
+            &initial.q,
+            points,
+            0.0,
+            m,
+            Some(&entries),
+            &z,
+        )?;
         sink.materials_product(m, &vjp, -1.0);
     }
     for m in sink_viscous(sink) {

@@ -108,7 +108,8 @@ impl<'a> Sink<'a> {
         lambda: &[f64],
     ) -> Result<(), String> {
         for m in self.materials.clone() {
-            let vjp = op.parameter_vjp(lambda, m)?;
+            let entries = self.entries(m);
+            let vjp = op.parameter_vjp(lambda, m, Some(&entries))?;
             self.materials_product(m, &vjp, -1.0);
         }
         Ok(())
@@ -124,6 +125,17 @@ impl<'a> Sink<'a> {
                 }
             }
         }
+    }
+
+    /// The entries of material `m`'s parameter vector that are asked for.
+    pub fn entries(&self, m: usize) -> Vec<usize> {
+        self.parameters
+            .iter()
+            .filter_map(|(_, p)| match p {
+                Parameter::Material(k) if k.material_index == m => Some(k.entry),
+                _ => None,
+            })
+            .collect()
     }
 
     /// The materials whose parameters are asked for.

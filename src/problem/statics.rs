@@ -402,6 +402,7 @@ pub fn parameter_forces(
     points: &PointStates,
     dt: f64,
     material: usize,
+    entries: Option<&[usize]>,
 ) -> Result<Vec<Vec<f64>>, String> {
     let base = model
         .materials
@@ -410,6 +411,9 @@ pub fn parameter_forces(
     let n = base.parameters().map_or(0, |p| p.values.len());
     (0..n)
         .map(|index| {
+            if entries.is_some_and(|e| !e.contains(&index)) {
+                return Ok(Vec::new());
+            }
             let derivative = ParameterDerivative {
                 base: base.clone(),
                 index,
@@ -420,19 +424,23 @@ pub fn parameter_forces(
 }
 
 /// wᵀ ∂f/∂θ of material `material` for `w` over every dof: the parameter vector–Jacobian product
-/// of the internal forces, one entry per parameter ([`parameter_forces`]).
+/// of the internal forces, one entry per parameter ([`parameter_forces`]; 0 at the entries
+/// `entries` leaves out).
 pub fn parameter_vjp(
     model: &Model,
     state: &[f64],
     points: &PointStates,
     dt: f64,
     material: usize,
+    entries: Option<&[usize]>,
     w: &[f64],
 ) -> Result<Vec<f64>, String> {
-    Ok(parameter_forces(model, state, points, dt, material)?
-        .iter()
-        .map(|f| f.iter().zip(w).map(|(a, b)| a * b).sum())
-        .collect())
+    Ok(
+        parameter_forces(model, state, points, dt, material, entries)?
+            .iter()
+            .map(|f| f.iter().zip(w).map(|(a, b)| a * b).sum())
+            .collect(),
+    )
 }
 
 /// From this many cells the record's pass over the cells runs on the pool (when it has more
@@ -829,13 +837,19 @@ impl StepOperator for StaticProblem<'_> {
 
     /// Only the internal forces depend on a material's parameters. The scaling of the unknowns
     /// (from the moduli) is held: a numerical choice, not part of the equations.
-    fn parameter_vjp(&mut self, w: &[f64], material: usize) -> Result<Vec<f64>, String> {
+    fn parameter_vjp(
+        &mut self,
+        w: &[f64],
+        material: usize,
+        entries: Option<&[usize]>,
+    ) -> Result<Vec<f64>, String> {
         parameter_vjp(
             self.model,
             &self.state,
             &self.points,
             self.dt(),
             material,
+            entries,
             &crate::problem::dofs::free_weights(&self.dofs, w),
         )
     }

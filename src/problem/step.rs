@@ -46,8 +46,14 @@ pub trait StepOperator: NonlinearSystem {
     /// residual): see [`LevelVjp`].
     fn level_vjp(&mut self, w: &[f64]) -> Result<LevelVjp, String>;
     /// wᵀ∂R/∂θ for the parameters of material `material` (in the order of
-    /// [`crate::material::Material::parameters`]), at the current iterate.
-    fn parameter_vjp(&mut self, w: &[f64], material: usize) -> Result<Vec<f64>, String>;
+    /// [`crate::material::Material::parameters`]), at the current iterate: every entry, or
+    /// only `entries` (the others 0; each entry costs a pass over the material's cells).
+    fn parameter_vjp(
+        &mut self,
+        w: &[f64],
+        material: usize,
+        entries: Option<&[usize]>,
+    ) -> Result<Vec<f64>, String>;
 }
 
 /// The transposed products of the cells' derivatives with a weight `w` over every dof, at a

@@ -615,7 +615,12 @@ impl StepOperator for TimeStep<'_> {
     /// internal forces enter R with the factor of the scheme (½Δt midpoint, βΔt² Newmark) at the
     /// evaluation point, and nothing else in R depends on a material parameter. The scaling of
     /// the unknowns (from the moduli) is held: a numerical choice, not part of the equations.
-    fn parameter_vjp(&mut self, w: &[f64], material: usize) -> Result<Vec<f64>, String> {
+    fn parameter_vjp(
+        &mut self,
+        w: &[f64],
+        material: usize,
+        entries: Option<&[usize]>,
+    ) -> Result<Vec<f64>, String> {
         self.evaluation_point();
         let f_r = match self.scheme {
             Scheme::Midpoint => 0.5 * self.dt,
@@ -631,6 +636,7 @@ impl StepOperator for TimeStep<'_> {
             &self.points,
             self.dt,
             material,
+            entries,
             &full,
         )
     }

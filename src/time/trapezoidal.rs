@@ -163,7 +163,12 @@ impl StepOperator for TrapezoidalStep<'_> {
         })
     }
 
-    fn parameter_vjp(&mut self, _w: &[f64], material: usize) -> Result<Vec<f64>, String> {
+    fn parameter_vjp(
+        &mut self,
+        _w: &[f64],
+        material: usize,
+        _entries: Option<&[usize]>,
+    ) -> Result<Vec<f64>, String> {
         let theta = self
             .model
             .materials
