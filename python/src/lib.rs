@@ -668,8 +668,9 @@ impl Scenario {
     /// Fits the scenario's `[[parameters]]` to its `[[objective]]` probe terms with the finite
     /// element run in the loop (as `deasim calibrate SCENARIO.toml`): the document of
     /// `calibration.json` (`parameters` with `initial`, `fitted`, `std_error`, `ci95`; `rms`,
-    /// `rms_by_experiment`, `correlation`, `iterations`, `converged`, `reason`, `warnings`) and
-    /// `fitted`, the text of `fitted.toml`.
+    /// `rms_by_experiment`, `correlation`, `iterations`, `converged`, `reason`, `warnings`),
+    /// `fitted`, the text of `fitted.toml`, and `curves`: per probe term its `term`, `probe`
+    /// and numpy columns `time`, `measured`, `fitted` (what the plots of the fit draw).
     fn calibrate<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let sim = self.sim.clone();
         let c = py
@@ -677,6 +678,17 @@ impl Scenario {
             .map_err(|e| to_py(py, e))?;
         let d = json_to_py(py, &c.to_json())?.cast_into::<PyDict>()?;
         d.set_item("fitted", &c.fitted)?;
+        let curves = PyList::empty(py);
+        for cv in &c.curves {
+            let x = PyDict::new(py);
+            x.set_item("term", &cv.term)?;
+            x.set_item("probe", &cv.probe)?;
+            x.set_item("time", column(py, &cv.time))?;
+            x.set_item("measured", column(py, &cv.measured))?;
+            x.set_item("fitted", column(py, &cv.fitted))?;
+            curves.append(x)?;
+        }
+        d.set_item("curves", curves)?;
         Ok(d)
     }
 

@@ -65,3 +65,8 @@ def test_device_calibration_equals_the_command_line(cli, tmp_path):
     assert fitted == doc["parameters"]["materials.vhb.c10"]["fitted"]
     assert abs(fitted / 17.85e3 - 1.0) < 5e-3
     assert r["converged"] and "c10 = " in r["fitted"]
+    (curve,) = r["curves"]
+    assert curve["term"] == "objective.0" and curve["probe"] == "center_deflection"
+    assert len(curve["time"]) == len(curve["fitted"]) == 1
+    assert abs(curve["fitted"][0] - curve["measured"][0]) < 1e-9
+    assert (tmp_path / "cal" / "fit_objective_0.png").exists()
