@@ -178,6 +178,10 @@ drive, a term or stage whose adjoint is not built)."
         /// Number of starts (replaces the spec's `fit.starts`).
         #[arg(long)]
         starts: Option<usize>,
+        /// Override a key of the spec or scenario (repeatable), e.g. `--set material.mu=2e4`,
+        /// `--set stages.1.duration=0.02`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
     },
     /// The material models with their parameters, and the presets; with a name, that preset's
     /// resolved parameters (the values a scenario's `preset = NAME` uses).
@@ -503,11 +507,13 @@ fn main() {
             out,
             overwrite,
             starts,
+            set,
         } => deasim::cli::calibrate::cmd_calibrate(&deasim::cli::calibrate::CalibrateArgs {
             spec,
             out,
             overwrite,
             starts,
+            set,
         }),
         Command::Materials { name } => deasim::cli::material::cmd_materials(name.as_deref()),
         Command::Material {

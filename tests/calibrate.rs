@@ -374,6 +374,44 @@ fn bad_specs_and_data_are_refused_with_the_file_key_or_line() {
         String::from_utf8_lossy(&o.stderr)
     );
 
+    // `--set` moves the start; a key the spec does not have is refused naming it
+    let o = deasim(
+        &[
+            "calibrate",
+            "spec.toml",
+            "--out",
+            "set",
+            "--set",
+            "material.mu=2.5e4",
+        ],
+        &dir,
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("set/calibration.json")).unwrap())
+            .unwrap();
+    assert_eq!(doc["parameters"]["material.mu"]["initial"], 2.5e4, "{doc}");
+    let o = deasim(
+        &[
+            "calibrate",
+            "spec.toml",
+            "--out",
+            "bad",
+            "--set",
+            "material.muu=2.5e4",
+        ],
+        &dir,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("material.muu"), "{err}");
+    assert!(!dir.join("bad").exists());
+
     refused(
         "cal-objective",
         &format!(

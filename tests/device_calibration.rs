@@ -156,8 +156,27 @@ weight = 1e6
 "#,
     );
     std::fs::write(dir.path().join("sag.toml"), text).unwrap();
-    let o = common::deasim(&["calibrate", "sag.toml", "--out", "out"], dir.path());
+    let o = common::deasim(
+        &[
+            "calibrate",
+            "sag.toml",
+            "--out",
+            "out",
+            "--set",
+            "materials.vhb.c10=1e5",
+        ],
+        dir.path(),
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // the fit started where `--set` put it
+    let doc: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("out/calibration.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        doc["parameters"]["materials.vhb.c10"]["initial"], 1e5,
+        "{doc}"
+    );
     for f in [
         "calibration.json",
         "fitted.toml",

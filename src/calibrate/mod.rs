@@ -217,6 +217,15 @@ fn rms_of<'b>(problem: &Problem, blocks: impl Iterator<Item = &'b Block>) -> (Ve
 /// Reads and checks the spec at `spec_path` and its data: a spec with device-level objectives
 /// is [`CalibrationError::Unsupported`], any other fault [`CalibrationError::Input`].
 pub fn read_problem(spec_path: &FsPath) -> Result<Problem, CalibrationError> {
+    read_problem_with(spec_path, &[])
+}
+
+/// [`read_problem`] with `--set KEY=VALUE` overrides of the spec's keys applied first (an
+/// override that is no such key is refused naming it, as the spec's own keys are).
+pub fn read_problem_with(
+    spec_path: &FsPath,
+    overrides: &[String],
+) -> Result<Problem, CalibrationError> {
     if let Ok(text) = std::fs::read_to_string(spec_path) {
         if spec::has_objectives(&text) {
             return Err(CalibrationError::Unsupported(format!(
@@ -225,7 +234,7 @@ pub fn read_problem(spec_path: &FsPath) -> Result<Problem, CalibrationError> {
             )));
         }
     }
-    spec::read(spec_path).map_err(CalibrationError::Input)
+    spec::read_with(spec_path, overrides).map_err(CalibrationError::Input)
 }
 
 /// Reads the spec at `spec_path` and fits it (the library's entry, `deasim::api::calibrate`).

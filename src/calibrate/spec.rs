@@ -312,13 +312,43 @@ pub fn is_device(text: &str) -> bool {
 /// Parses the spec at `path` and reads its data. `Err(None)`-free: every error is an
 /// [`InputError`] naming the file and the key (or the CSV file and line).
 pub fn read(path: &Path) -> Result<Problem, InputError> {
+    read_with(path, &[])
+}
+
+/// [`read`] with `--set KEY=VALUE` overrides applied to the spec's table before it is checked
+/// (the same syntax as a scenario's: `material.mu=2e4`, `experiments.0.weight=2`).
+pub fn read_with(path: &Path, overrides: &[String]) -> Result<Problem, InputError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| InputError {
+    let mut text = std::fs::read_to_string(path).map_err(|e| InputError {
         file: file.clone(),
         position: None,
         key: None,
         message: format!("cannot read the calibration spec: {e}"),
     })?;
+    if !overrides.is_empty() {
+        let mut table: toml::Table = toml::from_str(&text).map_err(|e| InputError {
+            file: file.clone(),
+            position: e.span().map(|s| line_col(&text, s.start)),
+            key: None,
+            message: format!("invalid TOML: {}", e.message().trim()),
+        })?;
+        for o in overrides {
+            crate::io::scenario::apply_override(&mut table, o).map_err(|(key, message)| {
+                InputError {
+                    file: "--set".into(),
+                    position: None,
+                    key: Some(key),
+                    message,
+                }
+            })?;
+        }
+        text = toml::to_string(&table).map_err(|e| InputError {
+            file: file.clone(),
+            position: None,
+            key: None,
+            message: format!("the overridden spec cannot be written back: {e}"),
+        })?;
+    }
     let base = path.parent().unwrap_or(Path::new("."));
     parse(&text, &file, base)
 }

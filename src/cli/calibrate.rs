@@ -15,6 +15,8 @@ pub struct CalibrateArgs {
     pub overwrite: bool,
     /// Replaces the spec's `fit.starts`.
     pub starts: Option<usize>,
+    /// `--set KEY=VALUE` overrides of the spec's (or the scenario's) keys.
+    pub set: Vec<String>,
 }
 
 /// Runs the command; returns the exit status.
@@ -35,7 +37,7 @@ pub fn cmd_calibrate(args: &CalibrateArgs) -> i32 {
         return device(args, &dir);
     }
     // the spec and its data are checked before the output directory is touched
-    let problem = match crate::calibrate::read_problem(&args.spec) {
+    let problem = match crate::calibrate::read_problem_with(&args.spec, &args.set) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("error: {e}");
@@ -77,7 +79,9 @@ pub fn cmd_calibrate(args: &CalibrateArgs) -> i32 {
 /// `calibration.json`, `fitted.toml` and the table.
 fn device(args: &CalibrateArgs, dir: &Path) -> i32 {
     use crate::api::{Error, Simulation};
-    let cal = match Simulation::from_file(&args.spec).and_then(|s| s.calibrate_device()) {
+    let cal = match Simulation::from_file(&args.spec)
+        .and_then(|s| s.with_overrides(&args.set).calibrate_device())
+    {
         Ok(c) => c,
         Err(e) => return crate::cli::app::fail(&e),
     };
