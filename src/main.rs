@@ -175,7 +175,8 @@ drive, a term or stage whose adjoint is not built)."
         /// Replace the results of another command or scenario found in the output directory.
         #[arg(long)]
         overwrite: bool,
-        /// Number of starts (replaces the spec's `fit.starts`).
+        /// Number of starts (replaces the spec's `fit.starts`; a device scenario's fit starts
+        /// from its values, then from points spread over the parameters' bounds).
         #[arg(long)]
         starts: Option<usize>,
         /// Override a key of the spec or scenario (repeatable), e.g. `--set material.mu=2e4`,

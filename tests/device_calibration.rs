@@ -177,6 +177,21 @@ weight = 1e6
         doc["parameters"]["materials.vhb.c10"]["initial"], 1e5,
         "{doc}"
     );
+    // three starts (the set value, then two over the log box 1 kPa … 1 MPa): the same sag fit
+    let o = common::deasim(
+        &["calibrate", "sag.toml", "--out", "three", "--starts", "3"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let doc: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("three/calibration.json")).unwrap(),
+    )
+    .unwrap();
+    let c10 = doc["parameters"]["materials.vhb.c10"]["fitted"]
+        .as_f64()
+        .unwrap();
+    assert!((c10 / 17.85e3 - 1.0).abs() < 5e-3, "{c10}");
+    assert!(doc["start"].as_u64().is_some_and(|s| s < 3), "{doc}");
     for f in [
         "calibration.json",
         "fitted.toml",

@@ -55,6 +55,8 @@ pub struct DeviceCalibration {
     pub fitted: String,
     /// Each probe term's measured and fitted values.
     pub curves: Vec<FitCurve>,
+    /// The start the kept fit came from (0: the scenario's values).
+    pub start: usize,
 }
 
 impl DeviceCalibration {
@@ -83,6 +85,7 @@ impl DeviceCalibration {
             "rms_by_experiment": by,
             "correlation": self.correlation.iter().map(|r| r.iter().map(|x| num(*x)).collect::<Vec<_>>()).collect::<Vec<_>>(),
             "iterations": self.iterations,
+            "start": self.start,
             "converged": self.converged,
             "reason": self.reason,
             "warnings": self.warnings,
@@ -95,6 +98,14 @@ impl Simulation {
     /// `lower` and `upper`, `scale` linear or log) to its `[[objective]]` probe terms: the
     /// residuals √weight·(probe − target) at the steps each term reads.
     pub fn calibrate_device(&self) -> Result<DeviceCalibration, Error> {
+        self.calibrate_device_starts(1)
+    }
+
+    /// [`Simulation::calibrate_device`] from `starts` starting points: the scenario's values,
+    /// then points spread over the parameters' boxes (in their scales) by the low-discrepancy
+    /// sequence of the material-point fit; the fit with the smallest sum of squares is kept
+    /// (`start` says which). Each start costs a fit.
+    pub fn calibrate_device_starts(&self, starts: usize) -> Result<DeviceCalibration, Error> {
         let scenario = self.scenario()?;
         let plan = self.plan()?;
         let input = |key: String, m: String| Error::Input(InputError::at_key(&self.name, key, m));
@@ -168,7 +179,11 @@ impl Simulation {
             self.device_blocks(theta, &params, &names)
                 .map_err(|e| e.to_string())
         };
-        let fitted = fit(&mut eval, &params, &FitOptions::default()).map_err(Error::Refused)?;
+        let options = FitOptions {
+            starts: starts.max(1),
+            ..FitOptions::default()
+        };
+        let fitted = fit(&mut eval, &params, &options).map_err(Error::Refused)?;
         let stats = statistics(&fitted, &params);
         let weights: Vec<f64> = objective
             .terms
@@ -211,6 +226,7 @@ impl Simulation {
         let curves = self.fit_curves(&fitted.theta, &params, &names)?;
         Ok(DeviceCalibration {
             curves,
+            start: fitted.start,
             parameters: params
                 .iter()
                 .enumerate()

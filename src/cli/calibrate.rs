@@ -79,9 +79,10 @@ pub fn cmd_calibrate(args: &CalibrateArgs) -> i32 {
 /// `calibration.json`, `fitted.toml` and the table.
 fn device(args: &CalibrateArgs, dir: &Path) -> i32 {
     use crate::api::{Error, Simulation};
-    let cal = match Simulation::from_file(&args.spec)
-        .and_then(|s| s.with_overrides(&args.set).calibrate_device())
-    {
+    let cal = match Simulation::from_file(&args.spec).and_then(|s| {
+        s.with_overrides(&args.set)
+            .calibrate_device_starts(args.starts.unwrap_or(1))
+    }) {
         Ok(c) => c,
         Err(e) => return crate::cli::app::fail(&e),
     };
