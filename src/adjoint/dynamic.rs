@@ -154,7 +154,9 @@ pub fn sweep(
         initial.clone(),
     );
     step.exact_jacobian = true;
+    step.keep_cell_tangents = true;
     let mut projection = StaticProblem::new(&projection_model, Some(st.start.clone()));
+    projection.keep_cell_tangents = true;
     projection.set_drive(Drive::held(&projection_model));
     projection.set_load(1.0);
     let kind = match stage.kind {

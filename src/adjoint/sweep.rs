@@ -207,6 +207,7 @@ fn prestretch(
     sink: &mut Sink,
 ) -> Result<(), String> {
     let mut problem = StaticProblem::new(model, Some(state.to_vec()));
+    problem.keep_cell_tangents = true;
     problem.set_drive(crate::problem::drive::Drive::held(model));
     problem.set_load(1.0);
     problem.state.copy_from_slice(state);
@@ -321,6 +322,7 @@ fn load_steps(
 ) -> Result<StageStart, String> {
     let n_dofs = end.q.len();
     let mut problem = StaticProblem::new(&st.model, Some(st.start.clone()));
+    problem.keep_cell_tangents = true;
     problem.set_drive(st.drive.clone());
     problem.duration = st.duration;
     // ∂J/∂ξ of the points the step being swept committed

@@ -9,6 +9,7 @@ pub mod drive;
 pub mod examples;
 pub mod faces;
 pub mod field_penalty;
+pub mod kept_tangents;
 pub mod loads;
 pub mod model;
 pub mod points;

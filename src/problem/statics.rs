@@ -10,6 +10,7 @@ use crate::material::{Material, ParameterDerivative};
 use crate::problem::assembly::{Assembler, GlobalTerms};
 use crate::problem::dofs::{constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::drive::Drive;
+use crate::problem::kept_tangents::KeptTangents;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::step::{cell_products, LevelVjp, StepOperator};
@@ -62,6 +63,12 @@ pub struct StaticProblem<'m> {
     /// whatever the load factor: the circuits' charges in the electrostatic projection of a
     /// dynamic step.
     pub extra_charges: Vec<(usize, f64)>,
+    /// Keep each cell's tangent of the last evaluation with a matrix for
+    /// [`StepOperator::level_vjp`] at the same state (an adjoint's load step or projection:
+    /// its transposed products then cost no second pass of cell tangents). Elastic materials
+    /// on a whole model only.
+    pub keep_cell_tangents: bool,
+    kept: KeptTangents,
     /// The pressure under volume control, if any (the bordering unknown of the Newton solve).
     pub volume_control: Option<VolumeControl>,
 }
@@ -163,6 +170,8 @@ impl<'m> StaticProblem<'m> {
             dissipated: 0.0,
             dissipated_step: 0.0,
             extra_charges: Vec::new(),
+            keep_cell_tangents: false,
+            kept: KeptTangents::default(),
             volume_control,
         };
         problem.set_drive(Drive::ramped(model));
@@ -246,6 +255,14 @@ impl<'m> StaticProblem<'m> {
     /// Time step (s) from the committed state to the current one.
     fn dt(&self) -> f64 {
         (self.s - self.committed_load) * self.duration
+    }
+
+    /// The inputs of the cells' tangents as a stamp of [`KeptTangents`]: the state and the
+    /// step of the internal variables' update.
+    fn tangent_stamp(&self) -> Vec<f64> {
+        let mut stamp = self.state.clone();
+        stamp.push(self.dt());
+        stamp
     }
 
     /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ): internal forces minus the
@@ -658,6 +675,13 @@ impl NonlinearSystem for StaticProblem<'_> {
         // every displacement held (the electrostatic projection of a dynamic step): the residual
         // has Φ rows only (the cell energies are then not evaluated)
         let potential_only = k.is_none() && self.dofs.n_free == self.dofs.n_free_phi;
+        let keep = self.keep_cell_tangents && k.is_some() && m.share.is_none() && points.is_empty();
+        self.kept.forget();
+        let slots = if keep {
+            Some(self.kept.slots(m.mesh.n_cells()))
+        } else {
+            None
+        };
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let input = CellInput {
                 geom: &m.geometry(c),
@@ -665,12 +689,26 @@ impl NonlinearSystem for StaticProblem<'_> {
                 hist: points.cell(c, m.cell_material[c], dt),
                 local,
             };
+            let fail = |e: crate::element::PointFailure| {
+                format!("{} at quadrature point {}", e.error, e.qp)
+            };
             if potential_only {
-                cell_kernel.potential_residual(&input, rl).map(|()| 0.0)
-            } else {
-                cell_kernel.residual_tangent(&input, rl, kl)
+                return cell_kernel
+                    .potential_residual(&input, rl)
+                    .map(|()| 0.0)
+                    .map_err(fail);
             }
-            .map_err(|e| format!("{} at quadrature point {}", e.error, e.qp))
+            match (kl, slots) {
+                (Some(kl), Some(slots)) => {
+                    let energy = cell_kernel
+                        .residual_tangent(&input, rl, Some(&mut *kl))
+                        .map_err(fail)?;
+                    let nl = local.len();
+                    KeptTangents::slot(slots, c).extend_from_slice(&kl[..nl * nl]);
+                    Ok(energy)
+                }
+                (kl, _) => cell_kernel.residual_tangent(&input, rl, kl).map_err(fail),
+            }
         };
         let cells = self.assembler.assemble(
             &m.mesh,
@@ -682,6 +720,10 @@ impl NonlinearSystem for StaticProblem<'_> {
             &mut self.cell_energy,
         );
         self.assembler.combine(r, cells)?;
+        if keep {
+            let stamp = self.tangent_stamp();
+            self.kept.filled_at(stamp);
+        }
         // the terms below are no cell terms: in the residual everywhere, in the tangent once
         let k = self.assembler.global_terms(k);
         // dead loads: −s·f on the free displacement rows (scaled residual s_f·r)
@@ -812,8 +854,16 @@ impl StepOperator for StaticProblem<'_> {
     fn level_vjp(&mut self, w: &[f64]) -> Result<LevelVjp, String> {
         let m = self.model;
         let weights = crate::problem::dofs::free_weights(&self.dofs, w);
-        let p = cell_products(m, &self.state, None, &[], &self.points, self.dt(), &weights)?;
-        let mut q_new = p.stiffness;
+        // the cells' tangents the last evaluation kept at this state, or a pass of their own
+        let kept = self.kept.products(m, &self.tangent_stamp(), &weights);
+        let (mut q_new, points) = match kept {
+            Some([k, _]) => (k, Vec::new()),
+            None => {
+                let p =
+                    cell_products(m, &self.state, None, &[], &self.points, self.dt(), &weights)?;
+                (p.stiffness, p.points)
+            }
+        };
         let fractions = self.pressure_fractions();
         for (pressure, &load) in m.pressures.iter().zip(&fractions) {
             if load != 0.0 {
@@ -830,7 +880,7 @@ impl StepOperator for StaticProblem<'_> {
         }
         Ok(LevelVjp {
             q_new,
-            points: p.points,
+            points,
             ..LevelVjp::default()
         })
     }

@@ -27,6 +27,7 @@ use crate::element::{CellInput, KelvinVoigtKernel, MAX_LOCAL};
 use crate::problem::assembly::Assembler;
 use crate::problem::circuit::CircuitStep;
 use crate::problem::dofs::{free_weights, DofMap, CONSTRAINED, FIELDS, PHI};
+use crate::problem::kept_tangents::KeptTangents;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::{discretize, layout_of};
@@ -124,6 +125,14 @@ pub struct TimeStep<'m> {
     /// residual when true, else the symmetric iteration matrix without the configuration
     /// derivative of the Kelvin–Voigt forces.
     pub exact_jacobian: bool,
+    /// Keep each cell's tangents of the last evaluation with a matrix, for
+    /// [`StepOperator::level_vjp`] at the same point (an adjoint's step: its transposed
+    /// products then cost no second pass of cell tangents). Elastic materials on a whole model
+    /// only; otherwise the products take their own pass.
+    pub keep_cell_tangents: bool,
+    /// Per cell: ∂f_int/∂q + ∂f_vis/∂q and, with a viscosity, ∂f_vis/∂v, at the evaluation
+    /// point (stamp: configuration, velocity, Δt).
+    kept: KeptTangents,
 }
 
 impl<'m> TimeStep<'m> {
@@ -164,6 +173,8 @@ impl<'m> TimeStep<'m> {
             points: PointStates::default(),
             circuits: Vec::new(),
             exact_jacobian: false,
+            keep_cell_tangents: false,
+            kept: KeptTangents::default(),
         }
     }
 
@@ -232,6 +243,15 @@ impl<'m> TimeStep<'m> {
         let midpoint = self.scheme == Scheme::Midpoint;
         let (q, _) = st.charge_at(midpoint, self.dt, c.resistance, self.work_q[d]);
         self.dofs.scale[PHI] * w[e] * self.residual_factor() * (-(q - st.charge) / c.resistance)
+    }
+
+    /// The evaluation point as a stamp of [`KeptTangents`]: configuration, velocity and Δt.
+    fn evaluation_stamp(&self) -> Vec<f64> {
+        let mut stamp = Vec::with_capacity(2 * self.work_q.len() + 1);
+        stamp.extend_from_slice(&self.work_q);
+        stamp.extend_from_slice(&self.work_v);
+        stamp.push(self.dt);
+        stamp
     }
 
     /// The inertia term m of dof `d` (R gets M·m): midpoint v̄ − v_n, Newmark βΔt² a_{n+1}; 0 for
@@ -524,21 +544,32 @@ impl StepOperator for TimeStep<'_> {
         let (dt, model) = (self.dt, self.model);
         let weights = free_weights(&self.dofs, w);
         let n = weights.len();
-        let p = cell_products(
-            model,
-            &self.work_q,
-            Some(&self.work_v),
-            &self.viscosity,
-            &self.points,
-            dt,
-            &weights,
-        )?;
         let f_r = self.residual_factor();
-        // the products through the evaluation configuration and velocity
-        let mut through_q: Vec<f64> = (0..n)
-            .map(|d| f_r * (p.stiffness[d] + p.viscous_configuration[d]))
-            .collect();
-        let mut through_v: Vec<f64> = p.viscous_velocity.iter().map(|x| f_r * x).collect();
+        // the products through the evaluation configuration and velocity: from the tangents
+        // the last evaluation kept at this point, or a pass of their own
+        let kept = self
+            .kept
+            .products(model, &self.evaluation_stamp(), &weights);
+        let (mut through_q, mut through_v, points_bar) = match kept {
+            Some([q, v]) => (q, v, Vec::new()),
+            None => {
+                let p = cell_products(
+                    model,
+                    &self.work_q,
+                    Some(&self.work_v),
+                    &self.viscosity,
+                    &self.points,
+                    dt,
+                    &weights,
+                )?;
+                let q = (0..n)
+                    .map(|d| p.stiffness[d] + p.viscous_configuration[d])
+                    .collect();
+                (q, p.viscous_velocity, p.points)
+            }
+        };
+        through_q.iter_mut().for_each(|x| *x *= f_r);
+        through_v.iter_mut().for_each(|x| *x *= f_r);
         for &(node, c) in &model.point_dampers {
             for i in 0..3 {
                 through_v[node * FIELDS + i] += f_r * c * weights[node * FIELDS + i];
@@ -604,7 +635,7 @@ impl StepOperator for TimeStep<'_> {
             q: combine(q),
             v: combine(v),
             a: combine(a),
-            points: p.points.iter().map(|x| f_r * x).collect(),
+            points: points_bar.iter().map(|x| f_r * x).collect(),
             circuits,
             forces: Vec::new(),
         })
@@ -659,6 +690,17 @@ impl NonlinearSystem for TimeStep<'_> {
         let npc = model.mesh.kind.nodes_per_cell();
         let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
         let exact = self.exact_jacobian;
+        let keep = self.keep_cell_tangents
+            && exact
+            && k.is_some()
+            && model.share.is_none()
+            && points.is_empty();
+        self.kept.forget();
+        let slots = if keep {
+            Some(self.kept.slots(model.mesh.n_cells()))
+        } else {
+            None
+        };
         // each cell's dissipation power goes into `cell_energy` (the step needs no cell energies)
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let g = &*model.geometry(c);
@@ -693,6 +735,11 @@ impl NonlinearSystem for TimeStep<'_> {
                 .kernel()
                 .residual_tangent(&input, rl, Some(&mut *kl))
                 .map_err(fail)?;
+            // this cell's slot, filled only here (each cell is evaluated once per assembly)
+            let mut slot = slots.map(|s| KeptTangents::slot(s, c));
+            if let Some(s) = slot.as_mut() {
+                s.extend_from_slice(&kl[..nl * nl]);
+            }
             rl[..nl].iter_mut().for_each(|v| *v *= f_r);
             kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
             let mut power = 0.0;
@@ -714,6 +761,10 @@ impl NonlinearSystem for TimeStep<'_> {
                     for i in 0..nl * nl {
                         kl[i] += f_v * kv[i] + f_k * kq[i];
                     }
+                    if let Some(s) = slot.as_mut() {
+                        s.iter_mut().zip(&kq).for_each(|(a, b)| *a += b);
+                        s.extend_from_slice(&kv);
+                    }
                 } else {
                     for i in 0..nl * nl {
                         kl[i] += f_v * kv[i];
@@ -733,6 +784,10 @@ impl NonlinearSystem for TimeStep<'_> {
             &mut self.cell_energy,
         );
         self.assembler.combine(r, cells)?;
+        if keep {
+            let stamp = self.evaluation_stamp();
+            self.kept.filled_at(stamp);
+        }
         // the power of this process's cells summed in cell order, as `dissipation_power` does
         let power = self.cell_energy.iter().fold(0.0, |t, p| t + p);
         let mut cache = self.power_cache.take().unwrap_or_default();

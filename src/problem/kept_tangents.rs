@@ -1,0 +1,72 @@
+//! The cells' tangents of the last evaluation with a matrix, kept for the transposed products
+//! of a discrete adjoint at the same point: the adjoint solves with the step's Jacobian and then
+//! needs wᵀ∂R/∂· of the same cell matrices, which would otherwise cost a second pass of cell
+//! tangents (the dearest part of an adjoint step).
+
+use super::model::Model;
+use crate::fem::FIELDS;
+use std::sync::{Mutex, MutexGuard};
+
+/// Per cell, up to two row-major nl × nl blocks, and the point (a stamp of the evaluation's
+/// inputs) they were evaluated at.
+#[derive(Debug, Default)]
+pub struct KeptTangents {
+    cells: Vec<Mutex<Vec<f64>>>,
+    at: Option<Vec<f64>>,
+}
+
+impl KeptTangents {
+    /// The slots of the `n_cells` cells for an evaluation about to fill them (each cell its own,
+    /// from any thread); what was kept before is forgotten.
+    pub fn slots(&mut self, n_cells: usize) -> &[Mutex<Vec<f64>>] {
+        if self.cells.len() != n_cells {
+            self.cells = (0..n_cells).map(|_| Mutex::new(Vec::new())).collect();
+        }
+        self.at = None;
+        &self.cells
+    }
+
+    /// The slot of cell `c`, cleared.
+    pub fn slot(slots: &[Mutex<Vec<f64>>], c: usize) -> MutexGuard<'_, Vec<f64>> {
+        let mut s = slots[c].lock().unwrap_or_else(|e| e.into_inner());
+        s.clear();
+        s
+    }
+
+    /// The slots hold the evaluation at `stamp`.
+    pub fn filled_at(&mut self, stamp: Vec<f64>) {
+        self.at = Some(stamp);
+    }
+
+    /// Forgets what was kept.
+    pub fn forget(&mut self) {
+        self.at = None;
+    }
+
+    /// The products kᵀw of each kept block with the weight `w` over every dof, summed over the
+    /// cells of `model` in cell order (one vector per block), when the tangents were kept at
+    /// `stamp`; `None` otherwise.
+    pub fn products(&self, model: &Model, stamp: &[f64], w: &[f64]) -> Option<[Vec<f64>; 2]> {
+        if self.at.as_deref() != Some(stamp) || self.cells.len() != model.mesh.n_cells() {
+            return None;
+        }
+        let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+        let mut out = [vec![0.0; w.len()], vec![0.0; w.len()]];
+        let mut wl = vec![0.0; nl];
+        for (c, slot) in self.cells.iter().enumerate() {
+            let k = slot.lock().unwrap_or_else(|e| e.into_inner());
+            let nodes = model.mesh.cell(c);
+            for (a, &node) in nodes.iter().enumerate() {
+                wl[a * FIELDS..(a + 1) * FIELDS]
+                    .copy_from_slice(&w[node * FIELDS..(node + 1) * FIELDS]);
+            }
+            for (block, sum) in k.chunks_exact(nl * nl).zip(out.iter_mut()) {
+                for j in 0..nl {
+                    let s: f64 = (0..nl).map(|i| wl[i] * block[i * nl + j]).sum();
+                    sum[nodes[j / FIELDS] * FIELDS + j % FIELDS] += s;
+                }
+            }
+        }
+        Some(out)
+    }
+}
