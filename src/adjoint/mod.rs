@@ -17,9 +17,11 @@
 //! the objective terms of [`objective::Objective`]. Anything else is refused with a message
 //! that names it.
 
+pub mod binomial;
 pub mod dynamic;
 pub mod lambda;
 pub mod objective;
+pub mod replay;
 pub mod sink;
 pub mod sweep;
 pub mod tape;
