@@ -308,3 +308,42 @@ fn bad_memory_budgets_are_refused() {
     assert!(json["recomputed_steps"].is_u64());
     assert!(json["peak_memory"].as_u64().unwrap() > 0);
 }
+
+/// A recomputed level that differs from the forward run's is an error, not a wrong gradient:
+/// the tape's checkpoint moved by 10⁻¹² m stops the sweep.
+#[test]
+fn a_recomputation_that_departs_from_the_run_is_refused() {
+    use deasim::adjoint::{objective::Objective, sweep::gradient, tape::Tape};
+    let dir = tempfile::tempdir().unwrap();
+    let sim = vibrating_film("midpoint", dir.path());
+    let scenario = sim.scenario().unwrap();
+    let plan = sim.plan().unwrap();
+    let objective = Objective::build(&scenario, &plan, "film", Some(dir.path())).unwrap();
+    let path = "materials.elastomer.mu";
+    let parameters = vec![(
+        path.to_string(),
+        deasim::io::build::parameter(&scenario, "film", path).unwrap(),
+    )];
+    let mut tape = Tape::with_budget(&plan, 30_000);
+    deasim::api::run_plan(
+        &plan,
+        deasim::api::RunOptions {
+            observers: vec![&mut tape],
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let stage = &tape.stages[0];
+    assert!(stage.is_checkpointed());
+    let replay = stage.replay.as_ref().unwrap();
+    assert!(replay.checkpoints.len() >= 2);
+    let g = gradient(&plan, &tape, &objective, &parameters, &[Vec::new()]).unwrap();
+    assert!(g.recomputed_steps > stage.count());
+    // a displacement of a node the supports leave free, at the second checkpoint (the last
+    // segment starts there)
+    let free = stage.last_step().v.iter().position(|v| *v != 0.0).unwrap();
+    let replay = tape.stages[0].replay.as_mut().unwrap();
+    replay.checkpoints[1].record.state[free] += 1e-12;
+    let e = gradient(&plan, &tape, &objective, &parameters, &[Vec::new()]).unwrap_err();
+    assert!(e.contains("differs from the forward run's"), "{e}");
+}
