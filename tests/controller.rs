@@ -366,7 +366,7 @@ fn bad_controllers_are_refused_naming_the_key() {
     );
     // the adjoint of a feedback loop is not built
     let plan = coarse().plan().unwrap();
-    let e = deasim::adjoint::sweep::check_supported(&plan, &[]).unwrap_err();
+    let e = deasim::adjoint::sweep::check_supported(&plan).unwrap_err();
     assert!(e.contains("electrode `top` has a controller"), "{e}");
     // through the CLI: exit status 2 with the key
     let dir = common::tempdir("controller-cli");

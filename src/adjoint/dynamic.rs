@@ -268,11 +268,46 @@ fn step_adjoint(
 ) -> Result<Cotangent, String> {
     let n = c.q.len();
     let mut out = Cotangent::zeros(n);
+    // the step at its point, with its circuits' start (charges by Gauss's law at qₙ) and
+    // sources at t_n, t_{n+½}, t_{n+1}
+    let step = &mut s.step;
+    step.prev.clone_from(prev);
+    step.dt = dt;
+    step.q.copy_from_slice(iterate);
+    let times = [prev.t, prev.t + 0.5 * dt, prev.t + dt];
+    let sources: Vec<[f64; 3]> = (0..s.step_model.circuits.len())
+        .map(|i| times.map(|t| s.drive.circuit_sources_at(t)[i]))
+        .collect();
+    step.begin_circuits(&sources)?;
+    let circuits = s.step_model.circuits.len();
+    // the cotangents of each circuit's start charge Qₙ, its sources and its resistance
+    let mut charge_bar = vec![0.0; circuits];
+    let mut source_bar = vec![[0.0; 3]; circuits];
+    let mut resistance_bar = vec![0.0; circuits];
     // ȳ: through the projection of the potential (midpoint) or directly (Newmark)
     let mut cy = match s.scheme {
         Scheme::Midpoint => {
             let mut cy = vec![0.0; n];
-            projection_adjoint(s, &level.q, &c.q, level.t, &mut cy, sink)?;
+            let end_bar = projection_adjoint(s, &level.q, &c.q, level.t, &mut cy, sink)?;
+            // the end charge the projection held: Q_{n+1} = Qₙ + Δt/R (V_s(t_{n+½}) − V_{n+½})
+            // with V_{n+½} = ½(Vₙ + y_V)
+            for (i, (ci, st)) in s
+                .step_model
+                .circuits
+                .iter()
+                .zip(&s.step.circuits)
+                .enumerate()
+            {
+                let d = ci.nodes[0] * FIELDS + PHI;
+                let g = dt / ci.resistance;
+                let v_mid = 0.5 * (prev.q[d] + iterate[d]);
+                let b = end_bar[i];
+                charge_bar[i] += b;
+                source_bar[i][1] += b * g;
+                cy[d] -= 0.5 * g * b;
+                out.q[d] -= 0.5 * g * b;
+                resistance_bar[i] -= b * g / ci.resistance * (st.source[1] - v_mid);
+            }
             cy
         }
         Scheme::Newmark { .. } => c.q.clone(),
@@ -303,9 +338,6 @@ fn step_adjoint(
     }
     // the step's equations
     let step = &mut s.step;
-    step.prev.clone_from(prev);
-    step.dt = dt;
-    step.q.copy_from_slice(iterate);
     // the points the step committed, updated at its evaluation point: the midpoint
     // configuration ½(qₙ + y), or y (Newmark)
     let half = s.scheme == Scheme::Midpoint;
@@ -380,6 +412,25 @@ fn step_adjoint(
             }
         }
     }
+    // the circuits: the step's charge at its evaluation point in (Qₙ, Vₙ, the sources, R)
+    for (i, ci) in s.step_model.circuits.iter().enumerate() {
+        let l = &lv.circuits[i];
+        charge_bar[i] -= l.charge;
+        out.q[ci.nodes[0] * FIELDS + PHI] -= l.voltage;
+        for j in 0..3 {
+            source_bar[i][j] -= l.source[j];
+        }
+        resistance_bar[i] -= s.step.resistance_vjp(&lambda, i);
+    }
+    charge_adjoint(s, prev, &charge_bar, &mut out.q, &mut out.points, sink)?;
+    for i in 0..circuits {
+        if s.electrodes_on {
+            for (j, &t) in times.iter().enumerate() {
+                sink.source(s.drive, i, t, source_bar[i][j]);
+            }
+        }
+        sink.resistance(i, resistance_bar[i]);
+    }
     Ok(out)
 }
 
@@ -413,7 +464,8 @@ fn sink_viscous(sink: &Sink) -> Vec<usize> {
 /// The adjoint of the projection of the potential at stage time `t` whose result is `q`, for
 /// the cotangent `g` of that result: adds to `out` the cotangent of the inputs it held (the
 /// displacements, and potentials held by supports) and gives the electrodes' voltages at `t`
-/// and the materials' parameters theirs.
+/// and the materials' parameters theirs. Returns the cotangent of each circuit's charge the
+/// projection held on its electrode.
 fn projection_adjoint(
     s: &mut Stage,
     q: &[f64],
@@ -421,7 +473,7 @@ fn projection_adjoint(
     t: f64,
     out: &mut [f64],
     sink: &mut Sink,
-) -> Result<(), String> {
+) -> Result<Vec<f64>, String> {
     let problem = &mut s.projection;
     problem.state.copy_from_slice(q);
     let mu = s.projection_solver.solve(problem, g)?;
@@ -429,7 +481,15 @@ fn projection_adjoint(
     // the charges held on charge-controlled electrodes (the weights act on the held
     // displacements, whose entries of μ are zero)
     let dead = problem.drive().dead_loads.at(1.0);
-    sink.weights(&free_weights(&problem.dofs, &mu), dead);
+    let weights = free_weights(&problem.dofs, &mu);
+    sink.weights(&weights, dead);
+    // a circuit's charge Q enters its electrode's Gauss equation as +Q
+    let charges = s
+        .step_model
+        .circuits
+        .iter()
+        .map(|c| -weights[c.nodes[0] * FIELDS + PHI])
+        .collect();
     let lv = problem.level_vjp(&mu)?;
     for (d, &e) in problem.dofs.eq.iter().enumerate() {
         let a = g[d] - lv.q_new[d];
@@ -446,6 +506,56 @@ fn projection_adjoint(
                 }
             }
         }
+    }
+    Ok(charges)
+}
+
+/// The adjoint of the circuits' charges at the start of a step, Q = −Σ ∂Π/∂Φ over each
+/// electrode's nodes at `level` (Gauss's law, which the step before enforced), for their
+/// cotangents `charge_bar`: adds to `q_bar` and `points_bar` (the cotangent of the points
+/// committed before, empty: none) and gives the materials' parameters theirs.
+fn charge_adjoint(
+    s: &Stage,
+    level: &TimeLevel,
+    charge_bar: &[f64],
+    q_bar: &mut [f64],
+    points_bar: &mut [f64],
+    sink: &mut Sink,
+) -> Result<(), String> {
+    if charge_bar.iter().all(|&b| b == 0.0) {
+        return Ok(());
+    }
+    let model = s.step_model;
+    let mut w = vec![0.0; q_bar.len()];
+    for (c, &b) in model.circuits.iter().zip(charge_bar) {
+        for &node in &c.nodes {
+            w[node * FIELDS + PHI] -= b;
+        }
+    }
+    let points = &s.step.points;
+    let p = cell_products(model, &level.q, None, &[], points, 0.0, &w)?;
+    q_bar
+        .iter_mut()
+        .zip(&p.stiffness)
+        .for_each(|(a, b)| *a += b);
+    if !points_bar.is_empty() {
+        points_bar
+            .iter_mut()
+            .zip(&p.points)
+            .for_each(|(a, b)| *a += b);
+    }
+    for m in sink.materials().to_vec() {
+        let entries = sink.entries(m);
+        let vjp = crate::problem::statics::parameter_vjp(
+            model,
+            &level.q,
+            points,
+            0.0,
+            m,
+            Some(&entries),
+            &w,
+        )?;
+        sink.materials_product(m, &vjp, 1.0);
     }
     Ok(())
 }
@@ -519,10 +629,12 @@ fn newmark_start_adjoint(
         sink.density(*m, -z.iter().zip(&ma).map(|(a, b)| a * b).sum::<f64>());
     }
     sink.weights(&z, 1.0);
-    // the start's potential, projected at its time
+    // the start's potential, projected at its time with the charges the given level holds
     let mut out = vec![0.0; n];
-    projection_adjoint(s, &initial.q, &cq, initial.t, &mut out, sink)?;
+    let start_bar = projection_adjoint(s, &initial.q, &cq, initial.t, &mut out, sink)?;
     let mut points_bar = c.points;
+    let given = s.dynamics.given.clone();
+    charge_adjoint(s, &given, &start_bar, &mut out, &mut points_bar, sink)?;
     if !points_bar.is_empty() {
         points_bar
             .iter_mut()

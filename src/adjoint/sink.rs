@@ -22,6 +22,24 @@ pub struct ControlGradient {
     nodes: Vec<usize>,
 }
 
+impl ControlGradient {
+    /// dJ/dV += `a` at stage time `t`: the table's hat functions at t.
+    fn add_at(&mut self, t: f64, a: f64) {
+        let knots = &self.knots;
+        let last = knots.len() - 1;
+        if t <= knots[0].0 {
+            self.gradient[0] += a;
+        } else if t >= knots[last].0 {
+            self.gradient[last] += a;
+        } else {
+            let i = knots.partition_point(|p| p.0 <= t);
+            let x = (t - knots[i - 1].0) / (knots[i].0 - knots[i - 1].0);
+            self.gradient[i - 1] += a * (1.0 - x);
+            self.gradient[i] += a * x;
+        }
+    }
+}
+
 /// dJ/dp of the parameters named by their key paths, summed step by step.
 pub struct Sink<'a> {
     plan: &'a Plan,
@@ -153,19 +171,7 @@ impl<'a> Sink<'a> {
             .iter_mut()
             .find(|c| c.stage == stage && c.nodes == *nodes)
         {
-            // the table's hat functions at t
-            let knots = &c.knots;
-            let last = knots.len() - 1;
-            if t <= knots[0].0 {
-                c.gradient[0] += a;
-            } else if t >= knots[last].0 {
-                c.gradient[last] += a;
-            } else {
-                let i = knots.partition_point(|p| p.0 <= t);
-                let x = (t - knots[i - 1].0) / (knots[i].0 - knots[i - 1].0);
-                c.gradient[i - 1] += a * (1.0 - x);
-                c.gradient[i] += a * x;
-            }
+            c.add_at(t, a);
             return;
         }
         for (i, (_, p)) in self.parameters.iter().enumerate() {
@@ -181,6 +187,61 @@ impl<'a> Sink<'a> {
                 if on_it {
                     self.grad[i] += a * waveform.derivatives(t)[usize::from(*offset)];
                 }
+            }
+        }
+    }
+
+    /// The name of the electrode of the model's circuit `i` (circuits are the circuit-driven
+    /// electrodes in the plan's order).
+    fn circuit_electrode(&self, i: usize) -> Option<&'a str> {
+        self.plan
+            .electrodes
+            .iter()
+            .filter(|e| e.resistance.is_some())
+            .nth(i)
+            .map(|e| e.name.as_str())
+    }
+
+    /// dJ/dp += `a` · ∂V_s/∂p for the source of the model's circuit `i` in `drive` at stage time
+    /// `t`, `a` the cotangent of that source voltage: to the control of its electrode in this
+    /// stage, or to the parameters of its source's waveform.
+    pub fn source(&mut self, drive: &Drive, i: usize, t: f64, a: f64) {
+        let Some(name) = self.circuit_electrode(i) else {
+            return;
+        };
+        let stage = self.stage;
+        if let Some(c) = self
+            .controls
+            .iter_mut()
+            .find(|c| c.stage == stage && c.electrode == name)
+        {
+            c.add_at(t, a);
+            return;
+        }
+        let d = drive.circuits[i].derivatives(t);
+        for (k, (_, p)) in self.parameters.iter().enumerate() {
+            if let Parameter::Voltage {
+                electrode, offset, ..
+            } = p
+            {
+                if electrode == name {
+                    self.grad[k] += a * d[usize::from(*offset)];
+                }
+            }
+        }
+    }
+
+    /// dJ/dR += `product` · (the symmetry factor) for the series resistance R of the model's
+    /// circuit `i`: `product` is the derivative in the resistance the mesh sees, R times the
+    /// symmetry factor.
+    pub fn resistance(&mut self, i: usize, product: f64) {
+        let Some(name) = self.circuit_electrode(i) else {
+            return;
+        };
+        let factor = self.plan.symmetry_factor;
+        for (k, (_, p)) in self.parameters.iter().enumerate() {
+            if matches!(p, Parameter::Resistance { electrode, .. } if electrode == name) {
+                self.grad[k] += factor * product;
             }
         }
     }

@@ -42,8 +42,9 @@ pub struct Gradient {
     pub peak_bytes: usize,
 }
 
-/// Whether the adjoint of a run of `plan` with `parameters` is built; an error says what is not.
-pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Result<(), String> {
+/// Whether the adjoint of a run of `plan` is built (every differentiable parameter is); an
+/// error says what is not.
+pub fn check_supported(plan: &Plan) -> Result<(), String> {
     for s in &plan.stages {
         match s.kind {
             StageKind::Static { .. }
@@ -70,9 +71,6 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
             }
         }
     }
-    if !plan.model.circuits.is_empty() {
-        return Err("the adjoint of electrodes driven through circuits is not built yet".into());
-    }
     if let Some(e) = plan.electrodes.iter().find(|e| e.controller.is_some()) {
         return Err(format!(
             "electrode `{}` has a controller: its feedback drive depends on the state, and the \
@@ -85,24 +83,6 @@ pub fn check_supported(plan: &Plan, parameters: &[(String, Parameter)]) -> Resul
         || !plan.pressure_volumes.iter().all(Option::is_none)
     {
         return Err("the adjoint of volume-controlled pressures is not built yet".into());
-    }
-    for (path, p) in parameters {
-        match p {
-            Parameter::Material(_)
-            | Parameter::Voltage { source: false, .. }
-            | Parameter::RigidMass { .. }
-            | Parameter::Viscosity { .. }
-            | Parameter::Density { .. }
-            | Parameter::Charge { .. }
-            | Parameter::Prestretch { .. } => {}
-            _ => {
-                return Err(format!(
-                    "parameter `{path}`: its derivative is not built yet; gradients cover the \
-                     materials' parameters, viscosities and densities, the electrodes' voltage \
-                     amplitudes and offsets, the rigid pads' masses and the pre-stretch"
-                ))
-            }
-        }
     }
     Ok(())
 }
@@ -118,7 +98,7 @@ pub fn gradient(
     parameters: &[(String, Parameter)],
     supports: &[Vec<f64>],
 ) -> Result<Gradient, String> {
-    check_supported(plan, parameters)?;
+    check_supported(plan)?;
     let mut reader = Backward::new(objective, plan, tape)?;
     let mut recomputed_steps = 0;
     let mut peak_bytes = tape.peak_bytes();

@@ -202,7 +202,7 @@ impl Simulation {
                 options.gradient_tolerance, options.objective_tolerance
             )));
         }
-        check_supported(&plan, &[]).map_err(Error::Refused)?;
+        check_supported(&plan).map_err(Error::Refused)?;
         let objective = Objective::build(&scenario, &plan, &self.name, self.base.as_deref())
             .map_err(Error::Input)?;
         let layout = Layout::new(&scenario, &plan);

@@ -326,7 +326,7 @@ impl Simulation {
                 parameter(&scenario, &sim.name, &p.path).map_err(Error::Input)?,
             ));
         }
-        check_supported(&plan, &parameters).map_err(Error::Refused)?;
+        check_supported(&plan).map_err(Error::Refused)?;
         let supports = sim.support_sensitivities(&plan, &parameters)?;
         let tape = taped_run(&plan)?;
         let eval = objective.evaluate(&plan, &tape).map_err(Error::Refused)?;

@@ -285,7 +285,7 @@ impl Simulation {
             })?;
             parameters.push((p.path.clone(), param));
         }
-        check_supported(&plan, &parameters).map_err(Error::Refused)?;
+        check_supported(&plan).map_err(Error::Refused)?;
         let objective =
             Objective::build(&scenario, &plan, &file, self.base.as_deref()).map_err(input)?;
         let memory = match options.memory {

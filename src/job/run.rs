@@ -1404,7 +1404,7 @@ impl Plan {
                 .electrodes
                 .iter()
                 .filter(|e| e.resistance.is_some())
-                .map(|e| stage.waveform(&e.voltage))
+                .map(|e| stage.electrode_waveform(e))
                 .collect(),
             dead_loads: Ramp {
                 from: dead_loads_from,

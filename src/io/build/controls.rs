@@ -30,12 +30,12 @@ pub(super) fn build_controls(
                     ),
                 )
             })?;
-        if e.charge.is_some() || e.resistance.is_some() {
+        if e.charge.is_some() {
             return Err(ctx.err(
                 key("electrode"),
                 format!(
-                    "electrode `{}` is driven by its charge or a circuit: controls of a voltage \
-                     electrode only are built",
+                    "electrode `{}` is driven by its charge: controls of a voltage or of a \
+                     circuit's source only are built",
                     e.name
                 ),
             ));
