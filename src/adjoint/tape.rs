@@ -14,7 +14,7 @@
 //! steps' sizes and its last step; when the checkpoints outgrow their quarter, every other one
 //! is dropped and the spacing doubles, so that they stay evenly spread over a stage whose step
 //! count is not known in advance. The adjoint recomputes the steps from the checkpoints
-//! ([`super::replay`]). A stage driven through circuits is held whole.
+//! ([`super::replay`]).
 
 use crate::element::CellFields;
 use crate::job::observer::{DynamicStart, Observer};
@@ -597,11 +597,7 @@ impl Observer for Tape {
     fn dynamic_started(&mut self, stage: usize, start: &DynamicStart<'_>) {
         let inputs = start.inputs;
         self.points.clone_from(&inputs.points.data);
-        // a stage driven through circuits is held whole: its run resumed from a resume point
-        // does not repeat the forward run's steps bit for bit (the recomputation's check finds
-        // it)
-        let budget = self.budget.filter(|_| start.model.circuits.is_empty());
-        let replay = budget.map(|budget| Replay {
+        let replay = self.budget.map(|budget| Replay {
             settings: start.settings.clone(),
             newton: start.newton.clone(),
             clock: self.starts[stage],

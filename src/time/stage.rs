@@ -924,10 +924,14 @@ pub fn run_dynamic_while(
     if let Some(point) = resume.as_ref().and_then(|r| r.step_factor.as_ref()) {
         let s = &mut stepper;
         let saved = s.step.inner_mut().enter_factor_point(point);
+        // the circuits' terms of the matrix, which depend on Δt and R only
+        let sources = vec![[0.0; 3]; step_model.circuits.len()];
+        let circuits = s.step.inner_mut().begin_circuits(&sources);
         let system = s.step.system();
         let mut r = vec![0.0; system.n()];
         // a shared assembly's solver needs the layout before its first factorisation
-        let result = crate::solve::newton::prepare_solver(system, s.solver.as_mut())
+        let result = circuits
+            .and_then(|()| crate::solve::newton::prepare_solver(system, s.solver.as_mut()))
             .and_then(|()| system.evaluate(&mut r, Some(&mut s.k)))
             .and_then(|()| s.solver.factor(&s.k).map(|_| ()).map_err(|e| e.to_string()));
         let step = s.step.inner_mut();
