@@ -5,6 +5,8 @@
 //! the derivative, and the forward solves, converged to a relative residual of 10⁻¹³, add an
 //! error of about 10⁻¹³/10⁻⁴ = 10⁻⁹; a relative difference of 10⁻⁶ leaves a margin for both.
 
+mod common;
+use common::gradient::assert_checked;
 use deasim::api::{Error, GradientOptions, GradientReport, Simulation};
 
 /// The film example (a quarter of a 10 × 10 × 1 mm film) with the parameters and objective of
@@ -18,31 +20,6 @@ fn film(extra: &str, dir: &std::path::Path) -> Simulation {
         "electrodes.top.voltage.amplitude=20e3".into(),
         "solver.newton_rtol=1e-13".into(),
     ])
-}
-
-/// Asserts each derivative within `tol` (relative) of its finite difference and a Taylor
-/// remainder order of 2 ± 0.1 at the first halvings.
-fn assert_checked(r: &GradientReport, tol: f64) {
-    for p in &r.parameters {
-        let (fd, h) = p.finite_difference.expect("checked");
-        let rel = (p.gradient - fd).abs() / fd.abs();
-        assert!(
-            rel <= tol,
-            "{}: adjoint {:e}, central difference {:e} (h = {h:e}): relative difference {rel:e}",
-            p.path,
-            p.gradient,
-            fd
-        );
-        assert!(
-            p.gradient != 0.0,
-            "{}: a zero derivative checks nothing",
-            p.path
-        );
-    }
-    let t = r.taylor.as_ref().expect("checked");
-    for o in &t.orders[..2] {
-        assert!((o - 2.0).abs() <= 0.1, "Taylor orders {:?}", t.orders);
-    }
 }
 
 /// A static film: the thickness stretch at the end against a target and its history against
@@ -777,7 +754,7 @@ weight = 100.0
                 ..Default::default()
             })
             .unwrap();
-        report_checked(integrator, &r);
+        println!("{integrator}:");
         assert!(r.objective > 0.0, "{integrator}");
         assert_checked(&r, 1e-6);
     }
@@ -838,26 +815,9 @@ weight = 100.0
                 ..Default::default()
             })
             .unwrap();
-        report_checked(integrator, &r);
+        println!("{integrator}:");
         assert_checked(&r, 1e-6);
     }
-}
-
-/// Prints each derivative beside its finite difference and the Taylor orders.
-fn report_checked(label: &str, r: &GradientReport) {
-    for p in &r.parameters {
-        let (fd, _) = p.finite_difference.expect("checked");
-        eprintln!(
-            "{label}: {}: adjoint {:.9e}, central difference {fd:.9e}, relative difference {:.1e}",
-            p.path,
-            p.gradient,
-            (p.gradient - fd).abs() / fd.abs()
-        );
-    }
-    eprintln!(
-        "{label}: Taylor orders {:?}",
-        r.taylor.as_ref().map(|t| &t.orders)
-    );
 }
 
 /// A control of a circuit's source: the knots of the source's table (every 0.5 ms) of the

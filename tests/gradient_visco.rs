@@ -5,37 +5,9 @@
 //! The finite differences use h = 10⁻⁴·|p|, as in the elastic tests: truncation about 10⁻⁸ of
 //! the derivative, the forward solves' error (relative residual 10⁻¹³) about 10⁻⁹.
 
+mod common;
+use common::gradient::assert_checked;
 use deasim::api::{GradientOptions, GradientReport, Simulation};
-
-/// Asserts each derivative within `tol` (relative) of its finite difference, none zero, and a
-/// Taylor remainder order of 2 ± 0.1 at the first halvings.
-fn assert_checked(r: &GradientReport, tol: f64) {
-    for p in &r.parameters {
-        let (fd, h) = p.finite_difference.expect("checked");
-        let rel = (p.gradient - fd).abs() / fd.abs();
-        println!(
-            "{}: adjoint {:e}, difference {fd:e}, relative {rel:e}",
-            p.path, p.gradient
-        );
-        assert!(
-            rel <= tol,
-            "{}: adjoint {:e}, central difference {:e} (h = {h:e}): relative difference {rel:e}",
-            p.path,
-            p.gradient,
-            fd
-        );
-        assert!(
-            p.gradient != 0.0,
-            "{}: a zero derivative checks nothing",
-            p.path
-        );
-    }
-    let t = r.taylor.as_ref().expect("checked");
-    println!("Taylor orders {:?}", t.orders);
-    for o in &t.orders[..2] {
-        assert!((o - 2.0).abs() <= 0.1, "Taylor orders {:?}", t.orders);
-    }
-}
 
 /// The parameters every test asks for: the equilibrium μ and each branch's μ and τ.
 const BRANCH_PARAMETERS: &str = r#"

@@ -759,3 +759,33 @@ fn level_products_of_the_trapezoidal_step_match_finite_differences() {
         }
     }
 }
+
+/// From 128 cells the transposed products run their cells on the pool: the same numbers, bit
+/// for bit, as on one thread, and the same agreement with central differences.
+#[test]
+fn level_products_on_the_pool_equal_those_on_one_thread() {
+    let plan = film(&[
+        "mesh.divisions=[8,8,2]",
+        "materials.elastomer.viscosity=100",
+    ]);
+    assert!(plan.model.mesh.n_cells() >= 128);
+    let (model, dt, mass) = dynamic_model(&plan);
+    let nodal = nodal_mass(&plan, &model, mass);
+    let products = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut next = generator(5);
+            let scheme = SCHEMES[0];
+            let mut step = general_step(&plan, &model, &nodal, (dt, scheme), None, &mut next);
+            let w: Vec<f64> = (0..step.dofs.n_free).map(|_| next()).collect();
+            step.level_vjp(&w).unwrap()
+        })
+    };
+    let (one, two) = (products(1), products(2));
+    assert!(one.q.iter().any(|&x| x != 0.0));
+    assert_eq!(one, two);
+    check_levels(&plan, "3-D film of 128 cells");
+}

@@ -12,7 +12,7 @@ use super::circuit::CircuitStep;
 use super::model::Model;
 use super::points::PointStates;
 use crate::algebra::system::NonlinearSystem;
-use crate::element::{CellInput, KelvinVoigtKernel};
+use crate::element::{CellInput, KelvinVoigtKernel, MAX_LOCAL};
 use crate::fem::{FIELDS, MAX_QP};
 use crate::material::{Mat3, Vec3};
 
@@ -93,77 +93,142 @@ pub fn cell_products(
         points: vec![0.0; points.data.len()],
     };
     let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
-    let (mut r, mut k) = (vec![0.0; nl], vec![0.0; nl * nl]);
-    let (mut wl, mut vl) = (vec![0.0; nl], vec![0.0; nl]);
     let kernel = model.kernel();
-    let outcome = model.for_each_cell_where(
-        q,
-        |c| model.owns(c),
-        |c, g, mat, local| {
-            let nodes = model.mesh.cell(c);
-            let fail = |e: crate::element::PointFailure| {
-                (
-                    c,
-                    format!("cell {c}: {} at quadrature point {}", e.error, e.qp),
-                )
-            };
-            gather(nodes, w, &mut wl);
-            let m = model.cell_material[c];
-            let hist = points.cell(c, m, dt);
-            let input = CellInput {
-                geom: g,
-                mat,
-                hist,
-                local,
-            };
-            kernel
-                .residual_tangent(&input, &mut r, Some(&mut k))
+    // one cell's products (kᵀw at its dofs for the three matrices, and its points'), each
+    // computed alone so that the cells may run on the pool
+    let eval = |c: usize| -> Result<CellProduct, (usize, String)> {
+        let nodes = model.mesh.cell(c);
+        let fail = |e: crate::element::PointFailure| {
+            (
+                c,
+                format!("cell {c}: {} at quadrature point {}", e.error, e.qp),
+            )
+        };
+        let (mut local, mut wl) = ([0.0; MAX_LOCAL], [0.0; MAX_LOCAL]);
+        gather(nodes, q, &mut local[..nl]);
+        gather(nodes, w, &mut wl[..nl]);
+        let (local, wl) = (&local[..nl], &wl[..nl]);
+        let m = model.cell_material[c];
+        let mat = model.materials[m].as_ref();
+        let g = &*model.geometry(c);
+        let hist = points.cell(c, m, dt);
+        let input = CellInput {
+            geom: g,
+            mat,
+            hist,
+            local,
+        };
+        let mut r = [0.0; MAX_LOCAL];
+        let mut k = vec![0.0; nl * nl];
+        let mut cell = CellProduct {
+            stiffness: [0.0; MAX_LOCAL],
+            viscous_configuration: [0.0; MAX_LOCAL],
+            viscous_velocity: [0.0; MAX_LOCAL],
+            points: Vec::new(),
+        };
+        kernel
+            .residual_tangent(&input, &mut r[..nl], Some(&mut k))
+            .map_err(fail)?;
+        transposed(&k, wl, &mut cell.stiffness[..nl]);
+        let eta = viscosity.get(m).copied().unwrap_or(0.0);
+        if let (true, Some(v)) = (eta > 0.0, v) {
+            let mut vl = [0.0; MAX_LOCAL];
+            gather(nodes, v, &mut vl[..nl]);
+            let kv = KelvinVoigtKernel { eta };
+            k.fill(0.0);
+            kv.forces(g, local, &vl[..nl], &mut r[..nl], Some(&mut k))
                 .map_err(fail)?;
-            add_transposed(&k, &wl, nodes, &mut out.stiffness);
-            let eta = viscosity.get(m).copied().unwrap_or(0.0);
-            if let (true, Some(v)) = (eta > 0.0, v) {
-                gather(nodes, v, &mut vl);
-                let kv = KelvinVoigtKernel { eta };
-                k.fill(0.0);
-                kv.forces(g, local, &vl, &mut r, Some(&mut k))
-                    .map_err(fail)?;
-                add_transposed(&k, &wl, nodes, &mut out.viscous_velocity);
-                k.fill(0.0);
-                kv.configuration_tangent(g, local, &vl, &mut k)
-                    .map_err(fail)?;
-                add_transposed(&k, &wl, nodes, &mut out.viscous_configuration);
+            transposed(&k, wl, &mut cell.viscous_velocity[..nl]);
+            k.fill(0.0);
+            kv.configuration_tangent(g, local, &vl[..nl], &mut k)
+                .map_err(fail)?;
+            transposed(&k, wl, &mut cell.viscous_configuration[..nl]);
+        }
+        if hist.size > 0 {
+            let mut at = [(Mat3::identity(), Vec3::zeros()); MAX_QP];
+            let mut weights = [Mat3::zeros(); MAX_QP];
+            kernel.point_deformations(&input, &mut at).map_err(fail)?;
+            kernel
+                .stress_weights(&input, wl, &mut weights)
+                .map_err(fail)?;
+            for p in 0..g.n_qp {
+                let d = mat
+                    .stress_state_vjp(&at[p].0, &at[p].1, hist.at(p), &weights[p])
+                    .map_err(|error| fail(crate::element::PointFailure { qp: p, error }))?;
+                cell.points.extend_from_slice(&d);
             }
-            if hist.size > 0 {
+        }
+        Ok(cell)
+    };
+    // the cells' products added in cell order on either path (the same sums, bit for bit)
+    let mut failure = None;
+    let mut add = |c: usize, cell: Result<CellProduct, (usize, String)>| match cell {
+        Ok(cell) => {
+            let nodes = model.mesh.cell(c);
+            scatter(nodes, &cell.stiffness[..nl], &mut out.stiffness);
+            scatter(
+                nodes,
+                &cell.viscous_configuration[..nl],
+                &mut out.viscous_configuration,
+            );
+            scatter(
+                nodes,
+                &cell.viscous_velocity[..nl],
+                &mut out.viscous_velocity,
+            );
+            if !cell.points.is_empty() {
                 let range = points.cell_range(c);
-                let mut at = [(Mat3::identity(), Vec3::zeros()); MAX_QP];
-                let mut weights = [Mat3::zeros(); MAX_QP];
-                kernel.point_deformations(&input, &mut at).map_err(fail)?;
-                kernel
-                    .stress_weights(&input, &wl, &mut weights)
-                    .map_err(fail)?;
-                for p in 0..g.n_qp {
-                    let d = mat
-                        .stress_state_vjp(&at[p].0, &at[p].1, hist.at(p), &weights[p])
-                        .map_err(|error| fail(crate::element::PointFailure { qp: p, error }))?;
-                    let start = range.start + p * hist.size;
-                    out.points[start..start + hist.size].copy_from_slice(&d);
-                }
+                out.points[range].copy_from_slice(&cell.points);
             }
-            Ok::<(), (usize, String)>(())
-        },
-    );
+            true
+        }
+        Err(e) => {
+            failure = Some(e);
+            false
+        }
+    };
+    let cells: Vec<usize> = (0..model.mesh.n_cells())
+        .filter(|&c| model.owns(c))
+        .collect();
+    if cells.len() >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
+        use rayon::prelude::*;
+        let done: Vec<_> = cells.par_iter().map(|&c| eval(c)).collect();
+        for (&c, cell) in cells.iter().zip(done) {
+            if !add(c, cell) {
+                break;
+            }
+        }
+    } else {
+        for &c in &cells {
+            if !add(c, eval(c)) {
+                break;
+            }
+        }
+    }
     let mut sums = [
         out.stiffness,
         out.viscous_configuration,
         out.viscous_velocity,
     ]
     .concat();
-    model.sum_over_processes(&mut sums, outcome.err())?;
+    model.sum_over_processes(&mut sums, failure)?;
     let mut parts = sums.chunks_exact(n).map(<[f64]>::to_vec);
     out.stiffness = parts.next().unwrap_or_default();
     out.viscous_configuration = parts.next().unwrap_or_default();
     out.viscous_velocity = parts.next().unwrap_or_default();
     Ok(out)
+}
+
+/// From this many cells [`cell_products`] runs its cells on the pool (when it has more than one
+/// thread).
+const PARALLEL_MIN_CELLS: usize = 128;
+
+/// One cell's part of [`CellProducts`]: the products at its local dofs, and its points'.
+struct CellProduct {
+    stiffness: [f64; MAX_LOCAL],
+    viscous_configuration: [f64; MAX_LOCAL],
+    viscous_velocity: [f64; MAX_LOCAL],
+    points: Vec<f64>,
 }
 
 /// wᵀ∂f_vis/∂η of the Kelvin–Voigt forces of material `material` at configuration `q` and
@@ -210,11 +275,17 @@ fn gather(nodes: &[usize], x: &[f64], local: &mut [f64]) {
     }
 }
 
-/// out += kᵀ w of a cell's local matrix `k` (row-major) and local weight `w`, at the cell's dofs.
-fn add_transposed(k: &[f64], w: &[f64], nodes: &[usize], out: &mut [f64]) {
+/// kᵀ w of a cell's local matrix `k` (row-major) and local weight `w`, into `out`.
+fn transposed(k: &[f64], w: &[f64], out: &mut [f64]) {
     let nl = w.len();
-    for j in 0..nl {
-        let s: f64 = (0..nl).map(|i| w[i] * k[i * nl + j]).sum();
-        out[nodes[j / FIELDS] * FIELDS + j % FIELDS] += s;
+    for (j, o) in out.iter_mut().enumerate().take(nl) {
+        *o = (0..nl).map(|i| w[i] * k[i * nl + j]).sum();
+    }
+}
+
+/// out += a cell's local vector `local` at the cell's dofs.
+fn scatter(nodes: &[usize], local: &[f64], out: &mut [f64]) {
+    for (j, &v) in local.iter().enumerate() {
+        out[nodes[j / FIELDS] * FIELDS + j % FIELDS] += v;
     }
 }

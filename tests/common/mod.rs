@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod gradient;
 pub mod vtu;
 
 use deasim::mesh::Mesh;
