@@ -83,6 +83,11 @@ material, parameter or objective term whose adjoint is not built yet (the messag
         /// The finite differences' step relative to each value (default 1e-4).
         #[arg(long, value_name = "H")]
         fd_step: Option<f64>,
+        /// The memory budget of the taped states, e.g. "256 MiB" or bytes (as the scenario's
+        /// `gradient.memory`, which it overrides; default 1 GiB): beyond it the dynamic stages
+        /// are recomputed from checkpoints.
+        #[arg(long, value_name = "SIZE")]
+        memory: Option<String>,
     },
     /// The drive of the scenario's [[controls]] that minimises its [[objective]] (a projected
     /// quasi-Newton method with adjoint gradients); writes OUT/control.json, control.csv,
@@ -445,13 +450,20 @@ fn main() {
             overwrite,
             check,
             fd_step,
-        } => deasim::cli::gradient::cmd_gradient(
-            scenario.as_deref(),
-            out.as_deref(),
-            &set,
-            overwrite,
-            check.then_some(fd_step),
-        ),
+            memory,
+        } => {
+            let mut set = set;
+            if let Some(m) = memory {
+                set.push(format!("gradient.memory=\"{}\"", m.replace('"', "")));
+            }
+            deasim::cli::gradient::cmd_gradient(
+                scenario.as_deref(),
+                out.as_deref(),
+                &set,
+                overwrite,
+                check.then_some(fd_step),
+            )
+        }
         Command::Control {
             scenario,
             out,

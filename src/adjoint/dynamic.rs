@@ -21,8 +21,9 @@
 //! q̄₀' −= (∂f/∂q)ᵀz, v̄₀ −= (∂f/∂v)ᵀz and dJ/dp −= zᵀ∂f/∂p (−zᵀ(∂M/∂m)a₀ for a pad's mass).
 
 use super::lambda::AdjointSolver;
+use super::objective::Backward;
 use super::sink::{waveform_dofs, Sink};
-use super::tape::{TapedDynamics, TapedStage};
+use super::tape::{TapedDynamics, TapedStage, TapedStep};
 use crate::algebra::system::{LoadedSystem, NonlinearSystem};
 use crate::io::build::Parameter;
 use crate::job::plan::Plan;
@@ -92,6 +93,24 @@ pub(super) fn commit_adjoint(
     Ok((c.state, c.points))
 }
 
+/// The steps of a dynamic stage for its adjoint.
+pub trait Steps {
+    /// Step `k` of the stage and the record of the level it started from (`None`: the stage's
+    /// first step, which starts from the integrator's initial level); asked for from the last
+    /// step to the first.
+    fn step(&mut self, k: usize) -> Result<(Option<&TapedStep>, &TapedStep), String>;
+}
+
+/// The steps of a stage the tape holds whole.
+pub struct Held<'t>(pub &'t TapedStage);
+
+impl Steps for Held<'_> {
+    fn step(&mut self, k: usize) -> Result<(Option<&TapedStep>, &TapedStep), String> {
+        let steps = &self.0.steps;
+        Ok((k.checked_sub(1).map(|j| &steps[j]), &steps[k]))
+    }
+}
+
 /// What the stage's steps share: the step's and the projection's systems, set up once and moved
 /// to each step's point.
 struct Stage<'a, 'm> {
@@ -112,15 +131,17 @@ struct Stage<'a, 'm> {
     projection_solver: AdjointSolver,
 }
 
-/// The adjoint of the dynamic stage `st` of a taped run: `state_grads[k]` and `velocity_grads[k]`
-/// are ∂J/∂q and ∂J/∂v of its k-th accepted level (empty: none), `end` the cotangent of its last level from the stages after
-/// it. The parameters' derivatives go to `sink`; returns the cotangent of the level the stage
-/// started from (as given to the integrator).
+/// The adjoint of the dynamic stage `st`, the `ti`-th of a taped run, whose steps `steps` gives
+/// from the last to the first: `objective` reads ∂J/∂q and ∂J/∂v of each step, `end` is the
+/// cotangent of its last level from the stages after it. The parameters' derivatives go to
+/// `sink`; returns the cotangent of the level the stage started from (as given to the
+/// integrator).
 pub fn sweep(
     plan: &Plan,
     st: &TapedStage,
-    state_grads: &[Vec<f64>],
-    velocity_grads: &[Vec<f64>],
+    ti: usize,
+    objective: &mut Backward,
+    steps: &mut dyn Steps,
     end: Cotangent,
     sink: &mut Sink,
 ) -> Result<Cotangent, String> {
@@ -185,39 +206,50 @@ pub fn sweep(
         step_solver: AdjointSolver::default(),
         projection_solver: AdjointSolver::default(),
     };
-    // the levels in stage time, as the integrator reached them
-    let mut levels: Vec<TimeLevel> = Vec::with_capacity(st.steps.len());
+    // the levels' times in stage time, as the integrator reached them
+    let dts = st.dts();
+    let mut times = Vec::with_capacity(dts.len());
     let mut t = initial.t;
-    for k in &st.steps {
-        t += k.dt;
-        levels.push(TimeLevel {
-            t,
-            q: k.state.clone(),
-            v: k.v.clone(),
-            a: k.a.clone(),
-        });
+    for dt in &dts {
+        t += dt;
+        times.push(t);
     }
+    let level = |t: f64, k: &TapedStep| TimeLevel {
+        t,
+        q: k.state.clone(),
+        v: k.v.clone(),
+        a: k.a.clone(),
+    };
     let mut c = end;
-    for k in (0..st.steps.len()).rev() {
-        if let Some(g) = state_grads.get(k).filter(|g| !g.is_empty()) {
-            c.q.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+    for k in (0..dts.len()).rev() {
+        let (prev, taped) = steps.step(k)?;
+        let (g, gv) = objective.at_step(ti, k, taped)?;
+        if !g.is_empty() {
+            c.q.iter_mut().zip(&g).for_each(|(a, b)| *a += b);
         }
-        if let Some(g) = velocity_grads.get(k).filter(|g| !g.is_empty()) {
-            c.v.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        if !gv.is_empty() {
+            c.v.iter_mut().zip(&gv).for_each(|(a, b)| *a += b);
         }
-        let prev = if k == 0 { initial } else { &levels[k - 1] };
-        let taped = &st.steps[k];
+        let prev_level = match prev {
+            None => initial.clone(),
+            Some(p) => level(times[k - 1], p),
+        };
         let iterate = if taped.iterate.is_empty() {
             &taped.state
         } else {
             &taped.iterate
         };
-        let before = match k {
-            0 => &st.start_points,
-            _ => &st.steps[k - 1].points,
-        };
+        let before = prev.map_or(&st.start_points, |p| &p.points);
         s.step.points = points_of(&step_model, before);
-        c = step_adjoint(&mut s, prev, &levels[k], iterate, taped.dt, c, sink)?;
+        c = step_adjoint(
+            &mut s,
+            &prev_level,
+            &level(times[k], taped),
+            iterate,
+            taped.dt,
+            c,
+            sink,
+        )?;
     }
     s.step.points = points_of(&step_model, &st.start_points);
     match scheme {

@@ -8,6 +8,11 @@
 //! up to the round-off of the solves (Giles & Pierce, Flow Turbul. Combust. 65 (2000) 393;
 //! Farrell et al., SIAM J. Sci. Comput. 35 (2013) C369).
 //!
+//! Under a memory budget the tape keeps a long dynamic stage as checkpoints
+//! ([`tape::Tape::with_budget`]), whose steps [`replay`] recomputes for the sweep by the
+//! schedule of [`binomial`]; the objective reads every step as the sweep meets it
+//! ([`objective::Backward`]), so that the gradient is the same with and without recomputation.
+//!
 //! What is differentiated today: static, quasi-static and dynamic (midpoint, Newmark) stages of
 //! elastic and viscoelastic materials (Maxwell branches, whose internal variables each step
 //! commits and the sweep carries back) with Kelvin–Voigt viscosity, rigid pads and a
@@ -17,9 +22,11 @@
 //! the objective terms of [`objective::Objective`]. Anything else is refused with a message
 //! that names it.
 
+pub mod binomial;
 pub mod dynamic;
 pub mod lambda;
 pub mod objective;
+pub mod replay;
 pub mod sink;
 pub mod sweep;
 pub mod tape;

@@ -1,10 +1,11 @@
 //! The objective J of a gradient: the sum of the scenario's `[[objective]]` terms, each a function
 //! of the states of the accepted steps of one stage.
 
-use super::tape::Tape;
+use super::tape::{Tape, TapedStep};
 use crate::io::scenario::{InputError, ObjectiveSpec, Scenario, VoltageSpec};
 use crate::job::plan::Plan;
 use crate::problem::field_penalty::field_penalty;
+use crate::time::mass::NodalMass;
 use std::path::Path;
 
 /// One term of J.
@@ -138,22 +139,305 @@ impl Objective {
         Ok(Objective { terms })
     }
 
-    /// J at the taped run, and ∂J/∂x at every taped step.
+    /// J at the taped run, and ∂J/∂x at every taped step (the tape must hold every step).
     pub fn evaluate(&self, plan: &Plan, tape: &Tape) -> Result<Evaluation, String> {
-        let mut value = 0.0;
-        let mut state: Vec<Vec<Vec<f64>>> = tape
-            .stages
-            .iter()
-            .map(|st| vec![Vec::new(); st.steps.len()])
-            .collect();
+        let mut b = Backward::new(self, plan, tape)?;
+        let mut state = Vec::with_capacity(tape.stages.len());
+        let mut velocity = Vec::with_capacity(tape.stages.len());
+        for (si, st) in tape.stages.iter().enumerate().rev() {
+            if st.is_checkpointed() {
+                return Err(format!(
+                    "stage `{}` was kept as checkpoints: its steps are read as the adjoint \
+                     recomputes them",
+                    plan.stages[st.index].name
+                ));
+            }
+            let mut xs = vec![Vec::new(); st.steps.len()];
+            let mut vs = vec![Vec::new(); st.steps.len()];
+            for (k, step) in st.steps.iter().enumerate().rev() {
+                (xs[k], vs[k]) = b.at_step(si, k, step)?;
+            }
+            state.push(xs);
+            velocity.push(vs);
+        }
+        state.reverse();
+        velocity.reverse();
+        let end = b.finish()?;
+        Ok(Evaluation {
+            value: end.value,
+            state,
+            reference: end.reference,
+            velocity,
+            controls: end.controls,
+            readings: end.readings,
+        })
+    }
+}
+
+/// What a term read at one step: the probe's value (or the field penalty, or 2 × the kinetic
+/// energy), the target there and the run's clock (s).
+#[derive(Debug, Clone, Copy)]
+struct Read {
+    step: usize,
+    value: f64,
+    target: f64,
+    time: f64,
+}
+
+/// J read from the run's last accepted step back to its first, as the adjoint sweep meets them:
+/// each step's ∂J/∂x and ∂J/∂v from that step's state alone ([`Backward::at_step`]), and J, the
+/// derivative in the reference state and the readings at the end ([`Backward::finish`]) from the
+/// scalars kept per step. Every sum runs in the order of the terms and, within a term, of the
+/// steps (forwards), so that J and its derivatives are the same numbers whether the states are
+/// all held or recomputed from checkpoints. Needs of each stage only its step count and its
+/// last step (the start of the next stage's relative terms).
+pub struct Backward<'a> {
+    objective: &'a Objective,
+    plan: &'a Plan,
+    /// Accepted steps of each taped stage.
+    counts: Vec<usize>,
+    /// The taped stage each term reads (`None`: a drive effort).
+    stages: Vec<Option<usize>>,
+    /// Each probe term's value at its stage's start (0 unless relative), and its gradient there.
+    v0: Vec<f64>,
+    reference_state: Vec<f64>,
+    /// What each term read, from the last step back.
+    reads: Vec<Vec<Read>>,
+    /// The nodal mass of the stage of each `rest` term.
+    masses: Vec<Option<NodalMass>>,
+}
+
+/// J, ∂J/∂(the reference state), ∂J/∂(the controls' knots) and the readings of a run.
+pub struct Finished {
+    pub value: f64,
+    pub reference: Vec<f64>,
+    pub controls: Vec<Vec<f64>>,
+    pub readings: Vec<Reading>,
+}
+
+impl<'a> Backward<'a> {
+    /// The reader of `objective` over the run `tape` holds (its stages' step counts and last
+    /// steps).
+    pub fn new(objective: &'a Objective, plan: &'a Plan, tape: &Tape) -> Result<Self, String> {
         let n = plan.model.mesh.n_nodes() * crate::problem::dofs::FIELDS;
         let reference_state = tape.reference_state(n);
+        let counts: Vec<usize> = tape.stages.iter().map(|s| s.count()).collect();
+        let mut stages = Vec::with_capacity(objective.terms.len());
+        let mut v0 = Vec::with_capacity(objective.terms.len());
+        let mut masses = Vec::with_capacity(objective.terms.len());
+        for t in &objective.terms {
+            let stage = match t {
+                Term::DriveEffort { .. } => {
+                    stages.push(None);
+                    v0.push(0.0);
+                    masses.push(None);
+                    continue;
+                }
+                Term::ProbeFinal { stage, .. }
+                | Term::ProbeMisfit { stage, .. }
+                | Term::Rest { stage, .. }
+                | Term::FieldPenalty { stage, .. } => *stage,
+            };
+            let Some(si) = tape.stages.iter().position(|st| st.index == stage) else {
+                return Err(format!(
+                    "the objective reads stage `{}`, which the run did not reach",
+                    plan.stages[stage].name
+                ));
+            };
+            masses.push(match t {
+                Term::Rest { .. } => match &tape.stages[si].dynamics {
+                    Some(d) => Some(d.mass.clone()),
+                    None => {
+                        return Err(format!(
+                            "stage `{}` is no dynamic stage",
+                            plan.stages[stage].name
+                        ))
+                    }
+                },
+                _ => None,
+            });
+            let start = match t {
+                Term::ProbeFinal {
+                    probe,
+                    relative: true,
+                    ..
+                }
+                | Term::ProbeMisfit {
+                    probe,
+                    relative: true,
+                    ..
+                } => {
+                    // the state the previous taped stage ended at, or the reference state
+                    // (pre-stretched, or the undeformed one) before the first
+                    let x = match si {
+                        0 => &reference_state,
+                        _ => &tape.stages[si - 1].last_step().state,
+                    };
+                    nodal_value(&plan.probes[*probe].1, x, &reference_state)
+                }
+                _ => 0.0,
+            };
+            stages.push(Some(si));
+            v0.push(start);
+        }
+        Ok(Backward {
+            objective,
+            plan,
+            counts,
+            stages,
+            v0,
+            reference_state,
+            reads: vec![Vec::new(); objective.terms.len()],
+            masses,
+        })
+    }
+
+    /// The value and state gradient of the probe of term `ti` at `x`.
+    fn probe_at(&self, probe: usize, x: &[f64]) -> Result<(f64, Vec<f64>), String> {
+        let (name, p) = &self.plan.probes[probe];
+        let g = p
+            .state_gradient(x)
+            .ok_or_else(|| format!("the probe `{name}` has no derivative in the state"))?;
+        Ok((nodal_value(p, x, &self.reference_state), g))
+    }
+
+    /// −Σ weight · r over the readings of relative probe term `ti` (forwards): dJ/d(its probe at
+    /// the stage's start).
+    fn start_derivative(&self, ti: usize) -> f64 {
+        let weight = match &self.objective.terms[ti] {
+            Term::ProbeFinal { weight, .. } | Term::ProbeMisfit { weight, .. } => *weight,
+            _ => return 0.0,
+        };
+        let mut start = 0.0;
+        for r in self.reads[ti].iter().rev() {
+            start -= weight * (r.value - self.v0[ti] - r.target);
+        }
+        start
+    }
+
+    /// ∂J/∂x and ∂J/∂v (empty where J does not read them) of step `k` of taped stage `si`,
+    /// whose record is `step`; called for every step from the run's last to its first.
+    pub fn at_step(
+        &mut self,
+        si: usize,
+        k: usize,
+        step: &TapedStep,
+    ) -> Result<(Vec<f64>, Vec<f64>), String> {
+        let last = self.counts[si] - 1;
+        let mut slot: Vec<f64> = Vec::new();
+        let mut vslot: Vec<f64> = Vec::new();
+        let add = |slot: &mut Vec<f64>, g: &[f64], factor: f64| {
+            if slot.is_empty() {
+                slot.resize(g.len(), 0.0);
+            }
+            slot.iter_mut().zip(g).for_each(|(s, v)| *s += factor * v);
+        };
+        for ti in 0..self.objective.terms.len() {
+            let here = self.stages[ti] == Some(si);
+            match &self.objective.terms[ti] {
+                Term::DriveEffort { .. } => {}
+                Term::FieldPenalty { limit, weight, .. } => {
+                    if here {
+                        let factor = weight * self.plan.symmetry_factor;
+                        let mut g = vec![0.0; step.state.len()];
+                        let value =
+                            field_penalty(&self.plan.model, &step.state, *limit, Some(&mut g))?;
+                        self.reads[ti].push(Read {
+                            step: k,
+                            value,
+                            target: 0.0,
+                            time: step.time,
+                        });
+                        add(&mut slot, &g, factor);
+                    }
+                }
+                Term::Rest { weight, .. } => {
+                    if here && k == last {
+                        let v = &step.v;
+                        let mut mv = vec![0.0; v.len()];
+                        if let Some(m) = &self.masses[ti] {
+                            m.mul(v, &mut mv);
+                        }
+                        let value = v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
+                        self.reads[ti].push(Read {
+                            step: k,
+                            value,
+                            target: 0.0,
+                            time: step.time,
+                        });
+                        if vslot.is_empty() {
+                            vslot.resize(v.len(), 0.0);
+                        }
+                        vslot
+                            .iter_mut()
+                            .zip(&mv)
+                            .for_each(|(s, m)| *s += weight * m);
+                    }
+                }
+                Term::ProbeFinal {
+                    probe,
+                    target,
+                    weight,
+                    relative,
+                    step: chosen,
+                    ..
+                } => {
+                    if here && k == chosen.unwrap_or(last).min(last) {
+                        let (v, g) = self.probe_at(*probe, &step.state)?;
+                        let r = v - self.v0[ti] - target;
+                        self.reads[ti].push(Read {
+                            step: k,
+                            value: v,
+                            target: *target,
+                            time: step.time,
+                        });
+                        add(&mut slot, &g, weight * r);
+                    } else if *relative && self.stages[ti] == Some(si + 1) && k == last {
+                        let start = self.start_derivative(ti);
+                        if start != 0.0 {
+                            let (_, g0) = self.probe_at(*probe, &step.state)?;
+                            add(&mut slot, &g0, start);
+                        }
+                    }
+                }
+                Term::ProbeMisfit {
+                    probe,
+                    target,
+                    weight,
+                    relative,
+                    ..
+                } => {
+                    if here {
+                        let (v, g) = self.probe_at(*probe, &step.state)?;
+                        let target = target.at(step.time);
+                        let r = v - self.v0[ti] - target;
+                        self.reads[ti].push(Read {
+                            step: k,
+                            value: v,
+                            target,
+                            time: step.time,
+                        });
+                        add(&mut slot, &g, weight * r);
+                    } else if *relative && self.stages[ti] == Some(si + 1) && k == last {
+                        let start = self.start_derivative(ti);
+                        if start != 0.0 {
+                            let (_, g0) = self.probe_at(*probe, &step.state)?;
+                            add(&mut slot, &g0, start);
+                        }
+                    }
+                }
+            }
+        }
+        Ok((slot, vslot))
+    }
+
+    /// J, and its derivatives in the reference state and the controls' knots, once every step
+    /// was read.
+    pub fn finish(self) -> Result<Finished, String> {
+        let plan = self.plan;
+        let n = self.reference_state.len();
+        let mut value = 0.0;
         let mut reference = vec![0.0; n];
-        let mut velocity: Vec<Vec<Vec<f64>>> = tape
-            .stages
-            .iter()
-            .map(|st| vec![Vec::new(); st.steps.len()])
-            .collect();
         let knots: Vec<ControlKnots> = plan
             .stages
             .iter()
@@ -167,34 +451,10 @@ impl Objective {
         let mut controls: Vec<Vec<f64>> = knots.iter().map(|k| vec![0.0; k.2.len()]).collect();
         // ∂J/∂(reference state) of relative terms of the first stage
         let mut at_reference: Vec<f64> = Vec::new();
-        let mut add = |si: usize, k: usize, g: &[f64], factor: f64, reads_reference: bool| {
-            let slot = &mut state[si][k];
-            if slot.is_empty() {
-                slot.resize(g.len(), 0.0);
-            }
-            slot.iter_mut().zip(g).for_each(|(s, v)| *s += factor * v);
-            if reads_reference {
-                reference
-                    .iter_mut()
-                    .zip(g)
-                    .for_each(|(s, v)| *s -= factor * v);
-            }
-        };
         let mut readings = Vec::new();
-        for (ti, t) in self.terms.iter().enumerate() {
-            let (probe, stage, relative) = match t {
-                Term::ProbeFinal {
-                    probe,
-                    stage,
-                    relative,
-                    ..
-                }
-                | Term::ProbeMisfit {
-                    probe,
-                    stage,
-                    relative,
-                    ..
-                } => (*probe, *stage, *relative),
+        for (ti, t) in self.objective.terms.iter().enumerate() {
+            let reads = &self.reads[ti];
+            let (probe, stage, weight, relative) = match t {
                 Term::DriveEffort {
                     stage,
                     electrode,
@@ -213,131 +473,80 @@ impl Objective {
                         .for_each(|(a, b)| *a += 0.5 * weight * b);
                     continue;
                 }
-                Term::FieldPenalty {
-                    stage,
-                    limit,
-                    weight,
-                } => {
-                    let Some(si) = tape.stages.iter().position(|st| st.index == *stage) else {
-                        return Err(format!(
-                            "the objective reads stage `{}`, which the run did not reach",
-                            plan.stages[*stage].name
-                        ));
-                    };
+                Term::FieldPenalty { weight, .. } => {
                     let factor = weight * plan.symmetry_factor;
-                    for (k, step) in tape.stages[si].steps.iter().enumerate() {
-                        let mut g = vec![0.0; step.state.len()];
-                        value +=
-                            factor * field_penalty(&plan.model, &step.state, *limit, Some(&mut g))?;
-                        add(si, k, &g, factor, false);
+                    for r in reads.iter().rev() {
+                        value += factor * r.value;
                     }
                     continue;
                 }
-                Term::Rest { stage, weight } => {
-                    let Some(si) = tape.stages.iter().position(|st| st.index == *stage) else {
-                        return Err(format!(
-                            "the objective reads stage `{}`, which the run did not reach",
-                            plan.stages[*stage].name
-                        ));
-                    };
-                    let st = &tape.stages[si];
-                    let d = st.dynamics.as_ref().ok_or_else(|| {
-                        format!("stage `{}` is no dynamic stage", plan.stages[*stage].name)
-                    })?;
-                    let k = st.steps.len() - 1;
-                    let v = &st.steps[k].v;
-                    let mut mv = vec![0.0; v.len()];
-                    d.mass.mul(v, &mut mv);
-                    value += weight * 0.5 * v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
-                    let slot = &mut velocity[si][k];
-                    if slot.is_empty() {
-                        slot.resize(v.len(), 0.0);
+                Term::Rest { weight, .. } => {
+                    for r in reads.iter().rev() {
+                        value += weight * 0.5 * r.value;
                     }
-                    slot.iter_mut().zip(&mv).for_each(|(s, m)| *s += weight * m);
                     continue;
                 }
-            };
-            let (name, p) = &plan.probes[probe];
-            let Some(si) = tape.stages.iter().position(|st| st.index == stage) else {
-                return Err(format!(
-                    "the objective reads stage `{}`, which the run did not reach",
-                    plan.stages[stage].name
-                ));
-            };
-            let st = &tape.stages[si];
-            let value_at = |x: &[f64]| -> Result<(f64, Vec<f64>), String> {
-                let g = p
-                    .state_gradient(x)
-                    .ok_or_else(|| format!("the probe `{name}` has no derivative in the state"))?;
-                Ok((nodal_value(p, x, &reference_state), g))
-            };
-            // the probe at the stage's start: the state the previous taped stage ended at, or
-            // the reference state (pre-stretched, or the undeformed one) before the first
-            let (v0, g0) = if !relative {
-                (0.0, Vec::new())
-            } else if si > 0 {
-                let prev = &tape.stages[si - 1];
-                value_at(&prev.steps[prev.steps.len() - 1].state)?
-            } else {
-                value_at(&reference_state)?
-            };
-            // dJ/d(probe at the start) = −Σ dJ/d(probe at the steps)
-            let mut start = 0.0;
-            match t {
                 Term::ProbeFinal {
-                    target,
+                    probe,
+                    stage,
                     weight,
-                    step,
+                    relative,
                     ..
-                } => {
-                    let k = step.unwrap_or(st.steps.len() - 1).min(st.steps.len() - 1);
-                    let (v, g) = value_at(&st.steps[k].state)?;
-                    let r = v - v0 - target;
-                    readings.push(Reading {
-                        term: ti,
-                        stage,
-                        step: k,
-                        time: st.steps[k].time,
-                        value: v - v0,
-                        target: *target,
-                        weight: *weight,
-                    });
-                    value += 0.5 * weight * r * r;
-                    add(si, k, &g, weight * r, p.reads_reference());
-                    start -= weight * r;
                 }
-                Term::ProbeMisfit { target, weight, .. } => {
-                    for (k, step) in st.steps.iter().enumerate() {
-                        let (v, g) = value_at(&step.state)?;
-                        let r = v - v0 - target.at(step.time);
-                        readings.push(Reading {
-                            term: ti,
-                            stage,
-                            step: k,
-                            time: step.time,
-                            value: v - v0,
-                            target: target.at(step.time),
-                            weight: *weight,
-                        });
-                        value += 0.5 * weight * r * r;
-                        add(si, k, &g, weight * r, p.reads_reference());
-                        start -= weight * r;
-                    }
+                | Term::ProbeMisfit {
+                    probe,
+                    stage,
+                    weight,
+                    relative,
+                    ..
+                } => (*probe, *stage, *weight, *relative),
+            };
+            let p = &plan.probes[probe].1;
+            // a deflection's gradient does not depend on the state: the reference's is that of
+            // every step
+            let g_reference = if p.reads_reference() || relative {
+                self.probe_at(probe, &self.reference_state)?.1
+            } else {
+                Vec::new()
+            };
+            let mut start = 0.0;
+            for r in reads.iter().rev() {
+                let residual = r.value - self.v0[ti] - r.target;
+                readings.push(Reading {
+                    term: ti,
+                    stage,
+                    step: r.step,
+                    time: r.time,
+                    value: r.value - self.v0[ti],
+                    target: r.target,
+                    weight,
+                });
+                value += 0.5 * weight * residual * residual;
+                if p.reads_reference() {
+                    let factor = weight * residual;
+                    reference
+                        .iter_mut()
+                        .zip(&g_reference)
+                        .for_each(|(s, v)| *s -= factor * v);
                 }
-                Term::DriveEffort { .. } | Term::Rest { .. } | Term::FieldPenalty { .. } => {}
+                start -= weight * residual;
             }
             if relative && start != 0.0 {
-                if si > 0 {
-                    let k = tape.stages[si - 1].steps.len() - 1;
-                    add(si - 1, k, &g0, start, p.reads_reference());
+                if self.stages[ti].is_some_and(|si| si > 0) {
+                    if p.reads_reference() {
+                        reference
+                            .iter_mut()
+                            .zip(&g_reference)
+                            .for_each(|(s, v)| *s -= start * v);
+                    }
                 } else if !p.reads_reference() {
                     // the start is the reference state itself (a deflection from it reads 0)
                     if at_reference.is_empty() {
-                        at_reference.resize(g0.len(), 0.0);
+                        at_reference.resize(g_reference.len(), 0.0);
                     }
                     at_reference
                         .iter_mut()
-                        .zip(&g0)
+                        .zip(&g_reference)
                         .for_each(|(s, v)| *s += start * v);
                 }
             }
@@ -346,11 +555,9 @@ impl Objective {
             .iter_mut()
             .zip(&at_reference)
             .for_each(|(s, v)| *s += v);
-        Ok(Evaluation {
+        Ok(Finished {
             value,
-            state,
             reference,
-            velocity,
             controls,
             readings,
         })

@@ -12,9 +12,11 @@
 //! - each prescribed entry d gets aₙ,d = ∂J/∂xₙ,d − λₙᵀ ∂Rₙ/∂xₙ,d, which goes to its target
 //!   (·sₙ), to the stage's start state (·(1 − sₙ)), or to its waveform's parameters.
 
+use super::dynamic::Held;
 use super::dynamic::{self, Cotangent};
 use super::lambda::{solve_adjoint, AdjointSolver};
-use super::objective::Objective;
+use super::objective::{Backward, Objective};
+use super::replay::Recompute;
 use super::sink::{waveform_dofs, ControlGradient, Sink};
 use super::tape::{Tape, TapedStage};
 use crate::algebra::system::LoadedSystem;
@@ -34,6 +36,10 @@ pub struct Gradient {
     pub gradient: Vec<f64>,
     /// dJ/dV at the knots of each control, stage by stage.
     pub controls: Vec<ControlGradient>,
+    /// The steps recomputed from checkpoints (0 when the tape held every state), and the most
+    /// bytes the tape and the recomputation held at once.
+    pub recomputed_steps: usize,
+    pub peak_bytes: usize,
 }
 
 /// Whether the adjoint of a run of `plan` is built (every differentiable parameter is); an
@@ -93,7 +99,9 @@ pub fn gradient(
     supports: &[Vec<f64>],
 ) -> Result<Gradient, String> {
     check_supported(plan)?;
-    let eval = objective.evaluate(plan, tape)?;
+    let mut reader = Backward::new(objective, plan, tape)?;
+    let mut recomputed_steps = 0;
+    let mut peak_bytes = tape.peak_bytes();
     let mut sink = Sink::new(plan, parameters);
     let n_dofs = plan.model.mesh.n_nodes() * FIELDS;
     // each dof's support (the last that prescribes it, as they are applied in order)
@@ -109,17 +117,12 @@ pub fn gradient(
     let mut carry = Cotangent::zeros(n_dofs);
     for (ti, st) in tape.stages.iter().enumerate().rev() {
         sink.stage = st.index;
-        carry = if st.dynamics.is_some() {
-            dynamic::sweep(
-                plan,
-                st,
-                &eval.state[ti],
-                &eval.velocity[ti],
-                carry,
-                &mut sink,
-            )?
-        } else {
-            let start = static_stage(plan, st, &eval.state[ti], &carry, &mut sink)?;
+        carry = if st.dynamics.is_none() {
+            let mut state_grads = vec![Vec::new(); st.steps.len()];
+            for (k, step) in st.steps.iter().enumerate().rev() {
+                state_grads[k] = reader.at_step(ti, k, step)?.0;
+            }
+            let start = static_stage(plan, st, &state_grads, &carry, &mut sink)?;
             for (d, &j) in support_of.iter().enumerate() {
                 if j != usize::MAX {
                     support_cotangent[j] += start.to[d];
@@ -130,8 +133,18 @@ pub fn gradient(
                 points: start.points,
                 ..Cotangent::zeros(n_dofs)
             }
+        } else if st.is_checkpointed() {
+            let budget = tape.budget().unwrap_or(usize::MAX);
+            let mut steps = Recompute::new(st, budget, tape.held_bytes())?;
+            let c = dynamic::sweep(plan, st, ti, &mut reader, &mut steps, carry, &mut sink)?;
+            recomputed_steps += steps.recomputed;
+            peak_bytes = peak_bytes.max(steps.peak);
+            c
+        } else {
+            dynamic::sweep(plan, st, ti, &mut reader, &mut Held(st), carry, &mut sink)?
         };
     }
+    let eval = reader.finish()?;
     if !tape.prestretch_phases.is_empty() {
         // a timed pre-stretch: its phases' load steps in real time, the last state the
         // deflections' reference; each phase ramps the supports from where the one before
@@ -191,6 +204,8 @@ pub fn gradient(
         objective: eval.value,
         gradient: sink.grad,
         controls: sink.controls,
+        recomputed_steps,
+        peak_bytes,
     })
 }
 

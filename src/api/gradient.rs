@@ -25,7 +25,13 @@ pub struct GradientOptions {
     /// strongly nonlinear in a parameter (the truncation error falls as its square), larger
     /// where the solves' tolerance makes J noisy.
     pub fd_step: Option<f64>,
+    /// The memory budget of the tape in bytes (default: the scenario's `gradient.memory`, else
+    /// [`DEFAULT_MEMORY`]): beyond it the dynamic stages are recomputed from checkpoints.
+    pub memory: Option<usize>,
 }
+
+/// The default memory budget of a gradient's tape: 1 GiB.
+pub const DEFAULT_MEMORY: usize = 1 << 30;
 
 /// One parameter's derivative.
 #[derive(Debug, Clone, PartialEq)]
@@ -78,14 +84,21 @@ pub struct GradientReport {
     /// Wall times (s) of the forward run and of the adjoint sweep.
     pub forward_s: f64,
     pub adjoint_s: f64,
-    /// The bytes of the taped states.
+    /// The most bytes the tape held (states, checkpoints and the recomputed ones), its budget,
+    /// and the steps the adjoint recomputed from checkpoints (0 when every state fitted).
     pub tape_bytes: usize,
+    pub memory_budget: usize,
+    pub recomputed_steps: usize,
+    /// The bytes of the largest taped time step and checkpoint: `tape_bytes` stays within
+    /// `memory_budget` plus twice the larger ([`Tape::unit_bytes`]).
+    pub unit_bytes: (usize, usize),
     pub taylor: Option<TaylorTest>,
 }
 
 impl GradientReport {
     /// The document of `gradient.json`: `objective`, `gradient` (key path → dJ/dp),
-    /// `forward_s`, `adjoint_s`, `peak_memory` (bytes of the taped states), and when checked
+    /// `forward_s`, `adjoint_s`, `peak_memory` (the most bytes the tape held: states and
+    /// checkpoints), `memory_budget` (bytes), `recomputed_steps`, and when checked
     /// the finite differences (`check`) and the Taylor test (`taylor`); a non-finite number is
     /// null.
     pub fn to_json(&self) -> serde_json::Value {
@@ -107,6 +120,8 @@ impl GradientReport {
             "forward_s": self.forward_s,
             "adjoint_s": self.adjoint_s,
             "peak_memory": self.tape_bytes,
+            "memory_budget": self.memory_budget,
+            "recomputed_steps": self.recomputed_steps,
         });
         if !self.controls.is_empty() {
             doc["controls"] = serde_json::Value::Array(
@@ -273,8 +288,17 @@ impl Simulation {
         check_supported(&plan).map_err(Error::Refused)?;
         let objective =
             Objective::build(&scenario, &plan, &file, self.base.as_deref()).map_err(input)?;
+        let memory = match options.memory {
+            Some(m) => m,
+            None => match scenario.gradient.as_ref().and_then(|g| g.memory.as_ref()) {
+                Some(m) => m
+                    .bytes()
+                    .map_err(|m| input(InputError::at_key(&file, "gradient.memory", m)))?,
+                None => DEFAULT_MEMORY,
+            },
+        };
         let start = Instant::now();
-        let mut tape = Tape::new(&plan);
+        let mut tape = Tape::with_budget(&plan, memory);
         run_plan(
             &plan,
             RunOptions {
@@ -365,7 +389,10 @@ impl Simulation {
                 .collect(),
             forward_s,
             adjoint_s,
-            tape_bytes: tape.state_bytes(),
+            tape_bytes: g.peak_bytes,
+            memory_budget: memory,
+            recomputed_steps: g.recomputed_steps,
+            unit_bytes: tape.unit_bytes(),
             taylor: None,
         };
         if options.check {

@@ -23,6 +23,7 @@ pub fn cmd_gradient(
         overwrite,
         check: check.is_some(),
         fd_step: check.flatten(),
+        memory: None,
     };
     let report = match sim.gradient(&options) {
         Ok(r) => r,
@@ -129,10 +130,13 @@ fn table(r: &GradientReport) -> String {
     }
     let _ = writeln!(
         s,
-        "forward {:.3} s, adjoint {:.3} s, taped states {:.1} MB",
+        "forward {:.3} s, adjoint {:.3} s, tape at most {:.1} MB (budget {:.1} MB), {} steps \
+         recomputed",
         r.forward_s,
         r.adjoint_s,
-        r.tape_bytes as f64 / 1e6
+        r.tape_bytes as f64 / 1e6,
+        r.memory_budget as f64 / 1e6,
+        r.recomputed_steps
     );
     s
 }

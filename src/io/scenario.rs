@@ -102,6 +102,68 @@ pub struct Scenario {
     /// table of knot values (the unknowns of `deasim gradient` and `deasim control`).
     #[serde(default)]
     pub controls: Vec<ControlSpec>,
+    /// `deasim gradient`'s settings (the memory budget of its tape); a plain run ignores them.
+    #[serde(default)]
+    pub gradient: Option<GradientSpec>,
+}
+
+/// `[gradient]`: `memory`, the bytes the taped states of the forward run may take before its
+/// dynamic stages are recomputed from checkpoints.
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq, Default)]
+#[serde(deny_unknown_fields)]
+pub struct GradientSpec {
+    pub memory: Option<ByteSize>,
+}
+
+/// A size in bytes: a number, or a text with a unit (`"256 MiB"`).
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
+#[serde(untagged)]
+pub enum ByteSize {
+    Bytes(f64),
+    Text(String),
+}
+
+impl ByteSize {
+    /// The bytes, or what is wrong: a positive number of bytes, or a number and one of the
+    /// units B, kB, MB, GB, TB (powers of 1000) or KiB, MiB, GiB, TiB (powers of 1024).
+    pub fn bytes(&self) -> Result<usize, String> {
+        let expected = "expected a size in bytes, a number (e.g. 268435456) or a text with a \
+                        unit (\"256 MiB\", \"2 GB\"; units B, kB, MB, GB, TB, KiB, MiB, GiB, TiB)";
+        let value = match self {
+            ByteSize::Bytes(b) => *b,
+            ByteSize::Text(t) => {
+                let t = t.trim();
+                let split = t
+                    .find(|c: char| c.is_ascii_alphabetic() && c != 'e' && c != 'E')
+                    .unwrap_or(t.len());
+                let (number, unit) = (t[..split].trim(), t[split..].trim());
+                let scale: f64 = match unit {
+                    "" | "B" => 1.0,
+                    "kB" | "KB" => 1e3,
+                    "MB" => 1e6,
+                    "GB" => 1e9,
+                    "TB" => 1e12,
+                    "KiB" => 1024.0,
+                    "MiB" => 1024.0 * 1024.0,
+                    "GiB" => 1024.0 * 1024.0 * 1024.0,
+                    "TiB" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
+                    _ => return Err(format!("{expected}; got \"{t}\" (unknown unit `{unit}`)")),
+                };
+                match number.parse::<f64>() {
+                    Ok(v) => v * scale,
+                    Err(_) => return Err(format!("{expected}; got \"{t}\"")),
+                }
+            }
+        };
+        if !(1.0..1.8e19).contains(&value) {
+            let got = match self {
+                ByteSize::Bytes(b) => format!("{b}"),
+                ByteSize::Text(t) => format!("\"{t}\""),
+            };
+            return Err(format!("{expected} of at least 1 byte; got {got}"));
+        }
+        Ok(value as usize)
+    }
 }
 
 /// `[[controls]]`: the voltage of `electrode` in `stage` as a piecewise-linear table with knots

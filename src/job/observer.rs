@@ -7,19 +7,23 @@ use super::state::{
 use crate::element::CellFields;
 use crate::problem::model::Model;
 use crate::problem::statics::StaticProblem;
+use crate::solve::newton::NewtonSettings;
 use crate::time::integrator::TimeLevel;
 use crate::time::modal::Mode;
-use crate::time::stage::{DynamicInputs, DynamicStepInfo, Method};
+use crate::time::stage::{DynamicInputs, DynamicSettings, DynamicStepInfo, Method};
 
 /// What a dynamic stage starts from, for an observer that replays its steps (the adjoint's
 /// tape): the model with the stage's supports held, its mass, viscosities, drive and the
-/// internal variables of its material points, the integration method, and the start level as
-/// given to the integrator (stage time).
+/// internal variables of its material points, the integration method, the start level as
+/// given to the integrator (stage time), and the integrator's and Newton's settings (with which
+/// a replay from a resume point repeats the stage's steps).
 pub struct DynamicStart<'a> {
     pub model: &'a Model,
     pub inputs: &'a DynamicInputs<'a>,
     pub method: Method,
     pub start: &'a TimeLevel,
+    pub settings: &'a DynamicSettings,
+    pub newton: &'a NewtonSettings,
 }
 
 /// Receives the progress of a run.

@@ -1258,6 +1258,8 @@ impl<'p, 'o> Job<'p, 'o> {
                 inputs: &inputs,
                 method: scheme,
                 start: &start_level,
+                settings: &settings,
+                newton: self.newton,
             },
         );
         // the stage's linear work up to its last accepted step

@@ -590,7 +590,7 @@ fn step_loop(
     mut dt: f64,
     // the Newton iterations and linear work of the stage before this run (a resumed one)
     (mut total, base): (usize, SolverStats),
-    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo) -> bool,
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
     let min_dt = settings.dt * settings.min_fraction;
     while stepper.level().t < t_end - 1e-12 * settings.duration {
@@ -628,8 +628,11 @@ fn step_loop(
                     prev: stepper.level(),
                     iterate: &a.iterate,
                 };
-                on_step(&a.level, &info);
+                let go_on = on_step(&a.level, &info);
                 stepper.accept(a.level, a.points);
+                if !go_on {
+                    break;
+                }
             }
             Err(StepError::Fatal(reason, iterations)) => {
                 return Err((
@@ -699,7 +702,34 @@ pub fn run_dynamic_from(
     settings: &DynamicSettings,
     newton_settings: &NewtonSettings,
     resume: Option<DynamicResume>,
-    on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+    mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo),
+) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
+    run_dynamic_while(
+        model,
+        inputs,
+        start,
+        settings,
+        newton_settings,
+        resume,
+        |level, info| {
+            on_step(level, info);
+            true
+        },
+    )
+}
+
+/// [`run_dynamic_from`] that stops after the first step for which `on_step` returns false (the
+/// level it returns is that step's): the adjoint's replay of part of a stage.
+// one result per stage: the size of its failure (the last level and what stopped it) costs nothing
+#[allow(clippy::result_large_err)]
+pub fn run_dynamic_while(
+    model: &Model,
+    inputs: &DynamicInputs,
+    start: TimeLevel,
+    settings: &DynamicSettings,
+    newton_settings: &NewtonSettings,
+    resume: Option<DynamicResume>,
+    on_step: impl FnMut(&TimeLevel, &DynamicStepInfo) -> bool,
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
     if settings.scheme == Method::Trapezoidal && !inputs.points.is_empty() {
         return Err((
@@ -894,10 +924,14 @@ pub fn run_dynamic_from(
     if let Some(point) = resume.as_ref().and_then(|r| r.step_factor.as_ref()) {
         let s = &mut stepper;
         let saved = s.step.inner_mut().enter_factor_point(point);
+        // the circuits' terms of the matrix, which depend on Δt and R only
+        let sources = vec![[0.0; 3]; step_model.circuits.len()];
+        let circuits = s.step.inner_mut().begin_circuits(&sources);
         let system = s.step.system();
         let mut r = vec![0.0; system.n()];
         // a shared assembly's solver needs the layout before its first factorisation
-        let result = crate::solve::newton::prepare_solver(system, s.solver.as_mut())
+        let result = circuits
+            .and_then(|()| crate::solve::newton::prepare_solver(system, s.solver.as_mut()))
             .and_then(|()| system.evaluate(&mut r, Some(&mut s.k)))
             .and_then(|()| s.solver.factor(&s.k).map(|_| ()).map_err(|e| e.to_string()));
         let step = s.step.inner_mut();
