@@ -598,3 +598,28 @@ fn viscoelastic_runs_resume_bitwise() {
         ],
     );
 }
+
+/// The vibrating film driven through a circuit (20 kV behind 10⁸ Ω), resumed from the
+/// checkpoint at step 60: the step matrix refactored at its factor point carries the circuit's
+/// coupling as the run had it, so the resumed run continues bit for bit.
+#[test]
+fn a_circuit_driven_vibration_resumes_bitwise() {
+    let dir = tempdir("circuit");
+    let path = example(&dir, "film-vibration");
+    let scenario = std::fs::read_to_string(&path).unwrap().replace(
+        "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
+        "circuit = { source = { waveform = \"step\", amplitude = 20e3, at = 0.0 }, resistance = 1e8 }",
+    );
+    assert!(scenario.contains("resistance = 1e8"));
+    std::fs::write(&path, scenario).unwrap();
+    let full = resume_older(
+        &dir,
+        &path,
+        "30",
+        &[
+            "stages.0.duration=0.002",
+            "materials.elastomer.viscosity=50",
+        ],
+    );
+    assert_eq!(full.status.code(), Some(0), "{}", text(&full));
+}
