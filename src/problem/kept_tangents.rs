@@ -1,7 +1,8 @@
 //! The cells' tangents of the last evaluation with a matrix, kept for the transposed products
 //! of a discrete adjoint at the same point: the adjoint solves with the step's Jacobian and then
 //! needs wᵀ∂R/∂· of the same cell matrices, which would otherwise cost a second pass of cell
-//! tangents (the dearest part of an adjoint step).
+//! tangents (the dearest part of an adjoint step). They take 2·nl²·8 bytes a cell (16 kB for a
+//! hex8), so they are kept up to [`MAX_BYTES`] only.
 
 use super::model::Model;
 use crate::fem::FIELDS;
@@ -15,7 +16,17 @@ pub struct KeptTangents {
     at: Option<Vec<f64>>,
 }
 
+/// The most bytes the kept tangents of a model may take (two blocks per cell): beyond it the
+/// products take their own pass, as memory matters more than the pass on such meshes.
+pub const MAX_BYTES: usize = 256 << 20;
+
 impl KeptTangents {
+    /// Whether the tangents of `model`'s cells fit [`MAX_BYTES`].
+    pub fn affordable(model: &Model) -> bool {
+        let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+        model.mesh.n_cells().saturating_mul(2 * nl * nl * 8) <= MAX_BYTES
+    }
+
     /// The slots of the `n_cells` cells for an evaluation about to fill them (each cell its own,
     /// from any thread); what was kept before is forgotten.
     pub fn slots(&mut self, n_cells: usize) -> &[Mutex<Vec<f64>>] {
@@ -68,5 +79,18 @@ impl KeptTangents {
             }
         }
         Some(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A hex8 cell's two blocks take 16 kB: 4 cells fit, 20 000 (320 MB) do not.
+    #[test]
+    fn tangents_are_kept_up_to_the_limit() {
+        let film = |d| crate::problem::examples::film(d, crate::mesh::ElementKind::Hex8, 2e4);
+        assert!(KeptTangents::affordable(&film([2, 2, 1]).unwrap()));
+        assert!(!KeptTangents::affordable(&film([50, 50, 8]).unwrap()));
     }
 }

@@ -675,7 +675,11 @@ impl NonlinearSystem for StaticProblem<'_> {
         // every displacement held (the electrostatic projection of a dynamic step): the residual
         // has Φ rows only (the cell energies are then not evaluated)
         let potential_only = k.is_none() && self.dofs.n_free == self.dofs.n_free_phi;
-        let keep = self.keep_cell_tangents && k.is_some() && m.share.is_none() && points.is_empty();
+        let keep = self.keep_cell_tangents
+            && k.is_some()
+            && m.share.is_none()
+            && points.is_empty()
+            && KeptTangents::affordable(m);
         self.kept.forget();
         let slots = if keep {
             Some(self.kept.slots(m.mesh.n_cells()))

@@ -694,7 +694,8 @@ impl NonlinearSystem for TimeStep<'_> {
             && exact
             && k.is_some()
             && model.share.is_none()
-            && points.is_empty();
+            && points.is_empty()
+            && KeptTangents::affordable(model);
         self.kept.forget();
         let slots = if keep {
             Some(self.kept.slots(model.mesh.n_cells()))
