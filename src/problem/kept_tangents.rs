@@ -5,6 +5,7 @@
 //! hex8), so they are kept up to [`MAX_BYTES`] only.
 
 use super::model::Model;
+use super::points::PointStates;
 use crate::fem::FIELDS;
 use std::sync::{Mutex, MutexGuard};
 
@@ -27,9 +28,23 @@ impl KeptTangents {
         model.mesh.n_cells().saturating_mul(2 * nl * nl * 8) <= MAX_BYTES
     }
 
+    /// Starts an evaluation of `model` at internal variables `points`: forgets what was kept,
+    /// and gives the cells' slots to fill when the tangents are `wanted` and can be kept (a
+    /// whole model, elastic materials, within [`MAX_BYTES`]).
+    pub fn begin(
+        &mut self,
+        model: &Model,
+        wanted: bool,
+        points: &PointStates,
+    ) -> Option<&[Mutex<Vec<f64>>]> {
+        self.at = None;
+        let keep = wanted && model.share.is_none() && points.is_empty() && Self::affordable(model);
+        keep.then(|| self.slots(model.mesh.n_cells()))
+    }
+
     /// The slots of the `n_cells` cells for an evaluation about to fill them (each cell its own,
     /// from any thread); what was kept before is forgotten.
-    pub fn slots(&mut self, n_cells: usize) -> &[Mutex<Vec<f64>>] {
+    fn slots(&mut self, n_cells: usize) -> &[Mutex<Vec<f64>>] {
         if self.cells.len() != n_cells {
             self.cells = (0..n_cells).map(|_| Mutex::new(Vec::new())).collect();
         }
@@ -47,11 +62,6 @@ impl KeptTangents {
     /// The slots hold the evaluation at `stamp`.
     pub fn filled_at(&mut self, stamp: Vec<f64>) {
         self.at = Some(stamp);
-    }
-
-    /// Forgets what was kept.
-    pub fn forget(&mut self) {
-        self.at = None;
     }
 
     /// The products kᵀw of each kept block with the weight `w` over every dof, summed over the

@@ -675,17 +675,10 @@ impl NonlinearSystem for StaticProblem<'_> {
         // every displacement held (the electrostatic projection of a dynamic step): the residual
         // has Φ rows only (the cell energies are then not evaluated)
         let potential_only = k.is_none() && self.dofs.n_free == self.dofs.n_free_phi;
-        let keep = self.keep_cell_tangents
-            && k.is_some()
-            && m.share.is_none()
-            && points.is_empty()
-            && KeptTangents::affordable(m);
-        self.kept.forget();
-        let slots = if keep {
-            Some(self.kept.slots(m.mesh.n_cells()))
-        } else {
-            None
-        };
+        let slots = self
+            .kept
+            .begin(m, self.keep_cell_tangents && k.is_some(), points);
+        let keep = slots.is_some();
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let input = CellInput {
                 geom: &m.geometry(c),

@@ -690,18 +690,12 @@ impl NonlinearSystem for TimeStep<'_> {
         let npc = model.mesh.kind.nodes_per_cell();
         let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
         let exact = self.exact_jacobian;
-        let keep = self.keep_cell_tangents
-            && exact
-            && k.is_some()
-            && model.share.is_none()
-            && points.is_empty()
-            && KeptTangents::affordable(model);
-        self.kept.forget();
-        let slots = if keep {
-            Some(self.kept.slots(model.mesh.n_cells()))
-        } else {
-            None
-        };
+        let slots = self.kept.begin(
+            model,
+            self.keep_cell_tangents && exact && k.is_some(),
+            points,
+        );
+        let keep = slots.is_some();
         // each cell's dissipation power goes into `cell_energy` (the step needs no cell energies)
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let g = &*model.geometry(c);
