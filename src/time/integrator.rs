@@ -254,6 +254,39 @@ impl<'m> TimeStep<'m> {
         stamp
     }
 
+    /// The round-off of the inertia term M·m (the residual's units): each of m's differences of
+    /// displacements carries about ε times its terms, so M·m is known no closer than
+    /// ε·‖M·|terms of m|‖. With short steps this exceeds the internal forces' round-off (midpoint:
+    /// |q|/Δt grows as Δt falls while Δt/2·f shrinks), and Newton could not reach a floor below it.
+    fn inertia_floor(&self) -> f64 {
+        let dt = self.dt;
+        let terms: Vec<f64> = (0..self.q.len())
+            .map(|d| {
+                if d % FIELDS == PHI {
+                    return 0.0;
+                }
+                let (q, q0, v0) = (self.q[d].abs(), self.prev.q[d].abs(), self.prev.v[d].abs());
+                match self.scheme {
+                    Scheme::Midpoint => (q + q0) / dt + v0,
+                    Scheme::Newmark { beta, .. } => {
+                        q + q0
+                            + dt * v0
+                            + (beta * dt * dt * (0.5 / beta - 1.0) * self.prev.a[d]).abs()
+                    }
+                }
+            })
+            .collect();
+        let mut mt = vec![0.0; terms.len()];
+        self.mass.mul(&terms, &mut mt);
+        let mut eq = vec![0.0; self.dofs.n_free];
+        for (d, &e) in self.dofs.eq.iter().enumerate() {
+            if e != CONSTRAINED {
+                eq[e] += mt[d];
+            }
+        }
+        f64::EPSILON * eq.iter().map(|v| v * v).sum::<f64>().sqrt()
+    }
+
     /// The inertia term m of dof `d` (R gets M·m): midpoint v̄ − v_n, Newmark βΔt² a_{n+1}; 0 for
     /// a potential.
     fn inertia_term(&self, d: usize) -> f64 {
@@ -879,7 +912,7 @@ impl NonlinearSystem for TimeStep<'_> {
     }
 
     fn residual_floor(&self) -> f64 {
-        self.floor * self.residual_factor()
+        self.floor * self.residual_factor() + self.inertia_floor()
     }
 
     fn residual_factor(&self) -> f64 {
