@@ -713,10 +713,8 @@ weight = 100.0
 fn a_circuit_driven_film_vibrating() {
     let dir = tempfile::tempdir().unwrap();
     let base = deasim::io::examples::example("film-vibration").unwrap();
-    let base = base.replace(
-        "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
-        "circuit = { source = { waveform = \"step\", amplitude = 20e3, at = 0.0 }, resistance = 1e8 }",
-    );
+    let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    let base = common::circuit_instead_of(&base, step, step, 1e8);
     assert!(base.contains("resistance = 1e8"));
     let text = format!(
         "{base}\n{}",
@@ -769,13 +767,13 @@ weight = 100.0
 fn a_circuit_driven_film_from_a_charged_start() {
     let dir = tempfile::tempdir().unwrap();
     let base = deasim::io::examples::example("film-vibration").unwrap();
-    let base = base
-        .replace(
-            "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
-            "circuit = { source = { waveform = \"sine\", amplitude = 5e3, offset = 15e3, \
-             frequency = 200.0 }, resistance = 1e8 }",
-        )
-        .replace(
+    let base = common::circuit_instead_of(
+        &base,
+        "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }",
+        "{ waveform = \"sine\", amplitude = 5e3, offset = 15e3, frequency = 200.0 }",
+        1e8,
+    )
+    .replace(
             "[[stages]]\nname = \"vibrate\"",
             "[[stages]]\nname = \"charge\"\nkind = \"static\"\nsteps = 3\n\n[[stages]]\nname = \"vibrate\"",
         );
@@ -827,10 +825,8 @@ weight = 100.0
 fn the_knots_of_a_circuit_source_control() {
     let dir = tempfile::tempdir().unwrap();
     let base = deasim::io::examples::example("film-vibration").unwrap();
-    let base = base.replace(
-        "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
-        "circuit = { source = { waveform = \"step\", amplitude = 20e3, at = 0.0 }, resistance = 1e8 }",
-    );
+    let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    let base = common::circuit_instead_of(&base, step, step, 1e8);
     let text = format!(
         "{base}\n{}",
         r#"

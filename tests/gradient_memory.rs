@@ -3,6 +3,8 @@
 //! state is held, while the tape holds at most the budget plus two units (a taped step or a
 //! checkpoint, the larger).
 
+mod common;
+
 use deasim::api::{Error, GradientOptions, GradientReport, Simulation};
 
 /// The gradient of `sim` with the memory budget `memory` (bytes).
@@ -405,9 +407,12 @@ weight = 100.0
 #[test]
 fn a_circuit_driven_film_recomputed_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    let base = deasim::io::examples::example("film-vibration").unwrap().replace(
-        "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
-        "circuit = { source = { waveform = \"step\", amplitude = 20e3, at = 0.0 }, resistance = 1e8 }",
+    let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    let base = common::circuit_instead_of(
+        &deasim::io::examples::example("film-vibration").unwrap(),
+        step,
+        step,
+        1e8,
     );
     assert!(base.contains("resistance = 1e8"));
     let text = format!(

@@ -606,10 +606,9 @@ fn viscoelastic_runs_resume_bitwise() {
 fn a_circuit_driven_vibration_resumes_bitwise() {
     let dir = tempdir("circuit");
     let path = example(&dir, "film-vibration");
-    let scenario = std::fs::read_to_string(&path).unwrap().replace(
-        "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
-        "circuit = { source = { waveform = \"step\", amplitude = 20e3, at = 0.0 }, resistance = 1e8 }",
-    );
+    let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    let scenario =
+        common::circuit_instead_of(&std::fs::read_to_string(&path).unwrap(), step, step, 1e8);
     assert!(scenario.contains("resistance = 1e8"));
     std::fs::write(&path, scenario).unwrap();
     let full = resume_older(

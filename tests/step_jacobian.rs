@@ -4,6 +4,8 @@
 //! charge-controlled film and a film driven through a resistance; and the parameter
 //! vector–Jacobian product of a step against differences of its residual in the parameters.
 
+mod common;
+
 use deasim::algebra::csr::CsrMatrix;
 use deasim::io::build::{build, Plan};
 use deasim::io::examples::example;
@@ -16,6 +18,10 @@ use deasim::problem::step::StepOperator;
 use deasim::solve::newton::NonlinearSystem;
 use deasim::time::integrator::{Scheme, TimeLevel, TimeStep};
 use deasim::time::mass::{MassKind, NodalMass};
+
+/// The film example's drive, and the smaller step its circuit variants take as their source.
+const STEP_20KV: &str = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+const STEP_1KV: &str = "{ waveform = \"step\", amplitude = 1e3, at = 0.0 }";
 
 fn plan_of(text: &str, sets: &[&str]) -> Plan {
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
@@ -247,10 +253,7 @@ fn exact_jacobian_of_charge_and_circuit_controlled_films() {
     let plan = plan_of(&charge, &["materials.elastomer.viscosity=100"]);
     assert!(!plan.model.point_charges.is_empty() || !plan.model.ties.is_empty());
     check(&plan, true, "charge-controlled film");
-    let circuit = text.replace(
-        top,
-        "circuit = { source = { waveform = \"step\", amplitude = 1e3, at = 0.0 }, resistance = 1e6 }",
-    );
+    let circuit = common::circuit_instead_of(&text, STEP_20KV, STEP_1KV, 1e6);
     let plan = plan_of(&circuit, &["materials.elastomer.viscosity=100"]);
     check(&plan, true, "circuit-driven film");
 }
@@ -554,10 +557,7 @@ fn level_products_of_charge_and_circuit_controlled_films_match_finite_difference
         &plan_of(&charge, &["materials.elastomer.viscosity=100"]),
         "charge-controlled film",
     );
-    let circuit = text.replace(
-        top,
-        "circuit = { source = { waveform = \"step\", amplitude = 1e3, at = 0.0 }, resistance = 1e6 }",
-    );
+    let circuit = common::circuit_instead_of(&text, STEP_20KV, STEP_1KV, 1e6);
     check_levels(
         &plan_of(&circuit, &["materials.elastomer.viscosity=100"]),
         "circuit-driven film",
@@ -692,9 +692,11 @@ fn mass_and_resistance_products_match_finite_differences() {
             "{scheme:?}: pad mass {fd} vs {analytic}"
         );
         // a film driven through a resistance
-        let text = example("film-vibration").unwrap().replace(
-            "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
-            "circuit = { source = { waveform = \"step\", amplitude = 1e3, at = 0.0 }, resistance = 1e6 }",
+        let text = common::circuit_instead_of(
+            &example("film-vibration").unwrap(),
+            STEP_20KV,
+            STEP_1KV,
+            1e6,
         );
         let plan = plan_of(&text, &["materials.elastomer.viscosity=100"]);
         let (model, dt, mass) = dynamic_model(&plan);

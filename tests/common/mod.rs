@@ -143,3 +143,15 @@ pub fn tangent_fd_error<S: deasim::solve::newton::NonlinearSystem>(p: &mut S, st
     }
     worst
 }
+
+/// `text` with its electrode line `voltage = VOLTAGE` replaced by a circuit: `source` (a number or
+/// a waveform table) through the series resistance `resistance` (Ω). Panics when `text` has no
+/// such line, so that a changed example shows here rather than as a silently unchanged run.
+pub fn circuit_instead_of(text: &str, voltage: &str, source: &str, resistance: f64) -> String {
+    let from = format!("voltage = {voltage}");
+    assert!(text.contains(&from), "the scenario has no `{from}`");
+    text.replace(
+        &from,
+        &format!("circuit = {{ source = {source}, resistance = {resistance:e} }}"),
+    )
+}
