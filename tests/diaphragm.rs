@@ -761,7 +761,7 @@ fn pad_mode_from_the_eigenproblem() {
 fn short_steps_stop_at_the_round_off_of_the_inertia() {
     let text = example("diaphragm").unwrap();
     let square = "{ waveform = \"square\", amplitude = 3000.0, frequency = 2.0 }";
-    let through_circuit = common::circuit_instead_of(&text, square, square, 1e7);
+    let through_circuit = common::circuit_instead_of(text, square, square, 1e7);
     for (text, key) in [
         (text, "electrodes.top.voltage.frequency=1e4"),
         (
