@@ -714,7 +714,7 @@ fn a_circuit_driven_film_vibrating() {
     let dir = tempfile::tempdir().unwrap();
     let base = deasim::io::examples::example("film-vibration").unwrap();
     let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
-    let base = common::circuit_instead_of(&base, step, step, 1e8);
+    let base = common::circuit_instead_of(base, step, step, 1e8);
     assert!(base.contains("resistance = 1e8"));
     let text = format!(
         "{base}\n{}",
@@ -768,7 +768,7 @@ fn a_circuit_driven_film_from_a_charged_start() {
     let dir = tempfile::tempdir().unwrap();
     let base = deasim::io::examples::example("film-vibration").unwrap();
     let base = common::circuit_instead_of(
-        &base,
+        base,
         "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }",
         "{ waveform = \"sine\", amplitude = 5e3, offset = 15e3, frequency = 200.0 }",
         1e8,
@@ -826,7 +826,7 @@ fn the_knots_of_a_circuit_source_control() {
     let dir = tempfile::tempdir().unwrap();
     let base = deasim::io::examples::example("film-vibration").unwrap();
     let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
-    let base = common::circuit_instead_of(&base, step, step, 1e8);
+    let base = common::circuit_instead_of(base, step, step, 1e8);
     let text = format!(
         "{base}\n{}",
         r#"

@@ -409,7 +409,7 @@ fn a_circuit_driven_film_recomputed_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
     let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
     let base = common::circuit_instead_of(
-        &deasim::io::examples::example("film-vibration").unwrap(),
+        deasim::io::examples::example("film-vibration").unwrap(),
         step,
         step,
         1e8,

@@ -253,7 +253,7 @@ fn exact_jacobian_of_charge_and_circuit_controlled_films() {
     let plan = plan_of(&charge, &["materials.elastomer.viscosity=100"]);
     assert!(!plan.model.point_charges.is_empty() || !plan.model.ties.is_empty());
     check(&plan, true, "charge-controlled film");
-    let circuit = common::circuit_instead_of(&text, STEP_20KV, STEP_1KV, 1e6);
+    let circuit = common::circuit_instead_of(text, STEP_20KV, STEP_1KV, 1e6);
     let plan = plan_of(&circuit, &["materials.elastomer.viscosity=100"]);
     check(&plan, true, "circuit-driven film");
 }
@@ -557,7 +557,7 @@ fn level_products_of_charge_and_circuit_controlled_films_match_finite_difference
         &plan_of(&charge, &["materials.elastomer.viscosity=100"]),
         "charge-controlled film",
     );
-    let circuit = common::circuit_instead_of(&text, STEP_20KV, STEP_1KV, 1e6);
+    let circuit = common::circuit_instead_of(text, STEP_20KV, STEP_1KV, 1e6);
     check_levels(
         &plan_of(&circuit, &["materials.elastomer.viscosity=100"]),
         "circuit-driven film",
@@ -693,7 +693,7 @@ fn mass_and_resistance_products_match_finite_differences() {
         );
         // a film driven through a resistance
         let text = common::circuit_instead_of(
-            &example("film-vibration").unwrap(),
+            example("film-vibration").unwrap(),
             STEP_20KV,
             STEP_1KV,
             1e6,
