@@ -148,8 +148,12 @@ fn unsupported_and_bad_input_is_refused() {
     .unwrap_err();
     assert!(matches!(e, Error::Input(_)), "{e}");
     assert!(e.to_string().contains("mesh.divisions"), "{e}");
-    let e = bad("[[parameters]]\npath = \"materials.elastomer.mu\"\n[[objective]]\nkind = \"probe-final\"\nprobe = \"charge\"\ntarget = 1.0\n").unwrap_err();
-    assert!(e.to_string().contains("charge"), "{e}");
+    let e = bad("[[parameters]]\npath = \"materials.elastomer.mu\"\n[[objective]]\nkind = \"probe-final\"\nprobe = \"capacitance\"\ntarget = 1.0\n").unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("`capacitance` is not differentiated"),
+        "{e}"
+    );
     let e = bad("[[parameters]]\npath = \"materials.elastomer.mu\"\n[[objective]]\nkind = \"probe-misfit\"\nprobe = \"thickness_stretch\"\ndata = \"missing.csv\"\n").unwrap_err();
     assert!(e.to_string().contains("missing.csv"), "{e}");
     let e = bad(&format!("[[parameters]]\npath = \"materials.elastomer.mu\"\n{probe_final}[[objective]]\nkind = \"field-penalty\"\n")).unwrap_err();
@@ -872,5 +876,75 @@ weight = 1e-12
         );
         assert_eq!(c.gradient.len(), 7, "{integrator}");
         assert_controls_checked(&r, 1e-6);
+    }
+}
+
+/// Terms on the top electrode's charge (Gauss's law at each step's state, the product with the
+/// tangent and the materials' parameter derivatives of the electrode's forces): its value at
+/// the end of a static stage that charges the film, and its misfit over the vibration that
+/// follows, with the voltage on the electrode and through a circuit, both integrators.
+#[test]
+fn terms_on_an_electrodes_charge() {
+    let dir = tempfile::tempdir().unwrap();
+    let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    let sine = "{ waveform = \"sine\", amplitude = 5e3, offset = 15e3, frequency = 200.0 }";
+    let voltage = deasim::io::examples::example("film-vibration")
+        .unwrap()
+        .replace(step, sine)
+        .replace(
+            "[[stages]]\nname = \"vibrate\"",
+            "[[stages]]\nname = \"charge\"\nkind = \"static\"\nsteps = 3\n\n[[stages]]\nname = \"vibrate\"",
+        );
+    assert!(voltage.contains("name = \"charge\"") && voltage.contains("offset = 15e3"));
+    let circuit = common::circuit_instead_of(&voltage, sine, sine, 1e8);
+    let terms = r#"
+[[parameters]]
+path = "materials.elastomer.mu"
+[[parameters]]
+path = "materials.elastomer.permittivity"
+[[parameters]]
+path = "materials.elastomer.viscosity"
+
+[[objective]]
+kind = "probe-final"
+probe = "charge"
+stage = "charge"
+target = 0.0
+weight = 1e17
+
+[[objective]]
+kind = "probe-misfit"
+probe = "charge"
+stage = "vibrate"
+target = 2e-9
+weight = 1e17
+"#;
+    let voltage = format!(
+        "{voltage}\n{terms}\n[[parameters]]\npath = \"electrodes.top.voltage.amplitude\"\n"
+    );
+    let circuit = format!(
+        "{circuit}\n{terms}\n[[parameters]]\npath = \"electrodes.top.circuit.resistance\"\n\
+         [[parameters]]\npath = \"electrodes.top.circuit.source.amplitude\"\n"
+    );
+    for (drive, text) in [("voltage", &voltage), ("circuit", &circuit)] {
+        for integrator in ["midpoint", "newmark"] {
+            let r = Simulation::from_toml(text, Some(dir.path()))
+                .with_overrides(&[
+                    "mesh.divisions=[2, 2, 1]".into(),
+                    "stages.1.duration=3e-3".into(),
+                    "stages.1.dt=2e-4".into(),
+                    format!("stages.1.integrator=\"{integrator}\""),
+                    "materials.elastomer.viscosity=50.0".into(),
+                    "solver.newton_rtol=1e-13".into(),
+                ])
+                .gradient(&GradientOptions {
+                    check: true,
+                    ..Default::default()
+                })
+                .unwrap();
+            println!("{drive}, {integrator}: J = {:e}", r.objective);
+            assert!(r.objective > 0.0);
+            assert_checked(&r, 1e-6);
+        }
     }
 }

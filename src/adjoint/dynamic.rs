@@ -20,6 +20,7 @@
 //! start q₀' projected onto electrostatic equilibrium: its adjoint z = M⁻¹ā₀ gives
 //! q̄₀' −= (∂f/∂q)ᵀz, v̄₀ −= (∂f/∂v)ᵀz and dJ/dp −= zᵀ∂f/∂p (−zᵀ(∂M/∂m)a₀ for a pad's mass).
 
+use super::charge::charge_adjoint;
 use super::lambda::AdjointSolver;
 use super::objective::Backward;
 use super::sink::{waveform_dofs, Sink};
@@ -223,12 +224,32 @@ pub fn sweep(
     let mut c = end;
     for k in (0..dts.len()).rev() {
         let (prev, taped) = steps.step(k)?;
-        let (g, gv) = objective.at_step(ti, k, taped)?;
-        if !g.is_empty() {
-            c.q.iter_mut().zip(&g).for_each(|(a, b)| *a += b);
+        let read = objective.at_step(ti, k, taped)?;
+        if !read.state.is_empty() {
+            c.q.iter_mut().zip(&read.state).for_each(|(a, b)| *a += b);
         }
-        if !gv.is_empty() {
-            c.v.iter_mut().zip(&gv).for_each(|(a, b)| *a += b);
+        if !read.velocity.is_empty() {
+            c.v.iter_mut()
+                .zip(&read.velocity)
+                .for_each(|(a, b)| *a += b);
+        }
+        if !read.charges.is_empty() {
+            // the charges J reads at this level, by Gauss's law at its state and points
+            let nodes: Vec<&[usize]> = plan.electrodes.iter().map(|e| e.nodes.as_slice()).collect();
+            let points = points_of(&plan.model, &taped.points);
+            let p = charge_adjoint(
+                &plan.model,
+                &nodes,
+                &taped.state,
+                &points,
+                &read.charges,
+                &mut c.q,
+                sink,
+            )?;
+            if !p.is_empty() {
+                c.points.resize(p.len(), 0.0);
+                c.points.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
+            }
         }
         let prev_level = match prev {
             None => initial.clone(),
@@ -424,7 +445,7 @@ fn step_adjoint(
         }
         resistance_bar[i] -= s.step.resistance_vjp(&lambda, i);
     }
-    charge_adjoint(s, prev, &charge_bar, &mut out.q, &mut out.points, sink)?;
+    circuit_charge_adjoint(s, prev, &charge_bar, &mut out.q, &mut out.points, sink)?;
     for i in 0..circuits {
         if s.electrodes_on {
             for (j, &t) in times.iter().enumerate() {
@@ -516,7 +537,7 @@ fn projection_adjoint(
 /// electrode's nodes at `level` (Gauss's law, which the step before enforced), for their
 /// cotangents `charge_bar`: adds to `q_bar` and `points_bar` (the cotangent of the points
 /// committed before, empty: none) and gives the materials' parameters theirs.
-fn charge_adjoint(
+fn circuit_charge_adjoint(
     s: &Stage,
     level: &TimeLevel,
     charge_bar: &[f64],
@@ -524,40 +545,19 @@ fn charge_adjoint(
     points_bar: &mut [f64],
     sink: &mut Sink,
 ) -> Result<(), String> {
-    if charge_bar.iter().all(|&b| b == 0.0) {
-        return Ok(());
-    }
     let model = s.step_model;
-    let mut w = vec![0.0; q_bar.len()];
-    for (c, &b) in model.circuits.iter().zip(charge_bar) {
-        for &node in &c.nodes {
-            w[node * FIELDS + PHI] -= b;
-        }
-    }
-    let points = &s.step.points;
-    let p = cell_products(model, &level.q, None, &[], points, 0.0, &w)?;
-    q_bar
-        .iter_mut()
-        .zip(&p.stiffness)
-        .for_each(|(a, b)| *a += b);
-    if !points_bar.is_empty() {
-        points_bar
-            .iter_mut()
-            .zip(&p.points)
-            .for_each(|(a, b)| *a += b);
-    }
-    for m in sink.materials().to_vec() {
-        let entries = sink.entries(m);
-        let vjp = crate::problem::statics::parameter_vjp(
-            model,
-            &level.q,
-            points,
-            0.0,
-            m,
-            Some(&entries),
-            &w,
-        )?;
-        sink.materials_product(m, &vjp, 1.0);
+    let nodes: Vec<&[usize]> = model.circuits.iter().map(|c| c.nodes.as_slice()).collect();
+    let p = charge_adjoint(
+        model,
+        &nodes,
+        &level.q,
+        &s.step.points,
+        charge_bar,
+        q_bar,
+        sink,
+    )?;
+    if !points_bar.is_empty() && !p.is_empty() {
+        points_bar.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
     }
     Ok(())
 }
@@ -636,7 +636,7 @@ fn newmark_start_adjoint(
     let start_bar = projection_adjoint(s, &initial.q, &cq, initial.t, &mut out, sink)?;
     let mut points_bar = c.points;
     let given = s.dynamics.given.clone();
-    charge_adjoint(s, &given, &start_bar, &mut out, &mut points_bar, sink)?;
+    circuit_charge_adjoint(s, &given, &start_bar, &mut out, &mut points_bar, sink)?;
     if !points_bar.is_empty() {
         points_bar
             .iter_mut()

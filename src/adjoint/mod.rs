@@ -23,6 +23,7 @@
 //! that names it.
 
 pub mod binomial;
+pub mod charge;
 pub mod dynamic;
 pub mod lambda;
 pub mod objective;

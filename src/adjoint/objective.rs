@@ -4,6 +4,7 @@
 use super::tape::{Tape, TapedStep};
 use crate::io::scenario::{InputError, ObjectiveSpec, Scenario, VoltageSpec};
 use crate::job::plan::Plan;
+use crate::job::probes::{Probe, ProbeInput, ProbeKind};
 use crate::problem::field_penalty::field_penalty;
 use crate::time::mass::NodalMass;
 use std::path::Path;
@@ -91,6 +92,10 @@ pub struct Evaluation {
     pub reference: Vec<f64>,
     /// ∂J/∂vₖ per taped step of a dynamic stage (empty where J does not read it).
     pub velocity: Vec<Vec<Vec<f64>>>,
+    /// ∂J/∂Q of each electrode's charge per taped step (empty where J reads none): J's
+    /// dependence on the state through those charges is not in `state`
+    /// ([`super::charge::charge_adjoint`] gives it).
+    pub charges: Vec<Vec<Vec<f64>>>,
     /// ∂J/∂(the knots of each control) that J reads directly (the drive effort), in the plan's
     /// order of the stages' controls.
     pub controls: Vec<Vec<f64>>,
@@ -144,6 +149,7 @@ impl Objective {
         let mut b = Backward::new(self, plan, tape)?;
         let mut state = Vec::with_capacity(tape.stages.len());
         let mut velocity = Vec::with_capacity(tape.stages.len());
+        let mut charges = Vec::with_capacity(tape.stages.len());
         for (si, st) in tape.stages.iter().enumerate().rev() {
             if st.is_checkpointed() {
                 return Err(format!(
@@ -154,24 +160,44 @@ impl Objective {
             }
             let mut xs = vec![Vec::new(); st.steps.len()];
             let mut vs = vec![Vec::new(); st.steps.len()];
+            let mut qs = vec![Vec::new(); st.steps.len()];
             for (k, step) in st.steps.iter().enumerate().rev() {
-                (xs[k], vs[k]) = b.at_step(si, k, step)?;
+                let read = b.at_step(si, k, step)?;
+                (xs[k], vs[k], qs[k]) = (read.state, read.velocity, read.charges);
             }
             state.push(xs);
             velocity.push(vs);
+            charges.push(qs);
         }
         state.reverse();
         velocity.reverse();
+        charges.reverse();
         let end = b.finish()?;
         Ok(Evaluation {
             value: end.value,
             state,
             reference: end.reference,
             velocity,
+            charges,
             controls: end.controls,
             readings: end.readings,
         })
     }
+}
+
+/// What J takes from one taped step: ∂J/∂x, ∂J/∂v (empty where J does not read them) and
+/// ∂J/∂Q of each electrode's charge there (empty where J reads no charge).
+#[derive(Debug, Clone, Default)]
+pub struct StepRead {
+    pub state: Vec<f64>,
+    pub velocity: Vec<f64>,
+    pub charges: Vec<f64>,
+}
+
+/// A probe's derivative at a step: in the state, or in electrode `.0`'s charge (`.1`: dvalue/dQ).
+enum ProbeDerivative {
+    State(Vec<f64>),
+    Charge(usize, f64),
 }
 
 /// What a term read at one step: the probe's value (or the field penalty, or 2 × the kinetic
@@ -315,17 +341,46 @@ impl<'a> Backward<'a> {
         start
     }
 
-    /// ∂J/∂x and ∂J/∂v (empty where J does not read them) of step `k` of taped stage `si`,
-    /// whose record is `step`; called for every step from the run's last to its first.
-    pub fn at_step(
-        &mut self,
-        si: usize,
-        k: usize,
-        step: &TapedStep,
-    ) -> Result<(Vec<f64>, Vec<f64>), String> {
+    /// The value of probe `probe` at taped step `step` and its derivative: in the state, or,
+    /// for an electrode's charge, in that charge (which [`super::charge::charge_adjoint`]
+    /// takes further).
+    fn read_probe(&self, probe: usize, step: &TapedStep) -> Result<(f64, ProbeDerivative), String> {
+        let p = &self.plan.probes[probe].1;
+        let Some(e) = charge_of(p) else {
+            let (v, g) = self.probe_at(probe, &step.state)?;
+            return Ok((v, ProbeDerivative::State(g)));
+        };
+        let model = &self.plan.model;
+        let points = super::dynamic::points_of(model, &step.points);
+        let nodes = [self.plan.electrodes[e].nodes.as_slice()];
+        let q = super::charge::charges(model, &nodes, &step.state, &points)?[0];
+        let (n, symmetry) = (self.plan.electrodes.len(), self.plan.symmetry_factor);
+        let value = charge_value(p, e, n, q, symmetry);
+        // the probe is affine in the charge: its slope from two values
+        let slope = charge_value(p, e, n, 1.0, symmetry) - charge_value(p, e, n, 0.0, symmetry);
+        Ok((value, ProbeDerivative::Charge(e, slope)))
+    }
+
+    /// What J takes from step `k` of taped stage `si`, whose record is `step`; called for
+    /// every step from the run's last to its first.
+    pub fn at_step(&mut self, si: usize, k: usize, step: &TapedStep) -> Result<StepRead, String> {
         let last = self.counts[si] - 1;
         let mut slot: Vec<f64> = Vec::new();
         let mut vslot: Vec<f64> = Vec::new();
+        let mut charges: Vec<f64> = Vec::new();
+        let n_electrodes = self.plan.electrodes.len();
+        let mut take = |slot: &mut Vec<f64>, d: ProbeDerivative, factor: f64| match d {
+            ProbeDerivative::State(g) => {
+                if slot.is_empty() {
+                    slot.resize(g.len(), 0.0);
+                }
+                slot.iter_mut().zip(&g).for_each(|(s, v)| *s += factor * v);
+            }
+            ProbeDerivative::Charge(e, slope) => {
+                charges.resize(n_electrodes, 0.0);
+                charges[e] += factor * slope;
+            }
+        };
         let add = |slot: &mut Vec<f64>, g: &[f64], factor: f64| {
             if slot.is_empty() {
                 slot.resize(g.len(), 0.0);
@@ -383,7 +438,7 @@ impl<'a> Backward<'a> {
                     ..
                 } => {
                     if here && k == chosen.unwrap_or(last).min(last) {
-                        let (v, g) = self.probe_at(*probe, &step.state)?;
+                        let (v, d) = self.read_probe(*probe, step)?;
                         let r = v - self.v0[ti] - target;
                         self.reads[ti].push(Read {
                             step: k,
@@ -391,7 +446,7 @@ impl<'a> Backward<'a> {
                             target: *target,
                             time: step.time,
                         });
-                        add(&mut slot, &g, weight * r);
+                        take(&mut slot, d, weight * r);
                     } else if *relative && self.stages[ti] == Some(si + 1) && k == last {
                         let start = self.start_derivative(ti);
                         if start != 0.0 {
@@ -408,7 +463,7 @@ impl<'a> Backward<'a> {
                     ..
                 } => {
                     if here {
-                        let (v, g) = self.probe_at(*probe, &step.state)?;
+                        let (v, d) = self.read_probe(*probe, step)?;
                         let target = target.at(step.time);
                         let r = v - self.v0[ti] - target;
                         self.reads[ti].push(Read {
@@ -417,7 +472,7 @@ impl<'a> Backward<'a> {
                             target,
                             time: step.time,
                         });
-                        add(&mut slot, &g, weight * r);
+                        take(&mut slot, d, weight * r);
                     } else if *relative && self.stages[ti] == Some(si + 1) && k == last {
                         let start = self.start_derivative(ti);
                         if start != 0.0 {
@@ -428,7 +483,11 @@ impl<'a> Backward<'a> {
                 }
             }
         }
-        Ok((slot, vslot))
+        Ok(StepRead {
+            state: slot,
+            velocity: vslot,
+            charges,
+        })
     }
 
     /// J, and its derivatives in the reference state and the controls' knots, once every step
@@ -565,8 +624,8 @@ impl<'a> Backward<'a> {
 }
 
 /// The value of a probe of nodal values at `state`, deflections measured from `reference`.
-fn nodal_value(p: &crate::job::probes::Probe, state: &[f64], reference: &[f64]) -> f64 {
-    p.evaluate(&crate::job::probes::ProbeInput {
+fn nodal_value(p: &Probe, state: &[f64], reference: &[f64]) -> f64 {
+    p.evaluate(&ProbeInput {
         state,
         reactions: &[],
         electrodes: &[],
@@ -579,6 +638,35 @@ fn nodal_value(p: &crate::job::probes::Probe, state: &[f64], reference: &[f64]) 
         circuit_energy: &[],
         pressures: &[],
         charges: &[],
+    })
+}
+
+/// The electrode whose charge `p` reads (`None`: another kind of probe).
+fn charge_of(p: &Probe) -> Option<usize> {
+    match p.kind {
+        ProbeKind::Charge(e) => Some(e),
+        _ => None,
+    }
+}
+
+/// The value of charge probe `p` for the charge `q` (C, of the meshed model) on its electrode
+/// `e` of `n` electrodes: the whole device's charge (times `symmetry`), scaled and offset.
+fn charge_value(p: &Probe, e: usize, n: usize, q: f64, symmetry: f64) -> f64 {
+    let mut charges = vec![(0.0, 0.0); n];
+    charges[e] = (q, 0.0);
+    p.evaluate(&ProbeInput {
+        state: &[],
+        reactions: &[],
+        electrodes: &[],
+        stored: 0.0,
+        electric: 0.0,
+        reference: &[],
+        max_field: 0.0,
+        symmetry,
+        previous: (&[], 0.0),
+        circuit_energy: &[],
+        pressures: &[],
+        charges: &charges,
     })
 }
 
@@ -654,8 +742,18 @@ fn term(
                     format!("unknown probe `{name}` (probes: {})", names.join(", ")),
                 )
             })?;
-        if plan.probes[i]
-            .1
+        let p = &plan.probes[i].1;
+        if charge_of(p).is_some() {
+            if o.relative.unwrap_or(false) {
+                return Err(err(
+                    "relative",
+                    format!(
+                        "a term on the charge probe `{name}` is not differentiated relative to \
+                         its stage's start yet: give the charge itself"
+                    ),
+                ));
+            }
+        } else if p
             .state_gradient(&vec![0.0; plan.model.mesh.n_nodes() * 4])
             .is_none()
         {
@@ -663,7 +761,8 @@ fn term(
                 "probe",
                 format!(
                     "the probe `{name}` is not differentiated yet: an objective reads a probe \
-                     of nodal values (mean, max, min, point, deflection)"
+                     of nodal values (mean, max, min, point, deflection) or an electrode's \
+                     charge"
                 ),
             ));
         }

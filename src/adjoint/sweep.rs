@@ -12,13 +12,14 @@
 //! - each prescribed entry d gets aₙ,d = ∂J/∂xₙ,d − λₙᵀ ∂Rₙ/∂xₙ,d, which goes to its target
 //!   (·sₙ), to the stage's start state (·(1 − sₙ)), or to its waveform's parameters.
 
+use super::charge::charge_adjoint;
 use super::dynamic::Held;
-use super::dynamic::{self, Cotangent};
+use super::dynamic::{self, points_of, Cotangent};
 use super::lambda::{solve_adjoint, AdjointSolver};
 use super::objective::{Backward, Objective};
 use super::replay::Recompute;
 use super::sink::{waveform_dofs, ControlGradient, Sink};
-use super::tape::{Tape, TapedStage};
+use super::tape::{Tape, TapedStage, TapedStep};
 use crate::algebra::system::LoadedSystem;
 use crate::io::build::Parameter;
 use crate::job::plan::{Plan, StageKind};
@@ -120,7 +121,11 @@ pub fn gradient(
         carry = if st.dynamics.is_none() {
             let mut state_grads = vec![Vec::new(); st.steps.len()];
             for (k, step) in st.steps.iter().enumerate().rev() {
-                state_grads[k] = reader.at_step(ti, k, step)?.0;
+                let read = reader.at_step(ti, k, step)?;
+                state_grads[k] = read.state;
+                if !read.charges.is_empty() {
+                    static_charges(plan, step, &read.charges, &mut state_grads[k], &mut sink)?;
+                }
             }
             let start = static_stage(plan, st, &state_grads, &carry, &mut sink)?;
             for (d, &j) in support_of.iter().enumerate() {
@@ -282,6 +287,31 @@ fn prestretch_target(
 /// With ξ̄ₙ the cotangent of ξₙ, the step's adjoint adds (∂U/∂xₙ)ᵀξ̄ₙ to xₙ's cotangent before
 /// it solves for λₙ, and carries ξ̄ₙ₋₁ = (∂U/∂ξₙ₋₁)ᵀξ̄ₙ − (∂Rₙ/∂ξₙ₋₁)ᵀλₙ back;
 /// dJ/dθ += (∂U/∂θ)ᵀξ̄ₙ.
+/// The adjoint of the charges J reads at load step `step` (cotangents `bar`): their products
+/// with the tangent join the step's state cotangent `g` (every dof; empty: zero), their
+/// parameter derivatives go to `sink`. The dielectric energy does not depend on the material
+/// points' internal variables; a model whose charges did would be refused here.
+fn static_charges(
+    plan: &Plan,
+    step: &TapedStep,
+    bar: &[f64],
+    g: &mut Vec<f64>,
+    sink: &mut Sink,
+) -> Result<(), String> {
+    let nodes: Vec<&[usize]> = plan.electrodes.iter().map(|e| e.nodes.as_slice()).collect();
+    let points = points_of(&plan.model, &step.points);
+    g.resize(step.state.len(), 0.0);
+    let p = charge_adjoint(&plan.model, &nodes, &step.state, &points, bar, g, sink)?;
+    if p.iter().any(|&v| v != 0.0) {
+        return Err(
+            "an objective reads a charge that depends on the material points' internal \
+             variables in a static stage: not differentiated yet"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
 fn static_stage(
     plan: &Plan,
     st: &TapedStage,
