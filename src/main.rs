@@ -386,6 +386,14 @@ drive, a term or stage whose adjoint is not built)."
         /// One row (0, 1, 2) of the harmonics table, in this process.
         #[arg(long, hide = true)]
         harmonics_row: Option<usize>,
+        /// Instead, the speed table alone: `diaphragm-3d`, the film 40 × 40 × 8 and the default
+        /// run, with Newton iterations, factorisations, Krylov iterations, the assembly per
+        /// quadrature point, a factorisation, a solve, wall time and peak memory.
+        #[arg(long)]
+        speed: bool,
+        /// One row (0, 1, 2) of the speed table, in this process.
+        #[arg(long, hide = true)]
+        speed_row: Option<usize>,
     },
 }
 
@@ -639,9 +647,26 @@ fn main() {
             timeout,
             scaling_row,
             harmonics_row,
+            speed,
+            speed_row,
         } => {
             use deasim::cli::bench;
             use deasim::solve::linear::SolverKind;
+            if let Some(row) = speed_row {
+                std::process::exit(match bench::bench_speed_row(row) {
+                    Ok(row) => {
+                        println!("{row}");
+                        0
+                    }
+                    Err(e) => {
+                        eprintln!("error: --speed-row: {e}");
+                        1
+                    }
+                });
+            }
+            if speed {
+                std::process::exit(bench::cmd_bench_speed());
+            }
             if let Some(row) = harmonics_row {
                 let row = bench::bench_harmonics_row(
                     row,

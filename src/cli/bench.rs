@@ -340,8 +340,12 @@ pub fn cmd_bench_scaling(
     0
 }
 
-/// `deasim bench`: prints the table; `large` adds the ~400k-dof mesh.
+/// `deasim bench`: prints the tables; `large` adds the ~400k-dof mesh.
 pub fn cmd_bench(large: bool) -> i32 {
+    if cmd_bench_speed() != 0 {
+        return 1;
+    }
+    println!();
     println!(
         "film benchmark: hex8, METIS nested dissection + faer LDLT, {} threads; times in s",
         rayon::current_num_threads()
@@ -1090,5 +1094,199 @@ mod tests {
         assert_eq!(elastic.split_whitespace().nth(1), Some("0"), "{elastic}");
         assert_eq!(visco.split_whitespace().nth(1), Some("27"), "{visco}");
         assert!(bench_material([2, 2, 1], "nope").is_err());
+    }
+}
+
+/// Column titles of [`bench_speed_row`]'s rows.
+pub const SPEED_HEADER: &str = "                case unknowns newton factors krylov resid_ns/qp tangent_ns/qp factor_s solve_ms   wall_s peak_MiB";
+
+/// Rows of the speed table ([`bench_speed_row`]).
+pub const SPEED_ROWS: usize = 3;
+
+/// One row of the speed table, the cases the project measures its speed by: row 0,
+/// `diaphragm-3d` (its whole run: the sag, then 1 s of actuation in 1000 midpoint steps); row 1,
+/// the film 40 × 40 × 8 hex8 (the `film` example, 15 steps to 30 kV with a stability test at
+/// every step); both through the library without output files. Each gives its free unknowns,
+/// Newton iterations, factorisations and Krylov iterations over the run; the residual and the
+/// residual with its tangent per quadrature point ([`assembly_per_point`]); one numeric LDLᵀ
+/// factorisation of the tangent at the run's last state and one solve with it; the run's wall
+/// time and the process's peak memory (a row of its own process is that row's: [`cmd_bench`]
+/// runs each so). Row 2, the default `deasim run` with all its outputs, as a process of its
+/// own: its wall time only.
+pub fn bench_speed_row(row: usize) -> Result<String, String> {
+    use crate::io::build::build;
+    use crate::io::scenario::parse;
+    if row == 2 {
+        let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
+        let dir = tempfile::tempdir().map_err(|e| format!("a scratch directory: {e}"))?;
+        let t = Instant::now();
+        let out = std::process::Command::new(&exe)
+            .args(["run", "--out"])
+            .arg(dir.path().join("out"))
+            .output()
+            .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
+        let wall = t.elapsed().as_secs_f64();
+        if !out.status.success() {
+            return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+        }
+        return Ok(format!(
+            "{:>20} {:>8} {:>6} {:>7} {:>6} {:>11} {:>13} {:>8} {:>8} {wall:>8.3} {:>8}",
+            "deasim run", "", "", "", "", "", "", "", "", ""
+        ));
+    }
+    let (name, sets): (&str, Vec<String>) = match row {
+        0 => ("diaphragm-3d", Vec::new()),
+        1 => ("film", vec!["mesh.divisions=[40, 40, 8]".into()]),
+        _ => return Err(format!("no row {row} (0 to {})", SPEED_ROWS - 1)),
+    };
+    let text = crate::io::examples::example(name).ok_or_else(|| format!("no example {name}"))?;
+    let t = Instant::now();
+    let s = parse(text, name, &sets).map_err(|e| e.to_string())?;
+    let plan = build(&s, name, None).map_err(|e| e.to_string())?;
+    let mut last = LastState::default();
+    let summary = crate::job::run::run(&plan, &mut last);
+    let wall = t.elapsed().as_secs_f64();
+    if !summary.converged {
+        return Err(summary.error.unwrap_or_default());
+    }
+    let newton: usize = summary.stages.iter().map(|s| s.newton_iterations).sum();
+    let linear = summary
+        .stages
+        .iter()
+        .fold(crate::solve::linear::SolverStats::default(), |a, s| {
+            a + s.linear.clone()
+        });
+    let model = supported(&plan);
+    let (residual, tangent) = assembly_per_point(&model, &last.0)?;
+    // a factorisation and a solve of the tangent at the run's last state
+    let mut p = StaticProblem::new(&model, Some(last.0.clone()));
+    let n = p.n();
+    let mut k = p.new_matrix();
+    let mut r = vec![0.0; n];
+    p.evaluate(&mut r, Some(&mut k))?;
+    let mut solver = SolverSettings {
+        kind: SolverKind::Direct,
+        ordering: Ordering::NestedDissection,
+        ..Default::default()
+    }
+    .build();
+    // the first factorisation orders; the second is numeric only
+    solver.factor(&k).map_err(|e| e.to_string())?;
+    let t = Instant::now();
+    solver.factor(&k).map_err(|e| e.to_string())?;
+    let factor = t.elapsed().as_secs_f64();
+    let mut dx: Vec<f64> = r.iter().map(|v| -v).collect();
+    let t = Instant::now();
+    solver.solve_in_place(&mut dx).map_err(|e| e.to_string())?;
+    let solve = t.elapsed().as_secs_f64();
+    let case = if row == 1 { "film 40x40x8" } else { name };
+    Ok(format!(
+        "{case:>20} {n:>8} {newton:>6} {:>7} {:>6} {:>11.1} {:>13.1} {factor:>8.3} {:>8.3} {wall:>8.3} {:>8.0}",
+        linear.factorizations,
+        linear.krylov_iterations,
+        residual * 1e9,
+        tangent * 1e9,
+        solve * 1e3,
+        peak_memory_mib()
+    ))
+}
+
+/// The plan's model with its supports, and its electrodes held (at 0 V; a drive holds them in a
+/// run): a static problem whose tangent is regular.
+fn supported(plan: &crate::job::plan::Plan) -> crate::problem::model::Model {
+    let mut model = plan.model.clone();
+    model.dirichlet = plan.supports.clone();
+    for e in &plan.electrodes {
+        model.dirichlet.push(crate::problem::dofs::Dirichlet {
+            nodes: e.nodes.clone(),
+            field: crate::problem::dofs::Field::Phi,
+            value: 0.0,
+        });
+    }
+    model
+}
+
+/// Seconds per quadrature point of the static residual, and of the residual with its tangent,
+/// of `model` at `state`: the best of [`REPEATS`] evaluations on the thread pool, over the
+/// model's quadrature points.
+pub fn assembly_per_point(
+    model: &crate::problem::model::Model,
+    state: &[f64],
+) -> Result<(f64, f64), String> {
+    let mut points = 0usize;
+    model.for_each_cell(state, |_, g, _, _| {
+        points += g.n_qp;
+        Ok::<(), String>(())
+    })?;
+    let mut p = StaticProblem::new(model, Some(state.to_vec()));
+    let mut k = p.new_matrix();
+    let mut r = vec![0.0; p.n()];
+    let (mut residual, mut tangent) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..REPEATS {
+        let t = Instant::now();
+        p.evaluate(&mut r, None)?;
+        residual = residual.min(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        p.evaluate(&mut r, Some(&mut k))?;
+        tangent = tangent.min(t.elapsed().as_secs_f64());
+    }
+    let per = 1.0 / points.max(1) as f64;
+    Ok((residual * per, tangent * per))
+}
+
+/// An observer that keeps the last state of a run.
+#[derive(Default)]
+struct LastState(Vec<f64>);
+
+impl crate::job::observer::Observer for LastState {
+    fn step(
+        &mut self,
+        _: &crate::job::plan::Plan,
+        _: &crate::job::run::StepRecord,
+        state: &[f64],
+        _: &[crate::element::CellFields],
+    ) {
+        self.0.clear();
+        self.0.extend_from_slice(state);
+    }
+    fn finished(&mut self, _: &crate::job::plan::Plan, _: &crate::job::state::RunSummary) {}
+}
+
+/// The speed table: each row of [`bench_speed_row`] in its own process
+/// (`deasim bench --speed-row N`), so that its peak memory is its own.
+pub fn bench_speed() -> Result<Vec<String>, String> {
+    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
+    let mut rows = Vec::new();
+    for row in 0..SPEED_ROWS {
+        let out = std::process::Command::new(&exe)
+            .args(["bench", "--speed-row", &row.to_string()])
+            .stderr(std::process::Stdio::inherit())
+            .output()
+            .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
+        if !out.status.success() {
+            return Err(format!("row {row} failed (the message is above)"));
+        }
+        rows.push(String::from_utf8_lossy(&out.stdout).trim_end().to_string());
+    }
+    Ok(rows)
+}
+
+/// `deasim bench --speed`: the speed table alone.
+pub fn cmd_bench_speed() -> i32 {
+    println!(
+        "speed: the cases of docs/validation.md's \"Speed and memory at a glance\", {} threads, \
+         each in its own process; times in s",
+        rayon::current_num_threads()
+    );
+    println!("{SPEED_HEADER}");
+    match bench_speed() {
+        Ok(rows) => {
+            rows.iter().for_each(|r| println!("{r}"));
+            0
+        }
+        Err(e) => {
+            eprintln!("error: speed table: {e}");
+            1
+        }
     }
 }
