@@ -1154,7 +1154,7 @@ pub fn bench_speed_row(row: usize) -> Result<String, String> {
         .stages
         .iter()
         .fold(crate::solve::linear::SolverStats::default(), |a, s| {
-            a + s.linear.clone()
+            a + s.linear
         });
     let model = supported(&plan);
     let (residual, tangent) = assembly_per_point(&model, &last.0)?;
