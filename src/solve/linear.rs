@@ -805,20 +805,18 @@ impl LinearSolver for FaerLdlt {
                 LinearSolverError::Singular(index)
             }
         };
-        match &mut self.single {
-            None => {
-                symbolic
-                    .factorize_numeric_ldlt(
-                        &mut self.l_values,
-                        mat,
-                        Side::Lower,
-                        LdltRegularization::default(),
-                        self.par,
-                        stack,
-                        Spec::<LdltParams, f64>::default(),
-                    )
-                    .map_err(zero_pivot)?;
-            }
+        let numeric = match &mut self.single {
+            None => symbolic
+                .factorize_numeric_ldlt(
+                    &mut self.l_values,
+                    mat,
+                    Side::Lower,
+                    LdltRegularization::default(),
+                    self.par,
+                    stack,
+                    Spec::<LdltParams, f64>::default(),
+                )
+                .map(|_| ()),
             Some(s) => {
                 s.a.clear();
                 s.a.extend(a.values.iter().map(|&v| v as f32));
@@ -832,9 +830,11 @@ impl LinearSolver for FaerLdlt {
                         stack,
                         Spec::<LdltParams, f32>::default(),
                     )
-                    .map_err(zero_pivot)?;
+                    .map(|_| ())
             }
-        }
+        };
+        super::vector_state::clear_after(self.par);
+        numeric.map_err(zero_pivot)?;
         let mut inertia = Inertia::default();
         let d = self.pivots();
         let dmax = d.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -883,6 +883,7 @@ impl LinearSolver for FaerLdlt {
                     self.par,
                     stack,
                 );
+                super::vector_state::clear_after(self.par);
             }
             Some(s) => {
                 // scaled to unit size, so that no entry under- or overflows in single precision
@@ -899,6 +900,7 @@ impl LinearSolver for FaerLdlt {
                     self.par,
                     stack,
                 );
+                super::vector_state::clear_after(self.par);
                 for (v, &x) in b.iter_mut().zip(&s.rhs) {
                     *v = f64::from(x) * scale;
                 }

@@ -16,3 +16,4 @@ pub mod petsc;
 pub mod reused;
 pub mod stepping;
 pub mod transposed;
+pub mod vector_state;
