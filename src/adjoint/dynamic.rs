@@ -60,16 +60,6 @@ impl Cotangent {
     }
 }
 
-/// The points' values `data` as a store of `model`'s (empty: none).
-pub(super) fn points_of(model: &Model, data: &[f64]) -> PointStates {
-    if data.is_empty() {
-        return PointStates::default();
-    }
-    let mut p = PointStates::new(model);
-    p.data.copy_from_slice(data);
-    p
-}
-
 /// The adjoint of a commit of the points `before` to the configuration `x` over `dt`, for the
 /// cotangent `w` of the values it committed (empty: zero): the parameters' derivatives go to
 /// `sink`; returns x̄ (every dof) and the cotangent of `before`'s values (empty without
@@ -236,7 +226,7 @@ pub fn sweep(
         if !read.charges.is_empty() {
             // the charges J reads at this level, by Gauss's law at its state and points
             let nodes: Vec<&[usize]> = plan.electrodes.iter().map(|e| e.nodes.as_slice()).collect();
-            let points = points_of(&plan.model, &taped.points);
+            let points = PointStates::from_data(&plan.model, &taped.points);
             let p = charge_adjoint(
                 &plan.model,
                 &nodes,
@@ -261,7 +251,7 @@ pub fn sweep(
             &taped.iterate
         };
         let before = prev.map_or(&st.start_points, |p| &p.points);
-        s.step.points = points_of(&step_model, before);
+        s.step.points = PointStates::from_data(&step_model, before);
         c = step_adjoint(
             &mut s,
             &prev_level,
@@ -272,7 +262,7 @@ pub fn sweep(
             sink,
         )?;
     }
-    s.step.points = points_of(&step_model, &st.start_points);
+    s.step.points = PointStates::from_data(&step_model, &st.start_points);
     match scheme {
         Scheme::Midpoint => Ok(c),
         Scheme::Newmark { .. } => newmark_start_adjoint(&mut s, initial, c, sink),

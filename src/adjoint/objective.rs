@@ -6,6 +6,7 @@ use crate::io::scenario::{InputError, ObjectiveSpec, Scenario, VoltageSpec};
 use crate::job::plan::Plan;
 use crate::job::probes::{Probe, ProbeInput, ProbeKind};
 use crate::problem::field_penalty::field_penalty;
+use crate::problem::points::PointStates;
 use crate::time::mass::NodalMass;
 use std::path::Path;
 
@@ -351,7 +352,7 @@ impl<'a> Backward<'a> {
             return Ok((v, ProbeDerivative::State(g)));
         };
         let model = &self.plan.model;
-        let points = super::dynamic::points_of(model, &step.points);
+        let points = PointStates::from_data(model, &step.points);
         let nodes = [self.plan.electrodes[e].nodes.as_slice()];
         let q = super::charge::charges(model, &nodes, &step.state, &points)?[0];
         let (n, symmetry) = (self.plan.electrodes.len(), self.plan.symmetry_factor);

@@ -18,8 +18,9 @@
 //! schedule is optimal. When the segments fit the memory left, every step is recomputed once.
 
 use super::binomial::{schedule, Action};
-use super::dynamic::{points_of, Steps};
+use super::dynamic::Steps;
 use super::tape::{Checkpoint, Replay, Resume, TapedDynamics, TapedStage, TapedStep};
+use crate::problem::points::PointStates;
 use crate::time::integrator::TimeLevel;
 use crate::time::stage::{run_dynamic_while, DynamicInputs};
 use std::collections::{BTreeMap, VecDeque};
@@ -151,7 +152,7 @@ impl<'t> Recompute<'t> {
         };
         let points = match ck.resume {
             None => replay.start_points.clone(),
-            Some(_) => points_of(&st.model, &ck.record.points),
+            Some(_) => PointStates::from_data(&st.model, &ck.record.points),
         };
         let resume = ck.resume.as_ref().map(Resume::point);
         let inputs = DynamicInputs {

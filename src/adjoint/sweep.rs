@@ -14,7 +14,7 @@
 
 use super::charge::charge_adjoint;
 use super::dynamic::Held;
-use super::dynamic::{self, points_of, Cotangent};
+use super::dynamic::{self, Cotangent};
 use super::lambda::{solve_adjoint, AdjointSolver};
 use super::objective::{Backward, Objective};
 use super::replay::Recompute;
@@ -24,6 +24,7 @@ use crate::algebra::system::LoadedSystem;
 use crate::io::build::Parameter;
 use crate::job::plan::{Plan, StageKind};
 use crate::problem::dofs::{free_weights, CONSTRAINED, FIELDS, PHI};
+use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
 use crate::problem::step::StepOperator;
 use crate::time::stage::Method;
@@ -299,7 +300,7 @@ fn static_charges(
     sink: &mut Sink,
 ) -> Result<(), String> {
     let nodes: Vec<&[usize]> = plan.electrodes.iter().map(|e| e.nodes.as_slice()).collect();
-    let points = points_of(&plan.model, &step.points);
+    let points = PointStates::from_data(&plan.model, &step.points);
     g.resize(step.state.len(), 0.0);
     let p = charge_adjoint(&plan.model, &nodes, &step.state, &points, bar, g, sink)?;
     if p.iter().any(|&v| v != 0.0) {
@@ -396,7 +397,7 @@ fn load_steps(
             0 => (&st.start_points, 0.0),
             _ => (&st.steps[k - 1].points, st.steps[k - 1].load),
         };
-        problem.points = super::dynamic::points_of(&st.model, before);
+        problem.points = PointStates::from_data(&st.model, before);
         problem.accept_resumed(prev_load);
         problem.set_load(step.load);
         problem.state.copy_from_slice(&step.state);

@@ -26,6 +26,17 @@ pub struct PointStates {
 }
 
 impl PointStates {
+    /// The points of `model` holding the committed values `data` (laid out as
+    /// [`PointStates::data`]; empty: a model without internal variables).
+    pub fn from_data(model: &Model, data: &[f64]) -> Self {
+        if data.is_empty() {
+            return PointStates::default();
+        }
+        let mut p = PointStates::new(model);
+        p.data.copy_from_slice(data);
+        p
+    }
+
     /// The virgin state of a model's materials, for this process's own cells.
     pub fn new(model: &Model) -> Self {
         let sizes: Vec<usize> = model.materials.iter().map(|m| m.state_size()).collect();
