@@ -859,11 +859,17 @@ pub fn bench_harmonics_row(
 /// The harmonics table of [`cmd_bench`]: each row of [`bench_harmonics_row`] in its own process
 /// (`deasim bench --harmonics-row N`), so that its peak memory is its own.
 fn bench_harmonics() -> Result<Vec<String>, String> {
+    rows_in_processes("--harmonics-row", 3)
+}
+
+/// Rows 0 to `count` − 1 of a table, each printed by `deasim bench FLAG N` in a process of its
+/// own (so that the row's peak memory is its own).
+fn rows_in_processes(flag: &str, count: usize) -> Result<Vec<String>, String> {
     let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
     let mut rows = Vec::new();
-    for row in 0..3 {
+    for row in 0..count {
         let out = std::process::Command::new(&exe)
-            .args(["bench", "--harmonics-row", &row.to_string()])
+            .args(["bench", flag, &row.to_string()])
             .stderr(std::process::Stdio::inherit())
             .output()
             .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
@@ -1255,20 +1261,7 @@ impl crate::job::observer::Observer for LastState {
 /// The speed table: each row of [`bench_speed_row`] in its own process
 /// (`deasim bench --speed-row N`), so that its peak memory is its own.
 pub fn bench_speed() -> Result<Vec<String>, String> {
-    let exe = std::env::current_exe().map_err(|e| format!("this program's path: {e}"))?;
-    let mut rows = Vec::new();
-    for row in 0..SPEED_ROWS {
-        let out = std::process::Command::new(&exe)
-            .args(["bench", "--speed-row", &row.to_string()])
-            .stderr(std::process::Stdio::inherit())
-            .output()
-            .map_err(|e| format!("cannot start {}: {e}", exe.display()))?;
-        if !out.status.success() {
-            return Err(format!("row {row} failed (the message is above)"));
-        }
-        rows.push(String::from_utf8_lossy(&out.stdout).trim_end().to_string());
-    }
-    Ok(rows)
+    rows_in_processes("--speed-row", SPEED_ROWS)
 }
 
 /// `deasim bench --speed`: the speed table alone.
