@@ -770,18 +770,7 @@ weight = 100.0
 #[test]
 fn a_circuit_driven_film_from_a_charged_start() {
     let dir = tempfile::tempdir().unwrap();
-    let base = deasim::io::examples::example("film-vibration").unwrap();
-    let base = common::circuit_instead_of(
-        base,
-        "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }",
-        "{ waveform = \"sine\", amplitude = 5e3, offset = 15e3, frequency = 200.0 }",
-        1e8,
-    )
-    .replace(
-            "[[stages]]\nname = \"vibrate\"",
-            "[[stages]]\nname = \"charge\"\nkind = \"static\"\nsteps = 3\n\n[[stages]]\nname = \"vibrate\"",
-        );
-    assert!(base.contains("name = \"charge\"") && base.contains("resistance = 1e8"));
+    let base = charged_then_sine(true);
     let text = format!(
         "{base}\n{}",
         r#"
@@ -873,17 +862,7 @@ weight = 1e-12
 #[test]
 fn terms_on_an_electrodes_charge() {
     let dir = tempfile::tempdir().unwrap();
-    let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
-    let sine = "{ waveform = \"sine\", amplitude = 5e3, offset = 15e3, frequency = 200.0 }";
-    let voltage = deasim::io::examples::example("film-vibration")
-        .unwrap()
-        .replace(step, sine)
-        .replace(
-            "[[stages]]\nname = \"vibrate\"",
-            "[[stages]]\nname = \"charge\"\nkind = \"static\"\nsteps = 3\n\n[[stages]]\nname = \"vibrate\"",
-        );
-    assert!(voltage.contains("name = \"charge\"") && voltage.contains("offset = 15e3"));
-    let circuit = common::circuit_instead_of(&voltage, sine, sine, 1e8);
+    let (voltage, circuit) = (charged_then_sine(false), charged_then_sine(true));
     let terms = r#"
 [[parameters]]
 path = "materials.elastomer.mu"
@@ -940,4 +919,27 @@ fn charged_then_vibrating(text: &str, dir: &std::path::Path, integrator: &str) -
             ..Default::default()
         })
         .unwrap()
+}
+
+/// The vibrating film charged by a static stage of 3 steps (`charge`), then driven in its
+/// `vibrate` stage by a 200 Hz sine of 5 kV about 15 kV: on the electrode, or through
+/// R = 10⁸ Ω (`circuit`).
+fn charged_then_sine(circuit: bool) -> String {
+    let step = "{ waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    let sine = "{ waveform = \"sine\", amplitude = 5e3, offset = 15e3, frequency = 200.0 }";
+    let text = deasim::io::examples::example("film-vibration").unwrap();
+    assert!(text.contains(step));
+    let text = text.replace(step, sine).replace(
+        "[[stages]]\nname = \"vibrate\"",
+        "[[stages]]\nname = \"charge\"\nkind = \"static\"\nsteps = 3\n\n[[stages]]\nname = \"vibrate\"",
+    );
+    assert!(
+        text.contains("name = \"charge\""),
+        "the example's stages moved"
+    );
+    if circuit {
+        common::circuit_instead_of(&text, sine, sine, 1e8)
+    } else {
+        text
+    }
 }
