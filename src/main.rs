@@ -394,6 +394,9 @@ drive, a term or stage whose adjoint is not built)."
         /// One row (0, 1, 2) of the speed table, in this process.
         #[arg(long, hide = true)]
         speed_row: Option<usize>,
+        /// Instead, the gradient and optimal-control tables alone.
+        #[arg(long)]
+        adjoint: bool,
     },
 }
 
@@ -649,6 +652,7 @@ fn main() {
             harmonics_row,
             speed,
             speed_row,
+            adjoint,
         } => {
             use deasim::cli::bench;
             use deasim::solve::linear::SolverKind;
@@ -666,6 +670,9 @@ fn main() {
             }
             if speed {
                 std::process::exit(bench::cmd_bench_speed());
+            }
+            if adjoint {
+                std::process::exit(bench::cmd_bench_adjoint());
             }
             if let Some(row) = harmonics_row {
                 let row = bench::bench_harmonics_row(

@@ -269,12 +269,12 @@ impl Simulation {
         let plan = self.plan()?;
         let file = self.name.clone();
         let input = |e: InputError| Error::Input(e);
-        if scenario.parameters.is_empty() {
+        if scenario.parameters.is_empty() && scenario.controls.is_empty() {
             return Err(input(InputError::at_key(
                 &file,
                 "parameters",
                 "a gradient needs at least one [[parameters]] entry with `path`, a key path \
-                 such as `materials.<name>.mu`",
+                 such as `materials.<name>.mu`, or a [[controls]] entry",
             )));
         }
         let mut parameters = Vec::new();

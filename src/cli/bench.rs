@@ -466,6 +466,12 @@ pub fn cmd_bench(large: bool) -> i32 {
         }
     }
     println!();
+    cmd_bench_adjoint()
+}
+
+/// The gradient and optimal-control tables: the adjoint's time against the forward run's, and
+/// the optimisation of `diaphragm-control`.
+pub fn cmd_bench_adjoint() -> i32 {
     println!("gradients by the adjoint (a control with knots every 10 ms and 4 parameters):");
     println!("{GRADIENT_HEADER}");
     for (name, sets) in [

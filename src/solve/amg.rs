@@ -1267,7 +1267,7 @@ impl CoarseSolver {
             // a singular level shows as a non-finite solution of a test right-hand side
             let mut probe = Mat::<f64>::from_fn(n, 1, |i, _| 1.0 + (i % 7) as f64);
             lblt.solve_in_place(probe.as_mut());
-            super::vector_state::clear_after(faer::get_global_parallelism());
+            super::vector_state::clear_after(faer::get_global_parallelism(), n);
             if (0..n).any(|i| !probe[(i, 0)].is_finite()) {
                 return Err(AmgError::CoarseFactorisation { n });
             }
@@ -1300,7 +1300,7 @@ impl CoarseSolver {
                 params,
             )
             .is_ok();
-            super::vector_state::clear_after(Par::Seq);
+            super::vector_state::clear_after(Par::Seq, n);
             if ok {
                 let mut l = vec![0.0; n * n];
                 for i in 0..n {
@@ -1327,7 +1327,7 @@ impl CoarseSolver {
             let mut rhs = faer::MatMut::from_column_major_slice_mut(x, n, 1);
             rhs.copy_from(faer::MatRef::from_column_major_slice(b, n, 1));
             lblt.solve_in_place(rhs);
-            super::vector_state::clear_after(faer::get_global_parallelism());
+            super::vector_state::clear_after(faer::get_global_parallelism(), n);
             return;
         }
         for i in 0..n {

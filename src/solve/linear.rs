@@ -833,7 +833,7 @@ impl LinearSolver for FaerLdlt {
                     .map(|_| ())
             }
         };
-        super::vector_state::clear_after(self.par);
+        super::vector_state::clear_after(self.par, a.n);
         numeric.map_err(zero_pivot)?;
         let mut inertia = Inertia::default();
         let d = self.pivots();
@@ -883,7 +883,7 @@ impl LinearSolver for FaerLdlt {
                     self.par,
                     stack,
                 );
-                super::vector_state::clear_after(self.par);
+                super::vector_state::clear_after(self.par, n);
             }
             Some(s) => {
                 // scaled to unit size, so that no entry under- or overflows in single precision
@@ -900,7 +900,7 @@ impl LinearSolver for FaerLdlt {
                     self.par,
                     stack,
                 );
-                super::vector_state::clear_after(self.par);
+                super::vector_state::clear_after(self.par, n);
                 for (v, &x) in b.iter_mut().zip(&s.rhs) {
                     *v = f64::from(x) * scale;
                 }

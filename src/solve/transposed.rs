@@ -23,7 +23,7 @@ impl TransposedLu {
         let sym = SymbolicSparseColMatRef::new_checked(a.n, a.n, &row_ptr, None, &a.col_idx);
         let at = SparseColMatRef::new(sym, &a.values);
         let lu = at.sp_lu();
-        super::vector_state::clear_after(faer::get_global_parallelism());
+        super::vector_state::clear_after(faer::get_global_parallelism(), a.n);
         let lu = lu.map_err(|e| {
             format!("the LU factorisation of the transposed Jacobian failed: {e:?}")
         })?;
@@ -40,7 +40,7 @@ impl TransposedLu {
         assert_eq!(b.len(), self.n, "right-hand side of the wrong length");
         let mut rhs = faer::MatMut::from_column_major_slice_mut(b, self.n, 1);
         self.lu.solve_in_place(rhs.as_mut());
-        super::vector_state::clear_after(faer::get_global_parallelism());
+        super::vector_state::clear_after(faer::get_global_parallelism(), self.n);
     }
 }
 

@@ -28,12 +28,22 @@ unsafe fn zero_upper() {
     std::arch::x86_64::_mm256_zeroupper();
 }
 
-/// Clears the upper vector state of the threads that ran a faer call with `par`: this one, and
-/// with a parallel call made from outside the pool, every thread of the pool (a call from one of
-/// its threads clears only that one: a broadcast would wait on the others' work).
-pub fn clear_after(par: Par) {
+/// The order of a system below which the pool's threads are not cleared after a faer call on
+/// it: the broadcast costs tens of µs and wakes every thread, which on small systems solved
+/// thousands of times (an adjoint sweep of an axisymmetric model) cost more than the whole
+/// solve (measured: the adjoint of `diaphragm-control`'s 300 steps spent 0.20 s of system
+/// time on broadcasts against 0.18 s of work). The slowdown a dirty state causes is a fraction
+/// of the next assembly, which on such a system takes microseconds.
+pub const BROADCAST_ORDER: usize = 5_000;
+
+/// Clears the upper vector state of the threads that ran a faer call with `par` on a system of
+/// order `n`: this one, and with a parallel call made from outside the pool on a system of at
+/// least [`BROADCAST_ORDER`] unknowns, every thread of the pool (a call from one of its threads
+/// clears only that one: a broadcast would wait on the others' work).
+pub fn clear_after(par: Par, n: usize) {
     clear_here();
     if !matches!(par, Par::Seq)
+        && n >= BROADCAST_ORDER
         && rayon::current_num_threads() > 1
         && rayon::current_thread_index().is_none()
     {

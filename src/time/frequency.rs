@@ -709,7 +709,7 @@ impl View<'_> {
                 MemStack::new(buffer),
                 Default::default(),
             )
-            .inspect_err(|_| crate::solve::vector_state::clear_after(par))
+            .inspect_err(|_| crate::solve::vector_state::clear_after(par, n))
             .map_err(|e| {
                 let why = match e {
                     LuError::Generic(e) => lu_failure(e),
@@ -721,7 +721,7 @@ impl View<'_> {
             })?;
         let mut rhs = faer::Mat::<c64>::from_fn(n, 1, |i, _| c64::new(self.force[i], 0.0));
         lu.solve_in_place_with_conj(Conj::No, rhs.as_mut(), par, MemStack::new(buffer));
-        crate::solve::vector_state::clear_after(par);
+        crate::solve::vector_state::clear_after(par, n);
         self.finish(
             hz,
             (0..n).map(|i| rhs[(i, 0)].re).collect(),
