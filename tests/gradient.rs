@@ -407,6 +407,23 @@ fn check_diaphragm(integrator: &str) {
     );
     assert_checked(&r, 1e-6);
     assert_controls_checked(&r, 1e-6);
+    // a control alone, with no [[parameters]]: the same knots' derivatives
+    let alone = diaphragm(integrator, &[], 3e-4);
+    assert!(alone.parameters.is_empty());
+    let orders = &alone.taylor.as_ref().unwrap().orders;
+    assert!(
+        orders.iter().all(|o| (o - 2.0).abs() <= 0.1),
+        "Taylor orders {orders:?}"
+    );
+    assert_controls_checked(&alone, 1e-6);
+    for (a, b) in alone.controls.iter().zip(&r.controls) {
+        for (x, y) in a.gradient.iter().zip(&b.gradient) {
+            assert!(
+                (x - y).abs() <= 1e-12 * y.abs().max(1e-300),
+                "{x:e} vs {y:e}"
+            );
+        }
+    }
     let r = diaphragm(integrator, &["materials.vhb.viscosity"], 1e-3);
     assert_checked(&r, 1e-6);
 }
