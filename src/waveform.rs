@@ -98,6 +98,20 @@ impl Waveform {
         }
     }
 
+    /// The value of a constant waveform; `None` for the others.
+    pub fn constant_value(&self) -> Option<f64> {
+        matches!(self.shape, Shape::Constant).then(|| self.value(0.0))
+    }
+
+    /// The waveform times `factor` (its amplitude and offset scaled).
+    pub fn scaled(&self, factor: f64) -> Waveform {
+        Waveform {
+            amplitude: self.amplitude * factor,
+            offset: self.offset * factor,
+            ..self.clone()
+        }
+    }
+
     /// Frequency (Hz) of a periodic shape; `None` for the others.
     pub fn frequency(&self) -> Option<f64> {
         match self.shape {

@@ -381,7 +381,22 @@ fn step_adjoint(
         sink.density(*m, -step.mass_vjp(&lambda, unit));
     }
     let factor = step.residual_factor();
-    sink.weights(&free_weights(&step.dofs, &lambda), factor);
+    let weights = free_weights(&step.dofs, &lambda);
+    sink.weights(&weights, factor);
+    // the drive's charges at the evaluation point, +f_r·Q on their Gauss equations
+    let t_eval = match s.scheme {
+        Scheme::Midpoint => prev.t + 0.5 * dt,
+        Scheme::Newmark { .. } => prev.t + dt,
+    };
+    for (k, ch) in s.drive.charges.iter().enumerate() {
+        sink.charge(
+            s.drive,
+            k,
+            t_eval,
+            1.0,
+            -factor * weights[ch.node * FIELDS + PHI],
+        );
+    }
     for m in sink_viscous(sink) {
         let p = step.viscosity_vjp(&lambda, m)?;
         sink.viscosity(m, -p);
@@ -496,6 +511,10 @@ fn projection_adjoint(
     let dead = problem.drive().dead_loads.at(1.0);
     let weights = free_weights(&problem.dofs, &mu);
     sink.weights(&weights, dead);
+    // the stage drive's charges at t, held on their Gauss equations
+    for (k, ch) in s.drive.charges.iter().enumerate() {
+        sink.charge(s.drive, k, t, 1.0, -weights[ch.node * FIELDS + PHI]);
+    }
     // a circuit's charge Q enters its electrode's Gauss equation as +Q
     let charges = s
         .step_model

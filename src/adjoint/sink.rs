@@ -191,6 +191,32 @@ impl<'a> Sink<'a> {
         }
     }
 
+    /// dJ/dp += ∂Q/∂p · `a` for the driven charge `k` of `drive` at stage time `t` and load
+    /// factor `s`, `a` the cotangent of that charge on the meshed part: to the control of its
+    /// electrode in this stage, or to the parameter of its constant charge (C, whole device).
+    pub fn charge(&mut self, drive: &Drive, k: usize, t: f64, s: f64, a: f64) {
+        let c = &drive.charges[k];
+        let Some(e) = self.plan.electrodes.iter().find(|e| e.nodes[0] == c.node) else {
+            return;
+        };
+        // Q_mesh = ramp(s) · Q(t) / symmetry
+        let a = a * c.ramp.at(s) / self.plan.symmetry_factor;
+        let stage = self.stage;
+        if let Some(control) = self
+            .controls
+            .iter_mut()
+            .find(|g| g.stage == stage && g.electrode == e.name)
+        {
+            control.add_at(t, a);
+            return;
+        }
+        for (i, (_, p)) in self.parameters.iter().enumerate() {
+            if matches!(p, Parameter::Charge { electrode, .. } if *electrode == e.name) {
+                self.grad[i] += a;
+            }
+        }
+    }
+
     /// The name of the electrode of the model's circuit `i` (circuits are the circuit-driven
     /// electrodes in the plan's order).
     fn circuit_electrode(&self, i: usize) -> Option<&'a str> {
@@ -278,8 +304,12 @@ impl<'a> Sink<'a> {
                 }
                 Parameter::Charge { ref electrode, .. } => {
                     // the free charge Q/(symmetry) on the electrode's potential unknown (its
-                    // first node), a dead load −Q on the Φ equation
-                    if let Some(e) = self.plan.electrodes.iter().find(|e| &e.name == electrode) {
+                    // first node), a dead load −Q on the Φ equation (a charge the drive gives
+                    // is in [`Sink::charge`])
+                    let dead = |e: &&crate::job::plan::Electrode| {
+                        &e.name == electrode && !e.charge_in_drive
+                    };
+                    if let Some(e) = self.plan.electrodes.iter().find(dead) {
                         let d = e.nodes[0] * FIELDS + crate::problem::dofs::PHI;
                         self.grad[i] -= factor * w[d] / self.plan.symmetry_factor;
                     }

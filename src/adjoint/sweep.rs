@@ -416,7 +416,13 @@ fn load_steps(
         if !prestretch {
             // (the pre-stretch hangs no weight: its model has no dead loads)
             let dead = problem.drive().dead_loads.at(step.load);
-            sink.weights(&free_weights(&problem.dofs, &lambda), dead);
+            let weights = free_weights(&problem.dofs, &lambda);
+            sink.weights(&weights, dead);
+            // the drive's charges, +Q on their Gauss equations
+            let t = step.load * st.duration;
+            for (k, c) in st.drive.charges.iter().enumerate() {
+                sink.charge(&st.drive, k, t, step.load, -weights[c.node * FIELDS + PHI]);
+            }
         }
         let lv = problem.level_vjp(&lambda)?;
         before_bar

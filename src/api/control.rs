@@ -55,8 +55,11 @@ pub struct Drive {
     pub stage: String,
     pub stage_start: f64,
     pub electrode: String,
-    /// Knot times (stage time, s), the starting and the optimised voltages (V), and dJ/dV
-    /// at the optimum.
+    /// What the knots are: `voltage` (V: an electrode's, or its circuit's source) or `charge`
+    /// (C: a charge-controlled electrode's).
+    pub quantity: &'static str,
+    /// Knot times (stage time, s), the starting and the optimised values (V or C), and dJ/dV
+    /// (or dJ/dQ) at the optimum.
     pub times: Vec<f64>,
     pub initial: Vec<f64>,
     pub values: Vec<f64>,
@@ -89,16 +92,17 @@ pub struct OptimalControl {
     pub controlled: String,
 }
 
-/// Knot scale of a control (V): its bounds' range, else the largest of its |values|, its
-/// bounds and 1 kV; the optimiser works in knots divided by it.
-fn scale(lower: Option<f64>, upper: Option<f64>, values: &[f64]) -> f64 {
+/// Knot scale of a control (V or C): its bounds' range, else the largest of its |values|, its
+/// bounds and `least` (1 kV, or 10 nC for a charge: a small film's charge at a few kV); the
+/// optimiser works in knots divided by it.
+fn scale(lower: Option<f64>, upper: Option<f64>, values: &[f64], least: f64) -> f64 {
     match (lower, upper) {
         (Some(l), Some(u)) => u - l,
         _ => values
             .iter()
             .chain(lower.iter())
             .chain(upper.iter())
-            .fold(1e3f64, |m, v| m.max(v.abs())),
+            .fold(least, |m, v| m.max(v.abs())),
     }
 }
 
@@ -123,7 +127,12 @@ impl Layout {
                     .unwrap_or(0);
                 let spec = &scenario.controls[index];
                 let values: Vec<f64> = knots.iter().map(|k| k.1).collect();
-                slots.push((si, ci, index, scale(spec.lower, spec.upper, &values)));
+                let least = match super::gradient::control_quantity(plan, electrode) {
+                    "charge" => 1e-8,
+                    _ => 1e3,
+                };
+                let s = scale(spec.lower, spec.upper, &values, least);
+                slots.push((si, ci, index, s));
             }
         }
         Layout { slots }
@@ -274,6 +283,7 @@ impl Simulation {
                     stage: best.stages[si].name.clone(),
                     stage_start: best.stage_start(si),
                     electrode: electrode.clone(),
+                    quantity: super::gradient::control_quantity(&plan, electrode),
                     times: knots.iter().map(|k| k.0).collect(),
                     initial: plan.stages[si].controls[ci].1.iter().map(|k| k.1).collect(),
                     values: knots.iter().map(|k| k.1).collect(),
@@ -403,6 +413,15 @@ fn absolute_paths(table: &mut toml::Table, base: &Path) {
     }
 }
 
+/// The unit of a control's `quantity`.
+fn unit(quantity: &str) -> &'static str {
+    if quantity == "charge" {
+        "C"
+    } else {
+        "V"
+    }
+}
+
 /// The key and reason where the starting drive breaks a bound or a rate limit.
 fn check_start(
     layout: &Layout,
@@ -416,24 +435,28 @@ fn check_start(
         let spec = &scenario.controls[index];
         let knots = &plan.stages[si].controls[ci].1;
         let key = |k: &str| format!("controls.{index}.{k}");
+        let u = unit(super::gradient::control_quantity(
+            plan,
+            &plan.stages[si].controls[ci].0,
+        ));
         for (k, &(t, v)) in knots.iter().enumerate() {
             let tol = 1e-12 * s;
             if let Some(l) = spec.lower.filter(|l| v < l - tol) {
                 return Err((
                     key("lower"),
                     format!(
-                        "the starting drive ({v:e} V at {t:e} s of stage `{}`) lies below \
-                         `lower` ({l:e} V): give `values` inside the bounds, or other bounds",
+                        "the starting drive ({v:e} {u} at {t:e} s of stage `{}`) lies below \
+                         `lower` ({l:e} {u}): give `values` inside the bounds, or other bounds",
                         plan.stages[si].name
                     ),
                 ));
             }
-            if let Some(u) = spec.upper.filter(|u| v > u + tol) {
+            if let Some(up) = spec.upper.filter(|up| v > up + tol) {
                 return Err((
                     key("upper"),
                     format!(
-                        "the starting drive ({v:e} V at {t:e} s of stage `{}`) lies above \
-                         `upper` ({u:e} V): give `values` inside the bounds, or other bounds",
+                        "the starting drive ({v:e} {u} at {t:e} s of stage `{}`) lies above \
+                         `upper` ({up:e} {u}): give `values` inside the bounds, or other bounds",
                         plan.stages[si].name
                     ),
                 ));
@@ -444,8 +467,8 @@ fn check_start(
                     return Err((
                         key("max_rate"),
                         format!(
-                            "the starting drive changes at {rate:e} V/s between {t:e} and \
-                             {t1:e} s of stage `{}`, faster than `max_rate` ({r:e} V/s)",
+                            "the starting drive changes at {rate:e} {u}/s between {t:e} and \
+                             {t1:e} s of stage `{}`, faster than `max_rate` ({r:e} {u}/s)",
                             plan.stages[si].name
                         ),
                     ));
@@ -475,6 +498,7 @@ impl OptimalControl {
             "controls": self.drives.iter().map(|d| serde_json::json!({
                 "index": d.index,
                 "electrode": d.electrode,
+                "quantity": d.quantity,
                 "stage": d.stage,
                 "knots": d.times.len(),
                 "lower": d.lower,
@@ -485,7 +509,8 @@ impl OptimalControl {
     }
 
     /// Writes `control.json`, `control.csv` (`time` in the run's clock, s, then
-    /// `voltage:<electrode>` per control, V), `controlled.toml` and, with `plot_format`, the
+    /// `voltage:<electrode>` per control in V, or `charge:<electrode>` in C for a
+    /// charge-controlled electrode), `controlled.toml` and, with `plot_format`, the
     /// plots `control.<format>` (the drive, starting and optimised) and `tracking.<format>` (each
     /// probe the objective reads against its target). Returns the paths written.
     pub fn write(&self, dir: &Path, plot_format: Option<&str>) -> Result<Vec<PathBuf>, Error> {
@@ -516,9 +541,9 @@ impl OptimalControl {
                     .count()
                     > 1
                 {
-                    format!("voltage:{}@{}", d.electrode, d.stage)
+                    format!("{}:{}@{}", d.quantity, d.electrode, d.stage)
                 } else {
-                    format!("voltage:{}", d.electrode)
+                    format!("{}:{}", d.quantity, d.electrode)
                 }
             })
             .collect();
@@ -545,12 +570,22 @@ impl OptimalControl {
                 });
             }
             let path = dir.join(format!("control.{format}"));
+            let charges = self
+                .drives
+                .iter()
+                .filter(|d| d.quantity == "charge")
+                .count();
+            let y_label = match charges {
+                0 => "voltage [V]",
+                n if n == self.drives.len() => "charge [C]",
+                _ => "voltage [V], charge [C]",
+            };
             line_plot(
                 &path,
                 &PlotSpec {
                     title: "the controlled drive",
                     x_label: "time [s]",
-                    y_label: "voltage [V]",
+                    y_label,
                     series: &series,
                 },
             )

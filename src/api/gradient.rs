@@ -46,7 +46,7 @@ pub struct ParameterGradient {
     pub finite_difference: Option<(f64, f64)>,
 }
 
-/// dJ/dV at the knots of one control (`[[controls]]`).
+/// dJ/dV (or dJ/dQ) at the knots of one control (`[[controls]]`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlReport {
     /// Its index in the scenario's `[[controls]]`, its stage and electrode.
@@ -55,12 +55,14 @@ pub struct ControlReport {
     /// The stage's start in the run's clock (s).
     pub stage_start: f64,
     pub electrode: String,
-    /// The knots' stage times (s) and voltages (V).
+    /// What the knots are: `voltage` (V) or `charge` (C, a charge-controlled electrode's).
+    pub quantity: &'static str,
+    /// The knots' stage times (s) and values (V or C).
     pub times: Vec<f64>,
     pub values: Vec<f64>,
-    /// dJ/dV at each knot (1/V times the unit of J).
+    /// dJ/dV (or dJ/dQ) at each knot (the unit of J per V or per C).
     pub gradient: Vec<f64>,
-    /// When checked: (knot, central finite difference, its step h in V) at a few knots.
+    /// When checked: (knot, central finite difference, its step h in V or C) at a few knots.
     pub finite_differences: Vec<(usize, f64, f64)>,
 }
 
@@ -131,6 +133,7 @@ impl GradientReport {
                         let mut v = serde_json::json!({
                             "stage": c.stage,
                             "electrode": c.electrode,
+                            "quantity": c.quantity,
                             "time": c.times,
                             "value": c.values,
                             "gradient": c.gradient.iter().map(|&g| num(g)).collect::<Vec<_>>(),
@@ -163,7 +166,7 @@ impl GradientReport {
 
 impl GradientReport {
     /// Writes `gradient.json` into `dir` and, when the scenario has controls, `controls.csv`
-    /// (the run's time in s, then dJ/dV of each control at its knots, a column
+    /// (the run's time in s, then dJ/dV, or dJ/dQ, of each control at its knots, a column
     /// `<electrode>@<stage>` each, empty where a control has no knot) and, with `plot_format`
     /// (`png` or `svg`), the plot `controls.<format>` of those derivatives. Returns the paths
     /// written.
@@ -209,9 +212,9 @@ impl GradientReport {
             line_plot(
                 &path,
                 &PlotSpec {
-                    title: "the objective's gradient in the controlled voltages",
+                    title: "the objective's gradient in the controlled drives",
                     x_label: "time [s]",
-                    y_label: "dJ/dV at the knots [1/V · unit of J]",
+                    y_label: "dJ/dV (or dJ/dQ) at the knots [unit of J per V or C]",
                     series: &series,
                 },
             )
@@ -225,6 +228,20 @@ impl GradientReport {
 /// A JSON number, or null for a non-finite one.
 pub(super) fn json_number(x: f64) -> serde_json::Value {
     serde_json::Number::from_f64(x).map_or(serde_json::Value::Null, serde_json::Value::Number)
+}
+
+/// What a control of `electrode` sets: `charge` on a charge-controlled electrode, else
+/// `voltage` (its own, or its circuit's source).
+pub(super) fn control_quantity(plan: &crate::job::plan::Plan, electrode: &str) -> &'static str {
+    let charged = plan
+        .electrodes
+        .iter()
+        .any(|e| e.name == electrode && e.charge.is_some());
+    if charged {
+        "charge"
+    } else {
+        "voltage"
+    }
 }
 
 /// A CSV of values at the knots of several controls: `time` (the run's clock, s) then one
@@ -332,6 +349,7 @@ impl Simulation {
                     stage,
                     stage_start: plan.stage_start(c.stage),
                     electrode: c.electrode.clone(),
+                    quantity: control_quantity(&plan, &c.electrode),
                     times: c.knots.iter().map(|k| k.0).collect(),
                     values: c.knots.iter().map(|k| k.1).collect(),
                     gradient: c.gradient.clone(),
@@ -340,7 +358,7 @@ impl Simulation {
             })
             .collect();
         // a control without `values` starts at its electrode's waveform, whose amplitude and
-        // offset then move its knots
+        // offset (or constant charge) then move its knots
         let mut derivatives = g.gradient.clone();
         for c in &g.controls {
             let spec = scenario
@@ -355,6 +373,12 @@ impl Simulation {
                 continue;
             };
             for ((_, p), d) in parameters.iter().zip(derivatives.iter_mut()) {
+                if let crate::io::build::Parameter::Charge { electrode, .. } = p {
+                    // a constant charge: each knot starts at it
+                    if *electrode == c.electrode {
+                        *d += c.gradient.iter().sum::<f64>();
+                    }
+                }
                 if let crate::io::build::Parameter::Voltage {
                     electrode,
                     offset,
@@ -531,8 +555,12 @@ impl Simulation {
             let down = self.objective_at(report, &d, &none)?;
             report.parameters[i].finite_difference = Some(((up - down) / (2.0 * h), h));
         }
-        let knot_step =
-            |c: &ControlReport| rel * c.values.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        // ε times the control's largest value (1 V, or 1 nC, where every knot is at zero)
+        let knot_step = |c: &ControlReport| {
+            let largest = c.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let unit = if c.quantity == "charge" { 1e-9 } else { 1.0 };
+            rel * if largest > 0.0 { largest } else { unit }
+        };
         for ci in 0..report.controls.len() {
             let c = &report.controls[ci];
             let m = c.values.len();

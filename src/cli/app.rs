@@ -597,11 +597,17 @@ pub fn cmd_check(scenario: &Path, overrides: &[String], trial: bool) -> i32 {
                 }
             }
             for e in &plan.electrodes {
-                match e.charge {
+                match e.charge.as_ref().map(|w| w.constant_value()) {
                     None => println!("electrode `{}`: {} nodes", e.name, e.nodes.len()),
-                    Some(q) => println!(
+                    Some(Some(q)) => println!(
                         "electrode `{}`: {} nodes, charge-controlled: {q:e} C (its voltage is an \
                          unknown)",
+                        e.name,
+                        e.nodes.len()
+                    ),
+                    Some(None) => println!(
+                        "electrode `{}`: {} nodes, charge-controlled by a waveform in C (its \
+                         voltage is an unknown)",
                         e.name,
                         e.nodes.len()
                     ),

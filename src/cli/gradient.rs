@@ -107,7 +107,12 @@ fn table(r: &GradientReport) -> String {
             c.times.len()
         );
         if let Some((k, g)) = largest {
-            let _ = write!(s, ", largest |dJ/dV| {g:.6e} at t = {:.6e} s", c.times[k]);
+            let d = if c.quantity == "charge" {
+                "dJ/dQ"
+            } else {
+                "dJ/dV"
+            };
+            let _ = write!(s, ", largest |{d}| {g:.6e} at t = {:.6e} s", c.times[k]);
         }
         s.push('\n');
         for &(k, fd, _) in &c.finite_differences {

@@ -584,10 +584,11 @@ pub struct ConstraintSpec {
 #[serde(deny_unknown_fields)]
 pub struct ElectrodeSpec {
     pub set: String,
-    /// Charge control: the total free charge (C, of the whole device) the electrode carries; its
-    /// voltage becomes an unknown (0: a floating electrode). Excludes `voltage`.
+    /// Charge control: the total free charge (C, of the whole device) the electrode carries, a
+    /// number or a waveform table like `voltage`; its voltage becomes an unknown (0: a floating
+    /// electrode). Excludes `voltage`.
     #[serde(default)]
-    pub charge: Option<f64>,
+    pub charge: Option<VoltageSpec>,
     /// Volts: a number (constant) or a waveform table. 0 = grounded.
     #[serde(default)]
     pub voltage: VoltageSpec,

@@ -90,6 +90,13 @@ impl Plan {
         if self.electrodes.iter().any(|e| e.resistance.is_some()) {
             return Some("circuit-driven electrodes are not divided into parts yet".into());
         }
+        if self.electrodes.iter().any(|e| e.charge_in_drive) {
+            return Some(
+                "an electrode whose charge follows a waveform or a control is not divided into \
+                 parts yet"
+                    .into(),
+            );
+        }
         None
     }
 }

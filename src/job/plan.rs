@@ -14,9 +14,15 @@ pub struct Electrode {
     pub name: String,
     pub nodes: Vec<usize>,
     pub voltage: Waveform,
-    /// Charge control: the electrode's total free charge (C, whole device); its potential is
-    /// then one unknown shared by its nodes and `voltage` is unused. `None`: voltage control.
-    pub charge: Option<f64>,
+    /// Charge control: the electrode's total free charge (C, whole device) in stage time; its
+    /// potential is then one unknown shared by its nodes and `voltage` is unused. `None`:
+    /// voltage control.
+    pub charge: Option<Waveform>,
+    /// The charge enters through each stage's drive ([`crate::problem::drive::Drive::charges`]:
+    /// a waveform that is not constant, or a control in some stage); otherwise a constant
+    /// charge is one of the model's dead loads.
+    #[serde(default)]
+    pub charge_in_drive: bool,
     /// Circuit control: the series resistance (Ω, whole device) between the source `voltage`
     /// and the electrode, whose potential is then one unknown shared by its nodes. `None`: the
     /// electrode is at `voltage` (or under charge control).
@@ -177,6 +183,18 @@ impl Stage {
             Some((_, knots)) if self.electrodes_on => crate::waveform::Waveform::table(knots),
             _ => self.waveform(&e.voltage),
         }
+    }
+
+    /// The charge (C, whole device) of a charge-controlled electrode `e` in this stage: its
+    /// control's table, or its waveform; `None` for the other electrodes.
+    pub fn electrode_charge(&self, e: &Electrode) -> Option<crate::waveform::Waveform> {
+        let w = e.charge.as_ref()?;
+        Some(
+            match self.controls.iter().find(|(name, _)| *name == e.name) {
+                Some((_, knots)) => crate::waveform::Waveform::table(knots),
+                None => w.clone(),
+            },
+        )
     }
 
     pub fn waveform(&self, w: &crate::waveform::Waveform) -> crate::waveform::Waveform {

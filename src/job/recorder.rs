@@ -48,6 +48,9 @@ pub(super) struct Recorder<'p> {
     pub(super) circuit_current: bool,
     /// The fraction of each pressure at the state being recorded, and at the previous record.
     pub(super) pressure_now: Vec<f64>,
+    /// The drive's free charges at the state being recorded (node, C of the meshed part): a
+    /// charge −Q on a potential equation works like a force, −Q·ΔΦ.
+    pub(super) charges_now: Vec<(usize, f64)>,
     pub(super) prev_pressure: Vec<f64>,
     /// Every record so far (kept for checkpoints only).
     pub(super) history: Vec<StepRecord>,
@@ -79,11 +82,17 @@ impl<'p> Recorder<'p> {
             (cells.reactions, cells.energies, cells.fields);
         // work done on the body, by the trapezoidal rule: reactions at prescribed dofs
         // Σ ½(R₀ + R₁)·(x₁ − x₀) and external (traction) forces at free dofs
-        let external: Vec<f64> = self
+        let mut external: Vec<f64> = self
             .traction
             .iter()
             .map(|t| t * self.external_factor)
             .collect();
+        if !self.charges_now.is_empty() {
+            external.resize(state.len(), 0.0);
+            for &(node, q) in &self.charges_now {
+                external[node * FIELDS + 3] -= q;
+            }
+        }
         if !self.prev_state.is_empty() {
             for d in 0..state.len() {
                 if !prescribed[d] && !external.is_empty() {
@@ -521,6 +530,7 @@ impl<'p> Recorder<'p> {
             reference: vec![0.0; n_nodes * FIELDS],
             circuit_energy: vec![(0.0, 0.0); plan.electrodes.len()],
             pressure_now: Vec::new(),
+            charges_now: Vec::new(),
             prev_pressure: Vec::new(),
             circuit_current: false,
             broken_down: vec![false; plan.model.materials.len()],

@@ -19,7 +19,7 @@ use super::statics::{solve_static_checked, StageTime};
 use crate::algebra::system::NonlinearSystem;
 use crate::problem::distributed::Held;
 use crate::problem::dofs::{constrained_flags, Dirichlet, Field, FIELDS};
-use crate::problem::drive::{Drive, HeldVoltages, Ramp};
+use crate::problem::drive::{Drive, DrivenCharge, HeldVoltages, Ramp};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::StaticProblem;
@@ -676,6 +676,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 self.rec.circuit_current = false;
                 self.rec.external_factor = p.load();
                 self.rec.pressure_now = p.pressure_fractions();
+                self.rec.charges_now = p.drive().charges_at(acc.load * stage.duration, acc.load);
                 let record = self.record(
                     &p.state,
                     prescribed,
@@ -758,10 +759,11 @@ impl<'p, 'o> Job<'p, 'o> {
                     .zip(&targets)
                     .any(|(a, b)| a != b || *b != 0.0)
                     || quasi_static;
-                let charged = plan
-                    .electrodes
-                    .iter()
-                    .any(|e| e.charge.is_some_and(|q| q != 0.0));
+                let charged = plan.electrodes.iter().any(|e| {
+                    e.charge
+                        .as_ref()
+                        .is_some_and(|w| *w != Waveform::constant(0.0))
+                });
                 use crate::solve::stepping::FailureCause;
                 let interrupted = f.cause == FailureCause::Other;
                 // the evidence beyond the failed step: a material at its locking limit in the
@@ -835,18 +837,30 @@ impl<'p, 'o> Job<'p, 'o> {
                         volts(voltage_at(f.attempted))
                     ));
                 }
-                let charge_at = |q: f64, s: f64| q * drive.dead_loads.at(s);
+                // an electrode's charge (whole device) at load factor s
+                let charge_at = |e: &super::plan::Electrode, q: &Waveform, s: f64| {
+                    if e.charge_in_drive {
+                        let node = e.nodes[0];
+                        drive
+                            .charges_at(s * stage.duration, s)
+                            .iter()
+                            .find(|c| c.0 == node)
+                            .map_or(f64::NAN, |c| c.1 * plan.symmetry_factor)
+                    } else {
+                        q.value(0.0) * drive.dead_loads.at(s)
+                    }
+                };
                 let voltages = plan
                     .electrode_voltages(&self.state.q)
                     .unwrap_or_else(|_| vec![f64::NAN; plan.electrodes.len()]);
                 for (e, voltage) in plan.electrodes.iter().zip(voltages) {
-                    if let Some(q) = e.charge {
+                    if let Some(q) = &e.charge {
                         controls.push(format!(
                             "last converged charge of `{}` {:.6e} C at {} V, failed at {:.6e} C",
                             e.name,
-                            charge_at(q, f.last_converged),
+                            charge_at(e, q, f.last_converged),
                             volts(voltage),
-                            charge_at(q, f.attempted)
+                            charge_at(e, q, f.attempted)
                         ));
                     }
                 }
@@ -946,7 +960,11 @@ impl<'p, 'o> Job<'p, 'o> {
                 (start, stage.electrode_waveform(e).value(stage.duration))
             }
             PathParameter::Charge { electrode } => {
-                let q = plan.electrodes[*electrode].charge.unwrap_or(0.0);
+                let q = plan.electrodes[*electrode]
+                    .charge
+                    .as_ref()
+                    .and_then(Waveform::constant_value)
+                    .unwrap_or(0.0);
                 (q * t0, q)
             }
             PathParameter::Pressure { index } => {
@@ -1023,6 +1041,7 @@ impl<'p, 'o> Job<'p, 'o> {
                     self.rec.external_factor = p.drive().dead_loads.at(pt.load);
                     self.rec.pressure_now =
                         p.drive().pressures.iter().map(|r| r.at(pt.load)).collect();
+                    self.rec.charges_now = p.drive().charges_at(pt.load * stage.duration, pt.load);
                     let dt = (pt.load - last_load) * stage.duration;
                     let previous_load = last_load;
                     last_load = pt.load;
@@ -1285,6 +1304,7 @@ impl<'p, 'o> Job<'p, 'o> {
                 let kinetic = 0.5 * level.v.iter().zip(&mv).map(|(a, b)| a * b).sum::<f64>();
                 self.rec.external_factor = 1.0;
                 self.rec.pressure_now = vec![0.0; plan.model.pressures.len()];
+                self.rec.charges_now = inputs.drive.charges_at(level.t, 1.0);
                 self.rec.sudden_loads = true;
                 self.rec.circuit_current = true;
                 let record = self.record(
@@ -1425,11 +1445,48 @@ impl Plan {
                 .collect(),
             supports: Vec::new(),
             held: Default::default(),
+            charges: self.driven_charges(stage, dead_loads_from),
         };
         if dynamic {
             drive.dead_loads = Ramp::HELD;
         }
         drive
+    }
+
+    /// The charges of `stage`'s drive (meshed part): each electrode whose charge follows the
+    /// drive, at its control's table or its waveform in stage time; a static or continuation
+    /// stage ramps it from the fraction `dead_loads_from` of its value at the stage's end, as
+    /// its dead loads.
+    fn driven_charges(&self, stage: &Stage, dead_loads_from: f64) -> Vec<DrivenCharge> {
+        let in_time = matches!(
+            stage.kind,
+            StageKind::Dynamic { .. } | StageKind::QuasiStatic { .. }
+        );
+        self.electrodes
+            .iter()
+            .filter(|e| e.charge_in_drive)
+            .filter_map(|e| {
+                let charge = stage
+                    .electrode_charge(e)?
+                    .scaled(1.0 / self.symmetry_factor);
+                Some(if in_time {
+                    DrivenCharge {
+                        node: e.nodes[0],
+                        charge,
+                        ramp: Ramp::HELD,
+                    }
+                } else {
+                    DrivenCharge {
+                        node: e.nodes[0],
+                        charge: Waveform::constant(charge.value(stage.duration)),
+                        ramp: Ramp {
+                            from: dead_loads_from,
+                            to: 1.0,
+                        },
+                    }
+                })
+            })
+            .collect()
     }
 
     /// The controllers acting in `stage` (a dynamic or quasi-static stage with its electrodes

@@ -4,6 +4,9 @@
 //! - the electrodes at a prescribed potential follow their waveforms in stage time (a static
 //!   stage holds its own electrodes among the supports, ramped to their values at its end);
 //! - the circuits' sources follow their waveforms in stage time;
+//! - the charges of charge-controlled electrodes that follow a waveform or a control
+//!   ([`Drive::charges`]) follow it in stage time (a static stage ramps them to their values at
+//!   its end, with the dead loads);
 //! - the dead loads (tractions, body and point forces, and the free charges of charge-controlled
 //!   electrodes, which enter as loads on their potential equations) and each pressure follow a
 //!   [`Ramp`] of their full value over the load factor;
@@ -64,6 +67,21 @@ pub struct Drive {
     /// Values set while the stage runs that replace some of `voltages`' waveforms (a feedback
     /// controller's held outputs).
     pub held: HeldVoltages,
+    /// The charge-controlled electrodes whose charge the drive gives (a waveform that is not
+    /// constant, or a control); a constant charge is a dead load of the model instead.
+    pub charges: Vec<DrivenCharge>,
+}
+
+/// A free charge that the drive gives: on the potential equation of `node` (its electrode's
+/// potential unknown), `ramp.at(s) · charge(t)` at load factor s and stage time t.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DrivenCharge {
+    pub node: usize,
+    /// The charge of the meshed part (C: the device's over the symmetry factor).
+    pub charge: Waveform,
+    /// A static stage ramps the charge on with its dead loads (its waveform is then the
+    /// constant value at the stage's end); stages in time hold it at its waveform.
+    pub ramp: Ramp,
 }
 
 /// Voltages set while a stage runs, per entry of [`Drive::voltages`]: the value that replaces
@@ -115,6 +133,7 @@ impl Drive {
             pressures: vec![Ramp::HELD; model.pressures.len()],
             supports: Vec::new(),
             held: HeldVoltages::default(),
+            charges: Vec::new(),
         }
     }
 
@@ -175,6 +194,15 @@ impl Drive {
         }
     }
 
+    /// Each driven charge's node and value (C, meshed part) at stage time `t` and load factor
+    /// `s`.
+    pub fn charges_at(&self, t: f64, s: f64) -> Vec<(usize, f64)> {
+        self.charges
+            .iter()
+            .map(|c| (c.node, c.ramp.at(s) * c.charge.value(t)))
+            .collect()
+    }
+
     /// Each circuit's source voltage (V) at stage time `t`.
     pub fn circuit_sources_at(&self, t: f64) -> Vec<f64> {
         self.circuits.iter().map(|w| w.value(t)).collect()
@@ -202,7 +230,24 @@ mod tests {
             pressures: Vec::new(),
             supports: Vec::new(),
             held: HeldVoltages::default(),
+            charges: vec![
+                DrivenCharge {
+                    node: 1,
+                    charge: ramp.scaled(1e-9),
+                    ramp: Ramp::HELD,
+                },
+                DrivenCharge {
+                    node: 2,
+                    charge: Waveform::constant(2e-6),
+                    ramp: Ramp::ON,
+                },
+            ],
         };
+        // a driven charge follows its waveform in time, or its ramp in the load factor
+        assert_eq!(
+            drive.charges_at(1.0, 0.25),
+            vec![(1, 1e-9 * ramp.value(1.0)), (2, 0.25 * 2e-6)]
+        );
         let mut state = vec![0.0; 3 * FIELDS];
         drive.apply_voltages(&mut state, 1.0);
         assert_eq!(state[PHI], ramp.value(1.0));
@@ -226,6 +271,7 @@ mod tests {
             pressures: Vec::new(),
             supports: Vec::new(),
             held: HeldVoltages::default(),
+            charges: Vec::new(),
         };
         let copy = drive.clone();
         assert_eq!(copy.held.get(1), None);

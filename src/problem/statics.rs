@@ -265,12 +265,24 @@ impl<'m> StaticProblem<'m> {
         stamp
     }
 
+    /// The free charges on potential equations besides the model's dead loads (node of an
+    /// electrode's potential unknown, C): `extra_charges`, and the drive's charges at the load
+    /// factor and its stage time.
+    pub fn free_charges(&self) -> Vec<(usize, f64)> {
+        let mut charges = self.extra_charges.clone();
+        charges.extend(self.drive.charges_at(self.s * self.duration, self.s));
+        charges
+    }
+
     /// Unscaled nodal reactions ∂Π/∂x of every dof (N for u, C for Φ): internal forces minus the
     /// dead loads at the current load factor; zero at the free dofs of an equilibrium.
     pub fn nodal_reactions(&self) -> Result<Vec<f64>, String> {
         let mut r = nodal_reactions_with(self.model, &self.state, &self.points, self.dt())?;
         for (v, t) in r.iter_mut().zip(&self.dead_load) {
             *v -= self.load * t;
+        }
+        for (node, q) in self.free_charges() {
+            r[node * FIELDS + PHI] += q;
         }
         for (p, f) in self.model.pressures.iter().zip(self.pressure_fractions()) {
             crate::problem::pressure::add_pressure(p, f, &self.state, &mut r, None);
@@ -732,7 +744,7 @@ impl NonlinearSystem for StaticProblem<'_> {
                 }
             }
         }
-        for &(node, q) in &self.extra_charges {
+        for (node, q) in self.free_charges() {
             let e = self.dofs.eq[node * FIELDS + PHI];
             if e != CONSTRAINED {
                 r[e] += self.dofs.scale[PHI] * q;

@@ -121,6 +121,9 @@ pub struct TimeStep<'m> {
     pub points: PointStates,
     /// The model's circuits over this step (set by [`TimeStep::begin_circuits`]).
     pub circuits: Vec<CircuitStep>,
+    /// The free charges the drive gives over this step, at its evaluation point (node of an
+    /// electrode's potential unknown, C of the meshed part; set by the stage driver).
+    pub charges: Vec<(usize, f64)>,
     /// The matrix of [`NonlinearSystem::evaluate`]: the exact (unsymmetric) Jacobian of the step
     /// residual when true, else the symmetric iteration matrix without the configuration
     /// derivative of the Kelvin–Voigt forces.
@@ -172,6 +175,7 @@ impl<'m> TimeStep<'m> {
             factor_point: None,
             points: PointStates::default(),
             circuits: Vec::new(),
+            charges: Vec::new(),
             exact_jacobian: false,
             keep_cell_tangents: false,
             kept: KeptTangents::default(),
@@ -847,6 +851,13 @@ impl NonlinearSystem for TimeStep<'_> {
                 // ∂V_eval/∂V_{n+1}: ½ at the midpoint, 1 at the end point
                 let dv = if midpoint { 0.5 } else { 1.0 };
                 k.add(e, e, scale[PHI] * scale[PHI] * f_r * dq * dv);
+            }
+        }
+        // the drive's free charges, +Q on their electrodes' Gauss equations
+        for &(node, q) in &self.charges {
+            let e = eq[node * FIELDS + PHI];
+            if e != CONSTRAINED {
+                r[e] += scale[PHI] * f_r * q;
             }
         }
         // dashpots c·v at the evaluation velocity, like the viscous forces

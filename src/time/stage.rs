@@ -307,6 +307,8 @@ impl<'m> Projector<'m> {
     ) -> Result<(), String> {
         let p = self.problem.inner_mut();
         p.extra_charges = charges;
+        // and the drive's free charges at t (a dynamic stage holds them at their waveforms)
+        p.extra_charges.extend(inputs.drive.charges_at(t, 1.0));
         p.state.copy_from_slice(q);
         inputs.drive.apply_voltages(&mut p.state, t);
         newton(
@@ -358,6 +360,12 @@ impl Stepper for ImplicitStepper<'_, '_> {
             .map(|((nodes, mid), (_, end))| (nodes, mid, end))
             .collect();
         self.step.inner_mut().begin(h, &voltages);
+        // the drive's charges at the step's evaluation point
+        let t_eval = match self.scheme {
+            Scheme::Midpoint => t0 + 0.5 * h,
+            Scheme::Newmark { .. } => t0 + h,
+        };
+        self.step.inner_mut().charges = drive.charges_at(t_eval, 1.0);
         let at = |t: f64| drive.circuit_sources_at(t);
         let (start, mid, end) = (at(t0), at(t0 + 0.5 * h), at(t0 + h));
         let sources: Vec<[f64; 3]> = (0..start.len())

@@ -1,5 +1,6 @@
-//! `[[controls]]`: an electrode's voltage in a stage as a piecewise-linear table of knot values,
-//! the unknowns of the gradient's controls and of optimal control.
+//! `[[controls]]`: an electrode's voltage (or its circuit's source, or its charge) in a stage as
+//! a piecewise-linear table of knot values, the unknowns of the gradient's controls and of
+//! optimal control.
 
 use super::Ctx;
 use crate::io::scenario::{InputError, Scenario};
@@ -30,16 +31,8 @@ pub(super) fn build_controls(
                     ),
                 )
             })?;
-        if e.charge.is_some() {
-            return Err(ctx.err(
-                key("electrode"),
-                format!(
-                    "electrode `{}` is driven by its charge: controls of a voltage or of a \
-                     circuit's source only are built",
-                    e.name
-                ),
-            ));
-        }
+        // the controlled quantity: a charge (C) or a voltage (V)
+        let unit = if e.charge.is_some() { "C" } else { "V" };
         let stage_names: Vec<String> = stages.iter().map(|s| s.name.clone()).collect();
         let si = match c.stage.as_deref() {
             None if stages.len() == 1 => 0,
@@ -64,8 +57,8 @@ pub(super) fn build_controls(
                 return Err(ctx.err(
                     key("stage"),
                     format!(
-                        "stage `{}` is no quasi-static or dynamic stage: a control is a voltage \
-                         history in time",
+                        "stage `{}` is no quasi-static or dynamic stage: a control is a history \
+                         in time",
                         stage.name
                     ),
                 ))
@@ -105,14 +98,16 @@ pub(super) fn build_controls(
         let times: Vec<f64> = (0..=n)
             .map(|j| (j as f64 * interval).min(duration))
             .collect();
+        // the start: the electrode's charge or voltage waveform at the knots
+        let start = match &e.charge {
+            Some(q) => q.clone(),
+            None => stage.waveform(&e.voltage),
+        };
         let values = match &c.values {
-            None => times
-                .iter()
-                .map(|&t| stage.waveform(&e.voltage).value(t))
-                .collect(),
+            None => times.iter().map(|&t| start.value(t)).collect(),
             Some(v) if v.len() == times.len() => {
                 for (j, x) in v.iter().enumerate() {
-                    ctx.finite(&format!("controls.{i}.values.{j}"), *x, "V")?;
+                    ctx.finite(&format!("controls.{i}.values.{j}"), *x, unit)?;
                 }
                 v.clone()
             }
@@ -129,19 +124,20 @@ pub(super) fn build_controls(
         };
         for (k, v) in [("lower", c.lower), ("upper", c.upper)] {
             if let Some(v) = v {
-                ctx.finite(&key(k), v, "V")?;
+                ctx.finite(&key(k), v, unit)?;
             }
         }
         if let (Some(l), Some(u)) = (c.lower, c.upper) {
             if l >= u {
                 return Err(ctx.err(
                     key("upper"),
-                    format!("must exceed `lower` ({l:e} V); got {u:e} V"),
+                    format!("must exceed `lower` ({l:e} {unit}); got {u:e} {unit}"),
                 ));
             }
         }
         if let Some(r) = c.max_rate {
-            ctx.positive(&key("max_rate"), Some(r), "largest rate of change in V/s")?;
+            let what = format!("largest rate of change in {unit}/s");
+            ctx.positive(&key("max_rate"), Some(r), &what)?;
         }
         stages[si]
             .controls

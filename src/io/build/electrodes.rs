@@ -2,6 +2,7 @@
 
 use super::{Ctx, Electrode};
 use crate::io::scenario::{closest, InputError, Scenario, VoltageSpec, WaveformSpec};
+use crate::job::plan::Stage;
 use crate::mesh::Mesh;
 use crate::problem::dofs::{Dirichlet, Field};
 use crate::waveform::{FourierBase, Shape, Waveform};
@@ -41,7 +42,7 @@ pub(super) fn build_electrodes(
                 "series resistance in Ω",
             )?);
         }
-        let charge = match e.charge {
+        let charge = match &e.charge {
             None => None,
             Some(_) if e.voltage != VoltageSpec::default() => {
                 return Err(ctx.err(
@@ -49,13 +50,20 @@ pub(super) fn build_electrodes(
                     "an electrode is held at a `voltage` or carries a `charge`, not both",
                 ))
             }
-            Some(q) => Some(ctx.finite(&format!("{key}.charge"), q, "charge in C")?),
+            Some(q) => Some(build_waveform_of(
+                ctx,
+                &format!("{key}.charge"),
+                q,
+                base_dir,
+                ("charge", "C"),
+            )?),
         };
         electrodes.push(Electrode {
             name: name.clone(),
             nodes,
             voltage,
             charge,
+            charge_in_drive: false,
             resistance,
             controller: None,
         });
@@ -89,20 +97,29 @@ pub(super) fn build_electrodes(
 
 /// Charge-controlled electrodes: each one's potential is one unknown (a tie of its nodes'
 /// potentials) loaded by minus its charge (the potential equations' residual is ∂Π/∂Φ + Q), the
-/// charge of the meshed part (the device's over the symmetry factor).
+/// charge of the meshed part (the device's over the symmetry factor). A constant charge that no
+/// stage controls is a dead load of the model; the others follow each stage's drive
+/// (`charge_in_drive`).
 pub(super) fn charge_electrodes(
-    electrodes: &[Electrode],
+    electrodes: &mut [Electrode],
+    stages: &[Stage],
     model: &mut crate::problem::model::Model,
     symmetry: f64,
 ) {
-    for e in electrodes {
-        if let Some(q) = e.charge {
+    for e in electrodes.iter_mut() {
+        if let Some(w) = &e.charge {
             model.ties.push(crate::problem::dofs::Tie {
                 nodes: e.nodes.clone(),
                 field: Field::Phi,
                 held: false,
             });
-            model.point_charges.push((e.nodes[0], q / symmetry));
+            let controlled = stages
+                .iter()
+                .any(|s| s.controls.iter().any(|(name, _)| *name == e.name));
+            match w.constant_value() {
+                Some(q) if !controlled => model.point_charges.push((e.nodes[0], q / symmetry)),
+                _ => e.charge_in_drive = true,
+            }
         }
         if let Some(r) = e.resistance {
             // one potential unknown; static stages hold it at the source's voltage
@@ -140,15 +157,31 @@ pub(super) fn build_waveform(
     v: &VoltageSpec,
     base_dir: Option<&Path>,
 ) -> Result<Waveform, InputError> {
+    build_waveform_of(ctx, key, v, base_dir, ("voltage", "V"))
+}
+
+/// [`build_waveform`] of a quantity (name, unit) other than a voltage: an electrode's charge.
+fn build_waveform_of(
+    ctx: &Ctx,
+    key: &str,
+    v: &VoltageSpec,
+    base_dir: Option<&Path>,
+    (quantity, unit): (&str, &str),
+) -> Result<Waveform, InputError> {
     let w: &WaveformSpec = match v {
         VoltageSpec::Constant(x) => {
-            return Ok(Waveform::constant(ctx.finite(key, *x, "voltage in V")?))
+            let what = format!("{quantity} in {unit}");
+            return Ok(Waveform::constant(ctx.finite(key, *x, &what)?));
         }
         VoltageSpec::Waveform(w) => w,
     };
     let k = |s: &str| format!("{key}.{s}");
-    ctx.finite(&k("amplitude"), w.amplitude, "amplitude in V")?;
-    ctx.finite(&k("offset"), w.offset, "offset in V")?;
+    ctx.finite(
+        &k("amplitude"),
+        w.amplitude,
+        &format!("amplitude in {unit}"),
+    )?;
+    ctx.finite(&k("offset"), w.offset, &format!("offset in {unit}"))?;
     ctx.finite(&k("phase"), w.phase, "phase in degrees")?;
     let bipolar = match w.polarity.as_deref() {
         None | Some("unipolar") => false,

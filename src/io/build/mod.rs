@@ -78,8 +78,7 @@ pub fn build_with(
     let symmetry_factor = mesh::symmetry_factor(&s.mesh);
     let loads = loads::build_loads(&ctx, s, &mut model, symmetry_factor)?;
     let (breakdown, stop_at_breakdown) = materials::build_breakdown(&ctx, s)?;
-    let electrodes = electrodes::build_electrodes(&ctx, s, &model.mesh, base_dir)?;
-    electrodes::charge_electrodes(&electrodes, &mut model, symmetry_factor);
+    let mut electrodes = electrodes::build_electrodes(&ctx, s, &model.mesh, base_dir)?;
     let mut supports = loads.supports;
     supports.extend(electrodes::ground_without_electrodes(
         &electrodes,
@@ -87,6 +86,7 @@ pub fn build_with(
     ));
     let mut stages = stages::build_stages(&ctx, s, &electrodes)?;
     controls::build_controls(&ctx, s, &mut stages, &electrodes)?;
+    electrodes::charge_electrodes(&mut electrodes, &stages, &mut model, symmetry_factor);
     stages::check_internal_variables(&ctx, &stages, &model)?;
     if let Some(e) = electrodes.iter().find(|e| e.charge.is_some()) {
         if let Some((i, _)) = stages.iter().enumerate().find(|(_, st)| {
@@ -191,7 +191,6 @@ pub fn build_with(
         }
     }
     let probes = probes::build_probes(&ctx, s, &model, &electrodes)?;
-    let mut electrodes = electrodes;
     controller::build_controllers(&ctx, s, &mut electrodes, &stages, &probes, base_dir)?;
     let output = build_output(&ctx, &s.output, model.is_axisymmetric())?;
     let (newton, step_control) = solver::build_newton(&ctx, s)?;

@@ -278,10 +278,14 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
     let found = match parts.as_slice() {
         ["electrodes", name, rest @ ..] => s.electrodes.get(*name).and_then(|e| match rest {
             ["voltage", tail @ ..] => voltage(name, &e.voltage, tail, false),
-            ["charge"] => e.charge.map(|value| Parameter::Charge {
-                electrode: name.to_string(),
-                value,
-            }),
+            // a charge that is one number (a waveform's are not parameters)
+            ["charge"] => match e.charge {
+                Some(VoltageSpec::Constant(value)) => Some(Parameter::Charge {
+                    electrode: name.to_string(),
+                    value,
+                }),
+                _ => None,
+            },
             ["circuit", "resistance"] => e.circuit.as_ref().map(|c| Parameter::Resistance {
                 electrode: name.to_string(),
                 value: c.resistance,

@@ -600,6 +600,20 @@ fn continuation_kind(
                 }
             };
             if charged {
+                if electrodes[electrode]
+                    .charge
+                    .as_ref()
+                    .is_some_and(|w| w.constant_value().is_none())
+                {
+                    return Err(ctx.err(
+                        format!("{key}.parameter"),
+                        format!(
+                            "electrode `{}` carries a charge waveform: a continuation follows a \
+                             constant charge",
+                            electrodes[electrode].name
+                        ),
+                    ));
+                }
                 PathParameter::Charge { electrode }
             } else {
                 PathParameter::Voltage { electrode }
