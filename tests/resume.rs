@@ -622,3 +622,28 @@ fn a_circuit_driven_vibration_resumes_bitwise() {
     );
     assert_eq!(full.status.code(), Some(0), "{}", text(&full));
 }
+
+/// A vibration driven by a charge waveform resumes bit for bit: the drive gives each step its
+/// charge from the stage time, and the energy balance's record of the source's work is in the
+/// checkpoint.
+#[test]
+fn a_charge_driven_vibration_resumes_bitwise() {
+    let dir = tempdir("charge-drive");
+    let path = example(&dir, "film-vibration");
+    let scenario = std::fs::read_to_string(&path).unwrap().replace(
+        "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }",
+        "charge = { waveform = \"sine\", amplitude = 4e-8, offset = 2e-8, frequency = 500.0 }",
+    );
+    assert!(scenario.contains("frequency = 500.0"));
+    std::fs::write(&path, scenario).unwrap();
+    let full = resume_older(
+        &dir,
+        &path,
+        "30",
+        &[
+            "stages.0.duration=0.002",
+            "materials.elastomer.viscosity=50",
+        ],
+    );
+    assert_eq!(full.status.code(), Some(0), "{}", text(&full));
+}
