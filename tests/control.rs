@@ -442,9 +442,8 @@ fn film_moved_and_held(top: &str, upper: f64) -> deasim::api::OptimalControl {
     assert!(base.contains(step));
     let base = base.replace(step, top);
     let text = format!(
-        "{base}\n{}",
-        format!(
-            r#"
+        r#"{base}
+
 [[controls]]
 electrode = "top"
 interval = 5e-4
@@ -461,7 +460,6 @@ weight = 1e4
 kind = "rest"
 weight = 1e3
 "#
-        )
     );
     let overrides: Vec<String> = vec![
         "mesh.divisions=[2, 2, 1]".into(),
