@@ -4,7 +4,9 @@
 
 mod common;
 use common::gradient::assert_checked;
-use deasim::api::{GradientOptions, GradientReport, Results, RunOptions, Simulation};
+use deasim::api::{
+    ControlQuantity, GradientOptions, GradientReport, Results, RunOptions, Simulation,
+};
 use std::path::Path;
 
 /// A quarter of a 10 × 10 × 1 mm neo-Hookean film with mass, on 2 × 2 × 1 hex8 cells: a static
@@ -221,7 +223,7 @@ fn check_charge_controls(integrator: &str) {
     assert_checked(&r, 1e-6);
     assert_eq!(r.controls.len(), 2);
     for c in &r.controls {
-        assert_eq!(c.quantity, "charge");
+        assert_eq!(c.quantity, ControlQuantity::Charge);
         assert!(c.gradient.iter().any(|g| *g != 0.0));
         assert!(c.finite_differences.len() >= 2, "{}", c.stage);
         for &(k, fd, h) in &c.finite_differences {

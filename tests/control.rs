@@ -2,7 +2,7 @@
 //! linearisation, the bounds and rate limits of the optimised drive, the objective of
 //! `controlled.toml`, and bad input.
 
-use deasim::api::{ControlOptions, RunOptions, Simulation};
+use deasim::api::{ControlOptions, ControlQuantity, RunOptions, Simulation};
 use nalgebra::{DMatrix, DVector};
 use std::process::Command;
 
@@ -516,7 +516,7 @@ weight = 1e3
 #[test]
 fn an_optimal_drive_through_a_circuit() {
     let o = film_moved_and_held("circuit = { source = 5e3, resistance = 1e8 }", 30e3);
-    assert_eq!(o.drives[0].quantity, "voltage");
+    assert_eq!(o.drives[0].quantity, ControlQuantity::Voltage);
 }
 
 /// The optimal drive of an electrode's charge (the controls of Huang & Leyendecker, Soft
@@ -525,5 +525,5 @@ fn an_optimal_drive_through_a_circuit() {
 #[test]
 fn an_optimal_charge_drive() {
     let o = film_moved_and_held("charge = 2e-8", 2e-7);
-    assert_eq!(o.drives[0].quantity, "charge");
+    assert_eq!(o.drives[0].quantity, ControlQuantity::Charge);
 }

@@ -4,7 +4,7 @@
 
 use super::error::Error;
 use super::gradient::json_number;
-use super::gradient::{knots_csv, taped_run};
+use super::gradient::{knots_csv, taped_run, ControlQuantity};
 use super::results::Results;
 use super::simulation::{run_plan, RunOptions, Simulation};
 use crate::adjoint::objective::{Objective, Term};
@@ -55,9 +55,9 @@ pub struct Drive {
     pub stage: String,
     pub stage_start: f64,
     pub electrode: String,
-    /// What the knots are: `voltage` (V: an electrode's, or its circuit's source) or `charge`
+    /// What the knots are: a voltage (V: an electrode's, or its circuit's source) or a charge
     /// (C: a charge-controlled electrode's).
-    pub quantity: &'static str,
+    pub quantity: ControlQuantity,
     /// Knot times (stage time, s), the starting and the optimised values (V or C), and dJ/dV
     /// (or dJ/dQ) at the optimum.
     pub times: Vec<f64>,
@@ -127,9 +127,9 @@ impl Layout {
                     .unwrap_or(0);
                 let spec = &scenario.controls[index];
                 let values: Vec<f64> = knots.iter().map(|k| k.1).collect();
-                let least = match super::gradient::control_quantity(plan, electrode) {
-                    "charge" => 1e-8,
-                    _ => 1e3,
+                let least = match ControlQuantity::of(plan, electrode) {
+                    ControlQuantity::Charge => 1e-8,
+                    ControlQuantity::Voltage => 1e3,
                 };
                 let s = scale(spec.lower, spec.upper, &values, least);
                 slots.push((si, ci, index, s));
@@ -283,7 +283,7 @@ impl Simulation {
                     stage: best.stages[si].name.clone(),
                     stage_start: best.stage_start(si),
                     electrode: electrode.clone(),
-                    quantity: super::gradient::control_quantity(&plan, electrode),
+                    quantity: ControlQuantity::of(&plan, electrode),
                     times: knots.iter().map(|k| k.0).collect(),
                     initial: plan.stages[si].controls[ci].1.iter().map(|k| k.1).collect(),
                     values: knots.iter().map(|k| k.1).collect(),
@@ -413,15 +413,6 @@ fn absolute_paths(table: &mut toml::Table, base: &Path) {
     }
 }
 
-/// The unit of a control's `quantity`.
-fn unit(quantity: &str) -> &'static str {
-    if quantity == "charge" {
-        "C"
-    } else {
-        "V"
-    }
-}
-
 /// The key and reason where the starting drive breaks a bound or a rate limit.
 fn check_start(
     layout: &Layout,
@@ -435,10 +426,7 @@ fn check_start(
         let spec = &scenario.controls[index];
         let knots = &plan.stages[si].controls[ci].1;
         let key = |k: &str| format!("controls.{index}.{k}");
-        let u = unit(super::gradient::control_quantity(
-            plan,
-            &plan.stages[si].controls[ci].0,
-        ));
+        let u = ControlQuantity::of(plan, &plan.stages[si].controls[ci].0).unit();
         for (k, &(t, v)) in knots.iter().enumerate() {
             let tol = 1e-12 * s;
             if let Some(l) = spec.lower.filter(|l| v < l - tol) {
@@ -498,7 +486,7 @@ impl OptimalControl {
             "controls": self.drives.iter().map(|d| serde_json::json!({
                 "index": d.index,
                 "electrode": d.electrode,
-                "quantity": d.quantity,
+                "quantity": d.quantity.name(),
                 "stage": d.stage,
                 "knots": d.times.len(),
                 "lower": d.lower,
@@ -541,9 +529,9 @@ impl OptimalControl {
                     .count()
                     > 1
                 {
-                    format!("{}:{}@{}", d.quantity, d.electrode, d.stage)
+                    format!("{}:{}@{}", d.quantity.name(), d.electrode, d.stage)
                 } else {
-                    format!("{}:{}", d.quantity, d.electrode)
+                    format!("{}:{}", d.quantity.name(), d.electrode)
                 }
             })
             .collect();
@@ -573,7 +561,7 @@ impl OptimalControl {
             let charges = self
                 .drives
                 .iter()
-                .filter(|d| d.quantity == "charge")
+                .filter(|d| d.quantity == ControlQuantity::Charge)
                 .count();
             let y_label = match charges {
                 0 => "voltage [V]",

@@ -55,8 +55,8 @@ pub struct ControlReport {
     /// The stage's start in the run's clock (s).
     pub stage_start: f64,
     pub electrode: String,
-    /// What the knots are: `voltage` (V) or `charge` (C, a charge-controlled electrode's).
-    pub quantity: &'static str,
+    /// What the knots are: a voltage (V) or a charge (C, a charge-controlled electrode's).
+    pub quantity: ControlQuantity,
     /// The knots' stage times (s) and values (V or C).
     pub times: Vec<f64>,
     pub values: Vec<f64>,
@@ -133,7 +133,7 @@ impl GradientReport {
                         let mut v = serde_json::json!({
                             "stage": c.stage,
                             "electrode": c.electrode,
-                            "quantity": c.quantity,
+                            "quantity": c.quantity.name(),
                             "time": c.times,
                             "value": c.values,
                             "gradient": c.gradient.iter().map(|&g| num(g)).collect::<Vec<_>>(),
@@ -230,17 +230,44 @@ pub(super) fn json_number(x: f64) -> serde_json::Value {
     serde_json::Number::from_f64(x).map_or(serde_json::Value::Null, serde_json::Value::Number)
 }
 
-/// What a control of `electrode` sets: `charge` on a charge-controlled electrode, else
-/// `voltage` (its own, or its circuit's source).
-pub(super) fn control_quantity(plan: &crate::job::plan::Plan, electrode: &str) -> &'static str {
-    let charged = plan
-        .electrodes
-        .iter()
-        .any(|e| e.name == electrode && e.charge.is_some());
-    if charged {
-        "charge"
-    } else {
-        "voltage"
+/// What the knots of a control set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ControlQuantity {
+    /// An electrode's voltage, or its circuit's source (V).
+    Voltage,
+    /// A charge-controlled electrode's charge (C).
+    Charge,
+}
+
+impl ControlQuantity {
+    /// The quantity of a control of `electrode`: its charge under charge control, else a
+    /// voltage.
+    pub(super) fn of(plan: &crate::job::plan::Plan, electrode: &str) -> ControlQuantity {
+        let charged = plan
+            .electrodes
+            .iter()
+            .any(|e| e.name == electrode && e.charge.is_some());
+        if charged {
+            ControlQuantity::Charge
+        } else {
+            ControlQuantity::Voltage
+        }
+    }
+
+    /// Its name in the outputs: `voltage` or `charge`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ControlQuantity::Voltage => "voltage",
+            ControlQuantity::Charge => "charge",
+        }
+    }
+
+    /// Its unit: `V` or `C`.
+    pub fn unit(self) -> &'static str {
+        match self {
+            ControlQuantity::Voltage => "V",
+            ControlQuantity::Charge => "C",
+        }
     }
 }
 
@@ -349,7 +376,7 @@ impl Simulation {
                     stage,
                     stage_start: plan.stage_start(c.stage),
                     electrode: c.electrode.clone(),
-                    quantity: control_quantity(&plan, &c.electrode),
+                    quantity: ControlQuantity::of(&plan, &c.electrode),
                     times: c.knots.iter().map(|k| k.0).collect(),
                     values: c.knots.iter().map(|k| k.1).collect(),
                     gradient: c.gradient.clone(),
@@ -558,7 +585,10 @@ impl Simulation {
         // ε times the control's largest value (1 V, or 1 nC, where every knot is at zero)
         let knot_step = |c: &ControlReport| {
             let largest = c.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            let unit = if c.quantity == "charge" { 1e-9 } else { 1.0 };
+            let unit = match c.quantity {
+                ControlQuantity::Charge => 1e-9,
+                ControlQuantity::Voltage => 1.0,
+            };
             rel * if largest > 0.0 { largest } else { unit }
         };
         for ci in 0..report.controls.len() {

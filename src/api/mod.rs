@@ -22,7 +22,8 @@ pub use control::{ControlOptions, Drive, ObjectiveTape, OptimalControl};
 pub use device::{DeviceCalibration, FitCurve, FittedParameter};
 pub use error::Error;
 pub use gradient::{
-    ControlReport, GradientOptions, GradientReport, ParameterGradient, TaylorTest, DEFAULT_MEMORY,
+    ControlQuantity, ControlReport, GradientOptions, GradientReport, ParameterGradient, TaylorTest,
+    DEFAULT_MEMORY,
 };
 pub use linear::{
     check_biasable, loaded_modes, loaded_modes_of_harmonics, modes_plan, prepare, LoadedModes,

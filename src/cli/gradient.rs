@@ -107,7 +107,7 @@ fn table(r: &GradientReport) -> String {
             c.times.len()
         );
         if let Some((k, g)) = largest {
-            let d = if c.quantity == "charge" {
+            let d = if c.quantity == crate::api::ControlQuantity::Charge {
                 "dJ/dQ"
             } else {
                 "dJ/dV"
