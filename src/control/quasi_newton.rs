@@ -46,7 +46,7 @@ impl Default for Options {
             max_iterations: 200,
             gradient_tolerance: 1e-6,
             objective_tolerance: 1e-10,
-            memory: 30,
+            memory: 100,
             first_step: 0.1,
         }
     }
