@@ -622,8 +622,9 @@ impl Scenario {
     /// The drive of the scenario's `[[controls]]` that minimises its `[[objective]]` (as
     /// `deasim control`): the document of `control.json` (`objective` per iteration,
     /// `gradient_norm`, `iterations`, `evaluations`, `converged`, `reason`, `final_objective`,
-    /// `wall_s`, `controls`), `drives` (per control: `electrode`, `stage`, `time` on the run's
-    /// clock and the optimised `voltage`, numpy arrays) and `controlled`, the text of
+    /// `wall_s`, `controls`), `drives` (per control: `electrode`, `stage`, `quantity`, `time` on
+    /// the run's clock and the optimised knots under the quantity's name, `voltage` in V or
+    /// `charge` in C, numpy arrays) and `controlled`, the text of
     /// `controlled.toml`. `out` receives the optimised run's files and those of the command.
     #[pyo3(signature = (max_iterations=200, gradient_tolerance=1e-6, objective_tolerance=1e-10, out=None, overwrite=false))]
     fn control<'py>(
@@ -657,7 +658,9 @@ impl Scenario {
             x.set_item("stage", &dr.stage)?;
             let t: Vec<f64> = dr.times.iter().map(|t| dr.stage_start + t).collect();
             x.set_item("time", column(py, &t))?;
-            x.set_item("voltage", column(py, &dr.values))?;
+            // the knots under their quantity's name: `voltage` (V) or `charge` (C)
+            x.set_item("quantity", dr.quantity.name())?;
+            x.set_item(dr.quantity.name(), column(py, &dr.values))?;
             drives.append(x)?;
         }
         d.set_item("drives", drives)?;

@@ -27,6 +27,7 @@ def test_control_equals_the_command_line(cli, tmp_path):
     assert r["iterations"] == 4 and r["objective"][-1] < r["objective"][0]
     (drive,) = r["drives"]
     assert drive["electrode"] == "top" and drive["stage"] == "actuate"
+    assert drive["quantity"] == "voltage"
     assert isinstance(drive["voltage"], np.ndarray) and len(drive["voltage"]) == 51
     assert np.all((drive["voltage"] >= 0.0) & (drive["voltage"] <= 5000.0))
     table = np.loadtxt(tmp_path / "cli" / "control.csv", delimiter=",", skiprows=1)
