@@ -159,8 +159,9 @@ fn a_charge_history_replays_the_voltage_driven_motion() {
 }
 
 /// The gradient of a misfit of the film's thickness over a quasi-static and a dynamic stage, in
-/// μ, εᵣ and the knots of a charge control in each stage (the film's charge follows a sine
-/// about its bias, so the run moves), with the midpoint or the Newmark step: against central
+/// μ, εᵣ, the charge waveform's amplitude and offset (through the bias stage's end value and
+/// the knots' start) and the knots of a charge control in each stage (the film's charge follows
+/// a sine about its bias, so the run moves), with the midpoint or the Newmark step: against central
 /// differences (h = 3·10⁻⁵·|p| for the parameters, 3·10⁻⁵ of the largest charge for the knots)
 /// and the Taylor test. (J is strongly nonlinear in the charge: the difference's truncation
 /// error of the first knot of `shake` measured 9.9·10⁻⁶ at 3·10⁻⁴ and 1.1·10⁻⁶ at 10⁻⁴,
@@ -183,6 +184,10 @@ fn charge_controlled(integrator: &str) -> GradientReport {
 path = "materials.elastomer.mu"
 [[parameters]]
 path = "materials.elastomer.permittivity"
+[[parameters]]
+path = "electrodes.top.charge.amplitude"
+[[parameters]]
+path = "electrodes.top.charge.offset"
 [[controls]]
 electrode = "top"
 stage = "creep"

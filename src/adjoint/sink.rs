@@ -201,6 +201,7 @@ impl<'a> Sink<'a> {
         };
         // Q_mesh = ramp(s) · Q(t) / symmetry
         let a = a * c.ramp.at(s) / self.plan.symmetry_factor;
+        let t = c.time(t);
         let stage = self.stage;
         if let Some(control) = self
             .controls
@@ -210,9 +211,15 @@ impl<'a> Sink<'a> {
             control.add_at(t, a);
             return;
         }
+        let d = c.charge.derivatives(t);
         for (i, (_, p)) in self.parameters.iter().enumerate() {
-            if matches!(p, Parameter::Charge { electrode, .. } if *electrode == e.name) {
-                self.grad[i] += a;
+            if let Parameter::Charge {
+                electrode, offset, ..
+            } = p
+            {
+                if *electrode == e.name {
+                    self.grad[i] += a * d[usize::from(*offset)];
+                }
             }
         }
     }

@@ -400,10 +400,18 @@ impl Simulation {
                 continue;
             };
             for ((_, p), d) in parameters.iter().zip(derivatives.iter_mut()) {
-                if let crate::io::build::Parameter::Charge { electrode, .. } = p {
-                    // a constant charge: each knot starts at it
-                    if *electrode == c.electrode {
-                        *d += c.gradient.iter().sum::<f64>();
+                if let crate::io::build::Parameter::Charge {
+                    electrode, offset, ..
+                } = p
+                {
+                    // each knot starts at the charge's waveform
+                    if let (true, Some(w)) = (*electrode == c.electrode, &e.charge) {
+                        *d += c
+                            .knots
+                            .iter()
+                            .zip(&c.gradient)
+                            .map(|(k, g)| g * w.derivatives(k.0)[usize::from(*offset)])
+                            .sum::<f64>();
                     }
                 }
                 if let crate::io::build::Parameter::Voltage {

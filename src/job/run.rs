@@ -1474,15 +1474,17 @@ impl Plan {
                         node: e.nodes[0],
                         charge,
                         ramp: Ramp::HELD,
+                        at: None,
                     }
                 } else {
                     DrivenCharge {
                         node: e.nodes[0],
-                        charge: Waveform::constant(charge.value(stage.duration)),
+                        charge,
                         ramp: Ramp {
                             from: dead_loads_from,
                             to: 1.0,
                         },
+                        at: Some(stage.duration),
                     }
                 })
             })

@@ -73,15 +73,24 @@ pub struct Drive {
 }
 
 /// A free charge that the drive gives: on the potential equation of `node` (its electrode's
-/// potential unknown), `ramp.at(s) · charge(t)` at load factor s and stage time t.
+/// potential unknown), `ramp.at(s) · charge(t)` at load factor s and stage time t (or at the
+/// fixed time `at`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DrivenCharge {
     pub node: usize,
     /// The charge of the meshed part (C: the device's over the symmetry factor).
     pub charge: Waveform,
-    /// A static stage ramps the charge on with its dead loads (its waveform is then the
-    /// constant value at the stage's end); stages in time hold it at its waveform.
+    /// A static stage ramps the charge on with its dead loads, to its waveform's value at the
+    /// stage's end (`at`); stages in time hold it at its waveform (`at` = `None`).
     pub ramp: Ramp,
+    pub at: Option<f64>,
+}
+
+impl DrivenCharge {
+    /// The time at which the charge is read at stage time `t`.
+    pub fn time(&self, t: f64) -> f64 {
+        self.at.unwrap_or(t)
+    }
 }
 
 /// Voltages set while a stage runs, per entry of [`Drive::voltages`]: the value that replaces
@@ -199,7 +208,7 @@ impl Drive {
     pub fn charges_at(&self, t: f64, s: f64) -> Vec<(usize, f64)> {
         self.charges
             .iter()
-            .map(|c| (c.node, c.ramp.at(s) * c.charge.value(t)))
+            .map(|c| (c.node, c.ramp.at(s) * c.charge.value(c.time(t))))
             .collect()
     }
 
@@ -235,18 +244,23 @@ mod tests {
                     node: 1,
                     charge: ramp.scaled(1e-9),
                     ramp: Ramp::HELD,
+                    at: None,
                 },
                 DrivenCharge {
                     node: 2,
-                    charge: Waveform::constant(2e-6),
+                    charge: ramp.scaled(2e-6),
                     ramp: Ramp::ON,
+                    at: Some(2.0),
                 },
             ],
         };
         // a driven charge follows its waveform in time, or its ramp in the load factor
         assert_eq!(
             drive.charges_at(1.0, 0.25),
-            vec![(1, 1e-9 * ramp.value(1.0)), (2, 0.25 * 2e-6)]
+            vec![
+                (1, 1e-9 * ramp.value(1.0)),
+                (2, 0.25 * 2e-6 * ramp.value(2.0))
+            ]
         );
         let mut state = vec![0.0; 3 * FIELDS];
         drive.apply_voltages(&mut state, 1.0);

@@ -170,8 +170,13 @@ pub enum Parameter {
         offset: bool,
         value: f64,
     },
-    /// The charge of a charge-controlled electrode (C).
-    Charge { electrode: String, value: f64 },
+    /// The charge of a charge-controlled electrode (C): a constant charge, or its waveform's
+    /// amplitude (or `offset`).
+    Charge {
+        electrode: String,
+        offset: bool,
+        value: f64,
+    },
     /// The series resistance of an electrode's circuit (Ω).
     Resistance { electrode: String, value: f64 },
     /// The mass of a rigid pad (kg), by its index in `loads.rigid`.
@@ -278,14 +283,19 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
     let found = match parts.as_slice() {
         ["electrodes", name, rest @ ..] => s.electrodes.get(*name).and_then(|e| match rest {
             ["voltage", tail @ ..] => voltage(name, &e.voltage, tail, false),
-            // a charge that is one number (a waveform's are not parameters)
-            ["charge"] => match e.charge {
-                Some(VoltageSpec::Constant(value)) => Some(Parameter::Charge {
-                    electrode: name.to_string(),
-                    value,
-                }),
-                _ => None,
-            },
+            // a constant charge, or a charge waveform's amplitude or offset
+            ["charge", tail @ ..] => {
+                e.charge
+                    .as_ref()
+                    .and_then(|spec| match voltage(name, spec, tail, false)? {
+                        Parameter::Voltage { offset, value, .. } => Some(Parameter::Charge {
+                            electrode: name.to_string(),
+                            offset,
+                            value,
+                        }),
+                        _ => None,
+                    })
+            }
             ["circuit", "resistance"] => e.circuit.as_ref().map(|c| Parameter::Resistance {
                 electrode: name.to_string(),
                 value: c.resistance,
@@ -318,7 +328,7 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
              (`materials.<name>.<parameter>`, `materials.<name>.viscosity`), an electrode's \
              voltage amplitude or offset (`electrodes.<name>.voltage`, \
              `electrodes.<name>.voltage.amplitude`, `electrodes.<name>.voltage.offset`, the \
-             same below `electrodes.<name>.circuit.source`), `electrodes.<name>.charge`, \
+             same below `electrodes.<name>.circuit.source` and `electrodes.<name>.charge`), \
              `electrodes.<name>.circuit.resistance`, `loads.rigid.<i>.mass` or \
              `prestretch.stretch`",
         )
