@@ -9,69 +9,30 @@ use deasim::api::{
 };
 use std::path::Path;
 
-/// A quarter of a 10 × 10 × 1 mm neo-Hookean film with mass, on 2 × 2 × 1 hex8 cells: a static
-/// stage `bias` then 10 ms of dynamics `shake` (Δt = 0.1 ms), with the top electrode's drive
-/// `top` (a TOML value of `voltage = …` or `charge = …`).
+/// The film of `film-vibration` (a quarter of a 10 × 10 × 1 mm neo-Hookean film with mass) on
+/// 2 × 2 × 1 hex8 cells: a static stage `bias` then its 10 ms of dynamics `vibrate` (Δt set by
+/// the caller), with the top electrode's drive `top` (a TOML line `voltage = …` or
+/// `charge = …`).
 fn film(top: &str) -> String {
-    format!(
-        r#"
-name = "film-charge-drive"
-[mesh]
-generator = "box"
-size = [10e-3, 10e-3, 1e-3]
-divisions = [2, 2, 1]
-element = "hex8"
-[materials.elastomer]
-model = "neo-hooke"
-mu = 1e5
-lambda = 1e7
-permittivity = 4.7
-density = 1000.0
-[[constraints]]
-set = "x0"
-fix = ["x"]
-[[constraints]]
-set = "y0"
-fix = ["y"]
-[[constraints]]
-set = "z0"
-fix = ["z"]
-[electrodes.bottom]
-set = "z0"
-voltage = 0.0
-[electrodes.top]
-set = "z1"
-{top}
-[[stages]]
-name = "bias"
-kind = "static"
-steps = 4
-[[stages]]
-name = "shake"
-kind = "dynamic"
-duration = 0.01
-dt = 1e-4
-[probes.charge]
-kind = "charge"
-electrode = "top"
-[probes.phi]
-kind = "point"
-quantity = "phi"
-at = [10e-3, 10e-3, 1e-3]
-[probes.uz]
-kind = "mean"
-quantity = "uz"
-set = "z1"
-[output]
-fields_every = 0
-plots = false
-"#
+    let text = deasim::io::examples::example("film-vibration").unwrap();
+    let step = "voltage = { waveform = \"step\", amplitude = 20e3, at = 0.0 }";
+    let stage = "[[stages]]\nname = \"vibrate\"";
+    assert!(
+        text.contains(step) && text.contains(stage),
+        "the example changed"
+    );
+    text.replace(step, top).replace(
+        stage,
+        &format!("[[stages]]\nname = \"bias\"\nkind = \"static\"\nsteps = 4\n\n{stage}"),
     )
 }
 
 fn run(text: &str, dir: &Path, dt: f64) -> Results {
     Simulation::from_toml(text, Some(dir))
-        .with_overrides(&[format!("stages.1.dt={dt}")])
+        .with_overrides(&[
+            "mesh.divisions=[2, 2, 1]".into(),
+            format!("stages.1.dt={dt}"),
+        ])
         .run(RunOptions::default())
         .unwrap()
 }
@@ -105,11 +66,11 @@ fn a_charge_history_replays_the_voltage_driven_motion() {
     for dt in [1e-4, 5e-5] {
         let v = run(&voltage, dir.path(), dt);
         let bias = *stage_rows(&v, "bias", "probe:charge").last().unwrap();
-        let shake = stage_rows(&v, "shake", "probe:charge");
+        let vibrate = stage_rows(&v, "vibrate", "probe:charge");
         let t0 = bias.0;
         // stage time; the bias stage (1 s) ends at the table's last point, its charge
         let mut csv = format!("time,value\n0,{:e}\n", bias.1);
-        for (t, q) in &shake {
+        for (t, q) in &vibrate {
             csv += &format!("{:e},{:e}\n", t - t0, q);
         }
         csv += &format!("1.0,{:e}\n", bias.1);
@@ -121,16 +82,16 @@ fn a_charge_history_replays_the_voltage_driven_motion() {
         );
         // the same charges at every step end (the table's knots), within the projection's Newton
         // tolerance
-        let charges = stage_rows(&q, "shake", "probe:charge");
-        assert_eq!(charges.len(), shake.len());
-        for (a, b) in charges.iter().zip(&shake) {
+        let charges = stage_rows(&q, "vibrate", "probe:charge");
+        assert_eq!(charges.len(), vibrate.len());
+        for (a, b) in charges.iter().zip(&vibrate) {
             assert!((a.1 - b.1).abs() <= 1e-10 * b.1.abs(), "{a:?} vs {b:?}");
         }
         // the motion: the largest difference of the top face's displacement over the stage,
         // against the range the voltage-driven run covers
         let (uv, uq) = (
-            stage_rows(&v, "shake", "probe:uz"),
-            stage_rows(&q, "shake", "probe:uz"),
+            stage_rows(&v, "vibrate", "probe:thickness_stretch"),
+            stage_rows(&q, "vibrate", "probe:thickness_stretch"),
         );
         let range = uv.iter().map(|p| p.1).fold(f64::MIN, f64::max)
             - uv.iter().map(|p| p.1).fold(f64::MAX, f64::min);
@@ -139,20 +100,21 @@ fn a_charge_history_replays_the_voltage_driven_motion() {
             .zip(&uq)
             .map(|(a, b)| (a.1 - b.1).abs())
             .fold(0.0, f64::max);
-        assert!(range > 1e-7, "the film hardly moves: {range:e} m");
+        assert!(range > 1e-4, "the film hardly moves: {range:e} in stretch");
         errors.push(error / range);
-        let energy = stage_rows(&q, "shake", "energy_error");
+        let energy = stage_rows(&q, "vibrate", "energy_error");
         let drift = energy.iter().map(|p| p.1).fold(f64::MIN, f64::max)
             - energy.iter().map(|p| p.1).fold(f64::MAX, f64::min);
-        let kinetic = stage_rows(&q, "shake", "kinetic")
+        let kinetic = stage_rows(&q, "vibrate", "kinetic")
             .iter()
             .map(|p| p.1)
             .fold(0.0, f64::max);
         drifts.push(drift / kinetic);
     }
-    // measured: 2.0·10⁻², then 5.1·10⁻³ of the range; drifts 4.0·10⁻³, then 1.0·10⁻³ of the
+    println!("motion errors {errors:?}, energy drifts {drifts:?}");
+    // measured: 1.8·10⁻³, then 4.4·10⁻⁴ of the range; drifts 4.0·10⁻³, then 1.0·10⁻³ of the
     // largest kinetic energy
-    assert!(errors[1] < 0.01, "motion errors {errors:?}");
+    assert!(errors[1] < 2e-3, "motion errors {errors:?}");
     assert!(errors[0] / errors[1] > 3.5, "motion errors {errors:?}");
     assert!(drifts[1] < 2e-3, "energy drifts {drifts:?}");
     assert!(drifts[0] / drifts[1] > 3.5, "energy drifts {drifts:?}");
@@ -164,19 +126,19 @@ fn a_charge_history_replays_the_voltage_driven_motion() {
 /// a sine about its bias, so the run moves), with the midpoint or the Newmark step: against central
 /// differences (h = 3·10⁻⁵·|p| for the parameters, 3·10⁻⁵ of the largest charge for the knots)
 /// and the Taylor test. (J is strongly nonlinear in the charge: the difference's truncation
-/// error of the first knot of `shake` measured 9.9·10⁻⁶ at 3·10⁻⁴ and 1.1·10⁻⁶ at 10⁻⁴,
+/// error of the first knot of `vibrate` measured 9.9·10⁻⁶ at 3·10⁻⁴ and 1.1·10⁻⁶ at 10⁻⁴,
 /// falling as h².)
 fn charge_controlled(integrator: &str) -> GradientReport {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("d.csv"), "time,value\n0,-8e-6\n9,-8e-6\n").unwrap();
+    std::fs::write(dir.path().join("d.csv"), "time,value\n0,0.992\n9,0.992\n").unwrap();
     let base = film(
         "charge = { waveform = \"sine\", amplitude = 4e-9, offset = 3.2e-8, frequency = 200.0 }",
     );
     // a quasi-static stage between the bias and the dynamics
     let base = base.replace(
-        "[[stages]]\nname = \"shake\"",
+        "[[stages]]\nname = \"vibrate\"",
         "[[stages]]\nname = \"creep\"\nkind = \"quasi-static\"\nduration = 0.01\nsteps = 5\n\n\
-         [[stages]]\nname = \"shake\"",
+         [[stages]]\nname = \"vibrate\"",
     );
     let text = format!(
         r#"{base}
@@ -194,24 +156,26 @@ stage = "creep"
 interval = 2.5e-3
 [[controls]]
 electrode = "top"
-stage = "shake"
+stage = "vibrate"
 interval = 1e-3
 [[objective]]
 kind = "probe-misfit"
-probe = "uz"
+probe = "thickness_stretch"
 stage = "creep"
 data = "d.csv"
-weight = 1e16
+weight = 1e10
 [[objective]]
 kind = "probe-misfit"
-probe = "uz"
-stage = "shake"
+probe = "thickness_stretch"
+stage = "vibrate"
 data = "d.csv"
-weight = 1e16
+weight = 1e10
 "#
     );
     Simulation::from_toml(&text, Some(dir.path()))
         .with_overrides(&[
+            "mesh.divisions=[2, 2, 1]".into(),
+            "stages.2.dt=1e-4".into(),
             format!("stages.2.integrator=\"{integrator}\""),
             "solver.newton_rtol=1e-13".into(),
         ])
@@ -275,7 +239,7 @@ fn bad_charge_drives_are_refused() {
     );
     let e = bad(
         "charge = 1e-8",
-        "[[controls]]\nelectrode = \"top\"\nstage = \"shake\"\nlower = 2e-8\nupper = 1e-8\n",
+        "[[controls]]\nelectrode = \"top\"\nstage = \"vibrate\"\nlower = 2e-8\nupper = 1e-8\n",
     );
     assert!(e.contains("controls.0.upper") && e.contains(" C"), "{e}");
 }

@@ -6,7 +6,7 @@
 //! error of about 10⁻¹³/10⁻⁴ = 10⁻⁹; a relative difference of 10⁻⁶ leaves a margin for both.
 
 mod common;
-use common::gradient::assert_checked;
+use common::gradient::{assert_checked, checked_film_vibration};
 use deasim::api::{Error, GradientOptions, GradientReport, Simulation};
 
 /// The film example (a quarter of a 10 × 10 × 1 mm film) with the parameters and objective of
@@ -250,20 +250,7 @@ target = 1.02
 weight = 100.0
 "#
     );
-    Simulation::from_toml(&text, Some(dir.path()))
-        .with_overrides(&[
-            "mesh.divisions=[2, 2, 1]".into(),
-            "stages.0.duration=4e-3".into(),
-            "stages.0.dt=2e-4".into(),
-            format!("stages.0.integrator=\"{integrator}\""),
-            "materials.elastomer.viscosity=50.0".into(),
-            "solver.newton_rtol=1e-13".into(),
-        ])
-        .gradient(&GradientOptions {
-            check: true,
-            ..Default::default()
-        })
-        .unwrap()
+    checked_film_vibration(&text, dir.path(), 0, 4e-3, integrator, &[])
 }
 
 /// The field penalty over a dynamic stage (midpoint) beside the probe terms.
@@ -919,23 +906,9 @@ weight = 1e17
     }
 }
 
-/// The checked gradient of a film scenario `text` whose second stage vibrates: 2 × 2 × 1 cells,
-/// 3 ms of that stage in steps of 0.2 ms with `integrator`, Kelvin–Voigt η = 50 Pa·s.
+/// The checked gradient of a film scenario `text` whose second stage vibrates for 3 ms.
 fn charged_then_vibrating(text: &str, dir: &std::path::Path, integrator: &str) -> GradientReport {
-    Simulation::from_toml(text, Some(dir))
-        .with_overrides(&[
-            "mesh.divisions=[2, 2, 1]".into(),
-            "stages.1.duration=3e-3".into(),
-            "stages.1.dt=2e-4".into(),
-            format!("stages.1.integrator=\"{integrator}\""),
-            "materials.elastomer.viscosity=50.0".into(),
-            "solver.newton_rtol=1e-13".into(),
-        ])
-        .gradient(&GradientOptions {
-            check: true,
-            ..Default::default()
-        })
-        .unwrap()
+    checked_film_vibration(text, dir, 1, 3e-3, integrator, &[])
 }
 
 /// The vibrating film charged by a static stage of 3 steps (`charge`), then driven in its
