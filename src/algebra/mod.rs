@@ -4,4 +4,5 @@
 
 pub mod csr;
 pub mod exchange;
+pub mod lanes;
 pub mod system;

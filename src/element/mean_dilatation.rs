@@ -49,7 +49,9 @@
 //!
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
+use crate::algebra::lanes::{F4, LANES};
 use crate::element::axisymmetric::{add_point_tangent_meridian, add_residual_meridian, delta_f};
+use crate::element::md_lanes::{cbrt_near_one, cofactor, viscous_stress, LaneResidual};
 use crate::element::standard::{add_residual, split_local};
 use crate::element::{CellFields, PointFailure};
 use crate::element::{CellHistory, CellKernel, MeanDilatationKernel, StandardKernel};
@@ -57,8 +59,9 @@ use crate::fem::axisymmetric::meridian_kinematics;
 use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES, MAX_QP};
 use crate::material::{
-    KnownDeformation, Mat3, Mat9, Mat93, Material, MaterialError, Tangent, Vec3,
+    KnownDeformation, KnownLanes, Mat3, Mat9, Mat93, Material, MaterialError, Tangent, Vec3,
 };
+use nalgebra::Vector3;
 
 type Vec9 = nalgebra::SVector<f64, 9>;
 
@@ -251,38 +254,6 @@ impl MdKinematics {
     }
 }
 
-/// The cofactor matrix cof F = J F⁻ᵀ (∂J/∂F).
-#[inline(always)]
-fn cofactor(f: &Mat3) -> Mat3 {
-    let m = |i: usize, j: usize| f[(i, j)];
-    Mat3::new(
-        m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1),
-        m(1, 2) * m(2, 0) - m(1, 0) * m(2, 2),
-        m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0),
-        m(0, 2) * m(2, 1) - m(0, 1) * m(2, 2),
-        m(0, 0) * m(2, 2) - m(0, 2) * m(2, 0),
-        m(0, 1) * m(2, 0) - m(0, 0) * m(2, 1),
-        m(0, 1) * m(1, 2) - m(0, 2) * m(1, 1),
-        m(0, 2) * m(1, 0) - m(0, 0) * m(1, 2),
-        m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0),
-    )
-}
-
-/// x^(1/3) for the ratios θ̄/J of a cell, which lie close to 1: near 1 one Halley step from the
-/// Taylor polynomial (error (10/243)t⁴ for t = x − 1, cubed by the step: exact to a few ulps for
-/// |t| ≤ 1/16), inlined and much cheaper than the correctly rounded library cube root, which
-/// serves every other x.
-#[inline(always)]
-fn cbrt_near_one(x: f64) -> f64 {
-    let t = x - 1.0;
-    if t.abs() > 0.0625 {
-        return x.cbrt();
-    }
-    let y = 1.0 + t * (1.0 / 3.0 + t * (-1.0 / 9.0 + t * (5.0 / 81.0)));
-    let y3 = y * y * y;
-    y * (y3 + 2.0 * x) / (2.0 * y3 + x)
-}
-
 fn to9(m: &Mat3) -> Vec9 {
     Vec9::from_fn(|r, _| m[(r / 3, r % 3)])
 }
@@ -339,7 +310,9 @@ fn energy_split_md(
 
 /// Effective first Piola stresses P_q = αP̄ − (s/3)F⁻ᵀ + p̄ cof F (Pa) into `p`, the referential
 /// electric displacements D₀(F̄, E₀) into `d0`; returns the energy of the cell. The outputs are
-/// the caller's buffers: returning them would copy about 1 kB per cell.
+/// the caller's buffers: returning them would copy about 1 kB per cell. With `lanes`, the
+/// points go to the material in lanes ([`Material::stress_known_lanes`]; the same bits).
+#[allow(clippy::too_many_arguments)]
 fn md_stresses(
     geom: &CellGeometry,
     mat: &dyn Material,
@@ -347,18 +320,33 @@ fn md_stresses(
     k: &MdKinematics,
     p: &mut [Mat3; MAX_QP],
     d0: &mut [Vec3; MAX_QP],
+    lanes: bool,
 ) -> Result<f64, PointFailure> {
     let mut s = [0.0; MAX_QP];
     let mut energy = 0.0;
-    for q in 0..geom.n_qp {
-        let kd = k.known(q);
-        let st = mat
-            .stress_known(&kd, &k.e0[q], hist.at(q))
-            .map_err(fail(q))?;
-        energy += geom.weights[q] * st.energy;
-        s[q] = st.p.dot(&kd.f);
-        p[q] = st.p;
-        d0[q] = st.d0;
+    for q0 in (0..geom.n_qp).step_by(LANES) {
+        let n = (geom.n_qp - q0).min(LANES);
+        // the points q0.. as lanes, a partial batch filled with its last point
+        let known: [KnownDeformation; LANES] = std::array::from_fn(|l| k.known(q0 + l.min(n - 1)));
+        let e0 = Vector3::from_fn(|i, _| F4::from_fn(|l| k.e0[q0 + l.min(n - 1)][i]));
+        let lanes = if lanes && hist.size == 0 {
+            mat.stress_known_lanes(&KnownLanes::from_points(&known), &e0, hist.at(q0))
+        } else {
+            None
+        };
+        for (l, kd) in known.iter().enumerate().take(n) {
+            let q = q0 + l;
+            let st = match &lanes {
+                Some(lanes) => lanes.lane(l),
+                None => mat
+                    .stress_known(kd, &k.e0[q], hist.at(q))
+                    .map_err(fail(q))?,
+            };
+            energy += geom.weights[q] * st.energy;
+            s[q] = st.p.dot(&kd.f);
+            p[q] = st.p;
+            d0[q] = st.d0;
+        }
     }
     effective_stresses(geom, k, &s, p);
     Ok(energy)
@@ -437,7 +425,7 @@ fn md_residual(
 ) -> Result<f64, PointFailure> {
     r[..geom.n_nodes * FIELDS].iter_mut().for_each(|v| *v = 0.0);
     let mut d0 = [Vec3::zeros(); MAX_QP];
-    let energy = md_stresses(geom, mat, hist, kin, p, &mut d0)?;
+    let energy = md_stresses(geom, mat, hist, kin, p, &mut d0, true)?;
     for q in 0..geom.n_qp {
         add_residual_any(geom, q, &p[q], &d0[q], r);
     }
@@ -459,6 +447,20 @@ pub fn cell_residual_tangent_md(
     let n = geom.n_nodes;
     let nl = n * FIELDS;
     let nq = geom.n_qp;
+    if k.is_none() && !geom.axisymmetric {
+        let lanes = LaneResidual {
+            geom,
+            mat,
+            hist,
+            local,
+            viscous: None,
+            f_r: 1.0,
+            r: &mut *r,
+        };
+        if let Some(out) = lanes.evaluate() {
+            return out.map(|(energy, _)| energy);
+        }
+    }
     let mut kin = MdKinematics::identity();
     kin.compute(geom, local)?;
     let Some(k) = k else {
@@ -596,12 +598,41 @@ pub fn cell_dynamic_residual_md(
     r: &mut [f64],
 ) -> Result<(f64, f64), PointFailure> {
     debug_assert!(!geom.axisymmetric);
+    let lanes = LaneResidual {
+        geom,
+        mat,
+        hist,
+        local,
+        viscous,
+        f_r,
+        r: &mut *r,
+    };
+    if let Some(out) = lanes.evaluate() {
+        return out;
+    }
+    dynamic_residual_points(geom, mat, hist, local, viscous, f_r, r, true)
+}
+
+/// [`cell_dynamic_residual_md`] point by point (the material's lane form used when `lanes`):
+/// the path of a cell whose lanes fail, which then reports the failure, and the reference of
+/// the lanes' tests.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn dynamic_residual_points(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    local: &[f64],
+    viscous: Option<(crate::element::KelvinVoigtKernel, &[f64])>,
+    f_r: f64,
+    r: &mut [f64],
+    lanes: bool,
+) -> Result<(f64, f64), PointFailure> {
     let n = geom.n_nodes;
     let mut kin = MdKinematics::identity();
     kin.compute(geom, local)?;
     let mut p = [Mat3::zeros(); MAX_QP];
     let mut d0 = [Vec3::zeros(); MAX_QP];
-    let energy = md_stresses(geom, mat, hist, &kin, &mut p, &mut d0)?;
+    let energy = md_stresses(geom, mat, hist, &kin, &mut p, &mut d0, lanes)?;
     let mut power = 0.0;
     if let Some((kv, vel)) = viscous {
         let (v, _) = split_local(n, vel);
@@ -625,23 +656,6 @@ pub fn cell_dynamic_residual_md(
         add_residual(&geom.grad[q], n, f_r * geom.weights[q], &p[q], &d0[q], r);
     }
     Ok((energy, power))
-}
-
-/// The Kelvin–Voigt stress c d F⁻ᵀ and the power density c d:d of a point with the rate Ḟ
-/// (`fd`), F⁻ᵀ and c = Jη, where d = sym(Ḟ F⁻¹).
-#[inline]
-pub(crate) fn viscous_stress(fd: &[[f64; 3]; 3], finv_t: &Mat3, c: f64) -> (Mat3, f64) {
-    // l = Ḟ F⁻¹: l_im = Σ_k Ḟ_ik (F⁻ᵀ)_mk
-    let mut l = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for m in 0..3 {
-            l[i][m] =
-                fd[i][0] * finv_t[(m, 0)] + fd[i][1] * finv_t[(m, 1)] + fd[i][2] * finv_t[(m, 2)];
-        }
-    }
-    let d = Mat3::from_fn(|i, m| 0.5 * (l[i][m] + l[m][i]));
-    let dd = d.dot(&d);
-    (d * finv_t * c, c * dd)
 }
 
 /// Output fields of a mean-dilatation cell: the Cauchy stress is that of the effective stress,

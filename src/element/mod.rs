@@ -4,6 +4,7 @@
 pub mod axisymmetric;
 pub mod deformation_vjp;
 pub mod harmonic;
+pub(crate) mod md_lanes;
 pub mod mean_dilatation;
 pub mod standard;
 

@@ -36,7 +36,9 @@ use super::hyperelastic::{
 };
 use super::isotropic::CKinematics;
 use super::parameters::Parameters;
-use super::{KnownDeformation, Mat3, MaterialError};
+use super::{KnownDeformation, KnownLanes, Mat3, MaterialError};
+use crate::algebra::lanes::F4;
+use nalgebra::Matrix3;
 
 /// Cohen's (1991) Padé approximant of the inverse Langevin function, x(3 − x²)/(1 − x²)
 /// (|x| < 1).
@@ -119,6 +121,11 @@ impl Hyperelastic for ArrudaBoyce {
 
     fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
         Some(self.split().first_piola(k))
+    }
+
+    #[inline(always)]
+    fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
+        self.split().first_piola_lanes(k)
     }
 
     fn shear_modulus(&self) -> f64 {
@@ -254,6 +261,11 @@ impl Hyperelastic for ArrudaBoyceSeries {
 
     fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
         Some(self.split().first_piola(k))
+    }
+
+    #[inline(always)]
+    fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
+        self.split().first_piola_lanes(k)
     }
 
     fn shear_modulus(&self) -> f64 {

@@ -22,7 +22,9 @@
 //! ```
 
 use super::isotropic::{CKinematics, Tensor3, Tensor4};
-use super::{KnownDeformation, Mat3, Vec3, EPSILON_0};
+use super::{Known, KnownDeformation, Mat3, Vec3, EPSILON_0};
+use crate::algebra::lanes::Lane;
+use nalgebra::{Matrix3, Vector3};
 
 /// Dielectric part of the energy (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -88,24 +90,28 @@ impl ElectricPart {
     /// g = C⁻¹E0 = F⁻¹e and a = E0·g = e·e (F g = e, F C⁻¹ = F⁻ᵀ):
     /// P_e = 2c₂ (F E0)⊗E0 + εJ (e⊗g − ½ a F⁻ᵀ), D0 = −2c₁E0 − 2c₂ Fᵀ(F E0) + εJ g,
     /// Ω_e = c₁ E0·E0 + c₂ |F E0|² − ½ εJ a. No C or C⁻¹ is formed.
-    #[inline]
-    pub fn first_known(&self, k: &KnownDeformation, e0: &Vec3) -> (f64, Mat3, Vec3) {
+    #[inline(always)]
+    pub fn first_known<T: Lane>(
+        &self,
+        k: &Known<T>,
+        e0: &Vector3<T>,
+    ) -> (T, Matrix3<T>, Vector3<T>) {
         let e = k.f_inv_t * e0;
         let g = k.f_inv_t.tr_mul(&e);
         let a = e.dot(&e);
-        let ej = self.eps * k.j;
-        let mut energy = -0.5 * ej * a;
-        let mut p = e * g.transpose() * ej - k.f_inv_t * (0.5 * a * ej);
+        let ej = T::splat(self.eps) * k.j;
+        let mut energy = T::splat(-0.5) * ej * a;
+        let mut p = e * g.transpose() * ej - k.f_inv_t * (T::splat(0.5) * a * ej);
         let mut d0 = g * ej;
         if self.c1 != 0.0 {
-            energy += self.c1 * e0.dot(e0);
-            d0 -= e0 * (2.0 * self.c1);
+            energy += T::splat(self.c1) * e0.dot(e0);
+            d0 -= e0 * T::splat(2.0 * self.c1);
         }
         if self.c2 != 0.0 {
             let fe = k.f * e0;
-            energy += self.c2 * fe.dot(&fe);
-            p += fe * e0.transpose() * (2.0 * self.c2);
-            d0 -= k.f.tr_mul(&fe) * (2.0 * self.c2);
+            energy += T::splat(self.c2) * fe.dot(&fe);
+            p += fe * e0.transpose() * T::splat(2.0 * self.c2);
+            d0 -= k.f.tr_mul(&fe) * T::splat(2.0 * self.c2);
         }
         (energy, p, d0)
     }

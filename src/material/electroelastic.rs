@@ -13,9 +13,11 @@ use super::hyperelastic::{HFirst, Hyperelastic};
 use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial};
 use super::parameters::{self, Parameters};
 use super::{
-    KnownDeformation, Mat3, Material, MaterialError, PointHistory, PointRecord, Stress, Tangent,
-    Vec3,
+    KnownDeformation, KnownLanes, Mat3, Material, MaterialError, PointHistory, PointRecord, Stress,
+    StressLanes, Tangent, Vec3,
 };
+use crate::algebra::lanes::{with_wide_vectors, Wide, F4};
+use nalgebra::Vector3;
 
 /// Mechanical model `H` combined with a linear dielectric.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +52,27 @@ impl<H: Hyperelastic> Electroelastic<H> {
                 Ok((m.w, k.f * m.s))
             }
         }
+    }
+}
+
+/// The stresses of a lane of points, compiled for wide vectors.
+struct LaneStress<'a, H> {
+    material: &'a Electroelastic<H>,
+    k: &'a KnownLanes,
+    e0: &'a Vector3<F4>,
+}
+
+impl<H: Hyperelastic> Wide for LaneStress<'_, H> {
+    type Output = Option<StressLanes>;
+    #[inline(always)]
+    fn run(self) -> Option<StressLanes> {
+        let (w, p) = self.material.mech.first_piola_lanes(self.k)?;
+        let (we, pe, d0) = self.material.elec.first_known(self.k, self.e0);
+        Some(StressLanes {
+            energy: w + we,
+            p: p + pe,
+            d0,
+        })
     }
 }
 
@@ -139,6 +162,22 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
             energy: w + we,
             p: p + pe,
             d0,
+        })
+    }
+
+    fn stress_known_lanes(
+        &self,
+        k: &KnownLanes,
+        e0: &Vector3<F4>,
+        _h: PointHistory,
+    ) -> Option<StressLanes> {
+        if !e0.iter().all(|x| x.all(f64::is_finite)) {
+            return None;
+        }
+        with_wide_vectors(LaneStress {
+            material: self,
+            k,
+            e0,
         })
     }
 

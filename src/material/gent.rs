@@ -14,7 +14,9 @@ use super::hyperelastic::{
 };
 use super::isotropic::CKinematics;
 use super::parameters::Parameters;
-use super::{KnownDeformation, Mat3, MaterialError};
+use super::{KnownDeformation, KnownLanes, Mat3, MaterialError};
+use crate::algebra::lanes::F4;
+use nalgebra::Matrix3;
 
 /// Gent W = −(μJ_m/2) ln(1 − (Ī₁ − 3)/J_m) + κ/4 (J² − 1 − 2 ln J).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -80,6 +82,11 @@ impl Hyperelastic for Gent {
 
     fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
         Some(self.split().first_piola(k))
+    }
+
+    #[inline(always)]
+    fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
+        self.split().first_piola_lanes(k)
     }
 
     fn shear_modulus(&self) -> f64 {

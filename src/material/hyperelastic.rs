@@ -44,7 +44,10 @@
 
 use super::isotropic::{CKinematics, Tensor4};
 use super::parameters::Parameters;
-use super::{KnownDeformation, Mat3, MaterialError};
+use super::{Known, KnownDeformation, KnownLanes, Mat3, MaterialError};
+use crate::algebra::lanes::{norm_squared, Lane, F4, LANES};
+use nalgebra::Matrix3;
+use num_traits::Zero;
 
 /// W and S = 2∂W/∂C.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,6 +81,12 @@ pub trait Hyperelastic: Send + Sync + std::fmt::Debug {
     /// W and the first Piola stress P = ∂W/∂F = F S straight from a known deformation (no C,
     /// C⁻¹ or F·S product); `None` when the model has no such form and the caller forms S.
     fn first_piola(&self, _k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
+        None
+    }
+    /// [`Hyperelastic::first_piola`] of [`LANES`](crate::algebra::lanes::LANES) points, one a
+    /// lane, each the same bits as `first_piola` of its point; `None` when the model has no
+    /// such form or a lane is outside its domain.
+    fn first_piola_lanes(&self, _k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
         None
     }
     /// Small-strain shear modulus μ₀ (Pa).
@@ -148,45 +157,49 @@ pub(crate) fn iso_first(k: &CKinematics, inv: &IsoInvariants, w: f64, w1: f64, w
     }
 }
 
-/// Value and first two derivatives of a volumetric function U(J).
+/// Value and first two derivatives of a volumetric function U(J) (of one point, or of a
+/// [`Lane`] of points).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct VolDerivs {
+pub struct VolDerivs<T = f64> {
     /// U(J).
-    pub u: f64,
+    pub u: T,
     /// U′(J).
-    pub du: f64,
+    pub du: T,
     /// U″(J).
-    pub ddu: f64,
+    pub ddu: T,
 }
 
 /// U(J) = κ/4 (J² − 1 − 2 ln J): U′ = κ/2 (J − 1/J), U″ = κ/2 (1 + 1/J²).
-pub fn vol_log(kappa: f64, j: f64) -> VolDerivs {
+#[inline(always)]
+pub fn vol_log<T: Lane>(kappa: f64, j: T) -> VolDerivs<T> {
+    let one = T::one();
+    let two = T::splat(2.0);
     VolDerivs {
-        u: 0.25 * kappa * (j * j - 1.0 - 2.0 * j.ln()),
-        du: 0.5 * kappa * (j - 1.0 / j),
-        ddu: 0.5 * kappa * (1.0 + 1.0 / (j * j)),
+        u: T::splat(0.25 * kappa) * (j * j - one - two * j.map(f64::ln)),
+        du: T::splat(0.5 * kappa) * (j - one / j),
+        ddu: T::splat(0.5 * kappa) * (one + one / (j * j)),
     }
 }
 
 /// Abaqus polynomial form U(J) = Σᵢ (1/Dᵢ)(J − 1)^(2i), i = 1, 2, …, given
 /// the inverse compressibilities `inv_d[i−1]` = 1/Dᵢ (0 for an absent term).
-#[inline]
-pub fn vol_poly(inv_d: &[f64], j: f64) -> VolDerivs {
-    let x = j - 1.0;
+#[inline(always)]
+pub fn vol_poly<T: Lane>(inv_d: &[f64], j: T) -> VolDerivs<T> {
+    let x = j - T::one();
     let x2 = x * x;
     let mut v = VolDerivs {
-        u: 0.0,
-        du: 0.0,
-        ddu: 0.0,
+        u: T::zero(),
+        du: T::zero(),
+        ddu: T::zero(),
     };
     // Term i: (J−1)^(2i)/Dᵢ, derivative 2i (J−1)^(2i−1)/Dᵢ,
     // second derivative 2i(2i−1)(J−1)^(2i−2)/Dᵢ.
-    let mut x2im2 = 1.0; // (J−1)^(2i−2)
+    let mut x2im2 = T::one(); // (J−1)^(2i−2)
     for (idx, &c) in inv_d.iter().enumerate() {
         let n = 2.0 * (idx + 1) as f64;
-        v.u += c * x2im2 * x2;
-        v.du += c * n * x2im2 * x;
-        v.ddu += c * n * (n - 1.0) * x2im2;
+        v.u += T::splat(c) * x2im2 * x2;
+        v.du += T::splat(c * n) * x2im2 * x;
+        v.ddu += T::splat(c * n * (n - 1.0)) * x2im2;
         x2im2 *= x2;
     }
     v
@@ -260,25 +273,25 @@ impl IsoInvariants {
 
 /// P = F S of W = Ŵ(Ī₁) + U(J) at a known deformation: with F C⁻¹ = F⁻ᵀ,
 /// P = 2W₁ J^(−2/3)(F − I₁/3 F⁻ᵀ) + J U′ F⁻ᵀ (`i1` = I₁ = F:F, `w1` = ∂Ŵ/∂Ī₁, `du` = U′).
-#[inline]
-pub fn i1_model_piola(k: &KnownDeformation, i1: f64, w1: f64, du: f64) -> Mat3 {
-    let a = 2.0 * w1 * k.jm23;
-    k.f * a + k.f_inv_t * (k.j * du - a * i1 / 3.0)
+#[inline(always)]
+pub fn i1_model_piola<T: Lane>(k: &Known<T>, i1: T, w1: T, du: T) -> Matrix3<T> {
+    let a = T::splat(2.0) * w1 * k.jm23;
+    k.f * a + k.f_inv_t * (k.j * du - a * i1 / T::splat(3.0))
 }
 
-/// Derivatives of the isochoric energy Ŵ(Ī₁, Ī₂).
+/// Derivatives of the isochoric energy Ŵ(Ī₁, Ī₂) (of one point, or of a [`Lane`] of points).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct InvariantDerivs {
+pub struct InvariantDerivs<T = f64> {
     /// ∂Ŵ/∂Ī₁.
-    pub w1: f64,
+    pub w1: T,
     /// ∂Ŵ/∂Ī₂.
-    pub w2: f64,
+    pub w2: T,
     /// ∂²Ŵ/∂Ī₁².
-    pub w11: f64,
+    pub w11: T,
     /// ∂²Ŵ/∂Ī₁∂Ī₂.
-    pub w12: f64,
+    pub w12: T,
     /// ∂²Ŵ/∂Ī₂².
-    pub w22: f64,
+    pub w22: T,
 }
 
 /// S_iso = 2(W₁ ∂Ī₁/∂C + W₂ ∂Ī₂/∂C).
@@ -386,8 +399,24 @@ impl<F: Fn(f64) -> Result<(f64, InvariantDerivs), MaterialError>> SplitI1<F> {
 
     /// W and P at a known deformation.
     pub fn first_piola(&self, k: &KnownDeformation) -> Result<(f64, Mat3), MaterialError> {
-        let i1 = k.f.norm_squared();
+        let i1 = norm_squared(&k.f);
         let v = vol_log(self.kappa, k.j);
         (self.iso)(k.jm23 * i1).map(|(w, d)| (w + v.u, i1_model_piola(k, i1, d.w1, v.du)))
+    }
+
+    /// [`SplitI1::first_piola`] of a lane of points (Ŵ lane by lane); `None` when a lane is
+    /// outside Ŵ's domain.
+    #[inline(always)]
+    pub fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
+        let i1 = norm_squared(&k.f);
+        let v = vol_log(self.kappa, k.j);
+        let i1b = k.jm23 * i1;
+        let (mut w, mut w1) = (F4::zero(), F4::zero());
+        for l in 0..LANES {
+            let (wl, d) = (self.iso)(i1b.0[l]).ok()?;
+            w.0[l] = wl;
+            w1.0[l] = d.w1;
+        }
+        Some((w + v.u, i1_model_piola(k, i1, w1, v.du)))
     }
 }

@@ -47,6 +47,7 @@ mod model_tests;
 #[cfg(test)]
 mod param_tests;
 
+use crate::algebra::lanes::{Lane, F4, LANES};
 pub use arruda_boyce::{
     ArrudaBoyce, ArrudaBoyceSeries, ElectroArrudaBoyce, ElectroArrudaBoyceSeries,
 };
@@ -86,7 +87,7 @@ pub enum MaterialError {
 }
 
 /// First derivatives at a point.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Stress {
     /// Energy per reference volume Ψ (J/m³).
     pub energy: f64,
@@ -117,14 +118,52 @@ pub struct Tangent {
 /// (an element kernel computes them for its own needs): the `*_known` methods of [`Material`]
 /// then form no inverse and take no fractional power.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct KnownDeformation {
-    pub f: Mat3,
+pub struct Known<T: Lane> {
+    pub f: nalgebra::Matrix3<T>,
     /// F⁻ᵀ.
-    pub f_inv_t: Mat3,
+    pub f_inv_t: nalgebra::Matrix3<T>,
     /// J = det F > 0.
-    pub j: f64,
+    pub j: T,
     /// J^(−2/3).
-    pub jm23: f64,
+    pub jm23: T,
+}
+
+/// The [`Known`] deformation of one point.
+pub type KnownDeformation = Known<f64>;
+
+/// The [`Known`] deformations of [`LANES`] points, one a lane.
+pub type KnownLanes = Known<F4>;
+
+/// The stresses of [`LANES`] points ([`Material::stress_known_lanes`]): energies, first Piola
+/// stresses and electric displacements, one point a lane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StressLanes {
+    pub energy: F4,
+    pub p: nalgebra::Matrix3<F4>,
+    pub d0: nalgebra::Vector3<F4>,
+}
+
+impl KnownLanes {
+    /// The lanes of `points` (lane l from `points[l]`).
+    pub fn from_points(points: &[KnownDeformation; LANES]) -> Self {
+        Known {
+            f: nalgebra::Matrix3::from_fn(|i, j| F4::from_fn(|l| points[l].f[(i, j)])),
+            f_inv_t: nalgebra::Matrix3::from_fn(|i, j| F4::from_fn(|l| points[l].f_inv_t[(i, j)])),
+            j: F4::from_fn(|l| points[l].j),
+            jm23: F4::from_fn(|l| points[l].jm23),
+        }
+    }
+}
+
+impl StressLanes {
+    /// The stress of lane `l`.
+    pub fn lane(&self, l: usize) -> Stress {
+        Stress {
+            energy: self.energy.0[l],
+            p: self.p.map(|x| x.0[l]),
+            d0: self.d0.map(|x| x.0[l]),
+        }
+    }
 }
 
 impl KnownDeformation {
@@ -253,6 +292,19 @@ pub trait Material: Send + Sync + std::fmt::Debug {
         h: PointHistory,
     ) -> Result<Stress, MaterialError> {
         self.stress_at(&k.f, e0, h)
+    }
+    /// [`Material::stress_known`] of [`LANES`] points at once, one a lane, each lane the same
+    /// bits as `stress_known` of its point; `None` where the model has no lane form or a lane
+    /// is out of its domain (the caller then evaluates the points one by one, and meets the
+    /// error there). `h` is the history of all the points: models with internal variables
+    /// have no lane form.
+    fn stress_known_lanes(
+        &self,
+        _k: &KnownLanes,
+        _e0: &nalgebra::Vector3<F4>,
+        _h: PointHistory,
+    ) -> Option<StressLanes> {
+        None
     }
     /// [`Material::electric_displacement_at`] at a known deformation (see
     /// [`Material::stress_known`]).

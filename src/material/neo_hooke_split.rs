@@ -13,7 +13,9 @@ use super::hyperelastic::{
 };
 use super::isotropic::CKinematics;
 use super::parameters::Parameters;
-use super::{KnownDeformation, Mat3, MaterialError};
+use super::{Known, KnownDeformation, KnownLanes, Mat3, MaterialError};
+use crate::algebra::lanes::{norm_squared, Lane, F4};
+use nalgebra::Matrix3;
 
 /// Split neo-Hooke W = μ/2 (Ī₁ − 3) + κ/4 (J² − 1 − 2 ln J).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,6 +35,17 @@ impl NeoHookeSplit {
             w1: 0.5 * self.mu,
             ..Default::default()
         }
+    }
+}
+
+impl NeoHookeSplit {
+    /// W and P at a known deformation, of one point or a lane of points.
+    #[inline(always)]
+    fn piola<T: Lane>(&self, k: &Known<T>) -> (T, Matrix3<T>) {
+        let i1 = norm_squared(&k.f);
+        let v = vol_log(self.kappa, k.j);
+        let w = T::splat(0.5 * self.mu) * (k.jm23 * i1 - T::splat(3.0)) + v.u;
+        (w, i1_model_piola(k, i1, T::splat(0.5 * self.mu), v.du))
     }
 }
 
@@ -59,10 +72,12 @@ impl Hyperelastic for NeoHookeSplit {
     }
 
     fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
-        let i1 = k.f.norm_squared();
-        let v = vol_log(self.kappa, k.j);
-        let w = 0.5 * self.mu * (k.jm23 * i1 - 3.0) + v.u;
-        Some(Ok((w, i1_model_piola(k, i1, 0.5 * self.mu, v.du))))
+        Some(Ok(self.piola(k)))
+    }
+
+    #[inline(always)]
+    fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
+        Some(self.piola(k))
     }
 
     fn shear_modulus(&self) -> f64 {

@@ -15,7 +15,9 @@ use super::hyperelastic::{
 };
 use super::isotropic::CKinematics;
 use super::parameters::Parameters;
-use super::{KnownDeformation, Mat3, MaterialError};
+use super::{Known, KnownDeformation, KnownLanes, Mat3, MaterialError};
+use crate::algebra::lanes::{norm_squared, Lane, F4};
+use nalgebra::Matrix3;
 
 /// Yeoh W = Σ Cᵢ₀(Ī₁ − 3)ⁱ + Σ (J − 1)²ⁱ/Dᵢ.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -43,16 +45,26 @@ impl Yeoh {
     }
 
     /// (Ŵ, Ŵ′, Ŵ″) as functions of x = Ī₁ − 3.
-    fn iso(&self, i1b: f64) -> (f64, InvariantDerivs) {
-        let x = i1b - 3.0;
+    #[inline(always)]
+    fn iso<T: Lane + Default>(&self, i1b: T) -> (T, InvariantDerivs<T>) {
+        let x = i1b - T::splat(3.0);
         let [c1, c2, c3] = self.c;
-        let w = x * (c1 + x * (c2 + x * c3));
+        let w = x * (T::splat(c1) + x * (T::splat(c2) + x * T::splat(c3)));
         let d = InvariantDerivs {
-            w1: c1 + x * (2.0 * c2 + 3.0 * c3 * x),
-            w11: 2.0 * c2 + 6.0 * c3 * x,
+            w1: T::splat(c1) + x * (T::splat(2.0 * c2) + T::splat(3.0 * c3) * x),
+            w11: T::splat(2.0 * c2) + T::splat(6.0 * c3) * x,
             ..Default::default()
         };
         (w, d)
+    }
+
+    /// W and P at a known deformation, of one point or a lane of points.
+    #[inline(always)]
+    fn piola<T: Lane + Default>(&self, k: &Known<T>) -> (T, Matrix3<T>) {
+        let i1 = norm_squared(&k.f);
+        let (w, d) = self.iso(k.jm23 * i1);
+        let v = vol_poly(&self.inv_d(), k.j);
+        (w + v.u, i1_model_piola(k, i1, d.w1, v.du))
     }
 }
 
@@ -83,10 +95,12 @@ impl Hyperelastic for Yeoh {
 
     #[inline]
     fn first_piola(&self, k: &KnownDeformation) -> Option<Result<(f64, Mat3), MaterialError>> {
-        let i1 = k.f.norm_squared();
-        let (w, d) = self.iso(k.jm23 * i1);
-        let v = vol_poly(&self.inv_d(), k.j);
-        Some(Ok((w + v.u, i1_model_piola(k, i1, d.w1, v.du))))
+        Some(Ok(self.piola(k)))
+    }
+
+    #[inline(always)]
+    fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
+        Some(self.piola(k))
     }
 
     fn shear_modulus(&self) -> f64 {
