@@ -69,6 +69,103 @@ pub(crate) fn viscous_stress<T: Lane>(
     (d * finv_t * c, c * dd)
 }
 
+/// The quadrature points of a cell in batches of [`LANES`], a partial batch filled with its
+/// last point.
+struct Batches<'a> {
+    geom: &'a CellGeometry,
+    /// Batches.
+    nb: usize,
+}
+
+impl<'a> Batches<'a> {
+    #[inline(always)]
+    fn new(geom: &'a CellGeometry) -> Self {
+        Batches {
+            geom,
+            nb: geom.n_qp.div_ceil(LANES),
+        }
+    }
+
+    /// The point of lane `l` of batch `b`.
+    #[inline(always)]
+    fn qp(&self, b: usize, l: usize) -> usize {
+        (b * LANES + l).min(self.geom.n_qp - 1)
+    }
+
+    /// The points batch `b` holds (its first lanes).
+    #[inline(always)]
+    fn valid(&self, b: usize) -> usize {
+        (self.geom.n_qp - b * LANES).min(LANES)
+    }
+
+    /// ∂N_a/∂X_k at the points of batch `b`.
+    #[inline(always)]
+    fn grad(&self, b: usize, a: usize, k: usize) -> F4 {
+        F4::from_fn(|l| self.geom.grad[self.qp(b, l)][a][k])
+    }
+
+    /// F = I + Σ u_a ⊗ ∇N_a and E₀ = −Σ Φ_a ∇N_a at the points of batch `b`, in the order of
+    /// [`crate::fem::kinematics`].
+    #[inline(always)]
+    fn kinematics(&self, b: usize, local: &[f64]) -> (Matrix3<F4>, Vector3<F4>) {
+        let one = F4::splat(1.0);
+        let mut fb = [[F4::splat(0.0); 3]; 3];
+        for (i, row) in fb.iter_mut().enumerate() {
+            row[i] = one;
+        }
+        let mut eb = [F4::splat(0.0); 3];
+        for a in 0..self.geom.n_nodes {
+            let g = [self.grad(b, a, 0), self.grad(b, a, 1), self.grad(b, a, 2)];
+            let pa = F4::splat(local[a * FIELDS + 3]);
+            for i in 0..3 {
+                let ua = F4::splat(local[a * FIELDS + i]);
+                for jj in 0..3 {
+                    fb[i][jj] += ua * g[jj];
+                }
+                eb[i] -= pa * g[i];
+            }
+        }
+        (
+            Matrix3::from_fn(|i, jj| fb[i][jj]),
+            Vector3::new(eb[0], eb[1], eb[2]),
+        )
+    }
+
+    /// The nodal forces Σ f_r w (P ∇N_a, D₀·∇N_a) of the points' stresses into `r`: a node's
+    /// four values (ux, uy, uz, Φ) as one lane value, its points' terms added point by point
+    /// in the scalar order.
+    #[inline(always)]
+    fn forces(
+        &self,
+        p: &[Matrix3<F4>; BATCHES],
+        d0: &[Vector3<F4>; BATCHES],
+        f_r: f64,
+        r: &mut [f64],
+    ) {
+        let n = self.geom.n_nodes;
+        let mut forces = [F4::splat(0.0); MAX_NODES];
+        for b in 0..self.nb {
+            let w = F4::from_fn(|l| f_r * self.geom.weights[self.qp(b, l)]);
+            let (pb, db) = (&p[b], &d0[b]);
+            for (a, ra) in forces.iter_mut().enumerate().take(n) {
+                let g = [self.grad(b, a, 0), self.grad(b, a, 1), self.grad(b, a, 2)];
+                let t = transpose([
+                    w * (pb[(0, 0)] * g[0] + pb[(0, 1)] * g[1] + pb[(0, 2)] * g[2]),
+                    w * (pb[(1, 0)] * g[0] + pb[(1, 1)] * g[1] + pb[(1, 2)] * g[2]),
+                    w * (pb[(2, 0)] * g[0] + pb[(2, 1)] * g[1] + pb[(2, 2)] * g[2]),
+                    w * (db[0] * g[0] + db[1] * g[1] + db[2] * g[2]),
+                ]);
+                for tl in &t[..self.valid(b)] {
+                    *ra += *tl;
+                }
+            }
+        }
+        for (ra, fa) in r.chunks_exact_mut(FIELDS).zip(&forces[..n]) {
+            ra.copy_from_slice(&fa.0);
+        }
+    }
+}
+
 /// What the lane residual needs besides the cell's geometry and values.
 pub(crate) struct LaneResidual<'a> {
     pub geom: &'a CellGeometry,
@@ -109,12 +206,10 @@ impl Wide for LaneResidual<'_> {
             f_r,
             r,
         } = self;
-        let (n, nq) = (geom.n_nodes, geom.n_qp);
-        let nb = nq.div_ceil(LANES);
-        // the point of lane l of batch b (a partial batch repeats its last point)
-        let qp = |b: usize, l: usize| (b * LANES + l).min(nq - 1);
-        let valid = |b: usize| (nq - b * LANES).min(LANES);
-        let grad = |b: usize, a: usize, k: usize| F4::from_fn(|l| geom.grad[qp(b, l)][a][k]);
+        let cell = Batches::new(geom);
+        let (n, nb) = (geom.n_nodes, cell.nb);
+        let valid = |b: usize| cell.valid(b);
+        let grad = |b: usize, a: usize, k: usize| cell.grad(b, a, k);
 
         // kinematics: F = I + Σ u_a ⊗ ∇N_a, E₀ = −Σ Φ_a ∇N_a, J and F⁻ᵀ from the cofactors
         let one = F4::splat(1.0);
@@ -124,24 +219,7 @@ impl Wide for LaneResidual<'_> {
         let mut finv_t = [Matrix3::<F4>::identity(); BATCHES];
         let (mut v, mut volume) = (0.0, 0.0);
         for b in 0..nb {
-            let mut fb = [[F4::splat(0.0); 3]; 3];
-            for (i, row) in fb.iter_mut().enumerate() {
-                row[i] = one;
-            }
-            let mut eb = [F4::splat(0.0); 3];
-            for a in 0..n {
-                let g = [grad(b, a, 0), grad(b, a, 1), grad(b, a, 2)];
-                let pa = F4::splat(local[a * FIELDS + 3]);
-                for i in 0..3 {
-                    let ua = F4::splat(local[a * FIELDS + i]);
-                    for jj in 0..3 {
-                        fb[i][jj] += ua * g[jj];
-                    }
-                    eb[i] -= pa * g[i];
-                }
-            }
-            f[b] = Matrix3::from_fn(|i, jj| fb[i][jj]);
-            e0[b] = Vector3::new(eb[0], eb[1], eb[2]);
+            (f[b], e0[b]) = cell.kinematics(b, local);
             let cof = cofactor(&f[b]);
             let fb = &f[b];
             j[b] = fb[(0, 0)] * cof[(0, 0)] + fb[(0, 1)] * cof[(0, 1)] + fb[(0, 2)] * cof[(0, 2)];
@@ -183,10 +261,21 @@ impl Wide for LaneResidual<'_> {
             };
             let (en, pb, db) = match lanes {
                 Some(st) => (st.energy, st.p, st.d0),
-                None => match point_by_point(mat, hist, &known, &e0[b], b, valid(b)) {
-                    Ok(st) => st,
-                    Err(e) => return Some(Err(e)),
-                },
+                None => {
+                    let points = point_by_point(b, valid(b), |l, q| {
+                        let kd = KnownDeformation {
+                            f: lane(&known.f, l),
+                            f_inv_t: lane(&known.f_inv_t, l),
+                            j: known.j.0[l],
+                            jm23: known.jm23.0[l],
+                        };
+                        mat.stress_known(&kd, &lane_vec(&e0[b], l), hist.at(q))
+                    });
+                    match points {
+                        Ok(st) => st,
+                        Err(e) => return Some(Err(e)),
+                    }
+                }
             };
             for l in 0..valid(b) {
                 energy += geom.weights[b * LANES + l] * en.0[l];
@@ -230,28 +319,7 @@ impl Wide for LaneResidual<'_> {
             }
         }
 
-        // the nodal forces: a node's four (ux, uy, uz, Φ) as one lane value, its points' terms
-        // added point by point in the scalar order
-        let mut forces = [F4::splat(0.0); MAX_NODES];
-        for b in 0..nb {
-            let w = F4::from_fn(|l| f_r * geom.weights[qp(b, l)]);
-            let (pb, db) = (&p[b], &d0[b]);
-            for (a, ra) in forces.iter_mut().enumerate().take(n) {
-                let g = [grad(b, a, 0), grad(b, a, 1), grad(b, a, 2)];
-                let t = transpose([
-                    w * (pb[(0, 0)] * g[0] + pb[(0, 1)] * g[1] + pb[(0, 2)] * g[2]),
-                    w * (pb[(1, 0)] * g[0] + pb[(1, 1)] * g[1] + pb[(1, 2)] * g[2]),
-                    w * (pb[(2, 0)] * g[0] + pb[(2, 1)] * g[1] + pb[(2, 2)] * g[2]),
-                    w * (db[0] * g[0] + db[1] * g[1] + db[2] * g[2]),
-                ]);
-                for tl in &t[..valid(b)] {
-                    *ra += *tl;
-                }
-            }
-        }
-        for (ra, fa) in r.chunks_exact_mut(FIELDS).zip(&forces[..n]) {
-            ra.copy_from_slice(&fa.0);
-        }
+        cell.forces(&p, &d0, f_r, r);
         Some(Ok((energy, power)))
     }
 }
@@ -262,35 +330,36 @@ fn transpose(rows: [F4; LANES]) -> [F4; LANES] {
     std::array::from_fn(|l| F4::from_fn(|i| rows[i].0[l]))
 }
 
-/// The stresses of the points of batch `b` one by one (a material without a lane form, or one
-/// with internal variables), as lanes.
+/// The stresses of the first `valid` points of batch `b` one by one, `eval(l, q)` that of lane
+/// l (point q), as lanes: a material without a lane form, or one with internal variables.
 #[inline(never)]
 fn point_by_point(
-    mat: &dyn Material,
-    hist: CellHistory,
-    known: &Known<F4>,
-    e0: &Vector3<F4>,
     b: usize,
     valid: usize,
+    eval: impl Fn(usize, usize) -> Result<Stress, MaterialError>,
 ) -> Result<(F4, Matrix3<F4>, Vector3<F4>), PointFailure> {
     let mut out: [Stress; LANES] = Default::default();
     for (l, st) in out.iter_mut().enumerate().take(valid) {
         let q = b * LANES + l;
-        let kd = KnownDeformation {
-            f: known.f.map(|x| x.0[l]),
-            f_inv_t: known.f_inv_t.map(|x| x.0[l]),
-            j: known.j.0[l],
-            jm23: known.jm23.0[l],
-        };
-        *st = mat
-            .stress_known(&kd, &e0.map(|x| x.0[l]), hist.at(q))
-            .map_err(|error: MaterialError| PointFailure { qp: q, error })?;
+        *st = eval(l, q).map_err(|error| PointFailure { qp: q, error })?;
     }
     Ok((
         F4::from_fn(|l| out[l].energy),
         Matrix3::from_fn(|i, k| F4::from_fn(|l| out[l].p[(i, k)])),
         Vector3::from_fn(|i, _| F4::from_fn(|l| out[l].d0[i])),
     ))
+}
+
+/// Lane `l` of a matrix of lanes.
+#[inline(always)]
+fn lane(m: &Matrix3<F4>, l: usize) -> Matrix3<f64> {
+    m.map(|x| x.0[l])
+}
+
+/// Lane `l` of a vector of lanes.
+#[inline(always)]
+fn lane_vec(v: &Vector3<F4>, l: usize) -> Vector3<f64> {
+    v.map(|x| x.0[l])
 }
 
 #[cfg(test)]
