@@ -423,16 +423,7 @@ mod tests {
     /// A distorted cell of each 3-D kind (8, 1 and 4 quadrature points: full batches and
     /// partial ones) about 1 mm in size.
     fn cells() -> Vec<(ElementKind, CellGeometry, Vec<[f64; 3]>)> {
-        let hex = [
-            [0.0, 0.0, 0.0],
-            [1.2, 0.1, 0.0],
-            [1.3, 0.9, 0.1],
-            [-0.1, 1.0, 0.0],
-            [0.1, 0.0, 1.0],
-            [1.0, 0.2, 1.1],
-            [1.1, 1.2, 0.9],
-            [0.0, 1.1, 1.2],
-        ];
+        let hex = crate::element::mean_dilatation::tests::cell_coords().map(|p| p.map(|c| c * 1e3));
         let corners = [
             [0.0, 0.0, 0.0],
             [1.1, 0.1, 0.0],

@@ -822,7 +822,7 @@ pub(crate) fn md_hessian(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::fem::ReferenceElement;
     use crate::material::{ElectroNeoHooke, Electroelastic, NeoHookeSplit, EPSILON_0};
@@ -831,7 +831,7 @@ mod tests {
     /// A distorted hex8 (about 1 mm) and a random-looking state with displacement gradients
     /// of order 0.1 and a field of order 0.3√(μ/ε).
     /// Nodes of a distorted hex8 about 1 mm in size.
-    fn cell_coords() -> [[f64; 3]; 8] {
+    pub(crate) fn cell_coords() -> [[f64; 3]; 8] {
         [
             [0.0, 0.0, 0.0],
             [1.2, 0.1, 0.0],
