@@ -507,14 +507,32 @@ mod tests {
                             &mut reference,
                             false,
                         );
+                        // the lanes as compiled for every x86-64 (no AVX2), run directly
+                        let mut baseline = vec![0.0; 4 * n];
+                        let narrow = LaneResidual {
+                            geom: &geom,
+                            mat: &*mat,
+                            hist,
+                            local: &local,
+                            viscous,
+                            f_r,
+                            r: &mut baseline,
+                        }
+                        .run();
                         let case = format!("{name}, {kind:?}, size {size}, {viscous:?}");
                         match (got, want) {
                             (Ok(a), Ok(b)) => {
                                 assert_eq!(a.0.to_bits(), b.0.to_bits(), "{case}: energy");
                                 assert_eq!(a.1.to_bits(), b.1.to_bits(), "{case}: power");
-                                for (x, y) in r.iter().zip(&reference) {
+                                for ((x, y), z) in r.iter().zip(&reference).zip(&baseline) {
                                     assert_eq!(x.to_bits(), y.to_bits(), "{case}: residual");
+                                    assert_eq!(x.to_bits(), z.to_bits(), "{case}: without AVX2");
                                 }
+                                let c = narrow.expect("lanes").expect("no failure");
+                                assert_eq!(
+                                    (c.0.to_bits(), c.1.to_bits()),
+                                    (a.0.to_bits(), a.1.to_bits())
+                                );
                                 compared += 1;
                             }
                             (Err(a), Err(b)) => assert_eq!(a, b, "{case}"),
