@@ -49,9 +49,9 @@
 //!
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
-use crate::algebra::lanes::{F4, LANES};
 use crate::element::axisymmetric::{add_point_tangent_meridian, add_residual_meridian, delta_f};
-use crate::element::md_lanes::{cbrt_near_one, cofactor, viscous_stress, LaneResidual};
+use crate::element::md_lanes::LaneResidual;
+use crate::element::md_point::{cbrt_near_one, cofactor, viscous_stress};
 use crate::element::standard::{add_residual, split_local};
 use crate::element::{CellFields, PointFailure};
 use crate::element::{CellHistory, CellKernel, MeanDilatationKernel, StandardKernel};
@@ -59,9 +59,8 @@ use crate::fem::axisymmetric::meridian_kinematics;
 use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES, MAX_QP};
 use crate::material::{
-    KnownDeformation, KnownLanes, Mat3, Mat9, Mat93, Material, MaterialError, Tangent, Vec3,
+    KnownDeformation, Mat3, Mat9, Mat93, Material, MaterialError, Tangent, Vec3,
 };
-use nalgebra::Vector3;
 
 type Vec9 = nalgebra::SVector<f64, 9>;
 
@@ -310,9 +309,7 @@ fn energy_split_md(
 
 /// Effective first Piola stresses P_q = αP̄ − (s/3)F⁻ᵀ + p̄ cof F (Pa) into `p`, the referential
 /// electric displacements D₀(F̄, E₀) into `d0`; returns the energy of the cell. The outputs are
-/// the caller's buffers: returning them would copy about 1 kB per cell. With `lanes`, the
-/// points go to the material in lanes ([`Material::stress_known_lanes`]; the same bits).
-#[allow(clippy::too_many_arguments)]
+/// the caller's buffers: returning them would copy about 1 kB per cell.
 fn md_stresses(
     geom: &CellGeometry,
     mat: &dyn Material,
@@ -320,33 +317,18 @@ fn md_stresses(
     k: &MdKinematics,
     p: &mut [Mat3; MAX_QP],
     d0: &mut [Vec3; MAX_QP],
-    lanes: bool,
 ) -> Result<f64, PointFailure> {
     let mut s = [0.0; MAX_QP];
     let mut energy = 0.0;
-    for q0 in (0..geom.n_qp).step_by(LANES) {
-        let n = (geom.n_qp - q0).min(LANES);
-        // the points q0.. as lanes, a partial batch filled with its last point
-        let known: [KnownDeformation; LANES] = std::array::from_fn(|l| k.known(q0 + l.min(n - 1)));
-        let e0 = Vector3::from_fn(|i, _| F4::from_fn(|l| k.e0[q0 + l.min(n - 1)][i]));
-        let lanes = if lanes && hist.size == 0 {
-            mat.stress_known_lanes(&KnownLanes::from_points(&known), &e0, hist.at(q0))
-        } else {
-            None
-        };
-        for (l, kd) in known.iter().enumerate().take(n) {
-            let q = q0 + l;
-            let st = match &lanes {
-                Some(lanes) => lanes.lane(l),
-                None => mat
-                    .stress_known(kd, &k.e0[q], hist.at(q))
-                    .map_err(fail(q))?,
-            };
-            energy += geom.weights[q] * st.energy;
-            s[q] = st.p.dot(&kd.f);
-            p[q] = st.p;
-            d0[q] = st.d0;
-        }
+    for q in 0..geom.n_qp {
+        let kd = k.known(q);
+        let st = mat
+            .stress_known(&kd, &k.e0[q], hist.at(q))
+            .map_err(fail(q))?;
+        energy += geom.weights[q] * st.energy;
+        s[q] = st.p.dot(&kd.f);
+        p[q] = st.p;
+        d0[q] = st.d0;
     }
     effective_stresses(geom, k, &s, p);
     Ok(energy)
@@ -425,7 +407,7 @@ fn md_residual(
 ) -> Result<f64, PointFailure> {
     r[..geom.n_nodes * FIELDS].iter_mut().for_each(|v| *v = 0.0);
     let mut d0 = [Vec3::zeros(); MAX_QP];
-    let energy = md_stresses(geom, mat, hist, kin, p, &mut d0, true)?;
+    let energy = md_stresses(geom, mat, hist, kin, p, &mut d0)?;
     for q in 0..geom.n_qp {
         add_residual_any(geom, q, &p[q], &d0[q], r);
     }
@@ -610,13 +592,11 @@ pub fn cell_dynamic_residual_md(
     if let Some(out) = lanes.evaluate() {
         return out;
     }
-    dynamic_residual_points(geom, mat, hist, local, viscous, f_r, r, true)
+    dynamic_residual_points(geom, mat, hist, local, viscous, f_r, r)
 }
 
-/// [`cell_dynamic_residual_md`] point by point (the material's lane form used when `lanes`):
-/// the path of a cell whose lanes fail, which then reports the failure, and the reference of
-/// the lanes' tests.
-#[allow(clippy::too_many_arguments)]
+/// [`cell_dynamic_residual_md`] point by point: the path of a cell whose lanes fail, which
+/// then reports the failure, and the reference of the lanes' tests.
 pub(crate) fn dynamic_residual_points(
     geom: &CellGeometry,
     mat: &dyn Material,
@@ -625,14 +605,13 @@ pub(crate) fn dynamic_residual_points(
     viscous: Option<(crate::element::KelvinVoigtKernel, &[f64])>,
     f_r: f64,
     r: &mut [f64],
-    lanes: bool,
 ) -> Result<(f64, f64), PointFailure> {
     let n = geom.n_nodes;
     let mut kin = MdKinematics::identity();
     kin.compute(geom, local)?;
     let mut p = [Mat3::zeros(); MAX_QP];
     let mut d0 = [Vec3::zeros(); MAX_QP];
-    let energy = md_stresses(geom, mat, hist, &kin, &mut p, &mut d0, lanes)?;
+    let energy = md_stresses(geom, mat, hist, &kin, &mut p, &mut d0)?;
     let mut power = 0.0;
     if let Some((kv, vel)) = viscous {
         let (v, _) = split_local(n, vel);

@@ -5,6 +5,7 @@ pub mod axisymmetric;
 pub mod deformation_vjp;
 pub mod harmonic;
 pub(crate) mod md_lanes;
+pub(crate) mod md_point;
 pub mod mean_dilatation;
 pub mod standard;
 

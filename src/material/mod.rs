@@ -47,7 +47,7 @@ mod model_tests;
 #[cfg(test)]
 mod param_tests;
 
-use crate::algebra::lanes::{Lane, F4, LANES};
+use crate::algebra::lanes::{Lane, F4};
 pub use arruda_boyce::{
     ArrudaBoyce, ArrudaBoyceSeries, ElectroArrudaBoyce, ElectroArrudaBoyceSeries,
 };
@@ -131,39 +131,16 @@ pub struct Known<T: Lane> {
 /// The [`Known`] deformation of one point.
 pub type KnownDeformation = Known<f64>;
 
-/// The [`Known`] deformations of [`LANES`] points, one a lane.
+/// The [`Known`] deformations of a lane of points (four, one a lane).
 pub type KnownLanes = Known<F4>;
 
-/// The stresses of [`LANES`] points ([`Material::stress_known_lanes`]): energies, first Piola
+/// The stresses of a lane of points ([`Material::stress_known_lanes`]): energies, first Piola
 /// stresses and electric displacements, one point a lane.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StressLanes {
     pub energy: F4,
     pub p: nalgebra::Matrix3<F4>,
     pub d0: nalgebra::Vector3<F4>,
-}
-
-impl KnownLanes {
-    /// The lanes of `points` (lane l from `points[l]`).
-    pub fn from_points(points: &[KnownDeformation; LANES]) -> Self {
-        Known {
-            f: nalgebra::Matrix3::from_fn(|i, j| F4::from_fn(|l| points[l].f[(i, j)])),
-            f_inv_t: nalgebra::Matrix3::from_fn(|i, j| F4::from_fn(|l| points[l].f_inv_t[(i, j)])),
-            j: F4::from_fn(|l| points[l].j),
-            jm23: F4::from_fn(|l| points[l].jm23),
-        }
-    }
-}
-
-impl StressLanes {
-    /// The stress of lane `l`.
-    pub fn lane(&self, l: usize) -> Stress {
-        Stress {
-            energy: self.energy.0[l],
-            p: self.p.map(|x| x.0[l]),
-            d0: self.d0.map(|x| x.0[l]),
-        }
-    }
 }
 
 impl KnownDeformation {
@@ -293,11 +270,11 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     ) -> Result<Stress, MaterialError> {
         self.stress_at(&k.f, e0, h)
     }
-    /// [`Material::stress_known`] of [`LANES`] points at once, one a lane, each lane the same
+    /// [`Material::stress_known`] of a lane of points at once, each lane the same
     /// bits as `stress_known` of its point; `None` where the model has no lane form or a lane
     /// is out of its domain (the caller then evaluates the points one by one, and meets the
-    /// error there). `h` is the history of all the points: models with internal variables
-    /// have no lane form.
+    /// error there). `h` is the first point's history: a model with internal variables has
+    /// no lane form, and callers ask it only of points that have none.
     fn stress_known_lanes(
         &self,
         _k: &KnownLanes,
