@@ -263,10 +263,13 @@ pub fn sweep(
         )?;
     }
     s.step.points = PointStates::from_data(&step_model, &st.start_points);
-    match scheme {
-        Scheme::Midpoint => Ok(c),
-        Scheme::Newmark { .. } => newmark_start_adjoint(&mut s, initial, c, sink),
-    }
+    let start = match scheme {
+        Scheme::Midpoint => c,
+        Scheme::Newmark { .. } => newmark_start_adjoint(&mut s, initial, c, sink)?,
+    };
+    sink.solves += s.step_solver.counts();
+    sink.solves += s.projection_solver.counts();
+    Ok(start)
 }
 
 /// The adjoint of one step from `prev` to `level` with the step's unknown `iterate`.

@@ -1,6 +1,7 @@
 //! The adjoint of one step's equations: λ with Jᵀλ = ∂J/∂y over the free unknowns y of a
 //! system, J the system's Jacobian, solved with its transpose's LU.
 
+use crate::algebra::csr::CsrMatrix;
 use crate::algebra::system::NonlinearSystem;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS};
 use crate::problem::statics::StaticProblem;
@@ -14,10 +15,29 @@ use crate::time::integrator::TimeStep;
 /// preconditioned with them, factoring again only when GMRES needs more than
 /// [`AdjointSolver::MAX_ITERATIONS`] iterations. The forward run reuses its factorisations the
 /// same way (modified Newton); the adjoint's solves are linear, so a good preconditioner
-/// converges in a few iterations to the tolerance, 10⁻¹³ of the right-hand side.
+/// converges in a few iterations to the tolerance: 10⁻¹³ of the right-hand side, or what the
+/// last solve with a fresh factorisation attained if that is more (a step's Jacobian of a
+/// pre-stretched membrane with its mass and potentials leaves a direct solve about 2·10⁻¹² of
+/// the right-hand side, and asking GMRES for less made every step factor again).
+/// How many factorisations and GMRES iterations adjoint solves took.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+pub struct SolveCounts {
+    pub factorizations: usize,
+    pub iterations: usize,
+}
+
+impl std::ops::AddAssign for SolveCounts {
+    fn add_assign(&mut self, o: SolveCounts) {
+        self.factorizations += o.factorizations;
+        self.iterations += o.iterations;
+    }
+}
+
 #[derive(Default)]
 pub struct AdjointSolver {
     held: Option<TransposedLu>,
+    /// ‖ȳ − Jᵀλ‖/‖ȳ‖ of the last solve with a fresh factorisation.
+    attained: f64,
     /// Factorisations and GMRES iterations so far.
     pub factorizations: usize,
     pub iterations: usize,
@@ -26,8 +46,20 @@ pub struct AdjointSolver {
 impl AdjointSolver {
     /// Most GMRES iterations with a held factorisation before the Jacobian is factored again.
     pub const MAX_ITERATIONS: usize = 12;
-    /// The relative residual the GMRES solves reach.
+    /// The relative residual the GMRES solves reach, where a direct solve reaches it.
     pub const RTOL: f64 = 1e-13;
+    /// The factorisations and GMRES iterations so far.
+    pub fn counts(&self) -> SolveCounts {
+        SolveCounts {
+            factorizations: self.factorizations,
+            iterations: self.iterations,
+        }
+    }
+
+    /// The GMRES solves reach this multiple of the relative residual the last direct solve
+    /// attained, where that is above [`AdjointSolver::RTOL`]: as accurate as a new
+    /// factorisation would be, up to its spread from one right-hand side to the next.
+    pub const ATTAINED_FACTOR: f64 = 2.0;
 
     /// λ with Jᵀλ = ȳ over the free unknowns of `system` (its scaled equations: ȳ over every
     /// dof, each free one weighted by its field's scale), J the matrix of
@@ -58,7 +90,7 @@ impl AdjointSolver {
                 &b,
                 &mut lambda,
                 &KrylovSettings {
-                    rtol: Self::RTOL,
+                    rtol: Self::RTOL.max(Self::ATTAINED_FACTOR * self.attained),
                     max_iterations: Self::MAX_ITERATIONS,
                     restart: Self::MAX_ITERATIONS,
                 },
@@ -70,9 +102,24 @@ impl AdjointSolver {
         }
         let lu = TransposedLu::factor(&k)?;
         self.factorizations += 1;
-        lu.solve_in_place(&mut b);
+        let mut lambda = b.clone();
+        lu.solve_in_place(&mut lambda);
+        self.attained = relative_residual(&k, &lambda, &b);
         self.held = Some(lu);
-        Ok(b)
+        Ok(lambda)
+    }
+}
+
+/// ‖b − Kᵀx‖/‖b‖ (0 for b = 0).
+fn relative_residual(k: &CsrMatrix, x: &[f64], b: &[f64]) -> f64 {
+    let mut y = vec![0.0; b.len()];
+    k.mul_transposed(x, &mut y);
+    let r = y.iter().zip(b).map(|(a, c)| (a - c) * (a - c)).sum::<f64>();
+    let nb = b.iter().map(|a| a * a).sum::<f64>();
+    if nb > 0.0 {
+        (r / nb).sqrt()
+    } else {
+        0.0
     }
 }
 

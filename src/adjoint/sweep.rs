@@ -15,7 +15,7 @@
 use super::charge::charge_adjoint;
 use super::dynamic::Held;
 use super::dynamic::{self, Cotangent};
-use super::lambda::{solve_adjoint, AdjointSolver};
+use super::lambda::{AdjointSolver, SolveCounts};
 use super::objective::{Backward, Objective};
 use super::replay::Recompute;
 use super::sink::{waveform_dofs, ControlGradient, Sink};
@@ -42,6 +42,8 @@ pub struct Gradient {
     /// bytes the tape and the recomputation held at once.
     pub recomputed_steps: usize,
     pub peak_bytes: usize,
+    /// The factorisations and GMRES iterations of the adjoint's linear solves.
+    pub solves: SolveCounts,
 }
 
 /// Whether the adjoint of a run of `plan` is built (every differentiable parameter is); an
@@ -212,6 +214,7 @@ pub fn gradient(
         controls: sink.controls,
         recomputed_steps,
         peak_bytes,
+        solves: sink.solves,
     })
 }
 
@@ -232,7 +235,9 @@ fn prestretch(
     problem.set_drive(crate::problem::drive::Drive::held(model));
     problem.set_load(1.0);
     problem.state.copy_from_slice(state);
-    let lambda = solve_adjoint(&mut problem, c)?;
+    let mut solver = AdjointSolver::default();
+    let lambda = solver.solve(&mut problem, c)?;
+    sink.solves += solver.counts();
     sink.step_materials(&mut problem, &lambda)?;
     let lv = problem.level_vjp(&lambda)?;
     let on = plan.stages.first().is_some_and(|s| s.electrodes_on);
@@ -451,6 +456,7 @@ fn load_steps(
             }
         }
     }
+    sink.solves += solver.counts();
     // the supports' start values are the state the stage before ended in
     Ok(StageStart {
         from,

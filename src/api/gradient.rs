@@ -94,13 +94,18 @@ pub struct GradientReport {
     /// The bytes of the largest taped time step and checkpoint: `tape_bytes` stays within
     /// `memory_budget` plus twice the larger ([`Tape::unit_bytes`]).
     pub unit_bytes: (usize, usize),
+    /// The adjoint's linear solves: factorisations of a transposed Jacobian, and GMRES
+    /// iterations preconditioned by a held one.
+    pub adjoint_factorizations: usize,
+    pub adjoint_krylov_iterations: usize,
     pub taylor: Option<TaylorTest>,
 }
 
 impl GradientReport {
     /// The document of `gradient.json`: `objective`, `gradient` (key path → dJ/dp),
     /// `forward_s`, `adjoint_s`, `peak_memory` (the most bytes the tape held: states and
-    /// checkpoints), `memory_budget` (bytes), `recomputed_steps`, and when checked
+    /// checkpoints), `memory_budget` (bytes), `recomputed_steps`, `adjoint_factorizations`,
+    /// `adjoint_krylov_iterations`, and when checked
     /// the finite differences (`check`) and the Taylor test (`taylor`); a non-finite number is
     /// null.
     pub fn to_json(&self) -> serde_json::Value {
@@ -124,6 +129,8 @@ impl GradientReport {
             "peak_memory": self.tape_bytes,
             "memory_budget": self.memory_budget,
             "recomputed_steps": self.recomputed_steps,
+            "adjoint_factorizations": self.adjoint_factorizations,
+            "adjoint_krylov_iterations": self.adjoint_krylov_iterations,
         });
         if !self.controls.is_empty() {
             doc["controls"] = serde_json::Value::Array(
@@ -452,6 +459,8 @@ impl Simulation {
             memory_budget: memory,
             recomputed_steps: g.recomputed_steps,
             unit_bytes: tape.unit_bytes(),
+            adjoint_factorizations: g.solves.factorizations,
+            adjoint_krylov_iterations: g.solves.iterations,
             taylor: None,
         };
         if options.check {

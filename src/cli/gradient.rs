@@ -135,10 +135,12 @@ fn table(r: &GradientReport) -> String {
     }
     let _ = writeln!(
         s,
-        "forward {:.3} s, adjoint {:.3} s, tape at most {:.1} MB (budget {:.1} MB), {} steps \
-         recomputed",
+        "forward {:.3} s, adjoint {:.3} s ({} factorisations, {} GMRES iterations), tape at \
+         most {:.1} MB (budget {:.1} MB), {} steps recomputed",
         r.forward_s,
         r.adjoint_s,
+        r.adjoint_factorizations,
+        r.adjoint_krylov_iterations,
         r.tape_bytes as f64 / 1e6,
         r.memory_budget as f64 / 1e6,
         r.recomputed_steps
