@@ -482,16 +482,42 @@ pub fn cell_residual_tangent_md(
         let g = &geom.grad[q];
         let w = geom.weights[q];
         let (alpha, j) = (kin.alpha[q], kin.j[q]);
+        let fi = to9(&kin.finv_t[q]);
+        let f9 = to9(&kin.f[q]);
+        let pb9 = to9(&t.p);
+        let cof9 = fi * j;
         let sq = s[q];
-        let EffectivePoint {
-            a_eff,
-            b_eff,
-            cof9,
-            bq,
-            eq,
-            d,
-        } = effective_point(t, &kin, q, sq, pm);
-        dd += w * d;
+
+        // With Q = α(𝕀 − ⅓ F ⊗ f) and Ā symmetric, a_F = Ā:F, F:Ā:F:
+        //   QᵀĀQ = α²(Ā − ⅓ f⊗a_F − ⅓ a_F⊗f + (F:Ā:F)/9 f⊗f),  Qᵀ(Ā:F̄) = α²(a_F − ⅓(F:Ā:F) f)
+        let a_f: Vec9 = t.a * f9;
+        let faf = f9.dot(&a_f);
+        let a2 = alpha * alpha;
+        let psi_f: Vec9 = pb9 * alpha - fi * (sq / 3.0);
+
+        // ∂²ψ/∂F² + (H/V) ∂cof F/∂F
+        let mut a_eff: Mat9 = t.a * a2;
+        for r9 in 0..9 {
+            let (kk, ll) = (r9 / 3, r9 % 3);
+            for c9 in 0..9 {
+                let (m, nn) = (c9 / 3, c9 % 3);
+                let mut v = a2
+                    * (-(fi[r9] * a_f[c9] + a_f[r9] * fi[c9]) / 3.0 + faf / 9.0 * fi[r9] * fi[c9]);
+                // P̄ : ∂²F̄/∂F∂F
+                v += -alpha / 3.0 * (pb9[r9] * fi[c9] + fi[r9] * pb9[c9])
+                    + sq / 9.0 * fi[r9] * fi[c9]
+                    + sq / 3.0 * fi[kk * 3 + nn] * fi[m * 3 + ll];
+                // (H/V) ∂c_kL/∂F_mN = (H/V)(c_mN c_kL − c_mL c_kN)/J
+                v += pm * (cof9[c9] * cof9[r9] - cof9[m * 3 + ll] * cof9[kk * 3 + nn]) / j;
+                a_eff[(r9, c9)] += v;
+            }
+        }
+        // QᵀB̄ = α(B̄ − ⅓ f ⊗ (F:B̄)),  B̄ᵀ:F̄ = α F:B̄
+        let f_b: Vec3 = t.b.transpose() * f9;
+        let b_eff: Mat93 = (t.b - fi * f_b.transpose() / 3.0) * alpha;
+        let bq: Vec9 = ((a_f - fi * (faf / 3.0)) * a2 + psi_f) / (3.0 * theta);
+        dd += w * (a2 * faf - 2.0 * sq) / (9.0 * theta * theta);
+        let eq: Vec3 = f_b * (alpha / (3.0 * theta));
 
         // residual with the effective stress
         let p_eff = t.p * alpha + kin.finv_t[q] * (pm * j - sq / 3.0);
@@ -703,63 +729,6 @@ pub(crate) struct MdHessian {
     pub d: f64,
 }
 
-/// The blocks of one point of a mean-dilatation cell, with the material's tangent `t` at F̄:
-/// the effective A (9 × 9) and B (9 × 3) of F, the cofactor J F⁻ᵀ, and the point's shares of
-/// the couplings through θ̄ (∂H/∂F's point term `bq`, ∂H/∂E₀'s `eq`, and ∂H/∂θ̄'s `d`, each
-/// still to be weighted by w).
-struct EffectivePoint {
-    a_eff: Mat9,
-    b_eff: Mat93,
-    cof9: Vec9,
-    bq: Vec9,
-    eq: Vec3,
-    d: f64,
-}
-
-/// [`EffectivePoint`] of point `q` with s = P̄ : F̄ there and pm = H/V of the cell.
-fn effective_point(t: &Tangent, kin: &MdKinematics, q: usize, sq: f64, pm: f64) -> EffectivePoint {
-    let (alpha, j, theta) = (kin.alpha[q], kin.j[q], kin.theta);
-    let fi = to9(&kin.finv_t[q]);
-    let f9 = to9(&kin.f[q]);
-    let pb9 = to9(&t.p);
-    // With Q = α(𝕀 − ⅓ F ⊗ f) and Ā symmetric, a_F = Ā:F, F:Ā:F:
-    //   QᵀĀQ = α²(Ā − ⅓ f⊗a_F − ⅓ a_F⊗f + (F:Ā:F)/9 f⊗f),  Qᵀ(Ā:F̄) = α²(a_F − ⅓(F:Ā:F) f)
-    let a_f: Vec9 = t.a * f9;
-    let faf = f9.dot(&a_f);
-    let a2 = alpha * alpha;
-    let psi_f: Vec9 = pb9 * alpha - fi * (sq / 3.0);
-    // ∂²ψ/∂F² + (H/V) ∂cof F/∂F, entry (kL, mN):
-    //   α²(−⅓(f a_F + a_F f) + (F:Ā:F)/9 f f)            (QᵀĀQ beyond α²Ā)
-    //   − α/3 (P̄ f + f P̄) + s/9 f f + s/3 f_kN f_mL         (P̄ : ∂²F̄/∂F∂F)
-    //   + (H/V)(c_mN c_kL − c_mL c_kN)/J                    (c = J f)
-    // gathered by the products of f they multiply, so that no entry divides
-    let c_af = -a2 / 3.0;
-    let c_pb = -alpha / 3.0;
-    let c_ff = a2 * faf / 9.0 + sq / 9.0 + pm * j;
-    let c_cross = sq / 3.0 - pm * j;
-    let mut a_eff: Mat9 = t.a * a2;
-    for c9 in 0..9 {
-        let (m, nn) = (c9 / 3, c9 % 3);
-        for r9 in 0..9 {
-            let (kk, ll) = (r9 / 3, r9 % 3);
-            a_eff[(r9, c9)] += c_af * (fi[r9] * a_f[c9] + a_f[r9] * fi[c9])
-                + c_pb * (pb9[r9] * fi[c9] + fi[r9] * pb9[c9])
-                + c_ff * fi[r9] * fi[c9]
-                + c_cross * fi[kk * 3 + nn] * fi[m * 3 + ll];
-        }
-    }
-    // QᵀB̄ = α(B̄ − ⅓ f ⊗ (F:B̄)),  B̄ᵀ:F̄ = α F:B̄
-    let f_b: Vec3 = t.b.transpose() * f9;
-    EffectivePoint {
-        a_eff,
-        b_eff: (t.b - fi * f_b.transpose() / 3.0) * alpha,
-        cof9: fi * j,
-        bq: ((a_f - fi * (faf / 3.0)) * a2 + psi_f) / (3.0 * theta),
-        eq: f_b * (alpha / (3.0 * theta)),
-        d: (a2 * faf - 2.0 * sq) / (9.0 * theta * theta),
-    }
-}
-
 /// [`MdHessian`] of a cell at `local`.
 pub(crate) fn md_hessian(
     geom: &CellGeometry,
@@ -794,12 +763,39 @@ pub(crate) fn md_hessian(
     };
     for (q, t) in tans.iter().enumerate() {
         let w = geom.weights[q];
-        let p = effective_point(t, &kin, q, s[q], pm);
-        out.d += w * p.d;
-        out.points.push((w, p.a_eff, p.b_eff, t.g));
-        out.m.push(std::array::from_fn(|i| p.cof9[i] * w / vol));
-        out.b.push(std::array::from_fn(|i| p.bq[i]));
-        out.e.push([p.eq[0], p.eq[1], p.eq[2]]);
+        let (alpha, j) = (kin.alpha[q], kin.j[q]);
+        let fi = to9(&kin.finv_t[q]);
+        let f9 = to9(&kin.f[q]);
+        let pb9 = to9(&t.p);
+        let cof9 = fi * j;
+        let sq = s[q];
+        let a_f: Vec9 = t.a * f9;
+        let faf = f9.dot(&a_f);
+        let a2 = alpha * alpha;
+        let psi_f: Vec9 = pb9 * alpha - fi * (sq / 3.0);
+        let mut a_eff: Mat9 = t.a * a2;
+        for r9 in 0..9 {
+            let (kk, ll) = (r9 / 3, r9 % 3);
+            for c9 in 0..9 {
+                let (m, nn) = (c9 / 3, c9 % 3);
+                let mut v = a2
+                    * (-(fi[r9] * a_f[c9] + a_f[r9] * fi[c9]) / 3.0 + faf / 9.0 * fi[r9] * fi[c9]);
+                v += -alpha / 3.0 * (pb9[r9] * fi[c9] + fi[r9] * pb9[c9])
+                    + sq / 9.0 * fi[r9] * fi[c9]
+                    + sq / 3.0 * fi[kk * 3 + nn] * fi[m * 3 + ll];
+                v += pm * (cof9[c9] * cof9[r9] - cof9[m * 3 + ll] * cof9[kk * 3 + nn]) / j;
+                a_eff[(r9, c9)] += v;
+            }
+        }
+        let f_b: Vec3 = t.b.transpose() * f9;
+        let b_eff: Mat93 = (t.b - fi * f_b.transpose() / 3.0) * alpha;
+        let bq: Vec9 = ((a_f - fi * (faf / 3.0)) * a2 + psi_f) / (3.0 * theta);
+        out.d += w * (a2 * faf - 2.0 * sq) / (9.0 * theta * theta);
+        let eq: Vec3 = f_b * (alpha / (3.0 * theta));
+        out.points.push((w, a_eff, b_eff, t.g));
+        out.m.push(std::array::from_fn(|i| cof9[i] * w / vol));
+        out.b.push(std::array::from_fn(|i| bq[i]));
+        out.e.push([eq[0], eq[1], eq[2]]);
     }
     Ok(out)
 }
