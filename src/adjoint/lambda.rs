@@ -9,16 +9,6 @@ use crate::solve::krylov::{fgmres, KrylovSettings};
 use crate::solve::transposed::TransposedLu;
 use crate::time::integrator::TimeStep;
 
-/// Solves the adjoint equations of a run of steps whose Jacobians change little from one step
-/// to the next (the same pattern, a slowly moving state): it keeps the LU factors of the last
-/// Jacobian it factored and solves the next steps' transposed systems by flexible GMRES
-/// preconditioned with them, factoring again only when GMRES needs more than
-/// [`AdjointSolver::MAX_ITERATIONS`] iterations. The forward run reuses its factorisations the
-/// same way (modified Newton); the adjoint's solves are linear, so a good preconditioner
-/// converges in a few iterations to the tolerance: 10⁻¹³ of the right-hand side, or what the
-/// last solve with a fresh factorisation attained if that is more (a step's Jacobian of a
-/// pre-stretched membrane with its mass and potentials leaves a direct solve about 2·10⁻¹² of
-/// the right-hand side, and asking GMRES for less made every step factor again).
 /// How many factorisations and GMRES iterations adjoint solves took.
 #[derive(Debug, Default, Clone, Copy, PartialEq)]
 pub struct SolveCounts {
@@ -33,6 +23,16 @@ impl std::ops::AddAssign for SolveCounts {
     }
 }
 
+/// Solves the adjoint equations of a run of steps whose Jacobians change little from one step
+/// to the next (the same pattern, a slowly moving state): it keeps the LU factors of the last
+/// Jacobian it factored and solves the next steps' transposed systems by flexible GMRES
+/// preconditioned with them, factoring again only when GMRES needs more than
+/// [`AdjointSolver::MAX_ITERATIONS`] iterations. The forward run reuses its factorisations the
+/// same way (modified Newton); the adjoint's solves are linear, so a good preconditioner
+/// converges in a few iterations to the tolerance: 10⁻¹³ of the right-hand side, or what the
+/// last solve with a fresh factorisation attained if that is more (a step's Jacobian of a
+/// pre-stretched membrane with its mass and potentials leaves a direct solve about 2·10⁻¹² of
+/// the right-hand side, and asking GMRES for less made every step factor again).
 #[derive(Default)]
 pub struct AdjointSolver {
     held: Option<TransposedLu>,
@@ -48,6 +48,11 @@ impl AdjointSolver {
     pub const MAX_ITERATIONS: usize = 12;
     /// The relative residual the GMRES solves reach, where a direct solve reaches it.
     pub const RTOL: f64 = 1e-13;
+    /// The GMRES solves reach this multiple of the relative residual the last direct solve
+    /// attained, where that is above [`AdjointSolver::RTOL`]: as accurate as a new
+    /// factorisation would be, up to its spread from one right-hand side to the next.
+    pub const ATTAINED_FACTOR: f64 = 2.0;
+
     /// The factorisations and GMRES iterations so far.
     pub fn counts(&self) -> SolveCounts {
         SolveCounts {
@@ -55,11 +60,6 @@ impl AdjointSolver {
             iterations: self.iterations,
         }
     }
-
-    /// The GMRES solves reach this multiple of the relative residual the last direct solve
-    /// attained, where that is above [`AdjointSolver::RTOL`]: as accurate as a new
-    /// factorisation would be, up to its spread from one right-hand side to the next.
-    pub const ATTAINED_FACTOR: f64 = 2.0;
 
     /// λ with Jᵀλ = ȳ over the free unknowns of `system` (its scaled equations: ȳ over every
     /// dof, each free one weighted by its field's scale), J the matrix of

@@ -41,7 +41,9 @@ pub enum Stop {
     Gradient,
     /// An accepted step lowered the sum of squares by less than `ftol` relatively.
     Reduction,
-    /// The step in the scaled variables fell below `xtol` relatively.
+    /// The step in the scaled variables fell below `xtol` relatively; or no step lowers the
+    /// sum of squares (round-off of the residuals) and the undamped Gauss–Newton step is below
+    /// it.
     Step,
     /// `max_iterations` reached.
     MaxIterations,
