@@ -21,7 +21,7 @@
 //! q̄₀' −= (∂f/∂q)ᵀz, v̄₀ −= (∂f/∂v)ᵀz and dJ/dp −= zᵀ∂f/∂p (−zᵀ(∂M/∂m)a₀ for a pad's mass).
 
 use super::charge::charge_adjoint;
-use super::lambda::AdjointSolver;
+use super::lambda::{AdjointSolver, SolveCounts};
 use super::objective::Backward;
 use super::sink::{waveform_dofs, Sink};
 use super::tape::{TapedDynamics, TapedStage, TapedStep};
@@ -126,7 +126,7 @@ struct Stage<'a, 'm> {
 /// from the last to the first: `objective` reads ∂J/∂q and ∂J/∂v of each step, `end` is the
 /// cotangent of its last level from the stages after it. The parameters' derivatives go to
 /// `sink`; returns the cotangent of the level the stage started from (as given to the
-/// integrator).
+/// integrator), and the linear solves the stage's adjoint took.
 pub fn sweep(
     plan: &Plan,
     st: &TapedStage,
@@ -135,7 +135,7 @@ pub fn sweep(
     steps: &mut dyn Steps,
     end: Cotangent,
     sink: &mut Sink,
-) -> Result<Cotangent, String> {
+) -> Result<(Cotangent, SolveCounts), String> {
     let dynamics = st
         .dynamics
         .as_ref()
@@ -267,9 +267,9 @@ pub fn sweep(
         Scheme::Midpoint => c,
         Scheme::Newmark { .. } => newmark_start_adjoint(&mut s, initial, c, sink)?,
     };
-    sink.solves += s.step_solver.counts();
-    sink.solves += s.projection_solver.counts();
-    Ok(start)
+    let mut solves = s.step_solver.counts();
+    solves += s.projection_solver.counts();
+    Ok((start, solves))
 }
 
 /// The adjoint of one step from `prev` to `level` with the step's unknown `iterate`.

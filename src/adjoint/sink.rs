@@ -8,8 +8,6 @@ use crate::problem::dofs::FIELDS;
 use crate::problem::drive::Drive;
 use crate::problem::step::StepOperator;
 
-use super::lambda::SolveCounts;
-
 /// dJ/dV at the knots of a control (`[[controls]]`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlGradient {
@@ -57,8 +55,6 @@ pub struct Sink<'a> {
     /// For each material whose density is asked for, the nodal weight per unit density
     /// ∂f_w/∂ρ (N per kg/m³, 4 values per node; empty for the others).
     unit_weights: Vec<Vec<f64>>,
-    /// The adjoint's linear solves so far.
-    pub solves: SolveCounts,
 }
 
 impl<'a> Sink<'a> {
@@ -115,7 +111,6 @@ impl<'a> Sink<'a> {
             materials,
             grad: vec![0.0; parameters.len()],
             unit_weights,
-            solves: SolveCounts::default(),
         }
     }
 

@@ -119,6 +119,7 @@ pub fn gradient(
     let mut support_cotangent = vec![0.0; plan.supports.len()];
     // ∂J/∂(the level a stage ends in), from the stages after it
     let mut carry = Cotangent::zeros(n_dofs);
+    let mut solves = SolveCounts::default();
     for (ti, st) in tape.stages.iter().enumerate().rev() {
         sink.stage = st.index;
         carry = if st.dynamics.is_none() {
@@ -131,6 +132,7 @@ pub fn gradient(
                 }
             }
             let start = static_stage(plan, st, &state_grads, &carry, &mut sink)?;
+            solves += start.solves;
             for (d, &j) in support_of.iter().enumerate() {
                 if j != usize::MAX {
                     support_cotangent[j] += start.to[d];
@@ -144,12 +146,16 @@ pub fn gradient(
         } else if st.is_checkpointed() {
             let budget = tape.budget().unwrap_or(usize::MAX);
             let mut steps = Recompute::new(st, budget, tape.held_bytes())?;
-            let c = dynamic::sweep(plan, st, ti, &mut reader, &mut steps, carry, &mut sink)?;
+            let (c, s) = dynamic::sweep(plan, st, ti, &mut reader, &mut steps, carry, &mut sink)?;
             recomputed_steps += steps.recomputed;
             peak_bytes = peak_bytes.max(steps.peak);
+            solves += s;
             c
         } else {
-            dynamic::sweep(plan, st, ti, &mut reader, &mut Held(st), carry, &mut sink)?
+            let (c, s) =
+                dynamic::sweep(plan, st, ti, &mut reader, &mut Held(st), carry, &mut sink)?;
+            solves += s;
+            c
         };
     }
     let eval = reader.finish()?;
@@ -164,6 +170,7 @@ pub fn gradient(
         let on = plan.stages.first().is_some_and(|s| s.electrodes_on);
         for phase in tape.prestretch_phases.iter().rev() {
             let start = load_steps(phase, true, false, &[], &c, &mut sink)?;
+            solves += start.solves;
             for (d, &a) in start.to.iter().enumerate() {
                 if a != 0.0 {
                     prestretch_target(
@@ -187,7 +194,7 @@ pub fn gradient(
         // the first stage starts from the pre-stretched state, the deflections' reference
         let mut c = carry.q;
         c.iter_mut().zip(&eval.reference).for_each(|(a, b)| *a += b);
-        prestretch(
+        solves += prestretch(
             plan,
             model,
             state,
@@ -214,13 +221,14 @@ pub fn gradient(
         controls: sink.controls,
         recomputed_steps,
         peak_bytes,
-        solves: sink.solves,
+        solves,
     })
 }
 
 /// The adjoint of the pre-stretch phase, whose solution `state` of the problem `model` has the
 /// cotangent `c`: its supports' targets get theirs (`support_of`: each dof's support), the
 /// electrodes held at their first voltages theirs, and the materials' parameters theirs.
+/// Returns the linear solves it took.
 fn prestretch(
     plan: &Plan,
     model: &crate::problem::model::Model,
@@ -229,7 +237,7 @@ fn prestretch(
     support_of: &[usize],
     support_cotangent: &mut [f64],
     sink: &mut Sink,
-) -> Result<(), String> {
+) -> Result<SolveCounts, String> {
     let mut problem = StaticProblem::new(model, Some(state.to_vec()));
     problem.keep_cell_tangents = true;
     problem.set_drive(crate::problem::drive::Drive::held(model));
@@ -237,7 +245,6 @@ fn prestretch(
     problem.state.copy_from_slice(state);
     let mut solver = AdjointSolver::default();
     let lambda = solver.solve(&mut problem, c)?;
-    sink.solves += solver.counts();
     sink.step_materials(&mut problem, &lambda)?;
     let lv = problem.level_vjp(&lambda)?;
     let on = plan.stages.first().is_some_and(|s| s.electrodes_on);
@@ -247,7 +254,7 @@ fn prestretch(
             prestretch_target(plan, on, d, a, support_of, support_cotangent, sink);
         }
     }
-    Ok(())
+    Ok(solver.counts())
 }
 
 /// Hands the cotangent `a` of the pre-stretch's prescribed value of dof `d` to what prescribes
@@ -353,11 +360,12 @@ fn static_stage(
 
 /// The cotangents a run of load steps hands back to what it started from: the start state
 /// (`from`), the targets its drive ramps the supports to (`to`), and the points' values at its
-/// start (empty without internal variables).
+/// start (empty without internal variables); and the linear solves its adjoint took.
 struct StageStart {
     from: Vec<f64>,
     to: Vec<f64>,
     points: Vec<f64>,
+    solves: SolveCounts,
 }
 
 /// The adjoint of the taped load steps of `st` (a stage, or a phase of a timed pre-stretch
@@ -456,11 +464,11 @@ fn load_steps(
             }
         }
     }
-    sink.solves += solver.counts();
     // the supports' start values are the state the stage before ended in
     Ok(StageStart {
         from,
         to,
         points: points_bar,
+        solves: solver.counts(),
     })
 }

@@ -371,7 +371,6 @@ mod tests {
     /// A distorted cell of each 3-D kind (8, 1 and 4 quadrature points: full batches and
     /// partial ones) about 1 mm in size.
     fn cells() -> Vec<(ElementKind, CellGeometry, Vec<[f64; 3]>)> {
-        let hex = crate::element::mean_dilatation::tests::cell_coords().map(|p| p.map(|c| c * 1e3));
         let corners = [
             [0.0, 0.0, 0.0],
             [1.1, 0.1, 0.0],
@@ -386,7 +385,10 @@ mod tests {
         }
         let mm = |x: &[[f64; 3]]| x.iter().map(|p| p.map(|c| c * 1e-3)).collect::<Vec<_>>();
         [
-            (ElementKind::Hex8, mm(&hex)),
+            (
+                ElementKind::Hex8,
+                crate::element::mean_dilatation::tests::cell_coords().to_vec(),
+            ),
             (ElementKind::Tet4, mm(&corners)),
             (ElementKind::Tet10, mm(&tet10)),
         ]

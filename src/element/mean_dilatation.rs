@@ -807,9 +807,7 @@ pub(crate) mod tests {
     use crate::material::{ElectroNeoHooke, Electroelastic, NeoHookeSplit, EPSILON_0};
     use crate::mesh::ElementKind;
 
-    /// A distorted hex8 (about 1 mm) and a random-looking state with displacement gradients
-    /// of order 0.1 and a field of order 0.3√(μ/ε).
-    /// Nodes of a distorted hex8 about 1 mm in size.
+    /// Nodes of a distorted hex8 about 1 mm in size (m).
     pub(crate) fn cell_coords() -> [[f64; 3]; 8] {
         [
             [0.0, 0.0, 0.0],
@@ -824,6 +822,8 @@ pub(crate) mod tests {
         .map(|p| p.map(|c| c * 1e-3))
     }
 
+    /// The hex8 of [`cell_coords`] and a random-looking state with displacement gradients of
+    /// order 0.1 and a field of order 0.3√(μ/ε).
     fn cell() -> (CellGeometry, Vec<f64>) {
         let h = 1e-3;
         let x = cell_coords();
