@@ -125,6 +125,39 @@ fn midpoint_film_recomputed_bit_for_bit() {
     same_under_budget(&vibrating_film("midpoint", dir.path()), 30_000);
 }
 
+/// A run of a scenario with an objective (`deasim run`) tapes its states within the scenario's
+/// `gradient.memory` too, and reads J by recomputing from checkpoints beyond it: the same J, bit
+/// for bit, as a run that holds every state and as the gradient's.
+#[test]
+fn a_run_beyond_its_budget_reads_its_objective_from_checkpoints() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = vibrating_film("midpoint", dir.path());
+    let objective = |sim: &Simulation| {
+        let mut tape = sim.objective_tape().unwrap().unwrap();
+        sim.run(deasim::api::RunOptions {
+            observers: vec![tape.observer()],
+            ..Default::default()
+        })
+        .unwrap();
+        (tape.value().unwrap(), tape.peak_bytes())
+    };
+    let (all, all_bytes) = objective(&sim.clone().set("gradient.memory", "1000000000"));
+    let (tight, tight_bytes) = objective(&sim.clone().set("gradient.memory", "30000"));
+    let g = gradient(&sim, 30_000);
+    assert!(all > 0.0);
+    assert_eq!(all, tight);
+    assert_eq!(all, g.objective);
+    let (step, checkpoint) = g.unit_bytes;
+    assert!(
+        tight_bytes <= 30_000 + 2 * step.max(checkpoint),
+        "{tight_bytes} B held"
+    );
+    assert!(
+        all_bytes > 30_000 + 2 * step.max(checkpoint),
+        "{all_bytes} B"
+    );
+}
+
 /// The Newmark step (its consistent start acceleration from the stage's start) recomputed.
 #[test]
 fn newmark_film_recomputed_bit_for_bit() {

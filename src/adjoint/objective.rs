@@ -83,27 +83,6 @@ pub struct Objective {
     pub terms: Vec<Term>,
 }
 
-/// The value of J and its partial derivatives in the taped states.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Evaluation {
-    pub value: f64,
-    /// ∂J/∂xₖ per taped step (stage by stage, in order; empty where J does not read it).
-    pub state: Vec<Vec<Vec<f64>>>,
-    /// ∂J/∂(the reference state of deflections: the pre-stretched one).
-    pub reference: Vec<f64>,
-    /// ∂J/∂vₖ per taped step of a dynamic stage (empty where J does not read it).
-    pub velocity: Vec<Vec<Vec<f64>>>,
-    /// ∂J/∂Q of each electrode's charge per taped step (empty where J reads none): J's
-    /// dependence on the state through those charges is not in `state`
-    /// ([`super::charge::charge_adjoint`] gives it).
-    pub charges: Vec<Vec<Vec<f64>>>,
-    /// ∂J/∂(the knots of each control) that J reads directly (the drive effort), in the plan's
-    /// order of the stages' controls.
-    pub controls: Vec<Vec<f64>>,
-    /// Each probe value the probe terms compared with their targets, in the terms' order.
-    pub readings: Vec<Reading>,
-}
-
 /// A probe's value as a term of J read it: ½·weight·(value − target)² is its share of J.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reading {
@@ -143,46 +122,6 @@ impl Objective {
             terms.push(term(o, plan, file, base, &key)?);
         }
         Ok(Objective { terms })
-    }
-
-    /// J at the taped run, and ∂J/∂x at every taped step (the tape must hold every step).
-    pub fn evaluate(&self, plan: &Plan, tape: &Tape) -> Result<Evaluation, String> {
-        let mut b = Backward::new(self, plan, tape)?;
-        let mut state = Vec::with_capacity(tape.stages.len());
-        let mut velocity = Vec::with_capacity(tape.stages.len());
-        let mut charges = Vec::with_capacity(tape.stages.len());
-        for (si, st) in tape.stages.iter().enumerate().rev() {
-            if st.is_checkpointed() {
-                return Err(format!(
-                    "stage `{}` was kept as checkpoints: its steps are read as the adjoint \
-                     recomputes them",
-                    plan.stages[st.index].name
-                ));
-            }
-            let mut xs = vec![Vec::new(); st.steps.len()];
-            let mut vs = vec![Vec::new(); st.steps.len()];
-            let mut qs = vec![Vec::new(); st.steps.len()];
-            for (k, step) in st.steps.iter().enumerate().rev() {
-                let read = b.at_step(si, k, step)?;
-                (xs[k], vs[k], qs[k]) = (read.state, read.velocity, read.charges);
-            }
-            state.push(xs);
-            velocity.push(vs);
-            charges.push(qs);
-        }
-        state.reverse();
-        velocity.reverse();
-        charges.reverse();
-        let end = b.finish()?;
-        Ok(Evaluation {
-            value: end.value,
-            state,
-            reference: end.reference,
-            velocity,
-            charges,
-            controls: end.controls,
-            readings: end.readings,
-        })
     }
 }
 

@@ -13,10 +13,10 @@
 //!   (·sₙ), to the stage's start state (·(1 − sₙ)), or to its waveform's parameters.
 
 use super::charge::charge_adjoint;
-use super::dynamic::Held;
 use super::dynamic::{self, Cotangent};
+use super::dynamic::{Held, Steps};
 use super::lambda::{AdjointSolver, SolveCounts};
-use super::objective::{Backward, Objective};
+use super::objective::{Backward, Finished, Objective};
 use super::replay::Recompute;
 use super::sink::{waveform_dofs, ControlGradient, Sink};
 use super::tape::{Tape, TapedStage, TapedStep};
@@ -223,6 +223,35 @@ pub fn gradient(
         peak_bytes,
         solves,
     })
+}
+
+/// J at the taped run of `plan` with its terms' readings, read step by step from the last to the
+/// first as the gradient's sweep reads them; a dynamic stage kept as checkpoints (a run beyond
+/// its memory budget) is recomputed from them within the budget. Returns them and the steps
+/// recomputed.
+pub fn read_objective(
+    plan: &Plan,
+    tape: &Tape,
+    objective: &Objective,
+) -> Result<(Finished, usize), String> {
+    let mut reader = Backward::new(objective, plan, tape)?;
+    let mut recomputed = 0;
+    for (ti, st) in tape.stages.iter().enumerate().rev() {
+        if st.is_checkpointed() {
+            let budget = tape.budget().unwrap_or(usize::MAX);
+            let mut steps = Recompute::new(st, budget, tape.held_bytes())?;
+            for k in (0..st.count()).rev() {
+                let (_, step) = steps.step(k)?;
+                reader.at_step(ti, k, step)?;
+            }
+            recomputed += steps.recomputed;
+        } else {
+            for (k, step) in st.steps.iter().enumerate().rev() {
+                reader.at_step(ti, k, step)?;
+            }
+        }
+    }
+    Ok((reader.finish()?, recomputed))
 }
 
 /// The adjoint of the pre-stretch phase, whose solution `state` of the problem `model` has the

@@ -4,11 +4,11 @@
 
 use super::error::Error;
 use super::gradient::json_number;
-use super::gradient::{knots_csv, taped_run, ControlQuantity};
+use super::gradient::{knots_csv, memory_budget, taped_run, ControlQuantity};
 use super::results::Results;
 use super::simulation::{run_plan, RunOptions, Simulation};
 use crate::adjoint::objective::{Objective, Term};
-use crate::adjoint::sweep::{check_supported, gradient};
+use crate::adjoint::sweep::{check_supported, gradient, read_objective};
 use crate::adjoint::tape::Tape;
 use crate::control::{minimize, Feasible, Iteration, Options};
 use crate::io::atomic::write_atomic;
@@ -219,10 +219,11 @@ impl Simulation {
         let z0 = layout.variables(&plan);
         check_start(&layout, &set, &z0, &scenario, &plan)
             .map_err(|(key, message)| input(&key, message))?;
+        let budget = memory_budget(&scenario, &self.name)?;
         let evaluate = |z: &[f64]| -> Result<(f64, Vec<f64>), Error> {
             let mut p = plan.clone();
             layout.apply(&mut p, z);
-            let tape = taped_run(&p)?;
+            let tape = taped_run(&p, budget)?;
             let g = gradient(&p, &tape, &objective, &[], &[]).map_err(Error::Refused)?;
             let mut dz = Vec::with_capacity(z.len());
             for &(si, ci, _, s) in &layout.slots {
@@ -255,7 +256,7 @@ impl Simulation {
         // the optimised run, with its files
         let mut best = plan.clone();
         layout.apply(&mut best, &minimum.x);
-        let mut tape = Tape::new(&best);
+        let mut tape = Tape::with_budget(&best, budget);
         let results = run_plan(
             &best,
             RunOptions {
@@ -266,9 +267,9 @@ impl Simulation {
                 ..Default::default()
             },
         )?;
-        let value = objective
-            .evaluate(&best, &tape)
+        let value = read_objective(&best, &tape, &objective)
             .map_err(Error::Refused)?
+            .0
             .value;
         let mut at = 0;
         let drives: Vec<Drive> = layout
@@ -360,7 +361,7 @@ impl Simulation {
         let plan = self.plan()?;
         let objective = Objective::build(&scenario, &plan, &self.name, self.base.as_deref())
             .map_err(Error::Input)?;
-        let tape = Tape::new(&plan);
+        let tape = Tape::with_budget(&plan, memory_budget(&scenario, &self.name)?);
         Ok(Some(ObjectiveTape {
             plan,
             objective,
@@ -382,11 +383,17 @@ impl ObjectiveTape {
         &mut self.tape
     }
 
-    /// J of the observed run.
+    /// The most bytes its tape held (states and checkpoints), within the scenario's
+    /// `gradient.memory` plus two steps.
+    pub fn peak_bytes(&self) -> usize {
+        self.tape.peak_bytes()
+    }
+
+    /// J of the observed run (its steps recomputed from checkpoints where the run went beyond
+    /// the scenario's `gradient.memory`).
     pub fn value(&self) -> Result<f64, Error> {
-        self.objective
-            .evaluate(&self.plan, &self.tape)
-            .map(|e| e.value)
+        read_objective(&self.plan, &self.tape, &self.objective)
+            .map(|(e, _)| e.value)
             .map_err(Error::Refused)
     }
 }

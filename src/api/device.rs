@@ -4,10 +4,10 @@
 //! over the run's tape.
 
 use super::error::Error;
-use super::gradient::{json_number, taped_run};
+use super::gradient::{json_number, memory_budget, taped_run};
 use super::simulation::Simulation;
 use crate::adjoint::objective::{Objective, Term};
-use crate::adjoint::sweep::{check_supported, gradient};
+use crate::adjoint::sweep::{check_supported, gradient, read_objective};
 use crate::calibrate::lsq::{fit, statistics, Block};
 use crate::calibrate::spec::{FitOptions, FitParameter, Scale};
 use crate::io::build::parameter;
@@ -281,9 +281,9 @@ impl Simulation {
         params: &[FitParameter],
         names: &[String],
     ) -> Result<Vec<FitCurve>, Error> {
-        let (_, _, plan, objective) = self.at(theta, params)?;
-        let tape = taped_run(&plan)?;
-        let eval = objective.evaluate(&plan, &tape).map_err(Error::Refused)?;
+        let (sim, scenario, plan, objective) = self.at(theta, params)?;
+        let tape = taped_run(&plan, memory_budget(&scenario, &sim.name)?)?;
+        let (eval, _) = read_objective(&plan, &tape, &objective).map_err(Error::Refused)?;
         let mut curves: Vec<FitCurve> = names
             .iter()
             .zip(&objective.terms)
@@ -328,8 +328,8 @@ impl Simulation {
         }
         check_supported(&plan).map_err(Error::Refused)?;
         let supports = sim.support_sensitivities(&plan, &parameters)?;
-        let tape = taped_run(&plan)?;
-        let eval = objective.evaluate(&plan, &tape).map_err(Error::Refused)?;
+        let tape = taped_run(&plan, memory_budget(&scenario, &sim.name)?)?;
+        let (eval, _) = read_objective(&plan, &tape, &objective).map_err(Error::Refused)?;
         let n = params.len();
         let mut blocks: Vec<Block> = names
             .iter()

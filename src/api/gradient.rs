@@ -4,7 +4,7 @@
 use super::error::Error;
 use super::simulation::{run_plan, RunOptions, Simulation};
 use crate::adjoint::objective::Objective;
-use crate::adjoint::sweep::{check_supported, gradient};
+use crate::adjoint::sweep::{check_supported, gradient, read_objective};
 use crate::adjoint::tape::Tape;
 use crate::io::atomic::write_atomic;
 use crate::io::build::parameter;
@@ -341,12 +341,7 @@ impl Simulation {
             Objective::build(&scenario, &plan, &file, self.base.as_deref()).map_err(input)?;
         let memory = match options.memory {
             Some(m) => m,
-            None => match scenario.gradient.as_ref().and_then(|g| g.memory.as_ref()) {
-                Some(m) => m
-                    .bytes()
-                    .map_err(|m| input(InputError::at_key(&file, "gradient.memory", m)))?,
-                None => DEFAULT_MEMORY,
-            },
+            None => memory_budget(&scenario, &file)?,
         };
         let start = Instant::now();
         let mut tape = Tape::with_budget(&plan, memory);
@@ -570,10 +565,9 @@ impl Simulation {
         let plan = sim.plan()?;
         let objective = Objective::build(&scenario, &plan, &sim.name, sim.base.as_deref())
             .map_err(Error::Input)?;
-        let tape = taped_run(&plan)?;
-        objective
-            .evaluate(&plan, &tape)
-            .map(|e| e.value)
+        let tape = taped_run(&plan, memory_budget(&scenario, &sim.name)?)?;
+        read_objective(&plan, &tape, &objective)
+            .map(|(j, _)| j.value)
             .map_err(Error::Refused)
     }
 
@@ -674,9 +668,24 @@ impl Simulation {
     }
 }
 
-/// Runs `plan` without files, with a tape of its accepted steps for an adjoint or an objective.
-pub(crate) fn taped_run(plan: &crate::job::plan::Plan) -> Result<Tape, Error> {
-    let mut tape = Tape::new(plan);
+/// The memory budget of a scenario's taped states (bytes): its `gradient.memory`, else
+/// [`DEFAULT_MEMORY`].
+pub(crate) fn memory_budget(
+    scenario: &crate::io::scenario::Scenario,
+    file: &str,
+) -> Result<usize, Error> {
+    match scenario.gradient.as_ref().and_then(|g| g.memory.as_ref()) {
+        Some(m) => m
+            .bytes()
+            .map_err(|m| Error::Input(InputError::at_key(file, "gradient.memory", m))),
+        None => Ok(DEFAULT_MEMORY),
+    }
+}
+
+/// Runs `plan` without files, with a tape of its accepted steps for an adjoint or an objective
+/// within `budget` bytes.
+pub(crate) fn taped_run(plan: &crate::job::plan::Plan, budget: usize) -> Result<Tape, Error> {
+    let mut tape = Tape::with_budget(plan, budget);
     run_plan(
         plan,
         RunOptions {
