@@ -674,6 +674,66 @@ pub fn cell_potential_residual_md(
     Ok(())
 }
 
+/// [`CellKernel::potential_residual_tangent`] of a 3-D mean-dilatation cell: D₀(F̄, E₀) and its
+/// derivatives per point, with the coupling of every point through θ̄ (the Φ rows of
+/// [`cell_residual_tangent_md`]; no stress, no derivative in F̄ twice).
+pub fn cell_potential_tangent_md(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    local: &[f64],
+    r: &mut [f64],
+    k: &mut [f64],
+) -> Result<(), PointFailure> {
+    debug_assert!(!geom.axisymmetric);
+    let n = geom.n_nodes;
+    let nl = n * FIELDS;
+    let mut kin = MdKinematics::identity();
+    kin.compute(geom, local)?;
+    r[..nl].iter_mut().for_each(|v| *v = 0.0);
+    k[..nl * nl].iter_mut().for_each(|v| *v = 0.0);
+    let (theta, vol) = (kin.theta, kin.volume);
+    // M = ∂θ̄/∂u and Ev = ∂H/∂Φ, as in the full tangent
+    let mut mv = [[0.0; 3]; MAX_NODES];
+    let mut ev = [0.0; MAX_NODES];
+    let no_stress = Mat3::zeros();
+    for q in 0..geom.n_qp {
+        let fbar = kin.fbar(q);
+        let t = mat
+            .electric_tangent_at(&fbar, &kin.e0[q], hist.at(q))
+            .map_err(fail(q))?;
+        let g = &geom.grad[q];
+        let w = geom.weights[q];
+        let alpha = kin.alpha[q];
+        let fi = to9(&kin.finv_t[q]);
+        let cof9 = fi * kin.j[q];
+        let f_b: Vec3 = t.b.transpose() * to9(&kin.f[q]);
+        let b_eff: Mat93 = (t.b - fi * f_b.transpose() / 3.0) * alpha;
+        let eq: Vec3 = f_b * (alpha / (3.0 * theta));
+        add_residual_any(geom, q, &no_stress, &t.d0, r);
+        for a in 0..n {
+            for (i, m_a) in mv[a].iter_mut().enumerate() {
+                let m_ai: f64 = delta_f(geom, q, a, i)
+                    .iter()
+                    .map(|&(m, v)| cof9[m] * v)
+                    .sum();
+                *m_a += w / vol * m_ai;
+            }
+            ev[a] -= w * (eq[0] * g[a][0] + eq[1] * g[a][1] + eq[2] * g[a][2]);
+        }
+        crate::element::standard::add_point_potential_tangent(g, n, w, &b_eff, &t.g, k);
+    }
+    for a in 0..n {
+        let row = (a * 4 + 3) * nl;
+        for b in 0..n {
+            for kk in 0..3 {
+                k[row + b * 4 + kk] += ev[a] * mv[b][kk];
+            }
+        }
+    }
+    Ok(())
+}
+
 /// [`CellKernel::record`] of a mean-dilatation cell: the kinematics and one material evaluation
 /// per point for the residual, the energy split and the fields.
 pub fn cell_record_md(
@@ -913,6 +973,84 @@ pub(crate) mod tests {
             for i in 0..nl {
                 for j in 0..nl {
                     assert!((k[i * nl + j] - k[j * nl + i]).abs() <= 1e-12 * kmax);
+                }
+            }
+        }
+    }
+
+    /// The potential's rows of a cell alone ([`CellKernel::potential_residual_tangent`]) are
+    /// those of the whole cell's residual and tangent, and its displacement rows zero: the
+    /// mean-dilatation and standard hex8 and a meridian quad4 (which takes the whole cell's),
+    /// for a material with its electric part apart (the ideal dielectric with electrostriction)
+    /// and one without (the compressible neo-Hooke, the default from the whole tangent).
+    #[test]
+    fn potential_rows_alone_are_the_whole_cells() {
+        use crate::fem::axisymmetric::{meridian_geometry, MeridianKind};
+        let eps = 4.7 * EPSILON_0;
+        let mats: Vec<Box<dyn Material>> = vec![
+            Box::new(ElectroNeoHooke::new(1e5, 4e5, 4.7).with_coupling(0.3 * eps, 0.2 * eps)),
+            Box::new(Electroelastic::new(
+                NeoHookeSplit {
+                    mu: 1e5,
+                    kappa: 5e7,
+                },
+                crate::material::ElectricPart::ideal(4.7).with_coupling(0.3 * eps, 0.2 * eps),
+            )),
+        ];
+        let (hex, local) = cell();
+        let x: Vec<[f64; 2]> = MeridianKind::Quad4
+            .reference_nodes()
+            .iter()
+            .map(|p| [0.4e-3 + 0.5e-3 * (p[0] + 1.0), 0.5e-3 * (p[1] + 1.1)])
+            .collect();
+        let quad = meridian_geometry(MeridianKind::Quad4, &x).unwrap();
+        let kernels: [(&dyn CellKernel, &CellGeometry); 3] = [
+            (&MeanDilatationKernel, &hex),
+            (&StandardKernel, &hex),
+            (&MeanDilatationKernel, &quad),
+        ];
+        for (kernel, g) in kernels {
+            let nl = g.n_nodes * FIELDS;
+            for mat in &mats {
+                let c = crate::element::CellInput {
+                    geom: g,
+                    mat: mat.as_ref(),
+                    hist: CellHistory::NONE,
+                    local: &local[..nl],
+                };
+                let (mut r, mut k) = (vec![0.0; nl], vec![0.0; nl * nl]);
+                kernel.residual_tangent(&c, &mut r, Some(&mut k)).unwrap();
+                let (mut rp, mut kp) = (vec![1.0; nl], vec![1.0; nl * nl]);
+                kernel
+                    .potential_residual_tangent(&c, &mut rp, &mut kp)
+                    .unwrap();
+                // in the solver's scaled unknowns, as above
+                let e_scale = (1e5f64 / eps).sqrt();
+                let sc = |i: usize| if i % 4 == 3 { e_scale } else { 1.0 };
+                let rmax = (0..nl).fold(0.0f64, |m, i| m.max((r[i] * sc(i)).abs()));
+                let kmax = (0..nl * nl)
+                    .filter(|p| (p / nl) % 4 == 3)
+                    .fold(0.0f64, |m, p| m.max((k[p] * sc(p / nl) * sc(p % nl)).abs()));
+                assert!(rmax > 0.0 && kmax > 0.0);
+                for i in 0..nl {
+                    if i % 4 != 3 {
+                        assert_eq!(rp[i], 0.0);
+                        assert!(kp[i * nl..(i + 1) * nl].iter().all(|v| *v == 0.0));
+                        continue;
+                    }
+                    assert!(
+                        (rp[i] - r[i]).abs() * sc(i) <= 1e-13 * rmax,
+                        "{mat:?} r[{i}]"
+                    );
+                    for j in 0..nl {
+                        let p = i * nl + j;
+                        assert!(
+                            (kp[p] - k[p]).abs() * sc(i) * sc(j) <= 1e-13 * kmax,
+                            "{mat:?} k[{i}][{j}]: {} against {}",
+                            kp[p],
+                            k[p]
+                        );
+                    }
                 }
             }
         }

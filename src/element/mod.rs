@@ -56,6 +56,18 @@ pub trait CellKernel: Send + Sync {
         }
         Ok(())
     }
+    /// The Φ rows of [`CellKernel::residual_tangent`]'s residual and tangent into `r` and `k`,
+    /// their displacement rows zero: the electrostatic problem at held displacements, whose
+    /// adjoint needs its coupling to the displacements but no stress and no stiffness.
+    fn potential_residual_tangent(
+        &self,
+        cell: &CellInput,
+        r: &mut [f64],
+        k: &mut [f64],
+    ) -> Result<(), PointFailure> {
+        self.residual_tangent(cell, r, Some(&mut *k))?;
+        zero_displacement_rows(cell.geom.n_nodes, r, k)
+    }
     /// What the record of a state needs of the cell, in one call: the residual (into `r`, as
     /// [`CellKernel::residual_tangent`]), the energy split and the output fields. A kernel may
     /// share its kinematics and stresses among them; the values are those of the three calls up
@@ -135,6 +147,23 @@ pub fn dynamic_residual_separate<K: CellKernel + ?Sized>(
     Ok((energy, power))
 }
 
+/// Zeroes the displacement rows of a cell's residual `r` and tangent `k` (`n` nodes): what
+/// [`CellKernel::potential_residual_tangent`] leaves of a whole cell's.
+fn zero_displacement_rows(n: usize, r: &mut [f64], k: &mut [f64]) -> Result<(), PointFailure> {
+    let nl = n * crate::fem::FIELDS;
+    for (i, (row, ri)) in k[..nl * nl]
+        .chunks_exact_mut(nl)
+        .zip(&mut r[..nl])
+        .enumerate()
+    {
+        if i % crate::fem::FIELDS != crate::fem::PHI {
+            row.fill(0.0);
+            *ri = 0.0;
+        }
+    }
+    Ok(())
+}
+
 /// The standard displacement kernel (full integration).
 #[derive(Debug, Clone, Copy)]
 pub struct StandardKernel;
@@ -151,6 +180,14 @@ impl CellKernel for StandardKernel {
         k: Option<&mut [f64]>,
     ) -> Result<f64, PointFailure> {
         cell_residual_tangent(c.geom, c.mat, c.hist, c.local, r, k)
+    }
+    fn potential_residual_tangent(
+        &self,
+        c: &CellInput,
+        r: &mut [f64],
+        k: &mut [f64],
+    ) -> Result<(), PointFailure> {
+        cell_potential_tangent(c.geom, c.mat, c.hist, c.local, r, k)
     }
     fn energy(&self, c: &CellInput) -> Result<f64, PointFailure> {
         cell_energy(c.geom, c.mat, c.hist, c.local)
@@ -191,6 +228,18 @@ impl CellKernel for MeanDilatationKernel {
     }
     fn potential_residual(&self, c: &CellInput, r: &mut [f64]) -> Result<(), PointFailure> {
         mean_dilatation::cell_potential_residual_md(c.geom, c.mat, c.hist, c.local, r)
+    }
+    fn potential_residual_tangent(
+        &self,
+        c: &CellInput,
+        r: &mut [f64],
+        k: &mut [f64],
+    ) -> Result<(), PointFailure> {
+        if c.geom.axisymmetric {
+            self.residual_tangent(c, r, Some(&mut *k))?;
+            return zero_displacement_rows(c.geom.n_nodes, r, k);
+        }
+        mean_dilatation::cell_potential_tangent_md(c.geom, c.mat, c.hist, c.local, r, k)
     }
     fn record(
         &self,

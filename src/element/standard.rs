@@ -116,6 +116,71 @@ pub fn cell_residual_tangent(
     Ok(energy)
 }
 
+/// [`CellKernel::potential_residual_tangent`] of a standard cell: D₀ and its derivatives per
+/// point, no stress.
+pub fn cell_potential_tangent(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    local: &[f64],
+    r: &mut [f64],
+    k: &mut [f64],
+) -> Result<(), PointFailure> {
+    let n = geom.n_nodes;
+    let nl = n * FIELDS;
+    let (u, phi) = split_local(n, local);
+    r[..nl].iter_mut().for_each(|v| *v = 0.0);
+    k[..nl * nl].iter_mut().for_each(|v| *v = 0.0);
+    let no_stress = crate::material::Mat3::zeros();
+    for q in 0..geom.n_qp {
+        let g = &geom.grad[q];
+        let w = geom.weights[q];
+        let (f, e0) = kinematics(&g[..n], &u[..n], &phi[..n]);
+        let t = mat
+            .electric_tangent_at(&f, &e0, hist.at(q))
+            .map_err(|error| PointFailure { qp: q, error })?;
+        add_residual(g, n, w, &no_stress, &t.d0, r);
+        add_point_potential_tangent(g, n, w, &t.b, &t.g, k);
+    }
+    Ok(())
+}
+
+/// The Φ rows of [`add_point_tangent`]: −w ∇₀N_a · (∇₀N_b ⋅ B)ᵀ in the displacement columns
+/// and w ∇₀N_a · G ∇₀N_b in the potential's.
+pub(crate) fn add_point_potential_tangent(
+    g: &[[f64; 3]; MAX_NODES],
+    n: usize,
+    w: f64,
+    b_blk: &crate::material::Mat93,
+    g_blk: &crate::material::Mat3,
+    k: &mut [f64],
+) {
+    let nl = n * FIELDS;
+    // gb[b][k][K] = Σ_J ∂N_b/∂X_J B_{kJ,K}
+    let mut gb = [[[0.0; 3]; 3]; MAX_NODES];
+    for (gbb, gr) in gb[..n].iter_mut().zip(&g[..n]) {
+        for (kk, gbk) in gbb.iter_mut().enumerate() {
+            for (jj, gj) in gr.iter().enumerate() {
+                for (c, v) in gbk.iter_mut().enumerate() {
+                    *v += gj * b_blk[(kk * 3 + jj, c)];
+                }
+            }
+        }
+    }
+    for (a, ga) in g[..n].iter().enumerate() {
+        let gg: [f64; 3] = std::array::from_fn(|c| {
+            ga[0] * g_blk[(0, c)] + ga[1] * g_blk[(1, c)] + ga[2] * g_blk[(2, c)]
+        });
+        let row = &mut k[(a * 4 + 3) * nl..(a * 4 + 3) * nl + nl];
+        for ((kb, gbb), gr) in row.chunks_exact_mut(FIELDS).zip(&gb[..n]).zip(&g[..n]) {
+            for kk in 0..3 {
+                kb[kk] -= w * (gbb[kk][0] * ga[0] + gbb[kk][1] * ga[1] + gbb[kk][2] * ga[2]);
+            }
+            kb[3] += w * (gg[0] * gr[0] + gg[1] * gr[1] + gg[2] * gr[2]);
+        }
+    }
+}
+
 /// Adds w·(P : ∇₀N_a, D₀ · ∇₀N_a) of one point to the residual rows of every node.
 pub(crate) fn add_residual(
     g: &[[f64; 3]; MAX_NODES],

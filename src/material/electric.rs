@@ -162,6 +162,15 @@ impl ElectricPart {
             }
         }
 
+        self.mixed_second(k, e0)
+    }
+
+    /// (∂S/∂E0 indexed `[I][J][K]`, ∂D0/∂E0): the second derivatives that involve E0, without
+    /// 𝕃_e (what the rows of Gauss's law need).
+    pub fn mixed_second(&self, k: &CKinematics, e0: &Vec3) -> (Tensor3, Mat3) {
+        let ci = &k.c_inv;
+        let g = ci * e0;
+        let ej = self.eps * k.j;
         // ∂S_IJ/∂E0_K = 2c₂(δ_IK E_J + E_I δ_JK) + εJ(Ci_IK g_J + g_I Ci_JK − g_K Ci_IJ)
         let mut se: Tensor3 = [[[0.0; 3]; 3]; 3];
         for (i, sei) in se.iter_mut().enumerate() {

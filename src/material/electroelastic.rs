@@ -13,8 +13,8 @@ use super::hyperelastic::{HFirst, Hyperelastic};
 use super::isotropic::{self, CDerivs, CFirst, CKinematics, CMaterial};
 use super::parameters::{self, Parameters};
 use super::{
-    KnownDeformation, KnownLanes, Mat3, Material, MaterialError, PointHistory, PointRecord, Stress,
-    StressLanes, Tangent, Vec3,
+    ElectricTangent, KnownDeformation, KnownLanes, Mat3, Material, MaterialError, PointHistory,
+    PointRecord, Stress, StressLanes, Tangent, Vec3,
 };
 use crate::algebra::lanes::{with_wide_vectors, Wide, F4};
 use nalgebra::Vector3;
@@ -136,6 +136,22 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
 
     fn permittivity(&self) -> f64 {
         self.elec.small_strain_permittivity()
+    }
+
+    fn electric_tangent_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        _h: PointHistory,
+    ) -> Result<ElectricTangent, MaterialError> {
+        // the mechanical part enters neither D0 nor the derivatives in E0
+        let k = isotropic::checked_kinematics(f, e0)?;
+        let (se, dd) = self.elec.mixed_second(&k, e0);
+        Ok(ElectricTangent {
+            d0: self.elec.d0(&k, e0),
+            b: isotropic::b_from_c(f, &se),
+            g: -dd,
+        })
     }
 
     fn electric_displacement_at(

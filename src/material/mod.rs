@@ -97,6 +97,18 @@ pub struct Stress {
     pub d0: Vec3,
 }
 
+/// The derivatives of a point's energy that Gauss's law needs: D0 and the second derivatives in
+/// E0 (what the potential's rows of a tangent are made of).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ElectricTangent {
+    /// Referential electric displacement D0 = −∂Ψ/∂E0 (C/m²).
+    pub d0: Vec3,
+    /// B = ∂P/∂E0 = −(∂D0/∂F)ᵀ, entry `(i*3+J, K)`.
+    pub b: Mat93,
+    /// G = ∂²Ψ/∂E0∂E0 = −∂D0/∂E0.
+    pub g: Mat3,
+}
+
 /// First and second derivatives at a point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tangent {
@@ -311,6 +323,21 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     /// Its first and second derivatives (the consistent tangent of the update).
     fn tangent_at(&self, f: &Mat3, e0: &Vec3, _h: PointHistory) -> Result<Tangent, MaterialError> {
         self.tangent(f, e0)
+    }
+    /// The part of [`Material::tangent_at`] that Gauss's law needs (D0, B, G): a model whose
+    /// electric part is separate gives it without the mechanical second derivatives.
+    fn electric_tangent_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        h: PointHistory,
+    ) -> Result<ElectricTangent, MaterialError> {
+        let t = self.tangent_at(f, e0, h)?;
+        Ok(ElectricTangent {
+            d0: t.d0,
+            b: t.b,
+            g: t.g,
+        })
     }
     /// `(stored mechanical, electric)` energy densities at a committed state (the branches' stored
     /// energy included), as [`Material::energy_split`].

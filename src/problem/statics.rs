@@ -685,8 +685,8 @@ impl NonlinearSystem for StaticProblem<'_> {
         let (points, dt) = (&self.points, self.dt());
         let cell_kernel = m.kernel();
         // every displacement held (the electrostatic projection of a dynamic step): the residual
-        // has Φ rows only (the cell energies are then not evaluated)
-        let potential_only = k.is_none() && self.dofs.n_free == self.dofs.n_free_phi;
+        // and tangent have Φ rows only (the cell energies are then not evaluated)
+        let potential_only = self.dofs.n_free == self.dofs.n_free_phi;
         let slots = self
             .kept
             .begin(m, self.keep_cell_tangents && k.is_some(), points);
@@ -701,22 +701,29 @@ impl NonlinearSystem for StaticProblem<'_> {
             let fail = |e: crate::element::PointFailure| {
                 format!("{} at quadrature point {}", e.error, e.qp)
             };
-            if potential_only {
-                return cell_kernel
+            let nl = local.len();
+            match (potential_only, kl, slots) {
+                (true, None, _) => cell_kernel
                     .potential_residual(&input, rl)
                     .map(|()| 0.0)
-                    .map_err(fail);
-            }
-            match (kl, slots) {
-                (Some(kl), Some(slots)) => {
+                    .map_err(fail),
+                (true, Some(kl), slots) => {
+                    cell_kernel
+                        .potential_residual_tangent(&input, rl, &mut *kl)
+                        .map_err(fail)?;
+                    if let Some(slots) = slots {
+                        KeptTangents::slot(slots, c).extend_from_slice(&kl[..nl * nl]);
+                    }
+                    Ok(0.0)
+                }
+                (false, Some(kl), Some(slots)) => {
                     let energy = cell_kernel
                         .residual_tangent(&input, rl, Some(&mut *kl))
                         .map_err(fail)?;
-                    let nl = local.len();
                     KeptTangents::slot(slots, c).extend_from_slice(&kl[..nl * nl]);
                     Ok(energy)
                 }
-                (kl, _) => cell_kernel.residual_tangent(&input, rl, kl).map_err(fail),
+                (false, kl, _) => cell_kernel.residual_tangent(&input, rl, kl).map_err(fail),
             }
         };
         let cells = self.assembler.assemble(
