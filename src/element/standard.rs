@@ -474,13 +474,7 @@ pub fn cell_viscous_configuration(
             lth: &lth,
             l: &l,
         };
-        // the node count as a constant for the common cells, so that the loops over b unroll
-        match n {
-            8 => p.add::<8>(n, &mut kq[..nl * nl]),
-            4 => p.add::<4>(n, &mut kq[..nl * nl]),
-            10 => p.add::<10>(n, &mut kq[..nl * nl]),
-            _ => p.add::<MAX_NODES>(n, &mut kq[..nl * nl]),
-        }
+        p.add_cell(n, &mut kq[..nl * nl]);
     }
     Ok(())
 }
@@ -496,6 +490,17 @@ struct ViscousPoint<'a> {
 }
 
 impl ViscousPoint<'_> {
+    /// [`ViscousPoint::add`] for a cell of `n` nodes, the node count a constant for the common
+    /// cells (so that the loops over b unroll).
+    fn add_cell(&self, n: usize, kq: &mut [f64]) {
+        match n {
+            8 => self.add::<8>(n, kq),
+            4 => self.add::<4>(n, kq),
+            10 => self.add::<10>(n, kq),
+            _ => self.add::<MAX_NODES>(n, kq),
+        }
+    }
+
     /// Adds the entries K_{ai,bk} = c (h_b,k (d h_a)_i − h_a,k (d h_b)_i − ½ l_ik h_a·h_b
     /// − ½ h_b,i (lᵀh_a)_k) for cells of `n ≤ N` nodes, a row segment's nodes b at once from
     /// values held contiguous over b (so the loop over b vectorises); each entry is the same
@@ -843,12 +848,7 @@ pub(crate) mod tests {
                 lth: &lth,
                 l: &l,
             };
-            match n {
-                8 => p.add::<8>(n, &mut fast),
-                4 => p.add::<4>(n, &mut fast),
-                10 => p.add::<10>(n, &mut fast),
-                _ => p.add::<MAX_NODES>(n, &mut fast),
-            }
+            p.add_cell(n, &mut fast);
             let mut slow = vec![0.0; nl * nl];
             for a in 0..n {
                 for b in 0..n {
