@@ -127,6 +127,42 @@ pub(crate) fn add_point_tangent_meridian(
     }
 }
 
+/// The Φ rows of [`add_point_tangent_meridian`] (the same entries).
+pub(crate) fn add_point_potential_tangent_meridian(
+    geom: &CellGeometry,
+    q: usize,
+    w: f64,
+    b_blk: &Mat93,
+    g_blk: &Mat3,
+    k: &mut [f64],
+) {
+    let n = geom.n_nodes;
+    let nl = n * FIELDS;
+    let g = &geom.grad[q];
+    for a in 0..n {
+        for i in 0..2 {
+            let mut rb = [0.0; 3];
+            for &(m, v) in &delta_f(geom, q, a, i) {
+                for col in 0..3 {
+                    rb[col] += v * b_blk[(m, col)];
+                }
+            }
+            for b in 0..n {
+                k[(b * 4 + 3) * nl + a * 4 + i] += -w * (rb[0] * g[b][0] + rb[1] * g[b][1]);
+            }
+        }
+        for b in 0..n {
+            let mut s = 0.0;
+            for jj in 0..2 {
+                for kk in 0..2 {
+                    s += g[a][jj] * g_blk[(jj, kk)] * g[b][kk];
+                }
+            }
+            k[(a * 4 + 3) * nl + b * 4 + 3] += w * s;
+        }
+    }
+}
+
 fn residual_tangent(
     c: &CellInput,
     r: &mut [f64],

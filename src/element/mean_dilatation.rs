@@ -49,7 +49,10 @@
 //!
 //! For a one-point cell (tet4) θ̄ = J and the formulation coincides with the standard one.
 
-use crate::element::axisymmetric::{add_point_tangent_meridian, add_residual_meridian, delta_f};
+use crate::element::axisymmetric::{
+    add_point_potential_tangent_meridian, add_point_tangent_meridian, add_residual_meridian,
+    delta_f,
+};
 use crate::element::md_lanes::LaneResidual;
 use crate::element::md_point::{cbrt_near_one, cofactor, viscous_stress};
 use crate::element::standard::{add_residual, split_local};
@@ -674,9 +677,9 @@ pub fn cell_potential_residual_md(
     Ok(())
 }
 
-/// [`CellKernel::potential_residual_tangent`] of a 3-D mean-dilatation cell: D₀(F̄, E₀) and its
-/// derivatives per point, with the coupling of every point through θ̄ (the Φ rows of
-/// [`cell_residual_tangent_md`]; no stress, no derivative in F̄ twice).
+/// [`CellKernel::potential_residual_tangent`] of a mean-dilatation cell (3-D or meridian):
+/// D₀(F̄, E₀) and its derivatives per point, with the coupling of every point through θ̄ (the
+/// Φ rows of [`cell_residual_tangent_md`]; no stress, no derivative in F̄ twice).
 pub fn cell_potential_tangent_md(
     geom: &CellGeometry,
     mat: &dyn Material,
@@ -685,7 +688,6 @@ pub fn cell_potential_tangent_md(
     r: &mut [f64],
     k: &mut [f64],
 ) -> Result<(), PointFailure> {
-    debug_assert!(!geom.axisymmetric);
     let n = geom.n_nodes;
     let nl = n * FIELDS;
     let mut kin = MdKinematics::identity();
@@ -721,7 +723,11 @@ pub fn cell_potential_tangent_md(
             }
             ev[a] -= w * (eq[0] * g[a][0] + eq[1] * g[a][1] + eq[2] * g[a][2]);
         }
-        crate::element::standard::add_point_potential_tangent(g, n, w, &b_eff, &t.g, k);
+        if geom.axisymmetric {
+            add_point_potential_tangent_meridian(geom, q, w, &b_eff, &t.g, k);
+        } else {
+            crate::element::standard::add_point_potential_tangent(g, n, w, &b_eff, &t.g, k);
+        }
     }
     for a in 0..n {
         let row = (a * 4 + 3) * nl;

@@ -235,10 +235,6 @@ impl CellKernel for MeanDilatationKernel {
         r: &mut [f64],
         k: &mut [f64],
     ) -> Result<(), PointFailure> {
-        if c.geom.axisymmetric {
-            self.residual_tangent(c, r, Some(&mut *k))?;
-            return zero_displacement_rows(c.geom.n_nodes, r, k);
-        }
         mean_dilatation::cell_potential_tangent_md(c.geom, c.mat, c.hist, c.local, r, k)
     }
     fn record(
