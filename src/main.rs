@@ -118,6 +118,9 @@ drive, a term or stage whose adjoint is not built)."
         /// Converged when an iteration lowers the objective by less than this share of it.
         #[arg(long, default_value_t = 1e-10)]
         objective_tolerance: f64,
+        /// Start the quasi-Newton recursion from a scalar, without the measured response model.
+        #[arg(long)]
+        no_model: bool,
     },
     /// List the embedded examples, or print one as TOML.
     Example {
@@ -483,6 +486,7 @@ fn main() {
             max_iterations,
             gradient_tolerance,
             objective_tolerance,
+            no_model,
         } => deasim::cli::control::cmd_control(
             scenario.as_deref(),
             out.as_deref(),
@@ -492,6 +496,7 @@ fn main() {
                 max_iterations,
                 gradient_tolerance,
                 objective_tolerance,
+                response_model: !no_model,
                 ..Default::default()
             },
         ),

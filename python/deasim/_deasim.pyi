@@ -71,6 +71,7 @@ class Scenario:
         objective_tolerance: float = 1e-10,
         out: Optional[PathLike] = None,
         overwrite: bool = False,
+        response_model: bool = True,
     ) -> Dict[str, Any]: ...
 
 class Results:

@@ -626,7 +626,9 @@ impl Scenario {
     /// the run's clock and the optimised knots under the quantity's name, `voltage` in V or
     /// `charge` in C, numpy arrays) and `controlled`, the text of
     /// `controlled.toml`. `out` receives the optimised run's files and those of the command.
-    #[pyo3(signature = (max_iterations=200, gradient_tolerance=1e-6, objective_tolerance=1e-10, out=None, overwrite=false))]
+    /// `response_model=False` starts the quasi-Newton recursion from a scalar (`--no-model`).
+    #[pyo3(signature = (max_iterations=200, gradient_tolerance=1e-6, objective_tolerance=1e-10, out=None, overwrite=false, response_model=true))]
+    #[allow(clippy::too_many_arguments)]
     fn control<'py>(
         &self,
         py: Python<'py>,
@@ -635,6 +637,7 @@ impl Scenario {
         objective_tolerance: f64,
         out: Option<PathBuf>,
         overwrite: bool,
+        response_model: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let sim = self.sim.clone();
         let options = api::ControlOptions {
@@ -643,6 +646,7 @@ impl Scenario {
             max_iterations,
             gradient_tolerance,
             objective_tolerance,
+            response_model,
         };
         let o = py
             .detach(move || sim.control(&options, |_| {}))

@@ -36,6 +36,13 @@ def test_control_equals_the_command_line(cli, tmp_path):
     # the controlled scenario runs the optimised drive
     again = deasim.Scenario.from_toml(r["controlled"]).run()
     assert again.summary["converged"]
+    # without the response model, as `--no-model`: the same start, another path
+    plain = s.control(max_iterations=4, response_model=False)
+    cli(args[:3] + [str(tmp_path / "cli-plain")] + args[4:] + ["--no-model"], tmp_path)
+    doc = json.loads((tmp_path / "cli-plain" / "control.json").read_text())
+    assert plain["objective"] == doc["objective"]
+    assert plain["objective"][0] == r["objective"][0]
+    assert plain["objective"][1:] != r["objective"][1:]
 
 
 DEVICE = """

@@ -11,6 +11,7 @@ mod error;
 mod gradient;
 mod linear;
 mod ranks;
+mod response_model;
 mod results;
 mod simulation;
 

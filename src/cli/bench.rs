@@ -488,9 +488,11 @@ pub fn cmd_bench_adjoint() -> i32 {
     println!("optimal control of diaphragm-control (a knot every 1 ms):");
     println!("{CONTROL_HEADER}");
     for duration in [0.3, 1.0] {
-        match bench_control(duration, 200) {
-            Ok(row) => println!("{row}"),
-            Err(e) => println!("{duration:>10} s {e}"),
+        for model in [true, false] {
+            match bench_control(duration, 300, model) {
+                Ok(row) => println!("{row}"),
+                Err(e) => println!("{duration:>10} s {e}"),
+            }
         }
     }
     0
@@ -498,12 +500,12 @@ pub fn cmd_bench_adjoint() -> i32 {
 
 /// Column titles of [`bench_control`]'s rows.
 pub const CONTROL_HEADER: &str =
-    "  stage_s  knots iterations runs  converged      J_start        J_end   wall_s s/run";
+    "  stage_s  knots model iterations runs  converged      J_start        J_end   wall_s s/run";
 
 /// The optimisation of `diaphragm-control` with its `actuate` stage `duration` s long (a knot
-/// every 1 ms) to convergence or `max_iterations`: iterations, runs (each with its adjoint), the
-/// objective before and after, and the wall time.
-pub fn bench_control(duration: f64, max_iterations: usize) -> Result<String, String> {
+/// every 1 ms) to convergence or `max_iterations`, with or without the response `model`:
+/// iterations, runs (each with its adjoint), the objective before and after, and the wall time.
+pub fn bench_control(duration: f64, max_iterations: usize, model: bool) -> Result<String, String> {
     use crate::api::{ControlOptions, Simulation};
     let sim = Simulation::from_example("diaphragm-control")
         .map_err(|e| e.to_string())?
@@ -516,6 +518,7 @@ pub fn bench_control(duration: f64, max_iterations: usize) -> Result<String, Str
         .control(
             &ControlOptions {
                 max_iterations,
+                response_model: model,
                 ..Default::default()
             },
             |_| {},
@@ -523,7 +526,8 @@ pub fn bench_control(duration: f64, max_iterations: usize) -> Result<String, Str
         .map_err(|e| e.to_string())?;
     let knots: usize = o.drives.iter().map(|d| d.values.len()).sum();
     Ok(format!(
-        "{duration:>9.2} {knots:>6} {:>10} {:>4} {:>10} {:>12.4e} {:>12.4e} {:>8.1} {:>5.2}",
+        "{duration:>9.2} {knots:>6} {:>5} {:>10} {:>4} {:>10} {:>12.4e} {:>12.4e} {:>8.1} {:>5.2}",
+        if model { "yes" } else { "no" },
         o.history.len() - 1,
         o.evaluations,
         o.converged,
@@ -1019,14 +1023,17 @@ mod tests {
         assert!(row.trim_start().starts_with("diaphragm-visco"), "{row}");
     }
 
-    /// A control row: nine figures, J falling.
+    /// A control row: ten figures, J falling, with and without the response model.
     #[test]
     fn control_rows() {
-        let row = bench_control(0.05, 3).unwrap();
-        let cells: Vec<&str> = row.split_whitespace().collect();
-        assert_eq!(cells.len(), 9, "{row}");
-        let (start, end): (f64, f64) = (cells[5].parse().unwrap(), cells[6].parse().unwrap());
-        assert!(end < start, "{row}");
+        for (model, name) in [(true, "yes"), (false, "no")] {
+            let row = bench_control(0.05, 3, model).unwrap();
+            let cells: Vec<&str> = row.split_whitespace().collect();
+            assert_eq!(cells.len(), 10, "{row}");
+            assert_eq!(cells[2], name, "{row}");
+            let (start, end): (f64, f64) = (cells[6].parse().unwrap(), cells[7].parse().unwrap());
+            assert!(end < start, "{row}");
+        }
     }
 
     #[test]

@@ -6,4 +6,4 @@ pub mod feasible;
 pub mod quasi_newton;
 
 pub use feasible::Feasible;
-pub use quasi_newton::{minimize, Iteration, Minimum, Options};
+pub use quasi_newton::{minimize, minimize_with, Curvature, Iteration, Minimum, Options};

@@ -26,7 +26,13 @@
 //!   gradient either), or the evaluation's own error at the start point.
 
 use super::feasible::Feasible;
+use faer::linalg::solvers::Solve;
+use faer::Mat;
 use std::collections::VecDeque;
+
+/// A model B(x) of the objective's Hessian at x (dense, symmetric, positive semi-definite),
+/// for the recursion's start H₀ = (B_FF + μI)⁻¹ over the free variables F.
+pub type Curvature<'a> = &'a dyn Fn(&[f64]) -> Mat<f64>;
 
 /// What the minimiser stops at.
 #[derive(Debug, Clone, PartialEq)]
@@ -92,15 +98,42 @@ fn max_abs(a: &[f64]) -> f64 {
 /// Minimises `f` (value and gradient, or an error) over `set` from `x0`, which must be
 /// feasible. `progress` sees every accepted iteration.
 pub fn minimize<F, E>(
+    f: F,
+    x0: &[f64],
+    set: &Feasible,
+    options: &Options,
+    progress: impl FnMut(&Iteration),
+) -> Result<Minimum, E>
+where
+    F: FnMut(&[f64]) -> Result<(f64, Vec<f64>), E>,
+{
+    minimize_with(f, x0, set, options, None, progress)
+}
+
+/// The damping μ of a curvature model relative to its largest diagonal entry: its start, the
+/// factor by which a step that needs shortening raises it (per halving) and a full step lowers
+/// it, and its range.
+const DAMPING_START: f64 = 1e-6;
+const DAMPING_FACTOR: f64 = 4.0;
+const DAMPING_RANGE: (f64, f64) = (1e-12, 1.0);
+
+/// [`minimize`] with a model of the Hessian as the quasi-Newton recursion's start (in place of
+/// the scalar γ = sᵀy/yᵀy): H₀ = (B_FF + μI)⁻¹ over the free variables, with the damping μ
+/// adapted as in Levenberg–Marquardt: lowered after a full step, raised with each halving the
+/// line search needs. A Gauss–Newton model of a least-squares objective makes the first
+/// iterations Gauss–Newton steps, which the correction pairs then refine.
+pub fn minimize_with<F, E>(
     mut f: F,
     x0: &[f64],
     set: &Feasible,
     options: &Options,
+    curvature: Option<Curvature>,
     mut progress: impl FnMut(&Iteration),
 ) -> Result<Minimum, E>
 where
     F: FnMut(&[f64]) -> Result<(f64, Vec<f64>), E>,
 {
+    let mut damping = DAMPING_START;
     let n = x0.len();
     let mut x = x0.to_vec();
     let (mut fx, mut g) = f(&x)?;
@@ -153,13 +186,15 @@ where
         let held: Vec<bool> = (0..n)
             .map(|i| (x[i] <= set.lower[i] && g[i] > 0.0) || (x[i] >= set.upper[i] && g[i] < 0.0))
             .collect();
-        let mut d = two_loop(&g, &pairs, &held);
-        let mut first = if iteration == 0 && pairs.is_empty() {
+        let start = curvature.and_then(|b| Start::new(&b(&x), &held, damping));
+        let mut d = two_loop(&g, &pairs, &held, start.as_ref());
+        let mut first = if iteration == 0 && pairs.is_empty() && start.is_none() {
             (options.first_step / max_abs(&d).max(f64::MIN_POSITIVE)).min(1.0)
         } else {
             1.0
         };
         let mut accepted = None;
+        let mut halvings = 0;
         for fallback in [false, true] {
             if fallback {
                 pairs.clear();
@@ -187,11 +222,20 @@ where
                     }
                 }
                 alpha *= 0.5;
+                halvings += 1;
             }
             if accepted.is_some() {
                 break;
             }
+            halvings = HALVINGS;
         }
+        damping = if halvings == 0 {
+            damping / DAMPING_FACTOR
+        } else {
+            damping * DAMPING_FACTOR.powi(halvings.min(10) as i32)
+        }
+        .clamp(DAMPING_RANGE.0, DAMPING_RANGE.1);
+
         let Some((xn, fnew, gn, s)) = accepted else {
             return Ok(done(false, "line search", x, fx, g, history, evaluations));
         };
@@ -249,9 +293,47 @@ where
     ))
 }
 
-/// −H∇J by the two-loop recursion over the free variables (held ones get 0), H₀ = γI with
-/// γ = sᵀy/yᵀy of the newest pair.
-fn two_loop(g: &[f64], pairs: &VecDeque<(Vec<f64>, Vec<f64>)>, held: &[bool]) -> Vec<f64> {
+/// The recursion's start from a curvature model: the Cholesky factor of B_FF + μ·max diag(B_FF)·I
+/// over the free variables F.
+struct Start {
+    free: Vec<usize>,
+    factor: faer::linalg::solvers::Llt<f64>,
+}
+
+impl Start {
+    /// `None` when the model is zero on the free variables or not positive definite.
+    fn new(b: &Mat<f64>, held: &[bool], damping: f64) -> Option<Start> {
+        let free: Vec<usize> = (0..held.len()).filter(|&i| !held[i]).collect();
+        let largest = free.iter().fold(0.0f64, |m, &i| m.max(b[(i, i)]));
+        if free.is_empty() || !(largest > 0.0 && largest.is_finite()) {
+            return None;
+        }
+        let mu = damping * largest;
+        let m = Mat::from_fn(free.len(), free.len(), |r, c| {
+            b[(free[r], free[c])] + if r == c { mu } else { 0.0 }
+        });
+        let factor = m.llt(faer::Side::Lower).ok()?;
+        Some(Start { free, factor })
+    }
+
+    /// q ← H₀q on the free variables.
+    fn apply(&self, q: &mut [f64]) {
+        let mut rhs = Mat::from_fn(self.free.len(), 1, |r, _| q[self.free[r]]);
+        self.factor.solve_in_place(rhs.as_mut());
+        for (r, &i) in self.free.iter().enumerate() {
+            q[i] = rhs[(r, 0)];
+        }
+    }
+}
+
+/// −H∇J by the two-loop recursion over the free variables (held ones get 0), H₀ from the
+/// curvature model's `start`, else γI with γ = sᵀy/yᵀy of the newest pair.
+fn two_loop(
+    g: &[f64],
+    pairs: &VecDeque<(Vec<f64>, Vec<f64>)>,
+    held: &[bool],
+    start: Option<&Start>,
+) -> Vec<f64> {
     let free = |v: &[f64]| -> Vec<f64> {
         v.iter()
             .zip(held)
@@ -275,7 +357,9 @@ fn two_loop(g: &[f64], pairs: &VecDeque<(Vec<f64>, Vec<f64>)>, held: &[bool]) ->
         }
         alphas.push(a);
     }
-    if let Some((s, y, _)) = restricted.last() {
+    if let Some(start) = start {
+        start.apply(&mut q);
+    } else if let Some((s, y, _)) = restricted.last() {
         let gamma = dot(s, y) / dot(y, y);
         q.iter_mut().for_each(|v| *v *= gamma);
     }
@@ -373,6 +457,79 @@ mod tests {
         );
         // the optimum is a symmetric ramp through 0.5 between the sixth and seventh values
         assert!((m.x[5] + m.x[6] - 1.0).abs() < 1e-6, "{:?}", m.x);
+    }
+
+    #[test]
+    fn a_curvature_model_starts_the_recursion() {
+        // an ill-conditioned quadratic ½xᵀAx − bᵀx (eigenvalues 1 … 10⁶) with one bound
+        // active at its minimum: its exact Hessian as the model converges in a few iterations,
+        // the scalar start needs many
+        let n = 40;
+        let a = Mat::from_fn(n, n, |i, j| {
+            let d = 10f64.powf(6.0 * i as f64 / (n - 1) as f64);
+            if i == j {
+                d
+            } else if i.abs_diff(j) == 1 {
+                0.3 * d.min(10f64.powf(6.0 * j as f64 / (n - 1) as f64))
+            } else {
+                0.0
+            }
+        });
+        let b: Vec<f64> = (0..n)
+            .map(|i| (a[(i, i)]) * (1.0 + (i % 3) as f64))
+            .collect();
+        let f = |x: &[f64]| -> Result<(f64, Vec<f64>), String> {
+            let ax: Vec<f64> = (0..n)
+                .map(|i| (0..n).map(|j| a[(i, j)] * x[j]).sum())
+                .collect();
+            let g: Vec<f64> = ax.iter().zip(&b).map(|(p, q)| p - q).collect();
+            Ok((0.5 * dot(x, &ax) - dot(&b, x), g))
+        };
+        let mut upper = vec![10.0; n];
+        upper[n - 1] = 0.2; // the unbounded minimum's last entry is about 0.47
+        let set = Feasible::boxed(vec![-10.0; n], upper);
+        let options = Options {
+            gradient_tolerance: 1e-9,
+            objective_tolerance: 0.0,
+            max_iterations: 2000,
+            ..Default::default()
+        };
+        let exact = |_: &[f64]| a.clone();
+        let model = minimize_with(f, &vec![0.0; n], &set, &options, Some(&exact), |_| {}).unwrap();
+        let plain = minimize(f, &vec![0.0; n], &set, &options, |_| {}).unwrap();
+        assert!(
+            model.converged && plain.converged,
+            "{} {}",
+            model.reason,
+            plain.reason
+        );
+        assert_eq!(model.x[n - 1], 0.2);
+        // the exact minimum: A_FF x_F = b_F − A_F,last · 0.2 on the free entries
+        let m = n - 1;
+        let aff = Mat::from_fn(m, m, |i, j| a[(i, j)]);
+        let mut rhs = Mat::from_fn(m, 1, |i, _| b[i] - a[(i, m)] * 0.2);
+        aff.llt(faer::Side::Lower)
+            .unwrap()
+            .solve_in_place(rhs.as_mut());
+        for i in 0..m {
+            let exact = rhs[(i, 0)];
+            assert!(
+                (model.x[i] - exact).abs() < 1e-7 * exact.abs().max(1.0),
+                "{i}: {} vs {exact}",
+                model.x[i]
+            );
+            assert!(
+                (plain.x[i] - exact).abs() < 1e-4 * exact.abs().max(1.0),
+                "{i}: {} vs {exact}",
+                plain.x[i]
+            );
+        }
+        assert!(
+            model.history.len() <= 8 && plain.history.len() > 4 * model.history.len(),
+            "iterations: {} with the model, {} without",
+            model.history.len() - 1,
+            plain.history.len() - 1
+        );
     }
 
     #[test]
