@@ -219,7 +219,8 @@ impl Waveform {
     }
 }
 
-fn table_value(points: &[(f64, f64)], t: f64) -> f64 {
+/// The piecewise-linear table through `points` (increasing in t) at `t`, held beyond its ends.
+pub(crate) fn table_value(points: &[(f64, f64)], t: f64) -> f64 {
     match points {
         [] => 0.0,
         [only] => only.1,

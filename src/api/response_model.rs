@@ -12,6 +12,7 @@
 //! correction pairs of the true gradients refine it, and the gradient is always the adjoint's.
 
 use crate::adjoint::objective::{Finished, Objective, Reading, Term};
+use crate::waveform::table_value;
 use faer::Mat;
 
 /// One control as the optimiser sees it: its variables' range, its plan stage, its knot times
@@ -196,18 +197,10 @@ fn response(samples: &[(f64, f64)], lag: f64, hat: f64) -> f64 {
         return 0.0;
     }
     let first = samples[0];
-    if lag <= first.0 {
-        if first.0 <= -hat {
-            return first.1;
-        }
+    if lag <= first.0 && first.0 > -hat {
         return first.1 * (lag + hat) / (first.0 + hat);
     }
-    let i = samples.partition_point(|s| s.0 <= lag);
-    if i >= samples.len() {
-        return samples[samples.len() - 1].1;
-    }
-    let (a, b) = (samples[i - 1], samples[i]);
-    a.1 + (b.1 - a.1) * (lag - a.0) / (b.0 - a.0)
+    table_value(samples, lag)
 }
 
 #[cfg(test)]

@@ -11,7 +11,8 @@
 //! direction (no descent along the projected arc), the iteration falls back to the projected
 //! gradient arc P(x − α∇J), along which the Armijo condition always holds for a small α. A
 //! function value that cannot be computed (a run that fails) is treated as +∞ and shortens the
-//! step.
+//! step. [`minimize_with`] may start the recursion from a model of the Hessian instead of a
+//! scalar (a damped Gauss–Newton matrix, [`Curvature`]).
 //!
 //! A small method of our own, because no maintained Rust crate minimises over bounds (`argmin`
 //! 0.11 has L-BFGS without bounds; L-BFGS-B bindings need Fortran) and none over rate limits.
