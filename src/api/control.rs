@@ -320,11 +320,7 @@ impl Simulation {
         } else {
             None
         };
-        let hessian = |z: &[f64]| {
-            model
-                .as_ref()
-                .map_or_else(|| faer::Mat::zeros(0, 0), |m| m.hessian(z))
-        };
+        let hessian = model.as_ref().map(|m| move |z: &[f64]| m.hessian(z));
         let minimum = minimize_with(
             evaluate,
             &z0,
@@ -335,7 +331,7 @@ impl Simulation {
                 objective_tolerance: options.objective_tolerance,
                 ..Options::default()
             },
-            model.as_ref().map(|_| &hessian as Curvature),
+            hessian.as_ref().map(|h| h as Curvature),
             &mut progress,
         )?;
         // the starting drive's run, to compare with

@@ -110,24 +110,15 @@ pub(crate) fn add_point_tangent_meridian(
                     k[row + kk] += w * s;
                 }
                 // ∂E₀/∂Φ_b = −∇₀N_b
-                let kp = -w * (rb[0] * g[b][0] + rb[1] * g[b][1]);
-                k[row + 3] += kp;
-                k[(b * 4 + 3) * nl + a * 4 + i] += kp;
+                k[row + 3] += -w * (rb[0] * g[b][0] + rb[1] * g[b][1]);
             }
-        }
-        for b in 0..n {
-            let mut s = 0.0;
-            for jj in 0..2 {
-                for kk in 0..2 {
-                    s += g[a][jj] * g_blk[(jj, kk)] * g[b][kk];
-                }
-            }
-            k[(a * 4 + 3) * nl + b * 4 + 3] += w * s;
         }
     }
+    // the Φ rows, the transpose of the u–Φ block above and the Φ–Φ block
+    add_point_potential_tangent_meridian(geom, q, w, b_blk, g_blk, k);
 }
 
-/// The Φ rows of [`add_point_tangent_meridian`] (the same entries).
+/// The Φ rows of [`add_point_tangent_meridian`]: alone, what the projection's adjoint needs.
 pub(crate) fn add_point_potential_tangent_meridian(
     geom: &CellGeometry,
     q: usize,
