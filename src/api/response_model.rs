@@ -3,54 +3,95 @@
 //! Hessian of its drive-effort terms.
 //!
 //! The electrostatic force grows with the square of the drive, and the actuator responds to
-//! that force almost linearly and the same way at any time. So the response of a misfit's probe
-//! to a knot j of a control is modelled as ∂y(t)/∂v_j ≈ 2v_j·h(t − t_j), with h the response to
-//! a unit change of the squared drive at one knot, measured once by a finite difference of two
-//! runs, and shifted in time to every knot. The factor 2v_j follows the drive as it changes,
-//! which a response in the drive itself (a fixed G) would miss: the force's gain varies
-//! several-fold along a typical optimal drive. The model only starts the recursion: the
-//! correction pairs of the true gradients refine it, and the gradient is always the adjoint's.
+//! that force almost linearly and the same way at any time. So each step n of a controlled
+//! stage is given the input uₙ = V(τₙ)², the drive squared where the step evaluates it (τₙ its
+//! midpoint for the midpoint rule, its end for Newmark), and a probe read at step k responds to
+//! it through a kernel of the lag alone, ∂y_k/∂uₙ = p(k − n) (a discrete linear time-invariant
+//! system in the steps). The kernel is measured once by a finite difference of two runs, the
+//! control's first knot moved, and a deconvolution of the inputs that move changed. Then
+//! ∂y_k/∂v_j = Σₙ p(k − n)·2V(τₙ)·φ_j(τₙ), with φ_j the knot's hat: the factor 2V follows the
+//! drive as it changes (the force's gain varies several-fold along a typical optimal drive),
+//! and the hats carry the drive's interpolation between the knots into the steps. The model
+//! only starts the recursion: the correction pairs of the true gradients refine it, and the
+//! gradient is always the adjoint's.
 
 use crate::adjoint::objective::{Finished, Objective, Reading, Term};
 use crate::waveform::table_value;
 use faer::Mat;
 
-/// One control as the optimiser sees it: its variables' range, its plan stage, its knot times
-/// (run clock, s) and its scale (variable = knot value / scale).
+/// One control as the optimiser sees it: its variables' range, its plan stage and that stage's
+/// start (run clock, s), its knot times (run clock, s), its scale (variable = knot value /
+/// scale) and where in a step the stage's scheme evaluates the drive (a fraction of the step:
+/// ½ the midpoint, 1 its end).
 pub(super) struct Slot {
     pub first: usize,
     pub stage: usize,
+    pub start: f64,
     pub times: Vec<f64>,
     pub scale: f64,
+    pub drive_point: f64,
 }
 
-/// The response model: B(z) = S(4 v vᵀ ∘ B_u + E)S in the scaled knots z = v/s.
-pub(super) struct ResponseModel {
-    /// Σ_r w_r g_r gᵣᵀ with g_r the readings' responses to each knot's squared drive.
-    squared: Mat<f64>,
-    /// The drive-effort terms' Hessian in the knots (exact: they are quadratic).
-    effort: Mat<f64>,
-    scale: Vec<f64>,
-}
+/// The most steps (over all controlled stages) the model is built for: it holds a dense matrix
+/// of their number squared (128 MiB at this size).
+pub(super) const MOST_STEPS: usize = 4096;
 
 /// The finite-difference step of the measured response, in the scaled knots (a hundredth of
 /// the bounds' range).
 pub(super) const PROBE_STEP: f64 = 1e-2;
 
-/// The knot of a control whose response is measured: the second (a whole hat, and the
-/// response over nearly the whole stage), or the first of a control with fewer than three.
-pub(super) fn probed_knot(slot: &Slot) -> usize {
-    if slot.times.len() >= 3 {
-        1
-    } else {
-        0
+/// The knot of every control whose response is measured: the first, whose hat reaches the
+/// fewest steps (the deconvolution's pivot is its first step's input).
+pub(super) const PROBED_KNOT: usize = 0;
+
+/// The steps of one control's stage: their drive times τₙ (run clock, s).
+struct Steps {
+    drive_times: Vec<f64>,
+    /// The position of the slot's first input among all inputs.
+    offset: usize,
+}
+
+/// The response model: B(z) = S(CᵀMC + E)S in the scaled knots z = v/s, with M = PᵀWP over
+/// the steps' inputs and C(z)ₙⱼ = 2V(τₙ)φ_j(τₙ).
+pub(super) struct ResponseModel {
+    /// PᵀWP over all controlled steps' inputs.
+    inputs: Mat<f64>,
+    /// The drive-effort terms' Hessian in the knots (exact: they are quadratic).
+    effort: Mat<f64>,
+    scale: Vec<f64>,
+    /// Per slot: its first variable, its knot times and its steps.
+    slots: Vec<(usize, Vec<f64>, Steps)>,
+}
+
+/// The hats of the knots `times` at `t` (the piecewise-linear table's weights, held beyond its
+/// ends): at most two (knot, weight).
+fn hats(times: &[f64], t: f64) -> Vec<(usize, f64)> {
+    let n = times.len();
+    if n == 0 {
+        return Vec::new();
     }
+    if n == 1 || t <= times[0] {
+        return vec![(0, 1.0)];
+    }
+    if t >= times[n - 1] {
+        return vec![(n - 1, 1.0)];
+    }
+    let i = times.partition_point(|&k| k <= t);
+    let w = (t - times[i - 1]) / (times[i] - times[i - 1]);
+    vec![(i - 1, 1.0 - w), (i, w)]
+}
+
+/// The drive of knots `values` at `times` (run clock) at `t`.
+fn drive(times: &[f64], values: &[f64], t: f64) -> f64 {
+    let points: Vec<(f64, f64)> = times.iter().copied().zip(values.iter().copied()).collect();
+    table_value(&points, t)
 }
 
 impl ResponseModel {
     /// The model from the run at the starting knots `z0` (`base`) and, per slot, the run with
-    /// its probed knot moved from `z0` to `moved` (`responses`). `None` when no misfit term
-    /// reads a controlled stage and no effort term applies: nothing to model.
+    /// its first knot moved from `z0` to `moved` (`responses`). `None` when no misfit term
+    /// reads a controlled stage and no effort term applies (nothing to model), or when the
+    /// controlled stages have more than [`MOST_STEPS`] steps.
     pub fn new(
         objective: &Objective,
         slots: &[Slot],
@@ -66,27 +107,63 @@ impl ResponseModel {
             .iter()
             .filter(|r| misfit(r) && slots.iter().any(|s| s.stage == r.stage))
             .collect();
-        let mut g = Mat::<f64>::zeros(rows.len(), n);
-        for (slot, (moved, run)) in slots.iter().zip(responses) {
-            let j = probed_knot(slot);
-            let (v0, v1) = (z0[slot.first + j] * slot.scale, moved * slot.scale);
-            let du = v1 * v1 - v0 * v0;
-            if du == 0.0 {
-                continue;
-            }
-            let hat = if j + 1 < slot.times.len() {
-                slot.times[j + 1] - slot.times[j]
-            } else if j > 0 {
-                slot.times[j] - slot.times[j - 1]
-            } else {
+        // each slot's steps: the ends are the times its stage's misfit readings were taken at
+        let mut total = 0;
+        let mut steps = Vec::with_capacity(slots.len());
+        let mut ends_of = Vec::with_capacity(slots.len());
+        for slot in slots {
+            let mut ends: Vec<f64> = rows
+                .iter()
+                .filter(|r| r.stage == slot.stage && r.time > slot.start)
+                .map(|r| r.time)
+                .collect();
+            ends.sort_by(f64::total_cmp);
+            ends.dedup();
+            let drive_times = ends
+                .iter()
+                .enumerate()
+                .map(|(k, &e)| {
+                    let b = if k == 0 { slot.start } else { ends[k - 1] };
+                    b + slot.drive_point * (e - b)
+                })
+                .collect();
+            steps.push(Steps {
+                drive_times,
+                offset: total,
+            });
+            total += ends.len();
+            ends_of.push(ends);
+        }
+        if total > MOST_STEPS {
+            return None;
+        }
+        let values = |z: &[f64], slot: &Slot| -> Vec<f64> {
+            z[slot.first..slot.first + slot.times.len()]
+                .iter()
+                .map(|v| v * slot.scale)
+                .collect()
+        };
+        // P: the rows' responses to the inputs, per slot from its probe's deconvolved kernel
+        let mut p = Mat::<f64>::zeros(rows.len(), total);
+        for (si, (slot, (moved, run))) in slots.iter().zip(responses).enumerate() {
+            let (ends, st) = (&ends_of[si], &steps[si]);
+            let v0 = values(z0, slot);
+            let mut v1 = v0.clone();
+            v1[PROBED_KNOT] = moved * slot.scale;
+            let du: Vec<f64> = st
+                .drive_times
+                .iter()
+                .map(|&t| drive(&slot.times, &v1, t).powi(2) - drive(&slot.times, &v0, t).powi(2))
+                .collect();
+            let Some(pivot) = du.iter().position(|d| *d != 0.0) else {
                 continue;
             };
-            // per term: the response per unit squared drive against the lag after the knot
-            let mut samples: Vec<(usize, Vec<(f64, f64)>)> = Vec::new();
+            // per term: the change of its reading at each step end
+            let mut kernels: Vec<(usize, Vec<f64>)> = Vec::new();
             for r in base
                 .readings
                 .iter()
-                .filter(|r| misfit(r) && r.stage == slot.stage)
+                .filter(|r| misfit(r) && r.stage == slot.stage && r.time > slot.start)
             {
                 let Some(m) = run
                     .readings
@@ -95,39 +172,56 @@ impl ResponseModel {
                 else {
                     continue;
                 };
-                let at = match samples.iter().position(|(t, _)| *t == r.term) {
+                let Ok(k) = ends.binary_search_by(|e| e.total_cmp(&r.time)) else {
+                    continue;
+                };
+                let at = match kernels.iter().position(|(t, _)| *t == r.term) {
                     Some(at) => at,
                     None => {
-                        samples.push((r.term, Vec::new()));
-                        samples.len() - 1
+                        kernels.push((r.term, vec![f64::NAN; ends.len()]));
+                        kernels.len() - 1
                     }
                 };
-                samples[at]
-                    .1
-                    .push((r.time - slot.times[j], (m.value - r.value) / du));
+                kernels[at].1[k] = m.value - r.value;
             }
-            for (_, s) in samples.iter_mut() {
-                s.sort_by(|a, b| a.0.total_cmp(&b.0));
+            // deconvolution: dy_{pivot+m} = Σᵢ du_{pivot+i} p(m − i)
+            for (_, dy) in kernels.iter_mut() {
+                let mut kernel = vec![0.0; ends.len() - pivot];
+                for m in 0..kernel.len() {
+                    let Some(d) = dy.get(pivot + m).copied().filter(|d| d.is_finite()) else {
+                        kernel[m] = if m > 0 { kernel[m - 1] } else { 0.0 };
+                        continue;
+                    };
+                    let earlier: f64 = (1..=m)
+                        .take_while(|i| pivot + i < du.len())
+                        .map(|i| du[pivot + i] * kernel[m - i])
+                        .sum();
+                    kernel[m] = (d - earlier) / du[pivot];
+                }
+                *dy = kernel;
             }
             for (row, r) in rows.iter().enumerate() {
                 if r.stage != slot.stage {
                     continue;
                 }
-                let Some((_, s)) = samples.iter().find(|(t, _)| *t == r.term) else {
+                let Some((_, kernel)) = kernels.iter().find(|(t, _)| *t == r.term) else {
                     continue;
                 };
-                for (k, &tk) in slot.times.iter().enumerate() {
-                    g[(row, slot.first + k)] = response(s, r.time - tk, hat);
+                let Ok(k) = ends.binary_search_by(|e| e.total_cmp(&r.time)) else {
+                    continue;
+                };
+                for step in 0..=k {
+                    p[(row, st.offset + step)] = kernel.get(k - step).copied().unwrap_or(0.0);
                 }
             }
         }
         for (row, r) in rows.iter().enumerate() {
             let w = r.weight.max(0.0).sqrt();
-            for c in 0..n {
-                g[(row, c)] *= w;
+            for c in 0..total {
+                p[(row, c)] *= w;
             }
         }
-        let squared = g.transpose() * &g;
+        let inputs = p.transpose() * &p;
         let mut effort = Mat::<f64>::zeros(n, n);
         let mut any_effort = false;
         for t in &objective.terms {
@@ -161,7 +255,7 @@ impl ResponseModel {
                 }
             }
         }
-        let any_misfit = (0..n).any(|i| squared[(i, i)] > 0.0);
+        let any_misfit = (0..total).any(|i| inputs[(i, i)] > 0.0);
         if !any_misfit && !any_effort {
             return None;
         }
@@ -172,35 +266,56 @@ impl ResponseModel {
             }
         }
         Some(ResponseModel {
-            squared,
+            inputs,
             effort,
             scale,
+            slots: slots
+                .iter()
+                .zip(steps)
+                .map(|(s, st)| (s.first, s.times.clone(), st))
+                .collect(),
         })
     }
 
     /// B at the scaled knots `z`.
     pub fn hessian(&self, z: &[f64]) -> Mat<f64> {
-        let v: Vec<f64> = z.iter().zip(&self.scale).map(|(z, s)| z * s).collect();
-        Mat::from_fn(z.len(), z.len(), |i, j| {
-            self.scale[i]
-                * self.scale[j]
-                * (4.0 * v[i] * v[j] * self.squared[(i, j)] + self.effort[(i, j)])
+        let n = z.len();
+        // C's entries: per input, its (variable, 2V(τ)φ(τ)) pairs
+        let total = self.inputs.nrows();
+        let mut c: Vec<Vec<(usize, f64)>> = vec![Vec::new(); total];
+        for (first, times, st) in &self.slots {
+            let v: Vec<f64> = (0..times.len())
+                .map(|k| z[first + k] * self.scale[first + k])
+                .collect();
+            for (step, &t) in st.drive_times.iter().enumerate() {
+                let twice = 2.0 * drive(times, &v, t);
+                c[st.offset + step] = hats(times, t)
+                    .into_iter()
+                    .map(|(k, w)| (first + k, twice * w))
+                    .collect();
+            }
+        }
+        // T = M Cᵀ (inputs × variables), then CT
+        let mut t = Mat::<f64>::zeros(total, n);
+        for (m, entries) in c.iter().enumerate() {
+            for &(j, w) in entries {
+                for i in 0..total {
+                    t[(i, j)] += self.inputs[(i, m)] * w;
+                }
+            }
+        }
+        let mut b = Mat::<f64>::zeros(n, n);
+        for (i, entries) in c.iter().enumerate() {
+            for &(j, w) in entries {
+                for l in 0..n {
+                    b[(j, l)] += w * t[(i, l)];
+                }
+            }
+        }
+        Mat::from_fn(n, n, |i, j| {
+            self.scale[i] * self.scale[j] * (0.5 * (b[(i, j)] + b[(j, i)]) + self.effort[(i, j)])
         })
     }
-}
-
-/// The response `lag` after a knot, from the samples (lag, response) of the probed knot: zero a
-/// hat's width `hat` or more before it (causality), linear between the samples, held after the
-/// last.
-fn response(samples: &[(f64, f64)], lag: f64, hat: f64) -> f64 {
-    if samples.is_empty() || lag <= -hat {
-        return 0.0;
-    }
-    let first = samples[0];
-    if lag <= first.0 && first.0 > -hat {
-        return first.1 * (lag + hat) / (first.0 + hat);
-    }
-    table_value(samples, lag)
 }
 
 #[cfg(test)]
@@ -208,13 +323,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_response_is_causal_interpolated_and_held() {
-        let s = [(0.0, 1.0), (1.0, 3.0), (2.0, 2.0)];
-        assert_eq!(response(&s, -1.0, 1.0), 0.0);
-        assert_eq!(response(&s, -0.5, 1.0), 0.5);
-        assert_eq!(response(&s, 0.5, 1.0), 2.0);
-        assert_eq!(response(&s, 1.5, 1.0), 2.5);
-        assert_eq!(response(&s, 7.0, 1.0), 2.0);
-        assert_eq!(response(&[], 0.5, 1.0), 0.0);
+    fn the_hats_interpolate_as_the_table_does() {
+        let times = [0.0, 1.0, 3.0];
+        let values = [2.0, -1.0, 5.0];
+        for t in [-1.0, 0.0, 0.25, 1.0, 2.5, 3.0, 4.0] {
+            let by_hats: f64 = hats(&times, t).iter().map(|(k, w)| values[*k] * w).sum();
+            assert!(
+                (by_hats - drive(&times, &values, t)).abs() < 1e-14,
+                "at {t}"
+            );
+        }
+        assert_eq!(hats(&times, 0.5), vec![(0, 0.5), (1, 0.5)]);
+        assert_eq!(hats(&times, 9.0), vec![(2, 1.0)]);
     }
 }
