@@ -4,12 +4,12 @@
 //!
 //! The electrostatic force grows with the square of the drive, and the actuator responds to
 //! that force almost linearly and the same way at any time. So each step n of a controlled
-//! stage is given the input uₙ = V(τₙ)², the drive squared where the step evaluates it (τₙ its
-//! midpoint for the midpoint rule, its end for Newmark), and a probe read at step k responds to
-//! it through a kernel of the lag alone, ∂y_k/∂uₙ = p(k − n) (a discrete linear time-invariant
-//! system in the steps). The kernel is measured once by a finite difference of two runs, the
+//! stage is given the input uₙ = Σ_q w_q V(τ_q)², the drive squared where the step evaluates
+//! it (its midpoint for the midpoint rule; both ends, each with weight ½, for Newmark's
+//! trapezoidal average), and a probe read at step k responds to it through a kernel of the lag
+//! alone, ∂y_k/∂uₙ = p(k − n) (a discrete linear time-invariant system in the steps). The kernel is measured once by a finite difference of two runs, the
 //! control's first knot moved, and a deconvolution of the inputs that move changed. Then
-//! ∂y_k/∂v_j = Σₙ p(k − n)·2V(τₙ)·φ_j(τₙ), with φ_j the knot's hat: the factor 2V follows the
+//! ∂y_k/∂v_j = Σₙ p(k − n)·Σ_q w_q 2V(τ_q)·φ_j(τ_q), with φ_j the knot's hat: the factor 2V follows the
 //! drive as it changes (the force's gain varies several-fold along a typical optimal drive),
 //! and the hats carry the drive's interpolation between the knots into the steps. The model
 //! only starts the recursion: the correction pairs of the true gradients refine it, and the
@@ -21,15 +21,15 @@ use faer::Mat;
 
 /// One control as the optimiser sees it: its variables' range, its plan stage and that stage's
 /// start (run clock, s), its knot times (run clock, s), its scale (variable = knot value /
-/// scale) and where in a step the stage's scheme evaluates the drive (a fraction of the step:
-/// ½ the midpoint, 1 its end).
+/// scale) and where in a step the stage's scheme evaluates the drive: (fraction of the step,
+/// weight) pairs, [(½, 1)] for the midpoint rule, [(0, ½), (1, ½)] for Newmark.
 pub(super) struct Slot {
     pub first: usize,
     pub stage: usize,
     pub start: f64,
     pub times: Vec<f64>,
     pub scale: f64,
-    pub drive_point: f64,
+    pub drive_points: &'static [(f64, f64)],
 }
 
 /// The most steps (over all controlled stages) the model is built for: it holds a dense matrix
@@ -44,15 +44,15 @@ pub(super) const PROBE_STEP: f64 = 1e-2;
 /// fewest steps (the deconvolution's pivot is its first step's input).
 pub(super) const PROBED_KNOT: usize = 0;
 
-/// The steps of one control's stage: their drive times τₙ (run clock, s).
+/// The steps of one control's stage: their drive times τ (run clock, s) with their weights.
 struct Steps {
-    drive_times: Vec<f64>,
+    drive_times: Vec<Vec<(f64, f64)>>,
     /// The position of the slot's first input among all inputs.
     offset: usize,
 }
 
 /// The response model: B(z) = S(CᵀMC + E)S in the scaled knots z = v/s, with M = PᵀWP over
-/// the steps' inputs and C(z)ₙⱼ = 2V(τₙ)φ_j(τₙ).
+/// the steps' inputs and C(z)ₙⱼ = Σ_q w_q 2V(τ_q)φ_j(τ_q).
 pub(super) struct ResponseModel {
     /// PᵀWP over all controlled steps' inputs.
     inputs: Mat<f64>,
@@ -124,7 +124,10 @@ impl ResponseModel {
                 .enumerate()
                 .map(|(k, &e)| {
                     let b = if k == 0 { slot.start } else { ends[k - 1] };
-                    b + slot.drive_point * (e - b)
+                    slot.drive_points
+                        .iter()
+                        .map(|&(f, w)| (b + f * (e - b), w))
+                        .collect()
                 })
                 .collect();
             steps.push(Steps {
@@ -153,7 +156,15 @@ impl ResponseModel {
             let du: Vec<f64> = st
                 .drive_times
                 .iter()
-                .map(|&t| drive(&slot.times, &v1, t).powi(2) - drive(&slot.times, &v0, t).powi(2))
+                .map(|points| {
+                    points
+                        .iter()
+                        .map(|&(t, w)| {
+                            w * (drive(&slot.times, &v1, t).powi(2)
+                                - drive(&slot.times, &v0, t).powi(2))
+                        })
+                        .sum()
+                })
                 .collect();
             let Some(pivot) = du.iter().position(|d| *d != 0.0) else {
                 continue;
@@ -287,12 +298,17 @@ impl ResponseModel {
             let v: Vec<f64> = (0..times.len())
                 .map(|k| z[first + k] * self.scale[first + k])
                 .collect();
-            for (step, &t) in st.drive_times.iter().enumerate() {
-                let twice = 2.0 * drive(times, &v, t);
-                c[st.offset + step] = hats(times, t)
-                    .into_iter()
-                    .map(|(k, w)| (first + k, twice * w))
-                    .collect();
+            for (step, points) in st.drive_times.iter().enumerate() {
+                let entries = &mut c[st.offset + step];
+                for &(t, weight) in points {
+                    let twice = 2.0 * weight * drive(times, &v, t);
+                    for (k, w) in hats(times, t) {
+                        match entries.iter_mut().find(|(j, _)| *j == first + k) {
+                            Some(e) => e.1 += twice * w,
+                            None => entries.push((first + k, twice * w)),
+                        }
+                    }
+                }
             }
         }
         // T = M Cᵀ (inputs × variables), then CT
