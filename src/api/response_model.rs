@@ -7,13 +7,14 @@
 //! stage is given the input uₙ = Σ_q w_q V(τ_q)², the drive squared where the step evaluates
 //! it (its midpoint for the midpoint rule; both ends, each with weight ½, for Newmark's
 //! trapezoidal average), and a probe read at step k responds to it through a kernel of the lag
-//! alone, ∂y_k/∂uₙ = p(k − n) (a discrete linear time-invariant system in the steps). The kernel is measured once by a finite difference of two runs, the
-//! control's first knot moved, and a deconvolution of the inputs that move changed. Then
-//! ∂y_k/∂v_j = Σₙ p(k − n)·Σ_q w_q 2V(τ_q)·φ_j(τ_q), with φ_j the knot's hat: the factor 2V follows the
-//! drive as it changes (the force's gain varies several-fold along a typical optimal drive),
-//! and the hats carry the drive's interpolation between the knots into the steps. The model
-//! only starts the recursion: the correction pairs of the true gradients refine it, and the
-//! gradient is always the adjoint's.
+//! alone, ∂y_k/∂uₙ = p(k − n) (a discrete linear time-invariant system in the steps). The
+//! kernel is measured once by a finite difference of two runs, the control's first knot moved,
+//! and a deconvolution by the change of the inputs. Then
+//! ∂y_k/∂v_j = Σₙ p(k − n)·Σ_q w_q 2V(τ_q)·φ_j(τ_q), with φ_j the knot's hat: the factor 2V
+//! follows the drive as it changes (the force's gain varies several-fold along a typical
+//! optimal drive), and the hats carry the drive's interpolation between the knots into the
+//! steps. The model only starts the recursion: the correction pairs of the true gradients
+//! refine it, and the gradient is always the adjoint's.
 
 use crate::adjoint::objective::{Finished, Objective, Reading, Term};
 use crate::waveform::table_value;
