@@ -17,7 +17,6 @@ use crate::io::plot::{line_plot, stacked_plot, PlotSpec, Series};
 use crate::io::scenario::{apply_override, InputError, Scenario};
 use crate::job::observer::Observer;
 use crate::job::plan::{Plan, StageKind};
-use crate::time::integrator::Scheme;
 use crate::time::stage::Method;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -173,16 +172,12 @@ impl Layout {
             .map(|&(si, ci, _, s)| {
                 let knots = &plan.stages[si].controls[ci].1;
                 let start = plan.stage_start(si);
-                let drive_points: &[(f64, f64)] = match plan.stages[si].kind {
+                let drive_points = match plan.stages[si].kind {
                     StageKind::Dynamic {
-                        scheme: Method::Implicit(Scheme::Midpoint),
+                        scheme: Method::Implicit(scheme),
                         ..
-                    } => &[(0.5, 1.0)],
-                    StageKind::Dynamic {
-                        scheme: Method::Implicit(Scheme::Newmark { .. }),
-                        ..
-                    } => &[(0.0, 0.5), (1.0, 0.5)],
-                    _ => &[(1.0, 1.0)],
+                    } => scheme.drive_weights(),
+                    _ => vec![(1.0, 1.0)],
                 };
                 let slot = Slot {
                     first,

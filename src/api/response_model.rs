@@ -5,8 +5,8 @@
 //! The electrostatic force grows with the square of the drive, and the actuator responds to
 //! that force almost linearly and the same way at any time. So each step n of a controlled
 //! stage is given the input uₙ = Σ_q w_q V(τ_q)², the drive squared where the step evaluates
-//! it (its midpoint for the midpoint rule; both ends, each with weight ½, for Newmark's
-//! trapezoidal average), and a probe read at step k responds to it through a kernel of the lag
+//! it (its midpoint for the midpoint rule; both ends, weighted 1 − γ and γ, for Newmark's
+//! velocity update), and a probe read at step k responds to it through a kernel of the lag
 //! alone, ∂y_k/∂uₙ = p(k − n) (a discrete linear time-invariant system in the steps). The
 //! kernel is measured once by a finite difference of two runs, the control's first knot moved,
 //! and a deconvolution by the change of the inputs. Then
@@ -22,15 +22,15 @@ use faer::Mat;
 
 /// One control as the optimiser sees it: its variables' range, its plan stage and that stage's
 /// start (run clock, s), its knot times (run clock, s), its scale (variable = knot value /
-/// scale) and where in a step the stage's scheme evaluates the drive: (fraction of the step,
-/// weight) pairs, [(½, 1)] for the midpoint rule, [(0, ½), (1, ½)] for Newmark.
+/// scale) and where in a step the stage's scheme takes the drive: (fraction of the step,
+/// weight) pairs, `Scheme::drive_weights`.
 pub(super) struct Slot {
     pub first: usize,
     pub stage: usize,
     pub start: f64,
     pub times: Vec<f64>,
     pub scale: f64,
-    pub drive_points: &'static [(f64, f64)],
+    pub drive_points: Vec<(f64, f64)>,
 }
 
 /// The most steps (over all controlled stages) the model is built for: it holds a dense matrix

@@ -53,6 +53,16 @@ impl Scheme {
             Scheme::Newmark { .. } => "newmark",
         }
     }
+
+    /// Where a step takes the electrodes' drive, weighted as its force acts over the step:
+    /// (fraction of the step, weight) pairs. The midpoint rule's at t_{n+½}; Newmark's velocity
+    /// update weighs the accelerations at t_n and t_{n+1} by 1 − γ and γ.
+    pub fn drive_weights(self) -> Vec<(f64, f64)> {
+        match self {
+            Scheme::Midpoint => vec![(0.5, 1.0)],
+            Scheme::Newmark { gamma, .. } => vec![(0.0, 1.0 - gamma), (1.0, gamma)],
+        }
+    }
 }
 
 /// The state at a time level: positions q (u in m, Φ in V, 4 per node), velocities and
