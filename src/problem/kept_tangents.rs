@@ -5,7 +5,6 @@
 //! hex8), so they are kept up to [`MAX_BYTES`] only.
 
 use super::model::Model;
-use super::points::PointStates;
 use crate::fem::FIELDS;
 use std::sync::{Mutex, MutexGuard};
 
@@ -28,17 +27,14 @@ impl KeptTangents {
         model.mesh.n_cells().saturating_mul(2 * nl * nl * 8) <= MAX_BYTES
     }
 
-    /// Starts an evaluation of `model` at internal variables `points`: forgets what was kept,
-    /// and gives the cells' slots to fill when the tangents are `wanted` and can be kept (a
-    /// whole model, elastic materials, within [`MAX_BYTES`]).
-    pub fn begin(
-        &mut self,
-        model: &Model,
-        wanted: bool,
-        points: &PointStates,
-    ) -> Option<&[Mutex<Vec<f64>>]> {
+    /// Starts an evaluation of `model`: forgets what was kept, and gives the cells' slots to
+    /// fill when the tangents are `wanted` and can be kept (a whole model within
+    /// [`MAX_BYTES`]). The stamp of [`KeptTangents::filled_at`] holds every input of the
+    /// tangents, the committed internal variables included; their own products
+    /// ([`crate::problem::step::points_products`]) need no tangent.
+    pub fn begin(&mut self, model: &Model, wanted: bool) -> Option<&[Mutex<Vec<f64>>]> {
         self.at = None;
-        let keep = wanted && model.share.is_none() && points.is_empty() && Self::affordable(model);
+        let keep = wanted && model.share.is_none() && Self::affordable(model);
         keep.then(|| self.slots(model.mesh.n_cells()))
     }
 

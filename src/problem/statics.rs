@@ -5,7 +5,7 @@
 
 use crate::algebra::csr::CsrMatrix;
 use crate::algebra::system::{DofLayout, LoadedSystem, NonlinearSystem};
-use crate::element::{CellFields, CellInput};
+use crate::element::{CellFields, CellInput, MAX_LOCAL};
 use crate::material::{Material, ParameterDerivative};
 use crate::problem::assembly::{Assembler, GlobalTerms};
 use crate::problem::dofs::{constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
@@ -13,7 +13,7 @@ use crate::problem::drive::Drive;
 use crate::problem::kept_tangents::KeptTangents;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
-use crate::problem::step::{cell_products, LevelVjp, StepOperator};
+use crate::problem::step::{cell_products, points_products, LevelVjp, StepOperator};
 
 /// Residual floor relative to the characteristic nodal force μ·h² (h the mean cell size).
 const RESIDUAL_FLOOR: f64 = 1e-11;
@@ -257,11 +257,13 @@ impl<'m> StaticProblem<'m> {
         (self.s - self.committed_load) * self.duration
     }
 
-    /// The inputs of the cells' tangents as a stamp of [`KeptTangents`]: the state and the
-    /// step of the internal variables' update.
+    /// The inputs of the cells' tangents as a stamp of [`KeptTangents`]: the state, the step
+    /// of the internal variables' update and the committed internal variables.
     fn tangent_stamp(&self) -> Vec<f64> {
-        let mut stamp = self.state.clone();
+        let mut stamp = Vec::with_capacity(self.state.len() + 1 + self.points.data.len());
+        stamp.extend_from_slice(&self.state);
         stamp.push(self.dt());
+        stamp.extend_from_slice(&self.points.data);
         stamp
     }
 
@@ -388,35 +390,47 @@ fn internal_forces(
     dt: f64,
     only: Option<(usize, &dyn Material)>,
 ) -> Result<Vec<f64>, String> {
-    let mut out = vec![0.0; state.len()];
-    let mut r = vec![0.0; crate::element::MAX_LOCAL];
-    model.for_each_cell(state, |c, g, mat, local| {
-        let mat = match only {
-            Some((m, _)) if model.cell_material[c] != m => return Ok(()),
-            Some((_, instead)) => instead,
-            None => mat,
+    let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+    let kernel = model.kernel();
+    let eval = |c: usize| -> Result<[f64; MAX_LOCAL], String> {
+        let mut local = [0.0; MAX_LOCAL];
+        for (a, &node) in model.mesh.cell(c).iter().enumerate() {
+            local[a * FIELDS..(a + 1) * FIELDS]
+                .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
+        }
+        let m = model.cell_material[c];
+        let input = CellInput {
+            geom: &model.geometry(c),
+            mat: only.map_or(model.materials[m].as_ref(), |(_, instead)| instead),
+            hist: points.cell(c, m, dt),
+            local: &local[..nl],
         };
-        let h = points.cell(c, model.cell_material[c], dt);
-        model
-            .kernel()
-            .residual_tangent(
-                &CellInput {
-                    geom: g,
-                    mat,
-                    hist: h,
-                    local,
-                },
-                &mut r,
-                None,
-            )
-            .map_err(|e| format!("cell {c}: {}", e.error))?;
+        let mut r = [0.0; MAX_LOCAL];
+        kernel
+            .residual_tangent(&input, &mut r[..nl], None)
+            .map_err(|e| format!("cell {c}: {} at quadrature point {}", e.error, e.qp))?;
+        Ok(r)
+    };
+    let cells: Vec<usize> = (0..model.mesh.n_cells())
+        .filter(|&c| only.is_none_or(|(m, _)| model.cell_material[c] == m))
+        .collect();
+    // the cells on the pool, their forces added in cell order on either path (the same sums)
+    let done: Vec<Result<[f64; MAX_LOCAL], String>> =
+        if cells.len() >= PARALLEL_MIN_RECORD_CELLS && rayon::current_num_threads() > 1 {
+            use rayon::prelude::*;
+            cells.par_iter().map(|&c| eval(c)).collect()
+        } else {
+            cells.iter().map(|&c| eval(c)).collect()
+        };
+    let mut out = vec![0.0; state.len()];
+    for (&c, r) in cells.iter().zip(done) {
+        let r = r?;
         for (a, &node) in model.mesh.cell(c).iter().enumerate() {
             for f in 0..FIELDS {
                 out[node * FIELDS + f] += r[a * FIELDS + f];
             }
         }
-        Ok::<(), String>(())
-    })?;
+    }
     Ok(out)
 }
 
@@ -687,9 +701,7 @@ impl NonlinearSystem for StaticProblem<'_> {
         // every displacement held (the electrostatic projection of a dynamic step): the residual
         // and tangent have Φ rows only (the cell energies are then not evaluated)
         let potential_only = self.dofs.n_free == self.dofs.n_free_phi;
-        let slots = self
-            .kept
-            .begin(m, self.keep_cell_tangents && k.is_some(), points);
+        let slots = self.kept.begin(m, self.keep_cell_tangents && k.is_some());
         let keep = slots.is_some();
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let input = CellInput {
@@ -873,7 +885,10 @@ impl StepOperator for StaticProblem<'_> {
         // the cells' tangents the last evaluation kept at this state, or a pass of their own
         let kept = self.kept.products(m, &self.tangent_stamp(), &weights);
         let (mut q_new, points) = match kept {
-            Some([k, _]) => (k, Vec::new()),
+            Some([k, _]) => {
+                let points = points_products(m, &self.state, &self.points, self.dt(), &weights)?;
+                (k, points)
+            }
             None => {
                 let p =
                     cell_products(m, &self.state, None, &[], &self.points, self.dt(), &weights)?;

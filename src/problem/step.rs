@@ -144,20 +144,7 @@ pub fn cell_products(
                 .map_err(fail)?;
             transposed(&k, wl, &mut cell.viscous_configuration[..nl]);
         }
-        if hist.size > 0 {
-            let mut at = [(Mat3::identity(), Vec3::zeros()); MAX_QP];
-            let mut weights = [Mat3::zeros(); MAX_QP];
-            kernel.point_deformations(&input, &mut at).map_err(fail)?;
-            kernel
-                .stress_weights(&input, wl, &mut weights)
-                .map_err(fail)?;
-            for p in 0..g.n_qp {
-                let d = mat
-                    .stress_state_vjp(&at[p].0, &at[p].1, hist.at(p), &weights[p])
-                    .map_err(|error| fail(crate::element::PointFailure { qp: p, error }))?;
-                cell.points.extend_from_slice(&d);
-            }
-        }
+        cell_points_product(kernel, &input, wl, &mut cell.points).map_err(fail)?;
         Ok(cell)
     };
     // the cells' products added in cell order on either path (the same sums, bit for bit)
@@ -222,6 +209,81 @@ pub fn cell_products(
 /// From this many cells [`cell_products`] runs its cells on the pool (when it has more than one
 /// thread).
 const PARALLEL_MIN_CELLS: usize = 128;
+
+/// A cell's part of (∂f_int/∂ξ)ᵀw in its points' committed internal variables ξ (nothing
+/// without them), appended to `out` point by point, for the local weight `wl`.
+fn cell_points_product(
+    kernel: &dyn crate::element::CellKernel,
+    input: &CellInput,
+    wl: &[f64],
+    out: &mut Vec<f64>,
+) -> Result<(), crate::element::PointFailure> {
+    let (g, mat, hist) = (input.geom, input.mat, input.hist);
+    if hist.size == 0 {
+        return Ok(());
+    }
+    let mut at = [(Mat3::identity(), Vec3::zeros()); MAX_QP];
+    let mut weights = [Mat3::zeros(); MAX_QP];
+    kernel.point_deformations(input, &mut at)?;
+    kernel.stress_weights(input, wl, &mut weights)?;
+    for p in 0..g.n_qp {
+        let d = mat
+            .stress_state_vjp(&at[p].0, &at[p].1, hist.at(p), &weights[p])
+            .map_err(|error| crate::element::PointFailure { qp: p, error })?;
+        out.extend_from_slice(&d);
+    }
+    Ok(())
+}
+
+/// (∂f_int/∂ξ)ᵀw in the committed internal variables ξ of `points` (laid out as
+/// [`PointStates::data`]) at configuration `q`, with the step `dt` of their update: the points'
+/// part of [`cell_products`] alone, for an adjoint whose stiffness products come from the
+/// cell tangents its evaluation kept (a pass of kinematics and point products, no tangent).
+pub fn points_products(
+    model: &Model,
+    q: &[f64],
+    points: &PointStates,
+    dt: f64,
+    w: &[f64],
+) -> Result<Vec<f64>, String> {
+    let mut out = vec![0.0; points.data.len()];
+    if points.is_empty() {
+        return Ok(out);
+    }
+    let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+    let kernel = model.kernel();
+    let eval = |c: usize| -> Result<Vec<f64>, String> {
+        let nodes = model.mesh.cell(c);
+        let (mut local, mut wl) = ([0.0; MAX_LOCAL], [0.0; MAX_LOCAL]);
+        gather(nodes, q, &mut local[..nl]);
+        gather(nodes, w, &mut wl[..nl]);
+        let m = model.cell_material[c];
+        let input = CellInput {
+            geom: &model.geometry(c),
+            mat: model.materials[m].as_ref(),
+            hist: points.cell(c, m, dt),
+            local: &local[..nl],
+        };
+        let mut cell = Vec::new();
+        cell_points_product(kernel, &input, &wl[..nl], &mut cell)
+            .map_err(|e| format!("cell {c}: {} at quadrature point {}", e.error, e.qp))?;
+        Ok(cell)
+    };
+    let cells: Vec<usize> = (0..model.mesh.n_cells())
+        .filter(|&c| model.owns(c) && !points.cell_range(c).is_empty())
+        .collect();
+    let done: Vec<Result<Vec<f64>, String>> =
+        if cells.len() >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
+            use rayon::prelude::*;
+            cells.par_iter().map(|&c| eval(c)).collect()
+        } else {
+            cells.iter().map(|&c| eval(c)).collect()
+        };
+    for (&c, cell) in cells.iter().zip(done) {
+        out[points.cell_range(c)].copy_from_slice(&cell?);
+    }
+    Ok(out)
+}
 
 /// One cell's part of [`CellProducts`]: the products at its local dofs, and its points'.
 struct CellProduct {

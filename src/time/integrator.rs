@@ -31,7 +31,7 @@ use crate::problem::kept_tangents::KeptTangents;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::{discretize, layout_of};
-use crate::problem::step::{cell_products, LevelVjp, StepOperator};
+use crate::problem::step::{cell_products, points_products, LevelVjp, StepOperator};
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
 use crate::time::trapezoidal::own_cells_power;
@@ -259,12 +259,14 @@ impl<'m> TimeStep<'m> {
         self.dofs.scale[PHI] * w[e] * self.residual_factor() * (-(q - st.charge) / c.resistance)
     }
 
-    /// The evaluation point as a stamp of [`KeptTangents`]: configuration, velocity and Δt.
+    /// The evaluation point as a stamp of [`KeptTangents`]: configuration, velocity, Δt and the
+    /// committed internal variables.
     fn evaluation_stamp(&self) -> Vec<f64> {
-        let mut stamp = Vec::with_capacity(2 * self.work_q.len() + 1);
+        let mut stamp = Vec::with_capacity(2 * self.work_q.len() + 1 + self.points.data.len());
         stamp.extend_from_slice(&self.work_q);
         stamp.extend_from_slice(&self.work_v);
         stamp.push(self.dt);
+        stamp.extend_from_slice(&self.points.data);
         stamp
     }
 
@@ -598,7 +600,10 @@ impl StepOperator for TimeStep<'_> {
             .kept
             .products(model, &self.evaluation_stamp(), &weights);
         let (mut through_q, mut through_v, points_bar) = match kept {
-            Some([q, v]) => (q, v, Vec::new()),
+            Some([q, v]) => {
+                let points = points_products(model, &self.work_q, &self.points, dt, &weights)?;
+                (q, v, points)
+            }
             None => {
                 let p = cell_products(
                     model,
@@ -737,11 +742,9 @@ impl NonlinearSystem for TimeStep<'_> {
         let npc = model.mesh.kind.nodes_per_cell();
         let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
         let exact = self.exact_jacobian;
-        let slots = self.kept.begin(
-            model,
-            self.keep_cell_tangents && exact && k.is_some(),
-            points,
-        );
+        let slots = self
+            .kept
+            .begin(model, self.keep_cell_tangents && exact && k.is_some());
         let keep = slots.is_some();
         // each cell's dissipation power goes into `cell_energy` (the step needs no cell energies)
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
