@@ -252,6 +252,29 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
         Ok(out)
     }
 
+    /// The mechanical entries from the model's derivatives, a dielectric one alone.
+    fn parameter_derivative_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        _h: PointHistory,
+        index: usize,
+    ) -> Result<Stress, MaterialError> {
+        let k = isotropic::checked_kinematics(f, e0)?;
+        let mut mech = self.mech.parameter_derivatives(&k)?;
+        let n = mech.len();
+        if index < n {
+            return Ok(mechanical(f, mech.swap_remove(index)));
+        }
+        if index - n < parameters::ELECTRIC {
+            return Ok(parameters::electric_entry(f, &k, e0, index - n));
+        }
+        Err(crate::material::no_parameter(
+            index,
+            n + parameters::ELECTRIC,
+        ))
+    }
+
     fn energy_split(&self, f: &Mat3, e0: &Vec3) -> Result<(f64, f64), MaterialError> {
         // Validate exactly like the energy evaluation does.
         // the checks of `energy` (finite field, J > 0); its value would be the sum of the parts

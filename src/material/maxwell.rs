@@ -249,6 +249,42 @@ impl Material for Viscoelastic {
         Ok(out)
     }
 
+    /// An equilibrium entry from the equilibrium material; a branch's from that branch alone.
+    fn parameter_derivative_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        h: PointHistory,
+        index: usize,
+    ) -> Result<Stress, MaterialError> {
+        let mut out = self
+            .equilibrium
+            .parameter_derivatives_at(f, e0, PointHistory::NONE)?;
+        let n = out.len();
+        if index < n {
+            return Ok(out.swap_remove(index));
+        }
+        let (i, which) = ((index - n) / 2, (index - n) % 2);
+        if i >= self.branches.len() {
+            return Err(crate::material::no_parameter(
+                index,
+                n + 2 * self.branches.len(),
+            ));
+        }
+        let kin = BranchKinematics::new(f)?;
+        let b = self.branch(i);
+        let hi = Self::state_of(&h, i);
+        let k = b.k(&hi);
+        let committed = MaxwellBranch::<&dyn Material>::committed(&hi);
+        let (w, p, _) = b.branch_at(f, &kin, &committed, k, false)?;
+        let scale = [1.0 / b.g, k / (b.tau * (1.0 + k))][which];
+        Ok(Stress {
+            energy: w * scale,
+            p: p * scale,
+            d0: Vec3::zeros(),
+        })
+    }
+
     fn stress_state_vjp(
         &self,
         f: &Mat3,

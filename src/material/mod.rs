@@ -388,6 +388,22 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     ) -> Result<Vec<Stress>, MaterialError> {
         Ok(Vec::new())
     }
+    /// The entry `index` of [`Material::parameter_derivatives_at`] alone: a pass over the cells
+    /// for one parameter asks for this, and a material may skip the other entries' work (a
+    /// Maxwell branch's, the dielectric's).
+    fn parameter_derivative_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        h: PointHistory,
+        index: usize,
+    ) -> Result<Stress, MaterialError> {
+        let all = self.parameter_derivatives_at(f, e0, h)?;
+        let n = all.len();
+        all.into_iter()
+            .nth(index)
+            .ok_or_else(|| no_parameter(index, n))
+    }
     /// wᵀ ∂P/∂A_n: the derivative of the first Piola stress of [`Material::stress_at`] in the
     /// committed internal variables, for `w` over P (zero-length for an elastic material).
     fn stress_state_vjp(
@@ -421,6 +437,13 @@ pub trait Material: Send + Sync + std::fmt::Debug {
 }
 
 /// The defaults of the derivatives in the internal variables hold for an elastic material only.
+/// The error of a parameter `index` asked of a material with `n` parameters.
+pub(crate) fn no_parameter(index: usize, n: usize) -> MaterialError {
+    MaterialError::OutOfDomain(format!(
+        "parameter {index} of a material with {n} parameters"
+    ))
+}
+
 fn no_state_derivatives(state_size: usize) -> Result<(), MaterialError> {
     if state_size == 0 {
         Ok(())

@@ -234,6 +234,16 @@ impl Material for ElectroNeoHooke {
     ) -> Result<Vec<Stress>, MaterialError> {
         self.generic().parameter_derivatives_at(f, e0, h)
     }
+
+    fn parameter_derivative_at(
+        &self,
+        f: &Mat3,
+        e0: &Vec3,
+        h: PointHistory,
+        index: usize,
+    ) -> Result<Stress, MaterialError> {
+        self.generic().parameter_derivative_at(f, e0, h, index)
+    }
 }
 
 #[cfg(test)]

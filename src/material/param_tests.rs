@@ -127,6 +127,12 @@ fn check_parameter_derivatives(label: &str, m: &Arc<dyn Material>, h: PointHisto
     let p = m.parameters().expect("a registry material");
     let exact = m.parameter_derivatives_at(&f, &e0, h).unwrap();
     assert_eq!(exact.len(), p.values.len(), "{label}: {:?}", p.names);
+    // each entry alone is that entry, bit for bit; one past the last is refused
+    for (i, all) in exact.iter().enumerate() {
+        let one = m.parameter_derivative_at(&f, &e0, h, i).unwrap();
+        assert_eq!(&one, all, "{label}: entry {i} alone");
+    }
+    assert!(m.parameter_derivative_at(&f, &e0, h, exact.len()).is_err());
     let s0 = m.stress_at(&f, &e0, h).unwrap();
     for (i, name) in p.names.iter().enumerate() {
         let theta = p.values[i];

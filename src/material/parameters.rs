@@ -80,21 +80,28 @@ pub(crate) fn push_electric(p: &mut Parameters, e: &ElectricPart) {
 
 /// ∂(Ψ, P, D0)/∂(εᵣ, c₁, c₂): the dielectric energy is linear in ε = εᵣε₀, c₁ and c₂, so each
 /// derivative is the dielectric part with that coefficient alone (ε₀ for εᵣ).
-pub(crate) fn electric(f: &Mat3, k: &CKinematics, e0: &Vec3) -> [Stress; 3] {
-    let unit = |eps, c1, c2| {
-        let part = ElectricPart { eps, c1, c2 };
-        let (s, d0) = part.first(k, e0);
-        Stress {
-            energy: part.energy(k, e0),
-            p: f * s,
-            d0,
-        }
+pub(crate) fn electric(f: &Mat3, k: &CKinematics, e0: &Vec3) -> [Stress; ELECTRIC] {
+    std::array::from_fn(|i| electric_entry(f, k, e0, i))
+}
+
+/// Parameters of the dielectric part: εᵣ, c₁, c₂.
+pub(crate) const ELECTRIC: usize = 3;
+
+/// The entry `i` (< [`ELECTRIC`]) of [`electric`] alone.
+pub(crate) fn electric_entry(f: &Mat3, k: &CKinematics, e0: &Vec3, i: usize) -> Stress {
+    let mut unit = [0.0; ELECTRIC];
+    unit[i] = 1.0;
+    let part = ElectricPart {
+        eps: unit[0] * EPSILON_0,
+        c1: unit[1],
+        c2: unit[2],
     };
-    [
-        unit(EPSILON_0, 0.0, 0.0),
-        unit(0.0, 1.0, 0.0),
-        unit(0.0, 0.0, 1.0),
-    ]
+    let (s, d0) = part.first(k, e0);
+    Stress {
+        energy: part.energy(k, e0),
+        p: f * s,
+        d0,
+    }
 }
 
 /// The derivative of a material's response with respect to one of its parameters θₖ, seen as a
@@ -103,24 +110,13 @@ pub(crate) fn electric(f: &Mat3, k: &CKinematics, e0: &Vec3) -> [Stress; 3] {
 /// residual is linear in the stress and the electric displacement at fixed kinematics, so the
 /// residual a kernel computes with this material is ∂r/∂θₖ of its residual with the base: the
 /// parameter vector–Jacobian product of the cell kernels, exact, with no kernel code of its own.
-/// It has no tangent. Each evaluation computes every parameter's derivative and keeps one.
+/// It has no tangent. Each evaluation asks the base for its one entry
+/// ([`Material::parameter_derivative_at`]).
 #[derive(Debug, Clone)]
 pub struct ParameterDerivative {
     pub base: std::sync::Arc<dyn Material>,
     /// The entry k of the base's [`Material::parameters`].
     pub index: usize,
-}
-
-impl ParameterDerivative {
-    fn pick(&self, all: Vec<Stress>) -> Result<Stress, MaterialError> {
-        let n = all.len();
-        all.into_iter().nth(self.index).ok_or_else(|| {
-            MaterialError::OutOfDomain(format!(
-                "parameter {} of a material with {n} parameters",
-                self.index
-            ))
-        })
-    }
 }
 
 impl Material for ParameterDerivative {
@@ -154,7 +150,7 @@ impl Material for ParameterDerivative {
         self.stress_at(f, e0, h).map(|s| s.energy)
     }
     fn stress_at(&self, f: &Mat3, e0: &Vec3, h: PointHistory) -> Result<Stress, MaterialError> {
-        self.pick(self.base.parameter_derivatives_at(f, e0, h)?)
+        self.base.parameter_derivative_at(f, e0, h, self.index)
     }
     fn tangent_at(
         &self,
