@@ -5,6 +5,7 @@
 //! hex8), so they are kept up to [`MAX_BYTES`] only.
 
 use super::model::Model;
+use crate::element::MAX_LOCAL;
 use crate::fem::FIELDS;
 use std::sync::{Mutex, MutexGuard};
 
@@ -19,6 +20,10 @@ pub struct KeptTangents {
 /// The most bytes the kept tangents of a model may take (two blocks per cell): beyond it the
 /// products take their own pass, as memory matters more than the pass on such meshes.
 pub const MAX_BYTES: usize = 256 << 20;
+
+/// From this many cells [`KeptTangents::products`] runs its cells on the pool (when it has
+/// more than one thread).
+const PARALLEL_MIN_CELLS: usize = 128;
 
 impl KeptTangents {
     /// Whether the tangents of `model`'s cells fit [`MAX_BYTES`].
@@ -68,19 +73,38 @@ impl KeptTangents {
             return None;
         }
         let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
-        let mut out = [vec![0.0; w.len()], vec![0.0; w.len()]];
-        let mut wl = vec![0.0; nl];
-        for (c, slot) in self.cells.iter().enumerate() {
-            let k = slot.lock().unwrap_or_else(|e| e.into_inner());
-            let nodes = model.mesh.cell(c);
-            for (a, &node) in nodes.iter().enumerate() {
+        // a cell's kᵀw of each block at its local dofs (each cell alone, so that they may run
+        // on the pool), added in cell order on either path: the same sums, bit for bit
+        let cell = |c: usize| {
+            let k = self.cells[c].lock().unwrap_or_else(|e| e.into_inner());
+            let mut wl = [0.0; MAX_LOCAL];
+            for (a, &node) in model.mesh.cell(c).iter().enumerate() {
                 wl[a * FIELDS..(a + 1) * FIELDS]
                     .copy_from_slice(&w[node * FIELDS..(node + 1) * FIELDS]);
             }
-            for (block, sum) in k.chunks_exact(nl * nl).zip(out.iter_mut()) {
+            let mut local = [[0.0; MAX_LOCAL]; 2];
+            for (block, out) in k.chunks_exact(nl * nl).zip(local.iter_mut()) {
+                for (j, o) in out[..nl].iter_mut().enumerate() {
+                    *o = (0..nl).map(|i| wl[i] * block[i * nl + j]).sum();
+                }
+            }
+            local
+        };
+        let n_cells = self.cells.len();
+        let locals: Vec<[[f64; MAX_LOCAL]; 2]> =
+            if n_cells >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
+                use rayon::prelude::*;
+                (0..n_cells).into_par_iter().map(cell).collect()
+            } else {
+                (0..n_cells).map(cell).collect()
+            };
+        // (a cell without a second block adds zeros)
+        let mut out = [vec![0.0; w.len()], vec![0.0; w.len()]];
+        for (c, local) in locals.iter().enumerate() {
+            let nodes = model.mesh.cell(c);
+            for (sum, local) in out.iter_mut().zip(local) {
                 for j in 0..nl {
-                    let s: f64 = (0..nl).map(|i| wl[i] * block[i * nl + j]).sum();
-                    sum[nodes[j / FIELDS] * FIELDS + j % FIELDS] += s;
+                    sum[nodes[j / FIELDS] * FIELDS + j % FIELDS] += local[j];
                 }
             }
         }
