@@ -84,9 +84,7 @@ impl KeptTangents {
             }
             let mut local = [[0.0; MAX_LOCAL]; 2];
             for (block, out) in k.chunks_exact(nl * nl).zip(local.iter_mut()) {
-                for (j, o) in out[..nl].iter_mut().enumerate() {
-                    *o = (0..nl).map(|i| wl[i] * block[i * nl + j]).sum();
-                }
+                transposed_product(block, &wl[..nl], &mut out[..nl]);
             }
             local
         };
@@ -109,6 +107,21 @@ impl KeptTangents {
             }
         }
         Some(out)
+    }
+}
+
+/// kᵀw of a cell's row-major nl × nl matrix `k` and local weight `w` (nl = w.len()) into `out`,
+/// row by row (contiguous, so the loop over a row vectorises), rows of zero weight skipped (the
+/// displacement rows of a projection's weight).
+pub fn transposed_product(k: &[f64], w: &[f64], out: &mut [f64]) {
+    let nl = w.len();
+    out[..nl].fill(0.0);
+    for (row, &wi) in k.chunks_exact(nl).zip(w) {
+        if wi != 0.0 {
+            for (o, &kij) in out[..nl].iter_mut().zip(row) {
+                *o += wi * kij;
+            }
+        }
     }
 }
 

@@ -9,6 +9,7 @@
 //! supports), so an adjoint carries their part to the drive's parameters.
 
 use super::circuit::CircuitStep;
+use super::kept_tangents::transposed_product;
 use super::model::Model;
 use super::points::PointStates;
 use crate::algebra::system::NonlinearSystem;
@@ -129,7 +130,7 @@ pub fn cell_products(
         kernel
             .residual_tangent(&input, &mut r[..nl], Some(&mut k))
             .map_err(fail)?;
-        transposed(&k, wl, &mut cell.stiffness[..nl]);
+        transposed_product(&k, wl, &mut cell.stiffness[..nl]);
         let eta = viscosity.get(m).copied().unwrap_or(0.0);
         if let (true, Some(v)) = (eta > 0.0, v) {
             let mut vl = [0.0; MAX_LOCAL];
@@ -138,11 +139,11 @@ pub fn cell_products(
             k.fill(0.0);
             kv.forces(g, local, &vl[..nl], &mut r[..nl], Some(&mut k))
                 .map_err(fail)?;
-            transposed(&k, wl, &mut cell.viscous_velocity[..nl]);
+            transposed_product(&k, wl, &mut cell.viscous_velocity[..nl]);
             k.fill(0.0);
             kv.configuration_tangent(g, local, &vl[..nl], &mut k)
                 .map_err(fail)?;
-            transposed(&k, wl, &mut cell.viscous_configuration[..nl]);
+            transposed_product(&k, wl, &mut cell.viscous_configuration[..nl]);
         }
         cell_points_product(kernel, &input, wl, &mut cell.points).map_err(fail)?;
         Ok(cell)
@@ -334,14 +335,6 @@ pub fn viscosity_vjp(
 fn gather(nodes: &[usize], x: &[f64], local: &mut [f64]) {
     for (a, &node) in nodes.iter().enumerate() {
         local[a * FIELDS..(a + 1) * FIELDS].copy_from_slice(&x[node * FIELDS..(node + 1) * FIELDS]);
-    }
-}
-
-/// kᵀ w of a cell's local matrix `k` (row-major) and local weight `w`, into `out`.
-fn transposed(k: &[f64], w: &[f64], out: &mut [f64]) {
-    let nl = w.len();
-    for (j, o) in out.iter_mut().enumerate().take(nl) {
-        *o = (0..nl).map(|i| w[i] * k[i * nl + j]).sum();
     }
 }
 
