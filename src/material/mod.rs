@@ -436,7 +436,6 @@ pub trait Material: Send + Sync + std::fmt::Debug {
     }
 }
 
-/// The defaults of the derivatives in the internal variables hold for an elastic material only.
 /// The error of a parameter `index` asked of a material with `n` parameters.
 pub(crate) fn no_parameter(index: usize, n: usize) -> MaterialError {
     MaterialError::OutOfDomain(format!(
@@ -444,6 +443,7 @@ pub(crate) fn no_parameter(index: usize, n: usize) -> MaterialError {
     ))
 }
 
+/// The defaults of the derivatives in the internal variables hold for an elastic material only.
 fn no_state_derivatives(state_size: usize) -> Result<(), MaterialError> {
     if state_size == 0 {
         Ok(())
