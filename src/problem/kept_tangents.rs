@@ -21,10 +21,6 @@ pub struct KeptTangents {
 /// products take their own pass, as memory matters more than the pass on such meshes.
 pub const MAX_BYTES: usize = 256 << 20;
 
-/// From this many cells [`KeptTangents::products`] runs its cells on the pool (when it has
-/// more than one thread).
-const PARALLEL_MIN_CELLS: usize = 128;
-
 impl KeptTangents {
     /// Whether the tangents of `model`'s cells fit [`MAX_BYTES`].
     pub fn affordable(model: &Model) -> bool {
@@ -88,14 +84,8 @@ impl KeptTangents {
             }
             local
         };
-        let n_cells = self.cells.len();
-        let locals: Vec<[[f64; MAX_LOCAL]; 2]> =
-            if n_cells >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
-                use rayon::prelude::*;
-                (0..n_cells).into_par_iter().map(cell).collect()
-            } else {
-                (0..n_cells).map(cell).collect()
-            };
+        let all: Vec<usize> = (0..self.cells.len()).collect();
+        let locals = Model::map_cells(&all, cell);
         // (a cell without a second block adds zeros)
         let mut out = [vec![0.0; w.len()], vec![0.0; w.len()]];
         for (c, local) in locals.iter().enumerate() {

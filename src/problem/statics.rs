@@ -414,14 +414,8 @@ fn internal_forces(
     let cells: Vec<usize> = (0..model.mesh.n_cells())
         .filter(|&c| only.is_none_or(|(m, _)| model.cell_material[c] == m))
         .collect();
-    // the cells on the pool, their forces added in cell order on either path (the same sums)
-    let done: Vec<Result<[f64; MAX_LOCAL], String>> =
-        if cells.len() >= PARALLEL_MIN_RECORD_CELLS && rayon::current_num_threads() > 1 {
-            use rayon::prelude::*;
-            cells.par_iter().map(|&c| eval(c)).collect()
-        } else {
-            cells.iter().map(|&c| eval(c)).collect()
-        };
+    // their forces added in cell order (the same sums on any number of threads)
+    let done = Model::map_cells(&cells, eval);
     let mut out = vec![0.0; state.len()];
     for (&c, r) in cells.iter().zip(done) {
         let r = r?;
@@ -485,10 +479,6 @@ pub fn parameter_vjp(
             .collect(),
     )
 }
-
-/// From this many cells the record's pass over the cells runs on the pool (when it has more
-/// than one thread).
-const PARALLEL_MIN_RECORD_CELLS: usize = 128;
 
 /// What the record of a state needs of the cells (see [`record_with`]).
 #[derive(Debug)]
@@ -572,23 +562,11 @@ pub fn record_with(
             false
         }
     };
-    if n_cells >= PARALLEL_MIN_RECORD_CELLS && rayon::current_num_threads() > 1 {
-        // the cells on the pool
-        use rayon::prelude::*;
-        let cells: Vec<_> = (0..n_cells)
-            .into_par_iter()
-            .map(|c| owned(c).then(|| eval(c)))
-            .collect();
-        for (c, cell) in cells.into_iter().enumerate() {
-            if !take(c, cell) {
-                break;
-            }
-        }
-    } else {
-        for c in 0..n_cells {
-            if !take(c, owned(c).then(|| eval(c))) {
-                break;
-            }
+    let all: Vec<usize> = (0..n_cells).collect();
+    let cells = Model::map_cells(&all, |c| owned(c).then(|| eval(c)));
+    for (c, cell) in cells.into_iter().enumerate() {
+        if !take(c, cell) {
+            break;
         }
     }
     let Some(share) = share else {

@@ -178,19 +178,9 @@ pub fn cell_products(
     let cells: Vec<usize> = (0..model.mesh.n_cells())
         .filter(|&c| model.owns(c))
         .collect();
-    if cells.len() >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
-        use rayon::prelude::*;
-        let done: Vec<_> = cells.par_iter().map(|&c| eval(c)).collect();
-        for (&c, cell) in cells.iter().zip(done) {
-            if !add(c, cell) {
-                break;
-            }
-        }
-    } else {
-        for &c in &cells {
-            if !add(c, eval(c)) {
-                break;
-            }
+    for (&c, cell) in cells.iter().zip(Model::map_cells(&cells, eval)) {
+        if !add(c, cell) {
+            break;
         }
     }
     let mut sums = [
@@ -206,10 +196,6 @@ pub fn cell_products(
     out.viscous_velocity = parts.next().unwrap_or_default();
     Ok(out)
 }
-
-/// From this many cells [`cell_products`] runs its cells on the pool (when it has more than one
-/// thread).
-const PARALLEL_MIN_CELLS: usize = 128;
 
 /// A cell's part of (∂f_int/∂ξ)ᵀw in its points' committed internal variables ξ (nothing
 /// without them), appended to `out` point by point, for the local weight `wl`.
@@ -273,14 +259,7 @@ pub fn points_products(
     let cells: Vec<usize> = (0..model.mesh.n_cells())
         .filter(|&c| model.owns(c) && !points.cell_range(c).is_empty())
         .collect();
-    let done: Vec<Result<Vec<f64>, String>> =
-        if cells.len() >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
-            use rayon::prelude::*;
-            cells.par_iter().map(|&c| eval(c)).collect()
-        } else {
-            cells.iter().map(|&c| eval(c)).collect()
-        };
-    for (&c, cell) in cells.iter().zip(done) {
+    for (&c, cell) in cells.iter().zip(Model::map_cells(&cells, eval)) {
         out[points.cell_range(c)].copy_from_slice(&cell?);
     }
     Ok(out)
