@@ -3,9 +3,10 @@
 //! Knows the mesh topology and the dof map, nothing of physics: a cell kernel (a closure) turns a
 //! cell's local values into a local residual and tangent. The CSR pattern over the free dofs is built
 //! once. Cells are coloured so that no two cells of one colour share a node; the cells of one colour
-//! are assembled in parallel and write into disjoint entries, colours one after the other. Every
-//! matrix and vector entry therefore receives its contributions in the same order whatever the
-//! number of threads: results are bitwise reproducible.
+//! are assembled in parallel and write into disjoint entries, colours one after the other. Cells
+//! on tied nodes share equations: their kernels run in parallel, and their results are added one
+//! after the other. Every matrix and vector entry therefore receives its contributions in the
+//! same order whatever the number of threads: results are bitwise reproducible.
 //!
 //! **Shared assembly.** Several processes (MPI ranks) may share the cells: with a [`CellShare`]
 //! each process assembles only the cells it owns, [`Assembler::combine`] sums the residual's cell
@@ -38,6 +39,11 @@ const PARALLEL_MIN_CELLS: usize = 128;
 /// the serial order. A cell of a nearly incompressible hex8 costs a few microseconds, so a few
 /// hundred cells outweigh the hand-off.
 const PARALLEL_MIN_RESIDUAL_CELLS: usize = 128;
+
+/// The cells on tied nodes (a rigid pad's, which may be a third of a model's) are evaluated on
+/// the pool this many at a time into a buffer before being added in order: a bounded buffer
+/// (0.5 MB for hex8 cells) that still gives each thread many cells.
+const SERIAL_CHUNK: usize = 64;
 
 /// The cells this process assembles, and how its partial sums meet the other processes'.
 /// Built by the run set-up; the physics sees only this.
@@ -206,8 +212,8 @@ pub struct Assembler {
     colours: Vec<Vec<usize>>,
     /// Every cell in the order of the serial assembly: the colours, then the serial cells.
     order: Vec<usize>,
-    /// Cells touching tied nodes (which share equations with other cells' nodes): assembled one
-    /// after the other, in cell order, after the colours.
+    /// Cells touching tied nodes (which share equations with other cells' nodes): added one
+    /// after the other, in cell order, after the colours (their kernels run on the pool).
     serial: Vec<usize>,
     pattern: CsrMatrix,
     nodes_per_cell: usize,
@@ -507,26 +513,32 @@ impl Assembler {
             [usize; MAX_LOCAL],
             [f64; MAX_LOCAL],
         );
-        let body = |(rl, kl, eqs, scale): &mut Work, &c: &usize| {
-            let cell = mesh.cell(c);
+        // a cell's local values
+        let values = |c: usize| {
             let mut local = [0.0; MAX_LOCAL];
-            for (a, &node) in cell.iter().enumerate() {
+            for (a, &node) in mesh.cell(c).iter().enumerate() {
+                local[a * FIELDS..(a + 1) * FIELDS]
+                    .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
+            }
+            local
+        };
+        // a cell's equations and their scales
+        let equations = |c: usize, eqs: &mut [usize; MAX_LOCAL], scale: &mut [f64; MAX_LOCAL]| {
+            for (a, &node) in mesh.cell(c).iter().enumerate() {
                 for f in 0..FIELDS {
-                    let d = node * FIELDS + f;
-                    local[a * FIELDS + f] = state[d];
-                    eqs[a * FIELDS + f] = dofs.eq[d];
+                    eqs[a * FIELDS + f] = dofs.eq[node * FIELDS + f];
                     scale[a * FIELDS + f] = dofs.scale[f];
                 }
             }
-            let kl_opt = if want_k {
-                Some(&mut kl[..nl * nl])
-            } else {
-                None
-            };
-            let energy = kernel(c, &local[..nl], &mut rl[..nl], kl_opt)
-                .map_err(|error| CellFailure { cell: c, error })?;
-            // SAFETY: cells of one colour share no node, hence no dof (tied cells run
-            // alone): disjoint entries.
+        };
+        // adds a cell's evaluated residual, tangent and energy to the global ones
+        // SAFETY (the caller's): no other thread adds to the cell's entries concurrently
+        let scatter = |c: usize,
+                       eqs: &[usize; MAX_LOCAL],
+                       scale: &[f64; MAX_LOCAL],
+                       rl: &[f64],
+                       kl: &[f64],
+                       energy: f64| {
             unsafe {
                 e_ptr.add(c, energy);
                 for i in 0..nl {
@@ -604,9 +616,24 @@ impl Assembler {
                     }
                 }
             }
+        };
+        let body = |(rl, kl, eqs, scale): &mut Work, &c: &usize| {
+            let local = values(c);
+            equations(c, eqs, scale);
+            let kl_opt = if want_k {
+                Some(&mut kl[..nl * nl])
+            } else {
+                None
+            };
+            let energy = kernel(c, &local[..nl], &mut rl[..nl], kl_opt)
+                .map_err(|error| CellFailure { cell: c, error })?;
+            // cells of one colour share no node, hence no dof (tied cells run alone): disjoint
+            // entries
+            scatter(c, eqs, scale, &rl[..nl], &kl[..nl * nl], energy);
             Ok(())
         };
-        if mesh.n_cells() < PARALLEL_MIN_CELLS || rayon::current_num_threads() == 1 {
+        let parallel = mesh.n_cells() >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1;
+        if !parallel {
             // the same colour order as the parallel path: identical sums
             let mut work = init();
             for colour in &self.colours {
@@ -614,14 +641,39 @@ impl Assembler {
                     body(&mut work, c)?;
                 }
             }
-        } else {
-            for colour in &self.colours {
-                colour.par_iter().try_for_each_init(init, body)?;
+            for c in &self.serial {
+                body(&mut work, c)?;
             }
+            return Ok(cell_energy.iter().sum());
         }
-        let mut work = init();
-        for c in &self.serial {
-            body(&mut work, c)?;
+        for colour in &self.colours {
+            colour.par_iter().try_for_each_init(init, body)?;
+        }
+        // the cells on tied nodes share equations: their kernels run on the pool a chunk at a
+        // time into a buffer, then are added one after the other in the serial order
+        let stride = nl + if want_k { nl * nl } else { 0 };
+        let mut buffer = vec![0.0; SERIAL_CHUNK.min(self.serial.len()) * stride];
+        let mut energies = Vec::with_capacity(SERIAL_CHUNK);
+        for chunk in self.serial.chunks(SERIAL_CHUNK) {
+            chunk
+                .par_iter()
+                .zip(buffer.par_chunks_mut(stride))
+                .map(|(&c, out)| {
+                    let local = values(c);
+                    let (rl, kl) = out.split_at_mut(nl);
+                    kernel(c, &local[..nl], rl, want_k.then_some(kl))
+                        .map_err(|error| CellFailure { cell: c, error })
+                })
+                .collect_into_vec(&mut energies);
+            for ((&c, out), energy) in chunk
+                .iter()
+                .zip(buffer.chunks(stride))
+                .zip(energies.drain(..))
+            {
+                let (mut eqs, mut scale) = ([0; MAX_LOCAL], [0.0; MAX_LOCAL]);
+                equations(c, &mut eqs, &mut scale);
+                scatter(c, &eqs, &scale, &out[..nl], &out[nl..], energy?);
+            }
         }
         Ok(cell_energy.iter().sum())
     }
@@ -727,10 +779,13 @@ mod tests {
     use super::*;
     use crate::mesh::generate::box_mesh;
     use crate::mesh::ElementKind;
+    use crate::problem::dofs::Tie;
 
     /// The residual computed on the pool (cells into a buffer, added in the serial order) is the
     /// serial residual bit for bit, and so is the residual of the coloured path that assembles a
     /// tangent alongside; the tangent assembled on the pool is the serial tangent bit for bit.
+    /// Also with tied nodes, whose cells (three chunks of them here) are evaluated on the pool
+    /// and added in order; a failing cell among them is reported as the serial path reports it.
     #[test]
     fn parallel_residual_equals_serial_bit_for_bit() {
         let mesh = box_mesh([1.0, 1.0, 0.5], [8, 8, 4], ElementKind::Hex8);
@@ -741,34 +796,48 @@ mod tests {
         let constrained: Vec<bool> = (0..n * FIELDS)
             .map(|d| mesh.nodes[d / FIELDS][2] == 0.0 || (d % FIELDS == 3 && d % 40 == 3))
             .collect();
-        let dofs = DofMap::new(n, &constrained, 3.0);
-        let asm = Assembler::new(&mesh, &dofs);
+        // the upper half's vertical displacements tied, as a rigid pad ties its nodes'
+        let tie = Tie {
+            nodes: (0..n).filter(|&a| mesh.nodes[a][2] >= 0.25).collect(),
+            field: crate::problem::dofs::Field::Uz,
+            held: false,
+        };
         let state: Vec<f64> = (0..n * FIELDS)
             .map(|d| ((d as f64 * 12.9898).sin() * 43758.5453).fract())
             .collect();
-        let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
-            for (i, (r, x)) in rl.iter_mut().zip(local).enumerate() {
-                *r = (c as f64 + 1.0).sin() * x * x + 0.1 * i as f64;
-            }
-            if let Some(kl) = kl {
-                // values whose sums depend on the order of the cells
-                for (p, v) in kl.iter_mut().enumerate() {
-                    *v = ((c * 131 + p) as f64 * 0.37).sin() * 1e3 + 1e-7 * c as f64;
+        for ties in [vec![], vec![tie]] {
+            let dofs = DofMap::with_ties(n, &constrained, 3.0, &ties);
+            let asm = Assembler::new(&mesh, &dofs);
+            assert_eq!(asm.serial.len(), if ties.is_empty() { 0 } else { 192 });
+            let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
+                for (i, (r, x)) in rl.iter_mut().zip(local).enumerate() {
+                    *r = (c as f64 + 1.0).sin() * x * x + 0.1 * i as f64;
                 }
-            }
-            Ok::<f64, ()>(local.iter().sum::<f64>() * 1e-3)
-        };
-        let run = |threads: usize, tangent: bool| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                let mut r = vec![0.0; dofs.n_free];
-                let mut k = asm.new_matrix();
-                let mut e = Vec::new();
-                let total = asm
-                    .assemble(
+                if let Some(kl) = kl {
+                    // values whose sums depend on the order of the cells
+                    for (p, v) in kl.iter_mut().enumerate() {
+                        *v = ((c * 131 + p) as f64 * 0.37).sin() * 1e3 + 1e-7 * c as f64;
+                    }
+                }
+                Ok::<f64, usize>(local.iter().sum::<f64>() * 1e-3)
+            };
+            let run = |threads: usize, tangent: bool, failing: &[usize]| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    let mut r = vec![0.0; dofs.n_free];
+                    let mut k = asm.new_matrix();
+                    let mut e = Vec::new();
+                    let kernel =
+                        |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
+                            if failing.contains(&c) {
+                                return Err(c);
+                            }
+                            kernel(c, local, rl, kl)
+                        };
+                    let total = asm.assemble(
                         &mesh,
                         &dofs,
                         &state,
@@ -776,21 +845,33 @@ mod tests {
                         &mut r,
                         tangent.then_some(&mut k),
                         &mut e,
-                    )
-                    .unwrap();
-                ((r, e, total), tangent.then(|| k.values.clone()))
-            })
-        };
-        let (serial, _) = run(1, false);
-        assert!(serial.0.iter().any(|&v| v != 0.0));
-        assert_eq!(run(2, false).0, serial);
-        let (with_tangent, k_pool) = run(2, true);
-        assert_eq!(with_tangent, serial);
-        let (_, k_serial) = run(1, true);
-        let (k_serial, k_pool) = (k_serial.unwrap(), k_pool.unwrap());
-        assert!(k_serial.iter().any(|&v| v != 0.0));
-        let bits = |k: &[f64]| k.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&k_pool), bits(&k_serial));
+                    );
+                    (total.map(|t| (r, e, t)), tangent.then(|| k.values.clone()))
+                })
+            };
+            let (serial, _) = run(1, false, &[]);
+            let serial = serial.unwrap();
+            assert!(serial.0.iter().any(|&v| v != 0.0));
+            assert_eq!(run(2, false, &[]).0.unwrap(), serial);
+            let (with_tangent, k_pool) = run(2, true, &[]);
+            assert_eq!(with_tangent.unwrap(), serial);
+            let (_, k_serial) = run(1, true, &[]);
+            let (k_serial, k_pool) = (k_serial.unwrap(), k_pool.unwrap());
+            assert!(k_serial.iter().any(|&v| v != 0.0));
+            let bits = |k: &[f64]| k.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&k_pool), bits(&k_serial));
+            if let [.., second, last] = asm.serial[..] {
+                // two failing tied cells in the last chunk: the first in the serial order
+                let failure = CellFailure {
+                    cell: second,
+                    error: second,
+                };
+                for threads in [1, 2] {
+                    let (out, _) = run(threads, true, &[last, second]);
+                    assert_eq!(out.unwrap_err(), failure);
+                }
+            }
+        }
     }
 
     /// Processes that share the cells hold only their part of the pattern, and their parts of
