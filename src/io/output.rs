@@ -39,6 +39,21 @@ pub const HISTORY_COLUMNS: &[&str] = &[
     "energy_error",
 ];
 
+/// Seconds between the rewrites of `history.csv`, `electrodes.csv` and the running
+/// `summary.json` during a run ...
+const FLUSH_EVERY_S: f64 = 2.0;
+
+/// ... or this many times what the last rewrite took, if that is longer: each rewrite writes
+/// every row so far, so a long run (10⁵ steps) would otherwise spend a growing share of its
+/// time rewriting; this keeps that share under 5 %.
+const FLUSH_COST_FACTOR: f64 = 20.0;
+
+/// Whether the running files are due for a rewrite, `since_last` s after the last one, which
+/// took `last_cost` s.
+fn flush_due(since_last: f64, last_cost: f64) -> bool {
+    since_last > FLUSH_EVERY_S.max(FLUSH_COST_FACTOR * last_cost)
+}
+
 /// Writes a run's files into a directory.
 pub struct OutputWriter {
     dir: PathBuf,
@@ -50,6 +65,8 @@ pub struct OutputWriter {
     revolved: Option<RevolvedMesh>,
     steps_seen: usize,
     last_flush: Instant,
+    /// How long the last rewrite of the running files took (s).
+    last_flush_cost: f64,
     /// When the writer was created (the provisional summary's wall time).
     started: Instant,
     last_state: Option<(StepRecord, Vec<f64>, Vec<CellFields>)>,
@@ -354,6 +371,7 @@ impl OutputWriter {
             revolved: None,
             steps_seen: 0,
             last_flush: Instant::now(),
+            last_flush_cost: 0.0,
             started: Instant::now(),
             last_state: None,
             last_written_step: None,
@@ -1298,10 +1316,16 @@ impl Observer for OutputWriter {
         self.steps_seen += 1;
         self.last_state = Some((record.clone(), state.to_vec(), fields.to_vec()));
         if !self.piece_only
-            && (self.steps_seen == 1 || self.last_flush.elapsed().as_secs_f64() > 2.0)
+            && (self.steps_seen == 1
+                || flush_due(
+                    self.last_flush.elapsed().as_secs_f64(),
+                    self.last_flush_cost,
+                ))
         {
+            let started = Instant::now();
             self.write_history(plan);
             self.write_running_summary(plan);
+            self.last_flush_cost = started.elapsed().as_secs_f64();
         }
     }
 
@@ -1459,6 +1483,18 @@ pub fn add_to_summary(dir: &Path, key: &str, value: serde_json::Value) -> Result
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The running files are rewritten every 2 s while a rewrite is cheap, and at most every 20
+    /// times its cost once it is not (a history of many steps): under 5 % of the run.
+    #[test]
+    fn the_running_files_are_rewritten_at_a_bounded_share_of_the_run() {
+        assert!(!flush_due(1.9, 0.0));
+        assert!(flush_due(2.1, 0.0));
+        assert!(flush_due(2.1, 0.1));
+        // a rewrite of 0.5 s waits 10 s
+        assert!(!flush_due(9.9, 0.5));
+        assert!(flush_due(10.1, 0.5));
+    }
 
     /// The plan of a scenario of `scenarios/` with `--set` overrides.
     fn scenario_plan(file: &str, overrides: &[&str]) -> Plan {
