@@ -29,8 +29,8 @@ use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS};
 use rayon::prelude::*;
 use std::sync::Arc;
 
-/// Below this many cells the assembly with the tangent runs on the calling thread: handing
-/// colours to the pool costs more than assembling the cells. On the hex8 film with 2 threads the
+/// Below this many cells the assembly with the tangent, and [`map_cells`], run on the calling
+/// thread: handing cells to the pool costs more than evaluating them. On the hex8 film with 2 threads the
 /// pool is already faster at 128 cells (docs/validation.md).
 const PARALLEL_MIN_CELLS: usize = 128;
 
@@ -44,6 +44,18 @@ const PARALLEL_MIN_RESIDUAL_CELLS: usize = 128;
 /// the pool this many at a time into a buffer before being added in order: a bounded buffer
 /// (0.5 MB for hex8 cells) that still gives each thread many cells.
 const SERIAL_CHUNK: usize = 64;
+
+/// `f` of each of `cells`, the results in their order: on the pool from [`PARALLEL_MIN_CELLS`]
+/// cells (when it has more than one thread), one by one below. A caller that adds the results
+/// in this order gets the same sums, bit for bit, on any number of threads (the record, the
+/// internal forces, the adjoint's cell products).
+pub fn map_cells<R: Send>(cells: &[usize], f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
+    if cells.len() >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
+        cells.par_iter().map(|&c| f(c)).collect()
+    } else {
+        cells.iter().map(|&c| f(c)).collect()
+    }
+}
 
 /// The cells this process assembles, and how its partial sums meet the other processes'.
 /// Built by the run set-up; the physics sees only this.

@@ -85,7 +85,7 @@ impl KeptTangents {
             local
         };
         let all: Vec<usize> = (0..self.cells.len()).collect();
-        let locals = Model::map_cells(&all, cell);
+        let locals = crate::problem::assembly::map_cells(&all, cell);
         // (a cell without a second block adds zeros)
         let mut out = [vec![0.0; w.len()], vec![0.0; w.len()]];
         for (c, local) in locals.iter().enumerate() {

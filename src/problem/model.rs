@@ -10,10 +10,6 @@ use crate::problem::dofs::{Dirichlet, Tie};
 pub use crate::problem::loads::Traction;
 use std::sync::Arc;
 
-/// From this many cells [`Model::map_cells`] runs its cells on the pool: below it, the pool's
-/// wake-ups cost more than the cells.
-const PARALLEL_MIN_CELLS: usize = 128;
-
 /// Everything that defines the boundary value problem except the loading path.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -244,19 +240,6 @@ impl Model {
             (mu / eps).sqrt()
         } else {
             1.0
-        }
-    }
-
-    /// `f` of each of `cells`, the results in their order: on the pool from
-    /// [`PARALLEL_MIN_CELLS`] cells (when it has more than one thread), one by one below. A
-    /// caller that adds the results in this order gets the same sums, bit for bit, on any number
-    /// of threads.
-    pub fn map_cells<R: Send>(cells: &[usize], f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
-        if cells.len() >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
-            use rayon::prelude::*;
-            cells.par_iter().map(|&c| f(c)).collect()
-        } else {
-            cells.iter().map(|&c| f(c)).collect()
         }
     }
 

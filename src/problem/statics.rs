@@ -415,7 +415,7 @@ fn internal_forces(
         .filter(|&c| only.is_none_or(|(m, _)| model.cell_material[c] == m))
         .collect();
     // their forces added in cell order (the same sums on any number of threads)
-    let done = Model::map_cells(&cells, eval);
+    let done = crate::problem::assembly::map_cells(&cells, eval);
     let mut out = vec![0.0; state.len()];
     for (&c, r) in cells.iter().zip(done) {
         let r = r?;
@@ -563,7 +563,7 @@ pub fn record_with(
         }
     };
     let all: Vec<usize> = (0..n_cells).collect();
-    let cells = Model::map_cells(&all, |c| owned(c).then(|| eval(c)));
+    let cells = crate::problem::assembly::map_cells(&all, |c| owned(c).then(|| eval(c)));
     for (c, cell) in cells.into_iter().enumerate() {
         if !take(c, cell) {
             break;

@@ -178,7 +178,10 @@ pub fn cell_products(
     let cells: Vec<usize> = (0..model.mesh.n_cells())
         .filter(|&c| model.owns(c))
         .collect();
-    for (&c, cell) in cells.iter().zip(Model::map_cells(&cells, eval)) {
+    for (&c, cell) in cells
+        .iter()
+        .zip(crate::problem::assembly::map_cells(&cells, eval))
+    {
         if !add(c, cell) {
             break;
         }
@@ -259,7 +262,10 @@ pub fn points_products(
     let cells: Vec<usize> = (0..model.mesh.n_cells())
         .filter(|&c| model.owns(c) && !points.cell_range(c).is_empty())
         .collect();
-    for (&c, cell) in cells.iter().zip(Model::map_cells(&cells, eval)) {
+    for (&c, cell) in cells
+        .iter()
+        .zip(crate::problem::assembly::map_cells(&cells, eval))
+    {
         out[points.cell_range(c)].copy_from_slice(&cell?);
     }
     Ok(out)
