@@ -7,9 +7,11 @@
 # whether J and the derivatives are the same numbers in every run.
 #
 # usage: scripts/gradient-memory.sh STEPS BUDGET [BUDGET ...]
-#   STEPS   time steps of 1 ms of the dynamic stage (e.g. 10000)
+#   STEPS   time steps of the dynamic stage (e.g. 10000)
 #   BUDGET  a `--memory` size, e.g. "1 GiB" or "102.4 MiB"
 # environment:
+#   DT      the step size in s (default the example's 1e-3: 500 steps a period of its 2 Hz
+#           square wave)
 #   DEASIM  the deasim binary (default target/release/deasim)
 #   OUT     scratch directory (default a new temporary one)
 set -euo pipefail
@@ -44,11 +46,13 @@ data = "d.csv"
 weight = 1e6
 EOF
 printf 'time,value\n0,1.0e-3\n1e6,1.0e-3\n' > d.csv
-duration=$(python3 -c "print($steps * 1e-3)")
+dt=${DT:-1e-3}
+duration=$(python3 -c "print(repr($steps * $dt))")
 i=0
 for budget in "$@"; do
     i=$((i + 1))
     /usr/bin/time -v "$deasim" gradient d3.toml --set "stages.1.duration=$duration" \
+        --set "stages.1.dt=$dt" \
         --set output.fields_every=0 --set output.plots=false --out "o$i" --overwrite \
         --memory "$budget" > "log$i" 2> "time$i"
     rss=$(grep 'Maximum resident' "time$i" | awk '{print $NF}')
