@@ -588,6 +588,22 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
     }
 }
 
+/// How much longer than the step size a stage's last step may be. The summed time can fall short
+/// of the stage end by round-off, up to about N²·10⁻¹⁶ of a step after N steps (2·10⁻⁷ after
+/// 10⁵ steps of 0.5/501 s), and a step of that sliver would be dominated by M/Δt, numerically
+/// singular.
+const LAST_STEP_STRETCH: f64 = 1e-3;
+
+/// The size of the next step: `dt`, or the whole `remaining` time of the stage when that is less
+/// than `dt` or longer by at most [`LAST_STEP_STRETCH`] of it.
+fn last_or(dt: f64, remaining: f64) -> f64 {
+    if remaining <= dt * (1.0 + LAST_STEP_STRETCH) {
+        remaining
+    } else {
+        dt
+    }
+}
+
 /// The adaptive step loop shared by every scheme: `on_step` sees every accepted level.
 // one result per stage: the size of its failure (the last level and what stopped it) costs nothing
 #[allow(clippy::result_large_err)]
@@ -614,7 +630,7 @@ fn step_loop(
                 },
             ));
         }
-        let h = dt.min(t_end - t0);
+        let h = last_or(dt, t_end - t0);
         match stepper.attempt(h) {
             Ok(a) => {
                 total += a.iterations;
@@ -947,4 +963,108 @@ pub fn run_dynamic_while(
         result.map_err(|e| fail(&step.prev, format!("re-factoring at the checkpoint: {e}")))?;
     }
     step_loop(&mut stepper, settings, t_end, dt, (total, base), on_step)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scheme that only advances the time, and fails any step far shorter than the nominal
+    /// one (as a step of a round-off sliver does, its iteration matrix singular).
+    struct Clock {
+        level: TimeLevel,
+        steps: Vec<f64>,
+        nominal: f64,
+        last: f64,
+    }
+
+    impl Stepper for Clock {
+        fn level(&self) -> &TimeLevel {
+            &self.level
+        }
+        fn attempt(&mut self, h: f64) -> Result<Attempt, StepError> {
+            if h < 1e-6 * self.nominal {
+                return Err(StepError::Retry("singular tangent".into()));
+            }
+            self.last = h;
+            let mut level = self.level.clone();
+            level.t += h;
+            Ok(Attempt {
+                level,
+                iterate: Vec::new(),
+                iterations: 1,
+                dissipated: 0.0,
+                points: None,
+            })
+        }
+        fn accept(&mut self, level: TimeLevel, _points: Option<PointStates>) {
+            self.steps.push(self.last);
+            self.level = level;
+        }
+        fn easy(&self, _iterations: usize, _easy_iterations: usize) -> bool {
+            true
+        }
+        fn position(&self) -> (f64, Option<&FactorPoint>, Option<&[f64]>) {
+            (self.nominal, None, None)
+        }
+        fn linear(&self) -> SolverStats {
+            SolverStats::default()
+        }
+    }
+
+    /// 10⁵ steps of 0.5/501 s sum to 2·10⁻¹⁰ s short of 10⁵ times the step (the stage's
+    /// duration): the last step takes that sliver along, and the stage ends after 10⁵ steps,
+    /// at its end. A stage whose duration is not a multiple of the step still ends with the
+    /// short step it needs.
+    #[test]
+    fn a_stage_ends_without_a_step_of_the_time_round_off() {
+        let run = |dt: f64, duration: f64| {
+            let settings = DynamicSettings {
+                duration,
+                dt,
+                scheme: Method::Implicit(Scheme::Midpoint),
+                min_fraction: 1.0 / 1024.0,
+                easy_iterations: 4,
+                reuse_factorization: true,
+                solver: SolverSettings::default(),
+            };
+            let mut clock = Clock {
+                level: TimeLevel {
+                    t: 0.0,
+                    q: Vec::new(),
+                    v: Vec::new(),
+                    a: Vec::new(),
+                },
+                steps: Vec::new(),
+                nominal: dt,
+                last: 0.0,
+            };
+            let (end, _) = step_loop(
+                &mut clock,
+                &settings,
+                duration,
+                dt,
+                (0, SolverStats::default()),
+                |_, _| true,
+            )
+            .unwrap_or_else(|(_, f)| panic!("{}", f.reason));
+            (end.t, clock.steps)
+        };
+        let dt = 0.5 / 501.0;
+        let (n, duration) = (100_000, 100_000.0 * dt);
+        let mut sum = 0.0;
+        for _ in 0..n {
+            sum += dt;
+        }
+        assert!(duration - sum > 1e-12 * duration, "{}", duration - sum);
+        let (t, steps) = run(dt, duration);
+        assert_eq!(steps.len(), n);
+        assert_eq!(t, duration);
+        assert!(steps[..n - 1].iter().all(|&h| h == dt));
+        assert!(steps[n - 1] > dt && steps[n - 1] < dt * (1.0 + 1e-6));
+        let (t, steps) = run(1e-3, 0.0105);
+        assert_eq!(steps.len(), 11);
+        assert!((t - 0.0105).abs() < 1e-15);
+        assert!((steps[10] - 5e-4).abs() < 1e-15, "{}", steps[10]);
+    }
 }
