@@ -594,13 +594,15 @@ impl Stepper for TrapezoidalStepper<'_, '_> {
 /// singular.
 const LAST_STEP_STRETCH: f64 = 1e-3;
 
-/// The size of the next step: `dt`, or the whole `remaining` time of the stage when that is less
-/// than `dt` or longer by at most [`LAST_STEP_STRETCH`] of it.
-fn last_or(dt: f64, remaining: f64) -> f64 {
-    if remaining <= dt * (1.0 + LAST_STEP_STRETCH) {
+/// The size of the next step with `remaining` time left in the stage: `dt` or what is left,
+/// whichever is shorter; but the whole rest when a step of `dt` would leave a sliver, more than
+/// the stage's `end_tolerance` (which ends it) and at most [`LAST_STEP_STRETCH`] of `dt`.
+fn next_step(dt: f64, remaining: f64, end_tolerance: f64) -> f64 {
+    let left = remaining - dt;
+    if left > end_tolerance && left <= LAST_STEP_STRETCH * dt {
         remaining
     } else {
-        dt
+        dt.min(remaining)
     }
 }
 
@@ -617,7 +619,9 @@ fn step_loop(
     mut on_step: impl FnMut(&TimeLevel, &DynamicStepInfo) -> bool,
 ) -> Result<(TimeLevel, usize), (TimeLevel, DynamicFailure)> {
     let min_dt = settings.dt * settings.min_fraction;
-    while stepper.level().t < t_end - 1e-12 * settings.duration {
+    // the stage is over within this much of its end
+    let end_tolerance = 1e-12 * settings.duration;
+    while stepper.level().t < t_end - end_tolerance {
         let t0 = stepper.level().t;
         if let Some(reason) = crate::solve::interrupt::pending() {
             return Err((
@@ -630,7 +634,7 @@ fn step_loop(
                 },
             ));
         }
-        let h = last_or(dt, t_end - t0);
+        let h = next_step(dt, t_end - t0, end_tolerance);
         match stepper.attempt(h) {
             Ok(a) => {
                 total += a.iterations;
@@ -1014,8 +1018,9 @@ mod tests {
 
     /// 10⁵ steps of 0.5/501 s sum to 2·10⁻¹⁰ s short of 10⁵ times the step (the stage's
     /// duration): the last step takes that sliver along, and the stage ends after 10⁵ steps,
-    /// at its end. A stage whose duration is not a multiple of the step still ends with the
-    /// short step it needs.
+    /// at its end. 2000 steps of 0.2 ms fall short of 0.4 s by 10⁻¹⁴ s, within the stage's end
+    /// tolerance: every step is 0.2 ms, as before. A stage whose duration is not a multiple of
+    /// the step still ends with the short step it needs.
     #[test]
     fn a_stage_ends_without_a_step_of_the_time_round_off() {
         let run = |dt: f64, duration: f64| {
@@ -1062,6 +1067,10 @@ mod tests {
         assert_eq!(t, duration);
         assert!(steps[..n - 1].iter().all(|&h| h == dt));
         assert!(steps[n - 1] > dt && steps[n - 1] < dt * (1.0 + 1e-6));
+        let (t, steps) = run(2e-4, 0.4);
+        assert_eq!(steps.len(), 2000);
+        assert!(steps.iter().all(|&h| h == 2e-4));
+        assert!(t < 0.4 && t > 0.4 - 1e-12 * 0.4, "{t}");
         let (t, steps) = run(1e-3, 0.0105);
         assert_eq!(steps.len(), 11);
         assert!((t - 0.0105).abs() < 1e-15);
