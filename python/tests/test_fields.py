@@ -74,7 +74,9 @@ def test_diaphragm_fields_in_si_units(tmp_path):
     on_axis = p[:, 0] == 0.0
     w = -f["displacement"][on_axis, 1]
     deflection = r.history["probe:center_deflection"][f["row"]]
-    assert w.min() <= deflection <= w.max() and 1e-4 < deflection < 1e-2
+    # the probe and the field agree to about 2e-12 of the deflection, not bit for bit
+    tol = 1e-9 * deflection
+    assert w.min() - tol <= deflection <= w.max() + tol and 1e-4 < deflection < 1e-2
     # V/m: the true field through the film under the electrode, of the order of V / thickness
     v = r.history["voltage"][f["row"]]
     e = np.abs(f["electric_field"][:, 1]).max()
