@@ -551,13 +551,33 @@ mod tests {
     use super::*;
     use crate::solve::linear::FaerLdlt;
 
+    /// The parts of a test system with one unknown that do not depend on its equation: its
+    /// size, its 1 × 1 matrix, no negative pivot, a floor of 10⁻¹⁴ and one group.
+    macro_rules! one_unknown {
+        () => {
+            fn n(&self) -> usize {
+                1
+            }
+            fn new_matrix(&self) -> CsrMatrix {
+                CsrMatrix::new(1, vec![0, 1], vec![0], vec![0.0])
+            }
+            fn expected_negative_pivots(&self) -> usize {
+                0
+            }
+            fn residual_floor(&self) -> f64 {
+                1e-14
+            }
+            fn groups(&self) -> Vec<u8> {
+                vec![0]
+            }
+        };
+    }
+
     /// r(x) = x³ + x − 2 = 0 (root x = 1), one unknown.
     struct Cubic(f64);
 
     impl NonlinearSystem for Cubic {
-        fn n(&self) -> usize {
-            1
-        }
+        one_unknown!();
         fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
             r[0] = self.0.powi(3) + self.0 - 2.0;
             if let Some(k) = k {
@@ -574,18 +594,6 @@ mod tests {
         fn restore(&mut self, s: &[f64]) {
             self.0 = s[0];
         }
-        fn new_matrix(&self) -> CsrMatrix {
-            CsrMatrix::new(1, vec![0, 1], vec![0], vec![0.0])
-        }
-        fn expected_negative_pivots(&self) -> usize {
-            0
-        }
-        fn residual_floor(&self) -> f64 {
-            1e-14
-        }
-        fn groups(&self) -> Vec<u8> {
-            vec![0]
-        }
     }
 
     /// A double well E = x⁴/4 − x²/2 pulled by a force μ, with x held at `target` by the border
@@ -597,9 +605,7 @@ mod tests {
     }
 
     impl NonlinearSystem for HeldWell {
-        fn n(&self) -> usize {
-            1
-        }
+        one_unknown!();
         fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
             r[0] = self.x.powi(3) - self.x - self.mu;
             if let Some(k) = k {
@@ -616,18 +622,6 @@ mod tests {
         fn restore(&mut self, s: &[f64]) {
             self.x = s[0];
             self.mu = s[1];
-        }
-        fn new_matrix(&self) -> CsrMatrix {
-            Cubic(0.0).new_matrix()
-        }
-        fn expected_negative_pivots(&self) -> usize {
-            0
-        }
-        fn residual_floor(&self) -> f64 {
-            1e-14
-        }
-        fn groups(&self) -> Vec<u8> {
-            vec![0]
         }
         fn border(&self) -> Result<Option<Border>, String> {
             Ok(Some(Border {
@@ -771,9 +765,7 @@ mod tests {
     }
 
     impl NonlinearSystem for Plateau {
-        fn n(&self) -> usize {
-            1
-        }
+        one_unknown!();
         fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String> {
             self.evaluations += 1;
             let sign = if self.evaluations.is_multiple_of(2) {
@@ -795,18 +787,6 @@ mod tests {
         }
         fn restore(&mut self, s: &[f64]) {
             self.x = s[0];
-        }
-        fn new_matrix(&self) -> CsrMatrix {
-            Cubic(0.0).new_matrix()
-        }
-        fn expected_negative_pivots(&self) -> usize {
-            0
-        }
-        fn residual_floor(&self) -> f64 {
-            1e-14
-        }
-        fn groups(&self) -> Vec<u8> {
-            vec![0]
         }
     }
 
