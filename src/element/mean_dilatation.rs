@@ -256,6 +256,39 @@ impl MdKinematics {
     }
 }
 
+/// The effective 9 × 9 tangent of a mean-dilatation point in the compatible F: ∂²ψ/∂F² through
+/// the projection Q = α(𝕀 − ⅓ F ⊗ f) (f = F⁻ᵀ), with Ā the material tangent at F̄, a_F = Ā:F,
+/// `faf` = F:Ā:F, P̄ : ∂²F̄/∂F∂F (s = P̄:F̄), and `pj` = (H/V)J for (H/V) ∂cof F/∂F =
+/// (H/V)J(f_mN f_kL − f_mL f_kN). The terms are gathered by the products of f they multiply,
+/// so that an entry costs no division:
+/// α²Ā − f⊗u − u⊗f + (α² F:Ā:F/9 + s/9 + pJ) f⊗f + (s/3 − pJ) f_kN f_mL, u = (α²/3)a_F + (α/3)P̄.
+#[allow(clippy::too_many_arguments)]
+fn effective_a(
+    a: &Mat9,
+    fi: &Vec9,
+    a_f: &Vec9,
+    pb9: &Vec9,
+    faf: f64,
+    alpha: f64,
+    sq: f64,
+    pj: f64,
+) -> Mat9 {
+    let a2 = alpha * alpha;
+    let u9: Vec9 = a_f * (a2 / 3.0) + pb9 * (alpha / 3.0);
+    let ff = (a2 * faf + sq) / 9.0 + pj;
+    let swap = sq / 3.0 - pj;
+    let mut a_eff: Mat9 = a * a2;
+    for c9 in 0..9 {
+        let (m, nn) = (c9 / 3, c9 % 3);
+        for r9 in 0..9 {
+            let (kk, ll) = (r9 / 3, r9 % 3);
+            a_eff[(r9, c9)] += fi[r9] * (ff * fi[c9] - u9[c9]) - u9[r9] * fi[c9]
+                + swap * fi[kk * 3 + nn] * fi[m * 3 + ll];
+        }
+    }
+    a_eff
+}
+
 fn to9(m: &Mat3) -> Vec9 {
     Vec9::from_fn(|r, _| m[(r / 3, r % 3)])
 }
@@ -497,24 +530,7 @@ pub fn cell_residual_tangent_md(
         let faf = f9.dot(&a_f);
         let a2 = alpha * alpha;
         let psi_f: Vec9 = pb9 * alpha - fi * (sq / 3.0);
-
-        // ∂²ψ/∂F² + (H/V) ∂cof F/∂F
-        let mut a_eff: Mat9 = t.a * a2;
-        for r9 in 0..9 {
-            let (kk, ll) = (r9 / 3, r9 % 3);
-            for c9 in 0..9 {
-                let (m, nn) = (c9 / 3, c9 % 3);
-                let mut v = a2
-                    * (-(fi[r9] * a_f[c9] + a_f[r9] * fi[c9]) / 3.0 + faf / 9.0 * fi[r9] * fi[c9]);
-                // P̄ : ∂²F̄/∂F∂F
-                v += -alpha / 3.0 * (pb9[r9] * fi[c9] + fi[r9] * pb9[c9])
-                    + sq / 9.0 * fi[r9] * fi[c9]
-                    + sq / 3.0 * fi[kk * 3 + nn] * fi[m * 3 + ll];
-                // (H/V) ∂c_kL/∂F_mN = (H/V)(c_mN c_kL − c_mL c_kN)/J
-                v += pm * (cof9[c9] * cof9[r9] - cof9[m * 3 + ll] * cof9[kk * 3 + nn]) / j;
-                a_eff[(r9, c9)] += v;
-            }
-        }
+        let a_eff = effective_a(&t.a, &fi, &a_f, &pb9, faf, alpha, sq, pm * j);
         // QᵀB̄ = α(B̄ − ⅓ f ⊗ (F:B̄)),  B̄ᵀ:F̄ = α F:B̄
         let f_b: Vec3 = t.b.transpose() * f9;
         let b_eff: Mat93 = (t.b - fi * f_b.transpose() / 3.0) * alpha;
@@ -839,20 +855,7 @@ pub(crate) fn md_hessian(
         let faf = f9.dot(&a_f);
         let a2 = alpha * alpha;
         let psi_f: Vec9 = pb9 * alpha - fi * (sq / 3.0);
-        let mut a_eff: Mat9 = t.a * a2;
-        for r9 in 0..9 {
-            let (kk, ll) = (r9 / 3, r9 % 3);
-            for c9 in 0..9 {
-                let (m, nn) = (c9 / 3, c9 % 3);
-                let mut v = a2
-                    * (-(fi[r9] * a_f[c9] + a_f[r9] * fi[c9]) / 3.0 + faf / 9.0 * fi[r9] * fi[c9]);
-                v += -alpha / 3.0 * (pb9[r9] * fi[c9] + fi[r9] * pb9[c9])
-                    + sq / 9.0 * fi[r9] * fi[c9]
-                    + sq / 3.0 * fi[kk * 3 + nn] * fi[m * 3 + ll];
-                v += pm * (cof9[c9] * cof9[r9] - cof9[m * 3 + ll] * cof9[kk * 3 + nn]) / j;
-                a_eff[(r9, c9)] += v;
-            }
-        }
+        let a_eff = effective_a(&t.a, &fi, &a_f, &pb9, faf, alpha, sq, pm * j);
         let f_b: Vec3 = t.b.transpose() * f9;
         let b_eff: Mat93 = (t.b - fi * f_b.transpose() / 3.0) * alpha;
         let bq: Vec9 = ((a_f - fi * (faf / 3.0)) * a2 + psi_f) / (3.0 * theta);
