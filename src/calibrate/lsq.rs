@@ -39,7 +39,9 @@ pub enum Stop {
     /// The projected gradient, relative to the residual's and the columns' norms, fell below
     /// `gtol`.
     Gradient,
-    /// An accepted step lowered the sum of squares by less than `ftol` relatively.
+    /// An accepted step lowered the sum of squares by less than `ftol` relatively; or no step
+    /// lowers it (round-off of the residuals) and the undamped Gauss–Newton step predicts a
+    /// reduction below `ftol`.
     Reduction,
     /// The step in the scaled variables fell below `xtol` relatively; or no step lowers the
     /// sum of squares (round-off of the residuals) and the undamped Gauss–Newton step is below
@@ -290,11 +292,18 @@ fn one_start(
         let Some((t, dz, actual)) = accepted else {
             // At the optimum of residuals computed to round-off (a model run converged to its
             // Newton tolerance), no step lowers the cost: a converged fit when the undamped
-            // Gauss–Newton step is itself below xtol.
-            let negligible = gauss_newton_step(&jtj, &g, &free, n)
-                .is_some_and(|d| scaled(&d) <= o.xtol * (scaled(&p.z) + o.xtol));
-            break if negligible {
+            // Gauss–Newton step is itself below xtol, or when the reduction it predicts is
+            // below ftol (MINPACK's test on the predicted reduction; at a flat optimum the
+            // step may be large and still lower nothing that the residuals resolve).
+            let Some(d) = gauss_newton_step(&jtj, &g, &free, n) else {
+                break Stop::NoProgress;
+            };
+            let dz = DVector::from_column_slice(&d);
+            let predicted = p.cost - 0.5 * (&p.r + &p.j * &dz).norm_squared();
+            break if scaled(&d) <= o.xtol * (scaled(&p.z) + o.xtol) {
                 Stop::Step
+            } else if predicted <= o.ftol * p.cost {
+                Stop::Reduction
             } else {
                 Stop::NoProgress
             };
@@ -567,5 +576,19 @@ mod tests {
         assert_eq!(f.stop, Stop::Step, "{}", f.stop.describe());
         assert!(f.stop.converged());
         assert!((f.theta[0] - 2.0).abs() < q, "{}", f.theta[0]);
+        // with no step tolerance, the same stall: converged where the Gauss–Newton step's
+        // predicted reduction (2.6 % of the cost: the misfit is nearly orthogonal to x) is
+        // below ftol, a stall where it is not
+        for (ftol, stop) in [(0.05, Stop::Reduction), (0.01, Stop::NoProgress)] {
+            let options = FitOptions {
+                ftol,
+                gtol: 0.0,
+                xtol: 0.0,
+                ..FitOptions::default()
+            };
+            let f = fit(&mut eval, &params, &options).unwrap();
+            assert_eq!(f.stop, stop, "ftol {ftol}: {}", f.stop.describe());
+            assert!((f.theta[0] - 2.0).abs() < q, "{}", f.theta[0]);
+        }
     }
 }
