@@ -122,6 +122,21 @@ pub trait CellKernel: Send + Sync {
     ) -> Result<(f64, f64), PointFailure> {
         dynamic_residual_separate(self, cell, viscous, f_r, r)
     }
+    /// [`CellKernel::residual_tangent`] whose tangent also holds the Kelvin–Voigt forces'
+    /// configuration derivative plus `viscous.cv` times their velocity derivative (those of
+    /// [`KelvinVoigtKernel::configuration_tangent`] and [`KelvinVoigtKernel::forces`]), formed
+    /// with the kernel's own point blocks instead of two more passes over the cell's matrix;
+    /// the residual is the elastic one. `None` where the kernel does not form them (the caller
+    /// then adds the two matrices itself).
+    fn residual_viscous_tangent(
+        &self,
+        _cell: &CellInput,
+        _viscous: &ViscousTangent,
+        _r: &mut [f64],
+        _k: &mut [f64],
+    ) -> Option<Result<f64, PointFailure>> {
+        None
+    }
 }
 
 /// [`CellKernel::dynamic_residual`] by the separate calls: the elastic residual, scaled, plus the
@@ -181,6 +196,23 @@ impl CellKernel for StandardKernel {
     ) -> Result<f64, PointFailure> {
         cell_residual_tangent(c.geom, c.mat, c.hist, c.local, r, k)
     }
+    fn residual_viscous_tangent(
+        &self,
+        c: &CellInput,
+        viscous: &ViscousTangent,
+        r: &mut [f64],
+        k: &mut [f64],
+    ) -> Option<Result<f64, PointFailure>> {
+        Some(cell_residual_viscous_tangent(
+            c.geom,
+            c.mat,
+            c.hist,
+            c.local,
+            Some(viscous),
+            r,
+            Some(k),
+        ))
+    }
     fn potential_residual_tangent(
         &self,
         c: &CellInput,
@@ -216,6 +248,25 @@ impl CellKernel for MeanDilatationKernel {
         k: Option<&mut [f64]>,
     ) -> Result<f64, PointFailure> {
         mean_dilatation::cell_residual_tangent_md(c.geom, c.mat, c.hist, c.local, r, k)
+    }
+    fn residual_viscous_tangent(
+        &self,
+        c: &CellInput,
+        viscous: &ViscousTangent,
+        r: &mut [f64],
+        k: &mut [f64],
+    ) -> Option<Result<f64, PointFailure>> {
+        (!c.geom.axisymmetric).then(|| {
+            mean_dilatation::cell_residual_viscous_tangent_md(
+                c.geom,
+                c.mat,
+                c.hist,
+                c.local,
+                Some(viscous),
+                r,
+                Some(k),
+            )
+        })
     }
     fn energy(&self, c: &CellInput) -> Result<f64, PointFailure> {
         mean_dilatation::cell_energy_md(c.geom, c.mat, c.hist, c.local)

@@ -84,6 +84,20 @@ pub fn cell_residual_tangent(
     hist: CellHistory,
     local: &[f64],
     r: &mut [f64],
+    k: Option<&mut [f64]>,
+) -> Result<f64, PointFailure> {
+    cell_residual_viscous_tangent(geom, mat, hist, local, None, r, k)
+}
+
+/// [`cell_residual_tangent`] whose tangent also holds the Kelvin–Voigt derivatives of
+/// `viscous` ([`viscous_point_block`] added to each point's A): the residual is the elastic one.
+pub fn cell_residual_viscous_tangent(
+    geom: &CellGeometry,
+    mat: &dyn Material,
+    hist: CellHistory,
+    local: &[f64],
+    viscous: Option<&ViscousTangent>,
+    r: &mut [f64],
     mut k: Option<&mut [f64]>,
 ) -> Result<f64, PointFailure> {
     let n = geom.n_nodes;
@@ -109,7 +123,21 @@ pub fn cell_residual_tangent(
                 let t = mat.tangent_at(&f, &e0, hist.at(q)).map_err(fail)?;
                 energy += w * t.energy;
                 add_residual(g, n, w, &t.p, &t.d0, r);
-                add_point_tangent(g, n, w, &t.a, &t.b, &t.g, k);
+                match viscous {
+                    None => add_point_tangent(g, n, w, &t.a, &t.b, &t.g, k),
+                    Some(v) => {
+                        let j = f.determinant();
+                        if j.is_nan() || j <= 0.0 {
+                            return Err(fail(MaterialError::NonPositiveJ(j)));
+                        }
+                        let fit = f
+                            .try_inverse()
+                            .ok_or(fail(MaterialError::NonPositiveJ(j)))?
+                            .transpose();
+                        let a = t.a + viscous_point_block(&fit, j, g, n, v);
+                        add_point_tangent(g, n, w, &a, &t.b, &t.g, k)
+                    }
+                }
             }
         }
     }
@@ -404,6 +432,60 @@ pub fn cell_viscous(
         }
     }
     Ok(power)
+}
+
+/// What a dynamic step's tangent needs of the Kelvin–Voigt forces in a cell whose kernel
+/// forms them with its own tangent: the viscosity, the nodal velocities (4 per node) and the
+/// weight `cv` of the velocity derivative against the configuration derivatives.
+#[derive(Debug, Clone, Copy)]
+pub struct ViscousTangent<'a> {
+    pub eta: f64,
+    pub vel: &'a [f64],
+    pub cv: f64,
+}
+
+/// One point's Kelvin–Voigt derivatives as a 9 × 9 block on the reference gradients, the form
+/// of [`add_point_tangent`]'s A (K_{ai,bk} = Σ ∂N_a/∂X_J A_{iJ,kL} ∂N_b/∂X_L, the point's weight
+/// applied there): the configuration derivative of [`cell_viscous_configuration`] plus `cv`
+/// times the velocity derivative of [`cell_viscous`]. With f = F⁻ᵀ (`fit`), h_a = f∇₀N_a,
+/// l = Σ v_a ⊗ h_a, d = sym l and c = Jη:
+/// Q_{iJ,kL} = c[(d f)_{iJ} f_{kL} − f_{kJ}(d f)_{iL} − ½ l_ik (fᵀf)_{JL} − ½ f_{iL}(lᵀf)_{kJ}],
+/// V_{iJ,kL} = ½c(δ_ik (fᵀf)_{JL} + f_{iL} f_{kJ}).
+pub(crate) fn viscous_point_block(
+    fit: &crate::material::Mat3,
+    j: f64,
+    g: &[[f64; 3]; MAX_NODES],
+    n: usize,
+    viscous: &ViscousTangent,
+) -> crate::material::Mat9 {
+    use crate::material::Mat3;
+    let mut l = Mat3::zeros();
+    for (a, ga) in g[..n].iter().enumerate() {
+        let v = &viscous.vel[a * FIELDS..a * FIELDS + 3];
+        for m in 0..3 {
+            let ham = fit[(m, 0)] * ga[0] + fit[(m, 1)] * ga[1] + fit[(m, 2)] * ga[2];
+            for i in 0..3 {
+                l[(i, m)] += v[i] * ham;
+            }
+        }
+    }
+    let d = (l + l.transpose()) * 0.5;
+    let df = d * fit;
+    let ftf = fit.transpose() * fit;
+    let ltf = l.transpose() * fit;
+    let c = j * viscous.eta;
+    let cv = viscous.cv;
+    crate::material::Mat9::from_fn(|r9, c9| {
+        let (i, jj) = (r9 / 3, r9 % 3);
+        let (k, ll) = (c9 / 3, c9 % 3);
+        let q = df[(i, jj)] * fit[(k, ll)]
+            - fit[(k, jj)] * df[(i, ll)]
+            - 0.5 * l[(i, k)] * ftf[(jj, ll)]
+            - 0.5 * fit[(i, ll)] * ltf[(k, jj)];
+        let delta = if i == k { ftf[(jj, ll)] } else { 0.0 };
+        let v = 0.5 * (delta + fit[(i, ll)] * fit[(k, jj)]);
+        c * (q + cv * v)
+    })
 }
 
 /// Adds one quadrature point's ∂r_{a,i}/∂v_{b,k} = ½c(δ_ik h_a·h_b + h_{b,i} h_{a,k}) of

@@ -1,7 +1,7 @@
 //! The cells' tangents of the last evaluation with a matrix, kept for the transposed products
 //! of a discrete adjoint at the same point: the adjoint solves with the step's Jacobian and then
 //! needs wᵀ∂R/∂· of the same cell matrices, which would otherwise cost a second pass of cell
-//! tangents (the dearest part of an adjoint step). They take 2·nl²·8 bytes a cell (16 kB for a
+//! tangents (the dearest part of an adjoint step). They take nl²·8 bytes a cell (8 kB for a
 //! hex8), so they are kept up to [`MAX_BYTES`] only.
 
 use super::model::Model;
@@ -9,23 +9,23 @@ use crate::element::MAX_LOCAL;
 use crate::fem::FIELDS;
 use std::sync::{Mutex, MutexGuard};
 
-/// Per cell, up to two row-major nl × nl blocks, and the point (a stamp of the evaluation's
-/// inputs) they were evaluated at.
+/// Per cell, a row-major nl × nl matrix, and the point (a stamp of the evaluation's inputs) they
+/// were evaluated at.
 #[derive(Debug, Default)]
 pub struct KeptTangents {
     cells: Vec<Mutex<Vec<f64>>>,
     at: Option<Vec<f64>>,
 }
 
-/// The most bytes the kept tangents of a model may take (two blocks per cell): beyond it the
-/// products take their own pass, as memory matters more than the pass on such meshes.
+/// The most bytes the kept tangents of a model may take: beyond it the products take their own
+/// pass, as memory matters more than the pass on such meshes.
 pub const MAX_BYTES: usize = 256 << 20;
 
 impl KeptTangents {
     /// Whether the tangents of `model`'s cells fit [`MAX_BYTES`].
     pub fn affordable(model: &Model) -> bool {
         let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
-        model.mesh.n_cells().saturating_mul(2 * nl * nl * 8) <= MAX_BYTES
+        model.mesh.n_cells().saturating_mul(nl * nl * 8) <= MAX_BYTES
     }
 
     /// Starts an evaluation of `model`: forgets what was kept, and gives the cells' slots to
@@ -61,16 +61,16 @@ impl KeptTangents {
         self.at = Some(stamp);
     }
 
-    /// The products kᵀw of each kept block with the weight `w` over every dof, summed over the
-    /// cells of `model` in cell order (one vector per block), when the tangents were kept at
-    /// `stamp`; `None` otherwise.
-    pub fn products(&self, model: &Model, stamp: &[f64], w: &[f64]) -> Option<[Vec<f64>; 2]> {
+    /// The products kᵀw of the kept matrices with the weight `w` over every dof, summed over
+    /// the cells of `model` in cell order, when the tangents were kept at `stamp`; `None`
+    /// otherwise.
+    pub fn products(&self, model: &Model, stamp: &[f64], w: &[f64]) -> Option<Vec<f64>> {
         if self.at.as_deref() != Some(stamp) || self.cells.len() != model.mesh.n_cells() {
             return None;
         }
         let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
-        // a cell's kᵀw of each block at its local dofs (each cell alone, so that they may run
-        // on the pool), added in cell order on either path: the same sums, bit for bit
+        // a cell's kᵀw at its local dofs (each cell alone, so that they may run on the pool),
+        // added in cell order on either path: the same sums, bit for bit
         let cell = |c: usize| {
             let k = self.cells[c].lock().unwrap_or_else(|e| e.into_inner());
             let mut wl = [0.0; MAX_LOCAL];
@@ -78,22 +78,17 @@ impl KeptTangents {
                 wl[a * FIELDS..(a + 1) * FIELDS]
                     .copy_from_slice(&w[node * FIELDS..(node + 1) * FIELDS]);
             }
-            let mut local = [[0.0; MAX_LOCAL]; 2];
-            for (block, out) in k.chunks_exact(nl * nl).zip(local.iter_mut()) {
-                transposed_product(block, &wl[..nl], &mut out[..nl]);
-            }
+            let mut local = [0.0; MAX_LOCAL];
+            transposed_product(&k[..nl * nl], &wl[..nl], &mut local[..nl]);
             local
         };
         let all: Vec<usize> = (0..self.cells.len()).collect();
         let locals = crate::problem::assembly::map_cells(&all, cell);
-        // (a cell without a second block adds zeros)
-        let mut out = [vec![0.0; w.len()], vec![0.0; w.len()]];
+        let mut out = vec![0.0; w.len()];
         for (c, local) in locals.iter().enumerate() {
             let nodes = model.mesh.cell(c);
-            for (sum, local) in out.iter_mut().zip(local) {
-                for j in 0..nl {
-                    sum[nodes[j / FIELDS] * FIELDS + j % FIELDS] += local[j];
-                }
+            for j in 0..nl {
+                out[nodes[j / FIELDS] * FIELDS + j % FIELDS] += local[j];
             }
         }
         Some(out)
@@ -119,11 +114,11 @@ pub fn transposed_product(k: &[f64], w: &[f64], out: &mut [f64]) {
 mod tests {
     use super::*;
 
-    /// A hex8 cell's two blocks take 16 kB: 4 cells fit, 20 000 (320 MB) do not.
+    /// A hex8 cell's matrix takes 8 kB: 4 cells fit, 39 200 (321 MB) do not.
     #[test]
     fn tangents_are_kept_up_to_the_limit() {
         let film = |d| crate::problem::examples::film(d, crate::mesh::ElementKind::Hex8, 2e4);
         assert!(KeptTangents::affordable(&film([2, 2, 1]).unwrap()));
-        assert!(!KeptTangents::affordable(&film([50, 50, 8]).unwrap()));
+        assert!(!KeptTangents::affordable(&film([70, 70, 8]).unwrap()));
     }
 }

@@ -863,7 +863,7 @@ impl StepOperator for StaticProblem<'_> {
         // the cells' tangents the last evaluation kept at this state, or a pass of their own
         let kept = self.kept.products(m, &self.tangent_stamp(), &weights);
         let (mut q_new, points) = match kept {
-            Some([k, _]) => {
+            Some(k) => {
                 let points = points_products(m, &self.state, &self.points, self.dt(), &weights)?;
                 (k, points)
             }

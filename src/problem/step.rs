@@ -271,6 +271,56 @@ pub fn points_products(
     Ok(out)
 }
 
+/// (∂f_vis/∂v)ᵀw of the Kelvin–Voigt forces at configuration `q`, with the `viscosity` of each
+/// material (empty or 0: none) and `w` over every dof: the forces are linear in the nodal
+/// velocities and their derivative symmetric, so it is the forces at velocities `w`. For an
+/// adjoint whose other products come from the cell tangents its evaluation kept (a pass of
+/// kinematics, no tangent); the cells on the pool, summed in cell order.
+pub fn viscous_velocity_products(
+    model: &Model,
+    q: &[f64],
+    viscosity: &[f64],
+    w: &[f64],
+) -> Result<Vec<f64>, String> {
+    let mut out = vec![0.0; q.len()];
+    let eta = |c: usize| {
+        viscosity
+            .get(model.cell_material[c])
+            .copied()
+            .unwrap_or(0.0)
+    };
+    let cells: Vec<usize> = (0..model.mesh.n_cells())
+        .filter(|&c| model.owns(c) && eta(c) > 0.0)
+        .collect();
+    if cells.is_empty() {
+        return Ok(out);
+    }
+    let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+    let eval = |c: usize| -> Result<[f64; MAX_LOCAL], String> {
+        let nodes = model.mesh.cell(c);
+        let (mut local, mut wl, mut r) = ([0.0; MAX_LOCAL], [0.0; MAX_LOCAL], [0.0; MAX_LOCAL]);
+        gather(nodes, q, &mut local[..nl]);
+        gather(nodes, w, &mut wl[..nl]);
+        KelvinVoigtKernel { eta: eta(c) }
+            .forces(
+                &model.geometry(c),
+                &local[..nl],
+                &wl[..nl],
+                &mut r[..nl],
+                None,
+            )
+            .map_err(|e| format!("cell {c}: {} at quadrature point {}", e.error, e.qp))?;
+        Ok(r)
+    };
+    for (&c, cell) in cells
+        .iter()
+        .zip(crate::problem::assembly::map_cells(&cells, eval))
+    {
+        scatter(model.mesh.cell(c), &cell?[..nl], &mut out);
+    }
+    Ok(out)
+}
+
 /// One cell's part of [`CellProducts`]: the products at its local dofs, and its points'.
 struct CellProduct {
     stiffness: [f64; MAX_LOCAL],

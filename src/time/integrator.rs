@@ -23,7 +23,7 @@
 
 use crate::algebra::csr::CsrMatrix;
 use crate::algebra::system::DofLayout;
-use crate::element::{CellInput, KelvinVoigtKernel, MAX_LOCAL};
+use crate::element::{CellInput, KelvinVoigtKernel, ViscousTangent, MAX_LOCAL};
 use crate::problem::assembly::Assembler;
 use crate::problem::circuit::CircuitStep;
 use crate::problem::dofs::{free_weights, DofMap, CONSTRAINED, FIELDS, PHI};
@@ -31,7 +31,9 @@ use crate::problem::kept_tangents::KeptTangents;
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::{discretize, layout_of};
-use crate::problem::step::{cell_products, points_products, LevelVjp, StepOperator};
+use crate::problem::step::{
+    cell_products, points_products, viscous_velocity_products, LevelVjp, StepOperator,
+};
 use crate::solve::newton::NonlinearSystem;
 use crate::time::mass::NodalMass;
 use crate::time::trapezoidal::own_cells_power;
@@ -594,15 +596,22 @@ impl StepOperator for TimeStep<'_> {
         let weights = free_weights(&self.dofs, w);
         let n = weights.len();
         let f_r = self.residual_factor();
-        // the products through the evaluation configuration and velocity: from the tangents
-        // the last evaluation kept at this point, or a pass of their own
+        // the cells' step Jacobians J_c = K + ∂f_vis/∂q + c_v ∂f_vis/∂v (c_v = f_v/f_k, as
+        // the evaluation formed them), and the velocity derivative apart: the products
+        // through J_c from the tangents the last evaluation kept at this point, or a pass of
+        // their own; through ∂f_vis/∂v (symmetric) the forces at velocities w
+        let c_v = match self.scheme {
+            Scheme::Midpoint => 2.0 / dt,
+            Scheme::Newmark { beta, gamma } => gamma / (beta * dt),
+        };
         let kept = self
             .kept
             .products(model, &self.evaluation_stamp(), &weights);
-        let (mut through_q, mut through_v, points_bar) = match kept {
-            Some([q, v]) => {
+        let (mut through_j, mut through_v, points_bar) = match kept {
+            Some(j) => {
                 let points = points_products(model, &self.work_q, &self.points, dt, &weights)?;
-                (q, v, points)
+                let v = viscous_velocity_products(model, &self.work_q, &self.viscosity, &weights)?;
+                (j, v, points)
             }
             None => {
                 let p = cell_products(
@@ -614,17 +623,21 @@ impl StepOperator for TimeStep<'_> {
                     dt,
                     &weights,
                 )?;
-                let q = (0..n)
-                    .map(|d| p.stiffness[d] + p.viscous_configuration[d])
+                let j = (0..n)
+                    .map(|d| {
+                        p.stiffness[d] + p.viscous_configuration[d] + c_v * p.viscous_velocity[d]
+                    })
                     .collect();
-                (q, p.viscous_velocity, p.points)
+                (j, p.viscous_velocity, p.points)
             }
         };
-        through_q.iter_mut().for_each(|x| *x *= f_r);
+        through_j.iter_mut().for_each(|x| *x *= f_r);
         through_v.iter_mut().for_each(|x| *x *= f_r);
+        // the dashpots, on the evaluation velocity alone
+        let mut dampers = vec![0.0; n];
         for &(node, c) in &model.point_dampers {
             for i in 0..3 {
-                through_v[node * FIELDS + i] += f_r * c * weights[node * FIELDS + i];
+                dampers[node * FIELDS + i] += f_r * c * weights[node * FIELDS + i];
             }
         }
         let midpoint = self.scheme == Scheme::Midpoint;
@@ -633,7 +646,7 @@ impl StepOperator for TimeStep<'_> {
             let d = c.nodes[0] * FIELDS + PHI;
             let wq = f_r * weights[d];
             let (_, dq) = st.charge_at(midpoint, dt, c.resistance, self.work_q[d]);
-            through_q[d] += wq * dq;
+            through_j[d] += wq * dq;
             // the charge's derivatives in the circuit's start and its source: g = −dq
             circuits.push(if midpoint {
                 CircuitStep {
@@ -677,9 +690,15 @@ impl StepOperator for TimeStep<'_> {
                 ),
             ),
         };
+        // cq·(J − c_v ∂f_vis/∂v)ᵀw + cv·(∂f_vis/∂v w + dashpots) + cm·Mw
         let combine = |(cq, cv, cm): (f64, f64, f64)| -> Vec<f64> {
             (0..n)
-                .map(|d| cq * through_q[d] + cv * through_v[d] + cm * mw[d])
+                .map(|d| {
+                    cq * through_j[d]
+                        + (cv - cq * c_v) * through_v[d]
+                        + cv * dampers[d]
+                        + cm * mw[d]
+                })
                 .collect()
         };
         Ok(LevelVjp {
@@ -776,44 +795,78 @@ impl NonlinearSystem for TimeStep<'_> {
                     .map_err(fail)?;
                 return Ok::<f64, String>(power);
             };
+            let kv_kernel = KelvinVoigtKernel { eta };
+            if exact && eta > 0.0 {
+                // the step Jacobian's cell matrix J_c = K + ∂f_vis/∂q + (f_v/f_k) ∂f_vis/∂v,
+                // scaled by f_k (∂f_vis/∂q at fixed velocity, through the evaluation point:
+                // f_r ∂q_eval/∂q = f_k): from the kernel's point blocks where it forms them,
+                // else from the two viscous matrices
+                let viscous = ViscousTangent {
+                    eta,
+                    vel: &vel[..nl],
+                    cv: f_v / f_k,
+                };
+                let mut rv = [0.0; MAX_LOCAL];
+                let power = match model
+                    .kernel()
+                    .residual_viscous_tangent(&input, &viscous, rl, kl)
+                {
+                    Some(fused) => {
+                        fused.map_err(fail)?;
+                        kv_kernel
+                            .forces(g, local, &vel[..nl], &mut rv, None)
+                            .map_err(fail)?
+                    }
+                    None => {
+                        model
+                            .kernel()
+                            .residual_tangent(&input, rl, Some(&mut *kl))
+                            .map_err(fail)?;
+                        let (mut kv, mut kq) = (vec![0.0; nl * nl], vec![0.0; nl * nl]);
+                        let power = kv_kernel
+                            .forces(g, local, &vel[..nl], &mut rv, Some(&mut kv))
+                            .map_err(fail)?;
+                        kv_kernel
+                            .configuration_tangent(g, local, &vel[..nl], &mut kq)
+                            .map_err(fail)?;
+                        for i in 0..nl * nl {
+                            kl[i] += kq[i] + viscous.cv * kv[i];
+                        }
+                        power
+                    }
+                };
+                // this cell's slot, filled only here (each cell is evaluated once per assembly)
+                if let Some(s) = slots {
+                    KeptTangents::slot(s, c).extend_from_slice(&kl[..nl * nl]);
+                }
+                for i in 0..nl {
+                    rl[i] = f_r * rl[i] + f_r * rv[i];
+                }
+                kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
+                return Ok(power);
+            }
             model
                 .kernel()
                 .residual_tangent(&input, rl, Some(&mut *kl))
                 .map_err(fail)?;
-            // this cell's slot, filled only here (each cell is evaluated once per assembly)
-            let mut slot = slots.map(|s| KeptTangents::slot(s, c));
-            if let Some(s) = slot.as_mut() {
-                s.extend_from_slice(&kl[..nl * nl]);
+            if let Some(s) = slots {
+                KeptTangents::slot(s, c).extend_from_slice(&kl[..nl * nl]);
             }
             rl[..nl].iter_mut().for_each(|v| *v *= f_r);
             kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
             let mut power = 0.0;
             if eta > 0.0 {
+                // the iteration matrix: the velocity derivative only (symmetric)
                 let mut rv = [0.0; MAX_LOCAL];
                 let mut kv = vec![0.0; nl * nl];
-                power = KelvinVoigtKernel { eta }
+                power = kv_kernel
                     .forces(g, local, &vel[..nl], &mut rv, Some(&mut kv))
                     .map_err(fail)?;
                 for i in 0..nl {
                     rl[i] += f_r * rv[i];
                 }
-                if exact {
-                    // ∂f_vis/∂q at fixed velocity, through the evaluation point: f_r ∂q_eval/∂q = f_k
-                    let mut kq = vec![0.0; nl * nl];
-                    KelvinVoigtKernel { eta }
-                        .configuration_tangent(g, local, &vel[..nl], &mut kq)
-                        .map_err(fail)?;
-                    for i in 0..nl * nl {
-                        kl[i] += f_v * kv[i] + f_k * kq[i];
-                    }
-                    if let Some(s) = slot.as_mut() {
-                        s.iter_mut().zip(&kq).for_each(|(a, b)| *a += b);
-                        s.extend_from_slice(&kv);
-                    }
-                } else {
-                    for i in 0..nl * nl {
-                        kl[i] += f_v * kv[i];
-                    }
+                for i in 0..nl * nl {
+                    kl[i] += f_v * kv[i];
                 }
             }
             Ok::<f64, String>(power)
