@@ -316,8 +316,31 @@ fn dynamic_newmark_film_gradient_matches_finite_differences() {
 /// step of 10⁻⁴·C₁₀, and the central difference's truncation error is then 6·10⁻⁶ of the
 /// derivative, measured falling as h².)
 fn diaphragm(integrator: &str, parameters: &[&str], fd_step: f64) -> GradientReport {
+    checked_diaphragm(
+        "diaphragm",
+        0.01,
+        &[
+            "stages.1.duration=0.05".into(),
+            format!("stages.1.integrator=\"{integrator}\""),
+        ],
+        parameters,
+        fd_step,
+    )
+}
+
+/// The gradient of the diaphragm `example` (with `sets`; Newton to 10⁻¹³, no plots or fields)
+/// with the top electrode a control with knots every `interval` s of its `actuate` stage and
+/// the pad's deflection there against data at 0.30–0.31 mm, in the `parameters`, checked with
+/// finite differences of relative step `fd_step`.
+fn checked_diaphragm(
+    example: &str,
+    interval: f64,
+    sets: &[String],
+    parameters: &[&str],
+    fd_step: f64,
+) -> GradientReport {
     let dir = tempfile::tempdir().unwrap();
-    let base = deasim::io::examples::example("diaphragm").unwrap();
+    let base = deasim::io::examples::example(example).unwrap();
     std::fs::write(
         dir.path().join("d.csv"),
         "time,value\n0,3.0e-4\n1.05,3.1e-4\n",
@@ -328,12 +351,12 @@ fn diaphragm(integrator: &str, parameters: &[&str], fd_step: f64) -> GradientRep
         .map(|p| format!("[[parameters]]\npath = \"{p}\"\n"))
         .collect();
     let text = format!(
-        "{base}\n{parameters}{}",
-        r#"
+        r#"{base}
+{parameters}
 [[controls]]
 electrode = "top"
 stage = "actuate"
-interval = 0.01
+interval = {interval}
 
 [[objective]]
 kind = "probe-misfit"
@@ -343,13 +366,14 @@ data = "d.csv"
 weight = 1e8
 "#
     );
+    let mut sets = sets.to_vec();
+    sets.extend([
+        "solver.newton_rtol=1e-13".into(),
+        "output.plots=false".into(),
+        "output.fields_every=0".into(),
+    ]);
     Simulation::from_toml(&text, Some(dir.path()))
-        .with_overrides(&[
-            "stages.1.duration=0.05".into(),
-            format!("stages.1.integrator=\"{integrator}\""),
-            "solver.newton_rtol=1e-13".into(),
-            "output.plots=false".into(),
-        ])
+        .with_overrides(&sets)
         .gradient(&GradientOptions {
             check: true,
             fd_step: Some(fd_step),
@@ -432,46 +456,13 @@ fn check_diaphragm(integrator: &str) {
 #[test]
 fn dynamic_3d_diaphragm_gradient_matches_finite_differences() {
     let run = |parameters: &[&str], fd_step: f64| {
-        let dir = tempfile::tempdir().unwrap();
-        let base = deasim::io::examples::example("diaphragm-3d").unwrap();
-        std::fs::write(
-            dir.path().join("d.csv"),
-            "time,value\n0,3.0e-4\n1.05,3.1e-4\n",
+        checked_diaphragm(
+            "diaphragm-3d",
+            0.005,
+            &["stages.1.duration=0.02".into()],
+            parameters,
+            fd_step,
         )
-        .unwrap();
-        let parameters: String = parameters
-            .iter()
-            .map(|p| format!("[[parameters]]\npath = \"{p}\"\n"))
-            .collect();
-        let text = format!(
-            "{base}\n{parameters}{}",
-            r#"
-[[controls]]
-electrode = "top"
-stage = "actuate"
-interval = 0.005
-
-[[objective]]
-kind = "probe-misfit"
-probe = "center_deflection"
-stage = "actuate"
-data = "d.csv"
-weight = 1e8
-"#
-        );
-        Simulation::from_toml(&text, Some(dir.path()))
-            .with_overrides(&[
-                "stages.1.duration=0.02".into(),
-                "solver.newton_rtol=1e-13".into(),
-                "output.plots=false".into(),
-                "output.fields_every=0".into(),
-            ])
-            .gradient(&GradientOptions {
-                check: true,
-                fd_step: Some(fd_step),
-                ..Default::default()
-            })
-            .unwrap()
     };
     let r = run(
         &[

@@ -423,11 +423,17 @@ pub fn cell_viscous(
         let c = w * j * eta;
         power += viscous_point(&h[..n], &v[..n], c, r);
         if let Some(kv) = kv.as_deref_mut() {
-            match n {
-                8 => add_velocity_tangent::<8>(&h, n, c, &mut kv[..nl * nl]),
-                4 => add_velocity_tangent::<4>(&h, n, c, &mut kv[..nl * nl]),
-                10 => add_velocity_tangent::<10>(&h, n, c, &mut kv[..nl * nl]),
-                _ => add_velocity_tangent::<MAX_NODES>(&h, n, c, &mut kv[..nl * nl]),
+            for a in 0..n {
+                for b in 0..n {
+                    let hab = h[a][0] * h[b][0] + h[a][1] * h[b][1] + h[a][2] * h[b][2];
+                    for i in 0..3 {
+                        let row = (a * 4 + i) * nl + b * 4;
+                        for k in 0..3 {
+                            let delta = if i == k { hab } else { 0.0 };
+                            kv[row + k] += 0.5 * c * (delta + h[b][i] * h[a][k]);
+                        }
+                    }
+                }
             }
         }
     }
@@ -486,52 +492,6 @@ pub(crate) fn viscous_point_block(
         let v = 0.5 * (delta + fit[(i, ll)] * fit[(k, jj)]);
         c * (q + cv * v)
     })
-}
-
-/// Adds one quadrature point's ∂r_{a,i}/∂v_{b,k} = ½c(δ_ik h_a·h_b + h_{b,i} h_{a,k}) of
-/// [`cell_viscous`] (c = w J η) to `kv` for cells of `n ≤ N` nodes, a row segment's nodes b at
-/// once from the gradients held contiguous over b (so the loop over b vectorises).
-#[inline(always)]
-fn add_velocity_tangent<const N: usize>(
-    h: &[[f64; 3]; MAX_NODES],
-    n: usize,
-    c: f64,
-    kv: &mut [f64],
-) {
-    let nl = n * FIELDS;
-    let mut ht = [[0.0; N]; 3];
-    for b in 0..n {
-        for m in 0..3 {
-            ht[m][b] = h[b][m];
-        }
-    }
-    let mut hab = [0.0; N];
-    let mut seg = [[0.0; N]; 3];
-    for a in 0..n {
-        for b in 0..n {
-            hab[b] = h[a][0] * ht[0][b] + h[a][1] * ht[1][b] + h[a][2] * ht[2][b];
-        }
-        for i in 0..3 {
-            for (k, out) in seg.iter_mut().enumerate() {
-                let hak = h[a][k];
-                if i == k {
-                    for b in 0..n {
-                        out[b] = 0.5 * c * (hab[b] + ht[i][b] * hak);
-                    }
-                } else {
-                    for b in 0..n {
-                        out[b] = 0.5 * c * (ht[i][b] * hak);
-                    }
-                }
-            }
-            let row = &mut kv[(a * 4 + i) * nl..(a * 4 + i) * nl + nl];
-            for (b, kb) in row.chunks_exact_mut(FIELDS).enumerate() {
-                kb[0] += seg[0][b];
-                kb[1] += seg[1][b];
-                kb[2] += seg[2][b];
-            }
-        }
-    }
 }
 
 /// The derivative of the Kelvin–Voigt forces of [`cell_viscous`] with respect to the
@@ -963,42 +923,6 @@ pub(crate) mod tests {
         }
     }
 
-    /// The velocity tangent of one point formed by row segments has the bits of its entrywise
-    /// form ½c(δ_ik h_a·h_b + h_{b,i} h_{a,k}), for every node count.
-    #[test]
-    fn velocity_tangent_has_the_bits_of_its_entrywise_form() {
-        let mut next = generator();
-        for n in [4, 6, 8, 10] {
-            let mut h = [[0.0; 3]; MAX_NODES];
-            h.iter_mut().flatten().for_each(|v| *v = 1e3 * next());
-            let c = 1e-6 * (1.5 + next());
-            let nl = n * FIELDS;
-            let mut fast = vec![0.0; nl * nl];
-            match n {
-                8 => add_velocity_tangent::<8>(&h, n, c, &mut fast),
-                4 => add_velocity_tangent::<4>(&h, n, c, &mut fast),
-                _ => add_velocity_tangent::<MAX_NODES>(&h, n, c, &mut fast),
-            }
-            let mut slow = vec![0.0; nl * nl];
-            for a in 0..n {
-                for b in 0..n {
-                    let hab = h[a][0] * h[b][0] + h[a][1] * h[b][1] + h[a][2] * h[b][2];
-                    for i in 0..3 {
-                        let row = (a * 4 + i) * nl + b * 4;
-                        for k in 0..3 {
-                            let delta = if i == k { hab } else { 0.0 };
-                            slow[row + k] += 0.5 * c * (delta + h[b][i] * h[a][k]);
-                        }
-                    }
-                }
-            }
-            assert!(slow.iter().any(|v| *v != 0.0));
-            assert_eq!(fast, slow, "{n} nodes");
-        }
-    }
-
-    /// The viscous configuration tangent of one point formed entry by entry, the form
-    /// [`ViscousPoint::add`] reorders: the same bits for every node count.
     #[test]
     fn viscous_point_has_the_bits_of_its_entrywise_form() {
         let mut next = generator();
