@@ -252,6 +252,13 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
         Ok(out)
     }
 
+    /// The mechanical model's entries come first and leave D0 alone (it is the dielectric's).
+    fn parameter_enters_d0(&self, index: usize) -> bool {
+        self.mech
+            .parameters()
+            .is_none_or(|p| index >= p.values.len())
+    }
+
     /// The mechanical entries from the model's derivatives, a dielectric one alone.
     fn parameter_derivative_at(
         &self,

@@ -404,6 +404,12 @@ pub trait Material: Send + Sync + std::fmt::Debug {
             .nth(index)
             .ok_or_else(|| no_parameter(index, n))
     }
+    /// Whether ∂D0/∂θ_index can be nonzero: false only where the model knows that the
+    /// parameter enters the stress alone (a solve for the potential at held displacements then
+    /// has no derivative in it, and its adjoint skips that pass over the cells).
+    fn parameter_enters_d0(&self, _index: usize) -> bool {
+        true
+    }
     /// wᵀ ∂P/∂A_n: the derivative of the first Piola stress of [`Material::stress_at`] in the
     /// committed internal variables, for `w` over P (zero-length for an elastic material).
     fn stress_state_vjp(

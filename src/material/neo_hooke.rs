@@ -244,6 +244,10 @@ impl Material for ElectroNeoHooke {
     ) -> Result<Stress, MaterialError> {
         self.generic().parameter_derivative_at(f, e0, h, index)
     }
+
+    fn parameter_enters_d0(&self, index: usize) -> bool {
+        self.generic().parameter_enters_d0(index)
+    }
 }
 
 #[cfg(test)]

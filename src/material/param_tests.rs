@@ -133,6 +133,12 @@ fn check_parameter_derivatives(label: &str, m: &Arc<dyn Material>, h: PointHisto
         assert_eq!(&one, all, "{label}: entry {i} alone");
     }
     assert!(m.parameter_derivative_at(&f, &e0, h, exact.len()).is_err());
+    // an entry said to leave D0 alone has ∂D0/∂θ = 0 exactly (the dielectric's do not)
+    for (i, d) in exact.iter().enumerate() {
+        if !m.parameter_enters_d0(i) {
+            assert_eq!(d.d0, Vec3::zeros(), "{label}: {} enters D0", p.names[i]);
+        }
+    }
     let s0 = m.stress_at(&f, &e0, h).unwrap();
     for (i, name) in p.names.iter().enumerate() {
         let theta = p.values[i];
@@ -261,6 +267,15 @@ fn parameter_derivatives_of_every_model_match_finite_differences() {
     for &model in MODELS {
         let m = build(model, &params(model));
         check_parameter_derivatives(model, &m, PointHistory::NONE);
+        // the mechanical entries are known to leave D0 alone, the dielectric's not
+        let p = m.parameters().unwrap();
+        let n = p.values.len();
+        let electric = crate::material::parameters::ELECTRIC;
+        assert!(
+            (0..n).all(|i| m.parameter_enters_d0(i) == (i >= n - electric)),
+            "{model}: {:?}",
+            p.names
+        );
     }
 }
 

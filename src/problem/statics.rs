@@ -895,20 +895,36 @@ impl StepOperator for StaticProblem<'_> {
     }
 
     /// Only the internal forces depend on a material's parameters. The scaling of the unknowns
-    /// (from the moduli) is held: a numerical choice, not part of the equations.
+    /// (from the moduli) is held: a numerical choice, not part of the equations. With every
+    /// displacement held (the potential's projection) the weights have no displacement entries,
+    /// so only the parameters that enter D0 take a pass over the cells; the others' entries are
+    /// exactly zero.
     fn parameter_vjp(
         &mut self,
         w: &[f64],
         material: usize,
         entries: Option<&[usize]>,
     ) -> Result<Vec<f64>, String> {
+        let potential_only = self.dofs.n_free == self.dofs.n_free_phi;
+        let kept: Option<Vec<usize>> = match self.model.materials.get(material) {
+            Some(mat) if potential_only => {
+                let n = mat.parameters().map_or(0, |p| p.values.len());
+                Some(
+                    (0..n)
+                        .filter(|&i| entries.is_none_or(|e| e.contains(&i)))
+                        .filter(|&i| mat.parameter_enters_d0(i))
+                        .collect(),
+                )
+            }
+            _ => None,
+        };
         parameter_vjp(
             self.model,
             &self.state,
             &self.points,
             self.dt(),
             material,
-            entries,
+            kept.as_deref().or(entries),
             &crate::problem::dofs::free_weights(&self.dofs, w),
         )
     }
