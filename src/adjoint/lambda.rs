@@ -69,9 +69,8 @@ impl AdjointSolver {
         system: &mut (impl NonlinearSystem + HasDofs),
         cy: &[f64],
     ) -> Result<Vec<f64>, String> {
-        let mut r = vec![0.0; system.n()];
         let mut k = system.new_matrix();
-        system.evaluate(&mut r, Some(&mut k))?;
+        system.jacobian(&mut k)?;
         let dofs = system.dof_map();
         let mut b = vec![0.0; dofs.n_free];
         for (d, &e) in dofs.eq.iter().enumerate() {

@@ -77,6 +77,12 @@ pub trait NonlinearSystem {
     fn n(&self) -> usize;
     /// Residual at the current state, and the tangent when `k` is given.
     fn evaluate(&mut self, r: &mut [f64], k: Option<&mut CsrMatrix>) -> Result<(), String>;
+    /// The tangent of [`NonlinearSystem::evaluate`] alone (a system may skip work that only
+    /// its residual needs).
+    fn jacobian(&mut self, k: &mut CsrMatrix) -> Result<(), String> {
+        let mut r = vec![0.0; self.n()];
+        self.evaluate(&mut r, Some(k))
+    }
     /// x ← x + α·dx.
     fn increment(&mut self, dx: &[f64], alpha: f64);
     /// A copy of the state, to come back to.

@@ -145,6 +145,9 @@ pub struct TimeStep<'m> {
     /// products then cost no second pass of cell tangents). Elastic materials on a whole model
     /// only; otherwise the products take their own pass.
     pub keep_cell_tangents: bool,
+    /// Set while [`NonlinearSystem::jacobian`] evaluates: the exact Jacobian's cells skip the
+    /// Kelvin–Voigt forces, which enter only the residual (then incomplete, and not returned).
+    jacobian_only: bool,
     /// Per cell: ∂f_int/∂q + ∂f_vis/∂q and, with a viscosity, ∂f_vis/∂v, at the evaluation
     /// point (stamp: configuration, velocity, Δt).
     kept: KeptTangents,
@@ -190,6 +193,7 @@ impl<'m> TimeStep<'m> {
             charges: Vec::new(),
             exact_jacobian: false,
             keep_cell_tangents: false,
+            jacobian_only: false,
             kept: KeptTangents::default(),
         }
     }
@@ -749,6 +753,16 @@ impl NonlinearSystem for TimeStep<'_> {
         self.dofs.n_free
     }
 
+    /// The matrix without the Kelvin–Voigt forces of the residual where it is the exact
+    /// Jacobian: their pass over the cells is about 8 % of the Jacobian's.
+    fn jacobian(&mut self, k: &mut CsrMatrix) -> Result<(), String> {
+        let mut r = vec![0.0; self.n()];
+        self.jacobian_only = true;
+        let out = self.evaluate(&mut r, Some(k));
+        self.jacobian_only = false;
+        out
+    }
+
     fn evaluate(&mut self, r: &mut [f64], mut k: Option<&mut CsrMatrix>) -> Result<(), String> {
         self.evaluation_point();
         let dt = self.dt;
@@ -761,6 +775,7 @@ impl NonlinearSystem for TimeStep<'_> {
         let npc = model.mesh.kind.nodes_per_cell();
         let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
         let exact = self.exact_jacobian;
+        let forces = !(self.jacobian_only && exact && k.is_some());
         let slots = self
             .kept
             .begin(model, self.keep_cell_tangents && exact && k.is_some());
@@ -813,9 +828,13 @@ impl NonlinearSystem for TimeStep<'_> {
                 {
                     Some(fused) => {
                         fused.map_err(fail)?;
-                        kv_kernel
-                            .forces(g, local, &vel[..nl], &mut rv, None)
-                            .map_err(fail)?
+                        if forces {
+                            kv_kernel
+                                .forces(g, local, &vel[..nl], &mut rv, None)
+                                .map_err(fail)?
+                        } else {
+                            0.0
+                        }
                     }
                     None => {
                         model
@@ -887,12 +906,14 @@ impl NonlinearSystem for TimeStep<'_> {
             self.kept.filled_at(stamp);
         }
         // the power of this process's cells summed in cell order, as `dissipation_power` does
-        let power = self.cell_energy.iter().fold(0.0, |t, p| t + p);
-        let mut cache = self.power_cache.take().unwrap_or_default();
-        cache.0.clone_from(&self.q);
-        cache.1.clone_from(&self.prev.q);
-        (cache.2, cache.3) = (dt, power);
-        self.power_cache = Some(cache);
+        if forces {
+            let power = self.cell_energy.iter().fold(0.0, |t, p| t + p);
+            let mut cache = self.power_cache.take().unwrap_or_default();
+            cache.0.clone_from(&self.q);
+            cache.1.clone_from(&self.prev.q);
+            (cache.2, cache.3) = (dt, power);
+            self.power_cache = Some(cache);
+        }
         // the terms below are no cell terms: in the residual everywhere, in the tangent once
         let mut k = self.assembler.global_terms(k);
         // dead loads at full value, with the factor of the internal forces: −f_r·f_ext
