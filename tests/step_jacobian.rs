@@ -139,6 +139,12 @@ fn jacobian_error(plan: &Plan, scheme: Scheme, exact: bool) -> f64 {
     let mut r = vec![0.0; nf];
     let mut k: CsrMatrix = step.new_matrix();
     step.evaluate(&mut r, Some(&mut k)).unwrap();
+    // the matrix alone is the same bits, and leaves the dissipation of the evaluated point
+    let power = step.dissipation_power().unwrap();
+    let mut alone: CsrMatrix = step.new_matrix();
+    step.jacobian(&mut alone).unwrap();
+    assert_eq!(alone.values, k.values);
+    assert_eq!(step.dissipation_power().unwrap(), power);
     let mut worst = 0.0f64;
     for _ in 0..3 {
         let x: Vec<f64> = (0..nf).map(|_| next()).collect();
