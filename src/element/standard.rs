@@ -183,37 +183,6 @@ pub(crate) fn add_point_potential_tangent(
     g_blk: &crate::material::Mat3,
     k: &mut [f64],
 ) {
-    // the node count as a constant for the common cells, so that the loops over b unroll
-    match n {
-        8 => point_potential_tangent::<8>(g, w, b_blk, g_blk, k),
-        4 => point_potential_tangent::<4>(g, w, b_blk, g_blk, k),
-        10 => point_potential_tangent::<10>(g, w, b_blk, g_blk, k),
-        _ => point_potential_tangent_n(g, n, w, b_blk, g_blk, k),
-    }
-}
-
-/// [`add_point_potential_tangent`] for cells of `N` nodes.
-#[inline(always)]
-fn point_potential_tangent<const N: usize>(
-    g: &[[f64; 3]; MAX_NODES],
-    w: f64,
-    b_blk: &crate::material::Mat93,
-    g_blk: &crate::material::Mat3,
-    k: &mut [f64],
-) {
-    point_potential_tangent_n(g, N, w, b_blk, g_blk, k)
-}
-
-/// [`add_point_potential_tangent`] for cells of `n` nodes.
-#[inline(always)]
-fn point_potential_tangent_n(
-    g: &[[f64; 3]; MAX_NODES],
-    n: usize,
-    w: f64,
-    b_blk: &crate::material::Mat93,
-    g_blk: &crate::material::Mat3,
-    k: &mut [f64],
-) {
     let nl = n * FIELDS;
     // gb[b][k][K] = Σ_J ∂N_b/∂X_J B_{kJ,K}
     let mut gb = [[[0.0; 3]; 3]; MAX_NODES];
