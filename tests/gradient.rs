@@ -382,6 +382,24 @@ weight = 1e8
         .unwrap()
 }
 
+/// The diaphragms' parameters checked together: C₁₀, the pad's mass, the voltage's amplitude
+/// and the pre-stretch.
+const DIAPHRAGM_PARAMETERS: [&str; 4] = [
+    "materials.vhb.c10",
+    "loads.rigid.0.mass",
+    "electrodes.top.voltage.amplitude",
+    "prestretch.stretch",
+];
+
+/// Asserts every Taylor remainder order of a checked run within 2 ± 0.1.
+fn assert_taylor_orders(r: &GradientReport) {
+    let orders = &r.taylor.as_ref().expect("checked").orders;
+    assert!(
+        orders.iter().all(|o| (o - 2.0).abs() <= 0.1),
+        "Taylor orders {orders:?}"
+    );
+}
+
 /// Asserts each checked knot of each control within `tol` of its finite difference.
 fn assert_controls_checked(r: &GradientReport, tol: f64) {
     assert!(!r.controls.is_empty());
@@ -406,26 +424,13 @@ fn assert_controls_checked(r: &GradientReport, tol: f64) {
 /// about 10⁻¹⁰ of itself (measured: 2·10⁻⁵ of the voltage's derivative at h = 10⁻⁴·|p|), while
 /// the truncation error grows as h² (4·10⁻⁶ of C₁₀'s at 10⁻³·|p|).
 fn check_diaphragm(integrator: &str) {
-    let r = diaphragm(
-        integrator,
-        &[
-            "materials.vhb.c10",
-            "loads.rigid.0.mass",
-            "electrodes.top.voltage.amplitude",
-            "prestretch.stretch",
-        ],
-        3e-4,
-    );
+    let r = diaphragm(integrator, &DIAPHRAGM_PARAMETERS, 3e-4);
     assert_checked(&r, 1e-6);
     assert_controls_checked(&r, 1e-6);
     // a control alone, with no [[parameters]]: the same knots' derivatives
     let alone = diaphragm(integrator, &[], 3e-4);
     assert!(alone.parameters.is_empty());
-    let orders = &alone.taylor.as_ref().unwrap().orders;
-    assert!(
-        orders.iter().all(|o| (o - 2.0).abs() <= 0.1),
-        "Taylor orders {orders:?}"
-    );
+    assert_taylor_orders(&alone);
     assert_controls_checked(&alone, 1e-6);
     for (a, b) in alone.controls.iter().zip(&r.controls) {
         for (x, y) in a.gradient.iter().zip(&b.gradient) {
@@ -464,22 +469,10 @@ fn dynamic_3d_diaphragm_gradient_matches_finite_differences() {
             fd_step,
         )
     };
-    let r = run(
-        &[
-            "materials.vhb.c10",
-            "loads.rigid.0.mass",
-            "electrodes.top.voltage.amplitude",
-            "prestretch.stretch",
-        ],
-        1e-4,
-    );
+    let r = run(&DIAPHRAGM_PARAMETERS, 1e-4);
     assert_checked(&r, 1e-6);
     assert_controls_checked(&r, 1e-6);
-    let orders = &r.taylor.as_ref().unwrap().orders;
-    assert!(
-        orders.iter().all(|o| (o - 2.0).abs() <= 0.1),
-        "Taylor orders {orders:?}"
-    );
+    assert_taylor_orders(&r);
     let r = run(&["materials.vhb.viscosity"], 1e-3);
     assert_checked(&r, 4e-6);
 }

@@ -923,6 +923,8 @@ pub(crate) mod tests {
         }
     }
 
+    /// The viscous configuration tangent of one point formed entry by entry, the form
+    /// [`ViscousPoint::add`] reorders: the same bits for every node count.
     #[test]
     fn viscous_point_has_the_bits_of_its_entrywise_form() {
         let mut next = generator();
