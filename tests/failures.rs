@@ -154,8 +154,12 @@ fn failures_name_the_evidence() {
         assert_eq!(out.status.code(), Some(1), "{name}: {err}");
         err
     };
+    // J_m = 1e-6 locks the film before the end of its 30 kV ramp. (With 1e-12 the limit lies a
+    // few hundred ulps of Ī₁ ≈ 3 from the stress-free state: the stress's round-off there is
+    // about 1e-3 of it, no Newton iteration reaches its tolerance, and round-off decides where
+    // the ramp stops.)
     let gent = film
-        .replace("model = \"neo-hooke\"", "model = \"gent\"\njm = 1e-12")
+        .replace("model = \"neo-hooke\"", "model = \"gent\"\njm = 1e-6")
         .replace("lambda = 1e7", "kappa = 1e7");
     let err = run("gent", &gent, &[]);
     assert!(err.contains("material limit"), "{err}");

@@ -32,7 +32,7 @@
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
     iso_first, named, vol_log_unit, HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
-    SplitI1,
+    PiolaTangent, SplitI1,
 };
 use super::isotropic::CKinematics;
 use super::parameters::Parameters;
@@ -126,6 +126,10 @@ impl Hyperelastic for ArrudaBoyce {
     #[inline(always)]
     fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
         self.split().first_piola_lanes(k)
+    }
+
+    fn first_piola_tangent(&self, k: &KnownDeformation) -> Option<PiolaTangent> {
+        Some(self.split().first_piola_tangent(k))
     }
 
     fn shear_modulus(&self) -> f64 {
@@ -266,6 +270,10 @@ impl Hyperelastic for ArrudaBoyceSeries {
     #[inline(always)]
     fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
         self.split().first_piola_lanes(k)
+    }
+
+    fn first_piola_tangent(&self, k: &KnownDeformation) -> Option<PiolaTangent> {
+        Some(self.split().first_piola_tangent(k))
     }
 
     fn shear_modulus(&self) -> f64 {

@@ -22,7 +22,7 @@
 //! ```
 
 use super::isotropic::{CKinematics, Tensor3, Tensor4};
-use super::{Known, KnownDeformation, Mat3, Vec3, EPSILON_0};
+use super::{ElectricTangent, Known, KnownDeformation, Mat3, Mat9, Mat93, Vec3, EPSILON_0};
 use crate::algebra::lanes::Lane;
 use nalgebra::{Matrix3, Vector3};
 
@@ -128,6 +128,71 @@ impl ElectricPart {
             d0 -= k.f.tr_mul(&(k.f * e0)) * (2.0 * self.c2);
         }
         d0
+    }
+
+    /// (Ω_e, P_e, D0) as [`ElectricPart::first_known`] gives them, with B, G, and A_e = ∂P_e/∂F
+    /// added to `a_out`, at a known deformation (its notation, f = F⁻ᵀ, C⁻¹ = fᵀf; no 𝕃_e is
+    /// formed):
+    /// A_e,iJkL = 2c₂ δ_ik E0_J E0_L − ½εJ [a (f_iJ f_kL − f_iL f_kJ) − 2(e_i g_J f_kL + f_iJ e_k g_L)
+    ///            + 2(f_iL e_k g_J + e_i g_L f_kJ) + 2 e_i e_k C⁻¹_JL],
+    /// B_iJ,K = 2c₂(F_iK E0_J + (F E0)_i δ_JK) − εJ (f_iJ g_K − f_iK g_J − e_i C⁻¹_JK),
+    /// G = 2c₁ I + 2c₂ C − εJ C⁻¹.
+    pub fn tangent_known(
+        &self,
+        k: &KnownDeformation,
+        e0: &Vec3,
+        a_out: &mut Mat9,
+    ) -> (f64, Mat3, ElectricTangent) {
+        let (energy, p, d0) = self.first_known(k, e0);
+        let fi = &k.f_inv_t;
+        let e = fi * e0;
+        let g = fi.tr_mul(&e);
+        let a = e.dot(&e);
+        let ej = self.eps * k.j;
+        let ci = fi.tr_mul(fi);
+        let fe = k.f * e0;
+        if *e0 != Vec3::zeros() {
+            // −½εJ [...] with its rank-one products over the rows and, with u = e⊗g and
+            // w = 2u − (a/2) f, the crossed terms f_iL w_kJ + w_iL f_kJ
+            let h = -0.5 * ej;
+            let nine = |m: &Mat3| -> [f64; 9] { std::array::from_fn(|r| m[(r / 3, r % 3)]) };
+            let f9 = nine(fi);
+            let u9: [f64; 9] = std::array::from_fn(|r| e[r / 3] * g[r % 3]);
+            let w9: [f64; 9] = std::array::from_fn(|r| 2.0 * u9[r] - 0.5 * a * f9[r]);
+            for col in 0..9 {
+                let (kk, l) = (col / 3, col % 3);
+                let p_col = h * (a * f9[col] - 2.0 * u9[col]);
+                let q_col = 2.0 * h * f9[col];
+                for row in 0..9 {
+                    let (i, jj) = (row / 3, row % 3);
+                    let (il, kj) = (i * 3 + l, kk * 3 + jj);
+                    let mut v = f9[row] * p_col - u9[row] * q_col
+                        + h * (f9[il] * w9[kj] + w9[il] * f9[kj])
+                        + 2.0 * h * e[i] * e[kk] * ci[(jj, l)];
+                    if i == kk {
+                        v += 2.0 * self.c2 * e0[jj] * e0[l];
+                    }
+                    a_out[(row, col)] += v;
+                }
+            }
+        }
+        let mut b = Mat93::zeros();
+        for i in 0..3 {
+            for jj in 0..3 {
+                for kk in 0..3 {
+                    let mut v =
+                        -ej * (fi[(i, jj)] * g[kk] - fi[(i, kk)] * g[jj] - e[i] * ci[(jj, kk)]);
+                    v += 2.0 * self.c2 * k.f[(i, kk)] * e0[jj];
+                    if jj == kk {
+                        v += 2.0 * self.c2 * fe[i];
+                    }
+                    b[(i * 3 + jj, kk)] = v;
+                }
+            }
+        }
+        let g_blk =
+            Mat3::identity() * (2.0 * self.c1) + k.f.tr_mul(&k.f) * (2.0 * self.c2) - ci * ej;
+        (energy, p, ElectricTangent { d0, b, g: g_blk })
     }
 
     /// Adds 𝕃_e to `ll` and returns (∂S/∂E0 indexed `[I][J][K]`, ∂D0/∂E0).

@@ -8,8 +8,8 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    i1_model_piola, invariant_model_second, iso_stress, named, vol_log, vol_stress, HFirst,
-    HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
+    i1_model_piola, i1_model_tangent, invariant_model_second, iso_stress, named, vol_log,
+    vol_stress, HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants, PiolaTangent,
 };
 use super::isotropic::CKinematics;
 use super::parameters::Parameters;
@@ -78,6 +78,13 @@ impl Hyperelastic for NeoHookeSplit {
     #[inline(always)]
     fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
         Some(self.piola(k))
+    }
+
+    fn first_piola_tangent(&self, k: &KnownDeformation) -> Option<PiolaTangent> {
+        let (w, p) = self.piola(k);
+        let i1 = norm_squared(&k.f);
+        let v = vol_log(self.kappa, k.j);
+        Some(Ok((w, p, i1_model_tangent(k, i1, &self.derivs(), &v))))
     }
 
     fn shear_modulus(&self) -> f64 {

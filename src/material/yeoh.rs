@@ -10,8 +10,9 @@
 
 use super::electroelastic::Electroelastic;
 use super::hyperelastic::{
-    i1_model_piola, invariant_model_second, iso_stress, named, vol_poly, vol_poly_d, vol_stress,
-    HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
+    i1_model_piola, i1_model_tangent, invariant_model_second, iso_stress, named, vol_poly,
+    vol_poly_d, vol_stress, HFirst, HSecond, Hyperelastic, InvariantDerivs, IsoInvariants,
+    PiolaTangent,
 };
 use super::isotropic::CKinematics;
 use super::parameters::Parameters;
@@ -101,6 +102,17 @@ impl Hyperelastic for Yeoh {
     #[inline(always)]
     fn first_piola_lanes(&self, k: &KnownLanes) -> Option<(F4, Matrix3<F4>)> {
         Some(self.piola(k))
+    }
+
+    fn first_piola_tangent(&self, k: &KnownDeformation) -> Option<PiolaTangent> {
+        let i1 = norm_squared(&k.f);
+        let (w, d) = self.iso(k.jm23 * i1);
+        let v = vol_poly(&self.inv_d(), k.j);
+        Some(Ok((
+            w + v.u,
+            i1_model_piola(k, i1, d.w1, v.du),
+            i1_model_tangent(k, i1, &d, &v),
+        )))
     }
 
     fn shear_modulus(&self) -> f64 {
