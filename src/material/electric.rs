@@ -119,13 +119,19 @@ impl ElectricPart {
     /// D0 alone at a known deformation (as in [`ElectricPart::first_known`]).
     #[inline]
     pub fn d0_known(&self, k: &KnownDeformation, e0: &Vec3) -> Vec3 {
-        let g = k.f_inv_t.tr_mul(&(k.f_inv_t * e0));
-        let mut d0 = g * (self.eps * k.j);
+        self.d0_from(&k.f, &k.f_inv_t, k.j, e0)
+    }
+
+    /// [`ElectricPart::d0_known`] from F, F⁻ᵀ and J.
+    #[inline]
+    fn d0_from(&self, f: &Mat3, f_inv_t: &Mat3, j: f64, e0: &Vec3) -> Vec3 {
+        let g = f_inv_t.tr_mul(&(f_inv_t * e0));
+        let mut d0 = g * (self.eps * j);
         if self.c1 != 0.0 {
             d0 -= e0 * (2.0 * self.c1);
         }
         if self.c2 != 0.0 {
-            d0 -= k.f.tr_mul(&(k.f * e0)) * (2.0 * self.c2);
+            d0 -= f.tr_mul(&(f * e0)) * (2.0 * self.c2);
         }
         d0
     }
@@ -150,7 +156,6 @@ impl ElectricPart {
         let a = e.dot(&e);
         let ej = self.eps * k.j;
         let ci = fi.tr_mul(fi);
-        let fe = k.f * e0;
         if *e0 != Vec3::zeros() {
             // −½εJ [...] with its rank-one products over the rows and, with u = e⊗g and
             // w = 2u − (a/2) f, the crossed terms f_iL w_kJ + w_iL f_kJ
@@ -176,13 +181,41 @@ impl ElectricPart {
                 }
             }
         }
+        let (b, g_blk) = self.mixed_known(&k.f, fi, k.j, e0);
+        (energy, p, ElectricTangent { d0, b, g: g_blk })
+    }
+
+    /// D0, B and G of [`ElectricPart::tangent_known`] from F, F⁻ᵀ and J alone: what the rows of
+    /// Gauss's law need, without A.
+    pub fn electric_tangent_known(
+        &self,
+        f: &Mat3,
+        f_inv_t: &Mat3,
+        j: f64,
+        e0: &Vec3,
+    ) -> ElectricTangent {
+        let (b, g) = self.mixed_known(f, f_inv_t, j, e0);
+        ElectricTangent {
+            d0: self.d0_from(f, f_inv_t, j, e0),
+            b,
+            g,
+        }
+    }
+
+    /// (B, G) of [`ElectricPart::tangent_known`].
+    fn mixed_known(&self, f: &Mat3, fi: &Mat3, j: f64, e0: &Vec3) -> (Mat93, Mat3) {
+        let e = fi * e0;
+        let g = fi.tr_mul(&e);
+        let ej = self.eps * j;
+        let ci = fi.tr_mul(fi);
+        let fe = f * e0;
         let mut b = Mat93::zeros();
         for i in 0..3 {
             for jj in 0..3 {
                 for kk in 0..3 {
                     let mut v =
                         -ej * (fi[(i, jj)] * g[kk] - fi[(i, kk)] * g[jj] - e[i] * ci[(jj, kk)]);
-                    v += 2.0 * self.c2 * k.f[(i, kk)] * e0[jj];
+                    v += 2.0 * self.c2 * f[(i, kk)] * e0[jj];
                     if jj == kk {
                         v += 2.0 * self.c2 * fe[i];
                     }
@@ -190,9 +223,8 @@ impl ElectricPart {
                 }
             }
         }
-        let g_blk =
-            Mat3::identity() * (2.0 * self.c1) + k.f.tr_mul(&k.f) * (2.0 * self.c2) - ci * ej;
-        (energy, p, ElectricTangent { d0, b, g: g_blk })
+        let g_blk = Mat3::identity() * (2.0 * self.c1) + f.tr_mul(f) * (2.0 * self.c2) - ci * ej;
+        (b, g_blk)
     }
 
     /// Adds 𝕃_e to `ll` and returns (∂S/∂E0 indexed `[I][J][K]`, ∂D0/∂E0).

@@ -161,14 +161,18 @@ impl<H: Hyperelastic> Material for Electroelastic<H> {
         e0: &Vec3,
         _h: PointHistory,
     ) -> Result<ElectricTangent, MaterialError> {
-        // the mechanical part enters neither D0 nor the derivatives in E0
-        let k = isotropic::checked_kinematics(f, e0)?;
-        let (se, dd) = self.elec.mixed_second(&k, e0);
-        Ok(ElectricTangent {
-            d0: self.elec.d0(&k, e0),
-            b: isotropic::b_from_c(f, &se),
-            g: -dd,
-        })
+        // the mechanical part enters neither D0 nor the derivatives in E0; the checks and
+        // errors of `tangent`
+        isotropic::check_field(e0)?;
+        let j = f.determinant();
+        match f.try_inverse() {
+            Some(f_inv) if j.is_finite() && j > 0.0 => {
+                Ok(self
+                    .elec
+                    .electric_tangent_known(f, &f_inv.transpose(), j, e0))
+            }
+            _ => Err(MaterialError::NonPositiveJ(j)),
+        }
     }
 
     fn electric_displacement_at(

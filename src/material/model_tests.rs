@@ -898,6 +898,49 @@ fn known_deformation_paths_match_generic_ones() {
     assert!(KnownDeformation::new(&-Mat3::identity()).is_none());
 }
 
+/// The potential rows' derivatives alone (`electric_tangent_at`, formed from F and F⁻ᵀ) are
+/// those of the whole tangent, for every model with either dielectric; both refuse the same
+/// inputs.
+#[test]
+fn electric_tangent_is_the_tangents_electric_part() {
+    use super::PointHistory;
+    let mut rng = Rng::new(0x6b6e_0000_0000_0022);
+    let h = PointHistory::NONE;
+    for model in models() {
+        for (variant, m) in [("ideal", model.ideal()), ("coupled", model.coupled())] {
+            let m = m.as_ref();
+            let name = format!("{} ({variant})", model.name());
+            for _ in 0..8 {
+                let f = rng.deformation();
+                let e0 = rng.field(m);
+                let t = m.tangent_at(&f, &e0, h).unwrap();
+                let et = m.electric_tangent_at(&f, &e0, h).unwrap();
+                let rel = |a: f64, b: f64| a / b.max(f64::MIN_POSITIVE);
+                assert!(
+                    rel((et.d0 - t.d0).amax(), t.d0.amax()) < 1e-13,
+                    "{name}: D0"
+                );
+                assert!(rel((et.b - t.b).amax(), t.b.amax()) < 1e-12, "{name}: B");
+                assert!(rel((et.g - t.g).amax(), t.g.amax()) < 1e-12, "{name}: G");
+            }
+            let bad = Vec3::new(f64::NAN, 0.0, 0.0);
+            assert!(
+                m.electric_tangent_at(&Mat3::identity(), &bad, h).is_err(),
+                "{name}"
+            );
+            let inverted = Mat3::from_diagonal(&Vec3::new(1.0, 1.0, -0.5));
+            assert!(
+                m.electric_tangent_at(&inverted, &Vec3::zeros(), h).is_err(),
+                "{name}"
+            );
+            assert!(
+                m.tangent_at(&inverted, &Vec3::zeros(), h).is_err(),
+                "{name}"
+            );
+        }
+    }
+}
+
 /// The eight-chain model of the preset `vhb4910-ab-wang` (G₀ = 15.36 kPa, λ_L = 5.99, κ = 1000 G₀).
 fn wang_eight_chain() -> Model {
     ArrudaBoyce {
