@@ -44,7 +44,7 @@
 //!          + (J(U′ + J U″) + 2a I₁/9) f_iJ f_kL − β f_iL f_kJ,     c = 4W₁₁J^(−4/3)
 //! ```
 //!
-//! (the same A as the conversion of 𝕃 gives, about four times fewer operations).
+//! (the same A as the conversion of 𝕃 gives, without forming 𝕃).
 //!
 //! # Volumetric functions
 //!
