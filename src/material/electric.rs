@@ -37,6 +37,25 @@ pub struct ElectricPart {
     pub c2: f64,
 }
 
+/// The field's terms of the first Piola forms: e = F⁻ᵀE0, g = C⁻¹E0 = F⁻¹e and C⁻¹ = F⁻¹F⁻ᵀ.
+struct FieldTerms {
+    e: Vec3,
+    g: Vec3,
+    ci: Mat3,
+}
+
+impl FieldTerms {
+    #[inline]
+    fn new(f_inv_t: &Mat3, e0: &Vec3) -> Self {
+        let e = f_inv_t * e0;
+        FieldTerms {
+            e,
+            g: f_inv_t.tr_mul(&e),
+            ci: f_inv_t.tr_mul(f_inv_t),
+        }
+    }
+}
+
 impl ElectricPart {
     /// Ideal dielectric with relative permittivity εᵣ: ε = εᵣε₀, c₁ = c₂ = 0.
     pub fn ideal(eps_r: f64) -> Self {
@@ -151,11 +170,9 @@ impl ElectricPart {
     ) -> (f64, Mat3, ElectricTangent) {
         let (energy, p, d0) = self.first_known(k, e0);
         let fi = &k.f_inv_t;
-        let e = fi * e0;
-        let g = fi.tr_mul(&e);
+        let FieldTerms { e, g, ci } = FieldTerms::new(fi, e0);
         let a = e.dot(&e);
         let ej = self.eps * k.j;
-        let ci = fi.tr_mul(fi);
         if *e0 != Vec3::zeros() {
             // −½εJ [...] with its rank-one products over the rows and, with u = e⊗g and
             // w = 2u − (a/2) f, the crossed terms f_iL w_kJ + w_iL f_kJ
@@ -181,7 +198,7 @@ impl ElectricPart {
                 }
             }
         }
-        let (b, g_blk) = self.mixed_known(&k.f, fi, k.j, e0);
+        let (b, g_blk) = self.mixed_known(&k.f, fi, k.j, e0, &FieldTerms { e, g, ci });
         (energy, p, ElectricTangent { d0, b, g: g_blk })
     }
 
@@ -194,7 +211,8 @@ impl ElectricPart {
         j: f64,
         e0: &Vec3,
     ) -> ElectricTangent {
-        let (b, g) = self.mixed_known(f, f_inv_t, j, e0);
+        let terms = FieldTerms::new(f_inv_t, e0);
+        let (b, g) = self.mixed_known(f, f_inv_t, j, e0, &terms);
         ElectricTangent {
             d0: self.d0_from(f, f_inv_t, j, e0),
             b,
@@ -203,11 +221,16 @@ impl ElectricPart {
     }
 
     /// (B, G) of [`ElectricPart::tangent_known`].
-    fn mixed_known(&self, f: &Mat3, fi: &Mat3, j: f64, e0: &Vec3) -> (Mat93, Mat3) {
-        let e = fi * e0;
-        let g = fi.tr_mul(&e);
+    fn mixed_known(
+        &self,
+        f: &Mat3,
+        fi: &Mat3,
+        j: f64,
+        e0: &Vec3,
+        terms: &FieldTerms,
+    ) -> (Mat93, Mat3) {
+        let FieldTerms { e, g, ci } = terms;
         let ej = self.eps * j;
-        let ci = fi.tr_mul(fi);
         let fe = f * e0;
         let mut b = Mat93::zeros();
         for i in 0..3 {
