@@ -271,6 +271,9 @@ pub struct SolverSpec {
     pub newton_max_iterations: Option<i64>,
     /// The largest number of halvings of a Newton step in the line search (default 6).
     pub line_search_halvings: Option<i64>,
+    /// Newton's tangents in static stages and the pre-stretch: `lagged` (the default: near the
+    /// root an iteration may keep the previous iterate's tangent) or `every-iteration`.
+    pub newton_tangent: Option<String>,
     /// The smallest load increment of a static stage, as a fraction of a nominal step (default
     /// 1/4096): below it the stage stops as failed.
     pub min_step_fraction: Option<f64>,

@@ -218,6 +218,9 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
     let mut inc = start.increment;
     let mut next_nominal = start.next_nominal;
     let mut last_reason = String::new();
+    // the last failure that met an inverted cell: which attempt ends the bisection there is
+    // round-off, and the reason of a ramp that stops short of inversion names it
+    let mut inverted: Option<String> = None;
     let mut last_cause;
     // the solver holds a factorisation of the tangent at (or next to) the current state
     let mut predictor_work = vec![0.0; system.n()];
@@ -284,6 +287,7 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
                 if hits_nominal {
                     next_nominal += 1;
                     retrying = false;
+                    inverted = None;
                 }
                 if easy {
                     inc = (inc * 2.0).min(nominal);
@@ -346,6 +350,9 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
         system.restore(&saved);
         system.set_load(s);
         report.cutbacks += 1;
+        if failure.contains("volume ratio") {
+            inverted = Some(failure.clone());
+        }
         last_reason = failure;
         inc = (target - s) * 0.5;
         if inc < min_inc {
@@ -358,7 +365,12 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
             return Err(RampFailure {
                 last_converged: s,
                 attempted: target,
-                reason: last_reason,
+                reason: match inverted {
+                    Some(m) if !last_reason.contains("volume ratio") => {
+                        format!("{last_reason}; an attempt before it: {m}")
+                    }
+                    _ => last_reason,
+                },
                 limit_point,
                 cause: last_cause,
                 newton_iterations: report.newton_iterations,

@@ -253,6 +253,7 @@ impl<'m> Projector<'m> {
             settings: NewtonSettings {
                 check_stability: false,
                 reuse_factorization: settings.reuse_factorization,
+                lag_tangent: false,
                 ..newton_settings.clone()
             },
         })
@@ -854,6 +855,7 @@ pub fn run_dynamic_while(
                 k,
                 settings: NewtonSettings {
                     check_stability: false,
+                    lag_tangent: false,
                     ..newton_settings.clone()
                 },
                 projector,
@@ -942,6 +944,7 @@ pub fn run_dynamic_while(
             check_stability: false,
             reuse_factorization,
             lazy_tangent: step_exact,
+            lag_tangent: false,
             ..newton_settings.clone()
         },
         projector,

@@ -38,6 +38,14 @@ pub(super) fn build_newton(
     if let Some(n) = spec.line_search_halvings {
         newton.max_backtracks = count("solver.line_search_halvings", n, 0)?;
     }
+    if let Some(t) = &spec.newton_tangent {
+        newton.lag_tangent = choice(
+            ctx,
+            "newton_tangent",
+            t,
+            [("lagged", true), ("every-iteration", false)],
+        )?;
+    }
     if let Some(f) = spec.min_step_fraction {
         if !(f > 0.0 && f <= 1.0) {
             return Err(ctx.err(
@@ -296,6 +304,29 @@ mod tests {
             &[("solver", "[solver]\nkind = \"direct\"\nreuse_from = 10")],
             "solver.reuse_from",
             "applies to kind = \"auto\" only",
+        );
+    }
+
+    /// `newton_tangent`: lagged by default, a tangent at every iteration on request, and an
+    /// unknown value named with the accepted ones.
+    #[test]
+    fn newton_tangent_lagged_or_every_iteration() {
+        let newton = |text: &str| build_newton(&CTX, &scenario(&[("solver", text)])).map(|n| n.0);
+        assert!(newton("[solver]").unwrap().lag_tangent);
+        assert!(
+            newton("[solver]\nnewton_tangent = \"lagged\"")
+                .unwrap()
+                .lag_tangent
+        );
+        assert!(
+            !newton("[solver]\nnewton_tangent = \"every-iteration\"")
+                .unwrap()
+                .lag_tangent
+        );
+        assert_rejected(
+            &[("solver", "[solver]\nnewton_tangent = \"always\"")],
+            "solver.newton_tangent",
+            "unknown newton_tangent `always`; expected one of: lagged, every-iteration",
         );
     }
 
