@@ -607,6 +607,21 @@ mod tests {
         };
     }
 
+    /// A state that is the one field `$f`: its increment, snapshot and restore.
+    macro_rules! one_coordinate {
+        ($f:tt) => {
+            fn increment(&mut self, dx: &[f64], alpha: f64) {
+                self.$f += alpha * dx[0];
+            }
+            fn snapshot(&self) -> Vec<f64> {
+                vec![self.$f]
+            }
+            fn restore(&mut self, s: &[f64]) {
+                self.$f = s[0];
+            }
+        };
+    }
+
     /// r(x) = x³ + x − 2 = 0 (root x = 1), one unknown.
     struct Cubic(f64);
 
@@ -619,15 +634,7 @@ mod tests {
             }
             Ok(())
         }
-        fn increment(&mut self, dx: &[f64], alpha: f64) {
-            self.0 += alpha * dx[0];
-        }
-        fn snapshot(&self) -> Vec<f64> {
-            vec![self.0]
-        }
-        fn restore(&mut self, s: &[f64]) {
-            self.0 = s[0];
-        }
+        one_coordinate!(0);
     }
 
     /// A double well E = x⁴/4 − x²/2 pulled by a force μ, with x held at `target` by the border
@@ -813,15 +820,7 @@ mod tests {
             }
             Ok(())
         }
-        fn increment(&mut self, dx: &[f64], alpha: f64) {
-            self.x += alpha * dx[0];
-        }
-        fn snapshot(&self) -> Vec<f64> {
-            vec![self.x]
-        }
-        fn restore(&mut self, s: &[f64]) {
-            self.x = s[0];
-        }
+        one_coordinate!(x);
     }
 
     /// Modified Newton refactors when an iteration reduces the residual by less than 10×, but
@@ -897,15 +896,7 @@ mod tests {
             }
             Ok(())
         }
-        fn increment(&mut self, dx: &[f64], alpha: f64) {
-            self.x += alpha * dx[0];
-        }
-        fn snapshot(&self) -> Vec<f64> {
-            vec![self.x]
-        }
-        fn restore(&mut self, s: &[f64]) {
-            self.x = s[0];
-        }
+        one_coordinate!(x);
     }
 
     fn logged_solve(slope: f64, settings: &NewtonSettings) -> (Logged, NewtonReport) {
