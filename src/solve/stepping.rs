@@ -103,6 +103,11 @@ pub enum FailureCause {
     Other,
 }
 
+/// Whether a failure's message is a cell's non-positive volume ratio (an inverted element).
+fn names_inverted_cell(message: &str) -> bool {
+    message.contains("volume ratio")
+}
+
 impl FailureCause {
     /// A singular matrix (a zero pivot) or a non-finite value, by the failure's message.
     fn numerical(message: &str) -> Option<Self> {
@@ -128,7 +133,7 @@ impl FailureCause {
             // held back by a material outside its domain (e.g. a Gent network at its lock)
             NewtonError::MaxIterations {
                 blocked: Some(m), ..
-            } if !m.contains("volume ratio") => FailureCause::Material(m.clone()),
+            } if !names_inverted_cell(m) => FailureCause::Material(m.clone()),
             NewtonError::Diverged { .. } | NewtonError::MaxIterations { .. } => {
                 FailureCause::NoConvergence
             }
@@ -138,7 +143,7 @@ impl FailureCause {
             NewtonError::Evaluation { message, .. } => {
                 if let Some(cause) = Self::numerical(message) {
                     cause
-                } else if message.contains("volume ratio") {
+                } else if names_inverted_cell(message) {
                     // an inverted element: the step went too far, as near a limit point
                     FailureCause::NoConvergence
                 } else {
@@ -350,7 +355,7 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
         system.restore(&saved);
         system.set_load(s);
         report.cutbacks += 1;
-        if failure.contains("volume ratio") {
+        if names_inverted_cell(&failure) {
             inverted = Some(failure.clone());
         }
         last_reason = failure;
@@ -366,7 +371,7 @@ pub fn ramp_from<S: LoadedSystem + ?Sized>(
                 last_converged: s,
                 attempted: target,
                 reason: match inverted {
-                    Some(m) if !last_reason.contains("volume ratio") => {
+                    Some(m) if !names_inverted_cell(&last_reason) => {
                         format!("{last_reason}; an attempt before it: {m}")
                     }
                     _ => last_reason,

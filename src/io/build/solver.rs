@@ -313,16 +313,10 @@ mod tests {
     fn newton_tangent_lagged_or_every_iteration() {
         let newton = |text: &str| build_newton(&CTX, &scenario(&[("solver", text)])).map(|n| n.0);
         assert!(newton("[solver]").unwrap().lag_tangent);
-        assert!(
-            newton("[solver]\nnewton_tangent = \"lagged\"")
-                .unwrap()
-                .lag_tangent
-        );
-        assert!(
-            !newton("[solver]\nnewton_tangent = \"every-iteration\"")
-                .unwrap()
-                .lag_tangent
-        );
+        for (value, lagged) in [("lagged", true), ("every-iteration", false)] {
+            let text = format!("[solver]\nnewton_tangent = \"{value}\"");
+            assert_eq!(newton(&text).unwrap().lag_tangent, lagged, "{value}");
+        }
         assert_rejected(
             &[("solver", "[solver]\nnewton_tangent = \"always\"")],
             "solver.newton_tangent",
