@@ -158,6 +158,47 @@ fn a_run_beyond_its_budget_reads_its_objective_from_checkpoints() {
     );
 }
 
+/// A dynamic stage's sweep evaluates the Jacobians of the step before the current one while the
+/// current one's solves run, on a second thread where there is one: one thread and two give the
+/// same J and derivatives, bit for bit, with every state held and with the steps recomputed from
+/// checkpoints, under both integrators.
+#[test]
+fn one_thread_and_two_give_the_same_gradient() {
+    let dir = tempfile::tempdir().unwrap();
+    for integrator in ["midpoint", "newmark"] {
+        let sim = vibrating_film(integrator, dir.path());
+        for budget in [usize::MAX / 4, 30_000] {
+            let on = |threads: usize| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| gradient(&sim, budget))
+            };
+            let (one, two) = (on(1), on(2));
+            assert!(one.objective > 0.0);
+            assert_eq!(one.objective, two.objective, "{integrator}");
+            assert_eq!(one.parameters.len(), 3);
+            for (a, b) in one.parameters.iter().zip(&two.parameters) {
+                assert!(
+                    a.gradient != 0.0,
+                    "{}: a zero derivative checks nothing",
+                    a.path
+                );
+                assert_eq!(a.gradient, b.gradient, "{integrator}, {}", a.path);
+            }
+            assert_eq!(one.controls.len(), two.controls.len());
+            for (a, b) in one.controls.iter().zip(&two.controls) {
+                assert_eq!(
+                    a.gradient, b.gradient,
+                    "{integrator}: control of {}",
+                    a.electrode
+                );
+            }
+        }
+    }
+}
+
 /// The Newmark step (its consistent start acceleration from the stage's start) recomputed.
 #[test]
 fn newmark_film_recomputed_bit_for_bit() {

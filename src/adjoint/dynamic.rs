@@ -21,10 +21,11 @@
 //! q̄₀' −= (∂f/∂q)ᵀz, v̄₀ −= (∂f/∂v)ᵀz and dJ/dp −= zᵀ∂f/∂p (−zᵀ(∂M/∂m)a₀ for a pad's mass).
 
 use super::charge::charge_adjoint;
-use super::lambda::{AdjointSolver, SolveCounts};
+use super::lambda::{jacobian, AdjointSolver, SolveCounts};
 use super::objective::Backward;
 use super::sink::{waveform_dofs, Sink};
 use super::tape::{TapedDynamics, TapedStage, TapedStep};
+use crate::algebra::csr::CsrMatrix;
 use crate::algebra::system::{LoadedSystem, NonlinearSystem};
 use crate::io::build::Parameter;
 use crate::job::plan::Plan;
@@ -102,8 +103,7 @@ impl Steps for Held<'_> {
     }
 }
 
-/// What the stage's steps share: the step's and the projection's systems, set up once and moved
-/// to each step's point.
+/// What the stage's steps share, read only.
 struct Stage<'a, 'm> {
     dynamics: &'a TapedDynamics,
     /// ∂M/∂ρ of each material whose density is asked for (its index, the mass of its cells at
@@ -112,14 +112,126 @@ struct Stage<'a, 'm> {
     drive: &'a Drive,
     scheme: Scheme,
     step_model: &'m Model,
-    step: TimeStep<'m>,
-    projection: StaticProblem<'m>,
     waveform: Vec<usize>,
     /// Whether the stage's electrodes follow their waveforms (off: grounded).
     electrodes_on: bool,
-    /// The adjoint solves of the steps and of the projections, each reusing its factors.
-    step_solver: AdjointSolver,
-    projection_solver: AdjointSolver,
+}
+
+/// The adjoint solves of the steps and of the projections, each reusing its factors.
+#[derive(Default)]
+struct Solvers {
+    step: AdjointSolver,
+    projection: AdjointSolver,
+}
+
+/// A step's system and its projection's, moved to the step's point with their Jacobians
+/// evaluated: all that a step's adjoint needs before the cotangents of its level are known. The
+/// sweep prepares the step before the current one while the current one's solves run, on the
+/// threads those leave idle; the two alternate between two of these.
+struct Prepared<'m> {
+    step: TimeStep<'m>,
+    projection: StaticProblem<'m>,
+    step_matrix: CsrMatrix,
+    /// The projection's Jacobian at the step's new level (the midpoint scheme's steps, and
+    /// Newmark's start).
+    projection_matrix: Option<CsrMatrix>,
+}
+
+impl<'m> Prepared<'m> {
+    fn new(
+        s: &Stage<'m, 'm>,
+        projection_model: &'m Model,
+        start: &[f64],
+        initial: &TimeLevel,
+    ) -> Self {
+        let mut step = TimeStep::new(
+            s.step_model,
+            &s.dynamics.mass,
+            s.dynamics.viscosity.clone(),
+            s.scheme,
+            initial.clone(),
+        );
+        step.exact_jacobian = true;
+        step.keep_cell_tangents = true;
+        let mut projection = StaticProblem::new(projection_model, Some(start.to_vec()));
+        projection.keep_cell_tangents = true;
+        projection.set_drive(Drive::held(projection_model));
+        projection.set_load(1.0);
+        let step_matrix = step.new_matrix();
+        Prepared {
+            step,
+            projection,
+            step_matrix,
+            projection_matrix: None,
+        }
+    }
+
+    /// Moves the step to the one from `prev` with the unknown `iterate` over `dt`, from the
+    /// points `before` committed, and evaluates its Jacobian; under the midpoint scheme also the
+    /// projection's at the new level's positions `q`.
+    fn prepare(
+        &mut self,
+        s: &Stage,
+        prev: &TimeLevel,
+        iterate: &[f64],
+        dt: f64,
+        before: &[f64],
+        q: &[f64],
+    ) -> Result<(), String> {
+        let step = &mut self.step;
+        step.points = PointStates::from_data(s.step_model, before);
+        step.prev.clone_from(prev);
+        step.dt = dt;
+        step.q.copy_from_slice(iterate);
+        // the circuits' start (charges by Gauss's law at qₙ) and sources at t_n, t_{n+½},
+        // t_{n+1}
+        let times = [prev.t, prev.t + 0.5 * dt, prev.t + dt];
+        let sources: Vec<[f64; 3]> = (0..s.step_model.circuits.len())
+            .map(|i| times.map(|t| s.drive.circuit_sources_at(t)[i]))
+            .collect();
+        step.begin_circuits(&sources)?;
+        self.step_matrix = jacobian(step)?;
+        match s.scheme {
+            Scheme::Midpoint => self.prepare_projection(q),
+            Scheme::Newmark { .. } => {
+                self.projection_matrix = None;
+                Ok(())
+            }
+        }
+    }
+
+    /// Moves the projection to the positions `q` and evaluates its Jacobian there.
+    fn prepare_projection(&mut self, q: &[f64]) -> Result<(), String> {
+        self.projection.state.copy_from_slice(q);
+        self.projection_matrix = Some(jacobian(&mut self.projection)?);
+        Ok(())
+    }
+}
+
+/// A step of the tape and the record of the level it started from (`None`: the stage's
+/// initial level), copied out of the tape so that the sweep can ask for the step before it.
+struct Fetched {
+    prev: Option<TapedStep>,
+    taped: TapedStep,
+}
+
+impl Fetched {
+    fn of(steps: &mut dyn Steps, k: usize) -> Result<Fetched, String> {
+        let (prev, taped) = steps.step(k)?;
+        Ok(Fetched {
+            prev: prev.cloned(),
+            taped: taped.clone(),
+        })
+    }
+
+    /// The step's unknown before the projection of the potential.
+    fn iterate(&self) -> &[f64] {
+        if self.taped.iterate.is_empty() {
+            &self.taped.state
+        } else {
+            &self.taped.iterate
+        }
+    }
 }
 
 /// The adjoint of the dynamic stage `st`, the `ti`-th of a taped run, whose steps `steps` gives
@@ -158,19 +270,6 @@ pub fn sweep(
         .initial
         .as_ref()
         .ok_or_else(|| format!("stage `{}` took no step", stage.name))?;
-    let mut step = TimeStep::new(
-        &step_model,
-        &dynamics.mass,
-        dynamics.viscosity.clone(),
-        scheme,
-        initial.clone(),
-    );
-    step.exact_jacobian = true;
-    step.keep_cell_tangents = true;
-    let mut projection = StaticProblem::new(&projection_model, Some(st.start.clone()));
-    projection.keep_cell_tangents = true;
-    projection.set_drive(Drive::held(&projection_model));
-    projection.set_load(1.0);
     let kind = match stage.kind {
         crate::job::plan::StageKind::Dynamic { mass, .. } => mass,
         _ => return Err(format!("stage `{}` is not dynamic", stage.name)),
@@ -184,19 +283,20 @@ pub fn sweep(
             (m, NodalMass::new(&step_model, &unit, kind))
         })
         .collect();
-    let mut s = Stage {
+    let s = Stage {
         dynamics,
         unit_masses,
         drive: &st.drive,
         scheme,
         waveform: waveform_dofs(&st.drive, n),
         step_model: &step_model,
-        step,
-        projection,
         electrodes_on: stage.electrodes_on,
-        step_solver: AdjointSolver::default(),
-        projection_solver: AdjointSolver::default(),
     };
+    let mut solvers = Solvers::default();
+    let mut prepared = [
+        Prepared::new(&s, &projection_model, &st.start, initial),
+        Prepared::new(&s, &projection_model, &st.start, initial),
+    ];
     // the levels' times in stage time, as the integrator reached them
     let dts = st.dts();
     let mut times = Vec::with_capacity(dts.len());
@@ -211,70 +311,125 @@ pub fn sweep(
         v: k.v.clone(),
         a: k.a.clone(),
     };
+    let prev_level = |k: usize, f: &Fetched| match &f.prev {
+        None => initial.clone(),
+        Some(p) => level(times[k - 1], p),
+    };
+    let prepare = |p: &mut Prepared, k: usize, f: &Fetched| {
+        let before = f.prev.as_ref().map_or(&st.start_points, |p| &p.points);
+        p.prepare(
+            &s,
+            &prev_level(k, f),
+            f.iterate(),
+            f.taped.dt,
+            before,
+            &f.taped.state,
+        )
+    };
     let mut c = end;
+    let mut next = match dts.len() {
+        0 => None,
+        m => {
+            let f = Fetched::of(steps, m - 1)?;
+            prepare(&mut prepared[(m - 1) % 2], m - 1, &f)?;
+            Some(f)
+        }
+    };
     for k in (0..dts.len()).rev() {
-        let (prev, taped) = steps.step(k)?;
-        let read = objective.at_step(ti, k, taped)?;
-        if !read.state.is_empty() {
-            c.q.iter_mut().zip(&read.state).for_each(|(a, b)| *a += b);
-        }
-        if !read.velocity.is_empty() {
-            c.v.iter_mut()
-                .zip(&read.velocity)
-                .for_each(|(a, b)| *a += b);
-        }
-        if !read.charges.is_empty() {
-            // the charges J reads at this level, by Gauss's law at its state and points
-            let nodes: Vec<&[usize]> = plan.electrodes.iter().map(|e| e.nodes.as_slice()).collect();
-            let points = PointStates::from_data(&plan.model, &taped.points);
-            let p = charge_adjoint(
-                &plan.model,
-                &nodes,
-                &taped.state,
-                &points,
-                &read.charges,
-                &mut c.q,
-                sink,
-            )?;
-            if !p.is_empty() {
-                c.points.resize(p.len(), 0.0);
-                c.points.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
-            }
-        }
-        let prev_level = match prev {
-            None => initial.clone(),
-            Some(p) => level(times[k - 1], p),
+        let current = next.take().expect("fetched with the step after it");
+        next = match k {
+            0 => None,
+            _ => Some(Fetched::of(steps, k - 1)?),
         };
-        let iterate = if taped.iterate.is_empty() {
-            &taped.state
-        } else {
-            &taped.iterate
-        };
-        let before = prev.map_or(&st.start_points, |p| &p.points);
-        s.step.points = PointStates::from_data(&step_model, before);
-        c = step_adjoint(
-            &mut s,
-            &prev_level,
-            &level(times[k], taped),
-            iterate,
-            taped.dt,
-            c,
-            sink,
-        )?;
+        let [even, odd] = &mut prepared;
+        let (this, other) = if k % 2 == 0 { (even, odd) } else { (odd, even) };
+        // this step's adjoint beside the Jacobians of the step before it, the next to sweep,
+        // which take the threads this one's solves leave idle
+        let (adjoint, ahead) = rayon::join(
+            || {
+                let taped = &current.taped;
+                add_reads(plan, objective, ti, k, taped, &mut c, sink)?;
+                step_adjoint(
+                    &s,
+                    &mut solvers,
+                    this,
+                    &prev_level(k, &current),
+                    &level(times[k], taped),
+                    current.iterate(),
+                    taped.dt,
+                    std::mem::replace(&mut c, Cotangent::zeros(0)),
+                    sink,
+                )
+            },
+            || match &next {
+                Some(f) => prepare(other, k - 1, f),
+                None => Ok(()),
+            },
+        );
+        c = adjoint?;
+        ahead?;
     }
-    s.step.points = PointStates::from_data(&step_model, &st.start_points);
     let start = match scheme {
         Scheme::Midpoint => c,
-        Scheme::Newmark { .. } => newmark_start_adjoint(&mut s, initial, c, sink)?,
+        Scheme::Newmark { .. } => {
+            let p = &mut prepared[0];
+            p.step.points = PointStates::from_data(&step_model, &st.start_points);
+            p.prepare_projection(&initial.q)?;
+            newmark_start_adjoint(&s, &mut solvers, p, initial, c, sink)?
+        }
     };
-    let mut solves = s.step_solver.counts();
-    solves += s.projection_solver.counts();
+    let mut solves = solvers.step.counts();
+    solves += solvers.projection.counts();
     Ok((start, solves))
 }
 
+/// Adds to `c` what J reads at step `k` of the `ti`-th stage, whose record is `taped`: its
+/// positions and velocities, and its charges (by Gauss's law at its state and points; their
+/// parameters' derivatives go to `sink`).
+fn add_reads(
+    plan: &Plan,
+    objective: &mut Backward,
+    ti: usize,
+    k: usize,
+    taped: &TapedStep,
+    c: &mut Cotangent,
+    sink: &mut Sink,
+) -> Result<(), String> {
+    let read = objective.at_step(ti, k, taped)?;
+    if !read.state.is_empty() {
+        c.q.iter_mut().zip(&read.state).for_each(|(a, b)| *a += b);
+    }
+    if !read.velocity.is_empty() {
+        c.v.iter_mut()
+            .zip(&read.velocity)
+            .for_each(|(a, b)| *a += b);
+    }
+    if !read.charges.is_empty() {
+        let nodes: Vec<&[usize]> = plan.electrodes.iter().map(|e| e.nodes.as_slice()).collect();
+        let points = PointStates::from_data(&plan.model, &taped.points);
+        let p = charge_adjoint(
+            &plan.model,
+            &nodes,
+            &taped.state,
+            &points,
+            &read.charges,
+            &mut c.q,
+            sink,
+        )?;
+        if !p.is_empty() {
+            c.points.resize(p.len(), 0.0);
+            c.points.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
+        }
+    }
+    Ok(())
+}
+
 /// The adjoint of one step from `prev` to `level` with the step's unknown `iterate`.
+#[allow(clippy::too_many_arguments)]
 fn step_adjoint(
-    s: &mut Stage,
+    s: &Stage,
+    solvers: &mut Solvers,
+    p: &mut Prepared,
     prev: &TimeLevel,
     level: &TimeLevel,
     iterate: &[f64],
@@ -284,17 +439,7 @@ fn step_adjoint(
 ) -> Result<Cotangent, String> {
     let n = c.q.len();
     let mut out = Cotangent::zeros(n);
-    // the step at its point, with its circuits' start (charges by Gauss's law at qₙ) and
-    // sources at t_n, t_{n+½}, t_{n+1}
-    let step = &mut s.step;
-    step.prev.clone_from(prev);
-    step.dt = dt;
-    step.q.copy_from_slice(iterate);
     let times = [prev.t, prev.t + 0.5 * dt, prev.t + dt];
-    let sources: Vec<[f64; 3]> = (0..s.step_model.circuits.len())
-        .map(|i| times.map(|t| s.drive.circuit_sources_at(t)[i]))
-        .collect();
-    step.begin_circuits(&sources)?;
     let circuits = s.step_model.circuits.len();
     // the cotangents of each circuit's start charge Qₙ, its sources and its resistance
     let mut charge_bar = vec![0.0; circuits];
@@ -304,14 +449,15 @@ fn step_adjoint(
     let mut cy = match s.scheme {
         Scheme::Midpoint => {
             let mut cy = vec![0.0; n];
-            let end_bar = projection_adjoint(s, &level.q, &c.q, level.t, &mut cy, sink)?;
+            let end_bar =
+                projection_adjoint(s, &mut solvers.projection, p, &c.q, level.t, &mut cy, sink)?;
             // the end charge the projection held: Q_{n+1} = Qₙ + Δt/R (V_s(t_{n+½}) − V_{n+½})
             // with V_{n+½} = ½(Vₙ + y_V)
             for (i, (ci, st)) in s
                 .step_model
                 .circuits
                 .iter()
-                .zip(&s.step.circuits)
+                .zip(&p.step.circuits)
                 .enumerate()
             {
                 let d = ci.nodes[0] * FIELDS + PHI;
@@ -353,7 +499,7 @@ fn step_adjoint(
         }
     }
     // the step's equations
-    let step = &mut s.step;
+    let step = &mut p.step;
     // the points the step committed, updated at its evaluation point: the midpoint
     // configuration ½(qₙ + y), or y (Newmark)
     let half = s.scheme == Scheme::Midpoint;
@@ -375,7 +521,9 @@ fn step_adjoint(
             out.q[d] += 0.5 * x_bar[d];
         }
     }
-    let lambda = s.step_solver.solve(step, &cy)?;
+    let lambda = solvers
+        .step
+        .solve_assembled(&p.step_matrix, &step.dofs, &cy)?;
     sink.step_materials(step, &lambda)?;
     for (i, node) in sink_rigid(sink) {
         sink.rigid_mass(i, -step.point_mass_vjp(&lambda, node));
@@ -451,9 +599,17 @@ fn step_adjoint(
         for j in 0..3 {
             source_bar[i][j] -= l.source[j];
         }
-        resistance_bar[i] -= s.step.resistance_vjp(&lambda, i);
+        resistance_bar[i] -= p.step.resistance_vjp(&lambda, i);
     }
-    circuit_charge_adjoint(s, prev, &charge_bar, &mut out.q, &mut out.points, sink)?;
+    circuit_charge_adjoint(
+        s,
+        &p.step.points,
+        prev,
+        &charge_bar,
+        &mut out.q,
+        &mut out.points,
+        sink,
+    )?;
     for i in 0..circuits {
         if s.electrodes_on {
             for (j, &t) in times.iter().enumerate() {
@@ -492,22 +648,26 @@ fn sink_viscous(sink: &Sink) -> Vec<usize> {
     m
 }
 
-/// The adjoint of the projection of the potential at stage time `t` whose result is `q`, for
-/// the cotangent `g` of that result: adds to `out` the cotangent of the inputs it held (the
+/// The adjoint of the projection of the potential at stage time `t` that `p` holds, prepared
+/// at its result's positions, for the cotangent `g` of that result: adds to `out` the cotangent of the inputs it held (the
 /// displacements, and potentials held by supports) and gives the electrodes' voltages at `t`
 /// and the materials' parameters theirs. Returns the cotangent of each circuit's charge the
 /// projection held on its electrode.
 fn projection_adjoint(
-    s: &mut Stage,
-    q: &[f64],
+    s: &Stage,
+    solver: &mut AdjointSolver,
+    p: &mut Prepared,
     g: &[f64],
     t: f64,
     out: &mut [f64],
     sink: &mut Sink,
 ) -> Result<Vec<f64>, String> {
-    let problem = &mut s.projection;
-    problem.state.copy_from_slice(q);
-    let mu = s.projection_solver.solve(problem, g)?;
+    let problem = &mut p.projection;
+    let matrix = p
+        .projection_matrix
+        .as_ref()
+        .expect("the projection prepared with its step");
+    let mu = solver.solve_assembled(matrix, &problem.dofs, g)?;
     sink.step_materials(problem, &mu)?;
     // the charges held on charge-controlled electrodes (the weights act on the held
     // displacements, whose entries of μ are zero)
@@ -551,6 +711,7 @@ fn projection_adjoint(
 /// committed before, empty: none) and gives the materials' parameters theirs.
 fn circuit_charge_adjoint(
     s: &Stage,
+    points: &PointStates,
     level: &TimeLevel,
     charge_bar: &[f64],
     q_bar: &mut [f64],
@@ -559,15 +720,7 @@ fn circuit_charge_adjoint(
 ) -> Result<(), String> {
     let model = s.step_model;
     let nodes: Vec<&[usize]> = model.circuits.iter().map(|c| c.nodes.as_slice()).collect();
-    let p = charge_adjoint(
-        model,
-        &nodes,
-        &level.q,
-        &s.step.points,
-        charge_bar,
-        q_bar,
-        sink,
-    )?;
+    let p = charge_adjoint(model, &nodes, &level.q, points, charge_bar, q_bar, sink)?;
     if !points_bar.is_empty() && !p.is_empty() {
         points_bar.iter_mut().zip(&p).for_each(|(a, b)| *a += b);
     }
@@ -578,7 +731,9 @@ fn circuit_charge_adjoint(
 /// its time, then the consistent acceleration. `c` is the cotangent of `initial`, the level it
 /// gave.
 fn newmark_start_adjoint(
-    s: &mut Stage,
+    s: &Stage,
+    solvers: &mut Solvers,
+    prepared: &mut Prepared,
     initial: &TimeLevel,
     c: Cotangent,
     sink: &mut Sink,
@@ -593,7 +748,7 @@ fn newmark_start_adjoint(
         initial.clone(),
     );
     let z = s.dynamics.mass.solve_on(&c.a, &probe.dofs, 1e-14, None)?;
-    let points = &s.step.points;
+    let points = &prepared.step.points;
     let p = cell_products(
         model,
         &initial.q,
@@ -645,10 +800,26 @@ fn newmark_start_adjoint(
     sink.weights(&z, 1.0);
     // the start's potential, projected at its time with the charges the given level holds
     let mut out = vec![0.0; n];
-    let start_bar = projection_adjoint(s, &initial.q, &cq, initial.t, &mut out, sink)?;
+    let start_bar = projection_adjoint(
+        s,
+        &mut solvers.projection,
+        prepared,
+        &cq,
+        initial.t,
+        &mut out,
+        sink,
+    )?;
     let mut points_bar = c.points;
     let given = s.dynamics.given.clone();
-    circuit_charge_adjoint(s, &given, &start_bar, &mut out, &mut points_bar, sink)?;
+    circuit_charge_adjoint(
+        s,
+        &prepared.step.points,
+        &given,
+        &start_bar,
+        &mut out,
+        &mut points_bar,
+        sink,
+    )?;
     if !points_bar.is_empty() {
         points_bar
             .iter_mut()

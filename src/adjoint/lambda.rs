@@ -69,9 +69,18 @@ impl AdjointSolver {
         system: &mut (impl NonlinearSystem + HasDofs),
         cy: &[f64],
     ) -> Result<Vec<f64>, String> {
-        let mut k = system.new_matrix();
-        system.jacobian(&mut k)?;
-        let dofs = system.dof_map();
+        let k = jacobian(system)?;
+        self.solve_assembled(&k, system.dof_map(), cy)
+    }
+
+    /// [`AdjointSolver::solve`] with the Jacobian `k` already evaluated, over the unknowns of
+    /// `dofs`.
+    pub fn solve_assembled(
+        &mut self,
+        k: &CsrMatrix,
+        dofs: &DofMap,
+        cy: &[f64],
+    ) -> Result<Vec<f64>, String> {
         let mut b = vec![0.0; dofs.n_free];
         for (d, &e) in dofs.eq.iter().enumerate() {
             if e != CONSTRAINED {
@@ -99,14 +108,21 @@ impl AdjointSolver {
                 return Ok(lambda);
             }
         }
-        let lu = TransposedLu::factor(&k)?;
+        let lu = TransposedLu::factor(k)?;
         self.factorizations += 1;
         let mut lambda = b.clone();
         lu.solve_in_place(&mut lambda);
-        self.attained = relative_residual(&k, &lambda, &b);
+        self.attained = relative_residual(k, &lambda, &b);
         self.held = Some(lu);
         Ok(lambda)
     }
+}
+
+/// The Jacobian of `system` at its current point.
+pub fn jacobian(system: &mut impl NonlinearSystem) -> Result<CsrMatrix, String> {
+    let mut k = system.new_matrix();
+    system.jacobian(&mut k)?;
+    Ok(k)
 }
 
 /// ‖b − Kᵀx‖/‖b‖ (0 for b = 0).
