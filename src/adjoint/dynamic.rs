@@ -21,7 +21,7 @@
 //! q̄₀' −= (∂f/∂q)ᵀz, v̄₀ −= (∂f/∂v)ᵀz and dJ/dp −= zᵀ∂f/∂p (−zᵀ(∂M/∂m)a₀ for a pad's mass).
 
 use super::charge::charge_adjoint;
-use super::lambda::{jacobian, AdjointSolver, SolveCounts};
+use super::lambda::{AdjointSolver, SolveCounts};
 use super::objective::Backward;
 use super::sink::{waveform_dofs, Sink};
 use super::tape::{TapedDynamics, TapedStage, TapedStep};
@@ -133,7 +133,7 @@ struct Prepared<'m> {
     projection: StaticProblem<'m>,
     step_matrix: CsrMatrix,
     /// The projection's Jacobian at the step's new level (the midpoint scheme's steps, and
-    /// Newmark's start).
+    /// Newmark's start; `None` until its first evaluation).
     projection_matrix: Option<CsrMatrix>,
 }
 
@@ -190,21 +190,23 @@ impl<'m> Prepared<'m> {
             .map(|i| times.map(|t| s.drive.circuit_sources_at(t)[i]))
             .collect();
         step.begin_circuits(&sources)?;
-        self.step_matrix = jacobian(step)?;
+        // into the matrix of the step before: no new allocation (whose pages the system maps
+        // afresh) per step
+        step.jacobian(&mut self.step_matrix)?;
         match s.scheme {
             Scheme::Midpoint => self.prepare_projection(q),
-            Scheme::Newmark { .. } => {
-                self.projection_matrix = None;
-                Ok(())
-            }
+            Scheme::Newmark { .. } => Ok(()),
         }
     }
 
     /// Moves the projection to the positions `q` and evaluates its Jacobian there.
     fn prepare_projection(&mut self, q: &[f64]) -> Result<(), String> {
         self.projection.state.copy_from_slice(q);
-        self.projection_matrix = Some(jacobian(&mut self.projection)?);
-        Ok(())
+        let projection = &mut self.projection;
+        let k = self
+            .projection_matrix
+            .get_or_insert_with(|| projection.new_matrix());
+        projection.jacobian(k)
     }
 }
 

@@ -69,7 +69,8 @@ impl AdjointSolver {
         system: &mut (impl NonlinearSystem + HasDofs),
         cy: &[f64],
     ) -> Result<Vec<f64>, String> {
-        let k = jacobian(system)?;
+        let mut k = system.new_matrix();
+        system.jacobian(&mut k)?;
         self.solve_assembled(&k, system.dof_map(), cy)
     }
 
@@ -116,13 +117,6 @@ impl AdjointSolver {
         self.held = Some(lu);
         Ok(lambda)
     }
-}
-
-/// The Jacobian of `system` at its current point.
-pub fn jacobian(system: &mut impl NonlinearSystem) -> Result<CsrMatrix, String> {
-    let mut k = system.new_matrix();
-    system.jacobian(&mut k)?;
-    Ok(k)
 }
 
 /// ‖b − Kᵀx‖/‖b‖ (0 for b = 0).

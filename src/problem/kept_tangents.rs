@@ -2,19 +2,32 @@
 //! of a discrete adjoint at the same point: the adjoint solves with the step's Jacobian and then
 //! needs wᵀ∂R/∂· of the same cell matrices, which would otherwise cost a second pass of cell
 //! tangents (the dearest part of an adjoint step). They take nl²·8 bytes a cell (8 kB for a
-//! hex8), so they are kept up to [`MAX_BYTES`] only.
+//! hex8; a quarter for a projection's, which keeps its potential rows alone), so they are kept
+//! up to [`MAX_BYTES`] only.
 
 use super::model::Model;
 use crate::element::MAX_LOCAL;
-use crate::fem::FIELDS;
+use crate::fem::{FIELDS, MAX_NODES, PHI};
 use std::sync::{Mutex, MutexGuard};
 
-/// Per cell, a row-major nl × nl matrix, and the point (a stamp of the evaluation's inputs) they
-/// were evaluated at.
+/// Per cell, a row-major nl × nl matrix (or its potential rows, [`Rows::Potential`]), and the
+/// point (a stamp of the evaluation's inputs) they were evaluated at.
 #[derive(Debug, Default)]
 pub struct KeptTangents {
     cells: Vec<Mutex<Vec<f64>>>,
     at: Option<Vec<f64>>,
+    rows: Rows,
+}
+
+/// Which rows of its matrix a cell keeps.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub enum Rows {
+    /// Every row.
+    #[default]
+    All,
+    /// The potential rows alone, the node's Gauss's law (n × nl): a system whose displacement
+    /// rows are held (the projection of the potential), a quarter of the whole.
+    Potential,
 }
 
 /// The most bytes the kept tangents of a model may take: beyond it the products take their own
@@ -33,8 +46,9 @@ impl KeptTangents {
     /// [`MAX_BYTES`]). The stamp of [`KeptTangents::filled_at`] holds every input of the
     /// tangents, the committed internal variables included; their own products
     /// ([`crate::problem::step::points_products`]) need no tangent.
-    pub fn begin(&mut self, model: &Model, wanted: bool) -> Option<&[Mutex<Vec<f64>>]> {
+    pub fn begin(&mut self, model: &Model, wanted: bool, rows: Rows) -> Option<&[Mutex<Vec<f64>>]> {
         self.at = None;
+        self.rows = rows;
         let keep = wanted && model.share.is_none() && Self::affordable(model);
         keep.then(|| self.slots(model.mesh.n_cells()))
     }
@@ -50,10 +64,24 @@ impl KeptTangents {
     }
 
     /// The slot of cell `c`, cleared.
-    pub fn slot(slots: &[Mutex<Vec<f64>>], c: usize) -> MutexGuard<'_, Vec<f64>> {
+    fn slot(slots: &[Mutex<Vec<f64>>], c: usize) -> MutexGuard<'_, Vec<f64>> {
         let mut s = slots[c].lock().unwrap_or_else(|e| e.into_inner());
         s.clear();
         s
+    }
+
+    /// Keeps the `rows` of cell `c`'s row-major nl × nl matrix `k` (nl = FIELDS × its nodes)
+    /// in its slot, as [`KeptTangents::begin`] was told.
+    pub fn keep(slots: &[Mutex<Vec<f64>>], c: usize, k: &[f64], nl: usize, rows: Rows) {
+        let mut slot = Self::slot(slots, c);
+        match rows {
+            Rows::All => slot.extend_from_slice(&k[..nl * nl]),
+            Rows::Potential => {
+                for row in k[..nl * nl].chunks_exact(nl).skip(PHI).step_by(FIELDS) {
+                    slot.extend_from_slice(row);
+                }
+            }
+        }
     }
 
     /// The slots hold the evaluation at `stamp`.
@@ -79,7 +107,17 @@ impl KeptTangents {
                     .copy_from_slice(&w[node * FIELDS..(node + 1) * FIELDS]);
             }
             let mut local = [0.0; MAX_LOCAL];
-            transposed_product(&k[..nl * nl], &wl[..nl], &mut local[..nl]);
+            match self.rows {
+                Rows::All => transposed_product(&k[..nl * nl], &wl[..nl], &mut local[..nl]),
+                Rows::Potential => {
+                    let n = nl / FIELDS;
+                    let mut w = [0.0; MAX_NODES];
+                    for (a, wa) in w[..n].iter_mut().enumerate() {
+                        *wa = wl[a * FIELDS + PHI];
+                    }
+                    rows_product(&k[..n * nl], &w[..n], &mut local[..nl]);
+                }
+            }
             local
         };
         let all: Vec<usize> = (0..self.cells.len()).collect();
@@ -99,11 +137,17 @@ impl KeptTangents {
 /// row by row (contiguous, so the loop over a row vectorises), rows of zero weight skipped (the
 /// displacement rows of a projection's weight).
 pub fn transposed_product(k: &[f64], w: &[f64], out: &mut [f64]) {
-    let nl = w.len();
-    out[..nl].fill(0.0);
+    rows_product(k, w, &mut out[..w.len()]);
+}
+
+/// Σᵢ wᵢ kᵢ of the rows kᵢ (each `out.len()` long, row-major in `k`) into `out`, rows of zero
+/// weight skipped.
+fn rows_product(k: &[f64], w: &[f64], out: &mut [f64]) {
+    let nl = out.len();
+    out.fill(0.0);
     for (row, &wi) in k.chunks_exact(nl).zip(w) {
         if wi != 0.0 {
-            for (o, &kij) in out[..nl].iter_mut().zip(row) {
+            for (o, &kij) in out.iter_mut().zip(row) {
                 *o += wi * kij;
             }
         }
@@ -120,5 +164,44 @@ mod tests {
         let film = |d| crate::problem::examples::film(d, crate::mesh::ElementKind::Hex8, 2e4);
         assert!(KeptTangents::affordable(&film([2, 2, 1]).unwrap()));
         assert!(!KeptTangents::affordable(&film([70, 70, 8]).unwrap()));
+    }
+
+    /// A cell's potential rows alone give the products of its whole matrix for a weight on the
+    /// potential rows (a projection's), the same bits, from a quarter of the entries.
+    #[test]
+    fn potential_rows_give_the_whole_matrix_products() {
+        let model =
+            crate::problem::examples::film([2, 1, 1], crate::mesh::ElementKind::Hex8, 2e4).unwrap();
+        let nl = model.mesh.kind.nodes_per_cell() * FIELDS;
+        let kept = |rows: Rows| {
+            let mut kept = KeptTangents::default();
+            let slots = kept.begin(&model, true, rows).unwrap();
+            for c in 0..model.mesh.n_cells() {
+                let k: Vec<f64> = (0..nl * nl)
+                    .map(|i| ((i * 37 + c * 11) % 101) as f64 - 50.0)
+                    .collect();
+                KeptTangents::keep(slots, c, &k, nl, rows);
+            }
+            kept.filled_at(vec![1.0]);
+            kept
+        };
+        let (whole, potential) = (kept(Rows::All), kept(Rows::Potential));
+        let n_dofs = model.mesh.n_nodes() * FIELDS;
+        let w: Vec<f64> = (0..n_dofs)
+            .map(|d| match d % FIELDS {
+                PHI => ((d * 13) % 7) as f64 - 3.0,
+                _ => 0.0,
+            })
+            .collect();
+        let a = whole.products(&model, &[1.0], &w).unwrap();
+        assert!(a.iter().any(|&x| x != 0.0));
+        assert_eq!(a, potential.products(&model, &[1.0], &w).unwrap());
+        let n = model.mesh.kind.nodes_per_cell();
+        for (cw, cp) in whole.cells.iter().zip(&potential.cells) {
+            assert_eq!(cw.lock().unwrap().len(), nl * nl);
+            assert_eq!(cp.lock().unwrap().len(), n * nl);
+        }
+        // kept at another point: nothing served
+        assert!(potential.products(&model, &[2.0], &w).is_none());
     }
 }

@@ -10,7 +10,7 @@ use crate::material::{Material, ParameterDerivative};
 use crate::problem::assembly::{Assembler, GlobalTerms};
 use crate::problem::dofs::{constrained_flags, DofMap, CONSTRAINED, FIELDS, PHI};
 use crate::problem::drive::Drive;
-use crate::problem::kept_tangents::KeptTangents;
+use crate::problem::kept_tangents::{KeptTangents, Rows};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::step::{cell_products, points_products, LevelVjp, StepOperator};
@@ -679,7 +679,14 @@ impl NonlinearSystem for StaticProblem<'_> {
         // every displacement held (the electrostatic projection of a dynamic step): the residual
         // and tangent have Φ rows only (the cell energies are then not evaluated)
         let potential_only = self.dofs.n_free == self.dofs.n_free_phi;
-        let slots = self.kept.begin(m, self.keep_cell_tangents && k.is_some());
+        let rows = if potential_only {
+            Rows::Potential
+        } else {
+            Rows::All
+        };
+        let slots = self
+            .kept
+            .begin(m, self.keep_cell_tangents && k.is_some(), rows);
         let keep = slots.is_some();
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
             let input = CellInput {
@@ -702,7 +709,7 @@ impl NonlinearSystem for StaticProblem<'_> {
                         .potential_residual_tangent(&input, rl, &mut *kl)
                         .map_err(fail)?;
                     if let Some(slots) = slots {
-                        KeptTangents::slot(slots, c).extend_from_slice(&kl[..nl * nl]);
+                        KeptTangents::keep(slots, c, kl, nl, rows);
                     }
                     Ok(0.0)
                 }
@@ -710,7 +717,7 @@ impl NonlinearSystem for StaticProblem<'_> {
                     let energy = cell_kernel
                         .residual_tangent(&input, rl, Some(&mut *kl))
                         .map_err(fail)?;
-                    KeptTangents::slot(slots, c).extend_from_slice(&kl[..nl * nl]);
+                    KeptTangents::keep(slots, c, kl, nl, rows);
                     Ok(energy)
                 }
                 (false, kl, _) => cell_kernel.residual_tangent(&input, rl, kl).map_err(fail),

@@ -27,7 +27,7 @@ use crate::element::{CellInput, KelvinVoigtKernel, ViscousTangent, MAX_LOCAL};
 use crate::problem::assembly::Assembler;
 use crate::problem::circuit::CircuitStep;
 use crate::problem::dofs::{free_weights, DofMap, CONSTRAINED, FIELDS, PHI};
-use crate::problem::kept_tangents::KeptTangents;
+use crate::problem::kept_tangents::{KeptTangents, Rows};
 use crate::problem::model::Model;
 use crate::problem::points::PointStates;
 use crate::problem::statics::{discretize, layout_of};
@@ -776,9 +776,11 @@ impl NonlinearSystem for TimeStep<'_> {
         let (viscosity, vel_all, points) = (&self.viscosity, &self.work_v, &self.points);
         let exact = self.exact_jacobian;
         let forces = !(self.jacobian_only && exact && k.is_some());
-        let slots = self
-            .kept
-            .begin(model, self.keep_cell_tangents && exact && k.is_some());
+        let slots = self.kept.begin(
+            model,
+            self.keep_cell_tangents && exact && k.is_some(),
+            Rows::All,
+        );
         let keep = slots.is_some();
         // each cell's dissipation power goes into `cell_energy` (the step needs no cell energies)
         let kernel = |c: usize, local: &[f64], rl: &mut [f64], kl: Option<&mut [f64]>| {
@@ -856,7 +858,7 @@ impl NonlinearSystem for TimeStep<'_> {
                 };
                 // this cell's slot, filled only here (each cell is evaluated once per assembly)
                 if let Some(s) = slots {
-                    KeptTangents::slot(s, c).extend_from_slice(&kl[..nl * nl]);
+                    KeptTangents::keep(s, c, kl, nl, Rows::All);
                 }
                 for i in 0..nl {
                     rl[i] = f_r * rl[i] + f_r * rv[i];
@@ -869,7 +871,7 @@ impl NonlinearSystem for TimeStep<'_> {
                 .residual_tangent(&input, rl, Some(&mut *kl))
                 .map_err(fail)?;
             if let Some(s) = slots {
-                KeptTangents::slot(s, c).extend_from_slice(&kl[..nl * nl]);
+                KeptTangents::keep(s, c, kl, nl, Rows::All);
             }
             rl[..nl].iter_mut().for_each(|v| *v *= f_r);
             kl[..nl * nl].iter_mut().for_each(|v| *v *= f_k);
