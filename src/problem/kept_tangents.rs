@@ -115,7 +115,7 @@ impl KeptTangents {
                     for (a, wa) in w[..n].iter_mut().enumerate() {
                         *wa = wl[a * FIELDS + PHI];
                     }
-                    rows_product(&k[..n * nl], &w[..n], &mut local[..nl]);
+                    transposed_product(&k[..n * nl], &w[..n], &mut local[..nl]);
                 }
             }
             local
@@ -133,16 +133,11 @@ impl KeptTangents {
     }
 }
 
-/// kᵀw of a cell's row-major nl × nl matrix `k` and local weight `w` (nl = w.len()) into `out`,
-/// row by row (contiguous, so the loop over a row vectorises), rows of zero weight skipped (the
-/// displacement rows of a projection's weight).
+/// Σᵢ wᵢ kᵢ of the rows kᵢ of `k` (row-major, each `out.len()` long) into `out`: kᵀw of a
+/// cell's nl × nl matrix, or of its potential rows alone. Row by row (contiguous, so the loop
+/// over a row vectorises), rows of zero weight skipped (the displacement rows of a projection's
+/// weight).
 pub fn transposed_product(k: &[f64], w: &[f64], out: &mut [f64]) {
-    rows_product(k, w, &mut out[..w.len()]);
-}
-
-/// Σᵢ wᵢ kᵢ of the rows kᵢ (each `out.len()` long, row-major in `k`) into `out`, rows of zero
-/// weight skipped.
-fn rows_product(k: &[f64], w: &[f64], out: &mut [f64]) {
     let nl = out.len();
     out.fill(0.0);
     for (row, &wi) in k.chunks_exact(nl).zip(w) {
