@@ -426,7 +426,8 @@ fn add_reads(
     Ok(())
 }
 
-/// The adjoint of one step from `prev` to `level` with the step's unknown `iterate`.
+/// The adjoint of one step from `prev` to `level` with the step's unknown `iterate`, whose
+/// systems and Jacobians `p` holds prepared ([`Prepared::prepare`]).
 #[allow(clippy::too_many_arguments)]
 fn step_adjoint(
     s: &Stage,
@@ -651,9 +652,9 @@ fn sink_viscous(sink: &Sink) -> Vec<usize> {
 }
 
 /// The adjoint of the projection of the potential at stage time `t` that `p` holds, prepared
-/// at its result's positions, for the cotangent `g` of that result: adds to `out` the cotangent of the inputs it held (the
-/// displacements, and potentials held by supports) and gives the electrodes' voltages at `t`
-/// and the materials' parameters theirs. Returns the cotangent of each circuit's charge the
+/// at its result's positions, for the cotangent `g` of that result: adds to `out` the
+/// cotangent of the inputs it held (the displacements, and potentials held by supports) and
+/// gives the electrodes' voltages at `t` and the materials' parameters theirs. Returns the cotangent of each circuit's charge the
 /// projection held on its electrode.
 fn projection_adjoint(
     s: &Stage,
@@ -708,9 +709,9 @@ fn projection_adjoint(
 }
 
 /// The adjoint of the circuits' charges at the start of a step, Q = −Σ ∂Π/∂Φ over each
-/// electrode's nodes at `level` (Gauss's law, which the step before enforced), for their
-/// cotangents `charge_bar`: adds to `q_bar` and `points_bar` (the cotangent of the points
-/// committed before, empty: none) and gives the materials' parameters theirs.
+/// electrode's nodes at `level` with the internal variables `points` (Gauss's law, which the
+/// step before enforced), for their cotangents `charge_bar`: adds to `q_bar` and `points_bar`
+/// (the cotangent of `points`, empty: none) and gives the materials' parameters theirs.
 fn circuit_charge_adjoint(
     s: &Stage,
     points: &PointStates,
