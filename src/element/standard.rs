@@ -6,6 +6,7 @@
 //! The tangent is their exact derivative, symmetric, with a negative-definite Φ–Φ block.
 
 use super::CellHistory;
+use crate::algebra::lanes::{with_wide_vectors, Wide, F4};
 use crate::fem::FIELDS;
 use crate::fem::{kinematics, CellGeometry, MAX_NODES};
 use crate::material::{Material, MaterialError};
@@ -183,30 +184,15 @@ pub(crate) fn add_point_potential_tangent(
     g_blk: &crate::material::Mat3,
     k: &mut [f64],
 ) {
-    let nl = n * FIELDS;
-    // gb[b][k][K] = Σ_J ∂N_b/∂X_J B_{kJ,K}
-    let mut gb = [[[0.0; 3]; 3]; MAX_NODES];
-    for (gbb, gr) in gb[..n].iter_mut().zip(&g[..n]) {
-        for (kk, gbk) in gbb.iter_mut().enumerate() {
-            for (jj, gj) in gr.iter().enumerate() {
-                for (c, v) in gbk.iter_mut().enumerate() {
-                    *v += gj * b_blk[(kk * 3 + jj, c)];
-                }
-            }
-        }
-    }
-    for (a, ga) in g[..n].iter().enumerate() {
-        let gg: [f64; 3] = std::array::from_fn(|c| {
-            ga[0] * g_blk[(0, c)] + ga[1] * g_blk[(1, c)] + ga[2] * g_blk[(2, c)]
-        });
-        let row = &mut k[(a * 4 + 3) * nl..(a * 4 + 3) * nl + nl];
-        for ((kb, gbb), gr) in row.chunks_exact_mut(FIELDS).zip(&gb[..n]).zip(&g[..n]) {
-            for kk in 0..3 {
-                kb[kk] -= w * (gbb[kk][0] * ga[0] + gbb[kk][1] * ga[1] + gbb[kk][2] * ga[2]);
-            }
-            kb[3] += w * (gg[0] * gr[0] + gg[1] * gr[1] + gg[2] * gr[2]);
-        }
-    }
+    with_wide_vectors(PointTangent {
+        g,
+        n,
+        w,
+        a_blk: None,
+        b_blk,
+        g_blk,
+        k,
+    })
 }
 
 /// Adds w·(P : ∇₀N_a, D₀ · ∇₀N_a) of one point to the residual rows of every node.
@@ -633,9 +619,10 @@ impl ViscousPoint<'_> {
 /// K_{ai,bk} = Σ ∂N_a/∂X_J A_{iJ,kL} ∂N_b/∂X_L, K_{ai,bΦ} = −Σ ∂N_a/∂X_J B_{iJ,K} ∂N_b/∂X_K,
 /// K_{aΦ,bk} its symmetric partner and K_{aΦ,bΦ} = Σ ∂N_a/∂X_J G_JK ∂N_b/∂X_K.
 ///
-/// The entries of one row segment are formed for all nodes b at once, from the gradients held by
-/// component (contiguous over b), so the compiler vectorises the loop over b; each entry is the
-/// same expression as when formed one by one, so the sums are the same bits.
+/// The four entries (b, ux), (b, uy), (b, uz), (b, Φ) of a row are formed together as the four
+/// lanes of an [`F4`] and added to the row's four contiguous entries at once, compiled for AVX2
+/// where the processor has it; each entry is the same expression as when formed one by one, so
+/// the sums are the same bits on any processor.
 pub(crate) fn add_point_tangent(
     g: &[[f64; 3]; MAX_NODES],
     n: usize,
@@ -645,93 +632,150 @@ pub(crate) fn add_point_tangent(
     g_blk: &crate::material::Mat3,
     k: &mut [f64],
 ) {
-    // the node count as a constant for the common cells, so that the loops over b unroll
-    match n {
-        8 => point_tangent::<8>(g, 8, w, a_blk, b_blk, g_blk, k),
-        4 => point_tangent::<4>(g, 4, w, a_blk, b_blk, g_blk, k),
-        10 => point_tangent::<10>(g, 10, w, a_blk, b_blk, g_blk, k),
-        _ => point_tangent::<MAX_NODES>(g, n, w, a_blk, b_blk, g_blk, k),
+    with_wide_vectors(PointTangent {
+        g,
+        n,
+        w,
+        a_blk: Some(a_blk),
+        b_blk,
+        g_blk,
+        k,
+    })
+}
+
+/// The arguments of [`add_point_tangent`] (of [`add_point_potential_tangent`] without A), run
+/// compiled for wide vectors.
+struct PointTangent<'a> {
+    g: &'a [[f64; 3]; MAX_NODES],
+    n: usize,
+    w: f64,
+    a_blk: Option<&'a crate::material::Mat9>,
+    b_blk: &'a crate::material::Mat93,
+    g_blk: &'a crate::material::Mat3,
+    k: &'a mut [f64],
+}
+
+impl Wide for PointTangent<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        let PointTangent {
+            g,
+            n,
+            w,
+            a_blk,
+            b_blk,
+            g_blk,
+            k,
+        } = self;
+        // the node count as a constant for the common cells, so that the loops over b unroll
+        match n {
+            8 => point_tangent::<8>(g, 8, w, a_blk, b_blk, g_blk, k),
+            4 => point_tangent::<4>(g, 4, w, a_blk, b_blk, g_blk, k),
+            10 => point_tangent::<10>(g, 10, w, a_blk, b_blk, g_blk, k),
+            _ => point_tangent::<MAX_NODES>(g, n, w, a_blk, b_blk, g_blk, k),
+        }
     }
 }
 
-/// [`add_point_tangent`] for cells of `n ≤ N` nodes (`n = N` known where it is inlined).
+/// [`add_point_tangent`] for cells of `n ≤ N` nodes (`n = N` known where it is inlined); the
+/// Φ rows alone without `a_blk`.
 #[inline(always)]
 fn point_tangent<const N: usize>(
     g: &[[f64; 3]; MAX_NODES],
     n: usize,
     w: f64,
-    a_blk: &crate::material::Mat9,
+    a_blk: Option<&crate::material::Mat9>,
     b_blk: &crate::material::Mat93,
     g_blk: &crate::material::Mat3,
     k: &mut [f64],
 ) {
     let nl = n * FIELDS;
-    // ga[a][i][kL] = Σ_J ∂N_a/∂X_J A_{iJ,kL}; gb[a][i][K] = Σ_J ∂N_a/∂X_J B_{iJ,K}
-    let mut ga = [[[0.0; 9]; 3]; MAX_NODES];
-    let mut gb = [[[0.0; 3]; 3]; MAX_NODES];
-    let mut gg = [[0.0; 3]; MAX_NODES];
+    let wl = F4::splat(w);
+    let mut gl = [[F4::splat(0.0); 3]; N];
     for a in 0..n {
-        for i in 0..3 {
-            for jj in 0..3 {
-                let gaj = g[a][jj];
-                let row = i * 3 + jj;
-                for c in 0..9 {
-                    ga[a][i][c] += gaj * a_blk[(row, c)];
-                }
-                for c in 0..3 {
-                    gb[a][i][c] += gaj * b_blk[(row, c)];
-                }
-            }
-        }
-        for c in 0..3 {
-            gg[a][c] = g[a][0] * g_blk[(0, c)] + g[a][1] * g_blk[(1, c)] + g[a][2] * g_blk[(2, c)];
-        }
-    }
-    // by component, contiguous over the node b: gt[L][b] = ∂N_b/∂X_L, gbt[k][K][b] = gb[b][k][K]
-    let mut gt = [[0.0; N]; 3];
-    let mut gbt = [[[0.0; N]; 3]; 3];
-    for b in 0..n {
         for l in 0..3 {
-            gt[l][b] = g[b][l];
-            for kk in 0..3 {
-                gbt[kk][l][b] = gb[b][kk][l];
+            gl[a][l] = F4::splat(g[a][l]);
+        }
+    }
+    // the Φ row's factors of node b: (gb[b][0][L], gb[b][1][L], gb[b][2][L], ∂N_b/∂X_L) with
+    // gb[b][k][L] = Σ_J ∂N_b/∂X_J B_{kJ,L}
+    let mut yl = [[F4::splat(0.0); 3]; N];
+    // K_{ai,bΦ} enters with the sign −, the Φ row's K_{aΦ,bk} likewise (x − y is x + (−y))
+    let (u_sign, phi_sign) = (F4([1.0, 1.0, 1.0, -1.0]), F4([-1.0, -1.0, -1.0, 1.0]));
+    let add = |kb: &mut [f64], v: F4| {
+        let s = F4([kb[0], kb[1], kb[2], kb[3]]) + v;
+        kb.copy_from_slice(&s.0);
+    };
+    if let Some(a_blk) = a_blk {
+        // Row (a, i)'s four entries (b, f) are w·Σ_L c[a][i][L]_f ∂N_b/∂X_L, with the
+        // coefficients c_f = ga[a][i][3f + L] (f < 3) and gb[a][i][L] (f = Φ),
+        // ga[a][i][kL] = Σ_J ∂N_a/∂X_J A_{iJ,kL}: held as four lanes, one per f, each summed
+        // from 0 over J in the order of the entry-by-entry form, so the sums are the same bits
+        let cols: [[[F4; 3]; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|jj| {
+                let row = i * 3 + jj;
+                std::array::from_fn(|l| {
+                    F4([
+                        a_blk[(row, l)],
+                        a_blk[(row, 3 + l)],
+                        a_blk[(row, 6 + l)],
+                        b_blk[(row, l)],
+                    ])
+                })
+            })
+        });
+        let mut c = [[[F4::splat(0.0); 3]; 3]; N];
+        for a in 0..n {
+            for (i, ci) in c[a].iter_mut().enumerate() {
+                for (jj, gaj) in gl[a].iter().enumerate() {
+                    for (l, cl) in ci.iter_mut().enumerate() {
+                        *cl += *gaj * cols[i][jj][l];
+                    }
+                }
+            }
+            for (i, c) in c[a].iter().enumerate() {
+                let row = &mut k[(a * 4 + i) * nl..(a * 4 + i) * nl + nl];
+                for (kb, gb) in row.chunks_exact_mut(FIELDS).zip(&gl[..n]) {
+                    add(
+                        kb,
+                        wl * (c[0] * gb[0] + c[1] * gb[1] + c[2] * gb[2]) * u_sign,
+                    );
+                }
+            }
+            for l in 0..3 {
+                yl[a][l] = F4([c[a][0][l].0[3], c[a][1][l].0[3], c[a][2][l].0[3], g[a][l]]);
+            }
+        }
+    } else {
+        let cols: [[F4; 3]; 3] = std::array::from_fn(|jj| {
+            std::array::from_fn(|l| {
+                F4([b_blk[(jj, l)], b_blk[(3 + jj, l)], b_blk[(6 + jj, l)], 0.0])
+            })
+        });
+        for b in 0..n {
+            for l in 0..3 {
+                let mut y = F4::splat(0.0);
+                for (jj, gbj) in gl[b].iter().enumerate() {
+                    y += *gbj * cols[jj][l];
+                }
+                y.0[3] = g[b][l];
+                yl[b][l] = y;
             }
         }
     }
-    // one row segment: seg[f][b] is the entry of column (b, f)
-    let mut seg = [[0.0; N]; FIELDS];
-    let dot_b = |out: &mut [f64; N], c: [f64; 3], t: &[[f64; N]; 3]| {
-        for b in 0..n {
-            out[b] = w * (c[0] * t[0][b] + c[1] * t[1][b] + c[2] * t[2][b]);
-        }
-    };
+    // the Φ rows: −w gb[b][k]·∇N_a and w gg[a]·∇N_b, gg[a][K] = Σ_J ∂N_a/∂X_J G_JK
     for a in 0..n {
-        for i in 0..3 {
-            for (kk, out) in seg[..3].iter_mut().enumerate() {
-                let c = &ga[a][i][kk * 3..kk * 3 + 3];
-                dot_b(out, [c[0], c[1], c[2]], &gt);
-            }
-            dot_b(&mut seg[3], gb[a][i], &gt);
-            let row = &mut k[(a * 4 + i) * nl..(a * 4 + i) * nl + nl];
-            for (b, kb) in row.chunks_exact_mut(FIELDS).enumerate() {
-                kb[0] += seg[0][b];
-                kb[1] += seg[1][b];
-                kb[2] += seg[2][b];
-                kb[3] -= seg[3][b];
-            }
-        }
-        // the Φ row: −w gb[b][k]·∇N_a (the product's factors commuted, the same value)
-        let ga_a = g[a];
-        for (kk, out) in seg[..3].iter_mut().enumerate() {
-            dot_b(out, ga_a, &gbt[kk]);
-        }
-        dot_b(&mut seg[3], gg[a], &gt);
+        let gg: [f64; 3] = std::array::from_fn(|k| {
+            g[a][0] * g_blk[(0, k)] + g[a][1] * g_blk[(1, k)] + g[a][2] * g_blk[(2, k)]
+        });
+        let x: [F4; 3] = std::array::from_fn(|l| F4([g[a][l], g[a][l], g[a][l], gg[l]]));
         let row = &mut k[(a * 4 + 3) * nl..(a * 4 + 3) * nl + nl];
-        for (b, kb) in row.chunks_exact_mut(FIELDS).enumerate() {
-            kb[0] -= seg[0][b];
-            kb[1] -= seg[1][b];
-            kb[2] -= seg[2][b];
-            kb[3] += seg[3][b];
+        for (kb, y) in row.chunks_exact_mut(FIELDS).zip(&yl[..n]) {
+            add(
+                kb,
+                wl * (x[0] * y[0] + x[1] * y[1] + x[2] * y[2]) * phi_sign,
+            );
         }
     }
 }
@@ -982,13 +1026,36 @@ pub(crate) mod tests {
             let w = 1e-9 * (1.5 + next());
             let nl = n * FIELDS;
             let start: Vec<f64> = (0..nl * nl).map(|_| next()).collect();
-            let (mut fast, mut reference) = (start.clone(), start);
+            let (mut fast, mut reference) = (start.clone(), start.clone());
+            let (mut potential, mut baseline) = (start.clone(), start.clone());
             for _ in 0..2 {
                 add_point_tangent(&g, n, w, &a_blk, &b_blk, &g_blk, &mut fast);
                 point_tangent_entrywise(&g, n, w, &a_blk, &b_blk, &g_blk, &mut reference);
+                add_point_potential_tangent(&g, n, w, &b_blk, &g_blk, &mut potential);
+                // the lanes as compiled for every x86-64 (no AVX2), run directly
+                PointTangent {
+                    g: &g,
+                    n,
+                    w,
+                    a_blk: Some(&a_blk),
+                    b_blk: &b_blk,
+                    g_blk: &g_blk,
+                    k: &mut baseline,
+                }
+                .run();
             }
-            for (i, (x, y)) in fast.iter().zip(&reference).enumerate() {
+            for (i, ((x, y), z)) in fast.iter().zip(&reference).zip(&baseline).enumerate() {
                 assert_eq!(x.to_bits(), y.to_bits(), "n = {n}, entry {i}: {x} vs {y}");
+                assert_eq!(x.to_bits(), z.to_bits(), "n = {n}, entry {i} without AVX2");
+            }
+            // the Φ rows alone: those of the whole, the other rows untouched
+            for (i, (x, y)) in potential.iter().zip(&reference).enumerate() {
+                let y = if (i / nl) % FIELDS == 3 { y } else { &start[i] };
+                assert_eq!(
+                    x.to_bits(),
+                    y.to_bits(),
+                    "n = {n}, Φ rows, entry {i}: {x} vs {y}"
+                );
             }
         }
     }
