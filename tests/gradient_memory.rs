@@ -158,45 +158,56 @@ fn a_run_beyond_its_budget_reads_its_objective_from_checkpoints() {
     );
 }
 
+/// `sim`'s gradient under `budget` on one thread and on two: the same J and derivatives, bit for
+/// bit, none of them zero. Returns the one-thread report.
+fn same_on_one_and_two_threads(sim: &Simulation, budget: usize, case: &str) -> GradientReport {
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| gradient(sim, budget))
+    };
+    let (one, two) = (on(1), on(2));
+    assert!(one.objective > 0.0);
+    assert_eq!(one.objective, two.objective, "{case}");
+    for (a, b) in one.parameters.iter().zip(&two.parameters) {
+        assert!(
+            a.gradient != 0.0,
+            "{case}, {}: a zero derivative checks nothing",
+            a.path
+        );
+        assert_eq!(a.gradient, b.gradient, "{case}, {}", a.path);
+    }
+    assert_eq!(one.controls.len(), two.controls.len());
+    for (a, b) in one.controls.iter().zip(&two.controls) {
+        assert!(
+            a.gradient.iter().all(|g| *g != 0.0),
+            "{case}: {}",
+            a.electrode
+        );
+        assert_eq!(a.gradient, b.gradient, "{case}: control of {}", a.electrode);
+    }
+    one
+}
+
 /// A dynamic stage's sweep evaluates the Jacobians of the step before the current one while the
 /// current one's solves run, on a second thread where there is one: one thread and two give the
 /// same J and derivatives, bit for bit, with every state held and with the steps recomputed from
-/// checkpoints, under both integrators.
+/// checkpoints, under both integrators, and for a control's knots.
 #[test]
 fn one_thread_and_two_give_the_same_gradient() {
     let dir = tempfile::tempdir().unwrap();
     for integrator in ["midpoint", "newmark"] {
         let sim = vibrating_film(integrator, dir.path());
         for budget in [usize::MAX / 4, 30_000] {
-            let on = |threads: usize| {
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .unwrap()
-                    .install(|| gradient(&sim, budget))
-            };
-            let (one, two) = (on(1), on(2));
-            assert!(one.objective > 0.0);
-            assert_eq!(one.objective, two.objective, "{integrator}");
-            assert_eq!(one.parameters.len(), 3);
-            for (a, b) in one.parameters.iter().zip(&two.parameters) {
-                assert!(
-                    a.gradient != 0.0,
-                    "{}: a zero derivative checks nothing",
-                    a.path
-                );
-                assert_eq!(a.gradient, b.gradient, "{integrator}, {}", a.path);
-            }
-            assert_eq!(one.controls.len(), two.controls.len());
-            for (a, b) in one.controls.iter().zip(&two.controls) {
-                assert_eq!(
-                    a.gradient, b.gradient,
-                    "{integrator}: control of {}",
-                    a.electrode
-                );
-            }
+            let r = same_on_one_and_two_threads(&sim, budget, integrator);
+            assert_eq!(r.parameters.len(), 3);
         }
     }
+    let sim = controlled_diaphragm(dir.path());
+    let r = same_on_one_and_two_threads(&sim, usize::MAX / 4, "controlled diaphragm");
+    assert_eq!(r.controls.len(), 1);
 }
 
 /// The Newmark step (its consistent start acceleration from the stage's start) recomputed.
@@ -213,11 +224,14 @@ fn newmark_film_recomputed_bit_for_bit() {
 #[test]
 fn controlled_diaphragm_recomputed_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(
-        dir.path().join("d.csv"),
-        "time,value\n0,3.0e-4\n1.06,3.1e-4\n",
-    )
-    .unwrap();
+    let sim = controlled_diaphragm(dir.path());
+    let (all, _) = same_under_budget(&sim, 200_000);
+    assert!(all.controls[0].gradient.iter().all(|g| *g != 0.0));
+}
+
+/// The diaphragm of [`controlled_diaphragm_recomputed_bit_for_bit`], its data written into `dir`.
+fn controlled_diaphragm(dir: &std::path::Path) -> Simulation {
+    std::fs::write(dir.join("d.csv"), "time,value\n0,3.0e-4\n1.06,3.1e-4\n").unwrap();
     let base = deasim::io::examples::example("diaphragm").unwrap();
     let text = format!(
         "{base}\n{}",
@@ -256,13 +270,11 @@ electrode = "top"
 weight = 1e-9
 "#
     );
-    let sim = Simulation::from_toml(&text, Some(dir.path())).with_overrides(&[
+    Simulation::from_toml(&text, Some(dir)).with_overrides(&[
         "stages.1.duration=0.06".into(),
         "solver.newton_rtol=1e-13".into(),
         "output.plots=false".into(),
-    ]);
-    let (all, _) = same_under_budget(&sim, 200_000);
-    assert!(all.controls[0].gradient.iter().all(|g| *g != 0.0));
+    ])
 }
 
 /// The viscoelastic diaphragm (three Maxwell branches): stretched and held in real time, the

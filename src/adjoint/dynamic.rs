@@ -654,8 +654,8 @@ fn sink_viscous(sink: &Sink) -> Vec<usize> {
 /// The adjoint of the projection of the potential at stage time `t` that `p` holds, prepared
 /// at its result's positions, for the cotangent `g` of that result: adds to `out` the
 /// cotangent of the inputs it held (the displacements, and potentials held by supports) and
-/// gives the electrodes' voltages at `t` and the materials' parameters theirs. Returns the cotangent of each circuit's charge the
-/// projection held on its electrode.
+/// gives the electrodes' voltages at `t` and the materials' parameters theirs. Returns the
+/// cotangent of each circuit's charge the projection held on its electrode.
 fn projection_adjoint(
     s: &Stage,
     solver: &mut AdjointSolver,
