@@ -64,6 +64,17 @@ pub enum FourierBase {
     Sine,
 }
 
+/// A scalar of a waveform that a derivative may be taken in ([`Waveform::derivative`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WaveformScalar {
+    /// The amplitude (V, or C for a charge).
+    Amplitude,
+    /// The offset.
+    Offset,
+    /// The frequency (Hz) of a periodic shape.
+    Frequency,
+}
+
 /// A signal offset + amplitude · shape(t + phase/(360 f)).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Waveform {
@@ -137,9 +148,56 @@ impl Waveform {
         self.offset + self.amplitude * self.shape_value(t)
     }
 
-    /// ∂value/∂amplitude and ∂value/∂offset at time `t`: the shape's value and 1.
-    pub fn derivatives(&self, t: f64) -> [f64; 2] {
-        [self.shape_value(t), 1.0]
+    /// ∂value/∂`which` at time `t`: the shape's value, 1, or amplitude · ∂shape/∂f (0 for a
+    /// shape without a frequency, and almost everywhere for a square wave, whose values jump).
+    pub fn derivative(&self, t: f64, which: WaveformScalar) -> f64 {
+        match which {
+            WaveformScalar::Amplitude => self.shape_value(t),
+            WaveformScalar::Offset => 1.0,
+            WaveformScalar::Frequency => self.amplitude * self.shape_frequency_slope(t),
+        }
+    }
+
+    /// ∂shape/∂f at time `t` of a periodic shape: its slope in the period's fraction
+    /// x = t·f + phase/360 (mod 1) times ∂x/∂f = t; 0 for the others.
+    fn shape_frequency_slope(&self, t: f64) -> f64 {
+        let bip = |slope: f64, bipolar: bool| if bipolar { 2.0 * slope } else { slope };
+        let slope = match &self.shape {
+            Shape::Triangle { frequency, bipolar } => {
+                let x = self.periodic_time(t, *frequency);
+                bip(if x < 0.5 { 2.0 } else { -2.0 }, *bipolar)
+            }
+            Shape::Sine { frequency, bipolar } => {
+                let w = 2.0 * PI * self.periodic_time(t, *frequency);
+                if *bipolar {
+                    2.0 * PI * w.cos()
+                } else {
+                    PI * w.sin()
+                }
+            }
+            Shape::Fourier {
+                base,
+                frequency,
+                terms,
+                bipolar,
+            } => {
+                let w = 2.0 * PI * self.periodic_time(t, *frequency);
+                // d/dx of the unipolar series of `shape_value`
+                let mut du = 0.0;
+                for k in 0..*terms {
+                    let n = (2 * k + 1) as f64;
+                    du += match base {
+                        FourierBase::Square => 4.0 * (n * w).cos(),
+                        FourierBase::Triangle => 8.0 / (n * PI) * (n * w).sin(),
+                        FourierBase::Sine if k == 0 => PI * w.sin(),
+                        FourierBase::Sine => 0.0,
+                    };
+                }
+                bip(du, *bipolar)
+            }
+            _ => 0.0,
+        };
+        slope * t
     }
 
     fn periodic_time(&self, t: f64, frequency: f64) -> f64 {
@@ -241,6 +299,68 @@ pub(crate) fn table_value(points: &[(f64, f64)], t: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    /// ∂value/∂frequency against central differences of the value (h = 10⁻⁶ of f, where the
+    /// truncation error is below 10⁻⁸ of the scale), for every periodic shape without jumps,
+    /// unipolar and bipolar, at times away from a triangle's corners; 0 for a shape without a
+    /// frequency.
+    #[test]
+    fn derivative_in_frequency() {
+        let mut shapes = Vec::new();
+        for bipolar in [false, true] {
+            shapes.push(Shape::Sine {
+                frequency: 3.0,
+                bipolar,
+            });
+            shapes.push(Shape::Triangle {
+                frequency: 3.0,
+                bipolar,
+            });
+            for base in [
+                FourierBase::Square,
+                FourierBase::Triangle,
+                FourierBase::Sine,
+            ] {
+                shapes.push(Shape::Fourier {
+                    base,
+                    frequency: 3.0,
+                    terms: 4,
+                    bipolar,
+                });
+            }
+        }
+        for shape in shapes {
+            let w = Waveform {
+                shape,
+                amplitude: 2e3,
+                offset: 50.0,
+                phase_deg: 20.0,
+            };
+            let at = |f: f64| {
+                let mut m = w.clone();
+                match &mut m.shape {
+                    Shape::Sine { frequency, .. }
+                    | Shape::Triangle { frequency, .. }
+                    | Shape::Fourier { frequency, .. } => *frequency = f,
+                    _ => unreachable!(),
+                }
+                m
+            };
+            for t in [0.011, 0.07, 0.23, 0.41, 0.95] {
+                let h = 3e-6;
+                let fd = (at(3.0 + h).value(t) - at(3.0 - h).value(t)) / (2.0 * h);
+                let d = w.derivative(t, WaveformScalar::Frequency);
+                assert!(d != 0.0, "{:?} at {t}", w.shape);
+                assert!(
+                    (fd - d).abs() <= 1e-6 * d.abs().max(w.amplitude * t),
+                    "{:?} at {t}: {d} against {fd}",
+                    w.shape
+                );
+            }
+        }
+        let step = Waveform::constant(2e3);
+        assert_eq!(step.derivative(0.3, WaveformScalar::Frequency), 0.0);
+    }
+
     /// ∂value/∂amplitude and ∂value/∂offset against differences of the value, for a periodic
     /// and a stepped signal.
     #[test]
@@ -265,7 +385,8 @@ mod tests {
         };
         for w in [square, step] {
             for t in [0.0, 0.13, 0.2, 0.45, 0.9] {
-                let d = w.derivatives(t);
+                let d = [WaveformScalar::Amplitude, WaveformScalar::Offset]
+                    .map(|which| w.derivative(t, which));
                 let moved = |da: f64, db: f64| Waveform {
                     amplitude: w.amplitude + da,
                     offset: w.offset + db,

@@ -172,7 +172,8 @@ fn unsupported_and_bad_input_is_refused() {
 
 /// The axisymmetric balloon (mean-dilatation kernel) charged, then inflated by a follower
 /// pressure in a static stage: the pressure's load stiffness makes the step Jacobian
-/// unsymmetric, and the adjoint solves with its transpose.
+/// unsymmetric, and the adjoint solves with its transpose; the pressure's value is one of the
+/// parameters.
 #[test]
 fn an_axisymmetric_balloon_under_a_follower_pressure() {
     let dir = tempfile::tempdir().unwrap();
@@ -192,6 +193,8 @@ path = "materials.elastomer.jm"
 path = "materials.elastomer.permittivity"
 [[parameters]]
 path = "electrodes.outside.voltage"
+[[parameters]]
+path = "loads.pressure.0.value"
 
 [[objective]]
 kind = "probe-final"
@@ -1011,6 +1014,48 @@ weight = 1e17
 }
 
 /// The checked gradient of a film scenario `text` whose second stage vibrates for 3 ms.
+/// A sine drive's frequency (and amplitude): the film charged by the sine's first millisecond
+/// in a static stage, then vibrating 3 ms under it, its charge's history against a target, with
+/// the voltage on the electrode and through a circuit (its source's frequency), both
+/// integrators. The stages are short so that the sine's phase 2πft moves little with the
+/// finite differences' step (their truncation error grows as (2πt·h)²).
+#[test]
+fn the_frequency_of_a_sine_drive() {
+    let dir = tempfile::tempdir().unwrap();
+    let (voltage, circuit) = (charged_then_sine(false), charged_then_sine(true));
+    let terms = r#"
+[[objective]]
+kind = "probe-misfit"
+probe = "charge"
+stage = "vibrate"
+target = 2e-9
+weight = 1e17
+"#;
+    let voltage = format!(
+        "{voltage}\n{terms}\n[[parameters]]\npath = \"electrodes.top.voltage.frequency\"\n\
+         [[parameters]]\npath = \"electrodes.top.voltage.amplitude\"\n"
+    );
+    let circuit = format!(
+        "{circuit}\n{terms}\n[[parameters]]\npath = \"electrodes.top.circuit.source.frequency\"\n"
+    );
+    for (drive, text) in [("voltage", &voltage), ("circuit", &circuit)] {
+        for integrator in ["midpoint", "newmark"] {
+            let r = checked_film_vibration(
+                text,
+                dir.path(),
+                1,
+                3e-3,
+                integrator,
+                &["stages.0.duration=1e-3".into()],
+            );
+            println!("{drive}, {integrator}: J = {:e}", r.objective);
+            assert!(r.parameters[0].gradient != 0.0);
+            assert_checked(&r, 1e-6);
+            assert_taylor_orders(&r);
+        }
+    }
+}
+
 fn charged_then_vibrating(text: &str, dir: &std::path::Path, integrator: &str) -> GradientReport {
     checked_film_vibration(text, dir, 1, 3e-3, integrator, &[])
 }

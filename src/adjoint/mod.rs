@@ -17,10 +17,10 @@
 //! elastic and viscoelastic materials (Maxwell branches, whose internal variables each step
 //! commits and the sweep carries back) with Kelvin–Voigt viscosity, rigid pads and a
 //! pre-stretch, instantaneous or timed ([`dynamic`] for the time steps), in the materials'
-//! parameters and viscosities, the electrodes' voltage amplitudes and offsets, the pads'
-//! masses, the pre-stretch, and the knots of controlled voltages ([`sink::ControlGradient`]);
-//! the objective terms of [`objective::Objective`]. Anything else is refused with a message
-//! that names it.
+//! parameters and viscosities, the electrodes' waveforms' amplitudes, offsets and frequencies,
+//! the follower pressures' values, the pads' masses, the pre-stretch, and the knots of
+//! controlled voltages ([`sink::ControlGradient`]); the objective terms of
+//! [`objective::Objective`]. Anything else is refused with a message that names it.
 
 pub mod binomial;
 pub mod charge;

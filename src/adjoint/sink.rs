@@ -176,7 +176,7 @@ impl<'a> Sink<'a> {
         }
         for (i, (_, p)) in self.parameters.iter().enumerate() {
             if let Parameter::Voltage {
-                electrode, offset, ..
+                electrode, scalar, ..
             } = p
             {
                 let on_it = self
@@ -185,7 +185,7 @@ impl<'a> Sink<'a> {
                     .iter()
                     .any(|e| &e.name == electrode && e.nodes == *nodes);
                 if on_it {
-                    self.grad[i] += a * waveform.derivatives(t)[usize::from(*offset)];
+                    self.grad[i] += a * waveform.derivative(t, *scalar);
                 }
             }
         }
@@ -211,14 +211,13 @@ impl<'a> Sink<'a> {
             control.add_at(t, a);
             return;
         }
-        let d = c.charge.derivatives(t);
         for (i, (_, p)) in self.parameters.iter().enumerate() {
             if let Parameter::Charge {
-                electrode, offset, ..
+                electrode, scalar, ..
             } = p
             {
                 if *electrode == e.name {
-                    self.grad[i] += a * d[usize::from(*offset)];
+                    self.grad[i] += a * c.charge.derivative(t, *scalar);
                 }
             }
         }
@@ -251,14 +250,13 @@ impl<'a> Sink<'a> {
             c.add_at(t, a);
             return;
         }
-        let d = drive.circuits[i].derivatives(t);
         for (k, (_, p)) in self.parameters.iter().enumerate() {
             if let Parameter::Voltage {
-                electrode, offset, ..
+                electrode, scalar, ..
             } = p
             {
                 if electrode == name {
-                    self.grad[k] += a * d[usize::from(*offset)];
+                    self.grad[k] += a * drive.circuits[i].derivative(t, *scalar);
                 }
             }
         }

@@ -304,7 +304,7 @@ fn prestretch_target(
         let node = d / FIELDS;
         for (i, (_, p)) in sink.parameters().iter().enumerate() {
             if let Parameter::Voltage {
-                electrode, offset, ..
+                electrode, scalar, ..
             } = p
             {
                 let held = plan
@@ -312,7 +312,7 @@ fn prestretch_target(
                     .iter()
                     .find(|el| &el.name == electrode && el.nodes.contains(&node));
                 if let Some(el) = held {
-                    sink.grad[i] += a * el.voltage.derivatives(0.0)[usize::from(*offset)];
+                    sink.grad[i] += a * el.voltage.derivative(0.0, *scalar);
                 }
             }
         }
@@ -367,7 +367,7 @@ fn static_stage(
     // at the stage's end
     for (i, (_, p)) in sink.parameters().iter().enumerate() {
         let Parameter::Voltage {
-            electrode, offset, ..
+            electrode, scalar, ..
         } = p
         else {
             continue;
@@ -380,7 +380,7 @@ fn static_stage(
         if !e.prescribed(false) || !st.drive.voltages.is_empty() || !stage.electrodes_on {
             continue;
         }
-        let dv = stage.waveform(&e.voltage).derivatives(st.duration)[usize::from(*offset)];
+        let dv = stage.waveform(&e.voltage).derivative(st.duration, *scalar);
         let held: f64 = e.nodes.iter().map(|&n| out.to[n * FIELDS + PHI]).sum();
         sink.grad[i] += dv * held;
     }
@@ -460,6 +460,13 @@ fn load_steps(
             let dead = problem.drive().dead_loads.at(step.load);
             let weights = free_weights(&problem.dofs, &lambda);
             sink.weights(&weights, dead);
+            // the pressures' values: −λᵀ ∂r/∂p
+            for (i, (_, p)) in sink.parameters().iter().enumerate() {
+                if let Parameter::Pressure { index, .. } = p {
+                    let forces = problem.pressure_forces(*index);
+                    sink.grad[i] -= forces.iter().zip(&weights).map(|(f, w)| f * w).sum::<f64>();
+                }
+            }
             // the drive's charges, +Q on their Gauss equations
             let t = step.load * st.duration;
             for (k, c) in st.drive.charges.iter().enumerate() {

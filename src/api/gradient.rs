@@ -403,7 +403,7 @@ impl Simulation {
             };
             for ((_, p), d) in parameters.iter().zip(derivatives.iter_mut()) {
                 if let crate::io::build::Parameter::Charge {
-                    electrode, offset, ..
+                    electrode, scalar, ..
                 } = p
                 {
                     // each knot starts at the charge's waveform
@@ -412,13 +412,13 @@ impl Simulation {
                             .knots
                             .iter()
                             .zip(&c.gradient)
-                            .map(|(k, g)| g * w.derivatives(k.0)[usize::from(*offset)])
+                            .map(|(k, g)| g * w.derivative(k.0, *scalar))
                             .sum::<f64>();
                     }
                 }
                 if let crate::io::build::Parameter::Voltage {
                     electrode,
-                    offset,
+                    scalar,
                     source: false,
                     ..
                 } = p
@@ -429,7 +429,7 @@ impl Simulation {
                             .knots
                             .iter()
                             .zip(&c.gradient)
-                            .map(|(k, g)| g * w.derivatives(k.0)[usize::from(*offset)])
+                            .map(|(k, g)| g * w.derivative(k.0, *scalar))
                             .sum::<f64>();
                     }
                 }

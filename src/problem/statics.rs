@@ -221,6 +221,22 @@ impl<'m> StaticProblem<'m> {
         f
     }
 
+    /// ∂r/∂p of pressure `i`'s value p at the current state and load factor, per dof (unscaled,
+    /// zero where the pressure does not act): its residual terms at 1 Pa, since they are linear
+    /// in p.
+    pub fn pressure_forces(&self, i: usize) -> Vec<f64> {
+        let mut out = vec![0.0; self.state.len()];
+        let fraction = self.pressure_fractions()[i];
+        if fraction != 0.0 {
+            let unit = crate::problem::pressure::Pressure {
+                value: 1.0,
+                ..self.model.pressures[i].clone()
+            };
+            crate::problem::pressure::add_pressure(&unit, fraction, &self.state, &mut out, None);
+        }
+        out
+    }
+
     /// Current load factor of the dead loads.
     pub fn load(&self) -> f64 {
         self.load

@@ -6,6 +6,7 @@
 use super::materials::build_material;
 use super::Ctx;
 use crate::io::scenario::{closest, InputError, Scenario, VoltageSpec};
+use crate::waveform::WaveformScalar;
 
 /// A material parameter named by a key path.
 #[derive(Debug, Clone, PartialEq)]
@@ -163,18 +164,18 @@ pub enum Parameter {
     /// An entry of a material's parameter vector θ.
     Material(ParameterKey),
     /// A scalar of an electrode's voltage (`source`: of its circuit's source): the waveform's
-    /// `amplitude` (a constant voltage is one) or its `offset`; V.
+    /// amplitude (V; a constant voltage is one), offset (V) or frequency (Hz).
     Voltage {
         electrode: String,
         source: bool,
-        offset: bool,
+        scalar: WaveformScalar,
         value: f64,
     },
-    /// The charge of a charge-controlled electrode (C): a constant charge, or its waveform's
-    /// amplitude (or `offset`).
+    /// The charge of a charge-controlled electrode: a constant charge (C), or its waveform's
+    /// amplitude, offset (C) or frequency (Hz).
     Charge {
         electrode: String,
-        offset: bool,
+        scalar: WaveformScalar,
         value: f64,
     },
     /// The series resistance of an electrode's circuit (Ω).
@@ -196,6 +197,8 @@ pub enum Parameter {
     },
     /// The pre-stretch λ.
     Prestretch { value: f64 },
+    /// The value (Pa) of a follower pressure, by its index in `loads.pressure`.
+    Pressure { index: usize, value: f64 },
 }
 
 impl Parameter {
@@ -209,16 +212,18 @@ impl Parameter {
             | Parameter::RigidMass { value, .. }
             | Parameter::Viscosity { value, .. }
             | Parameter::Density { value, .. }
-            | Parameter::Prestretch { value } => *value,
+            | Parameter::Prestretch { value }
+            | Parameter::Pressure { value, .. } => *value,
         }
     }
 }
 
 /// The differentiable parameter that `key` names in scenario `s` (from file `file`): a
-/// material's (see [`material_parameter`]), an electrode's voltage amplitude or offset, charge,
-/// or circuit source and resistance, a rigid pad's mass, or the pre-stretch. Any other key of the
-/// scenario (`mesh.divisions`, a waveform's frequency) is refused naming the key and what is
-/// differentiable; an unknown key gets the "did you mean" of the scenario's errors.
+/// material's (see [`material_parameter`]), an electrode's voltage amplitude, offset or frequency,
+/// charge, or circuit source and resistance, a pressure's value, a rigid pad's mass, or the
+/// pre-stretch. Any other key of the scenario (`mesh.divisions`, a square wave's frequency) is
+/// refused naming the key and what is differentiable; an unknown key gets the "did you mean" of
+/// the scenario's errors.
 pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, InputError> {
     let ctx = Ctx::plain(file);
     let parts: Vec<&str> = key.split('.').collect();
@@ -261,22 +266,32 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
     if let Some(unknown) = unknown_part(s, &parts) {
         return Err(ctx.err(key, unknown));
     }
-    let voltage = |electrode: &str, spec: &VoltageSpec, rest: &[&str], source: bool| {
-        let offset = match (spec, rest) {
-            (VoltageSpec::Constant(_), []) => false,
-            (VoltageSpec::Waveform(_), ["amplitude"]) => false,
-            (VoltageSpec::Waveform(_), ["offset"]) => true,
+    // a waveform's frequency where its values change smoothly with it: a square wave's jump
+    // from one step to another as its frequency moves, so its derivative is refused
+    let mut refused = None;
+    let mut voltage = |electrode: &str, spec: &VoltageSpec, rest: &[&str], source: bool| {
+        let (scalar, value) = match (spec, rest) {
+            (VoltageSpec::Constant(v), []) => (WaveformScalar::Amplitude, *v),
+            (VoltageSpec::Waveform(w), ["amplitude"]) => (WaveformScalar::Amplitude, w.amplitude),
+            (VoltageSpec::Waveform(w), ["offset"]) => (WaveformScalar::Offset, w.offset),
+            (VoltageSpec::Waveform(w), ["frequency"]) => {
+                let f = w.frequency?;
+                if w.waveform == "square" {
+                    refused = Some(
+                        "a square wave's values at the steps jump as its frequency moves: its \
+                         frequency has no derivative (a `sine`, `triangle` or `fourier` \
+                         waveform's has)",
+                    );
+                    return None;
+                }
+                (WaveformScalar::Frequency, f)
+            }
             _ => return None,
-        };
-        let value = match spec {
-            VoltageSpec::Constant(v) => *v,
-            VoltageSpec::Waveform(w) if offset => w.offset,
-            VoltageSpec::Waveform(w) => w.amplitude,
         };
         Some(Parameter::Voltage {
             electrode: electrode.to_string(),
             source,
-            offset,
+            scalar,
             value,
         })
     };
@@ -288,9 +303,9 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
                 e.charge
                     .as_ref()
                     .and_then(|spec| match voltage(name, spec, tail, false)? {
-                        Parameter::Voltage { offset, value, .. } => Some(Parameter::Charge {
+                        Parameter::Voltage { scalar, value, .. } => Some(Parameter::Charge {
                             electrode: name.to_string(),
-                            offset,
+                            scalar,
                             value,
                         }),
                         _ => None,
@@ -315,22 +330,32 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
                 })
             })
         }
+        ["loads", "pressure", index, "value"] => {
+            let pressures = s.loads.as_ref().map_or(&[][..], |l| l.pressure.as_slice());
+            index.parse::<usize>().ok().and_then(|i| {
+                let value = pressures.get(i)?.value?;
+                Some(Parameter::Pressure { index: i, value })
+            })
+        }
         ["prestretch", "stretch"] => s
             .prestretch
             .as_ref()
             .map(|p| Parameter::Prestretch { value: p.stretch }),
         _ => None,
     };
+    if let Some(why) = refused {
+        return Err(ctx.err(key, why));
+    }
     found.ok_or_else(|| {
         ctx.err(
             key,
             "not a differentiable parameter: expected a material's \
              (`materials.<name>.<parameter>`, `materials.<name>.viscosity`), an electrode's \
-             voltage amplitude or offset (`electrodes.<name>.voltage`, \
-             `electrodes.<name>.voltage.amplitude`, `electrodes.<name>.voltage.offset`, the \
-             same below `electrodes.<name>.circuit.source` and `electrodes.<name>.charge`), \
-             `electrodes.<name>.circuit.resistance`, `loads.rigid.<i>.mass` or \
-             `prestretch.stretch`",
+             voltage amplitude, offset or frequency (`electrodes.<name>.voltage`, \
+             `electrodes.<name>.voltage.amplitude`, `.offset`, `.frequency`, the same below \
+             `electrodes.<name>.circuit.source` and `electrodes.<name>.charge`), \
+             `electrodes.<name>.circuit.resistance`, `loads.pressure.<i>.value`, \
+             `loads.rigid.<i>.mass` or `prestretch.stretch`",
         )
     })
 }
@@ -573,7 +598,7 @@ mod tests {
             Parameter::Voltage {
                 electrode: "top".into(),
                 source: false,
-                offset: false,
+                scalar: WaveformScalar::Amplitude,
                 value: 20e3
             }
         );
@@ -632,5 +657,34 @@ mod tests {
         }
         let e = parameter(&film, FILE, "electrodes.top.voltage.amplitud").unwrap_err();
         assert!(e.to_string().contains("did you mean"), "{e}");
+        // a pressure's value; a smooth waveform's frequency, not a square wave's
+        let balloon = example("balloon");
+        assert_eq!(
+            p(&balloon, "loads.pressure.0.value"),
+            Parameter::Pressure {
+                index: 0,
+                value: balloon.loads.as_ref().unwrap().pressure[0].value.unwrap()
+            }
+        );
+        let e = parameter(&disc, FILE, "electrodes.top.voltage.frequency").unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("electrodes.top.voltage.frequency"));
+        assert!(e.to_string().contains("square wave"), "{e}");
+        let sine = parse(
+            &crate::io::examples::example("diaphragm")
+                .unwrap()
+                .replace("waveform = \"square\"", "waveform = \"sine\""),
+            FILE,
+            &[],
+        )
+        .unwrap();
+        assert_eq!(
+            p(&sine, "electrodes.top.voltage.frequency"),
+            Parameter::Voltage {
+                electrode: "top".into(),
+                source: false,
+                scalar: WaveformScalar::Frequency,
+                value: 2.0
+            }
+        );
     }
 }
