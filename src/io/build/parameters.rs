@@ -266,8 +266,8 @@ pub fn parameter(s: &Scenario, file: &str, key: &str) -> Result<Parameter, Input
     if let Some(unknown) = unknown_part(s, &parts) {
         return Err(ctx.err(key, unknown));
     }
-    // a waveform's frequency where its values change smoothly with it: a square wave's jump
-    // from one step to another as its frequency moves, so its derivative is refused
+    // a waveform's frequency where its values change smoothly with it: a square wave's values
+    // at the steps jump as its frequency moves, so its frequency is refused (with the reason)
     let mut refused = None;
     let mut voltage = |electrode: &str, spec: &VoltageSpec, rest: &[&str], source: bool| {
         let (scalar, value) = match (spec, rest) {
