@@ -966,6 +966,16 @@ weight = 1e-12
     }
 }
 
+/// The top electrode's charge over the vibration against 2 nC, the term of the tests below.
+const CHARGE_MISFIT: &str = r#"
+[[objective]]
+kind = "probe-misfit"
+probe = "charge"
+stage = "vibrate"
+target = 2e-9
+weight = 1e17
+"#;
+
 /// Terms on the top electrode's charge (Gauss's law at each step's state, the product with the
 /// tangent and the materials' parameter derivatives of the electrode's forces): its value at
 /// the end of a static stage that charges the film, and its misfit over the vibration that
@@ -974,7 +984,8 @@ weight = 1e-12
 fn terms_on_an_electrodes_charge() {
     let dir = tempfile::tempdir().unwrap();
     let (voltage, circuit) = (charged_then_sine(false), charged_then_sine(true));
-    let terms = r#"
+    let terms = format!(
+        r#"
 [[parameters]]
 path = "materials.elastomer.mu"
 [[parameters]]
@@ -988,14 +999,8 @@ probe = "charge"
 stage = "charge"
 target = 0.0
 weight = 1e17
-
-[[objective]]
-kind = "probe-misfit"
-probe = "charge"
-stage = "vibrate"
-target = 2e-9
-weight = 1e17
-"#;
+{CHARGE_MISFIT}"#
+    );
     let voltage = format!(
         "{voltage}\n{terms}\n[[parameters]]\npath = \"electrodes.top.voltage.amplitude\"\n"
     );
@@ -1023,14 +1028,7 @@ weight = 1e17
 fn the_frequency_of_a_sine_drive() {
     let dir = tempfile::tempdir().unwrap();
     let (voltage, circuit) = (charged_then_sine(false), charged_then_sine(true));
-    let terms = r#"
-[[objective]]
-kind = "probe-misfit"
-probe = "charge"
-stage = "vibrate"
-target = 2e-9
-weight = 1e17
-"#;
+    let terms = CHARGE_MISFIT;
     let voltage = format!(
         "{voltage}\n{terms}\n[[parameters]]\npath = \"electrodes.top.voltage.frequency\"\n\
          [[parameters]]\npath = \"electrodes.top.voltage.amplitude\"\n"
