@@ -5,4 +5,5 @@
 pub mod csr;
 pub mod exchange;
 pub mod lanes;
+pub mod spin;
 pub mod system;

@@ -23,6 +23,7 @@
 
 use crate::algebra::csr::{col, Col, CsrMatrix};
 use crate::algebra::exchange::SumOverProcesses;
+use crate::algebra::spin;
 use crate::element::{LocalMatrix, MAX_LOCAL};
 use crate::mesh::Mesh;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS};
@@ -51,7 +52,7 @@ const SERIAL_CHUNK: usize = 64;
 /// internal forces, the adjoint's cell products).
 pub fn map_cells<R: Send>(cells: &[usize], f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
     if cells.len() >= PARALLEL_MIN_CELLS && rayon::current_num_threads() > 1 {
-        cells.par_iter().map(|&c| f(c)).collect()
+        spin::map(cells.len(), |i| f(cells[i]))
     } else {
         cells.iter().map(|&c| f(c)).collect()
     }
@@ -711,20 +712,22 @@ impl Assembler {
         // per cell: its local residual, then its energy
         let stride = nl + 1;
         let mut buffer = vec![0.0; self.order.len() * stride];
-        let ok = buffer
-            .par_chunks_mut(stride)
-            .zip(self.order.par_iter())
-            .try_for_each(|(out, &c)| {
-                let mut local = [0.0; MAX_LOCAL];
-                for (a, &node) in mesh.cell(c).iter().enumerate() {
-                    local[a * FIELDS..(a + 1) * FIELDS]
-                        .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
+        let ok = spin::try_fill(&mut buffer, stride, |i, out| {
+            let c = self.order[i];
+            let mut local = [0.0; MAX_LOCAL];
+            for (a, &node) in mesh.cell(c).iter().enumerate() {
+                local[a * FIELDS..(a + 1) * FIELDS]
+                    .copy_from_slice(&state[node * FIELDS..(node + 1) * FIELDS]);
+            }
+            let (rl, energy) = out.split_at_mut(nl);
+            match kernel(c, &local[..nl], rl, None) {
+                Ok(e) => {
+                    energy[0] = e;
+                    true
                 }
-                let (rl, energy) = out.split_at_mut(nl);
-                energy[0] = kernel(c, &local[..nl], rl, None).map_err(|_| ())?;
-                Ok::<(), ()>(())
-            })
-            .is_ok();
+                Err(_) => false,
+            }
+        });
         if !ok {
             return false;
         }
