@@ -6,6 +6,7 @@
 //! has exactly as many negative pivots as free potential dofs. One more negative pivot means the
 //! mechanical part has lost stability (a limit point such as pull-in was passed).
 
+use super::supernodal;
 use crate::algebra::csr::CsrMatrix;
 use crate::algebra::system::DofLayout;
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -468,122 +469,10 @@ pub struct FaerLdlt {
     memory_limit: Option<usize>,
     /// Work vector of the sequential solve.
     work: Vec<f64>,
-}
-
-type SupernodalSymbolic =
-    faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky<u32>;
-
-/// Solves L D Lᵀ x = P b in place for one right-hand side with faer's supernodal factor `l`
-/// (per supernode a column-major block: the unit lower diagonal block, D on its diagonal, over the
-/// rows of its pattern) and the fill-reducing permutation `perm` (forward, inverse). faer's own
-/// solve does the same supernode by supernode through its general dense kernels, whose set-up
-/// outweighs the few hundred flops of a supernode of a small model. `work` holds the permuted
-/// vector and a supernode's pattern values.
-fn supernodal_ldlt_solve(
-    sn: &SupernodalSymbolic,
-    perm: Option<(&[u32], &[u32])>,
-    l: &[f64],
-    b: &mut [f64],
-    work: &mut Vec<f64>,
-) {
-    let n = b.len();
-    let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
-    let (row_ptr, val_ptr, rows) = (sn.col_ptr_for_row_idx(), sn.col_ptr_for_val(), sn.row_idx());
-    let n_super = sn.n_supernodes();
-    let u = |i: u32| i as usize;
-    let widest = (0..n_super)
-        .map(|s| u(row_ptr[s + 1]) - u(row_ptr[s]))
-        .max()
-        .unwrap_or(0);
-    work.clear();
-    work.resize(n + widest, 0.0);
-    let (x, tmp) = work.split_at_mut(n);
-    match perm {
-        Some((fwd, _)) => x.iter_mut().zip(fwd).for_each(|(xi, &f)| *xi = b[u(f)]),
-        None => x.copy_from_slice(b),
-    }
-    // L y = b: the diagonal block, then the update of the rows below, through `tmp`
-    for s in 0..n_super {
-        let (start, size) = (u(begin[s]), u(end[s]) - u(begin[s]));
-        let pattern = &rows[u(row_ptr[s])..u(row_ptr[s + 1])];
-        let m = pattern.len();
-        let ls = &l[u(val_ptr[s])..u(val_ptr[s + 1])];
-        let nrows = size + m;
-        for j in 0..size {
-            let xj = x[start + j];
-            let col = &ls[j * nrows..(j + 1) * nrows];
-            for i in j + 1..size {
-                x[start + i] -= col[i] * xj;
-            }
-        }
-        let tmp = &mut tmp[..m];
-        tmp.fill(0.0);
-        for j in 0..size {
-            let xj = x[start + j];
-            let col = &ls[j * nrows + size..(j + 1) * nrows];
-            for (t, &v) in tmp.iter_mut().zip(col) {
-                *t += v * xj;
-            }
-        }
-        for (&i, &t) in pattern.iter().zip(tmp.iter()) {
-            x[u(i)] -= t;
-        }
-    }
-    // D z = y
-    for s in 0..n_super {
-        let (start, size) = (u(begin[s]), u(end[s]) - u(begin[s]));
-        let nrows = size + (u(row_ptr[s + 1]) - u(row_ptr[s]));
-        let ls = &l[u(val_ptr[s])..u(val_ptr[s + 1])];
-        for j in 0..size {
-            x[start + j] *= ls[j * nrows + j].recip();
-        }
-    }
-    // Lᵀ x = z, supernodes in reverse
-    for s in (0..n_super).rev() {
-        let (start, size) = (u(begin[s]), u(end[s]) - u(begin[s]));
-        let pattern = &rows[u(row_ptr[s])..u(row_ptr[s + 1])];
-        let m = pattern.len();
-        let ls = &l[u(val_ptr[s])..u(val_ptr[s + 1])];
-        let nrows = size + m;
-        let tmp = &mut tmp[..m];
-        for (t, &i) in tmp.iter_mut().zip(pattern) {
-            *t = x[u(i)];
-        }
-        for j in 0..size {
-            let col = &ls[j * nrows + size..(j + 1) * nrows];
-            x[start + j] -= dot4(col, tmp);
-        }
-        for j in (0..size).rev() {
-            let col = &ls[j * nrows..(j + 1) * nrows];
-            let mut v = x[start + j];
-            for i in j + 1..size {
-                v -= col[i] * x[start + i];
-            }
-            x[start + j] = v;
-        }
-    }
-    match perm {
-        Some((_, inv)) => b.iter_mut().zip(inv).for_each(|(bi, &v)| *bi = x[u(v)]),
-        None => b.copy_from_slice(x),
-    }
-}
-
-/// Σ aᵢbᵢ with four partial sums (which the compiler keeps in vector registers).
-#[inline]
-fn dot4(a: &[f64], b: &[f64]) -> f64 {
-    let mut acc = [0.0; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let (ra, rb) = (ca.remainder(), cb.remainder());
-    for (x, y) in ca.zip(cb) {
-        for k in 0..4 {
-            acc[k] += x[k] * y[k];
-        }
-    }
-    let mut tail = 0.0;
-    for (x, y) in ra.iter().zip(rb) {
-        tail += x * y;
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+    /// The two parts of the elimination tree the sequential solve does side by side on two
+    /// threads (planned at the first solve after a symbolic analysis; `None` inside: none
+    /// worth it).
+    split: Option<Option<supernodal::Split>>,
 }
 
 /// The single-precision factor of [`FaerLdlt::single_precision`].
@@ -638,6 +527,7 @@ impl FaerLdlt {
             single: None,
             memory_limit: None,
             work: Vec::new(),
+            split: None,
         }
     }
 
@@ -796,6 +686,7 @@ impl LinearSolver for FaerLdlt {
                 .or(symbolic.solve_in_place_scratch::<f64>(1, self.par));
             self.mem = Some(MemBuffer::new(req));
             self.symbolic = Some(symbolic);
+            self.split = None;
         }
         let symbolic = self.symbolic.as_ref().expect("set above");
         let mem = self.mem.as_mut().expect("set above");
@@ -872,7 +763,11 @@ impl LinearSolver for FaerLdlt {
             {
                 if let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() {
                     let perm = symbolic.perm().map(|p| p.arrays());
-                    supernodal_ldlt_solve(sn, perm, &self.l_values, b, &mut self.work);
+                    let split = self
+                        .split
+                        .get_or_insert_with(|| supernodal::Split::plan(sn));
+                    let split = split.as_mut().filter(|_| rayon::current_num_threads() > 1);
+                    supernodal::solve(sn, perm, &self.l_values, b, &mut self.work, split);
                 }
             }
             None => {
@@ -971,12 +866,9 @@ mod tests {
         CsrMatrix::from_usize(n_rows, row_ptr, col_idx, values)
     }
 
-    /// The hand-written supernodal solve gives faer's solution with the same factor, up to
-    /// round-off, on a saddle-point matrix large enough for a supernodal factor: a 3-D grid
-    /// Laplacian (positive block) coupled to a negative one.
-    #[test]
-    fn supernodal_solve_matches_faer() {
-        let g = 9;
+    /// A saddle-point matrix with a supernodal factor: the Laplacian of a g × g × g grid
+    /// (positive block) coupled to a negative one.
+    fn grid_saddle(g: usize) -> CsrMatrix {
         let nodes = g * g * g;
         let n = 2 * nodes;
         let id = |x: usize, y: usize, z: usize| (x * g + y) * g + z;
@@ -1021,7 +913,22 @@ mod tests {
             values.extend(r.iter().map(|e| e.1));
             row_ptr.push(col_idx.len());
         }
-        let a = CsrMatrix::from_usize(n, row_ptr, col_idx, values);
+        let (mut row_ptr, mut col_idx, mut values) = (vec![0usize], Vec::new(), Vec::new());
+        for r in &mut rows {
+            r.sort_by_key(|e| e.0);
+            col_idx.extend(r.iter().map(|e| e.0));
+            values.extend(r.iter().map(|e| e.1));
+            row_ptr.push(col_idx.len());
+        }
+        CsrMatrix::from_usize(n, row_ptr, col_idx, values)
+    }
+
+    /// The hand-written supernodal solve gives faer's solution with the same factor, up to
+    /// round-off.
+    #[test]
+    fn supernodal_solve_matches_faer() {
+        let a = grid_saddle(9);
+        let n = a.n;
         let mut s = FaerLdlt::new();
         s.factor(&a).unwrap();
         assert_eq!(s.par, Par::Seq);
@@ -1051,6 +958,41 @@ mod tests {
         for (u, v) in ax.iter().zip(&b) {
             assert!((u - v).abs() <= 1e-12 * bmax);
         }
+    }
+
+    /// The solve with two parts of the tree side by side is the sequential solve, bit for bit.
+    #[test]
+    fn a_solve_split_in_two_parts_has_the_bits_of_the_sequential_one() {
+        let a = grid_saddle(14);
+        let n = a.n;
+        let mut s = FaerLdlt::new();
+        s.factor(&a).unwrap();
+        let symbolic = s.symbolic.as_ref().unwrap();
+        let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+            panic!("a supernodal factor expected");
+        };
+        let perm = symbolic.perm().map(|p| p.arrays());
+        let mut split = supernodal::Split::plan(sn).expect("two parts worth solving apart");
+        let b: Vec<f64> = (0..n).map(|i| (i as f64 * 0.91).cos() + 0.2).collect();
+        let (mut x1, mut x2) = (b.clone(), b.clone());
+        let mut work = Vec::new();
+        supernodal::solve(sn, perm, &s.l_values, &mut x1, &mut work, None);
+        for _ in 0..3 {
+            x2.copy_from_slice(&b);
+            supernodal::solve(sn, perm, &s.l_values, &mut x2, &mut work, Some(&mut split));
+            assert!(x1.iter().zip(&x2).all(|(u, v)| u.to_bits() == v.to_bits()));
+        }
+        let mut ax = vec![0.0; n];
+        a.mul_vec(&x1, &mut ax);
+        let bmax = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!(ax
+            .iter()
+            .zip(&b)
+            .all(|(u, v)| (u - v).abs() <= 1e-12 * bmax));
+        // the solver's own path, whatever the number of threads
+        let mut x3 = b.clone();
+        s.solve_in_place(&mut x3).unwrap();
+        assert!(x1.iter().zip(&x3).all(|(u, v)| u.to_bits() == v.to_bits()));
     }
 
     #[cfg(feature = "petsc")]

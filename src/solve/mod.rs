@@ -15,5 +15,6 @@ pub mod ordering;
 pub mod petsc;
 pub mod reused;
 pub mod stepping;
+pub mod supernodal;
 pub mod transposed;
 pub mod vector_state;
