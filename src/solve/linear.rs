@@ -467,9 +467,9 @@ pub struct FaerLdlt {
     single: Option<Single>,
     /// Largest factor (bytes) allowed; `None`: 80 % of the memory available.
     memory_limit: Option<usize>,
-    /// Work vector of the sequential solve.
+    /// Work vector of the supernodal solve.
     work: Vec<f64>,
-    /// The two parts of the elimination tree the sequential solve does side by side on two
+    /// The two parts of the elimination tree the supernodal solve does side by side on two
     /// threads (planned at the first solve after a symbolic analysis; `None` inside: none
     /// worth it).
     split: Option<Option<supernodal::Split>>,
@@ -758,9 +758,7 @@ impl LinearSolver for FaerLdlt {
         let n = b.len();
         self.stats.solves += 1;
         match &mut self.single {
-            None if self.par == Par::Seq
-                && matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) =>
-            {
+            None if matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) => {
                 if let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() {
                     let perm = symbolic.perm().map(|p| p.arrays());
                     let split = self
