@@ -9,9 +9,9 @@
 //! evaluated about seven eighths of the residual's cells). Here the calling thread works with
 //! helper threads that, after a region, wait for the next one busily for a short while
 //! ([`SPIN`], then [`YIELD`] of yielding) before they sleep, and the cells are handed out in
-//! small chunks from a shared counter, so a late helper takes fewer. No maintained crate we
-//! know of lets the thread that calls join the work and sets how long idle threads stay
-//! awake; this is the few lines that need.
+//! small chunks from a shared counter, so a late helper takes fewer. rayon, which the rest of
+//! the project uses, lets neither the calling thread take part nor idle threads stay awake
+//! longer; these few lines do both rather than a second thread-pool crate.
 //!
 //! The loop gives no order: callers write each index's result into its own slot and add them
 //! in index order afterwards, so the sums are the same bits on any number of threads. Called

@@ -28,7 +28,9 @@ use crate::element::{LocalMatrix, MAX_LOCAL};
 use crate::mesh::Mesh;
 use crate::problem::dofs::{DofMap, CONSTRAINED, FIELDS};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering as AtomicOrdering};
 use std::sync::Arc;
+use std::time::Instant;
 
 /// Below this many cells the assembly with the tangent, and [`map_cells`], run on the calling
 /// thread: handing cells to the pool costs more than evaluating them. On the hex8 film with 2 threads the
@@ -40,6 +42,62 @@ const PARALLEL_MIN_CELLS: usize = 128;
 /// the serial order. A cell of a nearly incompressible hex8 costs a few microseconds, so a few
 /// hundred cells outweigh the hand-off.
 const PARALLEL_MIN_RESIDUAL_CELLS: usize = 128;
+
+/// From this many cells up to [`PARALLEL_MIN_RESIDUAL_CELLS`] a residual may run on the caller and
+/// the helper threads of [`spin`] too, if it is faster there: the first [`TRIALS`] residuals of
+/// each kind are timed, alternately, and the faster kind taken from then on. Whether a small
+/// model gains depends on what a cell costs: the meridian cells of `diaphragm-visco` (Maxwell
+/// branches at every point) took 0.69 of the serial time in parallel, the 32 hex8 cells of
+/// `film-vibration` 1.2 of it. Either way the sums are the same bits.
+const SPIN_MIN_CELLS: usize = 16;
+
+/// Residuals of each kind (serial, parallel) timed before the choice.
+const TRIALS: u64 = 8;
+
+/// The faster way to a small model's residual, chosen by timing the first ones (see
+/// [`SPIN_MIN_CELLS`]).
+#[derive(Debug)]
+struct PathChoice {
+    /// Residuals asked for so far.
+    calls: AtomicU64,
+    /// The shortest time of each kind (ns): serial, parallel.
+    best: [AtomicU64; 2],
+}
+
+impl Default for PathChoice {
+    fn default() -> Self {
+        PathChoice {
+            calls: AtomicU64::new(0),
+            best: [AtomicU64::new(u64::MAX), AtomicU64::new(u64::MAX)],
+        }
+    }
+}
+
+impl Clone for PathChoice {
+    /// A copy chooses anew: it may assemble other systems.
+    fn clone(&self) -> Self {
+        PathChoice::default()
+    }
+}
+
+impl PathChoice {
+    /// Whether the next residual runs in parallel, and whether it is one of the timed trials.
+    fn next(&self) -> (bool, bool) {
+        let call = self.calls.fetch_add(1, AtomicOrdering::Relaxed);
+        if call < 2 * TRIALS {
+            (call % 2 == 1, true)
+        } else {
+            let best = |k: usize| self.best[k].load(AtomicOrdering::Relaxed);
+            (best(1) < best(0), false)
+        }
+    }
+
+    /// Takes the time of a trial.
+    fn record(&self, parallel: bool, start: Instant) {
+        let ns = u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        self.best[usize::from(parallel)].fetch_min(ns, AtomicOrdering::Relaxed);
+    }
+}
 
 /// The cells on tied nodes (a rigid pad's, which may be a third of a model's) are evaluated on
 /// the pool this many at a time into a buffer before being added in order: a bounded buffer
@@ -235,6 +293,8 @@ pub struct Assembler {
     /// Per equation: whether its tangent row takes this process's non-cell terms (`None`: all
     /// do, without a share).
     term_rows: Option<Arc<Vec<bool>>>,
+    /// Whether a small model's residual runs in parallel.
+    choice: PathChoice,
 }
 
 /// A pointer that may be shared between threads because the colouring guarantees that concurrent
@@ -409,6 +469,7 @@ impl Assembler {
             nodes_per_cell: npc,
             share,
             term_rows: terms.map(Arc::new),
+            choice: PathChoice::default(),
         }
     }
 
@@ -497,11 +558,17 @@ impl Assembler {
         r.iter_mut().for_each(|v| *v = 0.0);
         cell_energy.clear();
         cell_energy.resize(mesh.n_cells(), 0.0);
-        if k.is_none()
-            && self.order.len() >= PARALLEL_MIN_RESIDUAL_CELLS
-            && rayon::current_num_threads() > 1
-            && self.residual_in_parallel(mesh, dofs, state, &kernel, r, cell_energy)
-        {
+        let cells = self.order.len();
+        let (in_parallel, timed) = match (k.is_none(), rayon::current_num_threads() > 1) {
+            (true, true) if cells >= PARALLEL_MIN_RESIDUAL_CELLS => (true, false),
+            (true, true) if cells >= SPIN_MIN_CELLS => self.choice.next(),
+            _ => (false, false),
+        };
+        let start = Instant::now();
+        if in_parallel && self.residual_in_parallel(mesh, dofs, state, &kernel, r, cell_energy) {
+            if timed {
+                self.choice.record(true, start);
+            }
             return Ok(cell_energy.iter().sum());
         }
         let want_k = k.is_some();
@@ -656,6 +723,9 @@ impl Assembler {
             }
             for c in &self.serial {
                 body(&mut work, c)?;
+            }
+            if timed && !in_parallel {
+                self.choice.record(false, start);
             }
             return Ok(cell_energy.iter().sum());
         }
