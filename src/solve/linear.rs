@@ -911,13 +911,6 @@ mod tests {
             values.extend(r.iter().map(|e| e.1));
             row_ptr.push(col_idx.len());
         }
-        let (mut row_ptr, mut col_idx, mut values) = (vec![0usize], Vec::new(), Vec::new());
-        for r in &mut rows {
-            r.sort_by_key(|e| e.0);
-            col_idx.extend(r.iter().map(|e| e.0));
-            values.extend(r.iter().map(|e| e.1));
-            row_ptr.push(col_idx.len());
-        }
         CsrMatrix::from_usize(n, row_ptr, col_idx, values)
     }
 

@@ -15,8 +15,8 @@
 //! only them. Each part's sweep runs on its own thread; the updates a part makes to rows
 //! outside it (the separators above) are kept and subtracted afterwards, in the supernodes'
 //! order, with the rest of the tree; in the backward sweep the rest goes first and each part
-//! reads copies of the rows above it. Every value is then formed by the same operations in the
-//! same order as in the sweep on one thread: the solution is the same bits either way.
+//! then reads the rows above it, final by then. Every value is formed by the same operations
+//! in the same order as in the sweep on one thread: the solution is the same bits either way.
 
 use crate::algebra::spin;
 
@@ -39,7 +39,8 @@ struct Supernode<'a> {
     size: usize,
     /// Rows below the diagonal block, ascending.
     pattern: &'a [u32],
-    /// Column-major block over the diagonal block's and the pattern's rows.
+    /// Column-major block over the diagonal block's and the pattern's rows: L's unit lower
+    /// triangle with D on its diagonal, then L's rows of the pattern.
     values: &'a [f64],
 }
 
@@ -158,7 +159,7 @@ pub(crate) struct Split {
     tmp: [Vec<f64>; 2],
 }
 
-/// The part of a supernode in the rest of the tree.
+/// The part of a supernode that is in neither part (the rest of the tree).
 const NONE: usize = usize::MAX;
 
 impl Split {
