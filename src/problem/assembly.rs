@@ -959,6 +959,49 @@ mod tests {
         }
     }
 
+    /// Called from outside rayon's pool (the caller and the helpers of `spin`), a residual is
+    /// the same bits as on one thread: a model of 32 cells through its timed trials, serial and
+    /// parallel alternately, and after the choice; one of 256 cells, always in parallel.
+    #[test]
+    fn residuals_outside_the_pool_are_the_serial_bits() {
+        for (divisions, calls) in [([4, 4, 2], 2 * TRIALS as usize + 4), ([8, 8, 4], 4)] {
+            let mesh = box_mesh([1.0, 1.0, 0.5], divisions, ElementKind::Hex8);
+            let n = mesh.n_nodes();
+            let constrained: Vec<bool> = (0..n * FIELDS)
+                .map(|d| mesh.nodes[d / FIELDS][2] == 0.0)
+                .collect();
+            let dofs = DofMap::with_ties(n, &constrained, 3.0, &[]);
+            let asm = Assembler::new(&mesh, &dofs);
+            assert!(asm.order.len() >= SPIN_MIN_CELLS);
+            let state: Vec<f64> = (0..n * FIELDS)
+                .map(|d| ((d as f64 * 78.233).sin() * 43758.5453).fract())
+                .collect();
+            let kernel = |c: usize, local: &[f64], rl: &mut [f64], _: Option<&mut [f64]>| {
+                for (i, (r, x)) in rl.iter_mut().zip(local).enumerate() {
+                    *r = (c as f64 + 0.5).cos() * x * x + 0.3 * i as f64;
+                }
+                Ok::<f64, usize>(local.iter().sum::<f64>() * 1e-3)
+            };
+            let residual = || {
+                let (mut r, mut e) = (vec![0.0; dofs.n_free], Vec::new());
+                let total = asm
+                    .assemble(&mesh, &dofs, &state, kernel, &mut r, None, &mut e)
+                    .unwrap();
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                (bits(&r), bits(&e), total.to_bits())
+            };
+            let one = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap();
+            let serial = one.install(residual);
+            assert!(serial.0.iter().any(|&v| v != 0));
+            for _ in 0..calls {
+                assert!(residual() == serial);
+            }
+        }
+    }
+
     /// Processes that share the cells hold only their part of the pattern, and their parts of
     /// the tangent, each with the non-cell terms of its own rows, add up to the whole tangent
     /// with each such term once.
