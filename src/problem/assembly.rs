@@ -46,9 +46,10 @@ const PARALLEL_MIN_RESIDUAL_CELLS: usize = 128;
 /// From this many cells up to [`PARALLEL_MIN_RESIDUAL_CELLS`] a residual may run on the caller and
 /// the helper threads of [`spin`] too, if it is faster there: the first [`TRIALS`] residuals of
 /// each kind are timed, alternately, and the faster kind taken from then on. Whether a small
-/// model gains depends on what a cell costs: the meridian cells of `diaphragm-visco` (Maxwell
-/// branches at every point) took 0.69 of the serial time in parallel, the 32 hex8 cells of
-/// `film-vibration` 1.2 of it. Either way the sums are the same bits.
+/// model gains depends on what its cells cost against the hand-off (a few microseconds), so it
+/// is measured rather than guessed: `diaphragm-visco`'s meridian cells (Maxwell branches at
+/// every point) run in 0.70 of the time they took on the calling thread alone. Either way the
+/// sums are the same bits.
 const SPIN_MIN_CELLS: usize = 16;
 
 /// Residuals of each kind (serial, parallel) timed before the choice.
@@ -104,8 +105,9 @@ impl PathChoice {
 /// (0.5 MB for hex8 cells) that still gives each thread many cells.
 const SERIAL_CHUNK: usize = 64;
 
-/// `f` of each of `cells`, the results in their order: on the pool from [`PARALLEL_MIN_CELLS`]
-/// cells (when it has more than one thread), one by one below. A caller that adds the results
+/// `f` of each of `cells`, the results in their order: on the calling thread and the helpers of
+/// [`spin`] from [`PARALLEL_MIN_CELLS`] cells (when rayon has more than one thread), one by one
+/// below. A caller that adds the results
 /// in this order gets the same sums, bit for bit, on any number of threads (the record, the
 /// internal forces, the adjoint's cell products).
 pub fn map_cells<R: Send>(cells: &[usize], f: impl Fn(usize) -> R + Sync + Send) -> Vec<R> {
