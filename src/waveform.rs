@@ -182,18 +182,7 @@ impl Waveform {
                 bipolar,
             } => {
                 let w = 2.0 * PI * self.periodic_time(t, *frequency);
-                // d/dx of the unipolar series of `shape_value`
-                let mut du = 0.0;
-                for k in 0..*terms {
-                    let n = (2 * k + 1) as f64;
-                    du += match base {
-                        FourierBase::Square => 4.0 * (n * w).cos(),
-                        FourierBase::Triangle => 8.0 / (n * PI) * (n * w).sin(),
-                        FourierBase::Sine if k == 0 => PI * w.sin(),
-                        FourierBase::Sine => 0.0,
-                    };
-                }
-                bip(du, *bipolar)
+                bip(fourier_series(base, *terms, w).1, *bipolar)
             }
             _ => 0.0,
         };
@@ -256,25 +245,36 @@ impl Waveform {
                 terms,
                 bipolar,
             } => {
-                let x = self.periodic_time(t, *frequency);
-                let w = 2.0 * PI * x;
-                // unipolar 0..1 series (docs/lumped.md), bipolar = 2·unipolar − 1
-                let mut u = 0.5;
-                for k in 0..*terms {
-                    let n = (2 * k + 1) as f64;
-                    u += match base {
-                        FourierBase::Square => 2.0 / (n * PI) * (n * w).sin(),
-                        FourierBase::Triangle => -4.0 / (n * n * PI * PI) * (n * w).cos(),
-                        // the unipolar sine (1 − cos ωt)/2 is its own one-term series
-                        FourierBase::Sine if k == 0 => -0.5 * w.cos(),
-                        FourierBase::Sine => 0.0,
-                    };
-                }
-                bip(u, *bipolar)
+                let w = 2.0 * PI * self.periodic_time(t, *frequency);
+                // bipolar = 2·unipolar − 1
+                bip(fourier_series(base, *terms, w).0, *bipolar)
             }
             Shape::Table { points } => table_value(points, t),
         }
     }
+}
+
+/// The unipolar (0..1) Fourier series of `base` with `terms` odd harmonics (docs/lumped.md) at
+/// w = 2πx, x the period's fraction, and its derivative in x: each term's value and slope
+/// written side by side.
+fn fourier_series(base: &FourierBase, terms: usize, w: f64) -> (f64, f64) {
+    let (mut u, mut du) = (0.5, 0.0);
+    for k in 0..terms {
+        let n = (2 * k + 1) as f64;
+        let (v, dv) = match base {
+            FourierBase::Square => (2.0 / (n * PI) * (n * w).sin(), 4.0 * (n * w).cos()),
+            FourierBase::Triangle => (
+                -4.0 / (n * n * PI * PI) * (n * w).cos(),
+                8.0 / (n * PI) * (n * w).sin(),
+            ),
+            // the unipolar sine (1 − cos ωt)/2 is its own one-term series
+            FourierBase::Sine if k == 0 => (-0.5 * w.cos(), PI * w.sin()),
+            FourierBase::Sine => (0.0, 0.0),
+        };
+        u += v;
+        du += dv;
+    }
+    (u, du)
 }
 
 /// The piecewise-linear table through `points` (increasing in t) at `t`, held beyond its ends.
