@@ -103,6 +103,13 @@ pub trait NonlinearSystem {
     }
     /// For each unknown, its field group (0: displacement, 1: potential), for the printed table.
     fn groups(&self) -> Vec<u8>;
+    /// The largest change of an unknown for a difference of residuals that stands for the
+    /// tangent's product with a vector, (R(x + hv) − R(x))/h: small against the unknowns' own
+    /// scale, large enough that the residual's round-off does not swamp the difference;
+    /// `None` when the tangent must be assembled (the default).
+    fn difference_step(&self) -> Option<f64> {
+        None
+    }
     /// Whether this process assembles only its share of the cells (a distributed run): the
     /// tangent is then this process's part, which only a solver that sums the processes' parts
     /// can take ([`LinearSolver::sums_shared_entries`](crate::solve::linear::LinearSolver)).

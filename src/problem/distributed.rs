@@ -382,6 +382,9 @@ impl<S: NonlinearSystem> NonlinearSystem for Held<S> {
     fn groups(&self) -> Vec<u8> {
         either!(self, s => s.groups())
     }
+    fn difference_step(&self) -> Option<f64> {
+        either!(self, s => s.difference_step())
+    }
     fn shares_cells(&self) -> bool {
         either!(self, s => s.shares_cells())
     }

@@ -143,6 +143,21 @@ impl LinearSolver for AutoSolver {
         self.layout = Some(layout);
     }
 
+    fn accepts_products(&self, n: usize) -> bool {
+        self.iterative.is_none() && self.direct.accepts_products(n)
+    }
+
+    fn solve_with_products(
+        &mut self,
+        apply: &mut dyn FnMut(&[f64], &mut [f64]) -> bool,
+        b: &mut [f64],
+    ) -> Result<bool, LinearSolverError> {
+        match &mut self.iterative {
+            Some(_) => Ok(false),
+            None => self.direct.solve_with_products(apply, b),
+        }
+    }
+
     fn set_forcing(&mut self, rtol: Option<f64>) {
         self.forcing = rtol;
         self.direct.set_forcing(rtol);

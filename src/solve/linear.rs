@@ -129,6 +129,25 @@ pub trait LinearSolver: Send {
     fn reports_factor_points(&self) -> bool {
         false
     }
+    /// Whether [`LinearSolver::solve_with_products`] may solve systems of `n` unknowns (it
+    /// preconditions with a held factorisation and follows Newton's forcing term); Newton
+    /// then takes its steps from products and makes no chord steps.
+    fn accepts_products(&self, _n: usize) -> bool {
+        false
+    }
+    /// Solves A x = b in place with A given by its products alone, `apply(v, y)` setting
+    /// y = A v (false: the product could not be evaluated), to Newton's forcing term, where the
+    /// solver holds a factorisation of a nearby matrix to precondition a Krylov method with.
+    /// `Ok(false)` leaves `b` as it was: the solver holds no such factorisation, would renew
+    /// it, or its Krylov method did not converge; the caller then gives it the matrix
+    /// ([`LinearSolver::set_operator`]) and solves as usual.
+    fn solve_with_products(
+        &mut self,
+        _apply: &mut dyn FnMut(&[f64], &mut [f64]) -> bool,
+        _b: &mut [f64],
+    ) -> Result<bool, LinearSolverError> {
+        Ok(false)
+    }
 }
 
 /// The relative residual a Krylov solve stops at: its own tolerance `own`, or Newton's forcing
