@@ -247,7 +247,8 @@ pub struct SolverSpec {
     pub ordering: Option<String>,
     /// `auto`: the number of unknowns from which factorisations are reused (default 20 000).
     pub reuse_from: Option<i64>,
-    /// `auto`: the precision of reused factorisations, `double` (default) or `single`.
+    /// `auto`: the precision of reused factorisations, `auto` (default: single in static load
+    /// steps, double elsewhere), `double` or `single`.
     pub precision: Option<String>,
     /// PETSc options of the `petsc` solver, e.g. `"-ksp_type minres -pc_type jacobi"`.
     pub petsc_options: Option<String>,

@@ -66,7 +66,7 @@ pub fn solve_static_with(
 ) -> StaticOutcome {
     let mut problem = StaticProblem::new(model, initial);
     problem.set_drive(drive);
-    let mut solver = solver.build();
+    let mut solver = solver.build_for_load_steps();
     // a serial solver needs the whole tangent on every process
     if !solver.sums_shared_entries() {
         problem.assemble_every_cell();
@@ -142,7 +142,7 @@ pub fn solve_static_checked(
         problem.accept_resumed(position.load);
         position
     });
-    let mut solver = solver.build();
+    let mut solver = solver.build_for_load_steps();
     // the whole problem, or on a rank's part Newton on the rank's owned unknowns, the ranks
     // combining their parts (collective)
     let mut system = match Held::new(problem, part) {

@@ -278,8 +278,9 @@ pub struct SolverSettings {
     pub ordering: Ordering,
     /// `auto` reuses factorisations from this many unknowns on ([`REUSE_MIN_UNKNOWNS`]).
     pub reuse_from: usize,
-    /// `auto`: hold reused factorisations in single precision.
-    pub single_precision: bool,
+    /// `auto`: the precision of reused factorisations.
+    #[serde(default)]
+    pub precision: FactorPrecision,
     /// PETSc options (`-ksp_type minres -pc_type jacobi ...`) of the PETSc solver; empty for
     /// PETSc's defaults as deasim sets them (a direct MUMPS LDLᵀ).
     #[serde(default)]
@@ -305,6 +306,23 @@ pub struct SolverSettings {
     /// The matrix of the Newton iterations of implicit dynamic steps.
     #[serde(default)]
     pub jacobian: StepJacobian,
+}
+
+/// The precision in which `auto` holds the factorisations it reuses as preconditioners (from
+/// [`SolverSettings::reuse_from`] unknowns on; smaller systems are factored in double precision
+/// at every tangent either way).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum FactorPrecision {
+    /// Single precision for the load steps of static stages with adaptive solves, where
+    /// Newton's steps come from FGMRES on the tangent's products (the factor only
+    /// preconditions them); double precision for the other analyses, which solve many systems
+    /// with one factor.
+    #[default]
+    Auto,
+    /// Double precision everywhere.
+    Double,
+    /// Single precision everywhere: half the factor's memory; FGMRES restores the accuracy.
+    Single,
 }
 
 /// The matrix Newton iterates with in an implicit dynamic step.
@@ -354,7 +372,7 @@ impl Default for SolverSettings {
             kind: SolverKind::default(),
             ordering: Ordering::default(),
             reuse_from: REUSE_MIN_UNKNOWNS,
-            single_precision: false,
+            precision: FactorPrecision::default(),
             petsc_options: String::new(),
             rtol: default_rtol(),
             adaptive: default_adaptive(),
@@ -416,8 +434,17 @@ impl SolverSettings {
             SolverKind::Auto => format!(
                 "direct sparse LDLT, {ordering} ordering, reused as the preconditioner of FGMRES \
                  (auto: {unknowns} unknowns ≥ {}; refactored when the Krylov work \
-                 exceeds a factorisation, and at every stability test, whose inertia stays exact)",
-                self.reuse_from
+                 exceeds a factorisation, and at every stability test, whose inertia stays exact; \
+                 factors held in {})",
+                self.reuse_from,
+                match self.precision {
+                    FactorPrecision::Auto if self.adaptive => {
+                        "single precision in static load steps (Newton on the tangent's \
+                         products), double elsewhere"
+                    }
+                    FactorPrecision::Auto | FactorPrecision::Double => "double precision",
+                    FactorPrecision::Single => "single precision",
+                }
             ),
             #[cfg(feature = "petsc")]
             SolverKind::Petsc => {
@@ -576,6 +603,18 @@ impl FaerLdlt {
     pub fn single_precision(mut self) -> Self {
         self.single = Some(Single::default());
         self
+    }
+
+    /// Factors in single precision from the next factorisation on, or in double precision; a
+    /// change drops the factor and its symbolic analysis (which sizes the factor's storage).
+    pub fn set_single(&mut self, on: bool) {
+        if on != self.is_single() {
+            self.single = on.then(Single::default);
+            self.symbolic = None;
+            self.mem = None;
+            self.split = None;
+            self.factored = false;
+        }
     }
 
     /// Whether the factor is held in single precision.

@@ -64,6 +64,8 @@ pub struct ReusedLdlt {
     renew: bool,
     /// Below this many unknowns every operator is factored (no Krylov iterations).
     min_unknowns: usize,
+    /// Reused factorisations in single precision ([`ReusedLdlt::single_precision`]).
+    single: bool,
     /// Whether a Krylov solve stops at Newton's forcing term when that is looser.
     adaptive: bool,
     /// Newton's forcing term for the next solves.
@@ -89,6 +91,7 @@ impl ReusedLdlt {
             budget: 0,
             renew: false,
             min_unknowns: 0,
+            single: false,
             adaptive: false,
             forcing: None,
             stats: SolverStats::default(),
@@ -146,10 +149,13 @@ impl ReusedLdlt {
         self
     }
 
-    /// Holds the factorisation in single precision ([`FaerLdlt::single_precision`]); every solve
-    /// then runs FGMRES, which restores double-precision accuracy.
+    /// Holds the factorisations it reuses (of systems of at least
+    /// [`ReusedLdlt::from_unknowns`] unknowns) in single precision
+    /// ([`FaerLdlt::single_precision`]); every solve with them then runs FGMRES, which restores
+    /// double-precision accuracy. Smaller systems are still factored in double precision at
+    /// every operator and solved exactly.
     pub fn single_precision(mut self) -> Self {
-        self.direct = self.direct.single_precision();
+        self.single = true;
         self
     }
 
@@ -178,6 +184,8 @@ impl ReusedLdlt {
             self.symmetric_part()?;
         }
         let op = self.op.as_ref().ok_or(LinearSolverError::NotFactored)?;
+        self.direct
+            .set_single(self.single && op.n >= self.min_unknowns);
         let inertia = match (&self.symmetric, self.unsymmetric) {
             (Some(sym), true) => self.direct.factor(sym)?,
             _ => self.direct.factor(op)?,
@@ -438,6 +446,31 @@ mod tests {
         let mut x = b.to_vec();
         s.solve_in_place(&mut x).unwrap();
         x
+    }
+
+    /// Single precision applies to the factorisations it reuses only: a system below the
+    /// reuse threshold is factored in double precision and solved exactly, a larger one through
+    /// FGMRES on its single-precision factor, both to the solver's tolerance.
+    #[test]
+    fn single_precision_only_from_the_reuse_threshold_on() {
+        for (grid, single) in [(8, false), (12, true)] {
+            let a = laplacian(grid, 0.1);
+            let x: Vec<f64> = (0..a.n).map(|i| (i as f64 * 0.37).sin()).collect();
+            let mut b = vec![0.0; a.n];
+            a.mul_vec(&x, &mut b);
+            let mut s = ReusedLdlt::with_ordering(Ordering::default())
+                .from_unknowns(100)
+                .single_precision();
+            s.set_operator(&a).unwrap();
+            s.solve_in_place(&mut b).unwrap();
+            assert_eq!(s.direct.is_single(), single, "{} unknowns", a.n);
+            assert_eq!(s.stats().krylov_iterations > 0, single, "{} unknowns", a.n);
+            let error = b
+                .iter()
+                .zip(&x)
+                .fold(0.0f64, |m, (u, v)| m.max((u - v).abs()));
+            assert!(error < 1e-8, "{} unknowns: {error:e}", a.n);
+        }
     }
 
     #[test]

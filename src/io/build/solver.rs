@@ -2,7 +2,7 @@
 
 use super::Ctx;
 use crate::io::scenario::{InputError, Scenario};
-use crate::solve::linear::{Ordering, SolverKind, SolverSettings};
+use crate::solve::linear::{FactorPrecision, Ordering, SolverKind, SolverSettings};
 use crate::solve::newton::NewtonSettings;
 use crate::solve::stepping::StepControl;
 
@@ -200,7 +200,16 @@ pub(super) fn build_solver(ctx: &Ctx, s: &Scenario) -> Result<SolverSettings, In
                 "applies to kind = \"auto\" only (the direct kind factors in double precision)",
             ));
         }
-        out.single_precision = choice(ctx, "precision", p, [("double", false), ("single", true)])?;
+        out.precision = choice(
+            ctx,
+            "precision",
+            p,
+            [
+                ("auto", FactorPrecision::Auto),
+                ("double", FactorPrecision::Double),
+                ("single", FactorPrecision::Single),
+            ],
+        )?;
     }
     if let Some(j) = &spec.jacobian {
         let exact = choice(ctx, "jacobian", j, [("exact", true), ("symmetric", false)])?;
@@ -234,18 +243,24 @@ fn petsc(kind: SolverKind) -> bool {
     }
 }
 
-/// The setting of one of two named choices of `solver.<key>`, or an error listing them.
-fn choice(ctx: &Ctx, key: &str, value: &str, names: [(&str, bool); 2]) -> Result<bool, InputError> {
+/// The setting of one of the named choices of `solver.<key>`, or an error listing them.
+fn choice<T: Copy, const N: usize>(
+    ctx: &Ctx,
+    key: &str,
+    value: &str,
+    names: [(&str, T); N],
+) -> Result<T, InputError> {
     names
         .iter()
         .find(|(name, _)| *name == value)
         .map(|&(_, on)| on)
         .ok_or_else(|| {
+            let listed: Vec<&str> = names.iter().map(|(name, _)| *name).collect();
             ctx.err(
                 format!("solver.{key}"),
                 format!(
-                    "unknown {key} `{value}`; expected one of: {}, {}",
-                    names[0].0, names[1].0
+                    "unknown {key} `{value}`; expected one of: {}",
+                    listed.join(", ")
                 ),
             )
         })
@@ -325,21 +340,25 @@ mod tests {
     }
 
     #[test]
-    fn precision_double_or_single_for_auto_only() {
-        assert!(
-            solver("[solver]\nprecision = \"single\"")
-                .unwrap()
-                .single_precision
+    fn precision_auto_double_or_single_for_auto_only() {
+        let precision = |text: &str| solver(text).unwrap().precision;
+        assert_eq!(precision("[solver]"), FactorPrecision::Auto);
+        assert_eq!(
+            precision("[solver]\nprecision = \"auto\""),
+            FactorPrecision::Auto
         );
-        assert!(
-            !solver("[solver]\nprecision = \"double\"")
-                .unwrap()
-                .single_precision
+        assert_eq!(
+            precision("[solver]\nprecision = \"single\""),
+            FactorPrecision::Single
+        );
+        assert_eq!(
+            precision("[solver]\nprecision = \"double\""),
+            FactorPrecision::Double
         );
         assert_rejected(
             &[("solver", "[solver]\nprecision = \"half\"")],
             "solver.precision",
-            "unknown precision `half`; expected one of: double, single",
+            "unknown precision `half`; expected one of: auto, double, single",
         );
         assert_rejected(
             &[(
