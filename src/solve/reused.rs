@@ -14,7 +14,7 @@
 //! the factor, which are bound by memory traffic, in the Newton iterations that need little.
 //! Reference: Knoll & Keyes, J. Comput. Phys. 193 (2004) 357–397, §3 (preconditioner lagging).
 
-use super::krylov::{fgmres, KrylovSettings};
+use super::krylov::{fgmres, KrylovReport, KrylovSettings};
 use super::linear::{
     forced_tolerance, FaerLdlt, Inertia, LinearSolver, LinearSolverError, Ordering, SolverStats,
 };
@@ -206,36 +206,27 @@ impl ReusedLdlt {
         Ok(inertia)
     }
 
+    /// Adds a Krylov solve's iterations to the statistics and to the work since the factor.
+    fn count(&mut self, report: &KrylovReport) {
+        self.stats.krylov_iterations += report.iterations;
+        self.stats.krylov_decades += -report.relative_residual.max(1e-16).log10();
+        self.since_factor += report.iterations;
+    }
+
     /// FGMRES on the held operator, preconditioned by the held factorisation; `Ok(true)` with
     /// the solution in `b` when it converged (or came close enough for an inexact Newton step).
     fn krylov(&mut self, b: &mut [f64]) -> Result<bool, LinearSolverError> {
         let op = self.op.as_ref().ok_or(LinearSolverError::NotFactored)?;
         let rtol = forced_tolerance(KRYLOV_RTOL, self.adaptive, self.forcing);
-        let direct = &mut self.direct;
         let mut x = vec![0.0; b.len()];
-        let mut failed = None;
-        let report = fgmres(
+        let report = preconditioned(
+            &mut self.direct,
             |v, y| op.par_mul_vec(v, y),
-            |v, z| {
-                z.copy_from_slice(v);
-                if let Err(e) = direct.solve_in_place(z) {
-                    failed = Some(e);
-                }
-            },
             b,
             &mut x,
-            &KrylovSettings {
-                rtol,
-                max_iterations: MAX_ITERATIONS,
-                restart: MAX_ITERATIONS,
-            },
-        );
-        if let Some(e) = failed {
-            return Err(e);
-        }
-        self.stats.krylov_iterations += report.iterations;
-        self.stats.krylov_decades += -report.relative_residual.max(1e-16).log10();
-        self.since_factor += report.iterations;
+            rtol,
+        )?;
+        self.count(&report);
         if self.unsymmetric {
             if report.converged || report.relative_residual <= ACCEPTABLE_RTOL {
                 b.copy_from_slice(&x);
@@ -325,37 +316,17 @@ impl LinearSolver for ReusedLdlt {
             return Ok(false);
         }
         let rtol = forced_tolerance(KRYLOV_RTOL, self.adaptive, self.forcing).max(PRODUCTS_RTOL);
-        let direct = &mut self.direct;
         let mut x = vec![0.0; b.len()];
-        let (mut failed, mut unevaluated) = (None, false);
-        let report = fgmres(
-            |v, y| {
-                if unevaluated || !apply(v, y) {
-                    // no further useful product: a zero ends the Krylov iteration
-                    unevaluated = true;
-                    y.fill(0.0);
-                }
-            },
-            |v, z| {
-                z.copy_from_slice(v);
-                if let Err(e) = direct.solve_in_place(z) {
-                    failed = Some(e);
-                }
-            },
-            b,
-            &mut x,
-            &KrylovSettings {
-                rtol,
-                max_iterations: MAX_ITERATIONS,
-                restart: MAX_ITERATIONS,
-            },
-        );
-        if let Some(e) = failed {
-            return Err(e);
-        }
-        self.stats.krylov_iterations += report.iterations;
-        self.stats.krylov_decades += -report.relative_residual.max(1e-16).log10();
-        self.since_factor += report.iterations;
+        let mut unevaluated = false;
+        let products = |v: &[f64], y: &mut [f64]| {
+            if unevaluated || !apply(v, y) {
+                // no further useful product: a zero ends the Krylov iteration
+                unevaluated = true;
+                y.fill(0.0);
+            }
+        };
+        let report = preconditioned(&mut self.direct, products, b, &mut x, rtol)?;
+        self.count(&report);
         if unevaluated || !(report.converged || report.relative_residual <= ACCEPTABLE_RTOL) {
             self.renew = true;
             return Ok(false);
@@ -402,6 +373,38 @@ impl LinearSolver for ReusedLdlt {
             krylov_iterations: self.stats.krylov_iterations,
             krylov_decades: self.stats.krylov_decades,
         }
+    }
+}
+
+/// FGMRES on the products `apply` to `rtol`, preconditioned by the solves of `direct`, from
+/// x = 0 into `x`.
+fn preconditioned(
+    direct: &mut FaerLdlt,
+    apply: impl FnMut(&[f64], &mut [f64]),
+    b: &[f64],
+    x: &mut [f64],
+    rtol: f64,
+) -> Result<KrylovReport, LinearSolverError> {
+    let mut failed = None;
+    let report = fgmres(
+        apply,
+        |v, z| {
+            z.copy_from_slice(v);
+            if let Err(e) = direct.solve_in_place(z) {
+                failed = Some(e);
+            }
+        },
+        b,
+        x,
+        &KrylovSettings {
+            rtol,
+            max_iterations: MAX_ITERATIONS,
+            restart: MAX_ITERATIONS,
+        },
+    );
+    match failed {
+        Some(e) => Err(e),
+        None => Ok(report),
     }
 }
 
