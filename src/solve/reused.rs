@@ -504,6 +504,51 @@ mod tests {
         );
     }
 
+    /// A solve on products of a changed matrix, preconditioned by the held factor: to the
+    /// forcing term (no tighter than [`PRODUCTS_RTOL`]) without a new factorisation; when a
+    /// product cannot be evaluated it declines, leaves the right-hand side as it was, and the
+    /// next operator is factored.
+    #[test]
+    fn a_solve_on_products_follows_the_forcing_term_and_declines_when_a_product_fails() {
+        let n = 30;
+        let b: Vec<f64> = (0..n * n).map(|i| ((i * 13) % 7) as f64 - 3.0).collect();
+        let mut s = ReusedLdlt::with_ordering(Ordering::NestedDissection).adaptive(true);
+        s.factor(&laplacian(n, 0.0)).unwrap();
+        let changed = laplacian(n, 0.2);
+        for forcing in [1e-2, 1e-8] {
+            s.set_forcing(Some(forcing));
+            let mut x = b.clone();
+            let solved = s
+                .solve_with_products(
+                    &mut |v, y| {
+                        changed.mul_vec(v, y);
+                        true
+                    },
+                    &mut x,
+                )
+                .unwrap();
+            assert!(solved);
+            let mut r = vec![0.0; b.len()];
+            changed.mul_vec(&x, &mut r);
+            let residual = r.iter().zip(&b).map(|(u, v)| (u - v).powi(2)).sum::<f64>();
+            let size = b.iter().map(|v| v * v).sum::<f64>();
+            let relative = (residual / size).sqrt();
+            assert!(
+                relative <= forcing.max(PRODUCTS_RTOL),
+                "{forcing:e}: {relative:e}"
+            );
+            // a solve to the floor, not to 1e-8: the products carry a difference's round-off
+            assert!(relative > 1e-9, "{forcing:e}: {relative:e}");
+        }
+        assert_eq!(s.stats().factorizations, 1);
+        let mut x = b.clone();
+        let solved = s.solve_with_products(&mut |_, _| false, &mut x).unwrap();
+        assert!(!solved);
+        assert_eq!(x, b, "the right-hand side is left as it was");
+        s.set_operator(&changed).unwrap();
+        assert_eq!(s.stats().factorizations, 2, "renewed at the next operator");
+    }
+
     /// An adaptive solver stops a Krylov solve at a looser forcing term, with fewer iterations
     /// and a residual within it; a fixed one ignores the forcing term.
     #[test]
